@@ -1,0 +1,21 @@
+//! gravcal's `adjust` stage: observations to calibration functions by a Gauss-Helmert adjustment.
+//!
+//! Not built yet: issue #5 builds it. Until then [`run`] says so and fails, so that
+//! nothing downstream mistakes an empty folder for a result.
+
+use std::path::Path;
+
+/// What can go wrong in this stage.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The stage has not been implemented yet.
+    #[error("the adjust stage is not built yet (issue #5)")]
+    NotBuilt,
+}
+
+/// Runs the stage on `dataset`, writing under `out`.
+pub fn run(dataset: &Path, out: &Path) -> Result<(), Error> {
+    let _ = (dataset, out);
+    Err(Error::NotBuilt)
+}

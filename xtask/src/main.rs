@@ -1,0 +1,262 @@
+//! `cargo xtask`: runs the pipeline or one stage on a dataset, writes and checks the fixtures,
+//! runs what CI runs, and the benchmarks.
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode};
+
+#[derive(Parser)]
+#[command(name = "cargo xtask", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(clap::Args, Clone)]
+struct DatasetArgs {
+    /// Dataset folder (holding dataset.toml).
+    dataset: PathBuf,
+    /// Output folder (default: out/<dataset name> in the workspace).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Runs ingest, align, adjust and report in order.
+    Pipeline(DatasetArgs),
+    /// Raw logs to Parquet (OUT/ingest/).
+    Ingest(DatasetArgs),
+    /// Ingest tables to observations (OUT/align/).
+    Align(DatasetArgs),
+    /// Observations to calibration.json (OUT/adjust/).
+    Adjust(DatasetArgs),
+    /// Stage outputs to the report (OUT/report/).
+    Report(DatasetArgs),
+    /// Writes the committed fixture datasets, checks them, or writes a large benchmark log.
+    Fixtures {
+        /// Regenerate into a scratch folder and compare with what is committed; change nothing.
+        #[arg(long)]
+        check: bool,
+        /// Write a large benchmark log instead (never committed) into --out.
+        #[arg(long)]
+        bench: bool,
+        /// Benchmark sampling rate, Hz: 31.25 or 250.
+        #[arg(long, default_value_t = 31.25)]
+        rate: f64,
+        /// Benchmark logging time, hours.
+        #[arg(long, default_value_t = 8.0)]
+        hours: f64,
+        /// Where to write (default: the fixtures/ folder; for --bench, target/bench-data).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Runs what CI runs: fmt, clippy, the tests, the fixture check and the pipeline on every fixture.
+    Ci,
+    /// Benchmarks (speed and memory), measured, not asserted.
+    Bench {
+        /// Which stage: ingest, align or adjust.
+        what: Option<String>,
+    },
+}
+
+/// Exit code of a stage that is not built yet.
+const NOT_BUILT: u8 = 3;
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("xtask sits in the workspace")
+        .to_path_buf()
+}
+
+fn dataset_name(dataset: &Path) -> Result<String> {
+    let path = dataset.join("dataset.toml");
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let value: toml::Table =
+        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    value
+        .get("name")
+        .and_then(|v| v.as_str())
+        .map(str::to_owned)
+        .with_context(|| format!("{}: missing key `name`", path.display()))
+}
+
+fn out_dir(args: &DatasetArgs) -> Result<PathBuf> {
+    match &args.out {
+        Some(o) => Ok(o.clone()),
+        None => Ok(workspace_root()
+            .join("out")
+            .join(dataset_name(&args.dataset)?)),
+    }
+}
+
+/// Whether `e` is a stage saying it is not built yet.
+fn not_built(e: &anyhow::Error) -> bool {
+    e.downcast_ref::<ingest::Error>()
+        .is_some_and(|e| matches!(e, ingest::Error::NotBuilt))
+        || e.downcast_ref::<align::Error>()
+            .is_some_and(|e| matches!(e, align::Error::NotBuilt))
+        || e.downcast_ref::<adjust::Error>()
+            .is_some_and(|e| matches!(e, adjust::Error::NotBuilt))
+        || e.downcast_ref::<report::Error>()
+            .is_some_and(|e| matches!(e, report::Error::NotBuilt))
+}
+
+type Stage = fn(&Path, &Path) -> Result<()>;
+
+const STAGES: [(&str, Stage); 4] = [
+    ("ingest", |d, o| Ok(ingest::run(d, o)?)),
+    ("align", |d, o| Ok(align::run(d, o)?)),
+    ("adjust", |d, o| Ok(adjust::run(d, o)?)),
+    ("report", |d, o| Ok(report::run(d, o)?)),
+];
+
+fn run_stages(args: &DatasetArgs, which: &[&str]) -> Result<()> {
+    let out = out_dir(args)?;
+    for (name, stage) in STAGES.iter().filter(|(n, _)| which.contains(n)) {
+        stage(&args.dataset, &out)
+            .with_context(|| format!("{name} on {}", args.dataset.display()))?;
+    }
+    Ok(())
+}
+
+fn cargo(args: &[&str]) -> Result<()> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    eprintln!("$ cargo {}", args.join(" "));
+    let status = Command::new(&cargo)
+        .args(args)
+        .current_dir(workspace_root())
+        .status()
+        .with_context(|| format!("running cargo {}", args.join(" ")))?;
+    if !status.success() {
+        bail!("cargo {} failed ({status})", args.join(" "));
+    }
+    Ok(())
+}
+
+fn fixtures_check() -> Result<()> {
+    let scratch =
+        std::env::temp_dir().join(format!("gravcal-fixtures-check-{}", std::process::id()));
+    let diffs = fixtures::check(&fixtures::fixtures_dir(), &scratch);
+    let _ = std::fs::remove_dir_all(&scratch);
+    let diffs = diffs?;
+    if diffs.is_empty() {
+        eprintln!(
+            "fixtures: all {} committed datasets are exactly what the generator makes",
+            fixtures::catalog::COMMITTED.len()
+        );
+        Ok(())
+    } else {
+        for d in &diffs {
+            eprintln!("fixtures: {d}");
+        }
+        bail!(
+            "{} fixture files differ from the generator's output; run `cargo xtask fixtures`",
+            diffs.len()
+        )
+    }
+}
+
+fn ci() -> Result<()> {
+    cargo(&["fmt", "--all", "--", "--check"])?;
+    cargo(&[
+        "clippy",
+        "--workspace",
+        "--all-targets",
+        "--",
+        "-D",
+        "warnings",
+    ])?;
+    cargo(&["test", "--workspace"])?;
+    fixtures_check()?;
+    let scratch = std::env::temp_dir().join(format!("gravcal-ci-{}", std::process::id()));
+    let mut incomplete = Vec::new();
+    for name in fixtures::catalog::COMMITTED {
+        let args = DatasetArgs {
+            dataset: fixtures::dataset_dir(name),
+            out: Some(scratch.join(name)),
+        };
+        match run_stages(&args, &["ingest", "align", "adjust", "report"]) {
+            Ok(()) => eprintln!("pipeline on {name}: ok"),
+            Err(e) if not_built(&e) => {
+                eprintln!("pipeline on {name}: stopped early: {e:#}");
+                incomplete.push(name);
+            }
+            Err(e) => {
+                let _ = std::fs::remove_dir_all(&scratch);
+                return Err(e);
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&scratch);
+    if !incomplete.is_empty() {
+        eprintln!(
+            "ci: NOTE the pipeline did not run to the end on {} datasets because a stage is not built yet",
+            incomplete.len()
+        );
+    }
+    Ok(())
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.cmd {
+        Cmd::Pipeline(a) => run_stages(&a, &["ingest", "align", "adjust", "report"]),
+        Cmd::Ingest(a) => run_stages(&a, &["ingest"]),
+        Cmd::Align(a) => run_stages(&a, &["align"]),
+        Cmd::Adjust(a) => run_stages(&a, &["adjust"]),
+        Cmd::Report(a) => run_stages(&a, &["report"]),
+        Cmd::Fixtures {
+            check,
+            bench,
+            rate,
+            hours,
+            out,
+        } => {
+            if check {
+                return fixtures_check();
+            }
+            if bench {
+                let interval_ms = match rate {
+                    r if (r - 31.25).abs() < 1e-9 => 32,
+                    r if (r - 250.0).abs() < 1e-9 => 4,
+                    r => bail!("--rate {r}: the benchmark logs are at 31.25 or 250 Hz"),
+                };
+                let scenario = fixtures::catalog::bench(interval_ms, hours);
+                let root = out.unwrap_or_else(|| workspace_root().join("target/bench-data"));
+                let dir = root.join(&scenario.name);
+                fixtures::write::write_dataset(&scenario, &dir)?;
+                eprintln!("fixtures: wrote {}", dir.display());
+                return Ok(());
+            }
+            let root = out.unwrap_or_else(fixtures::fixtures_dir);
+            for name in fixtures::catalog::COMMITTED {
+                fixtures::generate(name, &root)?;
+                eprintln!("fixtures: wrote {}", root.join(name).display());
+            }
+            Ok(())
+        }
+        Cmd::Ci => ci(),
+        Cmd::Bench { what } => bail!(
+            "no benchmark is built yet ({}): they come with the stages they measure (issues #3-#5)",
+            what.as_deref().unwrap_or("all")
+        ),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if not_built(&e) => {
+            eprintln!("xtask: {e:#}");
+            ExitCode::from(NOT_BUILT)
+        }
+        Err(e) => {
+            eprintln!("xtask: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
