@@ -1,21 +1,334 @@
-//! gravcal's `ingest` stage: raw logs (binary .gcb or CSV, theodolite log) to Parquet tables with a ledger of every byte.
+//! gravcal's `ingest` stage: raw logs to Parquet tables, with every byte accounted for.
 //!
-//! Not built yet: issue #3 builds it. Until then [`run`] says so and fails, so that
-//! nothing downstream mistakes an empty folder for a result.
+//! Reads a dataset folder (FORMATS.md sections 2-5): the manifest, validated strictly; per
+//! session the binary acquisition log or the CSV pair, and the theodolite log. Writes, under
+//! `OUT/ingest/`, the raw streams as zstd Parquet tables in one time scale (GPS time, i64 ns
+//! since 1980-01-06; see [`schema`]) and `ingest.json`, the ledger: per input file its
+//! SHA-256, size, and what was read, accepted and rejected by reason ([`ledger`]).
+//!
+//! ```no_run
+//! let report = ingest::run_with(
+//!     std::path::Path::new("fixtures/esgt-2005"),
+//!     std::path::Path::new("out/esgt-2005"),
+//!     &ingest::Options::default(),
+//! )?;
+//! for f in &report.files {
+//!     println!("{}: {} {} read, {} accepted", f.path, f.read, f.unit, f.accepted);
+//! }
+//! # Ok::<(), ingest::Error>(())
+//! ```
 
-use std::path::Path;
+mod csvlog;
+mod error;
+pub mod gcb;
+pub mod ledger;
+mod lines;
+pub mod manifest;
+pub mod schema;
+mod streams;
+mod table;
+pub mod theodolite;
+pub mod time;
 
-/// What can go wrong in this stage.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum Error {
-    /// The stage has not been implemented yet.
-    #[error("the ingest stage is not built yet (issue #3)")]
-    NotBuilt,
+pub use error::{Error, Result};
+
+use ledger::FileLedger;
+use manifest::{Acquisition, Dataset};
+use serde::{Deserialize, Serialize};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use streams::StreamWriter;
+
+/// File name of the ledger.
+pub const LEDGER_FILE: &str = "ingest.json";
+/// Format tag of the ledger.
+pub const LEDGER_FORMAT: &str = "gravcal-ingest/1";
+
+/// How to ingest.
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    /// Count and list malformed text lines instead of failing on the first one.
+    pub skip_bad_lines: bool,
+    /// Show a progress bar (only when stderr is a terminal).
+    pub progress: bool,
 }
 
-/// Runs the stage on `dataset`, writing under `out`.
-pub fn run(dataset: &Path, out: &Path) -> Result<(), Error> {
-    let _ = (dataset, out);
-    Err(Error::NotBuilt)
+/// What a session gave.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SessionSummary {
+    /// Session id.
+    pub id: String,
+    /// Acceleration samples accepted.
+    pub acceleration_samples: u64,
+    /// Temperature samples accepted.
+    pub temperature_samples: u64,
+    /// Theodolite readings accepted.
+    pub readings: u64,
+    /// GPS time of the first accepted acceleration sample, ns.
+    pub first_gps_ns: Option<i64>,
+    /// GPS time of the last accepted acceleration sample, ns.
+    pub last_gps_ns: Option<i64>,
+    /// Channels (1..3) flagged not connected in every accepted acceleration sample.
+    pub channels_never_connected: Vec<u8>,
+}
+
+/// `ingest.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct IngestReport {
+    /// [`LEDGER_FORMAT`].
+    pub format: String,
+    /// Dataset name.
+    pub dataset: String,
+    /// Software and version.
+    pub software: String,
+    /// Per input file, in manifest order.
+    pub files: Vec<FileLedger>,
+    /// Per session.
+    pub sessions: Vec<SessionSummary>,
+    /// Rows written per table file.
+    pub tables: std::collections::BTreeMap<String, u64>,
+}
+
+impl IngestReport {
+    /// Reads `dir/ingest.json`.
+    pub fn load(dir: &Path) -> Result<Self> {
+        let path = dir.join(LEDGER_FILE);
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        serde_json::from_str(&text).map_err(|e| {
+            Error::io(
+                &path,
+                std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+            )
+        })
+    }
+}
+
+fn relative(ds: &Dataset, p: &Path) -> String {
+    p.strip_prefix(&ds.dir)
+        .unwrap_or(p)
+        .to_string_lossy()
+        .replace('\\', "/")
+}
+
+fn progress_bar(opts: &Options, path: &Path) -> indicatif::ProgressBar {
+    if !opts.progress || !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let len = std::fs::metadata(path).map_or(0, |m| m.len());
+    let pb = indicatif::ProgressBar::new(len);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg} {wide_bar} {bytes}/{total_bytes} {bytes_per_sec}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    pb.set_message(
+        path.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+    );
+    pb
+}
+
+fn new_ledger(ds: &Dataset, path: &Path, session: &str, role: &str, unit: &str) -> FileLedger {
+    FileLedger {
+        path: relative(ds, path),
+        session: session.to_owned(),
+        role: role.to_owned(),
+        unit: unit.to_owned(),
+        ..FileLedger::default()
+    }
+}
+
+fn read_binary(
+    path: &Path,
+    reference_week: i64,
+    streams: &mut StreamWriter,
+    ledger: &mut FileLedger,
+    progress: &indicatif::ProgressBar,
+) -> Result<()> {
+    let mut scanner = gcb::FrameScanner::new(reference_week);
+    // The scanner counts frames in `ledger`; values stored as null are counted in `values`.
+    let mut values = FileLedger::default();
+    let mut emit = |f: gcb::Frame| -> Result<()> {
+        match f {
+            gcb::Frame::Acceleration {
+                time_ns,
+                counts,
+                status,
+            } => streams.acceleration(time_ns, counts, status, &mut values),
+            gcb::Frame::Temperature {
+                time_ns,
+                millidegrees,
+                status,
+            } => streams.temperature(
+                time_ns,
+                millidegrees.map(|m| Some(f64::from(m) / 1000.0)),
+                status,
+                &mut values,
+            ),
+        }
+    };
+    let (sha, bytes) = lines::read_chunks(path, |chunk| {
+        progress.inc(chunk.len() as u64);
+        scanner.push(chunk, ledger, &mut emit)
+    })?;
+    scanner.finish(ledger, &mut emit)?;
+    ledger.null_values = values.null_values;
+    ledger.sha256 = sha;
+    ledger.bytes = bytes;
+    Ok(())
+}
+
+/// Ingests `dataset` into `out/ingest/` with default options.
+pub fn run(dataset: &Path, out: &Path) -> Result<IngestReport> {
+    run_with(dataset, out, &Options::default())
+}
+
+/// Ingests `dataset` into `out/ingest/`.
+pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestReport> {
+    let ds = Dataset::load(dataset)?;
+    let dir: PathBuf = out.join("ingest");
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    // A stale ledger must not vouch for tables this run may fail to replace.
+    let ledger_path = dir.join(LEDGER_FILE);
+    match std::fs::remove_file(&ledger_path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            return Err(Error::io(&ledger_path, e));
+        }
+        _ => {}
+    }
+    let mut streams = StreamWriter::create(&dir)?;
+    let mut theo = theodolite::TheodoliteWriter::create(&dir)?;
+    let mut files = Vec::new();
+    let mut sessions = Vec::new();
+    for s in &ds.sessions {
+        let id = s.session.id.as_str();
+        streams.start_session(id)?;
+        match &s.acquisition {
+            Acquisition::Binary(path) => {
+                let mut ledger = new_ledger(&ds, path, id, "acquisition", "frames");
+                let pb = progress_bar(opts, path);
+                read_binary(
+                    path,
+                    time::week_of_date(s.date),
+                    &mut streams,
+                    &mut ledger,
+                    &pb,
+                )?;
+                pb.finish_and_clear();
+                files.push(ledger);
+            }
+            Acquisition::Csv { adc, temperature } => {
+                for (path, kind, role) in [
+                    (adc, csvlog::CsvKind::Adc, "adc_csv"),
+                    (temperature, csvlog::CsvKind::Temperature, "temperature_csv"),
+                ] {
+                    let mut ledger = new_ledger(&ds, path, id, role, "lines");
+                    let pb = progress_bar(opts, path);
+                    csvlog::read_csv(
+                        path,
+                        kind,
+                        opts.skip_bad_lines,
+                        &mut streams,
+                        &mut ledger,
+                        &pb,
+                    )?;
+                    pb.finish_and_clear();
+                    files.push(ledger);
+                }
+            }
+        }
+        let mut ledger = new_ledger(&ds, &s.theodolite, id, "theodolite", "lines");
+        let readings = theodolite::read_theodolite(
+            s,
+            opts.skip_bad_lines,
+            &mut ledger,
+            &indicatif::ProgressBar::hidden(),
+        )?;
+        theo.write(
+            id,
+            s.session.theodolite_unit,
+            s.session.theodolite_time_scale,
+            &readings,
+        )?;
+        files.push(ledger);
+        let st = streams.stats();
+        sessions.push(SessionSummary {
+            id: id.to_owned(),
+            acceleration_samples: st.acceleration,
+            temperature_samples: st.temperature,
+            readings: readings.len() as u64,
+            first_gps_ns: st.first_gps_ns,
+            last_gps_ns: st.last_gps_ns,
+            channels_never_connected: (0..3u8)
+                .filter(|&ch| st.acceleration > 0 && !st.connected_seen[usize::from(ch)])
+                .map(|ch| ch + 1)
+                .collect(),
+        });
+    }
+    let (acc_rows, temp_rows) = streams.finish()?;
+    let theo_rows = theo.finish()?;
+    let report = IngestReport {
+        format: LEDGER_FORMAT.to_owned(),
+        dataset: ds.manifest.name.clone(),
+        software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
+        files,
+        sessions,
+        tables: [
+            (schema::acceleration::FILE.to_owned(), acc_rows),
+            (schema::temperature::FILE.to_owned(), temp_rows),
+            (schema::theodolite::FILE.to_owned(), theo_rows),
+        ]
+        .into_iter()
+        .collect(),
+    };
+    let json = serde_json::to_string_pretty(&report).expect("the ledger serialises");
+    let tmp = dir.join(format!(".{LEDGER_FILE}.partial"));
+    std::fs::write(&tmp, json + "\n").map_err(|e| Error::io(&tmp, e))?;
+    std::fs::rename(&tmp, &ledger_path).map_err(|e| Error::io(&ledger_path, e))?;
+    Ok(report)
+}
+
+/// Writes a few lines per file: what was read, accepted and rejected, and why.
+pub fn print_summary(report: &IngestReport, w: &mut impl std::io::Write) {
+    for f in &report.files {
+        let rejected: Vec<String> = f.rejected.iter().map(|(r, n)| format!("{n} {r}")).collect();
+        let _ = writeln!(
+            w,
+            "ingest: {}: {} {} read, {} accepted{}",
+            f.path,
+            f.read,
+            f.unit,
+            f.accepted,
+            if rejected.is_empty() {
+                String::new()
+            } else {
+                format!(", rejected: {}", rejected.join(", "))
+            }
+        );
+        if let Some(b) = &f.byte_ledger
+            && b.skipped_resynchronising > 0
+        {
+            {
+                let _ = writeln!(
+                    w,
+                    "ingest: {}: {} bytes skipped while resynchronising",
+                    f.path, b.skipped_resynchronising
+                );
+            }
+        }
+        for (what, n) in &f.null_values {
+            let _ = writeln!(w, "ingest: {}: {n} values null ({what})", f.path);
+        }
+    }
+    for s in &report.sessions {
+        for ch in &s.channels_never_connected {
+            let _ = writeln!(
+                w,
+                "ingest: session {}: channel {ch} is not connected in any sample",
+                s.id
+            );
+        }
+    }
 }

@@ -4,25 +4,34 @@ use clap::Parser;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// gravcal ingest: raw logs (binary .gcb or CSV, theodolite log) to Parquet tables with a ledger of every byte.
+/// gravcal ingest: raw logs (binary .gcb or CSV, theodolite log) to Parquet tables with a
+/// ledger of every byte, under OUT/ingest/.
 #[derive(Parser)]
 #[command(version)]
 struct Args {
     /// Dataset folder (holding dataset.toml).
     dataset: PathBuf,
-    /// Output folder (default: out/<dataset name>).
+    /// Output folder OUT (default: out/<dataset folder name>).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Count and list malformed text lines instead of stopping at the first one.
+    #[arg(long)]
+    skip_bad_lines: bool,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    let out = args.out.unwrap_or_else(|| PathBuf::from("out"));
-    match ingest::run(&args.dataset, &out) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e @ ingest::Error::NotBuilt) => {
-            eprintln!("gravcal-ingest: {e}");
-            ExitCode::from(3)
+    let out = args
+        .out
+        .unwrap_or_else(|| PathBuf::from("out").join(args.dataset.file_name().unwrap_or_default()));
+    let opts = ingest::Options {
+        skip_bad_lines: args.skip_bad_lines,
+        progress: true,
+    };
+    match ingest::run_with(&args.dataset, &out, &opts) {
+        Ok(report) => {
+            ingest::print_summary(&report, &mut std::io::stderr());
+            ExitCode::SUCCESS
         }
         Err(e) => {
             eprintln!("gravcal-ingest: error: {e}");

@@ -95,10 +95,8 @@ fn out_dir(args: &DatasetArgs) -> Result<PathBuf> {
 
 /// Whether `e` is a stage saying it is not built yet.
 fn not_built(e: &anyhow::Error) -> bool {
-    e.downcast_ref::<ingest::Error>()
-        .is_some_and(|e| matches!(e, ingest::Error::NotBuilt))
-        || e.downcast_ref::<align::Error>()
-            .is_some_and(|e| matches!(e, align::Error::NotBuilt))
+    e.downcast_ref::<align::Error>()
+        .is_some_and(|e| matches!(e, align::Error::NotBuilt))
         || e.downcast_ref::<adjust::Error>()
             .is_some_and(|e| matches!(e, adjust::Error::NotBuilt))
         || e.downcast_ref::<report::Error>()
@@ -108,7 +106,15 @@ fn not_built(e: &anyhow::Error) -> bool {
 type Stage = fn(&Path, &Path) -> Result<()>;
 
 const STAGES: [(&str, Stage); 4] = [
-    ("ingest", |d, o| Ok(ingest::run(d, o)?)),
+    ("ingest", |d, o| {
+        let opts = ingest::Options {
+            skip_bad_lines: false,
+            progress: true,
+        };
+        let report = ingest::run_with(d, o, &opts)?;
+        ingest::print_summary(&report, &mut std::io::stderr());
+        Ok(())
+    }),
     ("align", |d, o| Ok(align::run(d, o)?)),
     ("adjust", |d, o| Ok(adjust::run(d, o)?)),
     ("report", |d, o| Ok(report::run(d, o)?)),

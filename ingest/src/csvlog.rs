@@ -1,0 +1,371 @@
+//! Reader of the text acquisition logs (FORMATS.md section 4): the ADC CSV and the
+//! temperature CSV, GPS time with the full week.
+//!
+//! A malformed line is an error naming the file, line and field, unless the user asked to
+//! skip bad lines: then it is counted and listed. The CSV has no status column: an empty
+//! field is a channel not connected, and a count at either end of the 24-bit range is taken
+//! as over range (saturated).
+
+use crate::error::{Error, Result};
+use crate::ledger::{FileLedger, reason};
+use crate::lines::{read_lines, strip_comment};
+use crate::streams::{StreamWriter, not_connected_bit, over_range_bit};
+use crate::time::NS_PER_WEEK;
+use std::path::Path;
+
+const COUNT_MIN: i64 = -8_388_608;
+const COUNT_MAX: i64 = 8_388_607;
+
+/// Which of the two CSV logs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CsvKind {
+    /// `gps_week,tow_s,c1,c2,c3`.
+    Adc,
+    /// `gps_week,tow_s,t1,t2,t3`.
+    Temperature,
+}
+
+impl CsvKind {
+    fn header(self) -> [&'static str; 5] {
+        match self {
+            CsvKind::Adc => ["gps_week", "tow_s", "c1", "c2", "c3"],
+            CsvKind::Temperature => ["gps_week", "tow_s", "t1", "t2", "t3"],
+        }
+    }
+}
+
+struct Bad {
+    field: &'static str,
+    message: String,
+}
+
+fn bad(field: &'static str, message: impl Into<String>) -> Bad {
+    Bad {
+        field,
+        message: message.into(),
+    }
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// Parses a decimal `seconds[.fraction]` (up to 9 decimals) into exact nanoseconds.
+fn parse_tow_ns(b: &[u8]) -> Option<i64> {
+    let (int, frac) = match b.iter().position(|&c| c == b'.') {
+        Some(i) => (&b[..i], &b[i + 1..]),
+        None => (b, &b[..0]),
+    };
+    if int.is_empty()
+        || int.len() > 6
+        || frac.len() > 9
+        || !int.iter().chain(frac).all(u8::is_ascii_digit)
+    {
+        return None;
+    }
+    if b.last() == Some(&b'.') {
+        return None;
+    }
+    let mut s: i64 = 0;
+    for &d in int {
+        s = s * 10 + i64::from(d - b'0');
+    }
+    let mut ns: i64 = 0;
+    for i in 0..9 {
+        ns = ns * 10 + frac.get(i).map_or(0, |&d| i64::from(d - b'0'));
+    }
+    Some(s * 1_000_000_000 + ns)
+}
+
+fn parse_int(b: &[u8]) -> Option<i64> {
+    let (neg, digits) = match b.first() {
+        Some(b'-') => (true, &b[1..]),
+        Some(b'+') => (false, &b[1..]),
+        _ => (false, b),
+    };
+    if digits.is_empty() || digits.len() > 12 || !digits.iter().all(u8::is_ascii_digit) {
+        return None;
+    }
+    let v = digits
+        .iter()
+        .fold(0i64, |acc, &d| acc * 10 + i64::from(d - b'0'));
+    Some(if neg { -v } else { v })
+}
+
+enum Row {
+    Adc {
+        time_ns: i64,
+        counts: [i32; 3],
+        status: u8,
+    },
+    Temperature {
+        time_ns: i64,
+        celsius: [Option<f64>; 3],
+        status: u8,
+    },
+}
+
+fn parse_row(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
+    let names = kind.header();
+    let mut fields = [&line[..0]; 5];
+    let mut n = 0;
+    for f in line.split(|&c| c == b',') {
+        if n == 5 {
+            return Err(bad(
+                "line",
+                format!("more than 5 fields in `{}`", text(line)),
+            ));
+        }
+        fields[n] = f.trim_ascii();
+        n += 1;
+    }
+    if n < 5 {
+        return Err(bad(
+            "line",
+            format!("{n} fields, expected 5 ({})", names.join(",")),
+        ));
+    }
+    let week = parse_int(fields[0])
+        .filter(|w| (0..100_000).contains(w))
+        .ok_or_else(|| {
+            bad(
+                "gps_week",
+                format!("`{}` is not a GPS week number", text(fields[0])),
+            )
+        })?;
+    let tow = parse_tow_ns(fields[1])
+        .filter(|&t| t < NS_PER_WEEK)
+        .ok_or_else(|| {
+            bad(
+                "tow_s",
+                format!(
+                    "`{}` is not a time of week in seconds [0, 604800)",
+                    text(fields[1])
+                ),
+            )
+        })?;
+    let time_ns = week * NS_PER_WEEK + tow;
+    let mut status = 0u8;
+    match kind {
+        CsvKind::Adc => {
+            let mut counts = [0i32; 3];
+            for ch in 0..3 {
+                let f = fields[2 + ch];
+                if f.is_empty() {
+                    status |= not_connected_bit(ch);
+                    continue;
+                }
+                let v = parse_int(f).ok_or_else(|| {
+                    bad(
+                        names[2 + ch],
+                        format!("`{}` is not an integer count", text(f)),
+                    )
+                })?;
+                if !(COUNT_MIN..=COUNT_MAX).contains(&v) {
+                    return Err(bad(
+                        names[2 + ch],
+                        format!("{v} is outside the 24-bit range"),
+                    ));
+                }
+                if v == COUNT_MIN || v == COUNT_MAX {
+                    status |= over_range_bit(ch);
+                }
+                counts[ch] = v as i32;
+            }
+            Ok(Row::Adc {
+                time_ns,
+                counts,
+                status,
+            })
+        }
+        CsvKind::Temperature => {
+            let mut celsius = [None; 3];
+            for ch in 0..3 {
+                let f = fields[2 + ch];
+                if f.is_empty() {
+                    status |= not_connected_bit(ch);
+                    continue;
+                }
+                let v: f64 = std::str::from_utf8(f)
+                    .ok()
+                    .and_then(|s| s.parse().ok())
+                    .filter(|v: &f64| v.is_finite() && (-100.0..=200.0).contains(v))
+                    .ok_or_else(|| {
+                        bad(
+                            names[2 + ch],
+                            format!("`{}` is not a temperature in degC", text(f)),
+                        )
+                    })?;
+                celsius[ch] = Some(v);
+            }
+            Ok(Row::Temperature {
+                time_ns,
+                celsius,
+                status,
+            })
+        }
+    }
+}
+
+/// Reads one CSV log of `kind` into `streams`, filling in `ledger`.
+pub fn read_csv(
+    path: &Path,
+    kind: CsvKind,
+    skip_bad_lines: bool,
+    streams: &mut StreamWriter,
+    ledger: &mut FileLedger,
+    progress: &indicatif::ProgressBar,
+) -> Result<()> {
+    let mut header_seen = false;
+    let mut other_lines = 0u64;
+    let mut last: Option<i64> = None;
+    let names = kind.header();
+    let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
+        let line = strip_comment(raw);
+        if line.is_empty() {
+            other_lines += 1;
+            return Ok(());
+        }
+        if !header_seen {
+            let got: Vec<&[u8]> = line.split(|&c| c == b',').map(<[u8]>::trim_ascii).collect();
+            if got.len() != 5 || got.iter().zip(names).any(|(g, n)| *g != n.as_bytes()) {
+                return Err(Error::Line {
+                    path: path.to_path_buf(),
+                    line: line_no,
+                    field: "header".to_owned(),
+                    message: format!("`{}`, expected `{}`", text(line), names.join(",")),
+                });
+            }
+            header_seen = true;
+            other_lines += 1;
+            return Ok(());
+        }
+        let row = match parse_row(kind, line) {
+            Ok(r) => r,
+            Err(b) if skip_bad_lines => {
+                ledger.reject(
+                    format!("line {line_no}"),
+                    reason::MALFORMED,
+                    format!("{}: {}", b.field, b.message),
+                );
+                return Ok(());
+            }
+            Err(b) => {
+                return Err(Error::Line {
+                    path: path.to_path_buf(),
+                    line: line_no,
+                    field: b.field.to_owned(),
+                    message: b.message,
+                });
+            }
+        };
+        let time_ns = match &row {
+            Row::Adc { time_ns, .. } | Row::Temperature { time_ns, .. } => *time_ns,
+        };
+        if let Some(prev) = last {
+            if time_ns == prev {
+                ledger.reject(
+                    format!("line {line_no}"),
+                    reason::DUPLICATE,
+                    "same time as the line before".to_owned(),
+                );
+                return Ok(());
+            }
+            if time_ns < prev {
+                ledger.reject(
+                    format!("line {line_no}"),
+                    reason::TIME_BACKWARDS,
+                    format!("{} ns before the line accepted before it", prev - time_ns),
+                );
+                return Ok(());
+            }
+        }
+        last = Some(time_ns);
+        match row {
+            Row::Adc {
+                time_ns,
+                counts,
+                status,
+            } => {
+                ledger.accept("acceleration");
+                streams.acceleration(time_ns, counts, status, ledger)
+            }
+            Row::Temperature {
+                time_ns,
+                celsius,
+                status,
+            } => {
+                ledger.accept("temperature");
+                streams.temperature(time_ns, celsius, status, ledger)
+            }
+        }
+    })?;
+    if !header_seen {
+        return Err(Error::Line {
+            path: path.to_path_buf(),
+            line: 1,
+            field: "header".to_owned(),
+            message: format!("no header line `{}`", names.join(",")),
+        });
+    }
+    ledger.sha256 = sha;
+    ledger.bytes = bytes;
+    ledger.comment_blank_or_header_lines = Some(other_lines);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tow_is_exact() {
+        assert_eq!(parse_tow_ns(b"295200.032"), Some(295_200_032_000_000));
+        assert_eq!(parse_tow_ns(b"7"), Some(7_000_000_000));
+        assert_eq!(parse_tow_ns(b"0.000000001"), Some(1));
+        for bad in [
+            &b""[..],
+            b"1.",
+            b".5",
+            b"1e3",
+            b"-1",
+            b"1.0000000001",
+            b"12a",
+        ] {
+            assert_eq!(parse_tow_ns(bad), None, "{}", text(bad));
+        }
+    }
+
+    #[test]
+    fn rows_parse_and_fail_by_field() {
+        match parse_row(CsvKind::Adc, b"1308,295200.032,1534211,,-8388608") {
+            Ok(Row::Adc {
+                time_ns,
+                counts,
+                status,
+            }) => {
+                assert_eq!(time_ns, 1308 * NS_PER_WEEK + 295_200_032_000_000);
+                assert_eq!(counts[0], 1_534_211);
+                assert_eq!(status, not_connected_bit(1) | over_range_bit(2));
+            }
+            _ => panic!("row should parse"),
+        }
+        for (line, field) in [
+            (&b"1308,295200.032,1,2"[..], "line"),
+            (b"1308,295200.032,1,2,3,4", "line"),
+            (b"x,295200.032,1,2,3", "gps_week"),
+            (b"1308,604800,1,2,3", "tow_s"),
+            (b"1308,1.0,1,2.5,3", "c2"),
+            (b"1308,1.0,1,2,8388608", "c3"),
+        ] {
+            match parse_row(CsvKind::Adc, line) {
+                Err(b) => assert_eq!(b.field, field, "{}", text(line)),
+                Ok(_) => panic!("{} should not parse", text(line)),
+            }
+        }
+        assert!(matches!(
+            parse_row(CsvKind::Temperature, b"1308,1.0,24.812,,nan"),
+            Err(Bad { field: "t3", .. })
+        ));
+    }
+}

@@ -1,0 +1,68 @@
+//! The ingest stage's error type: bad input (named by file, line or byte offset, and field)
+//! kept apart from I/O failures and bugs.
+
+use std::path::PathBuf;
+
+/// What can go wrong while ingesting a dataset.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The manifest is not valid: `key` names the offending key (e.g. `session[1].date`).
+    #[error("{}: {key}: {message}", path.display())]
+    Manifest {
+        /// The manifest file.
+        path: PathBuf,
+        /// The key, as a path into the manifest.
+        key: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// A line of a text log does not parse.
+    #[error("{}:{line}: {field}: {message}", path.display())]
+    Line {
+        /// The log file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: u64,
+        /// The field (column name) that is wrong, or `line` for the whole line.
+        field: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// Writing a Parquet table failed.
+    #[error("{}: {source}", path.display())]
+    Parquet {
+        /// The table being written.
+        path: PathBuf,
+        /// The underlying error.
+        source: parquet::errors::ParquetError,
+    },
+    /// Building an Arrow batch failed (a bug: the batches are built to their schema).
+    #[error("building an Arrow batch for {table}: {source}")]
+    Arrow {
+        /// The table.
+        table: &'static str,
+        /// The underlying error.
+        source: arrow::error::ArrowError,
+    },
+}
+
+impl Error {
+    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}
+
+/// Result with this crate's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,441 @@
+//! Reader of the binary acquisition log (`.gcb`, FORMATS.md section 3).
+//!
+//! Streaming: bytes arrive in chunks of any size ([`FrameScanner::push`]); a frame split
+//! across chunks is completed from the next one. Damage is resynchronised over, counted and
+//! listed: a candidate frame that fails (wrong length, bad CRC, unknown type) is rejected and
+//! the search for the next sync word restarts one byte after its start, so the bytes of a
+//! damaged frame and any junk count as skipped. Well-formed frames that cannot be used
+//! (duplicate, time going backwards, reserved status bits, time of week out of range, count
+//! out of the 24-bit range) are rejected whole. It never panics on any byte sequence.
+
+use crate::ledger::{ByteLedger, FileLedger, reason};
+use crate::time::{NS_PER_MS, NS_PER_WEEK, resolve_week};
+
+/// Frame sync word.
+pub const SYNC: [u8; 2] = [0xA5, 0x5A];
+/// Payload length in version 1.
+pub const PAYLOAD_LEN: usize = 19;
+/// Bytes of a whole frame.
+pub const FRAME_LEN: usize = 4 + PAYLOAD_LEN + 2;
+const TYPE_ACCELERATION: u8 = 0x01;
+const TYPE_TEMPERATURE: u8 = 0x02;
+const COUNT_MIN: i32 = -8_388_608;
+const COUNT_MAX: i32 = 8_388_607;
+/// Status bits that must be 0.
+const RESERVED_BITS: u8 = 0b1000_1000;
+
+const fn crc_table() -> [u16; 256] {
+    let mut table = [0u16; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut crc = (i as u16) << 8;
+        let mut bit = 0;
+        while bit < 8 {
+            crc = if crc & 0x8000 != 0 {
+                (crc << 1) ^ 0x1021
+            } else {
+                crc << 1
+            };
+            bit += 1;
+        }
+        table[i] = crc;
+        i += 1;
+    }
+    table
+}
+
+static CRC_TABLE: [u16; 256] = crc_table();
+
+/// CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final xor).
+pub fn crc16_ccitt_false(bytes: &[u8]) -> u16 {
+    let mut crc = 0xFFFF_u16;
+    for &b in bytes {
+        crc = (crc << 8) ^ CRC_TABLE[usize::from((crc >> 8) as u8 ^ b)];
+    }
+    crc
+}
+
+/// A decoded, accepted frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Frame {
+    /// Acceleration counts.
+    Acceleration {
+        /// GPS time, ns.
+        time_ns: i64,
+        /// Counts of channels 1..3 as logged (meaningless where the status says not connected).
+        counts: [i32; 3],
+        /// Status bits.
+        status: u8,
+    },
+    /// Temperatures.
+    Temperature {
+        /// GPS time, ns.
+        time_ns: i64,
+        /// Milli-degrees C of channels 1..3 as logged.
+        millidegrees: [i32; 3],
+        /// Status bits.
+        status: u8,
+    },
+}
+
+/// Scans a binary log chunk by chunk, handing accepted frames to a callback and counting
+/// everything else in a [`FileLedger`].
+#[derive(Debug)]
+pub struct FrameScanner {
+    reference_week: i64,
+    buf: Vec<u8>,
+    /// File offset of `buf[0]`.
+    offset: u64,
+    last_time: [Option<i64>; 2],
+    bytes: ByteLedger,
+    /// Start of the stretch currently being skipped, for listing it once.
+    skip_start: Option<u64>,
+}
+
+fn le_i32(b: &[u8], at: usize) -> i32 {
+    i32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+impl FrameScanner {
+    /// A scanner resolving 10-bit GPS weeks to the week nearest `reference_week`.
+    pub fn new(reference_week: i64) -> Self {
+        FrameScanner {
+            reference_week,
+            buf: Vec::with_capacity(1 << 20),
+            offset: 0,
+            last_time: [None, None],
+            bytes: ByteLedger::default(),
+            skip_start: None,
+        }
+    }
+
+    fn skip(&mut self, at: u64, n: usize) {
+        self.bytes.skipped_resynchronising += n as u64;
+        if self.skip_start.is_none() {
+            self.skip_start = Some(at);
+        }
+    }
+
+    fn end_skip(&mut self, ledger: &mut FileLedger, at: u64) {
+        if let Some(start) = self.skip_start.take()
+            && ledger.rejections.len() < crate::ledger::MAX_LISTED
+        {
+            {
+                ledger.rejections.push(crate::ledger::Rejection {
+                    at: format!("byte {start}"),
+                    reason: "skipped".to_owned(),
+                    detail: format!("{} bytes skipped while resynchronising", at - start),
+                });
+            }
+        }
+    }
+
+    /// Feeds the next chunk of the file; calls `emit` for every accepted frame.
+    pub fn push<E>(
+        &mut self,
+        chunk: &[u8],
+        ledger: &mut FileLedger,
+        emit: &mut impl FnMut(Frame) -> Result<(), E>,
+    ) -> Result<(), E> {
+        if self.buf.is_empty() {
+            // Scan the chunk in place; keep only its unfinished tail.
+            let used = self.scan(chunk, false, ledger, emit)?;
+            self.offset += used as u64;
+            self.buf.extend_from_slice(&chunk[used..]);
+        } else {
+            let mut buf = std::mem::take(&mut self.buf);
+            buf.extend_from_slice(chunk);
+            let used = self.scan(&buf, false, ledger, emit)?;
+            self.offset += used as u64;
+            buf.drain(..used);
+            self.buf = buf;
+        }
+        Ok(())
+    }
+
+    /// Ends the file: reports a cut-off last frame or trailing junk, and fills in the byte ledger.
+    pub fn finish<E>(
+        mut self,
+        ledger: &mut FileLedger,
+        emit: &mut impl FnMut(Frame) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let buf = std::mem::take(&mut self.buf);
+        let used = self.scan(&buf, true, ledger, emit)?;
+        debug_assert_eq!(used, buf.len());
+        self.offset += used as u64;
+        let end = self.offset;
+        self.end_skip(ledger, end);
+        ledger.byte_ledger = Some(self.bytes);
+        Ok(())
+    }
+
+    /// Scans `b` (starting at file offset `self.offset`); returns how many bytes were consumed.
+    /// Unless `eof`, an incomplete frame at the end is left for the next chunk.
+    fn scan<E>(
+        &mut self,
+        b: &[u8],
+        eof: bool,
+        ledger: &mut FileLedger,
+        emit: &mut impl FnMut(Frame) -> Result<(), E>,
+    ) -> Result<usize, E> {
+        let mut p = 0usize;
+        while p < b.len() {
+            let at = self.offset + p as u64;
+            let rest = &b[p..];
+            if rest[0] != SYNC[0] || rest.get(1).is_some_and(|&x| x != SYNC[1]) {
+                // Not a frame start: skip to the next possible sync byte.
+                let k = rest[1..]
+                    .iter()
+                    .position(|&x| x == SYNC[0])
+                    .map_or(rest.len(), |k| k + 1);
+                self.skip(at, k);
+                p += k;
+                continue;
+            }
+            if rest.len() < 4 {
+                if !eof {
+                    break;
+                }
+                if rest.len() < 2 {
+                    // A lone 0xA5 at the very end: not even a sync word.
+                    self.skip(at, rest.len());
+                } else {
+                    self.truncated(ledger, at, rest.len());
+                }
+                p += rest.len();
+                continue;
+            }
+            if usize::from(rest[3]) != PAYLOAD_LEN {
+                self.end_skip(ledger, at);
+                ledger.reject(
+                    format!("byte {at}"),
+                    reason::WRONG_LENGTH,
+                    format!("length byte {}", rest[3]),
+                );
+                self.skip(at, 1);
+                p += 1;
+                continue;
+            }
+            if rest.len() < FRAME_LEN {
+                if !eof {
+                    break;
+                }
+                self.end_skip(ledger, at);
+                self.truncated(ledger, at, rest.len());
+                p += rest.len();
+                continue;
+            }
+            let frame = &rest[..FRAME_LEN];
+            let crc = u16::from_le_bytes([frame[23], frame[24]]);
+            let kind = frame[2];
+            if crc16_ccitt_false(&frame[2..23]) != crc {
+                self.end_skip(ledger, at);
+                ledger.reject(
+                    format!("byte {at}"),
+                    reason::BAD_CRC,
+                    format!("type 0x{kind:02x}"),
+                );
+                self.skip(at, 1);
+                p += 1;
+                continue;
+            }
+            if kind != TYPE_ACCELERATION && kind != TYPE_TEMPERATURE {
+                self.end_skip(ledger, at);
+                ledger.reject(
+                    format!("byte {at}"),
+                    reason::UNKNOWN_TYPE,
+                    format!("type 0x{kind:02x}"),
+                );
+                self.skip(at, 1);
+                p += 1;
+                continue;
+            }
+            self.end_skip(ledger, at);
+            p += FRAME_LEN;
+            self.frame(frame, at, ledger, emit)?;
+        }
+        Ok(p)
+    }
+
+    fn truncated(&mut self, ledger: &mut FileLedger, at: u64, n: usize) {
+        ledger.reject(
+            format!("byte {at}"),
+            reason::TRUNCATED_TAIL,
+            format!("{n} of {FRAME_LEN} bytes"),
+        );
+        self.bytes.truncated_tail += n as u64;
+    }
+
+    /// A well-formed frame (sync, length, CRC and type good) at file offset `at`.
+    fn frame<E>(
+        &mut self,
+        f: &[u8],
+        at: u64,
+        ledger: &mut FileLedger,
+        emit: &mut impl FnMut(Frame) -> Result<(), E>,
+    ) -> Result<(), E> {
+        let kind = f[2];
+        let week10 = u16::from_le_bytes([f[4], f[5]]);
+        let tow_ms = u32::from_le_bytes([f[6], f[7], f[8], f[9]]);
+        let values = [le_i32(f, 10), le_i32(f, 14), le_i32(f, 18)];
+        let status = f[22];
+        let mut reject = |this: &mut Self, why: &str, detail: String| {
+            ledger.reject(format!("byte {at}"), why, detail);
+            this.bytes.in_rejected_frames += FRAME_LEN as u64;
+        };
+        if status & RESERVED_BITS != 0 {
+            reject(
+                self,
+                reason::RESERVED_STATUS_BITS,
+                format!("status 0b{status:08b}"),
+            );
+            return Ok(());
+        }
+        if i64::from(tow_ms) * NS_PER_MS >= NS_PER_WEEK {
+            reject(self, reason::BAD_TIME_OF_WEEK, format!("tow_ms {tow_ms}"));
+            return Ok(());
+        }
+        let time_ns =
+            resolve_week(week10, self.reference_week) * NS_PER_WEEK + i64::from(tow_ms) * NS_PER_MS;
+        let slot = usize::from(kind == TYPE_TEMPERATURE);
+        let name = if slot == 0 {
+            "acceleration"
+        } else {
+            "temperature"
+        };
+        if let Some(last) = self.last_time[slot] {
+            if time_ns == last {
+                reject(
+                    self,
+                    reason::DUPLICATE,
+                    format!("{name} frame at week10 {week10} tow_ms {tow_ms}"),
+                );
+                return Ok(());
+            }
+            if time_ns < last {
+                reject(
+                    self,
+                    reason::TIME_BACKWARDS,
+                    format!(
+                        "{name} frame at tow_ms {tow_ms}, {} ms before the previous one",
+                        (last - time_ns) / NS_PER_MS
+                    ),
+                );
+                return Ok(());
+            }
+        }
+        if slot == 0 {
+            for (ch, &v) in values.iter().enumerate() {
+                let connected = status & (1 << (ch + 4)) == 0;
+                if connected && !(COUNT_MIN..=COUNT_MAX).contains(&v) {
+                    reject(
+                        self,
+                        reason::COUNT_OUT_OF_RANGE,
+                        format!("channel {} count {v}", ch + 1),
+                    );
+                    return Ok(());
+                }
+            }
+        }
+        self.last_time[slot] = Some(time_ns);
+        self.bytes.in_accepted_frames += FRAME_LEN as u64;
+        ledger.accept(name);
+        emit(if slot == 0 {
+            Frame::Acceleration {
+                time_ns,
+                counts: values,
+                status,
+            }
+        } else {
+            Frame::Temperature {
+                time_ns,
+                millidegrees: values,
+                status,
+            }
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc_check_value() {
+        assert_eq!(crc16_ccitt_false(b"123456789"), 0x29B1);
+    }
+
+    fn frame(kind: u8, week10: u16, tow_ms: u32, v: [i32; 3], status: u8) -> Vec<u8> {
+        let mut f = vec![0xA5, 0x5A, kind, 19];
+        f.extend_from_slice(&week10.to_le_bytes());
+        f.extend_from_slice(&tow_ms.to_le_bytes());
+        for x in v {
+            f.extend_from_slice(&x.to_le_bytes());
+        }
+        f.push(status);
+        let crc = crc16_ccitt_false(&f[2..]);
+        f.extend_from_slice(&crc.to_le_bytes());
+        f
+    }
+
+    fn scan_all(bytes: &[u8], chunk: usize) -> (Vec<Frame>, FileLedger) {
+        let mut s = FrameScanner::new(1310);
+        let mut ledger = FileLedger::default();
+        let mut out = Vec::new();
+        let mut emit = |f: Frame| -> Result<(), ()> {
+            out.push(f);
+            Ok(())
+        };
+        for c in bytes.chunks(chunk.max(1)) {
+            s.push(c, &mut ledger, &mut emit).expect("no sink error");
+        }
+        s.finish(&mut ledger, &mut emit).expect("no sink error");
+        (out, ledger)
+    }
+
+    #[test]
+    fn damage_is_counted_and_bytes_add_up() {
+        let mut log = Vec::new();
+        log.extend(frame(1, 286, 1000, [1, 2, 3], 0));
+        log.extend([0x00, 0x13, 0xA5, 0x77]); // junk with a false sync byte
+        let mut bad = frame(1, 286, 1032, [1, 2, 3], 0);
+        bad[12] ^= 0x40;
+        log.extend(bad);
+        log.extend(frame(1, 286, 1064, [4, 5, 6], 0));
+        log.extend(frame(1, 286, 1064, [4, 5, 6], 0)); // duplicate
+        log.extend(frame(2, 286, 1064, [24_800, 0, 0], 0b0010_0000));
+        log.extend(frame(1, 286, 1000, [4, 5, 6], 0)); // backwards
+        log.extend(frame(9, 286, 1096, [4, 5, 6], 0)); // unknown type
+        log.extend(frame(1, 286, 1128, [7, 8, 9], 0));
+        log.extend(&frame(1, 286, 1160, [7, 8, 9], 0)[..10]);
+        for chunk in [1, 3, 7, 25, 1 << 16] {
+            let (frames, l) = scan_all(&log, chunk);
+            assert_eq!(frames.len(), 4, "chunk {chunk}");
+            assert_eq!(l.accepted, 4);
+            assert_eq!(l.rejected.get(reason::BAD_CRC), Some(&1));
+            assert_eq!(l.rejected.get(reason::DUPLICATE), Some(&1));
+            assert_eq!(l.rejected.get(reason::TIME_BACKWARDS), Some(&1));
+            assert_eq!(l.rejected.get(reason::UNKNOWN_TYPE), Some(&1));
+            assert_eq!(l.rejected.get(reason::TRUNCATED_TAIL), Some(&1));
+            assert_eq!(l.read, l.accepted + l.rejected_total());
+            let b = l.byte_ledger.clone().expect("binary ledger");
+            assert_eq!(b.total(), log.len() as u64, "chunk {chunk}: {b:?}");
+            assert_eq!(b.skipped_resynchronising, 4 + 25 + 25);
+            assert_eq!(b.truncated_tail, 10);
+        }
+    }
+
+    #[test]
+    fn week_resolution_and_time() {
+        let log = frame(1, 286, 295_200_032, [1, 2, 3], 0);
+        let (frames, _) = scan_all(&log, 100);
+        assert_eq!(
+            frames[0],
+            Frame::Acceleration {
+                time_ns: 1310 * NS_PER_WEEK + 295_200_032 * NS_PER_MS,
+                counts: [1, 2, 3],
+                status: 0
+            }
+        );
+    }
+}

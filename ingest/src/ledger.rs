@@ -1,0 +1,131 @@
+//! The ledger of ingest (`ingest.json`): per input file, what was read, accepted and rejected
+//! by reason, so that nothing is lost silently. Accepted plus rejected equals read; for a
+//! binary log the bytes add up too.
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Rejection reasons, as they appear in `ingest.json`.
+pub mod reason {
+    /// A frame whose CRC does not match.
+    pub const BAD_CRC: &str = "bad_crc";
+    /// A frame of a type other than acceleration or temperature.
+    pub const UNKNOWN_TYPE: &str = "unknown_type";
+    /// A frame whose length byte is not 19.
+    pub const WRONG_LENGTH: &str = "wrong_length";
+    /// A frame with reserved status bits (3, 7) set.
+    pub const RESERVED_STATUS_BITS: &str = "reserved_status_bits";
+    /// A frame whose time of week is not below one week.
+    pub const BAD_TIME_OF_WEEK: &str = "bad_time_of_week";
+    /// A count outside the 24-bit range on a connected channel.
+    pub const COUNT_OUT_OF_RANGE: &str = "count_out_of_range";
+    /// The same type and time as the frame or line accepted before it.
+    pub const DUPLICATE: &str = "duplicate";
+    /// A time earlier than the frame or line accepted before it.
+    pub const TIME_BACKWARDS: &str = "time_backwards";
+    /// The last frame of the file, cut off.
+    pub const TRUNCATED_TAIL: &str = "truncated_tail";
+    /// A text line that does not parse (only with skip-bad-lines; otherwise it is an error).
+    pub const MALFORMED: &str = "malformed";
+    /// A theodolite reading dated outside its session (not on the session's date or the day after).
+    pub const OUTSIDE_SESSION: &str = "outside_session";
+}
+
+/// How the bytes of a binary log were spent: they add up to the file size.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ByteLedger {
+    /// Bytes of accepted frames.
+    pub in_accepted_frames: u64,
+    /// Bytes of well-formed frames rejected after parsing (duplicate, time going backwards, ...).
+    pub in_rejected_frames: u64,
+    /// Bytes passed over while looking for the next sync word: damaged frames and junk.
+    pub skipped_resynchronising: u64,
+    /// Bytes of a cut-off last frame.
+    pub truncated_tail: u64,
+}
+
+impl ByteLedger {
+    /// Sum of all parts.
+    pub fn total(&self) -> u64 {
+        self.in_accepted_frames
+            + self.in_rejected_frames
+            + self.skipped_resynchronising
+            + self.truncated_tail
+    }
+}
+
+/// One rejection, where it happened.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Rejection {
+    /// `byte N` (offset of the frame or of the skipped stretch) or `line N`.
+    pub at: String,
+    /// A reason from [`reason`].
+    pub reason: String,
+    /// Details, e.g. the field and value.
+    pub detail: String,
+}
+
+/// At most this many rejections are listed per file (all are counted).
+pub const MAX_LISTED: usize = 100;
+
+/// What one input file gave.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct FileLedger {
+    /// Path relative to the dataset folder.
+    pub path: String,
+    /// Session id.
+    pub session: String,
+    /// `acquisition`, `adc_csv`, `temperature_csv` or `theodolite`.
+    pub role: String,
+    /// SHA-256 of the file's bytes, hex.
+    pub sha256: String,
+    /// File size.
+    pub bytes: u64,
+    /// `frames` or `lines`.
+    pub unit: String,
+    /// Frames found (sync word seen), or data lines (not comment, blank or header).
+    pub read: u64,
+    /// Frames or lines accepted.
+    pub accepted: u64,
+    /// Rejected, by reason.
+    pub rejected: BTreeMap<String, u64>,
+    /// Accepted, by kind (`acceleration`, `temperature`, `reading`).
+    pub accepted_by_kind: BTreeMap<String, u64>,
+    /// Text logs: comment and blank lines, and the header line.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub comment_blank_or_header_lines: Option<u64>,
+    /// Binary logs: where every byte went.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub byte_ledger: Option<ByteLedger>,
+    /// Values stored as null in accepted records, by channel and reason (e.g. `ch2 not connected`).
+    pub null_values: BTreeMap<String, u64>,
+    /// The first [`MAX_LISTED`] rejections.
+    pub rejections: Vec<Rejection>,
+}
+
+impl FileLedger {
+    /// Counts a rejection and lists it if there is room.
+    pub fn reject(&mut self, at: String, reason: &str, detail: String) {
+        *self.rejected.entry(reason.to_owned()).or_default() += 1;
+        self.read += 1;
+        if self.rejections.len() < MAX_LISTED {
+            self.rejections.push(Rejection {
+                at,
+                reason: reason.to_owned(),
+                detail,
+            });
+        }
+    }
+
+    /// Counts an accepted record of `kind`.
+    pub fn accept(&mut self, kind: &str) {
+        self.read += 1;
+        self.accepted += 1;
+        *self.accepted_by_kind.entry(kind.to_owned()).or_default() += 1;
+    }
+
+    /// Total rejected.
+    pub fn rejected_total(&self) -> u64 {
+        self.rejected.values().sum()
+    }
+}

@@ -1,0 +1,529 @@
+//! The dataset manifest, `dataset.toml` (FORMATS.md section 2): parsed strictly (unknown keys
+//! are errors) and validated, with every error naming the key and the file.
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// The whole manifest.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    /// Dataset name, `[a-z0-9._-]+`.
+    pub name: String,
+    /// Free text.
+    #[serde(default)]
+    pub description: Option<String>,
+    /// The gravity benchmark.
+    pub site: Site,
+    /// The acquisition system.
+    pub instrument: Instrument,
+    /// How observations are formed.
+    #[serde(default)]
+    pub align: AlignConfig,
+    /// Acquisition sessions.
+    pub session: Vec<Session>,
+    /// What to adjust.
+    #[serde(default)]
+    pub adjust: AdjustConfig,
+}
+
+/// `[site]`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Site {
+    /// Absolute gravity at the benchmark, mGal.
+    pub g_abs_mgal: f64,
+    /// Vertical gradient, mGal/m (default: normal free-air gradient).
+    #[serde(default = "default_gradient")]
+    pub gradient_mgal_per_m: f64,
+    /// Proof masses above the benchmark, m.
+    #[serde(default)]
+    pub sensor_height_m: f64,
+}
+
+fn default_gradient() -> f64 {
+    -0.3086
+}
+
+impl Site {
+    /// Gravity used in the model: `g_abs + gradient * sensor_height`, mGal.
+    pub fn gravity_mgal(&self) -> f64 {
+        self.g_abs_mgal + self.gradient_mgal_per_m * self.sensor_height_m
+    }
+}
+
+/// `[instrument]`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Instrument {
+    /// Accelerometer sampling rate, Hz.
+    pub sample_rate_hz: f64,
+    /// ADC resolution.
+    #[serde(default = "default_adc_bits")]
+    pub adc_bits: u32,
+    /// Range is +/- this, in g.
+    #[serde(default = "default_full_scale")]
+    pub full_scale_g: f64,
+    /// The accelerometers, 1..=3.
+    pub accelerometer: Vec<Accelerometer>,
+}
+
+fn default_adc_bits() -> u32 {
+    24
+}
+fn default_full_scale() -> f64 {
+    2.0
+}
+
+/// `[[instrument.accelerometer]]`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Accelerometer {
+    /// Identifier, unique.
+    pub id: String,
+    /// Position in the acquisition record, 1..=3.
+    pub channel: u8,
+    /// Serial number.
+    #[serde(default)]
+    pub serial: Option<String>,
+}
+
+/// `[align]`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AlignConfig {
+    /// ADC averaging window centred on each reading, s.
+    pub window_s: f64,
+    /// Fraction of the expected samples a window must hold.
+    pub min_window_fill: f64,
+    /// Furthest temperature sample usable for interpolation, s.
+    pub max_temperature_gap_s: f64,
+    /// Sd of one reading where a station has fewer than 2 readings, arcsec.
+    pub theodolite_sigma_arcsec: f64,
+}
+
+impl Default for AlignConfig {
+    fn default() -> Self {
+        AlignConfig {
+            window_s: 2.56,
+            min_window_fill: 0.8,
+            max_temperature_gap_s: 10.0,
+            theodolite_sigma_arcsec: 1.0,
+        }
+    }
+}
+
+/// Time scale of the theodolite log.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+pub enum TimeScale {
+    /// UTC (GPST = UTC + leap seconds).
+    #[default]
+    #[serde(rename = "UTC")]
+    Utc,
+    /// GPS time.
+    #[serde(rename = "GPST")]
+    Gpst,
+    /// International Atomic Time.
+    #[serde(rename = "TAI")]
+    Tai,
+}
+
+/// Unit of the theodolite's zenith distance.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AngleUnit {
+    /// Degrees.
+    #[default]
+    Deg,
+    /// Gon.
+    Gon,
+    /// Radians.
+    Rad,
+}
+
+impl AngleUnit {
+    /// The angle `value` in this unit, in radians.
+    pub fn to_rad(self, value: f64) -> f64 {
+        match self {
+            AngleUnit::Deg => value.to_radians(),
+            AngleUnit::Gon => value * std::f64::consts::PI / 200.0,
+            AngleUnit::Rad => value,
+        }
+    }
+
+    /// A full turn in this unit.
+    pub fn full_turn(self) -> f64 {
+        match self {
+            AngleUnit::Deg => 360.0,
+            AngleUnit::Gon => 400.0,
+            AngleUnit::Rad => std::f64::consts::TAU,
+        }
+    }
+
+    /// The unit's name as in the manifest.
+    pub fn name(self) -> &'static str {
+        match self {
+            AngleUnit::Deg => "deg",
+            AngleUnit::Gon => "gon",
+            AngleUnit::Rad => "rad",
+        }
+    }
+}
+
+/// `[[session]]`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Session {
+    /// Identifier, unique.
+    pub id: String,
+    /// UTC date the session starts, `YYYY-MM-DD`.
+    pub date: String,
+    /// Binary acquisition log.
+    #[serde(default)]
+    pub acquisition: Option<String>,
+    /// CSV ADC log.
+    #[serde(default)]
+    pub adc_csv: Option<String>,
+    /// CSV temperature log.
+    #[serde(default)]
+    pub temperature_csv: Option<String>,
+    /// Theodolite log.
+    pub theodolite: String,
+    /// Time scale of the theodolite log.
+    #[serde(default)]
+    pub theodolite_time_scale: TimeScale,
+    /// Unit of the theodolite log.
+    #[serde(default)]
+    pub theodolite_unit: AngleUnit,
+}
+
+/// `[adjust]`.
+#[derive(Clone, Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AdjustConfig {
+    /// Models to fit; empty means the defaults of FORMATS.md section 2.
+    #[serde(default)]
+    pub model: Vec<ModelDecl>,
+}
+
+/// Over which observations a model is fitted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Per {
+    /// One fit per (accelerometer, session).
+    Session,
+    /// One fit per accelerometer over all sessions.
+    All,
+}
+
+/// `[[adjust.model]]`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelDecl {
+    /// Label, unique.
+    pub name: String,
+    /// Polynomial order 1..=3.
+    #[serde(default = "default_order")]
+    pub order: u8,
+    /// Fit per session or over all sessions.
+    #[serde(default = "default_per")]
+    pub per: Per,
+    /// Bias and scale depend linearly on temperature.
+    #[serde(default)]
+    pub temperature: bool,
+    /// Estimate the sensitive-axis angle beta.
+    #[serde(default)]
+    pub misalignment: bool,
+}
+
+fn default_order() -> u8 {
+    1
+}
+fn default_per() -> Per {
+    Per::Session
+}
+
+/// Where a session's acquisition data comes from, resolved against the dataset folder.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Acquisition {
+    /// A binary `.gcb` log.
+    Binary(PathBuf),
+    /// The CSV pair.
+    Csv {
+        /// ADC counts.
+        adc: PathBuf,
+        /// Temperatures.
+        temperature: PathBuf,
+    },
+}
+
+/// A session with its paths resolved and its date parsed.
+#[derive(Clone, Debug)]
+pub struct ResolvedSession {
+    /// The manifest's entry.
+    pub session: Session,
+    /// UTC date (year, month, day).
+    pub date: (i32, u8, u8),
+    /// Acquisition logs.
+    pub acquisition: Acquisition,
+    /// Theodolite log.
+    pub theodolite: PathBuf,
+}
+
+/// A validated dataset: the manifest, its folder, and its sessions resolved.
+#[derive(Clone, Debug)]
+pub struct Dataset {
+    /// The dataset folder.
+    pub dir: PathBuf,
+    /// The manifest file.
+    pub manifest_path: PathBuf,
+    /// The manifest as parsed.
+    pub manifest: Manifest,
+    /// Sessions, in manifest order.
+    pub sessions: Vec<ResolvedSession>,
+}
+
+/// Parses `YYYY-MM-DD` into a valid calendar date.
+pub fn parse_date(s: &str) -> Option<(i32, u8, u8)> {
+    let b = s.as_bytes();
+    if b.len() != 10 || b[4] != b'-' || b[7] != b'-' {
+        return None;
+    }
+    let y: i32 = s[0..4].parse().ok()?;
+    let m: u8 = s[5..7].parse().ok()?;
+    let d: u8 = s[8..10].parse().ok()?;
+    (1980..=2200).contains(&y).then_some(())?;
+    let days = match m {
+        1 | 3 | 5 | 7 | 8 | 10 | 12 => 31,
+        4 | 6 | 9 | 11 => 30,
+        2 if (y % 4 == 0 && y % 100 != 0) || y % 400 == 0 => 29,
+        2 => 28,
+        _ => return None,
+    };
+    (1..=days).contains(&d).then_some((y, m, d))
+}
+
+impl Dataset {
+    /// Reads and validates `<dir>/dataset.toml`.
+    pub fn load(dir: &Path) -> Result<Dataset> {
+        let manifest_path = dir.join("dataset.toml");
+        let text =
+            std::fs::read_to_string(&manifest_path).map_err(|e| Error::io(&manifest_path, e))?;
+        let manifest: Manifest = toml::from_str(&text).map_err(|e| {
+            // toml names the key (unknown field `x`, missing field `y`) and the line.
+            let key = e
+                .span()
+                .map(|s| {
+                    let line = text[..s.start].matches('\n').count() + 1;
+                    format!("line {line}")
+                })
+                .unwrap_or_else(|| "document".to_owned());
+            Error::Manifest {
+                path: manifest_path.clone(),
+                key,
+                message: e.message().trim().to_owned(),
+            }
+        })?;
+        let err = |key: String, message: String| Error::Manifest {
+            path: manifest_path.clone(),
+            key,
+            message,
+        };
+        let range = |key: &str, v: f64, lo: f64, hi: f64| -> Result<()> {
+            if v.is_finite() && v >= lo && v <= hi {
+                Ok(())
+            } else {
+                Err(err(
+                    key.to_owned(),
+                    format!("{v} is out of range [{lo}, {hi}]"),
+                ))
+            }
+        };
+        let m = &manifest;
+        if m.name.is_empty()
+            || !m
+                .name
+                .bytes()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || b"._-".contains(&c))
+        {
+            return Err(err(
+                "name".into(),
+                format!("`{}` must match [a-z0-9._-]+", m.name),
+            ));
+        }
+        range("site.g_abs_mgal", m.site.g_abs_mgal, 900_000.0, 1_000_000.0)?;
+        range(
+            "site.gradient_mgal_per_m",
+            m.site.gradient_mgal_per_m,
+            -5.0,
+            5.0,
+        )?;
+        range("site.sensor_height_m", m.site.sensor_height_m, -10.0, 10.0)?;
+        range(
+            "instrument.sample_rate_hz",
+            m.instrument.sample_rate_hz,
+            0.01,
+            10_000.0,
+        )?;
+        if !(8..=32).contains(&m.instrument.adc_bits) {
+            return Err(err(
+                "instrument.adc_bits".into(),
+                format!("{} is out of range [8, 32]", m.instrument.adc_bits),
+            ));
+        }
+        range(
+            "instrument.full_scale_g",
+            m.instrument.full_scale_g,
+            0.001,
+            100.0,
+        )?;
+        let accs = &m.instrument.accelerometer;
+        if accs.is_empty() || accs.len() > 3 {
+            return Err(err(
+                "instrument.accelerometer".into(),
+                format!("{} accelerometers declared; 1 to 3 are allowed", accs.len()),
+            ));
+        }
+        let mut ids = BTreeSet::new();
+        let mut channels = BTreeSet::new();
+        for (i, a) in accs.iter().enumerate() {
+            if a.id.is_empty() || !ids.insert(a.id.as_str()) {
+                return Err(err(
+                    format!("instrument.accelerometer[{i}].id"),
+                    format!("duplicate or empty id `{}`", a.id),
+                ));
+            }
+            if !(1..=3).contains(&a.channel) {
+                return Err(err(
+                    format!("instrument.accelerometer[{i}].channel"),
+                    format!("{} is out of range [1, 3]", a.channel),
+                ));
+            }
+            if !channels.insert(a.channel) {
+                return Err(err(
+                    format!("instrument.accelerometer[{i}].channel"),
+                    format!("channel {} is used twice", a.channel),
+                ));
+            }
+        }
+        range("align.window_s", m.align.window_s, 1e-3, 600.0)?;
+        range("align.min_window_fill", m.align.min_window_fill, 1e-6, 1.0)?;
+        range(
+            "align.max_temperature_gap_s",
+            m.align.max_temperature_gap_s,
+            1e-3,
+            3600.0,
+        )?;
+        range(
+            "align.theodolite_sigma_arcsec",
+            m.align.theodolite_sigma_arcsec,
+            1e-6,
+            3600.0,
+        )?;
+        if m.session.is_empty() {
+            return Err(err(
+                "session".into(),
+                "at least one [[session]] is required".into(),
+            ));
+        }
+        let mut sids = BTreeSet::new();
+        let mut sessions = Vec::new();
+        let file = |key: String, rel: &str| -> Result<PathBuf> {
+            let p = dir.join(rel);
+            if p.is_file() {
+                Ok(p)
+            } else {
+                Err(err(
+                    key,
+                    format!("file `{rel}` not found in {}", dir.display()),
+                ))
+            }
+        };
+        for (i, s) in m.session.iter().enumerate() {
+            if s.id.is_empty() || !sids.insert(s.id.as_str()) {
+                return Err(err(
+                    format!("session[{i}].id"),
+                    format!("duplicate or empty id `{}`", s.id),
+                ));
+            }
+            let date = parse_date(&s.date).ok_or_else(|| {
+                err(
+                    format!("session[{i}].date"),
+                    format!("`{}` is not a date YYYY-MM-DD", s.date),
+                )
+            })?;
+            let acquisition = match (&s.acquisition, &s.adc_csv, &s.temperature_csv) {
+                (Some(a), None, None) => {
+                    Acquisition::Binary(file(format!("session[{i}].acquisition"), a)?)
+                }
+                (None, Some(a), Some(t)) => Acquisition::Csv {
+                    adc: file(format!("session[{i}].adc_csv"), a)?,
+                    temperature: file(format!("session[{i}].temperature_csv"), t)?,
+                },
+                (None, Some(_), None) => {
+                    return Err(err(
+                        format!("session[{i}].temperature_csv"),
+                        "adc_csv needs temperature_csv".into(),
+                    ));
+                }
+                (None, None, Some(_)) => {
+                    return Err(err(
+                        format!("session[{i}].adc_csv"),
+                        "temperature_csv needs adc_csv".into(),
+                    ));
+                }
+                (None, None, None) => {
+                    return Err(err(
+                        format!("session[{i}].acquisition"),
+                        "missing: give `acquisition` or `adc_csv` and `temperature_csv`".into(),
+                    ));
+                }
+                (Some(_), _, _) => {
+                    return Err(err(
+                        format!("session[{i}].acquisition"),
+                        "give `acquisition` or the CSV pair, not both".into(),
+                    ));
+                }
+            };
+            let theodolite = file(format!("session[{i}].theodolite"), &s.theodolite)?;
+            sessions.push(ResolvedSession {
+                session: s.clone(),
+                date,
+                acquisition,
+                theodolite,
+            });
+        }
+        let mut names = BTreeSet::new();
+        for (i, model) in m.adjust.model.iter().enumerate() {
+            if model.name.is_empty() || !names.insert(model.name.as_str()) {
+                return Err(err(
+                    format!("adjust.model[{i}].name"),
+                    format!("duplicate or empty name `{}`", model.name),
+                ));
+            }
+            if !(1..=3).contains(&model.order) {
+                return Err(err(
+                    format!("adjust.model[{i}].order"),
+                    format!("{} is out of range [1, 3]", model.order),
+                ));
+            }
+        }
+        Ok(Dataset {
+            dir: dir.to_path_buf(),
+            manifest_path: manifest_path.clone(),
+            manifest,
+            sessions,
+        })
+    }
+
+    /// The accelerometer on `channel` (1..=3), if any.
+    pub fn accelerometer_on(&self, channel: u8) -> Option<&Accelerometer> {
+        self.manifest
+            .instrument
+            .accelerometer
+            .iter()
+            .find(|a| a.channel == channel)
+    }
+}

@@ -1,0 +1,234 @@
+//! Collects accepted acceleration and temperature samples into Arrow batches and writes them
+//! to `acceleration.parquet` and `temperature.parquet`; counts the values stored as null.
+
+use crate::error::Result;
+use crate::ledger::FileLedger;
+use crate::schema;
+use crate::table::{ROWS_PER_GROUP, TableWriter, session_column};
+use arrow::array::{ArrayRef, Float64Array, Int32Array, Int64Array, UInt8Array};
+use arrow::buffer::NullBuffer;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Status bit: channel `ch` (0-based) over range.
+pub fn over_range_bit(ch: usize) -> u8 {
+    1 << ch
+}
+/// Status bit: channel `ch` (0-based) not connected.
+pub fn not_connected_bit(ch: usize) -> u8 {
+    1 << (ch + 4)
+}
+
+#[derive(Default)]
+struct Columns<T> {
+    time: Vec<i64>,
+    values: [Vec<T>; 3],
+    valid: [Vec<bool>; 3],
+    status: Vec<u8>,
+}
+
+impl<T: Default> Columns<T> {
+    fn len(&self) -> usize {
+        self.time.len()
+    }
+    fn take(&mut self) -> Self {
+        Columns {
+            time: std::mem::take(&mut self.time),
+            values: std::mem::take(&mut self.values),
+            valid: std::mem::take(&mut self.valid),
+            status: std::mem::take(&mut self.status),
+        }
+    }
+}
+
+fn nulls(valid: Vec<bool>) -> Option<NullBuffer> {
+    if valid.iter().all(|&v| v) {
+        None
+    } else {
+        Some(NullBuffer::from(valid))
+    }
+}
+
+/// What the current session's streams held.
+#[derive(Clone, Debug, Default)]
+pub struct SessionStats {
+    /// Acceleration samples.
+    pub acceleration: u64,
+    /// Temperature samples.
+    pub temperature: u64,
+    /// GPS time of the first acceleration sample, ns.
+    pub first_gps_ns: Option<i64>,
+    /// GPS time of the last acceleration sample, ns.
+    pub last_gps_ns: Option<i64>,
+    /// Whether channel 1..3 was connected in any acceleration sample.
+    pub connected_seen: [bool; 3],
+}
+
+/// The two stream tables of a dataset, being written session by session.
+pub struct StreamWriter {
+    acceleration: TableWriter,
+    temperature: TableWriter,
+    session: String,
+    stats: SessionStats,
+    acc: Columns<i32>,
+    temp: Columns<f64>,
+}
+
+impl StreamWriter {
+    /// Starts both tables in `dir`.
+    pub fn create(dir: &Path) -> Result<Self> {
+        Ok(StreamWriter {
+            acceleration: TableWriter::create(
+                dir,
+                schema::acceleration::FILE,
+                "acceleration",
+                schema::acceleration::schema(),
+                &[schema::SESSION],
+            )?,
+            temperature: TableWriter::create(
+                dir,
+                schema::temperature::FILE,
+                "temperature",
+                schema::temperature::schema(),
+                &[schema::SESSION],
+            )?,
+            session: String::new(),
+            stats: SessionStats::default(),
+            acc: Columns::default(),
+            temp: Columns::default(),
+        })
+    }
+
+    /// Rows that follow belong to `session`.
+    pub fn start_session(&mut self, session: &str) -> Result<()> {
+        self.flush()?;
+        self.session = session.to_owned();
+        self.stats = SessionStats::default();
+        Ok(())
+    }
+
+    /// What the current session's streams held so far.
+    pub fn stats(&self) -> &SessionStats {
+        &self.stats
+    }
+
+    /// One acceleration sample; over-range and unconnected channels are stored as null and
+    /// counted in `ledger.null_values`.
+    pub fn acceleration(
+        &mut self,
+        time_ns: i64,
+        counts: [i32; 3],
+        status: u8,
+        ledger: &mut FileLedger,
+    ) -> Result<()> {
+        self.acc.time.push(time_ns);
+        self.stats.acceleration += 1;
+        self.stats.first_gps_ns.get_or_insert(time_ns);
+        self.stats.last_gps_ns = Some(time_ns);
+        for ch in 0..3 {
+            self.stats.connected_seen[ch] |= status & not_connected_bit(ch) == 0;
+            let why = if status & not_connected_bit(ch) != 0 {
+                Some("not connected")
+            } else if status & over_range_bit(ch) != 0 {
+                Some("over range")
+            } else {
+                None
+            };
+            if let Some(why) = why {
+                *ledger
+                    .null_values
+                    .entry(format!("ch{} {why}", ch + 1))
+                    .or_default() += 1;
+            }
+            self.acc.values[ch].push(if why.is_none() { counts[ch] } else { 0 });
+            self.acc.valid[ch].push(why.is_none());
+        }
+        self.acc.status.push(status);
+        if self.acc.len() >= ROWS_PER_GROUP {
+            self.flush_acceleration()?;
+        }
+        Ok(())
+    }
+
+    /// One temperature sample (degC, `None` where the channel is not connected).
+    pub fn temperature(
+        &mut self,
+        time_ns: i64,
+        celsius: [Option<f64>; 3],
+        status: u8,
+        ledger: &mut FileLedger,
+    ) -> Result<()> {
+        self.temp.time.push(time_ns);
+        self.stats.temperature += 1;
+        for ch in 0..3 {
+            let v = if status & not_connected_bit(ch) != 0 {
+                None
+            } else {
+                celsius[ch]
+            };
+            if v.is_none() {
+                *ledger
+                    .null_values
+                    .entry(format!("ch{} temperature not connected", ch + 1))
+                    .or_default() += 1;
+            }
+            self.temp.values[ch].push(v.unwrap_or(0.0));
+            self.temp.valid[ch].push(v.is_some());
+        }
+        self.temp.status.push(status);
+        if self.temp.len() >= ROWS_PER_GROUP {
+            self.flush_temperature()?;
+        }
+        Ok(())
+    }
+
+    fn flush_acceleration(&mut self) -> Result<()> {
+        if self.acc.len() == 0 {
+            return Ok(());
+        }
+        let c = self.acc.take();
+        let n = c.time.len();
+        let [v0, v1, v2] = c.values;
+        let [m0, m1, m2] = c.valid;
+        let cols: Vec<ArrayRef> = vec![
+            session_column(&self.session, n),
+            Arc::new(Int64Array::from(c.time)),
+            Arc::new(Int32Array::new(v0.into(), nulls(m0))),
+            Arc::new(Int32Array::new(v1.into(), nulls(m1))),
+            Arc::new(Int32Array::new(v2.into(), nulls(m2))),
+            Arc::new(UInt8Array::from(c.status)),
+        ];
+        self.acceleration.write(cols)
+    }
+
+    fn flush_temperature(&mut self) -> Result<()> {
+        if self.temp.len() == 0 {
+            return Ok(());
+        }
+        let c = self.temp.take();
+        let n = c.time.len();
+        let [v0, v1, v2] = c.values;
+        let [m0, m1, m2] = c.valid;
+        let cols: Vec<ArrayRef> = vec![
+            session_column(&self.session, n),
+            Arc::new(Int64Array::from(c.time)),
+            Arc::new(Float64Array::new(v0.into(), nulls(m0))),
+            Arc::new(Float64Array::new(v1.into(), nulls(m1))),
+            Arc::new(Float64Array::new(v2.into(), nulls(m2))),
+            Arc::new(UInt8Array::from(c.status)),
+        ];
+        self.temperature.write(cols)
+    }
+
+    fn flush(&mut self) -> Result<()> {
+        self.flush_acceleration()?;
+        self.flush_temperature()
+    }
+
+    /// Writes what is buffered and renames both tables into place; returns (acceleration rows,
+    /// temperature rows).
+    pub fn finish(mut self) -> Result<(u64, u64)> {
+        self.flush()?;
+        Ok((self.acceleration.finish()?, self.temperature.finish()?))
+    }
+}

@@ -1,0 +1,222 @@
+//! Reader of the theodolite log (FORMATS.md section 5): station, time in the session's time
+//! scale, zenith distance in the session's unit. Times leave as GPS time; angles as radians.
+
+use crate::error::{Error, Result};
+use crate::ledger::{FileLedger, reason};
+use crate::lines::{read_lines, strip_comment};
+use crate::manifest::{AngleUnit, ResolvedSession, TimeScale};
+use crate::schema;
+use crate::table::{TableWriter, session_column};
+use crate::time::{gps_ns, parse_calendar};
+use arrow::array::{ArrayRef, Float64Array, Int64Array, StringArray, UInt32Array};
+use std::path::Path;
+use std::sync::Arc;
+
+/// One reading.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Reading {
+    /// Station id.
+    pub station: String,
+    /// GPS time, ns.
+    pub time_gps_ns: i64,
+    /// Zenith distance, rad, in [0, 2 pi).
+    pub dz_rad: f64,
+    /// Zenith distance as read.
+    pub dz_value: f64,
+    /// The time field as written.
+    pub time_as_read: String,
+    /// 1-based line number.
+    pub line: u32,
+}
+
+fn scale_name(s: TimeScale) -> &'static str {
+    match s {
+        TimeScale::Utc => "UTC",
+        TimeScale::Gpst => "GPST",
+        TimeScale::Tai => "TAI",
+    }
+}
+
+/// Days from 0000-03-01 of a civil date, for comparing dates.
+fn day_number(y: i32, m: u8, d: u8) -> i64 {
+    let (y, m) = if m <= 2 {
+        (i64::from(y) - 1, i64::from(m) + 9)
+    } else {
+        (i64::from(y), i64::from(m) - 3)
+    };
+    365 * y + y / 4 - y / 100 + y / 400 + (153 * m + 2) / 5 + i64::from(d) - 1
+}
+
+/// Reads the theodolite log of `session`. A malformed line is an error (or, with
+/// `skip_bad_lines`, counted); a reading dated neither on the session's date nor the day after
+/// is rejected as outside the session, counted and listed.
+pub fn read_theodolite(
+    session: &ResolvedSession,
+    skip_bad_lines: bool,
+    ledger: &mut FileLedger,
+    progress: &indicatif::ProgressBar,
+) -> Result<Vec<Reading>> {
+    let path: &Path = &session.theodolite;
+    let scale = session.session.theodolite_time_scale;
+    let unit = session.session.theodolite_unit;
+    let session_day = day_number(session.date.0, session.date.1, session.date.2);
+    let mut out = Vec::new();
+    let mut other = 0u64;
+    let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
+        let line = strip_comment(raw);
+        if line.is_empty() {
+            other += 1;
+            return Ok(());
+        }
+        let fail = |field: &str, message: String| Error::Line {
+            path: path.to_path_buf(),
+            line: line_no,
+            field: field.to_owned(),
+            message,
+        };
+        let parsed = (|| {
+            let text =
+                std::str::from_utf8(line).map_err(|_| fail("line", "not UTF-8".to_owned()))?;
+            let f: Vec<&str> = text.split_whitespace().collect();
+            if f.len() != 3 {
+                return Err(fail(
+                    "line",
+                    format!("{} fields, expected 3 (station time dz)", f.len()),
+                ));
+            }
+            let cal = parse_calendar(f[1]).map_err(|m| fail("time", m))?;
+            let time_gps_ns = gps_ns(cal, scale)
+                .ok_or_else(|| fail("time", format!("`{}` is before the GPS epoch", f[1])))?;
+            let dz_value: f64 = f[2]
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite())
+                .ok_or_else(|| fail("dz", format!("`{}` is not a number", f[2])))?;
+            if !(0.0..unit.full_turn()).contains(&dz_value) {
+                return Err(fail(
+                    "dz",
+                    format!(
+                        "{dz_value} is outside [0, {}) {}",
+                        unit.full_turn(),
+                        unit.name()
+                    ),
+                ));
+            }
+            let line = u32::try_from(line_no)
+                .map_err(|_| fail("line", "more than 2^32 lines".to_owned()))?;
+            Ok((
+                day_number(cal.year, cal.month, cal.day),
+                Reading {
+                    station: f[0].to_owned(),
+                    time_gps_ns,
+                    dz_rad: unit.to_rad(dz_value),
+                    dz_value,
+                    time_as_read: f[1].to_owned(),
+                    line,
+                },
+            ))
+        })();
+        match parsed {
+            Ok((day, r)) => {
+                if day != session_day && day != session_day + 1 {
+                    ledger.reject(
+                        format!("line {line_no}"),
+                        reason::OUTSIDE_SESSION,
+                        format!(
+                            "time {} is not on the session's date {} or the day after",
+                            r.time_as_read, session.session.date
+                        ),
+                    );
+                } else {
+                    ledger.accept("reading");
+                    out.push(r);
+                }
+                Ok(())
+            }
+            Err(Error::Line { field, message, .. }) if skip_bad_lines => {
+                ledger.reject(
+                    format!("line {line_no}"),
+                    reason::MALFORMED,
+                    format!("{field}: {message}"),
+                );
+                Ok(())
+            }
+            Err(e) => Err(e),
+        }
+    })?;
+    ledger.sha256 = sha;
+    ledger.bytes = bytes;
+    ledger.comment_blank_or_header_lines = Some(other);
+    Ok(out)
+}
+
+/// Writes `theodolite.parquet`, session by session.
+pub struct TheodoliteWriter {
+    table: TableWriter,
+}
+
+impl TheodoliteWriter {
+    /// Starts the table in `dir`.
+    pub fn create(dir: &Path) -> Result<Self> {
+        Ok(TheodoliteWriter {
+            table: TableWriter::create(
+                dir,
+                schema::theodolite::FILE,
+                "theodolite",
+                schema::theodolite::schema(),
+                &[
+                    schema::SESSION,
+                    schema::theodolite::STATION,
+                    schema::theodolite::DZ_UNIT,
+                    schema::theodolite::TIME_SCALE,
+                ],
+            )?,
+        })
+    }
+
+    /// Appends one session's readings.
+    pub fn write(
+        &mut self,
+        session: &str,
+        unit: AngleUnit,
+        scale: TimeScale,
+        readings: &[Reading],
+    ) -> Result<()> {
+        let n = readings.len();
+        let cols: Vec<ArrayRef> = vec![
+            session_column(session, n),
+            Arc::new(StringArray::from_iter_values(
+                readings.iter().map(|r| r.station.as_str()),
+            )),
+            Arc::new(Int64Array::from_iter_values(
+                readings.iter().map(|r| r.time_gps_ns),
+            )),
+            Arc::new(Float64Array::from_iter_values(
+                readings.iter().map(|r| r.dz_rad),
+            )),
+            Arc::new(Float64Array::from_iter_values(
+                readings.iter().map(|r| r.dz_value),
+            )),
+            Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
+                unit.name(),
+                n,
+            ))),
+            Arc::new(StringArray::from_iter_values(
+                readings.iter().map(|r| r.time_as_read.as_str()),
+            )),
+            Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
+                scale_name(scale),
+                n,
+            ))),
+            Arc::new(UInt32Array::from_iter_values(
+                readings.iter().map(|r| r.line),
+            )),
+        ];
+        self.table.write(cols)
+    }
+
+    /// Closes and renames the table; returns its rows.
+    pub fn finish(self) -> Result<u64> {
+        self.table.finish()
+    }
+}

@@ -1,0 +1,421 @@
+//! Ingest at its boundary: datasets in, Parquet tables and ledger out, checked against the
+//! simulator's truth.
+
+use arrow::array::{AsArray, RecordBatch};
+use arrow::datatypes::{Float64Type, Int32Type, Int64Type};
+use ingest::ledger::reason;
+use ingest::{IngestReport, Options};
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use sha2::Digest;
+use std::path::{Path, PathBuf};
+
+fn ingest(name: &str) -> (tempfile::TempDir, IngestReport) {
+    let out = tempfile::tempdir().expect("tempdir");
+    let report = ingest::run(&fixtures::dataset_dir(name), out.path()).expect("ingest succeeds");
+    (out, report)
+}
+
+fn read_table(out: &Path, file: &str) -> Vec<RecordBatch> {
+    let f = std::fs::File::open(out.join("ingest").join(file)).expect("table exists");
+    ParquetRecordBatchReaderBuilder::try_new(f)
+        .expect("parquet")
+        .build()
+        .expect("reader")
+        .map(|b| b.expect("batch"))
+        .collect()
+}
+
+fn i64_col(batches: &[RecordBatch], name: &str) -> Vec<i64> {
+    batches
+        .iter()
+        .flat_map(|b| {
+            b.column_by_name(name)
+                .expect("column")
+                .as_primitive::<Int64Type>()
+                .values()
+                .to_vec()
+        })
+        .collect()
+}
+
+fn opt_i32_col(batches: &[RecordBatch], name: &str) -> Vec<Option<i32>> {
+    batches
+        .iter()
+        .flat_map(|b| {
+            b.column_by_name(name)
+                .expect("column")
+                .as_primitive::<Int32Type>()
+                .iter()
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+fn opt_f64_col(batches: &[RecordBatch], name: &str) -> Vec<Option<f64>> {
+    batches
+        .iter()
+        .flat_map(|b| {
+            b.column_by_name(name)
+                .expect("column")
+                .as_primitive::<Float64Type>()
+                .iter()
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// Every file of every fixture: accepted plus rejected is what was read, the bytes of a binary
+/// log add up to its size, the hash is the file's, and the counts are the simulator's.
+#[test]
+fn every_fixture_is_accounted_for() {
+    for name in fixtures::catalog::COMMITTED {
+        let dir = fixtures::dataset_dir(name);
+        let truth = fixtures::read_truth(&dir).expect("truth");
+        let (_out, report) = ingest(name);
+        for f in &report.files {
+            let bytes = std::fs::read(dir.join(&f.path)).expect("input");
+            assert_eq!(f.bytes, bytes.len() as u64, "{name}/{}", f.path);
+            let sha = sha2::Sha256::digest(&bytes)
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect::<String>();
+            assert_eq!(f.sha256, sha, "{name}/{}", f.path);
+            assert_eq!(f.read, f.accepted + f.rejected_total(), "{name}/{}", f.path);
+            let t = truth
+                .session
+                .iter()
+                .find(|s| s.id == f.session)
+                .and_then(|s| s.file.iter().find(|x| x.path == f.path))
+                .expect("file in truth");
+            if let Some(b) = &f.byte_ledger {
+                assert_eq!(b.total(), f.bytes, "{name}/{}: {b:?}", f.path);
+                let count = |r: &str| f.rejected.get(r).copied().unwrap_or(0);
+                assert_eq!(
+                    f.accepted_by_kind.get("acceleration").copied().unwrap_or(0),
+                    t.acceleration_records
+                );
+                assert_eq!(
+                    f.accepted_by_kind.get("temperature").copied().unwrap_or(0),
+                    t.temperature_records
+                );
+                assert_eq!(count(reason::BAD_CRC), t.bad_crc, "{name}");
+                assert_eq!(count(reason::UNKNOWN_TYPE), t.unknown_type, "{name}");
+                assert_eq!(count(reason::WRONG_LENGTH), t.wrong_length, "{name}");
+                assert_eq!(count(reason::DUPLICATE), t.duplicate, "{name}");
+                assert_eq!(count(reason::TIME_BACKWARDS), t.backwards, "{name}");
+                assert_eq!(
+                    count(reason::TRUNCATED_TAIL),
+                    u64::from(t.truncated_tail_bytes > 0)
+                );
+                assert_eq!(b.truncated_tail, t.truncated_tail_bytes);
+                assert_eq!(b.in_rejected_frames, 25 * (t.duplicate + t.backwards));
+                assert_eq!(
+                    b.skipped_resynchronising,
+                    t.junk_bytes + 25 * (t.bad_crc + t.unknown_type) + 26 * t.wrong_length,
+                    "{name}"
+                );
+            } else if f.role == "theodolite" {
+                assert_eq!(f.accepted, t.readings, "{name}/{}", f.path);
+            } else {
+                let kind = if f.role == "adc_csv" {
+                    t.acceleration_records
+                } else {
+                    t.temperature_records
+                };
+                assert_eq!(f.accepted, kind, "{name}/{}", f.path);
+                assert!(f.rejected.is_empty());
+            }
+        }
+        for (s, st) in report.sessions.iter().zip(&truth.session) {
+            assert_eq!(s.readings, st.readings, "{name}/{}", s.id);
+            let never: Vec<String> = s
+                .channels_never_connected
+                .iter()
+                .map(|ch| {
+                    truth
+                        .accelerometer
+                        .iter()
+                        .find(|a| a.channel == *ch)
+                        .expect("acc")
+                        .id
+                        .clone()
+                })
+                .collect();
+            assert_eq!(never, st.disconnected, "{name}/{}", s.id);
+        }
+    }
+}
+
+/// The binary log and its CSV twin give the same samples, but for the frames damaged in the
+/// binary log; the acceleration stream is in time order at 32 ms.
+#[test]
+fn binary_and_csv_give_the_same_streams() {
+    let (bin_out, bin) = ingest("esgt-2005");
+    let (csv_out, _) = ingest("esgt-2005-csv");
+    let truth = fixtures::read_truth(&fixtures::dataset_dir("esgt-2005")).expect("truth");
+    let b = read_table(bin_out.path(), ingest::schema::acceleration::FILE);
+    let c = read_table(csv_out.path(), ingest::schema::acceleration::FILE);
+    let bt = i64_col(&b, ingest::schema::TIME_GPS_NS);
+    let ct = i64_col(&c, ingest::schema::TIME_GPS_NS);
+    let damaged: u64 = truth
+        .session
+        .iter()
+        .map(|s| {
+            s.damage
+                .iter()
+                .filter(|d| d.damage == fixtures::scenario::Damage::BadCrc)
+                .count() as u64
+        })
+        .sum();
+    assert_eq!(
+        ct.len() as u64,
+        truth
+            .session
+            .iter()
+            .map(|s| s.acceleration_samples)
+            .sum::<u64>()
+    );
+    assert_eq!(bt.len() as u64 + damaged, ct.len() as u64);
+    assert_eq!(
+        bin.tables[ingest::schema::acceleration::FILE],
+        bt.len() as u64
+    );
+    for name in ingest::schema::acceleration::COUNTS {
+        let bv = opt_i32_col(&b, name);
+        let cv = opt_i32_col(&c, name);
+        let mut j = 0;
+        for (i, t) in bt.iter().enumerate() {
+            while ct[j] != *t {
+                j += 1;
+            }
+            assert_eq!(bv[i], cv[j], "{name} at {t}");
+        }
+    }
+    // Day 2: channel 2 is null throughout.
+    let ch2 = opt_i32_col(&b, "counts_ch2");
+    let day2_start = truth.session[1].start_gps_ns;
+    assert!(
+        bt.iter()
+            .zip(&ch2)
+            .filter(|(t, _)| **t >= day2_start)
+            .all(|(_, v)| v.is_none())
+    );
+    assert!(
+        bt.iter()
+            .zip(&ch2)
+            .filter(|(t, _)| **t < day2_start)
+            .all(|(_, v)| v.is_some())
+    );
+    for w in bt.windows(2) {
+        assert!(w[1] > w[0]);
+    }
+    let tb = read_table(bin_out.path(), ingest::schema::temperature::FILE);
+    let tc = read_table(csv_out.path(), ingest::schema::temperature::FILE);
+    for name in ingest::schema::temperature::TEMPERATURE_C {
+        assert_eq!(opt_f64_col(&tb, name), opt_f64_col(&tc, name), "{name}");
+    }
+}
+
+/// Theodolite times arrive as GPS time whatever the log's scale (UTC with 13 or 18 leap
+/// seconds, GPST), and angles as radians whatever the unit.
+#[test]
+fn theodolite_times_and_angles_are_the_truth() {
+    for name in ["esgt-2005", "week-rollover", "gon-gpst", "two-sided"] {
+        let truth = fixtures::read_truth(&fixtures::dataset_dir(name)).expect("truth");
+        let (out, _) = ingest(name);
+        let t = read_table(out.path(), ingest::schema::theodolite::FILE);
+        let times = i64_col(&t, ingest::schema::TIME_GPS_NS);
+        let dz = opt_f64_col(&t, ingest::schema::theodolite::DZ_RAD);
+        assert_eq!(times.len(), truth.reading.len(), "{name}");
+        for ((time, dz), r) in times.iter().zip(&dz).zip(&truth.reading) {
+            assert_eq!(*time, r.time_gps_ns, "{name} {}", r.station);
+            assert!(
+                (dz.expect("dz") - r.dz_read_rad).abs() < 1e-8,
+                "{name} {}",
+                r.station
+            );
+        }
+    }
+}
+
+/// Across the GPS week 2047/2048 boundary the 10-bit week resolves to a continuous time line.
+#[test]
+fn week_rollover_is_continuous() {
+    let truth = fixtures::read_truth(&fixtures::dataset_dir("week-rollover")).expect("truth");
+    let (out, _) = ingest("week-rollover");
+    let t = i64_col(
+        &read_table(out.path(), ingest::schema::acceleration::FILE),
+        ingest::schema::TIME_GPS_NS,
+    );
+    assert_eq!(t[0], truth.session[0].start_gps_ns);
+    assert_eq!(*t.last().expect("rows"), truth.session[0].end_gps_ns);
+    assert!(t.windows(2).all(|w| w[1] - w[0] == 32_000_000));
+}
+
+/// Same inputs, same bytes; and no partial file under any name.
+#[test]
+fn outputs_are_deterministic() {
+    let (a, _) = ingest("damaged-log");
+    let (b, _) = ingest("damaged-log");
+    let mut names: Vec<PathBuf> = std::fs::read_dir(a.path().join("ingest"))
+        .expect("dir")
+        .map(|e| e.expect("entry").path())
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 4, "{names:?}");
+    for p in names {
+        let n = p.file_name().expect("name");
+        assert_eq!(
+            std::fs::read(&p).expect("a"),
+            std::fs::read(b.path().join("ingest").join(n)).expect("b"),
+            "{n:?}"
+        );
+    }
+}
+
+fn copy_dataset(name: &str) -> tempfile::TempDir {
+    let src = fixtures::dataset_dir(name);
+    let dst = tempfile::tempdir().expect("tempdir");
+    std::fs::create_dir_all(dst.path().join("raw")).expect("raw");
+    for entry in std::fs::read_dir(src.join("raw")).expect("raw") {
+        let p = entry.expect("entry").path();
+        std::fs::copy(
+            &p,
+            dst.path().join("raw").join(p.file_name().expect("name")),
+        )
+        .expect("copy");
+    }
+    std::fs::copy(src.join("dataset.toml"), dst.path().join("dataset.toml")).expect("copy");
+    dst
+}
+
+fn error_with_manifest(edit: impl Fn(String) -> String) -> String {
+    let ds = copy_dataset("gon-gpst");
+    let path = ds.path().join("dataset.toml");
+    let text = std::fs::read_to_string(&path).expect("manifest");
+    std::fs::write(&path, edit(text)).expect("write");
+    let out = tempfile::tempdir().expect("tempdir");
+    match ingest::run(ds.path(), out.path()) {
+        Ok(_) => panic!("the edited manifest should be rejected"),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// Each manifest error names the file and the key.
+#[test]
+fn manifest_errors_name_the_key_and_file() {
+    // (text in the manifest, replaced by, what the error must name)
+    let cases = [
+        (
+            "sensor_height_m = 0.25",
+            "sensor_height_m = 0.25\nsensor_hieght_m = 1.0",
+            "sensor_hieght_m",
+        ),
+        (
+            "raw/s1_theodolite.txt",
+            "raw/missing.txt",
+            "session[0].theodolite",
+        ),
+        (
+            "id = \"acc2\"",
+            "id = \"acc1\"",
+            "instrument.accelerometer[1].id",
+        ),
+        (
+            "channel = 3",
+            "channel = 2",
+            "instrument.accelerometer[2].channel",
+        ),
+        (
+            "g_abs_mgal = 980855.8",
+            "g_abs_mgal = 9.81",
+            "site.g_abs_mgal",
+        ),
+        (
+            "date = \"2021-06-10\"",
+            "date = \"2021-06-31\"",
+            "session[0].date",
+        ),
+        (
+            "theodolite_unit = \"gon\"",
+            "theodolite_unit = \"mil\"",
+            "mil",
+        ),
+        ("name = \"gon-gpst\"", "name = \"Gon GPST\"", "name"),
+        ("sample_rate_hz = 31.25\n", "", "sample_rate_hz"),
+    ];
+    for (from, to, key) in cases {
+        let msg = error_with_manifest(|t| {
+            assert!(t.contains(from), "{from}");
+            t.replace(from, to)
+        });
+        assert!(msg.contains("dataset.toml"), "{msg}");
+        assert!(msg.contains(key), "expected `{key}` in: {msg}");
+    }
+}
+
+/// A malformed CSV line stops the run with file, line and field, or is counted when skipping;
+/// either way no partial table and no ledger is left.
+#[test]
+fn malformed_csv_line_names_file_line_and_field() {
+    let ds = copy_dataset("esgt-2005-csv");
+    let adc = ds.path().join("raw/day2_adc.csv");
+    let text = std::fs::read_to_string(&adc).expect("csv");
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines[99] = "1310,290836.136,1449571,,14x1522";
+    std::fs::write(&adc, lines.join("\n") + "\n").expect("write");
+    let out = tempfile::tempdir().expect("tempdir");
+    let e = ingest::run(ds.path(), out.path())
+        .expect_err("malformed line")
+        .to_string();
+    assert!(e.contains("day2_adc.csv:100: c3:"), "{e}");
+    let left: Vec<_> = std::fs::read_dir(out.path().join("ingest"))
+        .expect("dir")
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+
+    let opts = Options {
+        skip_bad_lines: true,
+        progress: false,
+    };
+    let report = ingest::run_with(ds.path(), out.path(), &opts).expect("skipping bad lines");
+    let f = report
+        .files
+        .iter()
+        .find(|f| f.path == "raw/day2_adc.csv")
+        .expect("file");
+    assert_eq!(f.rejected.get(reason::MALFORMED), Some(&1));
+    assert_eq!(f.rejections[0].at, "line 100");
+    assert_eq!(f.read, f.accepted + 1);
+}
+
+/// A theodolite line that does not parse names the file, the line and the field; one dated
+/// outside its session is counted and listed.
+#[test]
+fn theodolite_errors_and_dates() {
+    let ds = copy_dataset("gon-gpst");
+    let theo = ds.path().join("raw/s1_theodolite.txt");
+    let text = std::fs::read_to_string(&theo).expect("log");
+    // Line 4 is the first reading (three comment lines before it).
+    let edit = |f: &dyn Fn(&str) -> String| -> String {
+        let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+        lines[3] = f(&lines[3]);
+        lines.join("\n") + "\n"
+    };
+    std::fs::write(&theo, edit(&|l| l.replacen(":", "h", 1))).expect("write");
+    let out = tempfile::tempdir().expect("tempdir");
+    let e = ingest::run(ds.path(), out.path())
+        .expect_err("bad time")
+        .to_string();
+    assert!(e.contains("s1_theodolite.txt:4: time:"), "{e}");
+
+    std::fs::write(&theo, edit(&|l| l.replacen("2021-06-10", "2021-07-10", 1))).expect("write");
+    let report = ingest::run(ds.path(), out.path()).expect("runs");
+    let f = report
+        .files
+        .iter()
+        .find(|f| f.role == "theodolite")
+        .expect("file");
+    assert_eq!(f.rejected.get(reason::OUTSIDE_SESSION), Some(&1));
+    assert_eq!(f.rejections[0].at, "line 4");
+}
