@@ -219,6 +219,7 @@ pub fn read_csv(
     let mut header_seen = false;
     let mut other_lines = 0u64;
     let mut last: Option<i64> = None;
+    let mut accepted = 0u64;
     let names = kind.header();
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
         let line = strip_comment(raw);
@@ -281,23 +282,18 @@ pub fn read_csv(
             }
         }
         last = Some(time_ns);
+        accepted += 1;
         match row {
             Row::Adc {
                 time_ns,
                 counts,
                 status,
-            } => {
-                ledger.accept("acceleration");
-                streams.acceleration(time_ns, counts, status, ledger)
-            }
+            } => streams.acceleration(time_ns, counts, status),
             Row::Temperature {
                 time_ns,
                 celsius,
                 status,
-            } => {
-                ledger.accept("temperature");
-                streams.temperature(time_ns, celsius, status, ledger)
-            }
+            } => streams.temperature(time_ns, celsius, status),
         }
     })?;
     if !header_seen {
@@ -308,6 +304,15 @@ pub fn read_csv(
             message: format!("no header line `{}`", names.join(",")),
         });
     }
+    ledger.accept(
+        if kind == CsvKind::Adc {
+            "acceleration"
+        } else {
+            "temperature"
+        },
+        accepted,
+    );
+    ledger.null_values = streams.take_null_counts();
     ledger.sha256 = sha;
     ledger.bytes = bytes;
     ledger.comment_blank_or_header_lines = Some(other_lines);

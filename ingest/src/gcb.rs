@@ -90,6 +90,8 @@ pub struct FrameScanner {
     bytes: ByteLedger,
     /// Start of the stretch currently being skipped, for listing it once.
     skip_start: Option<u64>,
+    /// Accepted acceleration and temperature frames.
+    accepted: [u64; 2],
 }
 
 fn le_i32(b: &[u8], at: usize) -> i32 {
@@ -106,6 +108,7 @@ impl FrameScanner {
             last_time: [None, None],
             bytes: ByteLedger::default(),
             skip_start: None,
+            accepted: [0, 0],
         }
     }
 
@@ -165,6 +168,8 @@ impl FrameScanner {
         self.offset += used as u64;
         let end = self.offset;
         self.end_skip(ledger, end);
+        ledger.accept("acceleration", self.accepted[0]);
+        ledger.accept("temperature", self.accepted[1]);
         ledger.byte_ledger = Some(self.bytes);
         Ok(())
     }
@@ -339,7 +344,7 @@ impl FrameScanner {
         }
         self.last_time[slot] = Some(time_ns);
         self.bytes.in_accepted_frames += FRAME_LEN as u64;
-        ledger.accept(name);
+        self.accepted[slot] += 1;
         emit(if slot == 0 {
             Frame::Acceleration {
                 time_ns,

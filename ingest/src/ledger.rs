@@ -117,11 +117,13 @@ impl FileLedger {
         }
     }
 
-    /// Counts an accepted record of `kind`.
-    pub fn accept(&mut self, kind: &str) {
-        self.read += 1;
-        self.accepted += 1;
-        *self.accepted_by_kind.entry(kind.to_owned()).or_default() += 1;
+    /// Counts `n` accepted records of `kind` (readers count locally and call this once).
+    pub fn accept(&mut self, kind: &str, n: u64) {
+        if n > 0 {
+            self.read += n;
+            self.accepted += n;
+            *self.accepted_by_kind.entry(kind.to_owned()).or_default() += n;
+        }
     }
 
     /// Total rejected.

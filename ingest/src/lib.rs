@@ -148,15 +148,13 @@ fn read_binary(
     progress: &indicatif::ProgressBar,
 ) -> Result<()> {
     let mut scanner = gcb::FrameScanner::new(reference_week);
-    // The scanner counts frames in `ledger`; values stored as null are counted in `values`.
-    let mut values = FileLedger::default();
     let mut emit = |f: gcb::Frame| -> Result<()> {
         match f {
             gcb::Frame::Acceleration {
                 time_ns,
                 counts,
                 status,
-            } => streams.acceleration(time_ns, counts, status, &mut values),
+            } => streams.acceleration(time_ns, counts, status),
             gcb::Frame::Temperature {
                 time_ns,
                 millidegrees,
@@ -165,7 +163,6 @@ fn read_binary(
                 time_ns,
                 millidegrees.map(|m| Some(f64::from(m) / 1000.0)),
                 status,
-                &mut values,
             ),
         }
     };
@@ -174,7 +171,7 @@ fn read_binary(
         scanner.push(chunk, ledger, &mut emit)
     })?;
     scanner.finish(ledger, &mut emit)?;
-    ledger.null_values = values.null_values;
+    ledger.null_values = streams.take_null_counts();
     ledger.sha256 = sha;
     ledger.bytes = bytes;
     Ok(())

@@ -17,6 +17,16 @@ struct Args {
     /// Count and list malformed text lines instead of stopping at the first one.
     #[arg(long)]
     skip_bad_lines: bool,
+    /// Print `peak_rss_kb N` (the process's peak resident memory) at the end, for benchmarks.
+    #[arg(long, hide = true)]
+    report_peak_rss: bool,
+}
+
+/// Peak resident set size of this process, from /proc (Linux), in kB.
+fn peak_rss_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 fn main() -> ExitCode {
@@ -31,6 +41,12 @@ fn main() -> ExitCode {
     match ingest::run_with(&args.dataset, &out, &opts) {
         Ok(report) => {
             ingest::print_summary(&report, &mut std::io::stderr());
+            if args.report_peak_rss {
+                match peak_rss_kb() {
+                    Some(kb) => eprintln!("peak_rss_kb {kb}"),
+                    None => eprintln!("peak_rss_kb unavailable"),
+                }
+            }
             ExitCode::SUCCESS
         }
         Err(e) => {

@@ -2,11 +2,11 @@
 //! to `acceleration.parquet` and `temperature.parquet`; counts the values stored as null.
 
 use crate::error::Result;
-use crate::ledger::FileLedger;
 use crate::schema;
 use crate::table::{ROWS_PER_GROUP, TableWriter, session_column};
 use arrow::array::{ArrayRef, Float64Array, Int32Array, Int64Array, UInt8Array};
 use arrow::buffer::NullBuffer;
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -70,6 +70,9 @@ pub struct StreamWriter {
     temperature: TableWriter,
     session: String,
     stats: SessionStats,
+    /// Per channel: acceleration values null because not connected, because over range;
+    /// temperature values null because not connected.
+    nulls: [[u64; 3]; 3],
     acc: Columns<i32>,
     temp: Columns<f64>,
 }
@@ -94,6 +97,7 @@ impl StreamWriter {
             )?,
             session: String::new(),
             stats: SessionStats::default(),
+            nulls: [[0; 3]; 3],
             acc: Columns::default(),
             temp: Columns::default(),
         })
@@ -112,36 +116,42 @@ impl StreamWriter {
         &self.stats
     }
 
+    /// Values stored as null since the last call, by channel and reason (for a file's ledger).
+    pub fn take_null_counts(&mut self) -> BTreeMap<String, u64> {
+        let mut out = BTreeMap::new();
+        let what = ["not connected", "over range", "temperature not connected"];
+        for (k, per_channel) in self.nulls.iter().enumerate() {
+            for (ch, &n) in per_channel.iter().enumerate() {
+                if n > 0 {
+                    out.insert(format!("ch{} {}", ch + 1, what[k]), n);
+                }
+            }
+        }
+        self.nulls = [[0; 3]; 3];
+        out
+    }
+
     /// One acceleration sample; over-range and unconnected channels are stored as null and
-    /// counted in `ledger.null_values`.
-    pub fn acceleration(
-        &mut self,
-        time_ns: i64,
-        counts: [i32; 3],
-        status: u8,
-        ledger: &mut FileLedger,
-    ) -> Result<()> {
+    /// counted (see [`StreamWriter::take_null_counts`]).
+    pub fn acceleration(&mut self, time_ns: i64, counts: [i32; 3], status: u8) -> Result<()> {
         self.acc.time.push(time_ns);
         self.stats.acceleration += 1;
         self.stats.first_gps_ns.get_or_insert(time_ns);
         self.stats.last_gps_ns = Some(time_ns);
         for ch in 0..3 {
             self.stats.connected_seen[ch] |= status & not_connected_bit(ch) == 0;
-            let why = if status & not_connected_bit(ch) != 0 {
-                Some("not connected")
+            let null = if status & not_connected_bit(ch) != 0 {
+                Some(0)
             } else if status & over_range_bit(ch) != 0 {
-                Some("over range")
+                Some(1)
             } else {
                 None
             };
-            if let Some(why) = why {
-                *ledger
-                    .null_values
-                    .entry(format!("ch{} {why}", ch + 1))
-                    .or_default() += 1;
+            if let Some(k) = null {
+                self.nulls[k][ch] += 1;
             }
-            self.acc.values[ch].push(if why.is_none() { counts[ch] } else { 0 });
-            self.acc.valid[ch].push(why.is_none());
+            self.acc.values[ch].push(if null.is_none() { counts[ch] } else { 0 });
+            self.acc.valid[ch].push(null.is_none());
         }
         self.acc.status.push(status);
         if self.acc.len() >= ROWS_PER_GROUP {
@@ -156,7 +166,6 @@ impl StreamWriter {
         time_ns: i64,
         celsius: [Option<f64>; 3],
         status: u8,
-        ledger: &mut FileLedger,
     ) -> Result<()> {
         self.temp.time.push(time_ns);
         self.stats.temperature += 1;
@@ -167,10 +176,7 @@ impl StreamWriter {
                 celsius[ch]
             };
             if v.is_none() {
-                *ledger
-                    .null_values
-                    .entry(format!("ch{} temperature not connected", ch + 1))
-                    .or_default() += 1;
+                self.nulls[2][ch] += 1;
             }
             self.temp.values[ch].push(v.unwrap_or(0.0));
             self.temp.valid[ch].push(v.is_some());

@@ -128,7 +128,6 @@ pub fn read_theodolite(
                         ),
                     );
                 } else {
-                    ledger.accept("reading");
                     out.push(r);
                 }
                 Ok(())
@@ -144,6 +143,7 @@ pub fn read_theodolite(
             Err(e) => Err(e),
         }
     })?;
+    ledger.accept("reading", out.len() as u64);
     ledger.sha256 = sha;
     ledger.bytes = bytes;
     ledger.comment_blank_or_header_lines = Some(other);

@@ -1,6 +1,8 @@
 //! `cargo xtask`: runs the pipeline or one stage on a dataset, writes and checks the fixtures,
 //! runs what CI runs, and the benchmarks.
 
+mod bench;
+
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -56,8 +58,14 @@ enum Cmd {
     Ci,
     /// Benchmarks (speed and memory), measured, not asserted.
     Bench {
-        /// Which stage: ingest, align or adjust.
-        what: Option<String>,
+        /// Which stage: ingest (align and adjust come with their stages).
+        what: String,
+        /// Logging hours of the 250 Hz log (the 31.25 Hz log is twice as long).
+        #[arg(long, default_value_t = 24.0)]
+        hours: f64,
+        /// Skip the Python peers (polars, pyarrow).
+        #[arg(long)]
+        no_peers: bool,
     },
 }
 
@@ -245,10 +253,16 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Cmd::Ci => ci(),
-        Cmd::Bench { what } => bail!(
-            "no benchmark is built yet ({}): they come with the stages they measure (issues #3-#5)",
-            what.as_deref().unwrap_or("all")
-        ),
+        Cmd::Bench {
+            what,
+            hours,
+            no_peers,
+        } => match what.as_str() {
+            "ingest" => bench::ingest(&workspace_root(), hours, !no_peers),
+            other => bail!(
+                "no benchmark `{other}` yet: align and adjust benchmarks come with those stages (issues #4, #5)"
+            ),
+        },
     }
 }
 

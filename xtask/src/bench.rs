@@ -1,0 +1,258 @@
+//! `cargo xtask bench`: speed and memory, measured on this machine, never asserted.
+//!
+//! `bench ingest` generates large logs (never committed) with the simulator, ingests them
+//! with the release build, and converts the same CSV with polars and pyarrow (installed in a
+//! throwaway virtualenv under target/) for comparison. Files are read from the page cache
+//! (each is read once before timing); the best of three runs is reported.
+
+use anyhow::{Context, Result, bail};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+const PEERS: &str = r##"
+import resource, sys, time
+path, out, method = sys.argv[1], sys.argv[2], sys.argv[3]
+t0 = time.perf_counter()
+if method == "polars-read-write":
+    import polars as pl
+    pl.read_csv(path, comment_prefix="#").write_parquet(out, compression="zstd")
+elif method == "polars-sink":
+    import polars as pl
+    pl.scan_csv(path, comment_prefix="#").sink_parquet(out, compression="zstd")
+elif method == "pyarrow":
+    import pyarrow.csv as pc, pyarrow.parquet as pq
+    t = pc.read_csv(path, read_options=pc.ReadOptions(skip_rows=1))
+    pq.write_table(t, out, compression="zstd")
+dt = time.perf_counter() - t0
+print(f"{dt} {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}")
+"##;
+
+struct Run {
+    seconds: f64,
+    peak_rss_mb: f64,
+}
+
+fn best_of(n: usize, mut f: impl FnMut() -> Result<Run>) -> Result<Run> {
+    let mut best: Option<Run> = None;
+    for _ in 0..n {
+        let r = f()?;
+        if best.as_ref().is_none_or(|b| r.seconds < b.seconds) {
+            best = Some(r);
+        }
+    }
+    best.context("no run")
+}
+
+fn ingest_once(bin: &Path, dataset: &Path, out: &Path) -> Result<Run> {
+    let _ = std::fs::remove_dir_all(out);
+    let t0 = Instant::now();
+    let o = Command::new(bin)
+        .arg(dataset)
+        .arg("--out")
+        .arg(out)
+        .arg("--report-peak-rss")
+        .output()
+        .with_context(|| format!("running {}", bin.display()))?;
+    let seconds = t0.elapsed().as_secs_f64();
+    if !o.status.success() {
+        bail!(
+            "{} failed: {}",
+            bin.display(),
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let kb: f64 = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("peak_rss_kb "))
+        .and_then(|v| v.trim().parse().ok())
+        .context("the ingest binary did not report its peak RSS")?;
+    Ok(Run {
+        seconds,
+        peak_rss_mb: kb / 1024.0,
+    })
+}
+
+fn venv_python(root: &Path) -> Result<PathBuf> {
+    let venv = root.join("target/bench-venv");
+    let py = venv.join("bin/python");
+    if !py.exists() {
+        eprintln!("bench: creating {} with polars and pyarrow", venv.display());
+        let ok = Command::new("python3")
+            .args(["-m", "venv"])
+            .arg(&venv)
+            .status()?
+            .success();
+        if !ok {
+            bail!("python3 -m venv failed");
+        }
+    }
+    let have = Command::new(&py)
+        .args(["-c", "import polars, pyarrow"])
+        .output()?
+        .status
+        .success();
+    if !have {
+        let ok = Command::new(&py)
+            .args(["-m", "pip", "install", "-q", "polars", "pyarrow"])
+            .status()?
+            .success();
+        if !ok {
+            bail!("pip install polars pyarrow failed");
+        }
+    }
+    Ok(py)
+}
+
+fn peer_once(py: &Path, script: &Path, csv: &Path, out: &Path, method: &str) -> Result<Run> {
+    let o = Command::new(py)
+        .arg(script)
+        .arg(csv)
+        .arg(out)
+        .arg(method)
+        .output()?;
+    if !o.status.success() {
+        bail!("{method} failed: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    let s = String::from_utf8_lossy(&o.stdout);
+    let mut it = s.split_whitespace();
+    let seconds: f64 = it
+        .next()
+        .and_then(|x| x.parse().ok())
+        .context("peer time")?;
+    let kb: f64 = it.next().and_then(|x| x.parse().ok()).context("peer rss")?;
+    Ok(Run {
+        seconds,
+        peak_rss_mb: kb / 1024.0,
+    })
+}
+
+/// A CSV twin of a benchmark dataset: the same folder layout with hard links to its CSV
+/// logs and a manifest naming them.
+fn csv_twin(dataset: &Path) -> Result<PathBuf> {
+    let twin = dataset.with_file_name(format!(
+        "{}-csv",
+        dataset.file_name().context("name")?.to_string_lossy()
+    ));
+    let _ = std::fs::remove_dir_all(&twin);
+    std::fs::create_dir_all(twin.join("raw"))?;
+    let manifest = std::fs::read_to_string(dataset.join("dataset.toml"))?;
+    let mut out = String::new();
+    for line in manifest.lines() {
+        if let Some(rest) = line.strip_prefix("acquisition = \"raw/") {
+            let id = rest.trim_end_matches(".gcb\"");
+            out.push_str(&format!(
+                "adc_csv = \"raw/{id}_adc.csv\"\ntemperature_csv = \"raw/{id}_temp.csv\"\n"
+            ));
+        } else if let Some(rest) = line.strip_prefix("name = \"") {
+            out.push_str(&format!("name = \"{}-csv\"\n", rest.trim_end_matches('"')));
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    std::fs::write(twin.join("dataset.toml"), out)?;
+    for entry in std::fs::read_dir(dataset.join("raw"))? {
+        let p = entry?.path();
+        let name = p.file_name().context("name")?;
+        if !p.to_string_lossy().ends_with(".gcb") {
+            std::fs::hard_link(&p, twin.join("raw").join(name))?;
+        }
+    }
+    Ok(twin)
+}
+
+fn dir_bytes(dir: &Path, keep: impl Fn(&str) -> bool) -> Result<u64> {
+    let mut total = 0;
+    for entry in std::fs::read_dir(dir.join("raw"))? {
+        let p = entry?.path();
+        if keep(&p.to_string_lossy()) {
+            total += std::fs::metadata(&p)?.len();
+        }
+    }
+    Ok(total)
+}
+
+fn warm(dir: &Path) -> Result<()> {
+    for entry in std::fs::read_dir(dir.join("raw"))? {
+        let _ = std::fs::read(entry?.path())?;
+    }
+    Ok(())
+}
+
+/// Runs the ingest benchmark; `hours` scales the logs (31.25 Hz for 2x hours, 250 Hz for hours).
+pub fn ingest(root: &Path, hours: f64, peers: bool) -> Result<()> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let ok = Command::new(&cargo)
+        .args(["build", "--release", "-p", "ingest"])
+        .current_dir(root)
+        .status()?
+        .success();
+    if !ok {
+        bail!("release build of ingest failed");
+    }
+    let bin = root.join("target/release/gravcal-ingest");
+    let data = root.join("target/bench-data");
+    let py = if peers {
+        Some(venv_python(root)?)
+    } else {
+        None
+    };
+    let script = data.join("peers.py");
+    std::fs::create_dir_all(&data)?;
+    std::fs::write(&script, PEERS)?;
+    let mut rows = Vec::new();
+    for (interval_ms, h) in [(32u32, 2.0 * hours), (4u32, hours)] {
+        let scenario = fixtures::catalog::bench(interval_ms, h);
+        let dataset = data.join(&scenario.name);
+        if !dataset.join("dataset.toml").exists() {
+            eprintln!("bench: generating {}", dataset.display());
+            fixtures::write::write_dataset(&scenario, &dataset)?;
+        }
+        let twin = csv_twin(&dataset)?;
+        let rate = 1000.0 / f64::from(interval_ms);
+        let out = data.join("out");
+        for (label, ds, keep) in [
+            (
+                "gravcal ingest, binary .gcb",
+                &dataset,
+                (|p: &str| !p.ends_with(".csv")) as fn(&str) -> bool,
+            ),
+            ("gravcal ingest, CSV", &twin, |p: &str| !p.ends_with(".gcb")),
+        ] {
+            warm(ds)?;
+            let bytes = dir_bytes(ds, keep)?;
+            let r = best_of(3, || ingest_once(&bin, ds, &out))?;
+            rows.push((format!("{rate} Hz, {h} h"), label.to_owned(), bytes, r));
+        }
+        if let Some(py) = &py {
+            let csv = twin.join("raw/long_adc.csv");
+            let bytes = std::fs::metadata(&csv)?.len();
+            for method in ["polars-read-write", "polars-sink", "pyarrow"] {
+                let r = best_of(3, || {
+                    peer_once(py, &script, &csv, &data.join("peer.parquet"), method)
+                })?;
+                rows.push((
+                    format!("{rate} Hz, {h} h"),
+                    format!("{method} (ADC CSV only)"),
+                    bytes,
+                    r,
+                ));
+            }
+        }
+        let _ = std::fs::remove_dir_all(&out);
+    }
+    println!("| log | what | input MB | seconds | MB/s | peak RSS MB |");
+    println!("|---|---|---|---|---|---|");
+    for (log, what, bytes, r) in rows {
+        let mb = bytes as f64 / 1e6;
+        println!(
+            "| {log} | {what} | {mb:.0} | {:.2} | {:.0} | {:.0} |",
+            r.seconds,
+            mb / r.seconds,
+            r.peak_rss_mb
+        );
+    }
+    Ok(())
+}
