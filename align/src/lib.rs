@@ -1,21 +1,417 @@
-//! gravcal's `align` stage: ingest tables to observations: one row per theodolite reading and accelerometer.
+//! gravcal's `align` stage: from the raw streams to observations (MODEL.md section 1).
 //!
-//! Not built yet: issue #4 builds it. Until then [`run`] says so and fails, so that
-//! nothing downstream mistakes an empty folder for a result.
+//! One observation per (theodolite reading, accelerometer): the mean ADC count in a window of
+//! `window_s` centred on the reading's GPS time (half-open, `[t - w/2, t + w/2)`, so a
+//! 2.56 s window at 31.25 Hz holds exactly 80 samples), the sd of that mean, the
+//! accelerometer's temperature interpolated at the reading's time, and sigma_Dz, the sample
+//! sd of the station's readings (eq. 4 of the paper). An observation that cannot be used is
+//! kept with the reason (the first that applies, in this order): a sample flagged not
+//! connected, a saturated sample, too few samples, no temperature near enough, or a trend in
+//! the window (the platform was not still). A channel not connected for a whole session
+//! yields no observations, and one line saying so.
+//!
+//! Reads OUT/ingest/ (the tables of [`ingest::schema`] and `ingest.json`), writes
+//! OUT/align/observations.parquet and OUT/align/align.json. The acceleration table is
+//! streamed once, in order: time is linear in the number of samples and memory does not
+//! grow with it.
 
-use std::path::Path;
+mod read;
+pub mod window;
 
-/// What can go wrong in this stage.
+use ingest::manifest::{AlignConfig, Dataset};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use window::{WindowSums, interpolate, sample_sd};
+
+/// What can go wrong in align.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// The stage has not been implemented yet.
-    #[error("the align stage is not built yet (issue #4)")]
-    NotBuilt,
+    /// Reading the manifest or ingest's outputs, or writing a table.
+    #[error(transparent)]
+    Ingest(#[from] ingest::Error),
+    /// An input table is not what ingest writes (a missing column, a wrong type).
+    #[error("{}: {message}", path.display())]
+    Table {
+        /// The table.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// Reading a Parquet table failed.
+    #[error("{}: {source}", path.display())]
+    Parquet {
+        /// The table.
+        path: PathBuf,
+        /// The underlying error.
+        source: parquet::errors::ParquetError,
+    },
 }
 
-/// Runs the stage on `dataset`, writing under `out`.
-pub fn run(dataset: &Path, out: &Path) -> Result<(), Error> {
-    let _ = (dataset, out);
-    Err(Error::NotBuilt)
+/// Result with this crate's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Exclusion reasons, as written in `observations.parquet` and `align.json`.
+pub mod reason {
+    /// A sample in the window is flagged not connected.
+    pub const NOT_CONNECTED: &str = "not_connected";
+    /// A sample in the window is over range.
+    pub const SATURATED: &str = "saturated";
+    /// The window holds fewer than `min_window_fill` of the expected samples.
+    pub const WINDOW_UNDERFILLED: &str = "window_underfilled";
+    /// No temperature of this channel in the session.
+    pub const NO_TEMPERATURE: &str = "no_temperature";
+    /// The nearest temperature sample is further than `max_temperature_gap_s`.
+    pub const TEMPERATURE_GAP: &str = "temperature_gap";
+    /// The counts in the window trend (|t| > [`super::DRIFT_T_LIMIT`]): the platform was not still.
+    pub const WINDOW_DRIFT: &str = "window_drift";
+}
+
+/// A window whose linear trend has |t| above this is flagged as drifting. For white noise the
+/// chance of that is below 1e-6 per window, so a flag means the platform moved.
+pub const DRIFT_T_LIMIT: f64 = 5.0;
+
+/// File name of the ledger.
+pub const LEDGER_FILE: &str = "align.json";
+/// Format tag of the ledger.
+pub const LEDGER_FORMAT: &str = "gravcal-align/1";
+
+/// One observation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Observation {
+    /// Session id.
+    pub session: String,
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Channel 1..3.
+    pub channel: u8,
+    /// Station id.
+    pub station: String,
+    /// Line in the theodolite log.
+    pub line: u32,
+    /// GPS time of the reading, ns.
+    pub time_gps_ns: i64,
+    /// Zenith distance, rad.
+    pub dz_rad: f64,
+    /// Sd of one reading at the station, rad.
+    pub sigma_dz_rad: f64,
+    /// `station_sd` or `manifest`.
+    pub sigma_dz_source: &'static str,
+    /// g |sin Dz| sigma_Dz, mGal.
+    pub sigma_am_mgal: f64,
+    /// Mean count.
+    pub ng: Option<f64>,
+    /// Sd of the mean count.
+    pub sigma_ng: Option<f64>,
+    /// Valid samples in the window.
+    pub n_samples: u32,
+    /// Samples a full window holds.
+    pub expected_samples: f64,
+    /// Temperature at the reading, degC.
+    pub temperature_c: Option<f64>,
+    /// Trend t statistic.
+    pub drift_t: Option<f64>,
+    /// Why it is not used.
+    pub excluded: Option<&'static str>,
+}
+
+/// Counts for one (session, accelerometer).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Counts {
+    /// Session id.
+    pub session: String,
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Theodolite readings.
+    pub readings: u64,
+    /// Observations usable.
+    pub used: u64,
+    /// Excluded, by reason.
+    pub excluded: BTreeMap<String, u64>,
+}
+
+/// An accelerometer that gave no observations in a session.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Disconnected {
+    /// Session id.
+    pub session: String,
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Channel 1..3.
+    pub channel: u8,
+    /// Why.
+    pub reason: String,
+}
+
+/// `align.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct AlignReport {
+    /// [`LEDGER_FORMAT`].
+    pub format: String,
+    /// Dataset name.
+    pub dataset: String,
+    /// Software and version.
+    pub software: String,
+    /// The settings used.
+    pub config: AlignConfig,
+    /// Gravity at the proof masses, mGal.
+    pub gravity_mgal: f64,
+    /// Per (session, accelerometer).
+    pub counts: Vec<Counts>,
+    /// Accelerometers without observations in a session.
+    pub disconnected: Vec<Disconnected>,
+    /// Rows in observations.parquet.
+    pub observations: u64,
+}
+
+impl AlignReport {
+    /// Reads `dir/align.json` (`dir` being OUT/align).
+    pub fn load(dir: &Path) -> Result<Self> {
+        let path = dir.join(LEDGER_FILE);
+        let text = std::fs::read_to_string(&path).map_err(|e| ingest::Error::Io {
+            path: path.clone(),
+            source: e,
+        })?;
+        serde_json::from_str(&text).map_err(|e| Error::Table {
+            path,
+            message: e.to_string(),
+        })
+    }
+}
+
+/// A reading with its windows being filled.
+struct Pending {
+    reading: read::TheodoliteRow,
+    start_ns: i64,
+    end_ns: i64,
+    sums: [WindowSums; 3],
+}
+
+/// Aligns the dataset: reads OUT/ingest, writes OUT/align. Returns the ledger.
+pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
+    let ds = Dataset::load(dataset)?;
+    let ingest_dir = out.join("ingest");
+    let ingest_report = ingest::IngestReport::load(&ingest_dir)?;
+    let cfg = ds.manifest.align.clone();
+    let g = ds.manifest.site.gravity_mgal();
+    let rate = ds.manifest.instrument.sample_rate_hz;
+    let expected = cfg.window_s * rate;
+    let half_ns = (cfg.window_s * 0.5e9).round() as i64;
+    let max_gap_ns = (cfg.max_temperature_gap_s * 1e9).round() as i64;
+    let fallback_sigma_rad = (cfg.theodolite_sigma_arcsec / 3600.0).to_radians();
+
+    let theodolite = read::theodolite(&ingest_dir)?;
+    let temperatures = read::temperatures(&ingest_dir)?;
+
+    // Windows per session, in time order.
+    let session_ids: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
+    let mut pending: Vec<Vec<Pending>> = session_ids
+        .iter()
+        .map(|id| {
+            let mut rows: Vec<read::TheodoliteRow> =
+                theodolite.get(id).cloned().unwrap_or_default();
+            rows.sort_by_key(|r| (r.time_gps_ns, r.line));
+            rows.into_iter()
+                .map(|r| Pending {
+                    start_ns: r.time_gps_ns - half_ns,
+                    end_ns: r.time_gps_ns + half_ns,
+                    reading: r,
+                    sums: Default::default(),
+                })
+                .collect()
+        })
+        .collect();
+
+    // One pass over the acceleration stream.
+    let index_of: BTreeMap<&str, usize> = session_ids
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (s.as_str(), i))
+        .collect();
+    let mut cursor: Vec<(usize, usize)> = vec![(0, 0); session_ids.len()]; // (first active, next to open)
+    read::acceleration(&ingest_dir, |session, time_ns, counts, status| {
+        let Some(&si) = index_of.get(session) else {
+            return;
+        };
+        let windows = &mut pending[si];
+        let (first, next) = &mut cursor[si];
+        while *next < windows.len() && windows[*next].start_ns <= time_ns {
+            *next += 1;
+        }
+        while *first < *next && windows[*first].end_ns <= time_ns {
+            *first += 1;
+        }
+        for w in &mut windows[*first..*next] {
+            if time_ns >= w.end_ns {
+                continue;
+            }
+            let t_s = (time_ns - w.reading.time_gps_ns) as f64 * 1e-9;
+            for ch in 0..3 {
+                let s = &mut w.sums[ch];
+                s.rows += 1;
+                if status & (1 << (ch + 4)) != 0 {
+                    s.not_connected += 1;
+                } else if status & (1 << ch) != 0 {
+                    s.saturated += 1;
+                } else if let Some(x) = counts[ch] {
+                    s.add(t_s, f64::from(x));
+                }
+            }
+        }
+    })?;
+
+    // sigma_Dz per (session, station): eq. 4.
+    let mut observations = Vec::new();
+    let mut counts = Vec::new();
+    let mut disconnected = Vec::new();
+    for (si, s) in ds.sessions.iter().enumerate() {
+        let id = &s.session.id;
+        let mut by_station: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
+        for p in &pending[si] {
+            by_station
+                .entry(p.reading.station.as_str())
+                .or_default()
+                .push(p.reading.dz_rad);
+        }
+        let sigma: BTreeMap<&str, (f64, &'static str)> = by_station
+            .iter()
+            .map(|(st, v)| {
+                let s = match sample_sd(v) {
+                    Some(sd) if sd > 0.0 => (sd, "station_sd"),
+                    _ => (fallback_sigma_rad, "manifest"),
+                };
+                (*st, s)
+            })
+            .collect();
+        let never = ingest_report
+            .sessions
+            .iter()
+            .find(|x| &x.id == id)
+            .map(|x| x.channels_never_connected.clone())
+            .unwrap_or_default();
+        for acc in &ds.manifest.instrument.accelerometer {
+            let ch = usize::from(acc.channel) - 1;
+            if never.contains(&acc.channel) {
+                disconnected.push(Disconnected {
+                    session: id.clone(),
+                    accelerometer: acc.id.clone(),
+                    channel: acc.channel,
+                    reason: "channel not connected in any sample of the session".to_owned(),
+                });
+                continue;
+            }
+            let temps = temperatures.get(&(id.clone(), acc.channel));
+            let mut c = Counts {
+                session: id.clone(),
+                accelerometer: acc.id.clone(),
+                readings: pending[si].len() as u64,
+                used: 0,
+                excluded: BTreeMap::new(),
+            };
+            for p in &pending[si] {
+                let w = &p.sums[ch];
+                let stats = w.stats();
+                let (sigma_dz_rad, source) = sigma[p.reading.station.as_str()];
+                let temperature =
+                    temps.and_then(|(t, v)| interpolate(t, v, p.reading.time_gps_ns, max_gap_ns));
+                let excluded = if w.not_connected > 0 {
+                    Some(reason::NOT_CONNECTED)
+                } else if w.saturated > 0 {
+                    Some(reason::SATURATED)
+                } else if f64::from(w.rows) < cfg.min_window_fill * expected || stats.is_none() {
+                    Some(reason::WINDOW_UNDERFILLED)
+                } else if temps.is_none_or(|(t, _)| t.is_empty()) {
+                    Some(reason::NO_TEMPERATURE)
+                } else if temperature.is_none() {
+                    Some(reason::TEMPERATURE_GAP)
+                } else if stats.is_some_and(|s| s.drift_t.abs() > DRIFT_T_LIMIT) {
+                    Some(reason::WINDOW_DRIFT)
+                } else {
+                    None
+                };
+                match excluded {
+                    Some(r) => *c.excluded.entry(r.to_owned()).or_default() += 1,
+                    None => c.used += 1,
+                }
+                observations.push(Observation {
+                    session: id.clone(),
+                    accelerometer: acc.id.clone(),
+                    channel: acc.channel,
+                    station: p.reading.station.clone(),
+                    line: p.reading.line,
+                    time_gps_ns: p.reading.time_gps_ns,
+                    dz_rad: p.reading.dz_rad,
+                    sigma_dz_rad,
+                    sigma_dz_source: source,
+                    sigma_am_mgal: g * p.reading.dz_rad.sin().abs() * sigma_dz_rad,
+                    ng: stats.map(|s| s.mean),
+                    sigma_ng: stats.map(|s| s.sigma_mean),
+                    n_samples: w.n,
+                    expected_samples: expected,
+                    temperature_c: temperature.map(|(v, _)| v),
+                    drift_t: stats.map(|s| s.drift_t),
+                    excluded,
+                });
+            }
+            counts.push(c);
+        }
+    }
+
+    let dir = out.join("align");
+    std::fs::create_dir_all(&dir).map_err(|e| ingest::Error::Io {
+        path: dir.clone(),
+        source: e,
+    })?;
+    let ledger_path = dir.join(LEDGER_FILE);
+    match std::fs::remove_file(&ledger_path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            return Err(ingest::Error::Io {
+                path: ledger_path,
+                source: e,
+            }
+            .into());
+        }
+        _ => {}
+    }
+    let rows = read::write_observations(&dir, &observations)?;
+    let report = AlignReport {
+        format: LEDGER_FORMAT.to_owned(),
+        dataset: ds.manifest.name.clone(),
+        software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
+        config: cfg,
+        gravity_mgal: g,
+        counts,
+        disconnected,
+        observations: rows,
+    };
+    ingest::write_json_atomically(&ledger_path, &report)?;
+    Ok(report)
+}
+
+/// Writes a few lines: per session and accelerometer, used and excluded by reason.
+pub fn print_summary(report: &AlignReport, w: &mut impl std::io::Write) {
+    for c in &report.counts {
+        let ex: Vec<String> = c.excluded.iter().map(|(r, n)| format!("{n} {r}")).collect();
+        let _ = writeln!(
+            w,
+            "align: {} {}: {} readings, {} used{}",
+            c.session,
+            c.accelerometer,
+            c.readings,
+            c.used,
+            if ex.is_empty() {
+                String::new()
+            } else {
+                format!(", excluded: {}", ex.join(", "))
+            }
+        );
+    }
+    for d in &report.disconnected {
+        let _ = writeln!(
+            w,
+            "align: {} {}: no observations: channel {} not connected for the whole session",
+            d.session, d.accelerometer, d.channel
+        );
+    }
 }

@@ -4,25 +4,27 @@ use clap::Parser;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-/// gravcal align: ingest tables to observations: one row per theodolite reading and accelerometer.
+/// gravcal align: ingest tables (OUT/ingest) to observations (OUT/align): one row per
+/// theodolite reading and accelerometer.
 #[derive(Parser)]
 #[command(version)]
 struct Args {
     /// Dataset folder (holding dataset.toml).
     dataset: PathBuf,
-    /// Output folder (default: out/<dataset name>).
+    /// Output folder OUT, holding ingest/ (default: out/<dataset folder name>).
     #[arg(long)]
     out: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    let out = args.out.unwrap_or_else(|| PathBuf::from("out"));
+    let out = args
+        .out
+        .unwrap_or_else(|| PathBuf::from("out").join(args.dataset.file_name().unwrap_or_default()));
     match align::run(&args.dataset, &out) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e @ align::Error::NotBuilt) => {
-            eprintln!("gravcal-align: {e}");
-            ExitCode::from(3)
+        Ok(report) => {
+            align::print_summary(&report, &mut std::io::stderr());
+            ExitCode::SUCCESS
         }
         Err(e) => {
             eprintln!("gravcal-align: error: {e}");

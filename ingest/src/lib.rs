@@ -26,7 +26,7 @@ mod lines;
 pub mod manifest;
 pub mod schema;
 mod streams;
-mod table;
+pub mod table;
 pub mod theodolite;
 pub mod time;
 
@@ -90,17 +90,38 @@ pub struct IngestReport {
 }
 
 impl IngestReport {
-    /// Reads `dir/ingest.json`.
+    /// Reads `dir/ingest.json` (`dir` being OUT/ingest).
     pub fn load(dir: &Path) -> Result<Self> {
         let path = dir.join(LEDGER_FILE);
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-        serde_json::from_str(&text).map_err(|e| {
+        let invalid = |m: String| {
             Error::io(
                 &path,
-                std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+                std::io::Error::new(std::io::ErrorKind::InvalidData, m),
             )
-        })
+        };
+        let report: IngestReport =
+            serde_json::from_str(&text).map_err(|e| invalid(e.to_string()))?;
+        if report.format != LEDGER_FORMAT {
+            return Err(invalid(format!(
+                "format `{}`, expected `{LEDGER_FORMAT}`",
+                report.format
+            )));
+        }
+        Ok(report)
     }
+}
+
+/// Writes `value` as pretty JSON to `path`, under a temporary name first.
+pub fn write_json_atomically<T: Serialize>(path: &Path, value: &T) -> Result<()> {
+    let json = serde_json::to_string_pretty(value).map_err(|e| Error::io(path, e.into()))?;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.partial"));
+    std::fs::write(&tmp, json + "\n").map_err(|e| Error::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
 }
 
 fn relative(ds: &Dataset, p: &Path) -> String {
@@ -280,10 +301,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
         .into_iter()
         .collect(),
     };
-    let json = serde_json::to_string_pretty(&report).expect("the ledger serialises");
-    let tmp = dir.join(format!(".{LEDGER_FILE}.partial"));
-    std::fs::write(&tmp, json + "\n").map_err(|e| Error::io(&tmp, e))?;
-    std::fs::rename(&tmp, &ledger_path).map_err(|e| Error::io(&ledger_path, e))?;
+    write_json_atomically(&ledger_path, &report)?;
     Ok(report)
 }
 

@@ -114,3 +114,83 @@ pub mod theodolite {
         ]))
     }
 }
+
+/// `observations.parquet`, written by align (OUT/align/): one row per (theodolite reading,
+/// accelerometer), in session, accelerometer, time order.
+///
+/// | column | type | unit / meaning |
+/// |---|---|---|
+/// | session | utf8 (dictionary) | session id |
+/// | accelerometer | utf8 (dictionary) | accelerometer id |
+/// | channel | uint8 | 1..3 |
+/// | station | utf8 | tilt position id |
+/// | line | uint32 | line of the reading in the theodolite log |
+/// | time_gps_ns | int64 | GPS time of the reading, ns |
+/// | dz_rad | float64 | zenith distance, rad |
+/// | sigma_dz_rad | float64 | sd of one reading at this station, rad (eq. 4) |
+/// | sigma_dz_source | utf8 | `station_sd` or `manifest` (fewer than 2 readings, or sd 0) |
+/// | sigma_am_mgal | float64 | g sin(Dz) sigma_Dz, mGal |
+/// | ng | float64, null | mean counts in the window |
+/// | sigma_ng | float64, null | sd of that mean, counts |
+/// | n_samples | uint32 | samples in the window |
+/// | expected_samples | float64 | window_s x sample_rate_hz |
+/// | temperature_c | float64, null | accelerometer temperature at the reading, degC |
+/// | drift_t | float64, null | t statistic of a linear trend of the counts in the window |
+/// | excluded | utf8, null | why the observation is not used; null when used |
+pub mod observations {
+    use super::*;
+    /// File name.
+    pub const FILE: &str = "observations.parquet";
+    /// Accelerometer id.
+    pub const ACCELEROMETER: &str = "accelerometer";
+    /// Channel 1..3.
+    pub const CHANNEL: &str = "channel";
+    /// Station id.
+    pub const STATION: &str = "station";
+    /// Line in the theodolite log.
+    pub const LINE: &str = "line";
+    /// Zenith distance, rad.
+    pub const DZ_RAD: &str = "dz_rad";
+    /// Sd of one reading, rad.
+    pub const SIGMA_DZ_RAD: &str = "sigma_dz_rad";
+    /// Where sigma_dz comes from.
+    pub const SIGMA_DZ_SOURCE: &str = "sigma_dz_source";
+    /// Acceleration sd implied by sigma_dz, mGal.
+    pub const SIGMA_AM_MGAL: &str = "sigma_am_mgal";
+    /// Mean counts.
+    pub const NG: &str = "ng";
+    /// Sd of the mean counts.
+    pub const SIGMA_NG: &str = "sigma_ng";
+    /// Samples in the window.
+    pub const N_SAMPLES: &str = "n_samples";
+    /// Samples a full window holds.
+    pub const EXPECTED_SAMPLES: &str = "expected_samples";
+    /// Temperature, degC.
+    pub const TEMPERATURE_C: &str = "temperature_c";
+    /// Trend t statistic.
+    pub const DRIFT_T: &str = "drift_t";
+    /// Exclusion reason.
+    pub const EXCLUDED: &str = "excluded";
+    /// The Arrow schema.
+    pub fn schema() -> SchemaRef {
+        Arc::new(Schema::new(vec![
+            Field::new(SESSION, session_type(), false),
+            Field::new(ACCELEROMETER, session_type(), false),
+            Field::new(CHANNEL, DataType::UInt8, false),
+            Field::new(STATION, DataType::Utf8, false),
+            Field::new(LINE, DataType::UInt32, false),
+            Field::new(TIME_GPS_NS, DataType::Int64, false),
+            Field::new(DZ_RAD, DataType::Float64, false),
+            Field::new(SIGMA_DZ_RAD, DataType::Float64, false),
+            Field::new(SIGMA_DZ_SOURCE, DataType::Utf8, false),
+            Field::new(SIGMA_AM_MGAL, DataType::Float64, false),
+            Field::new(NG, DataType::Float64, true),
+            Field::new(SIGMA_NG, DataType::Float64, true),
+            Field::new(N_SAMPLES, DataType::UInt32, false),
+            Field::new(EXPECTED_SAMPLES, DataType::Float64, false),
+            Field::new(TEMPERATURE_C, DataType::Float64, true),
+            Field::new(DRIFT_T, DataType::Float64, true),
+            Field::new(EXCLUDED, DataType::Utf8, true),
+        ]))
+    }
+}

@@ -103,10 +103,8 @@ fn out_dir(args: &DatasetArgs) -> Result<PathBuf> {
 
 /// Whether `e` is a stage saying it is not built yet.
 fn not_built(e: &anyhow::Error) -> bool {
-    e.downcast_ref::<align::Error>()
-        .is_some_and(|e| matches!(e, align::Error::NotBuilt))
-        || e.downcast_ref::<adjust::Error>()
-            .is_some_and(|e| matches!(e, adjust::Error::NotBuilt))
+    e.downcast_ref::<adjust::Error>()
+        .is_some_and(|e| matches!(e, adjust::Error::NotBuilt))
         || e.downcast_ref::<report::Error>()
             .is_some_and(|e| matches!(e, report::Error::NotBuilt))
 }
@@ -123,7 +121,11 @@ const STAGES: [(&str, Stage); 4] = [
         ingest::print_summary(&report, &mut std::io::stderr());
         Ok(())
     }),
-    ("align", |d, o| Ok(align::run(d, o)?)),
+    ("align", |d, o| {
+        let report = align::run(d, o)?;
+        align::print_summary(&report, &mut std::io::stderr());
+        Ok(())
+    }),
     ("adjust", |d, o| Ok(adjust::run(d, o)?)),
     ("report", |d, o| Ok(report::run(d, o)?)),
 ];

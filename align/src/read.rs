@@ -1,0 +1,232 @@
+//! Reading ingest's tables and writing the observations table.
+
+use crate::{Error, Observation, Result};
+use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, StringArray};
+use arrow::datatypes::{DataType, Float64Type, Int32Type, Int64Type, UInt8Type, UInt32Type};
+use ingest::schema;
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+
+fn batches(path: &Path) -> Result<impl Iterator<Item = Result<RecordBatch>>> {
+    let f = std::fs::File::open(path).map_err(|e| ingest::Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    let reader = ParquetRecordBatchReaderBuilder::try_new(f)
+        .map_err(|source| Error::Parquet {
+            path: path.to_path_buf(),
+            source,
+        })?
+        .with_batch_size(1 << 16)
+        .build()
+        .map_err(|source| Error::Parquet {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let p = path.to_path_buf();
+    Ok(reader.map(move |b| {
+        b.map_err(|e| Error::Table {
+            path: p.clone(),
+            message: e.to_string(),
+        })
+    }))
+}
+
+fn column<'a>(
+    path: &Path,
+    batch: &'a RecordBatch,
+    name: &str,
+    ty: &DataType,
+) -> Result<&'a ArrayRef> {
+    let c = batch.column_by_name(name).ok_or_else(|| Error::Table {
+        path: path.to_path_buf(),
+        message: format!("no column `{name}`"),
+    })?;
+    if c.data_type() != ty {
+        return Err(Error::Table {
+            path: path.to_path_buf(),
+            message: format!("column `{name}` is {}, expected {ty}", c.data_type()),
+        });
+    }
+    Ok(c)
+}
+
+/// Session id of every row of a batch: (distinct ids, index into them per row).
+fn sessions(path: &Path, batch: &RecordBatch) -> Result<(Vec<String>, Vec<usize>)> {
+    let c = column(path, batch, schema::SESSION, &schema::session_type())?;
+    let d = c.as_dictionary::<Int32Type>();
+    let values = d.values().as_string::<i32>();
+    let ids = (0..values.len())
+        .map(|i| values.value(i).to_owned())
+        .collect();
+    let keys = d
+        .keys()
+        .values()
+        .iter()
+        .map(|&k| usize::try_from(k).unwrap_or(0))
+        .collect();
+    Ok((ids, keys))
+}
+
+/// A theodolite reading as ingest wrote it.
+#[derive(Clone, Debug)]
+pub struct TheodoliteRow {
+    /// Station id.
+    pub station: String,
+    /// Line in the log.
+    pub line: u32,
+    /// GPS time, ns.
+    pub time_gps_ns: i64,
+    /// Zenith distance, rad.
+    pub dz_rad: f64,
+}
+
+/// Readings per session.
+pub fn theodolite(dir: &Path) -> Result<BTreeMap<String, Vec<TheodoliteRow>>> {
+    let path = dir.join(schema::theodolite::FILE);
+    let mut out: BTreeMap<String, Vec<TheodoliteRow>> = BTreeMap::new();
+    for b in batches(&path)? {
+        let b = b?;
+        let (ids, keys) = sessions(&path, &b)?;
+        let station =
+            column(&path, &b, schema::theodolite::STATION, &DataType::Utf8)?.as_string::<i32>();
+        let line = column(&path, &b, schema::theodolite::LINE, &DataType::UInt32)?
+            .as_primitive::<UInt32Type>();
+        let time =
+            column(&path, &b, schema::TIME_GPS_NS, &DataType::Int64)?.as_primitive::<Int64Type>();
+        let dz = column(&path, &b, schema::theodolite::DZ_RAD, &DataType::Float64)?
+            .as_primitive::<Float64Type>();
+        for i in 0..b.num_rows() {
+            out.entry(ids[keys[i]].clone())
+                .or_default()
+                .push(TheodoliteRow {
+                    station: station.value(i).to_owned(),
+                    line: line.value(i),
+                    time_gps_ns: time.value(i),
+                    dz_rad: dz.value(i),
+                });
+        }
+    }
+    Ok(out)
+}
+
+/// Temperature series per (session, channel 1..3): times (ns) and degC, non-null samples only.
+pub type Temperatures = BTreeMap<(String, u8), (Vec<i64>, Vec<f64>)>;
+
+/// The temperature table, by session and channel.
+pub fn temperatures(dir: &Path) -> Result<Temperatures> {
+    let path = dir.join(schema::temperature::FILE);
+    let mut out = Temperatures::new();
+    for b in batches(&path)? {
+        let b = b?;
+        let (ids, keys) = sessions(&path, &b)?;
+        let time =
+            column(&path, &b, schema::TIME_GPS_NS, &DataType::Int64)?.as_primitive::<Int64Type>();
+        for (ch, name) in schema::temperature::TEMPERATURE_C.iter().enumerate() {
+            let v = column(&path, &b, name, &DataType::Float64)?.as_primitive::<Float64Type>();
+            for i in 0..b.num_rows() {
+                if v.is_valid(i) {
+                    let e = out.entry((ids[keys[i]].clone(), ch as u8 + 1)).or_default();
+                    e.0.push(time.value(i));
+                    e.1.push(v.value(i));
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Streams the acceleration table in file order: `f(session, time_ns, counts, status)`.
+pub fn acceleration(dir: &Path, mut f: impl FnMut(&str, i64, [Option<i32>; 3], u8)) -> Result<()> {
+    let path = dir.join(schema::acceleration::FILE);
+    for b in batches(&path)? {
+        let b = b?;
+        let (ids, keys) = sessions(&path, &b)?;
+        let time = column(&path, &b, schema::TIME_GPS_NS, &DataType::Int64)?
+            .as_primitive::<Int64Type>()
+            .values();
+        let status = column(&path, &b, schema::STATUS, &DataType::UInt8)?
+            .as_primitive::<UInt8Type>()
+            .values();
+        let c: Vec<_> = schema::acceleration::COUNTS
+            .iter()
+            .map(|n| column(&path, &b, n, &DataType::Int32).map(|c| c.as_primitive::<Int32Type>()))
+            .collect::<Result<_>>()?;
+        for i in 0..b.num_rows() {
+            let counts = [0, 1, 2].map(|ch| c[ch].is_valid(i).then(|| c[ch].value(i)));
+            f(&ids[keys[i]], time[i], counts, status[i]);
+        }
+    }
+    Ok(())
+}
+
+/// Writes `observations.parquet` into `dir`; returns the rows written.
+pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
+    use arrow::array::{
+        DictionaryArray, Float64Array, Int32Array, Int64Array, UInt8Array, UInt32Array,
+    };
+    let mut table = ingest::table::TableWriter::create(
+        dir,
+        schema::observations::FILE,
+        "observations",
+        schema::observations::schema(),
+        &[
+            schema::SESSION,
+            schema::observations::ACCELEROMETER,
+            schema::observations::STATION,
+        ],
+    )?;
+    let dict = |values: Vec<&str>| -> ArrayRef {
+        let mut distinct: Vec<&str> = values.clone();
+        distinct.sort_unstable();
+        distinct.dedup();
+        let keys: Vec<i32> = values
+            .iter()
+            .map(|v| distinct.binary_search(v).map_or(0, |k| k as i32))
+            .collect();
+        Arc::new(
+            DictionaryArray::<Int32Type>::try_new(
+                Int32Array::from(keys),
+                Arc::new(StringArray::from(distinct)),
+            )
+            .expect("keys index the distinct values"),
+        )
+    };
+    let cols: Vec<ArrayRef> = vec![
+        dict(obs.iter().map(|o| o.session.as_str()).collect()),
+        dict(obs.iter().map(|o| o.accelerometer.as_str()).collect()),
+        Arc::new(UInt8Array::from_iter_values(obs.iter().map(|o| o.channel))),
+        Arc::new(StringArray::from_iter_values(
+            obs.iter().map(|o| o.station.as_str()),
+        )),
+        Arc::new(UInt32Array::from_iter_values(obs.iter().map(|o| o.line))),
+        Arc::new(Int64Array::from_iter_values(
+            obs.iter().map(|o| o.time_gps_ns),
+        )),
+        Arc::new(Float64Array::from_iter_values(obs.iter().map(|o| o.dz_rad))),
+        Arc::new(Float64Array::from_iter_values(
+            obs.iter().map(|o| o.sigma_dz_rad),
+        )),
+        Arc::new(StringArray::from_iter_values(
+            obs.iter().map(|o| o.sigma_dz_source),
+        )),
+        Arc::new(Float64Array::from_iter_values(
+            obs.iter().map(|o| o.sigma_am_mgal),
+        )),
+        Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.ng))),
+        Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.sigma_ng))),
+        Arc::new(UInt32Array::from_iter_values(
+            obs.iter().map(|o| o.n_samples),
+        )),
+        Arc::new(Float64Array::from_iter_values(
+            obs.iter().map(|o| o.expected_samples),
+        )),
+        Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.temperature_c))),
+        Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.drift_t))),
+        Arc::new(StringArray::from_iter(obs.iter().map(|o| o.excluded))),
+    ];
+    table.write(cols)?;
+    Ok(table.finish()?)
+}
