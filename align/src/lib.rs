@@ -224,16 +224,12 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
         .collect();
 
     // One pass over the acceleration stream.
-    let index_of: BTreeMap<&str, usize> = session_ids
-        .iter()
-        .enumerate()
-        .map(|(i, s)| (s.as_str(), i))
-        .collect();
     let mut cursor: Vec<(usize, usize)> = vec![(0, 0); session_ids.len()]; // (first active, next to open)
     read::acceleration(&ingest_dir, |session, time_ns, counts, status| {
-        let Some(&si) = index_of.get(session) else {
+        let si = usize::from(session);
+        if si >= pending.len() {
             return;
-        };
+        }
         let windows = &mut pending[si];
         let (first, next) = &mut cursor[si];
         while *next < windows.len() && windows[*next].start_ns <= time_ns {
@@ -301,7 +297,9 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
                 });
                 continue;
             }
-            let temps = temperatures.get(&(id.clone(), acc.channel));
+            let temps = u16::try_from(si)
+                .ok()
+                .and_then(|i| temperatures.get(&(i, acc.channel)));
             let mut c = Counts {
                 session: id.clone(),
                 accelerometer: acc.id.clone(),

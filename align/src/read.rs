@@ -2,7 +2,9 @@
 
 use crate::{Error, Observation, Result};
 use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, StringArray};
-use arrow::datatypes::{DataType, Float64Type, Int32Type, Int64Type, UInt8Type, UInt32Type};
+use arrow::datatypes::{
+    DataType, Float64Type, Int32Type, Int64Type, UInt8Type, UInt16Type, UInt32Type,
+};
 use ingest::schema;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::collections::BTreeMap;
@@ -51,6 +53,15 @@ fn column<'a>(
         });
     }
     Ok(c)
+}
+
+/// Session index of every row of a batch of the acceleration or temperature table.
+fn session_index<'a>(path: &Path, batch: &'a RecordBatch) -> Result<&'a [u16]> {
+    Ok(
+        column(path, batch, schema::SESSION_INDEX, &DataType::UInt16)?
+            .as_primitive::<UInt16Type>()
+            .values(),
+    )
 }
 
 /// Session id of every row of a batch: (distinct ids, index into them per row).
@@ -112,8 +123,9 @@ pub fn theodolite(dir: &Path) -> Result<BTreeMap<String, Vec<TheodoliteRow>>> {
     Ok(out)
 }
 
-/// Temperature series per (session, channel 1..3): times (ns) and degC, non-null samples only.
-pub type Temperatures = BTreeMap<(String, u8), (Vec<i64>, Vec<f64>)>;
+/// Temperature series per (session index, channel 1..3): times (ns) and degC, non-null
+/// samples only.
+pub type Temperatures = BTreeMap<(u16, u8), (Vec<i64>, Vec<f64>)>;
 
 /// The temperature table, by session and channel.
 pub fn temperatures(dir: &Path) -> Result<Temperatures> {
@@ -121,14 +133,14 @@ pub fn temperatures(dir: &Path) -> Result<Temperatures> {
     let mut out = Temperatures::new();
     for b in batches(&path)? {
         let b = b?;
-        let (ids, keys) = sessions(&path, &b)?;
+        let session = session_index(&path, &b)?;
         let time =
             column(&path, &b, schema::TIME_GPS_NS, &DataType::Int64)?.as_primitive::<Int64Type>();
         for (ch, name) in schema::temperature::TEMPERATURE_C.iter().enumerate() {
             let v = column(&path, &b, name, &DataType::Float64)?.as_primitive::<Float64Type>();
             for i in 0..b.num_rows() {
                 if v.is_valid(i) {
-                    let e = out.entry((ids[keys[i]].clone(), ch as u8 + 1)).or_default();
+                    let e = out.entry((session[i], ch as u8 + 1)).or_default();
                     e.0.push(time.value(i));
                     e.1.push(v.value(i));
                 }
@@ -138,12 +150,12 @@ pub fn temperatures(dir: &Path) -> Result<Temperatures> {
     Ok(out)
 }
 
-/// Streams the acceleration table in file order: `f(session, time_ns, counts, status)`.
-pub fn acceleration(dir: &Path, mut f: impl FnMut(&str, i64, [Option<i32>; 3], u8)) -> Result<()> {
+/// Streams the acceleration table in file order: `f(session index, time_ns, counts, status)`.
+pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8)) -> Result<()> {
     let path = dir.join(schema::acceleration::FILE);
     for b in batches(&path)? {
         let b = b?;
-        let (ids, keys) = sessions(&path, &b)?;
+        let session = session_index(&path, &b)?;
         let time = column(&path, &b, schema::TIME_GPS_NS, &DataType::Int64)?
             .as_primitive::<Int64Type>()
             .values();
@@ -156,7 +168,7 @@ pub fn acceleration(dir: &Path, mut f: impl FnMut(&str, i64, [Option<i32>; 3], u
             .collect::<Result<_>>()?;
         for i in 0..b.num_rows() {
             let counts = [0, 1, 2].map(|ch| c[ch].is_valid(i).then(|| c[ch].value(i)));
-            f(&ids[keys[i]], time[i], counts, status[i]);
+            f(session[i], time[i], counts, status[i]);
         }
     }
     Ok(())
@@ -172,11 +184,14 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
         schema::observations::FILE,
         "observations",
         schema::observations::schema(),
-        &[
-            schema::SESSION,
-            schema::observations::ACCELEROMETER,
-            schema::observations::STATION,
-        ],
+        ingest::table::Encodings {
+            dictionary: &[
+                schema::SESSION,
+                schema::observations::ACCELEROMETER,
+                schema::observations::STATION,
+            ],
+            delta: &[],
+        },
     )?;
     let dict = |values: Vec<&str>| -> ArrayRef {
         let mut distinct: Vec<&str> = values.clone();

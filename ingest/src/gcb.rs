@@ -44,13 +44,46 @@ const fn crc_table() -> [u16; 256] {
     table
 }
 
-static CRC_TABLE: [u16; 256] = crc_table();
+/// Slicing-by-8 tables: `T[k][b]` is the CRC of byte `b` followed by `k` zero bytes.
+const fn crc_tables() -> [[u16; 256]; 8] {
+    let base = crc_table();
+    let mut t = [[0u16; 256]; 8];
+    t[0] = base;
+    let mut k = 1;
+    while k < 8 {
+        let mut i = 0;
+        while i < 256 {
+            let prev = t[k - 1][i];
+            t[k][i] = (prev << 8) ^ base[(prev >> 8) as usize];
+            i += 1;
+        }
+        k += 1;
+    }
+    t
+}
 
-/// CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final xor).
+static CRC_TABLES: [[u16; 256]; 8] = crc_tables();
+
+/// CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final xor), eight bytes
+/// at a time.
 pub fn crc16_ccitt_false(bytes: &[u8]) -> u16 {
+    let t = &CRC_TABLES;
     let mut crc = 0xFFFF_u16;
-    for &b in bytes {
-        crc = (crc << 8) ^ CRC_TABLE[usize::from((crc >> 8) as u8 ^ b)];
+    let mut chunks = bytes.chunks_exact(8);
+    for c in &mut chunks {
+        let hi = (crc >> 8) as u8 ^ c[0];
+        let lo = crc as u8 ^ c[1];
+        crc = t[7][usize::from(hi)]
+            ^ t[6][usize::from(lo)]
+            ^ t[5][usize::from(c[2])]
+            ^ t[4][usize::from(c[3])]
+            ^ t[3][usize::from(c[4])]
+            ^ t[2][usize::from(c[5])]
+            ^ t[1][usize::from(c[6])]
+            ^ t[0][usize::from(c[7])];
+    }
+    for &b in chunks.remainder() {
+        crc = (crc << 8) ^ t[0][usize::from((crc >> 8) as u8 ^ b)];
     }
     crc
 }
@@ -368,6 +401,35 @@ mod tests {
     #[test]
     fn crc_check_value() {
         assert_eq!(crc16_ccitt_false(b"123456789"), 0x29B1);
+    }
+
+    /// The sliced CRC against the bit-by-bit definition, for every length up to 40.
+    #[test]
+    fn sliced_crc_is_the_bitwise_crc() {
+        fn bitwise(bytes: &[u8]) -> u16 {
+            let mut crc = 0xFFFF_u16;
+            for &b in bytes {
+                crc ^= u16::from(b) << 8;
+                for _ in 0..8 {
+                    crc = if crc & 0x8000 != 0 {
+                        (crc << 1) ^ 0x1021
+                    } else {
+                        crc << 1
+                    };
+                }
+            }
+            crc
+        }
+        let data: Vec<u8> = (0..40u32)
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+            .collect();
+        for n in 0..=data.len() {
+            assert_eq!(
+                crc16_ccitt_false(&data[..n]),
+                bitwise(&data[..n]),
+                "length {n}"
+            );
+        }
     }
 
     fn frame(kind: u8, week10: u16, tow_ms: u32, v: [i32; 3], status: u8) -> Vec<u8> {

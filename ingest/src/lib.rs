@@ -216,13 +216,19 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
         }
         _ => {}
     }
-    let mut streams = StreamWriter::create(&dir)?;
+    let ids: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
+    let mut streams = StreamWriter::create(&dir, &ids)?;
     let mut theo = theodolite::TheodoliteWriter::create(&dir)?;
     let mut files = Vec::new();
     let mut sessions = Vec::new();
-    for s in &ds.sessions {
+    for (index, s) in ds.sessions.iter().enumerate() {
         let id = s.session.id.as_str();
-        streams.start_session(id)?;
+        let index = u16::try_from(index).map_err(|_| Error::Manifest {
+            path: ds.manifest_path.clone(),
+            key: "session".to_owned(),
+            message: "more than 65535 sessions".to_owned(),
+        })?;
+        streams.start_session(index)?;
         match &s.acquisition {
             Acquisition::Binary(path) => {
                 let mut ledger = new_ledger(&ds, path, id, "acquisition", "frames");

@@ -3,11 +3,11 @@
 //!
 //! | table | column | type | unit / meaning |
 //! |---|---|---|---|
-//! | acceleration.parquet | session | utf8 (dictionary) | session id |
+//! | acceleration.parquet | session_index | uint16 | position of the session in dataset.toml (ids in the schema metadata `gravcal.sessions`) |
 //! | | time_gps_ns | int64 | GPS time, ns since 1980-01-06 |
 //! | | counts_ch1..3 | int32, null | ADC counts; null where not connected or over range |
 //! | | status | uint8 | status bits as logged (bit n-1 over range, bit n+3 not connected) |
-//! | temperature.parquet | session, time_gps_ns, status | as above | |
+//! | temperature.parquet | session_index, time_gps_ns, status | as above | |
 //! | | temperature_ch1..3_c | float64, null | degC; null where not connected |
 //! | theodolite.parquet | session | utf8 (dictionary) | session id |
 //! | | station | utf8 | tilt position id |
@@ -19,7 +19,9 @@
 //! | | time_scale | utf8 | UTC, GPST or TAI |
 //! | | line | uint32 | line number in the log |
 //!
-//! Rows are in session order (as in the manifest), then time order.
+//! Rows are in session order (as in the manifest), then time order. The two large tables
+//! carry the session as an index rather than a string: a string per sample costs more to
+//! write than the sample itself.
 
 use arrow::datatypes::{DataType, Field, Schema, SchemaRef};
 use std::sync::Arc;
@@ -30,6 +32,18 @@ pub const SESSION: &str = "session";
 pub const TIME_GPS_NS: &str = "time_gps_ns";
 /// Status bits column (acceleration, temperature).
 pub const STATUS: &str = "status";
+/// Session index column (acceleration, temperature): position in the manifest's sessions.
+pub const SESSION_INDEX: &str = "session_index";
+/// Schema metadata key holding the session ids, in index order, as a JSON array.
+pub const SESSIONS_METADATA: &str = "gravcal.sessions";
+
+fn with_sessions(fields: Vec<Field>, sessions: &[String]) -> SchemaRef {
+    let ids = serde_json::to_string(sessions).expect("strings serialise");
+    Arc::new(Schema::new_with_metadata(
+        fields,
+        arrow::datatypes::Metadata::new().with(SESSIONS_METADATA, ids),
+    ))
+}
 
 /// Data type of the session column.
 pub fn session_type() -> DataType {
@@ -43,16 +57,19 @@ pub mod acceleration {
     pub const FILE: &str = "acceleration.parquet";
     /// Counts of channels 1..3.
     pub const COUNTS: [&str; 3] = ["counts_ch1", "counts_ch2", "counts_ch3"];
-    /// The Arrow schema.
-    pub fn schema() -> SchemaRef {
-        Arc::new(Schema::new(vec![
-            Field::new(SESSION, session_type(), false),
-            Field::new(TIME_GPS_NS, DataType::Int64, false),
-            Field::new(COUNTS[0], DataType::Int32, true),
-            Field::new(COUNTS[1], DataType::Int32, true),
-            Field::new(COUNTS[2], DataType::Int32, true),
-            Field::new(STATUS, DataType::UInt8, false),
-        ]))
+    /// The Arrow schema, for the dataset's `sessions` (ids in manifest order).
+    pub fn schema(sessions: &[String]) -> SchemaRef {
+        with_sessions(
+            vec![
+                Field::new(SESSION_INDEX, DataType::UInt16, false),
+                Field::new(TIME_GPS_NS, DataType::Int64, false),
+                Field::new(COUNTS[0], DataType::Int32, true),
+                Field::new(COUNTS[1], DataType::Int32, true),
+                Field::new(COUNTS[2], DataType::Int32, true),
+                Field::new(STATUS, DataType::UInt8, false),
+            ],
+            sessions,
+        )
     }
 }
 
@@ -67,16 +84,19 @@ pub mod temperature {
         "temperature_ch2_c",
         "temperature_ch3_c",
     ];
-    /// The Arrow schema.
-    pub fn schema() -> SchemaRef {
-        Arc::new(Schema::new(vec![
-            Field::new(SESSION, session_type(), false),
-            Field::new(TIME_GPS_NS, DataType::Int64, false),
-            Field::new(TEMPERATURE_C[0], DataType::Float64, true),
-            Field::new(TEMPERATURE_C[1], DataType::Float64, true),
-            Field::new(TEMPERATURE_C[2], DataType::Float64, true),
-            Field::new(STATUS, DataType::UInt8, false),
-        ]))
+    /// The Arrow schema, for the dataset's `sessions` (ids in manifest order).
+    pub fn schema(sessions: &[String]) -> SchemaRef {
+        with_sessions(
+            vec![
+                Field::new(SESSION_INDEX, DataType::UInt16, false),
+                Field::new(TIME_GPS_NS, DataType::Int64, false),
+                Field::new(TEMPERATURE_C[0], DataType::Float64, true),
+                Field::new(TEMPERATURE_C[1], DataType::Float64, true),
+                Field::new(TEMPERATURE_C[2], DataType::Float64, true),
+                Field::new(STATUS, DataType::UInt8, false),
+            ],
+            sessions,
+        )
     }
 }
 

@@ -1,14 +1,16 @@
 //! Collects accepted acceleration and temperature samples into Arrow batches and writes them
 //! to `acceleration.parquet` and `temperature.parquet`; counts the values stored as null.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::schema;
-use crate::table::{ROWS_PER_GROUP, TableWriter, session_column};
-use arrow::array::{ArrayRef, Float64Array, Int32Array, Int64Array, UInt8Array};
+use crate::table::{Encodings, ROWS_PER_BATCH, TableWriter};
+use arrow::array::{ArrayRef, Float64Array, Int32Array, Int64Array, UInt8Array, UInt16Array};
 use arrow::buffer::NullBuffer;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::thread::JoinHandle;
 
 /// Status bit: channel `ch` (0-based) over range.
 pub fn over_range_bit(ch: usize) -> u8 {
@@ -64,11 +66,39 @@ pub struct SessionStats {
     pub connected_seen: [bool; 3],
 }
 
+enum Message {
+    Acceleration(Vec<ArrayRef>),
+    Temperature(Vec<ArrayRef>),
+    /// All batches sent: close the files and rename them into place.
+    Finish,
+}
+
+/// The writer thread: writes batches until told to finish. If the sender goes away without
+/// `Finish` (the reading failed), the tables are dropped and their partial files removed.
+fn write_tables(
+    mut acceleration: TableWriter,
+    mut temperature: TableWriter,
+    rx: Receiver<Message>,
+) -> Result<(u64, u64)> {
+    for m in rx {
+        match m {
+            Message::Acceleration(cols) => acceleration.write(cols)?,
+            Message::Temperature(cols) => temperature.write(cols)?,
+            Message::Finish => return Ok((acceleration.finish()?, temperature.finish()?)),
+        }
+    }
+    Err(Error::io(
+        "acceleration.parquet",
+        std::io::Error::other("ingest stopped before the tables were complete"),
+    ))
+}
+
 /// The two stream tables of a dataset, being written session by session.
 pub struct StreamWriter {
-    acceleration: TableWriter,
-    temperature: TableWriter,
-    session: String,
+    /// Batches go to a thread that encodes and compresses them (the second core).
+    to_writer: Option<SyncSender<Message>>,
+    writer: Option<JoinHandle<Result<(u64, u64)>>>,
+    session: u16,
     stats: SessionStats,
     /// Per channel: acceleration values null because not connected, because over range;
     /// temperature values null because not connected.
@@ -78,24 +108,43 @@ pub struct StreamWriter {
 }
 
 impl StreamWriter {
-    /// Starts both tables in `dir`.
-    pub fn create(dir: &Path) -> Result<Self> {
+    /// Starts both tables in `dir`, for a dataset with `sessions` (ids in manifest order).
+    pub fn create(dir: &Path, sessions: &[String]) -> Result<Self> {
+        let acceleration = TableWriter::create(
+            dir,
+            schema::acceleration::FILE,
+            "acceleration",
+            schema::acceleration::schema(sessions),
+            Encodings {
+                dictionary: &[],
+                delta: &[
+                    schema::SESSION_INDEX,
+                    schema::acceleration::COUNTS[0],
+                    schema::acceleration::COUNTS[1],
+                    schema::acceleration::COUNTS[2],
+                    schema::STATUS,
+                ],
+            },
+        )?;
+        let temperature = TableWriter::create(
+            dir,
+            schema::temperature::FILE,
+            "temperature",
+            schema::temperature::schema(sessions),
+            Encodings {
+                dictionary: &[],
+                delta: &[schema::SESSION_INDEX, schema::STATUS],
+            },
+        )?;
+        let (tx, rx) = sync_channel(4);
+        let writer = std::thread::Builder::new()
+            .name("parquet-writer".to_owned())
+            .spawn(move || write_tables(acceleration, temperature, rx))
+            .map_err(|e| Error::io(dir, e))?;
         Ok(StreamWriter {
-            acceleration: TableWriter::create(
-                dir,
-                schema::acceleration::FILE,
-                "acceleration",
-                schema::acceleration::schema(),
-                &[schema::SESSION],
-            )?,
-            temperature: TableWriter::create(
-                dir,
-                schema::temperature::FILE,
-                "temperature",
-                schema::temperature::schema(),
-                &[schema::SESSION],
-            )?,
-            session: String::new(),
+            to_writer: Some(tx),
+            writer: Some(writer),
+            session: 0,
             stats: SessionStats::default(),
             nulls: [[0; 3]; 3],
             acc: Columns::default(),
@@ -103,10 +152,10 @@ impl StreamWriter {
         })
     }
 
-    /// Rows that follow belong to `session`.
-    pub fn start_session(&mut self, session: &str) -> Result<()> {
+    /// Rows that follow belong to the session at `index` in the manifest.
+    pub fn start_session(&mut self, index: u16) -> Result<()> {
         self.flush()?;
-        self.session = session.to_owned();
+        self.session = index;
         self.stats = SessionStats::default();
         Ok(())
     }
@@ -154,7 +203,7 @@ impl StreamWriter {
             self.acc.valid[ch].push(null.is_none());
         }
         self.acc.status.push(status);
-        if self.acc.len() >= ROWS_PER_GROUP {
+        if self.acc.len() >= ROWS_PER_BATCH {
             self.flush_acceleration()?;
         }
         Ok(())
@@ -182,7 +231,7 @@ impl StreamWriter {
             self.temp.valid[ch].push(v.is_some());
         }
         self.temp.status.push(status);
-        if self.temp.len() >= ROWS_PER_GROUP {
+        if self.temp.len() >= ROWS_PER_BATCH {
             self.flush_temperature()?;
         }
         Ok(())
@@ -197,14 +246,14 @@ impl StreamWriter {
         let [v0, v1, v2] = c.values;
         let [m0, m1, m2] = c.valid;
         let cols: Vec<ArrayRef> = vec![
-            session_column(&self.session, n),
+            Arc::new(UInt16Array::from(vec![self.session; n])),
             Arc::new(Int64Array::from(c.time)),
             Arc::new(Int32Array::new(v0.into(), nulls(m0))),
             Arc::new(Int32Array::new(v1.into(), nulls(m1))),
             Arc::new(Int32Array::new(v2.into(), nulls(m2))),
             Arc::new(UInt8Array::from(c.status)),
         ];
-        self.acceleration.write(cols)
+        self.send(Message::Acceleration(cols))
     }
 
     fn flush_temperature(&mut self) -> Result<()> {
@@ -216,14 +265,44 @@ impl StreamWriter {
         let [v0, v1, v2] = c.values;
         let [m0, m1, m2] = c.valid;
         let cols: Vec<ArrayRef> = vec![
-            session_column(&self.session, n),
+            Arc::new(UInt16Array::from(vec![self.session; n])),
             Arc::new(Int64Array::from(c.time)),
             Arc::new(Float64Array::new(v0.into(), nulls(m0))),
             Arc::new(Float64Array::new(v1.into(), nulls(m1))),
             Arc::new(Float64Array::new(v2.into(), nulls(m2))),
             Arc::new(UInt8Array::from(c.status)),
         ];
-        self.temperature.write(cols)
+        self.send(Message::Temperature(cols))
+    }
+
+    /// Hands a message to the writer thread; if it has stopped, returns its error.
+    fn send(&mut self, m: Message) -> Result<()> {
+        let sent = self.to_writer.as_ref().is_some_and(|tx| tx.send(m).is_ok());
+        if sent {
+            Ok(())
+        } else {
+            Err(self.join().err().unwrap_or_else(|| {
+                Error::io(
+                    "acceleration.parquet",
+                    std::io::Error::other("the Parquet writer stopped"),
+                )
+            }))
+        }
+    }
+
+    fn join(&mut self) -> Result<(u64, u64)> {
+        self.to_writer = None;
+        match self.writer.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r,
+            Some(Err(_)) => Err(Error::io(
+                "acceleration.parquet",
+                std::io::Error::other("the Parquet writer thread panicked"),
+            )),
+            None => Err(Error::io(
+                "acceleration.parquet",
+                std::io::Error::other("the Parquet writer already stopped"),
+            )),
+        }
     }
 
     fn flush(&mut self) -> Result<()> {
@@ -235,6 +314,17 @@ impl StreamWriter {
     /// temperature rows).
     pub fn finish(mut self) -> Result<(u64, u64)> {
         self.flush()?;
-        Ok((self.acceleration.finish()?, self.temperature.finish()?))
+        self.send(Message::Finish)?;
+        self.join()
+    }
+}
+
+impl Drop for StreamWriter {
+    fn drop(&mut self) {
+        // Dropped without `finish`: closing the channel makes the writer discard its tables.
+        self.to_writer = None;
+        if let Some(h) = self.writer.take() {
+            let _ = h.join();
+        }
     }
 }

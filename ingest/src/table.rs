@@ -13,8 +13,10 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// Rows per Parquet row group (and per batch handed to the writer).
+/// Rows per Parquet row group.
 pub const ROWS_PER_GROUP: usize = 1 << 20;
+/// Rows per Arrow batch handed to the writer (small enough to stay in cache).
+pub const ROWS_PER_BATCH: usize = 1 << 16;
 
 /// A Parquet table being written.
 pub struct TableWriter {
@@ -26,7 +28,16 @@ pub struct TableWriter {
     rows: u64,
 }
 
-fn properties(dictionary_columns: &[&str]) -> WriterProperties {
+/// Column encodings besides the defaults (plain, zstd; time columns delta-encoded).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Encodings<'a> {
+    /// Columns with few distinct values: dictionary-encoded.
+    pub dictionary: &'a [&'a str],
+    /// Integer columns that change little from row to row: delta-encoded.
+    pub delta: &'a [&'a str],
+}
+
+fn properties(enc: Encodings<'_>) -> WriterProperties {
     let mut b = WriterProperties::builder()
         .set_compression(Compression::ZSTD(
             ZstdLevel::try_new(1).expect("level 1 is valid"),
@@ -37,8 +48,11 @@ fn properties(dictionary_columns: &[&str]) -> WriterProperties {
             ColumnPath::from(crate::schema::TIME_GPS_NS),
             Encoding::DELTA_BINARY_PACKED,
         );
-    for c in dictionary_columns {
+    for c in enc.dictionary {
         b = b.set_column_dictionary_enabled(ColumnPath::from(*c), true);
+    }
+    for c in enc.delta {
+        b = b.set_column_encoding(ColumnPath::from(*c), Encoding::DELTA_BINARY_PACKED);
     }
     b.build()
 }
@@ -50,7 +64,7 @@ impl TableWriter {
         file: &str,
         table: &'static str,
         schema: SchemaRef,
-        dictionary_columns: &[&str],
+        encodings: Encodings<'_>,
     ) -> Result<Self> {
         let path = dir.join(file);
         let tmp = dir.join(format!(".{file}.partial"));
@@ -58,7 +72,7 @@ impl TableWriter {
         let writer = ArrowWriter::try_new(
             BufWriter::with_capacity(1 << 20, f),
             schema.clone(),
-            Some(properties(dictionary_columns)),
+            Some(properties(encodings)),
         )
         .map_err(|source| Error::Parquet {
             path: path.clone(),

@@ -164,12 +164,15 @@ impl TheodoliteWriter {
                 schema::theodolite::FILE,
                 "theodolite",
                 schema::theodolite::schema(),
-                &[
-                    schema::SESSION,
-                    schema::theodolite::STATION,
-                    schema::theodolite::DZ_UNIT,
-                    schema::theodolite::TIME_SCALE,
-                ],
+                crate::table::Encodings {
+                    dictionary: &[
+                        schema::SESSION,
+                        schema::theodolite::STATION,
+                        schema::theodolite::DZ_UNIT,
+                        schema::theodolite::TIME_SCALE,
+                    ],
+                    delta: &[],
+                },
             )?,
         })
     }

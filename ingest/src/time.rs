@@ -121,8 +121,7 @@ pub fn week_of_date(date: (i32, u8, u8)) -> i64 {
 /// The full GPS week nearest `reference_week` that is congruent to `week10` modulo 1024.
 pub fn resolve_week(week10: u16, reference_week: i64) -> i64 {
     let w = i64::from(week10 % 1024);
-    let k = ((reference_week - w) as f64 / 1024.0).round() as i64;
-    w + 1024 * k
+    w + 1024 * (reference_week - w + 512).div_euclid(1024)
 }
 
 #[cfg(test)]
@@ -166,6 +165,9 @@ mod tests {
         assert_eq!(resolve_week(1023, 2047), 2047);
         assert_eq!(resolve_week(0, 2047), 2048);
         assert_eq!(resolve_week(286, 1310), 1310);
+        assert_eq!(resolve_week(1020, 2050), 2044);
+        assert_eq!(resolve_week(5, 2040), 2053);
+        assert_eq!(resolve_week(300, 0), 300);
         assert_eq!(week_of_date((2005, 2, 15)), 1310);
         assert_eq!(week_of_date((2019, 4, 7)), 2048);
     }
