@@ -14,6 +14,9 @@ struct Args {
     /// Output folder OUT, holding ingest/ (default: out/<dataset folder name>).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Print `peak_rss_kb N` (the process's peak resident memory) at the end, for benchmarks.
+    #[arg(long, hide = true)]
+    report_peak_rss: bool,
 }
 
 fn main() -> ExitCode {
@@ -24,6 +27,12 @@ fn main() -> ExitCode {
     match align::run(&args.dataset, &out) {
         Ok(report) => {
             align::print_summary(&report, &mut std::io::stderr());
+            if args.report_peak_rss {
+                match ingest::peak_rss_kb() {
+                    Some(kb) => eprintln!("peak_rss_kb {kb}"),
+                    None => eprintln!("peak_rss_kb unavailable"),
+                }
+            }
             ExitCode::SUCCESS
         }
         Err(e) => {

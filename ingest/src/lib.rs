@@ -353,3 +353,10 @@ pub fn print_summary(report: &IngestReport, w: &mut impl std::io::Write) {
         }
     }
 }
+
+/// Peak resident set size of this process in kB, from /proc (Linux only), for benchmarks.
+pub fn peak_rss_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}

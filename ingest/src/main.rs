@@ -22,13 +22,6 @@ struct Args {
     report_peak_rss: bool,
 }
 
-/// Peak resident set size of this process, from /proc (Linux), in kB.
-fn peak_rss_kb() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
-
 fn main() -> ExitCode {
     let args = Args::parse();
     let out = args
@@ -42,7 +35,7 @@ fn main() -> ExitCode {
         Ok(report) => {
             ingest::print_summary(&report, &mut std::io::stderr());
             if args.report_peak_rss {
-                match peak_rss_kb() {
+                match ingest::peak_rss_kb() {
                     Some(kb) => eprintln!("peak_rss_kb {kb}"),
                     None => eprintln!("peak_rss_kb unavailable"),
                 }

@@ -46,6 +46,11 @@ fn best_of(n: usize, mut f: impl FnMut() -> Result<Run>) -> Result<Run> {
 
 fn ingest_once(bin: &Path, dataset: &Path, out: &Path) -> Result<Run> {
     let _ = std::fs::remove_dir_all(out);
+    stage_once(bin, dataset, out)
+}
+
+/// Runs a stage binary once; its peak RSS as it reports it.
+fn stage_once(bin: &Path, dataset: &Path, out: &Path) -> Result<Run> {
     let t0 = Instant::now();
     let o = Command::new(bin)
         .arg(dataset)
@@ -67,7 +72,7 @@ fn ingest_once(bin: &Path, dataset: &Path, out: &Path) -> Result<Run> {
         .lines()
         .find_map(|l| l.strip_prefix("peak_rss_kb "))
         .and_then(|v| v.trim().parse().ok())
-        .context("the ingest binary did not report its peak RSS")?;
+        .context("the stage binary did not report its peak RSS")?;
     Ok(Run {
         seconds,
         peak_rss_mb: kb / 1024.0,
@@ -181,17 +186,57 @@ fn warm(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Runs the ingest benchmark; `hours` scales the logs (31.25 Hz for 2x hours, 250 Hz for hours).
-pub fn ingest(root: &Path, hours: f64, peers: bool) -> Result<()> {
+fn release_build(root: &Path, packages: &[&str]) -> Result<()> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
-    let ok = Command::new(&cargo)
-        .args(["build", "--release", "-p", "ingest"])
+    let mut args = vec!["build", "--release"];
+    for p in packages {
+        args.extend(["-p", p]);
+    }
+    if !Command::new(&cargo)
+        .args(&args)
         .current_dir(root)
         .status()?
-        .success();
-    if !ok {
-        bail!("release build of ingest failed");
+        .success()
+    {
+        bail!("release build of {} failed", packages.join(", "));
     }
+    Ok(())
+}
+
+/// Runs the align benchmark: `stations` x `readings` readings 3.2 s apart at 31.25 Hz.
+pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
+    release_build(root, &["ingest", "align"])?;
+    let data = root.join("target/bench-data");
+    let scenario = fixtures::catalog::bench_dense(stations, readings);
+    let dataset = data.join(&scenario.name);
+    if !dataset.join("dataset.toml").exists() {
+        eprintln!("bench: generating {}", dataset.display());
+        fixtures::write::write_dataset(&scenario, &dataset)?;
+    }
+    let out = data.join("out-align");
+    let _ = std::fs::remove_dir_all(&out);
+    ingest_once(&root.join("target/release/gravcal-ingest"), &dataset, &out)?;
+    let ledger = ingest::IngestReport::load(&out.join("ingest"))?;
+    let samples: u64 = ledger.sessions.iter().map(|s| s.acceleration_samples).sum();
+    let readings_n: u64 = ledger.sessions.iter().map(|s| s.readings).sum();
+    let r = best_of(3, || {
+        stage_once(&root.join("target/release/gravcal-align"), &dataset, &out)
+    })?;
+    println!("| samples | readings | observations | seconds | peak RSS MB |");
+    println!("|---|---|---|---|---|");
+    println!(
+        "| {samples} | {readings_n} | {} | {:.2} | {:.0} |",
+        readings_n * 3,
+        r.seconds,
+        r.peak_rss_mb
+    );
+    let _ = std::fs::remove_dir_all(&out);
+    Ok(())
+}
+
+/// Runs the ingest benchmark; `hours` scales the logs (31.25 Hz for 2x hours, 250 Hz for hours).
+pub fn ingest(root: &Path, hours: f64, peers: bool) -> Result<()> {
+    release_build(root, &["ingest"])?;
     let bin = root.join("target/release/gravcal-ingest");
     let data = root.join("target/bench-data");
     let py = if peers {

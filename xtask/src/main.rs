@@ -66,6 +66,12 @@ enum Cmd {
         /// Skip the Python peers (polars, pyarrow).
         #[arg(long)]
         no_peers: bool,
+        /// Align benchmark: stations.
+        #[arg(long, default_value_t = 1000)]
+        stations: usize,
+        /// Align benchmark: readings per station.
+        #[arg(long, default_value_t = 100)]
+        readings: usize,
     },
 }
 
@@ -259,10 +265,13 @@ fn run(cli: Cli) -> Result<()> {
             what,
             hours,
             no_peers,
+            stations,
+            readings,
         } => match what.as_str() {
             "ingest" => bench::ingest(&workspace_root(), hours, !no_peers),
+            "align" => bench::align(&workspace_root(), stations, readings),
             other => bail!(
-                "no benchmark `{other}` yet: align and adjust benchmarks come with those stages (issues #4, #5)"
+                "no benchmark `{other}` yet: the adjust benchmark comes with that stage (issue #5)"
             ),
         },
     }
