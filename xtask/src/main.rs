@@ -66,8 +66,8 @@ enum Cmd {
         /// Skip the Python peers (polars, pyarrow).
         #[arg(long)]
         no_peers: bool,
-        /// Align benchmark: stations.
-        #[arg(long, default_value_t = 1000)]
+        /// Align benchmark: stations per daily session (four sessions).
+        #[arg(long, default_value_t = 250)]
         stations: usize,
         /// Align benchmark: readings per station.
         #[arg(long, default_value_t = 100)]
