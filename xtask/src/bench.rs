@@ -222,6 +222,7 @@ pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
     let r = best_of(3, || {
         stage_once(&root.join("target/release/gravcal-align"), &dataset, &out)
     })?;
+    let observations = align::AlignReport::load(&out.join("align"))?.observations;
     println!("| samples | readings | observations | seconds | peak RSS MB |");
     println!("|---|---|---|---|---|");
     println!(
