@@ -1,7 +1,10 @@
-//! gravcal's `adjust` stage: observations to calibration functions by a Gauss-Helmert adjustment.
-//!
-//! Not built yet: issue #5 builds it. Until then [`run`] says so and fails, so that
-//! nothing downstream mistakes an empty folder for a result.
+//! gravcal's `adjust` stage: the calibration functions by a rigorous errors-in-both-variables
+//! (Gauss-Helmert) adjustment. Not complete yet: the engine ([`gh`]), the models ([`model`])
+//! and the general `fit` command ([`fit`]) are built; the stage itself is issue #5.
+
+pub mod fit;
+pub mod gh;
+pub mod model;
 
 use std::path::Path;
 

@@ -1,0 +1,369 @@
+//! A general Gauss-Helmert adjustment (MODEL.md section 2) for conditions that each involve
+//! their own two uncorrelated observations: `f_i(p; l_i) = 0`, `l_i = (l_i1, l_i2)`.
+//!
+//! Each iteration linearises at the current parameters and the current *adjusted*
+//! observations, `A dp + B v + w = 0` with `w = f(p0; l + v0) - B v0`, and solves the
+//! weighted least-squares problem `min || Q_ww^-1/2 (A dp + w) ||` by a Householder QR of
+//! the column-equilibrated design (faer): no normal matrix is inverted and no N x N matrix
+//! is formed (`Q_ww` is diagonal). Time O(N m^2), memory O(N m).
+
+use faer::prelude::*;
+
+/// The conditions of a problem.
+pub trait Conditions: Sync {
+    /// Number of parameters.
+    fn n_params(&self) -> usize;
+    /// Condition `i` at parameters `p` and observations `l`: returns `f` and
+    /// `B = (df/dl_1, df/dl_2)`, and writes `A = df/dp` into `a`.
+    fn eval(&self, i: usize, p: &[f64], l: [f64; 2], a: &mut [f64]) -> (f64, [f64; 2]);
+}
+
+/// Iteration settings.
+#[derive(Clone, Copy, Debug)]
+pub struct Options {
+    /// Most iterations before giving up.
+    pub max_iterations: usize,
+    /// Converged when every parameter change is below `tolerance` times its sd and every
+    /// residual change below `tolerance` times its observation's sd, or either is at the
+    /// level of rounding (`1e-13` of the value it changes).
+    pub tolerance: f64,
+    /// A column whose part independent of the columns before it is below this fraction of its
+    /// norm is not estimable.
+    pub rank_tolerance: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            max_iterations: 50,
+            tolerance: 1e-10,
+            rank_tolerance: 1e-11,
+        }
+    }
+}
+
+/// Why an adjustment has no answer.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum GhError {
+    /// Fewer conditions than parameters.
+    #[error("{n} observations for {m} parameters")]
+    TooFewObservations {
+        /// Conditions.
+        n: usize,
+        /// Parameters.
+        m: usize,
+    },
+    /// The design cannot determine parameter `index` (it depends on the parameters before it).
+    #[error("parameter {index} is not estimable")]
+    NotEstimable {
+        /// Index of the parameter.
+        index: usize,
+    },
+    /// A condition has zero variance (both its observations' sd and derivatives vanish).
+    #[error("condition {index} has zero variance")]
+    ZeroVariance {
+        /// Index of the condition.
+        index: usize,
+    },
+    /// The iteration did not settle.
+    #[error("no convergence after {iterations} iterations")]
+    NotConverged {
+        /// Iterations run.
+        iterations: usize,
+    },
+    /// A value became infinite or NaN.
+    #[error("a non-finite value appeared in iteration {iteration}")]
+    NonFinite {
+        /// Iteration.
+        iteration: usize,
+    },
+}
+
+/// The adjusted solution.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    /// Parameters.
+    pub p: Vec<f64>,
+    /// Cofactor matrix of the parameters (a-priori covariance, sigma0 = 1), row-major m x m.
+    pub q_pp: Vec<f64>,
+    /// Residuals of the two observations of each condition.
+    pub v: Vec<[f64; 2]>,
+    /// Condition residual `B v` (the misclosure taken up), in the condition's unit.
+    pub misclosure: Vec<f64>,
+    /// Variance of each condition, `B Q_ll B^T`.
+    pub q_ww: Vec<f64>,
+    /// Redundancy number of each condition, `1 - h_i`.
+    pub redundancy: Vec<f64>,
+    /// Normalised residual (Baarda's w, a-priori sigma0 = 1); 0 where the redundancy is 0.
+    pub w_test: Vec<f64>,
+    /// `v^T P v`.
+    pub vtpv: f64,
+    /// Degrees of freedom, N - m.
+    pub dof: usize,
+    /// Iterations run.
+    pub iterations: usize,
+}
+
+impl Solution {
+    /// A-posteriori variance factor: `v^T P v / r` (1 when r = 0).
+    pub fn sigma0(&self) -> f64 {
+        if self.dof == 0 {
+            1.0
+        } else {
+            (self.vtpv / self.dof as f64).sqrt()
+        }
+    }
+
+    /// A-priori sd of parameter `j`.
+    pub fn sigma_apriori(&self, j: usize) -> f64 {
+        let m = self.p.len();
+        self.q_pp[j * m + j].max(0.0).sqrt()
+    }
+}
+
+/// Inverse of an upper-triangular m x m matrix (row-major).
+fn invert_upper(r: &[f64], m: usize) -> Vec<f64> {
+    let mut inv = vec![0.0; m * m];
+    for j in 0..m {
+        inv[j * m + j] = 1.0 / r[j * m + j];
+        for i in (0..j).rev() {
+            let mut s = 0.0;
+            for k in i + 1..=j {
+                s += r[i * m + k] * inv[k * m + j];
+            }
+            inv[i * m + j] = -s / r[i * m + i];
+        }
+    }
+    inv
+}
+
+/// Adjusts the conditions `c` for observations `l` with sds `sigma`, from parameters `p0`.
+pub fn adjust(
+    c: &impl Conditions,
+    l: &[[f64; 2]],
+    sigma: &[[f64; 2]],
+    p0: &[f64],
+    opts: &Options,
+) -> Result<Solution, GhError> {
+    let n = l.len();
+    let m = c.n_params();
+    assert_eq!(sigma.len(), n, "one sigma pair per observation pair");
+    assert_eq!(p0.len(), m, "one start value per parameter");
+    if n < m {
+        return Err(GhError::TooFewObservations { n, m });
+    }
+    let mut p = p0.to_vec();
+    let mut v = vec![[0.0f64; 2]; n];
+    let mut a_row = vec![0.0; m];
+    let mut design = Mat::<f64>::zeros(n, m);
+    let mut rhs = Mat::<f64>::zeros(n, 1);
+    let mut w = vec![0.0; n];
+    let mut b = vec![[0.0; 2]; n];
+    let mut q = vec![0.0; n];
+    for iteration in 1..=opts.max_iterations {
+        for i in 0..n {
+            let l0 = [l[i][0] + v[i][0], l[i][1] + v[i][1]];
+            let (f, bi) = c.eval(i, &p, l0, &mut a_row);
+            let wi = f - bi[0] * v[i][0] - bi[1] * v[i][1];
+            let qi = (bi[0] * sigma[i][0]).powi(2) + (bi[1] * sigma[i][1]).powi(2);
+            if qi <= 0.0 || !qi.is_finite() {
+                return Err(GhError::ZeroVariance { index: i });
+            }
+            let s = qi.sqrt().recip();
+            for j in 0..m {
+                design[(i, j)] = a_row[j] * s;
+            }
+            rhs[(i, 0)] = -wi * s;
+            w[i] = wi;
+            b[i] = bi;
+            q[i] = qi;
+        }
+        // Column equilibration, then QR.
+        let mut scale = vec![0.0; m];
+        for j in 0..m {
+            let norm = (0..n).map(|i| design[(i, j)].powi(2)).sum::<f64>().sqrt();
+            if norm == 0.0 || !norm.is_finite() {
+                return Err(GhError::NotEstimable { index: j });
+            }
+            scale[j] = norm;
+            for i in 0..n {
+                design[(i, j)] /= norm;
+            }
+        }
+        let qr = design.qr();
+        let r_mat = qr.thin_R();
+        let mut r = vec![0.0; m * m];
+        for i in 0..m {
+            for j in i..m {
+                r[i * m + j] = r_mat[(i, j)];
+            }
+        }
+        for j in 0..m {
+            let diag = r[j * m + j].abs();
+            if diag.is_nan() || diag <= opts.rank_tolerance {
+                return Err(GhError::NotEstimable { index: j });
+            }
+        }
+        let sol = qr.solve_lstsq(&rhs);
+        let dp: Vec<f64> = (0..m).map(|j| sol[(j, 0)] / scale[j]).collect();
+        if dp.iter().any(|x| !x.is_finite()) {
+            return Err(GhError::NonFinite { iteration });
+        }
+        let r_inv = invert_upper(&r, m);
+        // Q_pp = D^-1 R^-1 R^-T D^-1.
+        let mut q_pp = vec![0.0; m * m];
+        for i in 0..m {
+            for j in 0..m {
+                let s: f64 = (i.max(j)..m)
+                    .map(|k| r_inv[i * m + k] * r_inv[j * m + k])
+                    .sum();
+                q_pp[i * m + j] = s / (scale[i] * scale[j]);
+            }
+        }
+        for j in 0..m {
+            p[j] += dp[j];
+        }
+        // New residuals from the Lagrange multipliers.
+        let rounding = 1e-13;
+        let mut settled = dp.iter().enumerate().all(|(j, d)| {
+            d.abs() <= opts.tolerance * q_pp[j * m + j].sqrt() + rounding * p[j].abs()
+        });
+        let mut vtpv = 0.0;
+        let mut misclosure = vec![0.0; n];
+        for i in 0..n {
+            let adp: f64 = (0..m)
+                .map(|j| design[(i, j)] * scale[j] * q[i].sqrt() * dp[j])
+                .sum();
+            let e = w[i] + adp;
+            let k = -e / q[i];
+            let nv = [
+                sigma[i][0].powi(2) * b[i][0] * k,
+                sigma[i][1].powi(2) * b[i][1] * k,
+            ];
+            for t in 0..2 {
+                let limit = opts.tolerance * sigma[i][t] + rounding * l[i][t].abs();
+                if sigma[i][t] > 0.0 && (nv[t] - v[i][t]).abs() > limit {
+                    settled = false;
+                }
+            }
+            v[i] = nv;
+            vtpv += e * e / q[i];
+            misclosure[i] = -e;
+        }
+        if !vtpv.is_finite() {
+            return Err(GhError::NonFinite { iteration });
+        }
+        if settled {
+            // Leverage h_i = || R^-T a~_i ||^2 of the equilibrated, weighted design row.
+            let mut redundancy = vec![0.0; n];
+            let mut w_test = vec![0.0; n];
+            let mut z = vec![0.0; m];
+            for i in 0..n {
+                for k in 0..m {
+                    let mut s = design[(i, k)];
+                    for t in 0..k {
+                        s -= r[t * m + k] * z[t];
+                    }
+                    z[k] = s / r[k * m + k];
+                }
+                let h: f64 = z.iter().map(|x| x * x).sum();
+                let ri = (1.0 - h).max(0.0);
+                redundancy[i] = ri;
+                w_test[i] = if ri > 1e-9 {
+                    misclosure[i] / (q[i] * ri).sqrt()
+                } else {
+                    0.0
+                };
+            }
+            return Ok(Solution {
+                p,
+                q_pp,
+                v,
+                misclosure,
+                q_ww: q,
+                redundancy,
+                w_test,
+                vtpv,
+                dof: n - m,
+                iterations: iteration,
+            });
+        }
+    }
+    Err(GhError::NotConverged {
+        iterations: opts.max_iterations,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// y = p0 + p1 x; l = (x, y).
+    struct Line;
+    impl Conditions for Line {
+        fn n_params(&self) -> usize {
+            2
+        }
+        fn eval(&self, _i: usize, p: &[f64], l: [f64; 2], a: &mut [f64]) -> (f64, [f64; 2]) {
+            a[0] = -1.0;
+            a[1] = -l[0];
+            (l[1] - p[0] - p[1] * l[0], [-p[1], 1.0])
+        }
+    }
+
+    #[test]
+    fn straight_line_through_exact_points_and_residual_invariants() {
+        let x: Vec<f64> = (0..20).map(f64::from).collect();
+        let noise = [
+            0.3, -0.1, 0.2, -0.4, 0.1, 0.0, -0.2, 0.5, -0.3, 0.1, 0.2, -0.1, 0.0, 0.3, -0.2, -0.1,
+            0.4, -0.5, 0.2, 0.1,
+        ];
+        let l: Vec<[f64; 2]> = x
+            .iter()
+            .zip(noise)
+            .map(|(&x, e)| [x, 2.0 + 0.5 * x + e])
+            .collect();
+        let sigma = vec![[0.0, 1.0]; 20];
+        let s = adjust(&Line, &l, &sigma, &[0.0, 0.0], &Options::default()).expect("solves");
+        // Residuals are orthogonal to the design: sum v = 0 and sum x v = 0.
+        let sv: f64 = s.v.iter().map(|v| v[1]).sum();
+        let sxv: f64 = s.v.iter().zip(&x).map(|(v, x)| v[1] * x).sum();
+        assert!(sv.abs() < 1e-10 && sxv.abs() < 1e-9, "{sv} {sxv}");
+        // Redundancy numbers add up to the degrees of freedom.
+        let rsum: f64 = s.redundancy.iter().sum();
+        assert!((rsum - 18.0).abs() < 1e-9, "{rsum}");
+        assert_eq!(s.dof, 18);
+        assert!(s.iterations <= 3);
+    }
+
+    #[test]
+    fn collinear_parameter_is_named() {
+        struct Twice;
+        impl Conditions for Twice {
+            fn n_params(&self) -> usize {
+                2
+            }
+            fn eval(&self, _i: usize, p: &[f64], l: [f64; 2], a: &mut [f64]) -> (f64, [f64; 2]) {
+                a[0] = -l[0];
+                a[1] = -2.0 * l[0];
+                (
+                    l[1] - (p[0] + 2.0 * p[1]) * l[0],
+                    [-(p[0] + 2.0 * p[1]), 1.0],
+                )
+            }
+        }
+        let l: Vec<[f64; 2]> = (1..10)
+            .map(|i| [f64::from(i), 3.0 * f64::from(i)])
+            .collect();
+        let e = adjust(
+            &Twice,
+            &l,
+            &[[0.0, 1.0]; 9],
+            &[0.0, 0.0],
+            &Options::default(),
+        )
+        .expect_err("rank deficient");
+        assert_eq!(e, GhError::NotEstimable { index: 1 });
+    }
+}
