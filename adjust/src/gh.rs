@@ -36,7 +36,7 @@ impl Default for Options {
     fn default() -> Self {
         Options {
             max_iterations: 50,
-            tolerance: 1e-10,
+            tolerance: 1e-9,
             rank_tolerance: 1e-11,
         }
     }

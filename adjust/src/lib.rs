@@ -1,24 +1,624 @@
 //! gravcal's `adjust` stage: the calibration functions by a rigorous errors-in-both-variables
-//! (Gauss-Helmert) adjustment. Not complete yet: the engine ([`gh`]), the models ([`model`])
-//! and the general `fit` command ([`fit`]) are built; the stage itself is issue #5.
+//! (Gauss-Helmert) adjustment (MODEL.md).
+//!
+//! Reads OUT/align (observations.parquet, align.json) and OUT/ingest/ingest.json, fits every
+//! model the manifest declares (or the defaults of FORMATS.md section 2) per accelerometer
+//! and session or over all sessions, in parallel (rayon), and writes
+//! OUT/adjust/calibration.json (FORMATS.md section 6) and OUT/adjust/residuals.parquet.
+//!
+//! The mathematics does no I/O: [`gh`] is the general engine, [`model`] the condition
+//! equations, [`calibrate`] one calibration fit with data snooping, [`fit`] the general
+//! polynomial fitting command (FORMATS.md section 7).
 
+pub mod calibrate;
 pub mod fit;
 pub mod gh;
+mod io;
 pub mod model;
 
-use std::path::Path;
+use calibrate::{CalError, Obs};
+use ingest::manifest::{Dataset, ModelDecl, Per};
+use model::Terms;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
-/// What can go wrong in this stage.
+/// What can go wrong in adjust.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// The stage has not been implemented yet.
-    #[error("the adjust stage is not built yet (issue #5)")]
-    NotBuilt,
+    /// Reading the manifest or an upstream ledger, or writing a table.
+    #[error(transparent)]
+    Ingest(#[from] ingest::Error),
+    /// Reading align's outputs.
+    #[error(transparent)]
+    Align(#[from] align::Error),
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// An input table is not what align writes.
+    #[error("{}: {message}", path.display())]
+    Table {
+        /// The table.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The fit command's input is unusable.
+    #[error("{0}")]
+    Fit(String),
 }
 
-/// Runs the stage on `dataset`, writing under `out`.
-pub fn run(dataset: &Path, out: &Path) -> Result<(), Error> {
-    let _ = (dataset, out);
-    Err(Error::NotBuilt)
+/// File name of the result.
+pub const CALIBRATION_FILE: &str = "calibration.json";
+/// Format tag of calibration.json.
+pub const CALIBRATION_FORMAT: &str = "gravcal-calibration/1";
+
+/// An input file and its hash.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Input {
+    /// Path relative to the dataset.
+    pub path: String,
+    /// SHA-256, hex.
+    pub sha256: String,
+}
+
+/// The global test of v^T P v against chi-square(dof), two-sided at 5 %.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct GlobalTest {
+    /// v^T P v.
+    pub statistic: f64,
+    /// 2.5 % quantile.
+    pub lower: f64,
+    /// 97.5 % quantile.
+    pub upper: f64,
+    /// Within the bounds.
+    pub passed: bool,
+}
+
+/// One parameter.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Parameter {
+    /// b, k, k2, k3, beta, b_t, k_t.
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// Estimate.
+    pub value: f64,
+    /// A-posteriori sd (scaled by sigma0).
+    pub sigma: f64,
+    /// A-priori sd.
+    pub sigma_apriori: f64,
+}
+
+/// An observation removed by data snooping.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Removed {
+    /// Session of the observation.
+    pub session: String,
+    /// Station.
+    pub station: String,
+    /// Line in the theodolite log.
+    pub line: u32,
+    /// GPS time, ns.
+    pub time_gps_ns: i64,
+    /// w-test value when removed.
+    pub w: f64,
+}
+
+/// One fitted calibration function (FORMATS.md section 6).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FitResult {
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Session id or `all`.
+    pub session: String,
+    /// Model name.
+    pub model: String,
+    /// Polynomial order.
+    pub order: u8,
+    /// Temperature terms.
+    pub temperature: bool,
+    /// Misalignment.
+    pub misalignment: bool,
+    /// Reference temperature of b and k (temperature models), degC.
+    pub t_ref_c: Option<f64>,
+    /// Mean temperature of the observations used, degC.
+    pub mean_temperature_c: f64,
+    /// Observations in the final adjustment.
+    pub n_observations: usize,
+    /// Observations removed by data snooping.
+    pub n_excluded: usize,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Iterations of the final adjustment.
+    pub iterations: usize,
+    /// A-posteriori sigma0.
+    pub sigma0: f64,
+    /// The global test.
+    pub global_test: GlobalTest,
+    /// Parameters.
+    pub parameters: Vec<Parameter>,
+    /// Correlation matrix of the parameters.
+    pub correlation: Vec<Vec<f64>>,
+    /// Each removed observation with its w-test value.
+    pub removed: Vec<Removed>,
+    /// Notes on estimability (a parameter correlated above 0.999 with another).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+}
+
+/// A fit that has no result, with the reason.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Skipped {
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Session id or `all`.
+    pub session: String,
+    /// Model name.
+    pub model: String,
+    /// Why.
+    pub reason: String,
+}
+
+/// `calibration.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Calibration {
+    /// [`CALIBRATION_FORMAT`].
+    pub format: String,
+    /// Dataset name.
+    pub dataset: String,
+    /// Software and version.
+    pub software: String,
+    /// Raw inputs and their hashes.
+    pub inputs: Vec<Input>,
+    /// Gravity at the proof masses, mGal.
+    pub gravity_mgal: f64,
+    /// Fitted calibrations.
+    pub results: Vec<FitResult>,
+    /// Fits without a result.
+    pub skipped: Vec<Skipped>,
+}
+
+impl Calibration {
+    /// Reads `dir/calibration.json` (`dir` being OUT/adjust).
+    pub fn load(dir: &Path) -> Result<Self, Error> {
+        let path = dir.join(CALIBRATION_FILE);
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::Io {
+            path: path.clone(),
+            source: e,
+        })?;
+        serde_json::from_str(&text).map_err(|e| Error::Table {
+            path,
+            message: e.to_string(),
+        })
+    }
+}
+
+/// The models to fit: the manifest's, or the defaults (FORMATS.md section 2): `linear`, plus
+/// `thermal` when the sessions' mean temperatures differ by more than 1 degree C.
+pub fn models(declared: &[ModelDecl], session_mean_temperatures: &[f64]) -> Vec<ModelDecl> {
+    if !declared.is_empty() {
+        return declared.to_vec();
+    }
+    let mut v = vec![ModelDecl {
+        name: "linear".into(),
+        order: 1,
+        per: Per::Session,
+        temperature: false,
+        misalignment: false,
+    }];
+    let (lo, hi) = session_mean_temperatures
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| {
+            (a.min(t), b.max(t))
+        });
+    if hi - lo > 1.0 {
+        v.push(ModelDecl {
+            name: "thermal".into(),
+            order: 1,
+            per: Per::All,
+            temperature: true,
+            misalignment: false,
+        });
+    }
+    v
+}
+
+struct Job<'a> {
+    model: &'a ModelDecl,
+    accelerometer: String,
+    session: String,
+    obs: Vec<&'a io::ObservationRow>,
+}
+
+/// A parameter (beyond b and k) whose multiple correlation with the others is above this is
+/// noted as barely estimable.
+const NOTE_CORRELATION: f64 = 0.999;
+
+/// Multiple correlation of each parameter with all the others, from the correlation matrix
+/// `C`: `sqrt(1 - 1 / (C^-1)_jj)`. 1 where `C` is numerically singular.
+fn multiple_correlation(c: &[Vec<f64>]) -> Vec<f64> {
+    let n = c.len();
+    // Cholesky C = L L^T; (C^-1)_jj = sum_k (L^-1)_kj^2.
+    let mut l = vec![vec![0.0; n]; n];
+    for i in 0..n {
+        for j in 0..=i {
+            let s: f64 = c[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
+            if i == j {
+                if s <= 1e-15 {
+                    return vec![1.0; n];
+                }
+                l[i][i] = s.sqrt();
+            } else {
+                l[i][j] = s / l[j][j];
+            }
+        }
+    }
+    let mut inv = vec![vec![0.0; n]; n];
+    for col in 0..n {
+        for i in col..n {
+            let s: f64 = (col..i).map(|k| l[i][k] * inv[k][col]).sum();
+            inv[i][col] = (if i == col { 1.0 } else { 0.0 } - s) / l[i][i];
+        }
+    }
+    (0..n)
+        .map(|j| {
+            let d: f64 = (0..n).map(|k| inv[k][j] * inv[k][j]).sum();
+            (1.0 - 1.0 / d).max(0.0).sqrt()
+        })
+        .collect()
+}
+
+fn result_of(job: &Job<'_>, f: &calibrate::Fitted, terms: Terms) -> FitResult {
+    let names = terms.names();
+    let correlation = f.correlation();
+    // b and k are always strongly correlated (the counts are far from zero): the report says
+    // so. Any further parameter whose multiple correlation with all the others exceeds 0.999
+    // is noted, with its correlation to each of them.
+    let multiple = multiple_correlation(&correlation);
+    let mut warnings = Vec::new();
+    for i in 2..names.len() {
+        if multiple[i] > NOTE_CORRELATION {
+            let pairs: Vec<String> = (0..names.len())
+                .filter(|&j| j != i)
+                .map(|j| format!("{} {:.6}", names[j].name, correlation[i][j]))
+                .collect();
+            warnings.push(format!(
+                "{} is barely estimable: multiple correlation {:.6} with the other parameters; correlation with {}",
+                names[i].name,
+                multiple[i],
+                pairs.join(", ")
+            ));
+        }
+    }
+    FitResult {
+        accelerometer: job.accelerometer.clone(),
+        session: job.session.clone(),
+        model: job.model.name.clone(),
+        order: job.model.order,
+        temperature: job.model.temperature,
+        misalignment: job.model.misalignment,
+        t_ref_c: job.model.temperature.then_some(f.t_ref_c),
+        mean_temperature_c: f.mean_temperature_c,
+        n_observations: f.residuals.len(),
+        n_excluded: f.removed.len(),
+        dof: f.dof,
+        iterations: f.iterations,
+        sigma0: f.sigma0,
+        global_test: GlobalTest {
+            statistic: f.vtpv,
+            lower: f.chi2_bounds.0,
+            upper: f.chi2_bounds.1,
+            passed: f.global_test_passed(),
+        },
+        parameters: names
+            .iter()
+            .enumerate()
+            .map(|(j, n)| Parameter {
+                name: n.name.to_owned(),
+                unit: n.unit.to_owned(),
+                value: f.values[j],
+                sigma: f.sigma(j),
+                sigma_apriori: f.sigma_apriori(j),
+            })
+            .collect(),
+        correlation,
+        removed: f
+            .removed
+            .iter()
+            .map(|r| {
+                let o = job.obs[r.index];
+                Removed {
+                    session: o.session.clone(),
+                    station: o.station.clone(),
+                    line: o.line,
+                    time_gps_ns: o.time_gps_ns,
+                    w: r.w,
+                }
+            })
+            .collect(),
+        warnings,
+    }
+}
+
+/// Runs the stage: reads OUT/ingest and OUT/align, writes OUT/adjust.
+pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
+    let ds = Dataset::load(dataset)?;
+    let ingest_report = ingest::IngestReport::load(&out.join("ingest"))?;
+    let align_report = align::AlignReport::load(&out.join("align"))?;
+    let rows = io::read_observations(&out.join("align"))?;
+    let g = ds.manifest.site.gravity_mgal();
+    let used: Vec<&io::ObservationRow> = rows
+        .iter()
+        .filter(|o| {
+            o.excluded.is_none()
+                && o.ng.is_some()
+                && o.sigma_ng.is_some()
+                && o.temperature_c.is_some()
+        })
+        .collect();
+    let session_ids: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
+    let mean_temperatures: Vec<f64> = session_ids
+        .iter()
+        .filter_map(|id| {
+            let t: Vec<f64> = used
+                .iter()
+                .filter(|o| &o.session == id)
+                .filter_map(|o| o.temperature_c)
+                .collect();
+            (!t.is_empty()).then(|| t.iter().sum::<f64>() / t.len() as f64)
+        })
+        .collect();
+    let models = models(&ds.manifest.adjust.model, &mean_temperatures);
+    let mut jobs = Vec::new();
+    let mut skipped = Vec::new();
+    for model in &models {
+        for acc in &ds.manifest.instrument.accelerometer {
+            let groups: Vec<String> = match model.per {
+                Per::Session => session_ids.clone(),
+                Per::All => vec!["all".to_owned()],
+            };
+            for session in groups {
+                let disconnected = align_report
+                    .disconnected
+                    .iter()
+                    .any(|d| d.accelerometer == acc.id && (d.session == session));
+                if disconnected {
+                    skipped.push(Skipped {
+                        accelerometer: acc.id.clone(),
+                        session,
+                        model: model.name.clone(),
+                        reason: "channel not connected".to_owned(),
+                    });
+                    continue;
+                }
+                let obs: Vec<&io::ObservationRow> = used
+                    .iter()
+                    .copied()
+                    .filter(|o| {
+                        o.accelerometer == acc.id && (session == "all" || o.session == session)
+                    })
+                    .collect();
+                jobs.push(Job {
+                    model,
+                    accelerometer: acc.id.clone(),
+                    session,
+                    obs,
+                });
+            }
+        }
+    }
+    let outcomes: Vec<Result<(FitResult, calibrate::Fitted), CalError>> = jobs
+        .par_iter()
+        .map(|job| {
+            let terms = Terms {
+                order: usize::from(job.model.order),
+                temperature: job.model.temperature,
+                misalignment: job.model.misalignment,
+            };
+            let obs: Vec<Obs> = job
+                .obs
+                .iter()
+                .map(|o| Obs {
+                    dz_rad: o.dz_rad,
+                    sigma_dz_rad: o.sigma_dz_rad,
+                    ng: o.ng.unwrap_or_default(),
+                    sigma_ng: o.sigma_ng.unwrap_or_default(),
+                    temperature_c: o.temperature_c.unwrap_or_default(),
+                })
+                .collect();
+            calibrate::fit(&obs, terms, g).map(|f| (result_of(job, &f, terms), f))
+        })
+        .collect();
+    let mut results = Vec::new();
+    let mut residual_rows = Vec::new();
+    for (job, outcome) in jobs.iter().zip(&outcomes) {
+        match outcome {
+            Ok((r, f)) => {
+                results.push(r.clone());
+                for res in &f.residuals {
+                    residual_rows.push(io::ResidualRow {
+                        model: &job.model.name,
+                        accelerometer: &job.accelerometer,
+                        fit_session: &job.session,
+                        obs: job.obs[res.index],
+                        v_dz_rad: Some(res.v_dz_rad),
+                        v_ng: Some(res.v_ng),
+                        residual_mgal: Some(res.misclosure_mgal),
+                        redundancy: Some(res.redundancy),
+                        w: res.w,
+                        removed: false,
+                    });
+                }
+                for rem in &f.removed {
+                    residual_rows.push(io::ResidualRow {
+                        model: &job.model.name,
+                        accelerometer: &job.accelerometer,
+                        fit_session: &job.session,
+                        obs: job.obs[rem.index],
+                        v_dz_rad: None,
+                        v_ng: None,
+                        residual_mgal: None,
+                        redundancy: None,
+                        w: rem.w,
+                        removed: true,
+                    });
+                }
+            }
+            Err(e) => skipped.push(Skipped {
+                accelerometer: job.accelerometer.clone(),
+                session: job.session.clone(),
+                model: job.model.name.clone(),
+                reason: if job.obs.is_empty() {
+                    "no usable observations".to_owned()
+                } else {
+                    e.to_string()
+                },
+            }),
+        }
+    }
+    let dir = out.join("adjust");
+    std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
+        path: dir.clone(),
+        source: e,
+    })?;
+    let cal_path = dir.join(CALIBRATION_FILE);
+    match std::fs::remove_file(&cal_path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            return Err(Error::Io {
+                path: cal_path,
+                source: e,
+            });
+        }
+        _ => {}
+    }
+    io::write_residuals(&dir, &residual_rows)?;
+    let calibration = Calibration {
+        format: CALIBRATION_FORMAT.to_owned(),
+        dataset: ds.manifest.name.clone(),
+        software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
+        inputs: ingest_report
+            .files
+            .iter()
+            .map(|f| Input {
+                path: f.path.clone(),
+                sha256: f.sha256.clone(),
+            })
+            .collect(),
+        gravity_mgal: g,
+        results,
+        skipped,
+    };
+    ingest::write_json_atomically(&cal_path, &calibration)?;
+    Ok(calibration)
+}
+
+/// A few lines per fit: b, k and sigma0; and every skipped fit with its reason.
+pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
+    let mut by_model: BTreeMap<&str, usize> = BTreeMap::new();
+    for r in &c.results {
+        *by_model.entry(r.model.as_str()).or_default() += 1;
+        let p: Vec<String> = r
+            .parameters
+            .iter()
+            .map(|p| format!("{} = {:.6e} +/- {:.2e}", p.name, p.value, p.sigma))
+            .collect();
+        let _ = writeln!(
+            w,
+            "adjust: {} {} {}: {}; sigma0 {:.3}, {} obs, {} removed, global test {}",
+            r.model,
+            r.accelerometer,
+            r.session,
+            p.join(", "),
+            r.sigma0,
+            r.n_observations,
+            r.n_excluded,
+            if r.global_test.passed {
+                "passed"
+            } else {
+                "FAILED"
+            }
+        );
+    }
+    for s in &c.skipped {
+        let _ = writeln!(
+            w,
+            "adjust: {} {} {}: skipped: {}",
+            s.model, s.accelerometer, s.session, s.reason
+        );
+    }
+}
+
+/// Fits a polynomial to the columns of a CSV table (FORMATS.md section 7).
+pub fn fit_csv(
+    path: &Path,
+    x: &str,
+    y: &str,
+    sigma_x: Option<&str>,
+    sigma_y: Option<&str>,
+    degree: usize,
+) -> Result<fit::FitOutput, Error> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let (_, header) = lines
+        .next()
+        .ok_or_else(|| Error::Fit(format!("{}: no header line", path.display())))?;
+    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let index = |name: &str| {
+        names.iter().position(|n| *n == name).ok_or_else(|| {
+            Error::Fit(format!(
+                "{}: no column `{name}` (columns: {})",
+                path.display(),
+                names.join(", ")
+            ))
+        })
+    };
+    let cols: Vec<Option<usize>> = vec![
+        Some(index(x)?),
+        Some(index(y)?),
+        sigma_x.map(index).transpose()?,
+        sigma_y.map(index).transpose()?,
+    ];
+    let mut data: [Vec<f64>; 4] = Default::default();
+    for (n, line) in lines {
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        for (k, c) in cols.iter().enumerate() {
+            if let Some(c) = c {
+                let v = fields
+                    .get(*c)
+                    .and_then(|f| f.parse::<f64>().ok())
+                    .ok_or_else(|| {
+                        Error::Fit(format!(
+                            "{}:{}: {}: not a number",
+                            path.display(),
+                            n + 1,
+                            names[*c]
+                        ))
+                    })?;
+                data[k].push(v);
+            }
+        }
+    }
+    let [xs, ys, sx, sy] = data;
+    fit::fit(
+        &xs,
+        &ys,
+        sigma_x.map(|_| sx.as_slice()),
+        sigma_y.map(|_| sy.as_slice()),
+        degree,
+    )
+    .map_err(|e| Error::Fit(format!("{}: {e}", path.display())))
 }

@@ -214,3 +214,53 @@ pub mod observations {
         ]))
     }
 }
+
+/// `residuals.parquet`, written by adjust (OUT/adjust/): one row per observation and fit.
+///
+/// | column | type | unit / meaning |
+/// |---|---|---|
+/// | model | utf8 (dictionary) | model name |
+/// | accelerometer | utf8 (dictionary) | accelerometer id |
+/// | fit_session | utf8 (dictionary) | the fit's session id, or `all` |
+/// | session | utf8 (dictionary) | the observation's session |
+/// | station | utf8 | tilt position |
+/// | line | uint32 | line in the theodolite log |
+/// | time_gps_ns | int64 | GPS time, ns |
+/// | dz_rad, sigma_dz_rad | float64 | zenith distance and its sd, rad |
+/// | ng, sigma_ng | float64 | mean counts and its sd |
+/// | temperature_c | float64 | degC |
+/// | v_dz_rad | float64, null | residual of Dz, rad (null when removed) |
+/// | v_ng | float64, null | residual of Ng, counts |
+/// | residual_mgal | float64, null | condition residual B v, mGal |
+/// | redundancy | float64, null | redundancy number |
+/// | w | float64 | normalised residual (at removal, for a removed observation) |
+/// | removed | boolean | removed by data snooping |
+pub mod residuals {
+    use super::*;
+    /// File name.
+    pub const FILE: &str = "residuals.parquet";
+    /// The Arrow schema.
+    pub fn schema() -> SchemaRef {
+        let dict = session_type;
+        Arc::new(Schema::new(vec![
+            Field::new("model", dict(), false),
+            Field::new("accelerometer", dict(), false),
+            Field::new("fit_session", dict(), false),
+            Field::new(SESSION, dict(), false),
+            Field::new("station", DataType::Utf8, false),
+            Field::new("line", DataType::UInt32, false),
+            Field::new(TIME_GPS_NS, DataType::Int64, false),
+            Field::new("dz_rad", DataType::Float64, false),
+            Field::new("sigma_dz_rad", DataType::Float64, false),
+            Field::new("ng", DataType::Float64, false),
+            Field::new("sigma_ng", DataType::Float64, false),
+            Field::new("temperature_c", DataType::Float64, false),
+            Field::new("v_dz_rad", DataType::Float64, true),
+            Field::new("v_ng", DataType::Float64, true),
+            Field::new("residual_mgal", DataType::Float64, true),
+            Field::new("redundancy", DataType::Float64, true),
+            Field::new("w", DataType::Float64, false),
+            Field::new("removed", DataType::Boolean, false),
+        ]))
+    }
+}

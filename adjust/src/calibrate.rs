@@ -1,0 +1,238 @@
+//! One calibration fit: the Gauss-Helmert adjustment of MODEL.md section 2 for one
+//! accelerometer over a set of observations, with data snooping (Baarda's w-test at
+//! alpha = 0.001, critical value 3.29), the global test, and the parameters mapped back to
+//! counts. No I/O.
+
+use crate::gh::{self, GhError, Options};
+use crate::model::{Calibration, Terms, apply, propagate};
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// Critical value of the w-test (two-sided, alpha = 0.001).
+pub const W_CRITICAL: f64 = 3.29;
+
+/// One observation as the fit sees it.
+#[derive(Clone, Debug)]
+pub struct Obs {
+    /// Zenith distance, rad.
+    pub dz_rad: f64,
+    /// Sd of Dz, rad.
+    pub sigma_dz_rad: f64,
+    /// Mean counts.
+    pub ng: f64,
+    /// Sd of Ng.
+    pub sigma_ng: f64,
+    /// Temperature, degC.
+    pub temperature_c: f64,
+}
+
+/// Why a fit has no result.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum CalError {
+    /// The design cannot determine this parameter.
+    #[error("parameter {parameter} is not estimable from these observations")]
+    NotEstimable {
+        /// Its name.
+        parameter: &'static str,
+    },
+    /// Too few observations.
+    #[error("{n} observations for {m} parameters")]
+    TooFew {
+        /// Observations.
+        n: usize,
+        /// Parameters.
+        m: usize,
+    },
+    /// The adjustment failed otherwise.
+    #[error("{0}")]
+    Adjustment(String),
+}
+
+/// An observation removed by data snooping.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Removal {
+    /// Index into the fit's observations.
+    pub index: usize,
+    /// Its w-test value when it was removed.
+    pub w: f64,
+    /// The adjustment round (1-based) that flagged it.
+    pub round: usize,
+}
+
+/// Per observation of the final adjustment.
+#[derive(Clone, Debug)]
+pub struct Residual {
+    /// Index into the fit's observations.
+    pub index: usize,
+    /// Residual of Dz, rad.
+    pub v_dz_rad: f64,
+    /// Residual of Ng, counts.
+    pub v_ng: f64,
+    /// Condition residual, mGal.
+    pub misclosure_mgal: f64,
+    /// Redundancy number.
+    pub redundancy: f64,
+    /// Normalised residual.
+    pub w: f64,
+}
+
+/// A fitted calibration.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    /// Parameters in counts: b, k, [k2], [k3], [b_t, k_t], [beta].
+    pub values: Vec<f64>,
+    /// Their a-priori covariance (sigma0 = 1), row-major.
+    pub covariance_apriori: Vec<f64>,
+    /// sqrt(v^T P v / dof).
+    pub sigma0: f64,
+    /// v^T P v.
+    pub vtpv: f64,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Iterations of the final adjustment.
+    pub iterations: usize,
+    /// Reference temperature (temperature models), degC.
+    pub t_ref_c: f64,
+    /// Mean temperature of the observations used, degC.
+    pub mean_temperature_c: f64,
+    /// Global test: 2.5 % and 97.5 % quantiles of chi-square(dof).
+    pub chi2_bounds: (f64, f64),
+    /// Removed by snooping, in order.
+    pub removed: Vec<Removal>,
+    /// The observations used, with their residuals.
+    pub residuals: Vec<Residual>,
+}
+
+impl Fitted {
+    /// A-posteriori sd of parameter j.
+    pub fn sigma(&self, j: usize) -> f64 {
+        self.sigma0 * self.sigma_apriori(j)
+    }
+    /// A-priori sd of parameter j.
+    pub fn sigma_apriori(&self, j: usize) -> f64 {
+        let n = self.values.len();
+        self.covariance_apriori[j * n + j].max(0.0).sqrt()
+    }
+    /// Correlation matrix.
+    pub fn correlation(&self) -> Vec<Vec<f64>> {
+        let n = self.values.len();
+        (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| {
+                        let d = self.sigma_apriori(i) * self.sigma_apriori(j);
+                        if d > 0.0 {
+                            self.covariance_apriori[i * n + j] / d
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+    /// Whether v^T P v lies within the two-sided 5 % bounds.
+    pub fn global_test_passed(&self) -> bool {
+        self.vtpv >= self.chi2_bounds.0 && self.vtpv <= self.chi2_bounds.1
+    }
+}
+
+/// Fits `terms` to `obs` with gravity `g_mgal`, removing blunders one at a time while a
+/// w-test exceeds [`W_CRITICAL`] (at most a tenth of the observations).
+pub fn fit(obs: &[Obs], terms: Terms, g_mgal: f64) -> Result<Fitted, CalError> {
+    let m = terms.len();
+    if obs.len() <= m {
+        return Err(CalError::TooFew { n: obs.len(), m });
+    }
+    let max_removals = obs.len() / 10;
+    let mut active: Vec<usize> = (0..obs.len()).collect();
+    let mut removed = Vec::new();
+    let names = terms.names();
+    for round in 1.. {
+        let used: Vec<&Obs> = active.iter().map(|&i| &obs[i]).collect();
+        let n = used.len() as f64;
+        let centre = used.iter().map(|o| o.ng).sum::<f64>() / n;
+        let scale = used
+            .iter()
+            .map(|o| (o.ng - centre).abs())
+            .fold(0.0, f64::max)
+            .max(1.0);
+        let mean_t = used.iter().map(|o| o.temperature_c).sum::<f64>() / n;
+        let t_ref_c = (mean_t * 100.0).round() / 100.0;
+        let temps: Vec<f64> = used.iter().map(|o| o.temperature_c).collect();
+        let model = Calibration {
+            terms,
+            g_mgal,
+            centre,
+            scale,
+            t_ref_c,
+            temperature_c: &temps,
+        };
+        let l: Vec<[f64; 2]> = used.iter().map(|o| [o.dz_rad, o.ng]).collect();
+        let sigma: Vec<[f64; 2]> = used.iter().map(|o| [o.sigma_dz_rad, o.sigma_ng]).collect();
+        let s = gh::adjust(&model, &l, &sigma, &vec![0.0; m], &Options::default()).map_err(
+            |e| match e {
+                GhError::NotEstimable { index } => CalError::NotEstimable {
+                    parameter: names[index].name,
+                },
+                GhError::TooFewObservations { n, m } => CalError::TooFew { n, m },
+                other => CalError::Adjustment(other.to_string()),
+            },
+        )?;
+        let worst = s
+            .w_test
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| s.redundancy[*i] > 1e-6)
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
+        if let Some((k, &w)) = worst
+            && w.abs() > W_CRITICAL
+            && removed.len() < max_removals
+            && s.dof > 1
+        {
+            removed.push(Removal {
+                index: active[k],
+                w,
+                round,
+            });
+            active.remove(k);
+            continue;
+        }
+        let map = model.to_counts();
+        let values = apply(&map, &s.p);
+        let covariance_apriori = propagate(&map, &s.q_pp, m);
+        let chi2_bounds = if s.dof > 0 {
+            let d =
+                ChiSquared::new(s.dof as f64).map_err(|e| CalError::Adjustment(e.to_string()))?;
+            (d.inverse_cdf(0.025), d.inverse_cdf(0.975))
+        } else {
+            (0.0, 0.0)
+        };
+        let residuals = active
+            .iter()
+            .enumerate()
+            .map(|(k, &index)| Residual {
+                index,
+                v_dz_rad: s.v[k][0],
+                v_ng: s.v[k][1],
+                misclosure_mgal: s.misclosure[k],
+                redundancy: s.redundancy[k],
+                w: s.w_test[k],
+            })
+            .collect();
+        return Ok(Fitted {
+            values,
+            covariance_apriori,
+            sigma0: s.sigma0(),
+            vtpv: s.vtpv,
+            dof: s.dof,
+            iterations: s.iterations,
+            t_ref_c,
+            mean_temperature_c: mean_t,
+            chi2_bounds,
+            removed,
+            residuals,
+        });
+    }
+    unreachable!("the snooping loop returns")
+}
