@@ -137,14 +137,36 @@ impl Fitted {
     }
 }
 
+/// How many observations data snooping may remove.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Snooping {
+    /// One at a time while a w-test exceeds [`W_CRITICAL`], at most a tenth of them.
+    TenthAtMost,
+    /// None: one adjustment (for benchmarks of the adjustment itself).
+    Off,
+}
+
 /// Fits `terms` to `obs` with gravity `g_mgal`, removing blunders one at a time while a
 /// w-test exceeds [`W_CRITICAL`] (at most a tenth of the observations).
 pub fn fit(obs: &[Obs], terms: Terms, g_mgal: f64) -> Result<Fitted, CalError> {
+    fit_with(obs, terms, g_mgal, Snooping::TenthAtMost)
+}
+
+/// [`fit`] with a choice of data snooping.
+pub fn fit_with(
+    obs: &[Obs],
+    terms: Terms,
+    g_mgal: f64,
+    snooping: Snooping,
+) -> Result<Fitted, CalError> {
     let m = terms.len();
     if obs.len() <= m {
         return Err(CalError::TooFew { n: obs.len(), m });
     }
-    let max_removals = obs.len() / 10;
+    let max_removals = match snooping {
+        Snooping::TenthAtMost => obs.len() / 10,
+        Snooping::Off => 0,
+    };
     let mut active: Vec<usize> = (0..obs.len()).collect();
     let mut removed = Vec::new();
     let names = terms.names();

@@ -222,3 +222,130 @@ pub fn write_residuals(dir: &Path, rows: &[ResidualRow<'_>]) -> Result<u64, Erro
     t.write(cols)?;
     Ok(t.finish()?)
 }
+
+/// One row of residuals.parquet, as read back.
+#[derive(Clone, Debug)]
+pub struct ResidualRecord {
+    /// Model name.
+    pub model: String,
+    /// Accelerometer.
+    pub accelerometer: String,
+    /// The fit's session or `all`.
+    pub fit_session: String,
+    /// The observation's session.
+    pub session: String,
+    /// Station.
+    pub station: String,
+    /// Line in the theodolite log.
+    pub line: u32,
+    /// GPS time, ns.
+    pub time_gps_ns: i64,
+    /// Zenith distance, rad.
+    pub dz_rad: f64,
+    /// Its sd, rad.
+    pub sigma_dz_rad: f64,
+    /// Mean counts.
+    pub ng: f64,
+    /// Its sd.
+    pub sigma_ng: f64,
+    /// Temperature, degC.
+    pub temperature_c: f64,
+    /// Condition residual, mGal (None for a removed observation).
+    pub residual_mgal: Option<f64>,
+    /// Redundancy number (None for a removed observation).
+    pub redundancy: Option<f64>,
+    /// w-test (at removal for a removed observation).
+    pub w: f64,
+    /// Removed by data snooping.
+    pub removed: bool,
+}
+
+/// Reads OUT/adjust/residuals.parquet.
+pub fn read_residuals(adjust_dir: &Path) -> Result<Vec<ResidualRecord>, Error> {
+    let path = adjust_dir.join(schema::residuals::FILE);
+    let f = std::fs::File::open(&path).map_err(|e| Error::Io {
+        path: path.clone(),
+        source: e,
+    })?;
+    let reader = ParquetRecordBatchReaderBuilder::try_new(f)
+        .and_then(|b| b.build())
+        .map_err(|e| bad(&path, e.to_string()))?;
+    let mut out = Vec::new();
+    for batch in reader {
+        let b: RecordBatch = batch.map_err(|e| bad(&path, e.to_string()))?;
+        let get = |name: &str| {
+            b.column_by_name(name)
+                .ok_or_else(|| bad(&path, format!("no column `{name}`")))
+        };
+        let dict = |name: &str| -> Result<Vec<String>, Error> {
+            let d = get(name)?
+                .as_dictionary_opt::<Int32Type>()
+                .ok_or_else(|| bad(&path, format!("`{name}` is not a dictionary")))?;
+            let values = d.values().as_string::<i32>();
+            Ok(d.keys()
+                .values()
+                .iter()
+                .map(|&k| values.value(k as usize).to_owned())
+                .collect())
+        };
+        let f64s = |name: &str| -> Result<Float64Array, Error> {
+            Ok(get(name)?
+                .as_primitive_opt::<Float64Type>()
+                .ok_or_else(|| bad(&path, format!("`{name}` is not float64")))?
+                .clone())
+        };
+        let (model, acc, fit_session, session) = (
+            dict("model")?,
+            dict("accelerometer")?,
+            dict("fit_session")?,
+            dict(schema::SESSION)?,
+        );
+        let station = get("station")?
+            .as_string_opt::<i32>()
+            .ok_or_else(|| bad(&path, "station is not utf8".into()))?
+            .clone();
+        let line = get("line")?
+            .as_primitive_opt::<UInt32Type>()
+            .ok_or_else(|| bad(&path, "line is not uint32".into()))?
+            .clone();
+        let time = get(schema::TIME_GPS_NS)?
+            .as_primitive_opt::<Int64Type>()
+            .ok_or_else(|| bad(&path, "time is not int64".into()))?
+            .clone();
+        let removed = get("removed")?
+            .as_boolean_opt()
+            .ok_or_else(|| bad(&path, "removed is not boolean".into()))?
+            .clone();
+        let (dz, sdz, ng, sng, temp, res, red, w) = (
+            f64s("dz_rad")?,
+            f64s("sigma_dz_rad")?,
+            f64s("ng")?,
+            f64s("sigma_ng")?,
+            f64s("temperature_c")?,
+            f64s("residual_mgal")?,
+            f64s("redundancy")?,
+            f64s("w")?,
+        );
+        for i in 0..b.num_rows() {
+            out.push(ResidualRecord {
+                model: model[i].clone(),
+                accelerometer: acc[i].clone(),
+                fit_session: fit_session[i].clone(),
+                session: session[i].clone(),
+                station: station.value(i).to_owned(),
+                line: line.value(i),
+                time_gps_ns: time.value(i),
+                dz_rad: dz.value(i),
+                sigma_dz_rad: sdz.value(i),
+                ng: ng.value(i),
+                sigma_ng: sng.value(i),
+                temperature_c: temp.value(i),
+                residual_mgal: res.is_valid(i).then(|| res.value(i)),
+                redundancy: red.is_valid(i).then(|| red.value(i)),
+                w: w.value(i),
+                removed: removed.value(i),
+            });
+        }
+    }
+    Ok(out)
+}

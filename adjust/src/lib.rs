@@ -13,7 +13,7 @@
 pub mod calibrate;
 pub mod fit;
 pub mod gh;
-mod io;
+pub mod io;
 pub mod model;
 
 use calibrate::{CalError, Obs};

@@ -23,6 +23,61 @@ struct Args {
 enum Cmd {
     /// Fits y = sum p_j x^j to two columns of a CSV table; prints JSON.
     Fit(FitArgs),
+    /// For `cargo xtask bench adjust`: times the linear calibration of the observations in a
+    /// CSV (dz_rad,sigma_dz_rad,ng,sigma_ng) and prints seconds and peak memory.
+    #[command(hide = true)]
+    BenchFit {
+        /// The observations.
+        #[arg(long)]
+        input: PathBuf,
+        /// Gravity, mGal.
+        #[arg(long)]
+        g_mgal: f64,
+    },
+}
+
+fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
+    let text = std::fs::read_to_string(input).map_err(|e| format!("{}: {e}", input.display()))?;
+    let mut obs = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|x| x.parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("line {}: {e}", n + 1))?;
+        if v.len() != 4 {
+            return Err(format!("line {}: 4 fields expected", n + 1));
+        }
+        obs.push(adjust::calibrate::Obs {
+            dz_rad: v[0],
+            sigma_dz_rad: v[1],
+            ng: v[2],
+            sigma_ng: v[3],
+            temperature_c: 20.0,
+        });
+    }
+    let terms = adjust::model::Terms {
+        order: 1,
+        temperature: false,
+        misalignment: false,
+    };
+    let t0 = std::time::Instant::now();
+    let f = adjust::calibrate::fit_with(&obs, terms, g_mgal, adjust::calibrate::Snooping::Off)
+        .map_err(|e| e.to_string())?;
+    let flagged = f
+        .residuals
+        .iter()
+        .filter(|r| r.w.abs() > adjust::calibrate::W_CRITICAL)
+        .count();
+    let seconds = t0.elapsed().as_secs_f64();
+    Ok(format!(
+        "{{\"observations\": {}, \"seconds\": {seconds}, \"iterations\": {}, \"flagged\": {flagged}, \"b\": {}, \"k\": {}, \"peak_rss_kb\": {}}}",
+        obs.len(),
+        f.iterations,
+        f.values[0],
+        f.values[1],
+        ingest::peak_rss_kb().unwrap_or(0)
+    ))
 }
 
 /// Arguments of `fit`.
@@ -73,6 +128,16 @@ fn main() -> ExitCode {
                 }
             }
         }
+        (Some(Cmd::BenchFit { input, g_mgal }), _) => match bench_fit(&input, g_mgal) {
+            Ok(json) => {
+                println!("{json}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("gravcal-adjust bench-fit: error: {e}");
+                ExitCode::FAILURE
+            }
+        },
         (None, Some(dataset)) => {
             let out = args.out.unwrap_or_else(|| {
                 PathBuf::from("out").join(dataset.file_name().unwrap_or_default())

@@ -1,21 +1,713 @@
-//! gravcal's `report` stage: stage outputs to a self-contained HTML report and a Markdown summary.
+//! gravcal's `report` stage: what a geodesist reads.
 //!
-//! Not built yet: issue #6 builds it. Until then [`run`] says so and fails, so that
-//! nothing downstream mistakes an empty folder for a result.
+//! Turns the outputs of ingest, align and adjust into OUT/report/index.html (one
+//! self-contained file: inline CSS and SVG, no network), OUT/report/report.md, and the plots
+//! as SVG files (OUT/report/plots/). The tables are built once and rendered to both formats.
 
-use std::path::Path;
+mod plots;
+
+use adjust::{Calibration, FitResult};
+use ingest::manifest::Dataset;
+use statrs::distribution::{ContinuousCDF, StudentsT};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 /// What can go wrong in this stage.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// The stage has not been implemented yet.
-    #[error("the report stage is not built yet (issue #6)")]
-    NotBuilt,
+    /// Reading the manifest or ingest's ledger.
+    #[error(transparent)]
+    Ingest(#[from] ingest::Error),
+    /// Reading align's ledger.
+    #[error(transparent)]
+    Align(#[from] align::Error),
+    /// Reading adjust's outputs.
+    #[error(transparent)]
+    Adjust(#[from] adjust::Error),
+    /// Writing a file.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// Drawing a plot failed.
+    #[error("plot {name}: {message}")]
+    Plot {
+        /// The plot.
+        name: String,
+        /// What failed.
+        message: String,
+    },
 }
 
-/// Runs the stage on `dataset`, writing under `out`.
-pub fn run(dataset: &Path, out: &Path) -> Result<(), Error> {
-    let _ = (dataset, out);
-    Err(Error::NotBuilt)
+/// A table, rendered to Markdown and HTML from the same cells.
+#[derive(Clone, Debug, Default)]
+pub struct Table {
+    /// Column headings.
+    pub header: Vec<String>,
+    /// Rows of cells.
+    pub rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    fn new(header: &[&str]) -> Self {
+        Table {
+            header: header.iter().map(|s| (*s).to_owned()).collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// GitHub-flavoured Markdown.
+    pub fn markdown(&self) -> String {
+        let mut s = format!(
+            "| {} |\n|{}|\n",
+            self.header.join(" | "),
+            vec!["---"; self.header.len()].join("|")
+        );
+        for r in &self.rows {
+            let _ = writeln!(s, "| {} |", r.join(" | "));
+        }
+        s
+    }
+
+    /// An HTML table.
+    pub fn html(&self) -> String {
+        let mut s = String::from("<table><thead><tr>");
+        for h in &self.header {
+            let _ = write!(s, "<th>{}</th>", esc(h));
+        }
+        s.push_str("</tr></thead><tbody>");
+        for r in &self.rows {
+            s.push_str("<tr>");
+            for c in r {
+                let _ = write!(s, "<td>{}</td>", esc(c));
+            }
+            s.push_str("</tr>");
+        }
+        s.push_str("</tbody></table>");
+        s
+    }
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// One section of the report: a heading, paragraphs, tables and plots.
+#[derive(Clone, Debug, Default)]
+pub struct Section {
+    /// Heading.
+    pub title: String,
+    /// Paragraphs (plain text).
+    pub text: Vec<String>,
+    /// Tables, each with a caption.
+    pub tables: Vec<(String, Table)>,
+    /// Plots: file name (without folder) and SVG.
+    pub plots: Vec<(String, String)>,
+}
+
+fn section(title: &str) -> Section {
+    Section {
+        title: title.to_owned(),
+        ..Section::default()
+    }
+}
+
+fn param<'a>(r: &'a FitResult, name: &str) -> Option<&'a adjust::Parameter> {
+    r.parameters.iter().find(|p| p.name == name)
+}
+
+fn t_critical(dof: usize) -> f64 {
+    StudentsT::new(0.0, 1.0, dof.max(1) as f64).map_or(1.96, |t| t.inverse_cdf(0.975))
+}
+
+/// Points of a plot.
+type Points = Vec<(f64, f64)>;
+/// A residual plot's x axis: file key, label, and the value of an observation.
+type Axis<'a> = (
+    &'a str,
+    &'a str,
+    Box<dyn Fn(&adjust::io::ResidualRecord) -> f64 + 'a>,
+);
+
+fn gps(ns: i64) -> String {
+    let week = ns.div_euclid(ingest::time::NS_PER_WEEK);
+    let tow = ns.rem_euclid(ingest::time::NS_PER_WEEK) as f64 * 1e-9;
+    format!("{week} / {tow:.3}")
+}
+
+/// Builds the report's sections from the stage outputs under `out`.
+pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
+    let ingest_report = ingest::IngestReport::load(&out.join("ingest"))?;
+    let align_report = align::AlignReport::load(&out.join("align"))?;
+    let cal = Calibration::load(&out.join("adjust"))?;
+    let residuals = adjust::io::read_residuals(&out.join("adjust"))?;
+    let m = &ds.manifest;
+    let mut sections = Vec::new();
+
+    // Dataset and gravity.
+    let mut s = section("Dataset");
+    s.text.push(format!(
+        "Dataset `{}`{}. Calibrated with {}; {} sessions, {} accelerometers.",
+        m.name,
+        m.description
+            .as_deref()
+            .map(|d| format!(": {d}"))
+            .unwrap_or_default(),
+        cal.software,
+        ds.sessions.len(),
+        m.instrument.accelerometer.len()
+    ));
+    s.text.push(format!(
+        "Gravity used in the model, at the proof masses: g = g_abs + gradient x height = {:.1} mGal + ({} mGal/m x {} m) = {:.3} mGal.",
+        m.site.g_abs_mgal, m.site.gradient_mgal_per_m, m.site.sensor_height_m, cal.gravity_mgal
+    ));
+    let mut inputs = Table::new(&["file", "SHA-256", "bytes"]);
+    for f in &ingest_report.files {
+        inputs
+            .rows
+            .push(vec![f.path.clone(), f.sha256.clone(), f.bytes.to_string()]);
+    }
+    s.tables.push(("Inputs".to_owned(), inputs));
+    sections.push(s);
+
+    // The function, stated with its direction.
+    let mut s = section("The calibration function");
+    s.text.push(
+        "Direction: from counts to acceleration. For each accelerometer, a mean ADC count Ng (bits of the 24-bit converter) \
+         gives the acceleration along the sensitive axis a [mGal] = b + k·Ng (+ k2·Ng² + k3·Ng³ for higher orders), \
+         with b in mGal and k in mGal/bit. With temperature terms, b and k hold at the reference temperature t_ref and \
+         become b + b_t·(T − t_ref) and k + k_t·(T − t_ref). To go from an acceleration to counts, invert it: Ng = (a − b)/k. \
+         The reference acceleration in the adjustment is F = −g·cos(Dz + beta) for the platform's zenith distance Dz."
+            .to_owned(),
+    );
+    sections.push(s);
+
+    // Table 1.
+    let mut s = section("Results in the form of the paper's Table 1");
+    s.text.push(
+        "Per session and accelerometer, order 1 without temperature terms. Sigmas a posteriori (scaled by sigma0) and a priori \
+         (from the observation sigmas alone). b and k are strongly anti-correlated because the counts are far from zero: \
+         use them together, with their correlation."
+            .to_owned(),
+    );
+    let mut t1 = Table::new(&[
+        "session",
+        "accelerometer",
+        "values",
+        "T (degC)",
+        "b (mGal)",
+        "k (mGal/kbit)",
+        "sigma b (mGal)",
+        "sigma k (mGal/Mbit)",
+        "a priori sigma b",
+        "a priori sigma k",
+        "corr(b,k)",
+        "sigma0",
+        "removed",
+        "global test",
+    ]);
+    for r in cal
+        .results
+        .iter()
+        .filter(|r| r.session != "all" && r.order == 1 && !r.temperature && !r.misalignment)
+    {
+        let (Some(b), Some(k)) = (param(r, "b"), param(r, "k")) else {
+            continue;
+        };
+        t1.rows.push(vec![
+            r.session.clone(),
+            format!("{} ({})", r.accelerometer, r.model),
+            r.n_observations.to_string(),
+            format!("{:.2}", r.mean_temperature_c),
+            format!("{:.2}", b.value),
+            format!("{:.5}", k.value * 1e3),
+            format!("{:.3}", b.sigma),
+            format!("{:.3}", k.sigma * 1e6),
+            format!("{:.3}", b.sigma_apriori),
+            format!("{:.3}", k.sigma_apriori * 1e6),
+            format!("{:.5}", r.correlation[0][1]),
+            format!("{:.3}", r.sigma0),
+            r.n_excluded.to_string(),
+            format!(
+                "{} ({:.1} in [{:.1}, {:.1}])",
+                if r.global_test.passed {
+                    "passed"
+                } else {
+                    "FAILED"
+                },
+                r.global_test.statistic,
+                r.global_test.lower,
+                r.global_test.upper
+            ),
+        ]);
+    }
+    s.tables.push(("Table 1".to_owned(), t1));
+    sections.push(s);
+
+    // Temperature, higher orders, misalignment: significance of the extra terms.
+    let mut s = section("Temperature, higher orders and misalignment");
+    s.text.push(
+        "Each term beyond b and k with its t = value/sigma against Student's t at 5 % (two-sided): a term is significant when |t| exceeds the critical value."
+            .to_owned(),
+    );
+    let mut extra = Table::new(&[
+        "model",
+        "accelerometer",
+        "session",
+        "t_ref (degC)",
+        "parameter",
+        "value",
+        "sigma",
+        "unit",
+        "t",
+        "critical",
+        "significant",
+    ]);
+    for r in &cal.results {
+        for p in r
+            .parameters
+            .iter()
+            .filter(|p| p.name != "b" && p.name != "k")
+        {
+            let t = if p.sigma > 0.0 {
+                p.value / p.sigma
+            } else {
+                0.0
+            };
+            let crit = t_critical(r.dof);
+            extra.rows.push(vec![
+                r.model.clone(),
+                r.accelerometer.clone(),
+                r.session.clone(),
+                r.t_ref_c
+                    .map(|t| format!("{t:.2}"))
+                    .unwrap_or_else(|| "-".into()),
+                p.name.clone(),
+                format!("{:.6e}", p.value),
+                format!("{:.3e}", p.sigma),
+                p.unit.clone(),
+                format!("{t:.2}"),
+                format!("{crit:.3}"),
+                if t.abs() > crit { "yes" } else { "no" }.to_owned(),
+            ]);
+        }
+    }
+    if extra.rows.is_empty() {
+        s.text
+            .push("No model with terms beyond b and k was fitted.".to_owned());
+    } else {
+        s.tables.push(("Extra terms".to_owned(), extra));
+    }
+    for r in cal.results.iter().filter(|r| !r.warnings.is_empty()) {
+        for w in &r.warnings {
+            s.text.push(format!(
+                "{} {} {}: {w}",
+                r.model, r.accelerometer, r.session
+            ));
+        }
+    }
+    sections.push(s);
+
+    // Blunders and skipped fits.
+    let mut s = section("Global test and data snooping");
+    s.text.push(format!(
+        "Data snooping removed, one at a time, the observation with the largest normalised residual |w| > {} (alpha = 0.001) and re-adjusted. Every removal:",
+        adjust::calibrate::W_CRITICAL
+    ));
+    let mut removed = Table::new(&[
+        "model",
+        "accelerometer",
+        "fit",
+        "session",
+        "station",
+        "line",
+        "GPS week / tow (s)",
+        "w",
+    ]);
+    for r in &cal.results {
+        for x in &r.removed {
+            removed.rows.push(vec![
+                r.model.clone(),
+                r.accelerometer.clone(),
+                r.session.clone(),
+                x.session.clone(),
+                x.station.clone(),
+                x.line.to_string(),
+                gps(x.time_gps_ns),
+                format!("{:.2}", x.w),
+            ]);
+        }
+    }
+    s.tables.push(("Removed observations".to_owned(), removed));
+    let mut skipped = Table::new(&["model", "accelerometer", "session", "reason"]);
+    for k in &cal.skipped {
+        skipped.rows.push(vec![
+            k.model.clone(),
+            k.accelerometer.clone(),
+            k.session.clone(),
+            k.reason.clone(),
+        ]);
+    }
+    s.tables.push(("Fits without a result".to_owned(), skipped));
+    sections.push(s);
+
+    // Ledgers.
+    let mut s = section("What was read, used and excluded");
+    let mut files = Table::new(&[
+        "file",
+        "role",
+        "read",
+        "accepted",
+        "rejected",
+        "bytes skipped",
+        "null values",
+    ]);
+    for f in &ingest_report.files {
+        let rejected: Vec<String> = f.rejected.iter().map(|(r, n)| format!("{n} {r}")).collect();
+        let nulls: Vec<String> = f
+            .null_values
+            .iter()
+            .map(|(r, n)| format!("{n} {r}"))
+            .collect();
+        files.rows.push(vec![
+            f.path.clone(),
+            f.role.clone(),
+            format!("{} {}", f.read, f.unit),
+            f.accepted.to_string(),
+            if rejected.is_empty() {
+                "-".into()
+            } else {
+                rejected.join(", ")
+            },
+            f.byte_ledger
+                .as_ref()
+                .map_or("-".into(), |b| b.skipped_resynchronising.to_string()),
+            if nulls.is_empty() {
+                "-".into()
+            } else {
+                nulls.join(", ")
+            },
+        ]);
+    }
+    s.tables.push(("Ingest".to_owned(), files));
+    let mut al = Table::new(&["session", "accelerometer", "readings", "used", "excluded"]);
+    for c in &align_report.counts {
+        let ex: Vec<String> = c.excluded.iter().map(|(r, n)| format!("{n} {r}")).collect();
+        al.rows.push(vec![
+            c.session.clone(),
+            c.accelerometer.clone(),
+            c.readings.to_string(),
+            c.used.to_string(),
+            if ex.is_empty() {
+                "-".into()
+            } else {
+                ex.join(", ")
+            },
+        ]);
+    }
+    for d in &align_report.disconnected {
+        al.rows.push(vec![
+            d.session.clone(),
+            d.accelerometer.clone(),
+            "-".into(),
+            "0".into(),
+            format!("channel {}: {}", d.channel, d.reason),
+        ]);
+    }
+    s.tables.push((
+        "Align (window of {} s, fill >= {})"
+            .replace("{}", "")
+            .to_owned(),
+        al,
+    ));
+    s.text.push(format!(
+        "Align settings: ADC window {} s centred on each reading, at least {} of its samples, temperature within {} s, {} arcsec for a station with a single reading.",
+        align_report.config.window_s,
+        align_report.config.min_window_fill,
+        align_report.config.max_temperature_gap_s,
+        align_report.config.theodolite_sigma_arcsec
+    ));
+    sections.push(s);
+
+    // Plots.
+    let mut s = section("Residuals, observation sigmas and calibration curves");
+    s.text.push("Condition residuals B·v in mGal of every per-session fit; crosses mark observations removed by data snooping, drawn at their misclosure under the final parameters.".to_owned());
+    let g = cal.gravity_mgal;
+    for r in cal.results.iter().filter(|r| r.session != "all") {
+        let mine: Vec<&adjust::io::ResidualRecord> = residuals
+            .iter()
+            .filter(|x| {
+                x.model == r.model
+                    && x.accelerometer == r.accelerometer
+                    && x.fit_session == r.session
+            })
+            .collect();
+        if mine.is_empty() {
+            continue;
+        }
+        let misclosure = |x: &adjust::io::ResidualRecord| -> f64 {
+            x.residual_mgal
+                .unwrap_or_else(|| -predict_misclosure(r, g, x))
+        };
+        let t0 = mine.iter().map(|x| x.time_gps_ns).min().unwrap_or(0);
+        let split = |f: &dyn Fn(&adjust::io::ResidualRecord) -> f64| -> (Points, Points) {
+            let used = mine
+                .iter()
+                .filter(|x| !x.removed)
+                .map(|x| (f(x), misclosure(x)))
+                .collect();
+            let removed = mine
+                .iter()
+                .filter(|x| x.removed)
+                .map(|x| (f(x), misclosure(x)))
+                .collect();
+            (used, removed)
+        };
+        let name = format!("{}-{}-{}", r.model, r.accelerometer, r.session);
+        let axes: [Axis<'_>; 3] = [
+            ("dz", "Dz (deg)", Box::new(|x| x.dz_rad.to_degrees())),
+            (
+                "time",
+                "time since first reading (min)",
+                Box::new(move |x| (x.time_gps_ns - t0) as f64 / 60e9),
+            ),
+            (
+                "temperature",
+                "temperature (degC)",
+                Box::new(|x| x.temperature_c),
+            ),
+        ];
+        for (key, xl, f) in axes {
+            let (used, removed) = split(&*f);
+            let title = format!(
+                "{} {} ({}): residual vs {key}",
+                r.accelerometer, r.session, r.model
+            );
+            let svg = plots::scatter(&plots::Scatter {
+                title: &title,
+                x_label: xl,
+                y_label: "residual (mGal)",
+                used: &used,
+                removed: &removed,
+                line: &[],
+                zero_line: true,
+            })
+            .map_err(|message| Error::Plot {
+                name: name.clone(),
+                message,
+            })?;
+            s.plots.push((format!("{name}-residual-{key}.svg"), svg));
+        }
+        // The calibration curve: F = -g cos(Dz) against Ng, with the fitted function.
+        if let (Some(b), Some(k)) = (param(r, "b"), param(r, "k")) {
+            let pts: Vec<(f64, f64)> = mine
+                .iter()
+                .filter(|x| !x.removed)
+                .map(|x| (x.ng / 1e6, -g * x.dz_rad.cos()))
+                .collect();
+            let rem: Vec<(f64, f64)> = mine
+                .iter()
+                .filter(|x| x.removed)
+                .map(|x| (x.ng / 1e6, -g * x.dz_rad.cos()))
+                .collect();
+            let (lo, hi) = pts
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| {
+                    (a.min(p.0), c.max(p.0))
+                });
+            let line: Vec<(f64, f64)> = (0..=20)
+                .map(|i| lo + (hi - lo) * f64::from(i) / 20.0)
+                .map(|u| (u, b.value + k.value * u * 1e6))
+                .collect();
+            let title = format!(
+                "{} {} ({}): calibration a = b + k Ng",
+                r.accelerometer, r.session, r.model
+            );
+            let svg = plots::scatter(&plots::Scatter {
+                title: &title,
+                x_label: "Ng (million counts)",
+                y_label: "acceleration (mGal)",
+                used: &pts,
+                removed: &rem,
+                line: &line,
+                zero_line: false,
+            })
+            .map_err(|message| Error::Plot {
+                name: name.clone(),
+                message,
+            })?;
+            s.plots.push((format!("{name}-calibration.svg"), svg));
+        }
+    }
+    // Eq. 4: the sigma of each observation, per session.
+    for session in &ds.sessions {
+        let id = &session.session.id;
+        let Some(first) = cal.results.iter().find(|r| &r.session == id) else {
+            continue;
+        };
+        let pts: Vec<(f64, f64)> = residuals
+            .iter()
+            .filter(|x| {
+                x.model == first.model
+                    && x.accelerometer == first.accelerometer
+                    && &x.fit_session == id
+            })
+            .map(|x| {
+                (
+                    x.dz_rad.to_degrees(),
+                    g * x.dz_rad.sin().abs() * x.sigma_dz_rad,
+                )
+            })
+            .collect();
+        let title = format!("{id}: sigma of one reading (eq. 4), g |sin Dz| sigma_Dz");
+        let svg = plots::scatter(&plots::Scatter {
+            title: &title,
+            x_label: "Dz (deg)",
+            y_label: "sigma (mGal)",
+            used: &pts,
+            removed: &[],
+            line: &[],
+            zero_line: false,
+        })
+        .map_err(|message| Error::Plot {
+            name: id.clone(),
+            message,
+        })?;
+        s.plots.push((format!("sigma-{id}.svg"), svg));
+    }
+    sections.push(s);
+    Ok(sections)
+}
+
+/// The condition value g cos(Dz + beta) + c(Ng, T) of an observation under the fit's final
+/// parameters (the misclosure before residuals), for observations removed by snooping.
+fn predict_misclosure(r: &FitResult, g: f64, x: &adjust::io::ResidualRecord) -> f64 {
+    let v = |name: &str| param(r, name).map_or(0.0, |p| p.value);
+    let tau = r.t_ref_c.map_or(0.0, |t| x.temperature_c - t);
+    let ng = x.ng;
+    let c = v("b")
+        + v("b_t") * tau
+        + (v("k") + v("k_t") * tau) * ng
+        + v("k2") * ng * ng
+        + v("k3") * ng * ng * ng;
+    g * (x.dz_rad + v("beta")).cos() + c
+}
+
+/// The report as Markdown.
+pub fn markdown(name: &str, sections: &[Section]) -> String {
+    let mut s = format!("# Calibration report: {name}\n");
+    for sec in sections {
+        let _ = write!(s, "\n## {}\n\n", sec.title);
+        for t in &sec.text {
+            let _ = write!(s, "{t}\n\n");
+        }
+        for (caption, t) in &sec.tables {
+            let _ = write!(s, "**{caption}**\n\n{}\n", t.markdown());
+        }
+        for (file, _) in &sec.plots {
+            let _ = writeln!(s, "![{file}](plots/{file})");
+        }
+    }
+    s
+}
+
+const CSS: &str = "body{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}\
+table{border-collapse:collapse;margin:0.5em 0 1.5em;font-size:0.85em}th,td{border:1px solid #bbb;padding:3px 6px;text-align:right}\
+th{background:#eef}td:first-child,th:first-child{text-align:left}h1{border-bottom:2px solid #446}\
+.plots{display:flex;flex-wrap:wrap;gap:8px}.plots figure{margin:0}caption,.caption{font-weight:bold;text-align:left}";
+
+/// The report as one self-contained HTML page.
+pub fn html(name: &str, sections: &[Section]) -> String {
+    let mut s = format!(
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>Calibration report: {}</title><style>{CSS}</style></head><body>\n<h1>Calibration report: {}</h1>\n",
+        esc(name),
+        esc(name)
+    );
+    for sec in sections {
+        let _ = writeln!(s, "<section><h2>{}</h2>", esc(&sec.title));
+        for t in &sec.text {
+            let _ = writeln!(s, "<p>{}</p>", esc(t));
+        }
+        for (caption, t) in &sec.tables {
+            let _ = writeln!(
+                s,
+                "<div class=\"caption\">{}</div>{}",
+                esc(caption),
+                t.html()
+            );
+        }
+        if !sec.plots.is_empty() {
+            s.push_str("<div class=\"plots\">");
+            for (file, svg) in &sec.plots {
+                let body = svg.find("<svg").map_or(svg.as_str(), |i| &svg[i..]);
+                let _ = write!(s, "<figure id=\"{}\">{body}</figure>", esc(file));
+            }
+            s.push_str("</div>\n");
+        }
+        s.push_str("</section>\n");
+    }
+    s.push_str("</body></html>\n");
+    s
+}
+
+fn write_atomically(path: &Path, text: &str) -> Result<(), Error> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.partial"));
+    std::fs::write(&tmp, text).map_err(|e| Error::Io {
+        path: tmp.clone(),
+        source: e,
+    })?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })
+}
+
+/// Where the report went.
+#[derive(Clone, Debug)]
+pub struct Written {
+    /// index.html.
+    pub html: PathBuf,
+    /// report.md.
+    pub markdown: PathBuf,
+    /// Plot files.
+    pub plots: usize,
+}
+
+/// Builds the report from OUT/ingest, OUT/align and OUT/adjust; writes OUT/report.
+pub fn run(dataset: &Path, out: &Path) -> Result<Written, Error> {
+    let ds = Dataset::load(dataset)?;
+    let sections = build(&ds, out)?;
+    let dir = out.join("report");
+    let plot_dir = dir.join("plots");
+    std::fs::create_dir_all(&plot_dir).map_err(|e| Error::Io {
+        path: plot_dir.clone(),
+        source: e,
+    })?;
+    let mut plots = 0;
+    for sec in &sections {
+        for (file, svg) in &sec.plots {
+            write_atomically(&plot_dir.join(file), svg)?;
+            plots += 1;
+        }
+    }
+    let md = dir.join("report.md");
+    write_atomically(&md, &markdown(&ds.manifest.name, &sections))?;
+    let html_path = dir.join("index.html");
+    write_atomically(&html_path, &html(&ds.manifest.name, &sections))?;
+    Ok(Written {
+        html: html_path,
+        markdown: md,
+        plots,
+    })
 }

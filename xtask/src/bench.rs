@@ -300,3 +300,110 @@ pub fn ingest(root: &Path, hours: f64, peers: bool) -> Result<()> {
     }
     Ok(())
 }
+
+const ODR: &str = r##"
+import json, resource, sys, time, warnings
+import numpy as np
+warnings.simplefilter("ignore")
+path, g = sys.argv[1], float(sys.argv[2])
+d = np.loadtxt(path, delimiter=",", skiprows=1)
+dz, sdz, ng, sng = d[:, 0], d[:, 1], d[:, 2], d[:, 3]
+# The same errors-in-both-variables line, explicit: Ng = a + c F, F = -g cos Dz with
+# sd g |sin Dz| sd_Dz, Ng with sd_Ng.
+F = -g * np.cos(dz)
+sF = g * np.abs(np.sin(dz)) * sdz
+try:
+    from scipy import odr
+    which = "scipy.odr"
+except ImportError:
+    import odrpack as odr
+    which = "odrpack"
+t0 = time.perf_counter()
+fit = odr.ODR(odr.RealData(F, ng, sx=sF, sy=sng), odr.unilinear, beta0=[F.mean() * 0 + 1e5, 4.0]).run()
+dt = time.perf_counter() - t0
+a, c = fit.beta
+print(json.dumps({"seconds": dt, "which": which, "k": 1 / c, "b": -a / c,
+                  "peak_rss_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}))
+"##;
+
+/// Runs the adjust benchmark: `n` observations of the linear model, gravcal against scipy's ODR.
+pub fn adjust(root: &Path, n: usize, peers: bool) -> Result<()> {
+    release_build(root, &["adjust"])?;
+    let data = root.join("target/bench-data");
+    std::fs::create_dir_all(&data)?;
+    let csv = data.join(format!("adjust-{n}.csv"));
+    let g = 980_855.7;
+    let (b, k) = (-29_497.03, 0.243_05);
+    let mut rng = fixtures::rng::Rng::new(1, "bench-adjust");
+    let mut text = String::with_capacity(n * 64);
+    text.push_str("dz_rad,sigma_dz_rad,ng,sigma_ng\n");
+    for _ in 0..n {
+        let dz: f64 = rng.range(109.0, 140.0).to_radians();
+        let sigma_dz = rng.lognormal_clipped(2.1, 0.45, 0.8, 4.5) / (g * dz.sin().abs());
+        let sigma_ng = rng.lognormal_clipped(1.0, 0.5, 0.5, 2.5);
+        let ng = (-g * dz.cos() - b) / k;
+        text.push_str(&format!(
+            "{:.12},{:.6e},{:.4},{:.4}\n",
+            dz + sigma_dz * rng.normal(),
+            sigma_dz,
+            ng + sigma_ng * rng.normal(),
+            sigma_ng
+        ));
+    }
+    std::fs::write(&csv, text)?;
+    let run = Command::new(root.join("target/release/gravcal-adjust"))
+        .args(["bench-fit", "--input"])
+        .arg(&csv)
+        .args(["--g-mgal", &g.to_string()])
+        .output()?;
+    if !run.status.success() {
+        bail!("bench-fit failed: {}", String::from_utf8_lossy(&run.stderr));
+    }
+    let ours: serde_json::Value = serde_json::from_slice(&run.stdout)?;
+    println!("| what | observations | seconds | peak RSS MB | k (mGal/bit) |");
+    println!("|---|---|---|---|---|");
+    let secs = ours["seconds"].as_f64().unwrap_or(f64::NAN);
+    println!(
+        "| gravcal Gauss-Helmert ({} iterations, one adjustment; {} w-tests above 3.29 not removed) | {n} | {secs:.3} | {:.0} | {} |",
+        ours["iterations"],
+        ours["flagged"],
+        ours["peak_rss_kb"].as_f64().unwrap_or(0.0) / 1024.0,
+        ours["k"]
+    );
+    if peers {
+        let py = venv_python(root)?;
+        let ok = Command::new(&py)
+            .args(["-c", "import scipy"])
+            .output()?
+            .status
+            .success();
+        if !ok
+            && !Command::new(&py)
+                .args(["-m", "pip", "install", "-q", "scipy"])
+                .status()?
+                .success()
+        {
+            bail!("pip install scipy failed");
+        }
+        let script = data.join("odr.py");
+        std::fs::write(&script, ODR)?;
+        let o = Command::new(&py)
+            .arg(&script)
+            .arg(&csv)
+            .arg(g.to_string())
+            .output()?;
+        if !o.status.success() {
+            bail!("ODR failed: {}", String::from_utf8_lossy(&o.stderr));
+        }
+        let odr: serde_json::Value = serde_json::from_slice(&o.stdout)?;
+        let osecs = odr["seconds"].as_f64().unwrap_or(f64::NAN);
+        println!(
+            "| {} (explicit line, same data) | {n} | {osecs:.3} | {:.0} | {} |",
+            odr["which"].as_str().unwrap_or("odr"),
+            odr["peak_rss_kb"].as_f64().unwrap_or(0.0) / 1024.0,
+            odr["k"]
+        );
+        println!("\nODR / gravcal time ratio: {:.1}", osecs / secs);
+    }
+    Ok(())
+}

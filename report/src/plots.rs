@@ -1,0 +1,126 @@
+//! The report's plots, drawn with plotters into SVG strings (text as SVG `<text>`, no system
+//! fonts needed).
+
+use plotters::prelude::*;
+
+/// A scatter plot: used points, removed points (marked), optional line.
+pub struct Scatter<'a> {
+    /// Title.
+    pub title: &'a str,
+    /// x axis label with unit.
+    pub x_label: &'a str,
+    /// y axis label with unit.
+    pub y_label: &'a str,
+    /// Points used in the adjustment.
+    pub used: &'a [(f64, f64)],
+    /// Points removed by data snooping.
+    pub removed: &'a [(f64, f64)],
+    /// A line to draw through the points (e.g. the calibration function).
+    pub line: &'a [(f64, f64)],
+    /// Draw y = 0.
+    pub zero_line: bool,
+}
+
+fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
+    if !lo.is_finite() {
+        return (-1.0, 1.0);
+    }
+    let pad = if hi > lo {
+        0.05 * (hi - lo)
+    } else {
+        1.0_f64.max(lo.abs() * 1e-6)
+    };
+    (lo - pad, hi + pad)
+}
+
+/// Draws `s` as an SVG document.
+pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
+    let mut svg = String::new();
+    {
+        let all = || s.used.iter().chain(s.removed).chain(s.line);
+        let (x0, x1) = range(all().map(|p| p.0));
+        // The y range follows the used points (and the line): a blunder of hundreds of mGal
+        // must not squash the residuals. Removed points beyond it sit on the frame's edge.
+        let (mut y0, mut y1) = if s.used.is_empty() {
+            range(all().map(|p| p.1))
+        } else {
+            range(s.used.iter().chain(s.line).map(|p| p.1))
+        };
+        if s.zero_line {
+            y0 = y0.min(0.0);
+            y1 = y1.max(0.0);
+        }
+        let root = SVGBackend::with_string(&mut svg, (640, 360)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(s.title, ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(42)
+            .y_label_area_size(72)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc(s.x_label)
+            .y_desc(s.y_label)
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        if s.zero_line {
+            chart
+                .draw_series(LineSeries::new([(x0, 0.0), (x1, 0.0)], BLACK.mix(0.4)))
+                .map_err(|e| e.to_string())?;
+        }
+        if !s.line.is_empty() {
+            chart
+                .draw_series(LineSeries::new(
+                    s.line.iter().copied(),
+                    BLUE.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?
+                .label("calibration function")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE.stroke_width(2)));
+        }
+        chart
+            .draw_series(
+                s.used
+                    .iter()
+                    .map(|&p| Circle::new(p, 2, RGBColor(40, 90, 160).filled())),
+            )
+            .map_err(|e| e.to_string())?
+            .label(format!("used ({})", s.used.len()))
+            .legend(|(x, y)| Circle::new((x + 8, y), 3, RGBColor(40, 90, 160).filled()));
+        if !s.removed.is_empty() {
+            let off_scale = s.removed.iter().filter(|p| p.1 < y0 || p.1 > y1).count();
+            let label = if off_scale > 0 {
+                format!(
+                    "removed by data snooping ({}, {off_scale} off scale, drawn at the edge)",
+                    s.removed.len()
+                )
+            } else {
+                format!("removed by data snooping ({})", s.removed.len())
+            };
+            chart
+                .draw_series(
+                    s.removed
+                        .iter()
+                        .map(|&(x, y)| Cross::new((x, y.clamp(y0, y1)), 5, RED.stroke_width(2))),
+                )
+                .map_err(|e| e.to_string())?
+                .label(label)
+                .legend(|(x, y)| Cross::new((x + 8, y), 4, RED.stroke_width(2)));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .border_style(BLACK.mix(0.3))
+            .background_style(WHITE.mix(0.85))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}

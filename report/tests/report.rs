@@ -1,0 +1,146 @@
+//! The report on the replica: the Markdown Table 1 is snapshot-tested, and index.html is
+//! opened in headless Chromium, which must render the table and the plots.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn pipeline(dataset: &Path) -> tempfile::TempDir {
+    let out = tempfile::tempdir().expect("tempdir");
+    ingest::run(dataset, out.path()).expect("ingest");
+    align::run(dataset, out.path()).expect("align");
+    adjust::run(dataset, out.path()).expect("adjust");
+    report::run(dataset, out.path()).expect("report");
+    out
+}
+
+#[test]
+fn table_1_of_the_replica() {
+    let out = pipeline(&fixtures::dataset_dir("esgt-2005"));
+    let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("report.md");
+    let start = md.find("**Table 1**").expect("Table 1 in report.md");
+    let end = md[start..].find("\n## ").map_or(md.len(), |e| start + e);
+    insta::assert_snapshot!("esgt_2005_table_1", md[start..end].trim());
+}
+
+fn chromium() -> Option<PathBuf> {
+    if let Ok(p) = std::env::var("GRAVCAL_CHROMIUM") {
+        return Some(PathBuf::from(p));
+    }
+    [
+        "/usr/bin/chromium",
+        "/usr/bin/chromium-browser",
+        "/usr/bin/google-chrome",
+    ]
+    .iter()
+    .map(PathBuf::from)
+    .find(|p| p.exists())
+}
+
+fn headless(browser: &Path, profile: &Path) -> Command {
+    let mut c = Command::new(browser);
+    c.args([
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--hide-scrollbars",
+        "--window-size=1280,1600",
+    ])
+    .arg(format!("--user-data-dir={}", profile.display()));
+    c
+}
+
+/// Chromium renders index.html: the DOM holds Table 1 with acc1's day-1 bias as
+/// calibration.json has it, every plot is an inline SVG, and the screenshot is not blank.
+#[test]
+fn index_html_renders_in_chromium() {
+    let Some(browser) = chromium() else {
+        if std::env::var("GRAVCAL_SKIP_BROWSER").is_ok() {
+            eprintln!("skipped: no Chromium and GRAVCAL_SKIP_BROWSER is set");
+            return;
+        }
+        panic!(
+            "no Chromium found: install Debian's chromium (.ci/run does), set GRAVCAL_CHROMIUM, or set GRAVCAL_SKIP_BROWSER=1"
+        );
+    };
+    let out = pipeline(&fixtures::dataset_dir("esgt-2005"));
+    let index = out.path().join("report/index.html");
+    let url = format!("file://{}", index.display());
+    let profile = tempfile::tempdir().expect("profile");
+    let dom = headless(&browser, profile.path())
+        .arg("--dump-dom")
+        .arg(&url)
+        .output()
+        .expect("chromium runs");
+    assert!(
+        dom.status.success(),
+        "{}",
+        String::from_utf8_lossy(&dom.stderr)
+    );
+    let dom = String::from_utf8_lossy(&dom.stdout);
+    let cal = adjust::Calibration::load(&out.path().join("adjust")).expect("calibration.json");
+    let r = cal
+        .results
+        .iter()
+        .find(|r| r.model == "linear" && r.accelerometer == "acc1" && r.session == "day1")
+        .expect("acc1 day1");
+    let b = format!("{:.2}", r.parameters[0].value);
+    assert!(dom.contains("Table 1"), "no Table 1 in the DOM");
+    assert!(dom.contains(&b), "acc1 day1 b = {b} not in the DOM");
+    let plots = std::fs::read_dir(out.path().join("report/plots"))
+        .expect("plots")
+        .count();
+    assert!(plots >= 10, "{plots} plots");
+    assert_eq!(dom.matches("<svg").count(), plots, "every plot inline");
+    // Self-contained: nothing fetched (SVG's xmlns names a namespace, it is not fetched).
+    for pattern in ["src=\"http", "href=\"http", "<link", "<script", "url(http"] {
+        assert!(
+            !dom.contains(pattern),
+            "the page refers to an outside resource: {pattern}"
+        );
+    }
+
+    let shot = out.path().join("shot.png");
+    let run = headless(&browser, profile.path())
+        .arg(format!("--screenshot={}", shot.display()))
+        .arg(&url)
+        .output()
+        .expect("chromium runs");
+    assert!(
+        run.status.success() && shot.exists(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(&shot).expect("png"),
+    ));
+    let mut reader = decoder.read_info().expect("png header");
+    let mut buf = vec![0; reader.output_buffer_size().expect("size")];
+    let info = reader.next_frame(&mut buf).expect("png frame");
+    let px = info.color_type.samples();
+    let pixels: Vec<&[u8]> = buf[..info.buffer_size()].chunks(px).collect();
+    let non_white = pixels
+        .iter()
+        .filter(|p| p.iter().take(3).any(|&c| c < 200))
+        .count();
+    let mut colours: Vec<[u8; 3]> = pixels.iter().map(|p| [p[0], p[1], p[2]]).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(
+        non_white * 100 > pixels.len(),
+        "screenshot nearly blank: {non_white} of {} pixels",
+        pixels.len()
+    );
+    assert!(
+        colours.len() > 20,
+        "screenshot has {} colours",
+        colours.len()
+    );
+    if let Ok(keep) = std::env::var("GRAVCAL_KEEP_SCREENSHOT") {
+        std::fs::copy(&shot, keep).expect("copy screenshot");
+    }
+}
