@@ -319,10 +319,12 @@ except ImportError:
     import odrpack as odr
     which = "odrpack"
 t0 = time.perf_counter()
-fit = odr.ODR(odr.RealData(F, ng, sx=sF, sy=sng), odr.unilinear, beta0=[F.mean() * 0 + 1e5, 4.0]).run()
+# unilinear: y = beta[0] x + beta[1]; start near the answer.
+fit = odr.ODR(odr.RealData(F, ng, sx=sF, sy=sng), odr.unilinear, beta0=[4.0, 1e5]).run()
 dt = time.perf_counter() - t0
-a, c = fit.beta
-print(json.dumps({"seconds": dt, "which": which, "k": 1 / c, "b": -a / c,
+slope, intercept = fit.beta
+print(json.dumps({"seconds": dt, "which": which, "k": 1 / slope, "b": -intercept / slope,
+                  "stop": "; ".join(fit.stopreason),
                   "peak_rss_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}))
 "##;
 
@@ -398,8 +400,9 @@ pub fn adjust(root: &Path, n: usize, peers: bool) -> Result<()> {
         let odr: serde_json::Value = serde_json::from_slice(&o.stdout)?;
         let osecs = odr["seconds"].as_f64().unwrap_or(f64::NAN);
         println!(
-            "| {} (explicit line, same data) | {n} | {osecs:.3} | {:.0} | {} |",
+            "| {} (explicit line, same data; {}) | {n} | {osecs:.3} | {:.0} | {} |",
             odr["which"].as_str().unwrap_or("odr"),
+            odr["stop"].as_str().unwrap_or("?"),
             odr["peak_rss_kb"].as_f64().unwrap_or(0.0) / 1024.0,
             odr["k"]
         );
