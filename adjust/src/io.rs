@@ -2,11 +2,12 @@
 
 use crate::Error;
 use arrow::array::{
-    Array, ArrayRef, AsArray, BooleanArray, DictionaryArray, Float64Array, Int32Array, Int64Array,
-    RecordBatch, StringArray, UInt32Array,
+    Array, ArrayRef, AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, StringArray,
+    UInt32Array,
 };
 use arrow::datatypes::{Float64Type, Int32Type, Int64Type, UInt32Type};
 use ingest::schema::{self, observations as col};
+use ingest::table::dictionary_column;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::path::Path;
 use std::sync::Arc;
@@ -45,67 +46,105 @@ fn bad(path: &Path, message: String) -> Error {
     }
 }
 
+/// The record batches of a Parquet table.
+fn batches(path: &Path) -> Result<Vec<RecordBatch>, Error> {
+    let f = std::fs::File::open(path).map_err(|e| Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    ParquetRecordBatchReaderBuilder::try_new(f)
+        .and_then(|b| b.build())
+        .map_err(|e| bad(path, e.to_string()))?
+        .map(|b| b.map_err(|e| bad(path, e.to_string())))
+        .collect()
+}
+
+/// The columns of one batch, by name and type; errors name the table and the column.
+struct Columns<'a> {
+    path: &'a Path,
+    batch: &'a RecordBatch,
+}
+
+impl Columns<'_> {
+    fn get(&self, name: &str) -> Result<&ArrayRef, Error> {
+        self.batch
+            .column_by_name(name)
+            .ok_or_else(|| bad(self.path, format!("no column `{name}`")))
+    }
+    fn wrong(&self, name: &str, ty: &str) -> Error {
+        bad(self.path, format!("column `{name}` is not {ty}"))
+    }
+    fn dict(&self, name: &str) -> Result<Vec<String>, Error> {
+        let d = self
+            .get(name)?
+            .as_dictionary_opt::<Int32Type>()
+            .ok_or_else(|| self.wrong(name, "a dictionary"))?;
+        let values = d.values().as_string::<i32>();
+        Ok(d.keys()
+            .values()
+            .iter()
+            .map(|&k| values.value(k as usize).to_owned())
+            .collect())
+    }
+    fn f64s(&self, name: &str) -> Result<Float64Array, Error> {
+        Ok(self
+            .get(name)?
+            .as_primitive_opt::<Float64Type>()
+            .ok_or_else(|| self.wrong(name, "float64"))?
+            .clone())
+    }
+    fn strings(&self, name: &str) -> Result<StringArray, Error> {
+        Ok(self
+            .get(name)?
+            .as_string_opt::<i32>()
+            .ok_or_else(|| self.wrong(name, "utf8"))?
+            .clone())
+    }
+    fn u32s(&self, name: &str) -> Result<UInt32Array, Error> {
+        Ok(self
+            .get(name)?
+            .as_primitive_opt::<UInt32Type>()
+            .ok_or_else(|| self.wrong(name, "uint32"))?
+            .clone())
+    }
+    fn i64s(&self, name: &str) -> Result<Int64Array, Error> {
+        Ok(self
+            .get(name)?
+            .as_primitive_opt::<Int64Type>()
+            .ok_or_else(|| self.wrong(name, "int64"))?
+            .clone())
+    }
+    fn bools(&self, name: &str) -> Result<BooleanArray, Error> {
+        Ok(self
+            .get(name)?
+            .as_boolean_opt()
+            .ok_or_else(|| self.wrong(name, "boolean"))?
+            .clone())
+    }
+}
+
+fn opt(a: &Float64Array, i: usize) -> Option<f64> {
+    a.is_valid(i).then(|| a.value(i))
+}
+
 /// Reads OUT/align/observations.parquet.
 pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error> {
     let path = align_dir.join(col::FILE);
-    let f = std::fs::File::open(&path).map_err(|e| Error::Io {
-        path: path.clone(),
-        source: e,
-    })?;
-    let reader = ParquetRecordBatchReaderBuilder::try_new(f)
-        .and_then(|b| b.build())
-        .map_err(|e| bad(&path, e.to_string()))?;
     let mut out = Vec::new();
-    for batch in reader {
-        let b: RecordBatch = batch.map_err(|e| bad(&path, e.to_string()))?;
-        let get = |name: &str| {
-            b.column_by_name(name)
-                .ok_or_else(|| bad(&path, format!("no column `{name}`")))
+    for b in batches(&path)? {
+        let c = Columns {
+            path: &path,
+            batch: &b,
         };
-        let dict = |name: &str| -> Result<Vec<String>, Error> {
-            let c = get(name)?;
-            let d = c
-                .as_dictionary_opt::<Int32Type>()
-                .ok_or_else(|| bad(&path, format!("column `{name}` is not a dictionary")))?;
-            let values = d.values().as_string::<i32>();
-            Ok(d.keys()
-                .values()
-                .iter()
-                .map(|&k| values.value(k as usize).to_owned())
-                .collect())
-        };
-        let f64s = |name: &str| -> Result<Float64Array, Error> {
-            Ok(get(name)?
-                .as_primitive_opt::<Float64Type>()
-                .ok_or_else(|| bad(&path, format!("column `{name}` is not float64")))?
-                .clone())
-        };
-        let session = dict(schema::SESSION)?;
-        let acc = dict(col::ACCELEROMETER)?;
-        let station = get(col::STATION)?
-            .as_string_opt::<i32>()
-            .ok_or_else(|| bad(&path, "station is not utf8".into()))?
-            .clone();
-        let line = get(col::LINE)?
-            .as_primitive_opt::<UInt32Type>()
-            .ok_or_else(|| bad(&path, "line is not uint32".into()))?
-            .clone();
-        let time = get(schema::TIME_GPS_NS)?
-            .as_primitive_opt::<Int64Type>()
-            .ok_or_else(|| bad(&path, "time is not int64".into()))?
-            .clone();
-        let (dz, sdz, ng, sng, temp) = (
-            f64s(col::DZ_RAD)?,
-            f64s(col::SIGMA_DZ_RAD)?,
-            f64s(col::NG)?,
-            f64s(col::SIGMA_NG)?,
-            f64s(col::TEMPERATURE_C)?,
+        let (session, acc) = (c.dict(schema::SESSION)?, c.dict(col::ACCELEROMETER)?);
+        let (station, excluded) = (c.strings(col::STATION)?, c.strings(col::EXCLUDED)?);
+        let (line, time) = (c.u32s(col::LINE)?, c.i64s(schema::TIME_GPS_NS)?);
+        let (dz, sdz) = (c.f64s(col::DZ_RAD)?, c.f64s(col::SIGMA_DZ_RAD)?);
+        let (ng, sng, temp) = (
+            c.f64s(col::NG)?,
+            c.f64s(col::SIGMA_NG)?,
+            c.f64s(col::TEMPERATURE_C)?,
         );
-        let excluded = get(col::EXCLUDED)?
-            .as_string_opt::<i32>()
-            .ok_or_else(|| bad(&path, "excluded is not utf8".into()))?
-            .clone();
-        let opt = |a: &Float64Array, i: usize| a.is_valid(i).then(|| a.value(i));
         for i in 0..b.num_rows() {
             out.push(ObservationRow {
                 session: session[i].clone(),
@@ -150,23 +189,6 @@ pub struct ResidualRow<'a> {
     pub removed: bool,
 }
 
-fn dict(values: Vec<&str>) -> ArrayRef {
-    let mut distinct = values.clone();
-    distinct.sort_unstable();
-    distinct.dedup();
-    let keys: Vec<i32> = values
-        .iter()
-        .map(|v| distinct.binary_search(v).map_or(0, |k| k as i32))
-        .collect();
-    Arc::new(
-        DictionaryArray::<Int32Type>::try_new(
-            Int32Array::from(keys),
-            Arc::new(StringArray::from(distinct)),
-        )
-        .expect("keys index the distinct values"),
-    )
-}
-
 /// Writes residuals.parquet into `dir`.
 pub fn write_residuals(dir: &Path, rows: &[ResidualRow<'_>]) -> Result<u64, Error> {
     let mut t = ingest::table::TableWriter::create(
@@ -192,10 +214,10 @@ pub fn write_residuals(dir: &Path, rows: &[ResidualRow<'_>]) -> Result<u64, Erro
         Arc::new(Float64Array::from_iter(rows.iter().map(g)))
     };
     let cols: Vec<ArrayRef> = vec![
-        dict(rows.iter().map(|r| r.model).collect()),
-        dict(rows.iter().map(|r| r.accelerometer).collect()),
-        dict(rows.iter().map(|r| r.fit_session).collect()),
-        dict(rows.iter().map(|r| r.obs.session.as_str()).collect()),
+        dictionary_column(rows.iter().map(|r| r.model)),
+        dictionary_column(rows.iter().map(|r| r.accelerometer)),
+        dictionary_column(rows.iter().map(|r| r.fit_session)),
+        dictionary_column(rows.iter().map(|r| r.obs.session.as_str())),
         Arc::new(StringArray::from_iter_values(
             rows.iter().map(|r| r.obs.station.as_str()),
         )),
@@ -263,68 +285,31 @@ pub struct ResidualRecord {
 /// Reads OUT/adjust/residuals.parquet.
 pub fn read_residuals(adjust_dir: &Path) -> Result<Vec<ResidualRecord>, Error> {
     let path = adjust_dir.join(schema::residuals::FILE);
-    let f = std::fs::File::open(&path).map_err(|e| Error::Io {
-        path: path.clone(),
-        source: e,
-    })?;
-    let reader = ParquetRecordBatchReaderBuilder::try_new(f)
-        .and_then(|b| b.build())
-        .map_err(|e| bad(&path, e.to_string()))?;
     let mut out = Vec::new();
-    for batch in reader {
-        let b: RecordBatch = batch.map_err(|e| bad(&path, e.to_string()))?;
-        let get = |name: &str| {
-            b.column_by_name(name)
-                .ok_or_else(|| bad(&path, format!("no column `{name}`")))
+    for b in batches(&path)? {
+        let c = Columns {
+            path: &path,
+            batch: &b,
         };
-        let dict = |name: &str| -> Result<Vec<String>, Error> {
-            let d = get(name)?
-                .as_dictionary_opt::<Int32Type>()
-                .ok_or_else(|| bad(&path, format!("`{name}` is not a dictionary")))?;
-            let values = d.values().as_string::<i32>();
-            Ok(d.keys()
-                .values()
-                .iter()
-                .map(|&k| values.value(k as usize).to_owned())
-                .collect())
-        };
-        let f64s = |name: &str| -> Result<Float64Array, Error> {
-            Ok(get(name)?
-                .as_primitive_opt::<Float64Type>()
-                .ok_or_else(|| bad(&path, format!("`{name}` is not float64")))?
-                .clone())
-        };
-        let (model, acc, fit_session, session) = (
-            dict("model")?,
-            dict("accelerometer")?,
-            dict("fit_session")?,
-            dict(schema::SESSION)?,
+        let (model, acc) = (c.dict("model")?, c.dict("accelerometer")?);
+        let (fit_session, session) = (c.dict("fit_session")?, c.dict(schema::SESSION)?);
+        let (station, line, time, removed) = (
+            c.strings("station")?,
+            c.u32s("line")?,
+            c.i64s(schema::TIME_GPS_NS)?,
+            c.bools("removed")?,
         );
-        let station = get("station")?
-            .as_string_opt::<i32>()
-            .ok_or_else(|| bad(&path, "station is not utf8".into()))?
-            .clone();
-        let line = get("line")?
-            .as_primitive_opt::<UInt32Type>()
-            .ok_or_else(|| bad(&path, "line is not uint32".into()))?
-            .clone();
-        let time = get(schema::TIME_GPS_NS)?
-            .as_primitive_opt::<Int64Type>()
-            .ok_or_else(|| bad(&path, "time is not int64".into()))?
-            .clone();
-        let removed = get("removed")?
-            .as_boolean_opt()
-            .ok_or_else(|| bad(&path, "removed is not boolean".into()))?
-            .clone();
-        let (dz, sdz, ng, sng, temp, res, red, w) = (
-            f64s("dz_rad")?,
-            f64s("sigma_dz_rad")?,
-            f64s("ng")?,
-            f64s("sigma_ng")?,
-            f64s("temperature_c")?,
-            f64s("residual_mgal")?,
-            f64s("redundancy")?,
-            f64s("w")?,
+        let (dz, sdz, ng, sng) = (
+            c.f64s("dz_rad")?,
+            c.f64s("sigma_dz_rad")?,
+            c.f64s("ng")?,
+            c.f64s("sigma_ng")?,
+        );
+        let (temp, res, red, w) = (
+            c.f64s("temperature_c")?,
+            c.f64s("residual_mgal")?,
+            c.f64s("redundancy")?,
+            c.f64s("w")?,
         );
         for i in 0..b.num_rows() {
             out.push(ResidualRecord {
@@ -340,8 +325,8 @@ pub fn read_residuals(adjust_dir: &Path) -> Result<Vec<ResidualRecord>, Error> {
                 ng: ng.value(i),
                 sigma_ng: sng.value(i),
                 temperature_c: temp.value(i),
-                residual_mgal: res.is_valid(i).then(|| res.value(i)),
-                redundancy: red.is_valid(i).then(|| red.value(i)),
+                residual_mgal: opt(&res, i),
+                redundancy: opt(&red, i),
                 w: w.value(i),
                 removed: removed.value(i),
             });

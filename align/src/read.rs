@@ -176,9 +176,7 @@ pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8
 
 /// Writes `observations.parquet` into `dir`; returns the rows written.
 pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
-    use arrow::array::{
-        DictionaryArray, Float64Array, Int32Array, Int64Array, UInt8Array, UInt32Array,
-    };
+    use arrow::array::{Float64Array, Int64Array, UInt8Array, UInt32Array};
     let mut table = ingest::table::TableWriter::create(
         dir,
         schema::observations::FILE,
@@ -193,25 +191,9 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
             delta: &[],
         },
     )?;
-    let dict = |values: Vec<&str>| -> ArrayRef {
-        let mut distinct: Vec<&str> = values.clone();
-        distinct.sort_unstable();
-        distinct.dedup();
-        let keys: Vec<i32> = values
-            .iter()
-            .map(|v| distinct.binary_search(v).map_or(0, |k| k as i32))
-            .collect();
-        Arc::new(
-            DictionaryArray::<Int32Type>::try_new(
-                Int32Array::from(keys),
-                Arc::new(StringArray::from(distinct)),
-            )
-            .expect("keys index the distinct values"),
-        )
-    };
     let cols: Vec<ArrayRef> = vec![
-        dict(obs.iter().map(|o| o.session.as_str()).collect()),
-        dict(obs.iter().map(|o| o.accelerometer.as_str()).collect()),
+        ingest::table::dictionary_column(obs.iter().map(|o| o.session.as_str())),
+        ingest::table::dictionary_column(obs.iter().map(|o| o.accelerometer.as_str())),
         Arc::new(UInt8Array::from_iter_values(obs.iter().map(|o| o.channel))),
         Arc::new(StringArray::from_iter_values(
             obs.iter().map(|o| o.station.as_str()),

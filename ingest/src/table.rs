@@ -137,3 +137,26 @@ pub fn session_column(session: &str, n: usize) -> ArrayRef {
     let values = Arc::new(StringArray::from(vec![session]));
     Arc::new(DictionaryArray::<Int32Type>::try_new(keys, values).expect("key 0 is in range"))
 }
+
+/// A dictionary-encoded string column of `values` (distinct values sorted).
+pub fn dictionary_column<'a>(values: impl Iterator<Item = &'a str>) -> ArrayRef {
+    let values: Vec<&str> = values.collect();
+    let mut distinct = values.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let keys: Vec<i32> = values
+        .iter()
+        .map(|v| {
+            distinct
+                .binary_search(v)
+                .map_or(0, |k| i32::try_from(k).unwrap_or(i32::MAX))
+        })
+        .collect();
+    Arc::new(
+        DictionaryArray::<Int32Type>::try_new(
+            Int32Array::from(keys),
+            Arc::new(StringArray::from(distinct)),
+        )
+        .expect("keys index the distinct values"),
+    )
+}
