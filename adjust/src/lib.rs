@@ -556,15 +556,39 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
     }
 }
 
+/// Arguments of the `fit` command (FORMATS.md section 7), shared by the stage binary and
+/// `cargo xtask fit`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct FitArgs {
+    /// CSV table with a header line.
+    #[arg(long)]
+    pub input: PathBuf,
+    /// Column of x.
+    #[arg(long)]
+    pub x: String,
+    /// Column of y.
+    #[arg(long)]
+    pub y: String,
+    /// Column of the sd of x (errors in both variables).
+    #[arg(long)]
+    pub sigma_x: Option<String>,
+    /// Column of the sd of y (default: unit weights).
+    #[arg(long)]
+    pub sigma_y: Option<String>,
+    /// Polynomial degree, 0..=10.
+    #[arg(long, default_value_t = 1)]
+    pub degree: usize,
+}
+
 /// Fits a polynomial to the columns of a CSV table (FORMATS.md section 7).
-pub fn fit_csv(
-    path: &Path,
-    x: &str,
-    y: &str,
-    sigma_x: Option<&str>,
-    sigma_y: Option<&str>,
-    degree: usize,
-) -> Result<fit::FitOutput, Error> {
+pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
+    let (path, x, y, degree) = (
+        args.input.as_path(),
+        args.x.as_str(),
+        args.y.as_str(),
+        args.degree,
+    );
+    let (sigma_x, sigma_y) = (args.sigma_x.as_deref(), args.sigma_y.as_deref());
     let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
         path: path.to_path_buf(),
         source: e,

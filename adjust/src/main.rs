@@ -22,7 +22,7 @@ struct Args {
 #[derive(Subcommand)]
 enum Cmd {
     /// Fits y = sum p_j x^j to two columns of a CSV table; prints JSON.
-    Fit(FitArgs),
+    Fit(adjust::FitArgs),
     /// For `cargo xtask bench adjust`: times the linear calibration of the observations in a
     /// CSV (dz_rad,sigma_dz_rad,ng,sigma_ng) and prints seconds and peak memory.
     #[command(hide = true)]
@@ -80,59 +80,36 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
     ))
 }
 
-/// Arguments of `fit`.
-#[derive(clap::Args)]
-pub struct FitArgs {
-    /// CSV table with a header line.
-    #[arg(long)]
-    input: PathBuf,
-    /// Column of x.
-    #[arg(long)]
-    x: String,
-    /// Column of y.
-    #[arg(long)]
-    y: String,
-    /// Column of the sd of x (errors in both variables).
-    #[arg(long)]
-    sigma_x: Option<String>,
-    /// Column of the sd of y (default: unit weights).
-    #[arg(long)]
-    sigma_y: Option<String>,
-    /// Polynomial degree, 0..=10.
-    #[arg(long, default_value_t = 1)]
-    degree: usize,
+/// Prints to stdout; a reader that went away (a closed pipe) is not an error.
+fn print_stdout(text: &str) -> ExitCode {
+    use std::io::Write;
+    match writeln!(std::io::stdout().lock(), "{text}") {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            eprintln!("gravcal-adjust: error: writing to stdout: {e}");
+            ExitCode::FAILURE
+        }
+        _ => ExitCode::SUCCESS,
+    }
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     match (args.cmd, args.dataset) {
-        (Some(Cmd::Fit(f)), _) => {
-            match adjust::fit_csv(
-                &f.input,
-                &f.x,
-                &f.y,
-                f.sigma_x.as_deref(),
-                f.sigma_y.as_deref(),
-                f.degree,
-            ) {
-                Ok(out) => {
-                    println!(
-                        "{}",
-                        serde_json::to_string_pretty(&out).expect("serialises")
-                    );
-                    ExitCode::SUCCESS
-                }
+        (Some(Cmd::Fit(f)), _) => match adjust::fit_csv(&f) {
+            Ok(out) => match serde_json::to_string_pretty(&out) {
+                Ok(json) => print_stdout(&json),
                 Err(e) => {
                     eprintln!("gravcal-adjust fit: error: {e}");
                     ExitCode::FAILURE
                 }
+            },
+            Err(e) => {
+                eprintln!("gravcal-adjust fit: error: {e}");
+                ExitCode::FAILURE
             }
-        }
+        },
         (Some(Cmd::BenchFit { input, g_mgal }), _) => match bench_fit(&input, g_mgal) {
-            Ok(json) => {
-                println!("{json}");
-                ExitCode::SUCCESS
-            }
+            Ok(json) => print_stdout(&json),
             Err(e) => {
                 eprintln!("gravcal-adjust bench-fit: error: {e}");
                 ExitCode::FAILURE

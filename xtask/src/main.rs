@@ -55,26 +55,7 @@ enum Cmd {
         out: Option<PathBuf>,
     },
     /// Fits a polynomial to two columns of a CSV table (FORMATS.md section 7); prints JSON.
-    Fit {
-        /// CSV table with a header line.
-        #[arg(long)]
-        input: PathBuf,
-        /// Column of x.
-        #[arg(long)]
-        x: String,
-        /// Column of y.
-        #[arg(long)]
-        y: String,
-        /// Column of the sd of x (errors in both variables).
-        #[arg(long)]
-        sigma_x: Option<String>,
-        /// Column of the sd of y (default: unit weights).
-        #[arg(long)]
-        sigma_y: Option<String>,
-        /// Polynomial degree, 0..=10.
-        #[arg(long, default_value_t = 1)]
-        degree: usize,
-    },
+    Fit(adjust::FitArgs),
     /// Runs what CI runs: fmt, clippy, the tests, the fixture check and the pipeline on every fixture.
     Ci,
     /// Benchmarks (speed and memory), measured, not asserted.
@@ -279,24 +260,9 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Cmd::Ci => ci(),
-        Cmd::Fit {
-            input,
-            x,
-            y,
-            sigma_x,
-            sigma_y,
-            degree,
-        } => {
-            let out = adjust::fit_csv(
-                &input,
-                &x,
-                &y,
-                sigma_x.as_deref(),
-                sigma_y.as_deref(),
-                degree,
-            )?;
-            println!("{}", serde_json::to_string_pretty(&out)?);
-            Ok(())
+        Cmd::Fit(args) => {
+            let out = adjust::fit_csv(&args)?;
+            print_stdout(&serde_json::to_string_pretty(&out)?)
         }
         Cmd::Bench {
             what,
@@ -311,6 +277,15 @@ fn run(cli: Cli) -> Result<()> {
             "adjust" => bench::adjust(&workspace_root(), observations, !no_peers),
             other => bail!("no benchmark `{other}`: there are ingest, align and adjust"),
         },
+    }
+}
+
+/// Prints to stdout; a reader that went away (a closed pipe) is not an error.
+fn print_stdout(text: &str) -> Result<()> {
+    use std::io::Write;
+    match writeln!(std::io::stdout().lock(), "{text}") {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(e.into()),
+        _ => Ok(()),
     }
 }
 
