@@ -189,15 +189,7 @@ pub struct Calibration {
 impl Calibration {
     /// Reads `dir/calibration.json` (`dir` being OUT/adjust).
     pub fn load(dir: &Path) -> Result<Self, Error> {
-        let path = dir.join(CALIBRATION_FILE);
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::Io {
-            path: path.clone(),
-            source: e,
-        })?;
-        serde_json::from_str(&text).map_err(|e| Error::Table {
-            path,
-            message: e.to_string(),
-        })
+        Ok(ingest::read_json(&dir.join(CALIBRATION_FILE))?)
     }
 }
 
@@ -490,15 +482,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         source: e,
     })?;
     let cal_path = dir.join(CALIBRATION_FILE);
-    match std::fs::remove_file(&cal_path) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-            return Err(Error::Io {
-                path: cal_path,
-                source: e,
-            });
-        }
-        _ => {}
-    }
+    ingest::remove_stale(&cal_path)?;
     io::write_residuals(&dir, &residual_rows)?;
     let calibration = Calibration {
         format: CALIBRATION_FORMAT.to_owned(),

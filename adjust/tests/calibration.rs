@@ -131,15 +131,8 @@ fn replica_recovers_the_truth() {
 }
 
 fn with_models(name: &str, models: &str) -> tempfile::TempDir {
-    let src = fixtures::dataset_dir(name);
     let ds = tempfile::tempdir().expect("tempdir");
-    std::fs::create_dir_all(ds.path().join("raw")).expect("raw");
-    for e in std::fs::read_dir(src.join("raw")).expect("raw") {
-        let p = e.expect("entry").path();
-        std::fs::copy(&p, ds.path().join("raw").join(p.file_name().expect("name"))).expect("copy");
-    }
-    let manifest = std::fs::read_to_string(src.join("dataset.toml")).expect("manifest");
-    std::fs::write(ds.path().join("dataset.toml"), manifest + models).expect("write");
+    fixtures::copy_dataset(name, ds.path(), |m| m + models).expect("copy");
     ds
 }
 

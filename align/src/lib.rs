@@ -168,15 +168,7 @@ pub struct AlignReport {
 impl AlignReport {
     /// Reads `dir/align.json` (`dir` being OUT/align).
     pub fn load(dir: &Path) -> Result<Self> {
-        let path = dir.join(LEDGER_FILE);
-        let text = std::fs::read_to_string(&path).map_err(|e| ingest::Error::Io {
-            path: path.clone(),
-            source: e,
-        })?;
-        serde_json::from_str(&text).map_err(|e| Error::Table {
-            path,
-            message: e.to_string(),
-        })
+        Ok(ingest::read_json(&dir.join(LEDGER_FILE))?)
     }
 }
 
@@ -362,16 +354,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
         source: e,
     })?;
     let ledger_path = dir.join(LEDGER_FILE);
-    match std::fs::remove_file(&ledger_path) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-            return Err(ingest::Error::Io {
-                path: ledger_path,
-                source: e,
-            }
-            .into());
-        }
-        _ => {}
-    }
+    ingest::remove_stale(&ledger_path)?;
     let rows = read::write_observations(&dir, &observations)?;
     let report = AlignReport {
         format: LEDGER_FORMAT.to_owned(),

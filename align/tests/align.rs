@@ -187,20 +187,13 @@ fn replica_observations_match_the_truth() {
 fn leap_second_slip_is_caught() {
     let src = fixtures::dataset_dir("esgt-2005");
     let ds = tempfile::tempdir().expect("tempdir");
-    std::fs::create_dir_all(ds.path().join("raw")).expect("raw");
-    for e in std::fs::read_dir(src.join("raw")).expect("raw") {
-        let p = e.expect("entry").path();
-        std::fs::copy(&p, ds.path().join("raw").join(p.file_name().expect("name"))).expect("copy");
-    }
-    let manifest = std::fs::read_to_string(src.join("dataset.toml")).expect("manifest");
-    std::fs::write(
-        ds.path().join("dataset.toml"),
-        manifest.replace(
+    fixtures::copy_dataset("esgt-2005", ds.path(), |m| {
+        m.replace(
             "theodolite_time_scale = \"UTC\"",
             "theodolite_time_scale = \"GPST\"",
-        ),
-    )
-    .expect("write");
+        )
+    })
+    .expect("copy");
     let truth = fixtures::read_truth(&src).expect("truth");
     let (out, report) = pipeline(ds.path());
     let obs = observations(out.path());

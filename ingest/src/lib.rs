@@ -93,15 +93,13 @@ impl IngestReport {
     /// Reads `dir/ingest.json` (`dir` being OUT/ingest).
     pub fn load(dir: &Path) -> Result<Self> {
         let path = dir.join(LEDGER_FILE);
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
         let invalid = |m: String| {
             Error::io(
                 &path,
                 std::io::Error::new(std::io::ErrorKind::InvalidData, m),
             )
         };
-        let report: IngestReport =
-            serde_json::from_str(&text).map_err(|e| invalid(e.to_string()))?;
+        let report: IngestReport = read_json(&path)?;
         if report.format != LEDGER_FORMAT {
             return Err(invalid(format!(
                 "format `{}`, expected `{LEDGER_FORMAT}`",
@@ -109,6 +107,26 @@ impl IngestReport {
             )));
         }
         Ok(report)
+    }
+}
+
+/// Reads a JSON file written by a stage; a file that does not parse is an error naming it.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| {
+        Error::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::InvalidData, e),
+        )
+    })
+}
+
+/// Removes a stage's ledger before the stage writes its tables: a stale ledger must not vouch
+/// for tables this run may fail to replace. A missing file is fine.
+pub fn remove_stale(path: &Path) -> Result<()> {
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(path, e)),
+        _ => Ok(()),
     }
 }
 
@@ -208,14 +226,8 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
     let ds = Dataset::load(dataset)?;
     let dir: PathBuf = out.join("ingest");
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-    // A stale ledger must not vouch for tables this run may fail to replace.
     let ledger_path = dir.join(LEDGER_FILE);
-    match std::fs::remove_file(&ledger_path) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-            return Err(Error::io(&ledger_path, e));
-        }
-        _ => {}
-    }
+    remove_stale(&ledger_path)?;
     let ids: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let mut streams = StreamWriter::create(&dir, &ids)?;
     let mut theo = theodolite::TheodoliteWriter::create(&dir)?;

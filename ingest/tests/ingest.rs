@@ -274,18 +274,8 @@ fn outputs_are_deterministic() {
 }
 
 fn copy_dataset(name: &str) -> tempfile::TempDir {
-    let src = fixtures::dataset_dir(name);
     let dst = tempfile::tempdir().expect("tempdir");
-    std::fs::create_dir_all(dst.path().join("raw")).expect("raw");
-    for entry in std::fs::read_dir(src.join("raw")).expect("raw") {
-        let p = entry.expect("entry").path();
-        std::fs::copy(
-            &p,
-            dst.path().join("raw").join(p.file_name().expect("name")),
-        )
-        .expect("copy");
-    }
-    std::fs::copy(src.join("dataset.toml"), dst.path().join("dataset.toml")).expect("copy");
+    fixtures::copy_dataset(name, dst.path(), |m| m).expect("copy");
     dst
 }
 
