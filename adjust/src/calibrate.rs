@@ -170,7 +170,9 @@ pub fn fit_with(
     let mut active: Vec<usize> = (0..obs.len()).collect();
     let mut removed = Vec::new();
     let names = terms.names();
-    for round in 1.. {
+    let mut round = 0;
+    loop {
+        round += 1;
         let used: Vec<&Obs> = active.iter().map(|&i| &obs[i]).collect();
         let n = used.len() as f64;
         let centre = used.iter().map(|o| o.ng).sum::<f64>() / n;
@@ -256,5 +258,4 @@ pub fn fit_with(
             residuals,
         });
     }
-    unreachable!("the snooping loop returns")
 }

@@ -21,7 +21,6 @@ use ingest::manifest::{Dataset, ModelDecl, Per};
 use model::Terms;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// What can go wrong in adjust.
@@ -506,9 +505,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
 
 /// A few lines per fit: b, k and sigma0; and every skipped fit with its reason.
 pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
-    let mut by_model: BTreeMap<&str, usize> = BTreeMap::new();
     for r in &c.results {
-        *by_model.entry(r.model.as_str()).or_default() += 1;
         let p: Vec<String> = r
             .parameters
             .iter()

@@ -156,13 +156,11 @@ impl FrameScanner {
         if let Some(start) = self.skip_start.take()
             && ledger.rejections.len() < crate::ledger::MAX_LISTED
         {
-            {
-                ledger.rejections.push(crate::ledger::Rejection {
-                    at: format!("byte {start}"),
-                    reason: "skipped".to_owned(),
-                    detail: format!("{} bytes skipped while resynchronising", at - start),
-                });
-            }
+            ledger.rejections.push(crate::ledger::Rejection {
+                at: format!("byte {start}"),
+                reason: "skipped".to_owned(),
+                detail: format!("{} bytes skipped while resynchronising", at - start),
+            });
         }
     }
 

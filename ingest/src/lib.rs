@@ -343,13 +343,11 @@ pub fn print_summary(report: &IngestReport, w: &mut impl std::io::Write) {
         if let Some(b) = &f.byte_ledger
             && b.skipped_resynchronising > 0
         {
-            {
-                let _ = writeln!(
-                    w,
-                    "ingest: {}: {} bytes skipped while resynchronising",
-                    f.path, b.skipped_resynchronising
-                );
-            }
+            let _ = writeln!(
+                w,
+                "ingest: {}: {} bytes skipped while resynchronising",
+                f.path, b.skipped_resynchronising
+            );
         }
         for (what, n) in &f.null_values {
             let _ = writeln!(w, "ingest: {}: {n} values null ({what})", f.path);

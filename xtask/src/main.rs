@@ -60,7 +60,7 @@ enum Cmd {
     Ci,
     /// Benchmarks (speed and memory), measured, not asserted.
     Bench {
-        /// Which stage: ingest (align and adjust come with their stages).
+        /// Which stage: ingest, align or adjust.
         what: String,
         /// Logging hours of the 250 Hz log (the 31.25 Hz log is twice as long).
         #[arg(long, default_value_t = 24.0)]
