@@ -204,7 +204,7 @@ pub fn write_residuals(dir: &Path, rows: &[ResidualRow<'_>]) -> Result<u64, Erro
                 schema::SESSION,
                 "station",
             ],
-            delta: &[],
+            ..Default::default()
         },
     )?;
     let f = |g: &dyn Fn(&ResidualRow<'_>) -> f64| -> ArrayRef {

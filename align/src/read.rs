@@ -188,7 +188,7 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
                 schema::observations::ACCELEROMETER,
                 schema::observations::STATION,
             ],
-            delta: &[],
+            ..Default::default()
         },
     )?;
     let cols: Vec<ArrayRef> = vec![

@@ -381,7 +381,7 @@ pub fn read_csv(
         },
         accepted,
     );
-    ledger.null_values = streams.take_null_counts();
+    ledger.null_values = streams.take_null_counts()?;
     ledger.sha256 = sha;
     ledger.bytes = bytes;
     ledger.comment_blank_or_header_lines = Some(other_lines);

@@ -44,13 +44,14 @@ const fn crc_table() -> [u16; 256] {
     table
 }
 
-/// Slicing-by-8 tables: `T[k][b]` is the CRC of byte `b` followed by `k` zero bytes.
-const fn crc_tables() -> [[u16; 256]; 8] {
+/// `T[k][b]` is the CRC (zero initial value) of byte `b` followed by `k` zero bytes: the
+/// slicing tables for `N = 8`, and per-position tables for a whole frame.
+const fn crc_tables<const N: usize>() -> [[u16; 256]; N] {
     let base = crc_table();
-    let mut t = [[0u16; 256]; 8];
+    let mut t = [[0u16; 256]; N];
     t[0] = base;
     let mut k = 1;
-    while k < 8 {
+    while k < N {
         let mut i = 0;
         while i < 256 {
             let prev = t[k - 1][i];
@@ -62,7 +63,36 @@ const fn crc_tables() -> [[u16; 256]; 8] {
     t
 }
 
-static CRC_TABLES: [[u16; 256]; 8] = crc_tables();
+static CRC_TABLES: [[u16; 256]; 8] = crc_tables::<8>();
+
+/// Bytes a frame's CRC covers: type, length and payload.
+const CRC_SPAN: usize = FRAME_LEN - 4;
+/// Per-position tables for the CRC of a frame: `FRAME_CRC_TABLES[CRC_SPAN - 1 - i][b]` is
+/// the share of byte `b` at position `i`.
+static FRAME_CRC_TABLES: [[u16; 256]; CRC_SPAN] = crc_tables::<CRC_SPAN>();
+/// The share of the initial value 0xFFFF: the CRC of `CRC_SPAN` zero bytes.
+const FRAME_CRC_INIT: u16 = {
+    let base = crc_table();
+    let mut crc = 0xFFFF_u16;
+    let mut i = 0;
+    while i < CRC_SPAN {
+        crc = (crc << 8) ^ base[(crc >> 8) as usize];
+        i += 1;
+    }
+    crc
+};
+
+/// CRC-16/CCITT-FALSE of a frame's type, length and payload (bytes 2..23). The CRC is
+/// linear, so it is the XOR of each byte's share, looked up independently: no chain of
+/// dependent lookups, which is what bounds the bytewise and sliced forms.
+#[inline]
+fn frame_crc(frame: &[u8; FRAME_LEN]) -> u16 {
+    let mut crc = FRAME_CRC_INIT;
+    for i in 0..CRC_SPAN {
+        crc ^= FRAME_CRC_TABLES[CRC_SPAN - 1 - i][usize::from(frame[2 + i])];
+    }
+    crc
+}
 
 /// CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final xor), eight bytes
 /// at a time.
@@ -127,8 +157,26 @@ pub struct FrameScanner {
     accepted: [u64; 2],
 }
 
-fn le_i32(b: &[u8], at: usize) -> i32 {
-    i32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+/// Whether every connected channel's count is a 24-bit value, without a branch per channel.
+#[inline]
+fn counts_in_range(values: [i32; 3], status: u8) -> bool {
+    let mut out = 0u32;
+    for (ch, v) in values.into_iter().enumerate() {
+        // Shifted into 0..2^24 if in range; the top byte is then 0.
+        let shifted = v.wrapping_sub(COUNT_MIN) as u32;
+        let connected = u32::from(status >> (ch + 4) & 1 == 0);
+        out |= (shifted >> 24) * connected;
+    }
+    out == 0
+}
+
+/// `N` bytes of a frame from `at`: one load, where assembling the bytes one by one made the
+/// compiler store them singly and load them whole, stalling on every frame.
+#[inline]
+fn field<const N: usize>(f: &[u8; FRAME_LEN], at: usize) -> [u8; N] {
+    let mut out = [0u8; N];
+    out.copy_from_slice(&f[at..at + N]);
+    out
 }
 
 impl FrameScanner {
@@ -152,7 +200,15 @@ impl FrameScanner {
         }
     }
 
+    #[inline]
     fn end_skip(&mut self, ledger: &mut FileLedger, at: u64) {
+        if self.skip_start.is_some() {
+            self.list_skip(ledger, at);
+        }
+    }
+
+    #[cold]
+    fn list_skip(&mut self, ledger: &mut FileLedger, at: u64) {
         if let Some(start) = self.skip_start.take()
             && ledger.rejections.len() < crate::ledger::MAX_LISTED
         {
@@ -252,7 +308,7 @@ impl FrameScanner {
                 p += 1;
                 continue;
             }
-            if rest.len() < FRAME_LEN {
+            let Some(frame) = rest.first_chunk::<FRAME_LEN>() else {
                 if !eof {
                     break;
                 }
@@ -260,11 +316,10 @@ impl FrameScanner {
                 self.truncated(ledger, at, rest.len());
                 p += rest.len();
                 continue;
-            }
-            let frame = &rest[..FRAME_LEN];
-            let crc = u16::from_le_bytes([frame[23], frame[24]]);
+            };
+            let crc = u16::from_le_bytes(field(frame, 23));
             let kind = frame[2];
-            if crc16_ccitt_false(&frame[2..23]) != crc {
+            if frame_crc(frame) != crc {
                 self.end_skip(ledger, at);
                 ledger.reject(
                     format!("byte {at}"),
@@ -303,17 +358,22 @@ impl FrameScanner {
     }
 
     /// A well-formed frame (sync, length, CRC and type good) at file offset `at`.
+    #[inline]
     fn frame<E>(
         &mut self,
-        f: &[u8],
+        f: &[u8; FRAME_LEN],
         at: u64,
         ledger: &mut FileLedger,
         emit: &mut impl FnMut(Frame) -> Result<(), E>,
     ) -> Result<(), E> {
         let kind = f[2];
-        let week10 = u16::from_le_bytes([f[4], f[5]]);
-        let tow_ms = u32::from_le_bytes([f[6], f[7], f[8], f[9]]);
-        let values = [le_i32(f, 10), le_i32(f, 14), le_i32(f, 18)];
+        let week10 = u16::from_le_bytes(field(f, 4));
+        let tow_ms = u32::from_le_bytes(field(f, 6));
+        let values = [
+            i32::from_le_bytes(field(f, 10)),
+            i32::from_le_bytes(field(f, 14)),
+            i32::from_le_bytes(field(f, 18)),
+        ];
         let status = f[22];
         let mut reject = |this: &mut Self, why: &str, detail: String| {
             ledger.reject(format!("byte {at}"), why, detail);
@@ -360,7 +420,7 @@ impl FrameScanner {
                 return Ok(());
             }
         }
-        if slot == 0 {
+        if slot == 0 && !counts_in_range(values, status) {
             for (ch, &v) in values.iter().enumerate() {
                 let connected = status & (1 << (ch + 4)) == 0;
                 if connected && !(COUNT_MIN..=COUNT_MAX).contains(&v) {
@@ -427,6 +487,12 @@ mod tests {
                 bitwise(&data[..n]),
                 "length {n}"
             );
+        }
+        for start in 0..data.len() - FRAME_LEN {
+            let frame = data[start..]
+                .first_chunk::<FRAME_LEN>()
+                .expect("long enough");
+            assert_eq!(frame_crc(frame), bitwise(&frame[2..23]), "start {start}");
         }
     }
 

@@ -210,7 +210,7 @@ fn read_binary(
         scanner.push(chunk, ledger, &mut emit)
     })?;
     scanner.finish(ledger, &mut emit)?;
-    ledger.null_values = streams.take_null_counts();
+    ledger.null_values = streams.take_null_counts()?;
     ledger.sha256 = sha;
     ledger.bytes = bytes;
     Ok(())
@@ -289,7 +289,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
             &readings,
         )?;
         files.push(ledger);
-        let st = streams.stats();
+        let st = streams.stats()?;
         sessions.push(SessionSummary {
             id: id.to_owned(),
             acceleration_samples: st.acceleration,

@@ -7,27 +7,29 @@ use std::io::Read;
 use std::path::Path;
 use std::sync::mpsc::sync_channel;
 
+/// Bytes per read: small enough that a chunk is still in the reading core's cache when it
+/// is hashed.
 const CHUNK: usize = 1 << 20;
 
 /// Reads `path` in chunks, feeding every chunk to `on_chunk`; returns the SHA-256 (hex) and
-/// the size. Three threads pass the buffers round: one reads the file (the kernel's copy
-/// from the page cache is a third of the work), the caller's thread runs `on_chunk`, and one
-/// hashes, then hands the buffer back to the reader, so no buffer is allocated per chunk.
+/// the size. Two threads pass the buffers round: one reads the file and hashes each chunk
+/// while it is in cache, the caller's thread runs `on_chunk` and hands the buffer back, so
+/// no buffer is allocated per chunk.
 pub fn read_chunks(
     path: &Path,
     mut on_chunk: impl FnMut(&[u8]) -> Result<()>,
 ) -> Result<(String, u64)> {
     let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    const BUFFERS: usize = 4;
+    const BUFFERS: usize = 8;
     let (to_caller, filled) = sync_channel::<std::io::Result<Vec<u8>>>(BUFFERS);
-    let (to_hasher, chunks) = sync_channel::<Vec<u8>>(BUFFERS);
     let (give_back, spare) = sync_channel::<Vec<u8>>(BUFFERS);
     for _ in 0..BUFFERS {
         let _ = give_back.send(vec![0u8; CHUNK]);
     }
     std::thread::scope(|scope| {
-        scope.spawn(move || {
-            // Reader: stops at the end of the file, on an error, or when the caller is gone.
+        let reader = scope.spawn(move || {
+            // Stops at the end of the file, on an error, or when the caller is gone.
+            let mut hasher = Sha256::new();
             for mut buf in spare.iter() {
                 buf.resize(CHUNK, 0);
                 let n = loop {
@@ -40,18 +42,12 @@ pub fn read_chunks(
                 let done = !matches!(n, Ok(n) if n > 0);
                 let msg = n.map(|n| {
                     buf.truncate(n);
+                    hasher.update(&buf);
                     buf
                 });
                 if to_caller.send(msg).is_err() || done {
-                    return;
+                    break;
                 }
-            }
-        });
-        let hasher = scope.spawn(move || {
-            let mut hasher = Sha256::new();
-            for buf in chunks {
-                hasher.update(&buf);
-                let _ = give_back.send(buf);
             }
             hasher.finalize()
         });
@@ -64,23 +60,19 @@ pub fn read_chunks(
                 }
                 total += buf.len() as u64;
                 on_chunk(&buf)?;
-                if to_hasher.send(buf).is_err() {
-                    return Err(Error::io(
-                        path,
-                        std::io::Error::other("the hashing thread stopped"),
-                    ));
-                }
+                // The reader may already have stopped at the end of the file.
+                let _ = give_back.send(buf);
             }
             Err(Error::io(
                 path,
                 std::io::Error::other("the reading thread stopped"),
             ))
         })();
-        drop(to_hasher);
+        drop(give_back);
         drop(filled);
-        let digest = hasher
+        let digest = reader
             .join()
-            .map_err(|_| Error::io(path, std::io::Error::other("the hashing thread panicked")))?;
+            .map_err(|_| Error::io(path, std::io::Error::other("the reading thread panicked")))?;
         result?;
         let hex = digest
             .iter()

@@ -1,14 +1,11 @@
-//! Collects accepted acceleration and temperature samples into Arrow batches and writes them
+//! Collects accepted acceleration and temperature samples into row groups and writes them
 //! to `acceleration.parquet` and `temperature.parquet`; counts the values stored as null.
 
 use crate::error::{Error, Result};
 use crate::schema;
-use crate::table::{Encodings, ROWS_PER_BATCH, TableWriter};
-use arrow::array::{ArrayRef, Float64Array, Int32Array, Int64Array, UInt8Array, UInt16Array};
-use arrow::buffer::NullBuffer;
+use crate::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP};
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::Arc;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
@@ -21,6 +18,7 @@ pub fn not_connected_bit(ch: usize) -> u8 {
     1 << (ch + 4)
 }
 
+/// Temperature samples not yet handed to the writer.
 #[derive(Default)]
 struct Columns<T> {
     time: Vec<i64>,
@@ -43,12 +41,48 @@ impl<T: Default> Columns<T> {
     }
 }
 
-fn nulls(valid: Vec<bool>) -> Option<NullBuffer> {
-    if valid.iter().all(|&v| v) {
-        None
-    } else {
-        Some(NullBuffer::from(valid))
+/// Acceleration samples not yet handed to the writer, as logged: which values are null
+/// follows from the status bits, worked out per row group in
+/// [`StreamWriter::flush_acceleration`] rather than per sample.
+struct AccelerationColumns {
+    time: Vec<i64>,
+    counts: [Vec<i32>; 3],
+    status: Vec<u8>,
+}
+
+impl AccelerationColumns {
+    fn with_capacity(n: usize) -> Self {
+        AccelerationColumns {
+            time: Vec::with_capacity(n),
+            counts: std::array::from_fn(|_| Vec::with_capacity(n)),
+            status: Vec::with_capacity(n),
+        }
     }
+}
+
+/// A nullable column from all its values and their validity: the non-null values and the
+/// definition levels.
+fn nullable<T: Copy>(values: Vec<T>, valid: &[bool]) -> (Vec<T>, Vec<i16>) {
+    if valid.iter().all(|&v| v) {
+        return (values, vec![1; valid.len()]);
+    }
+    let levels = valid.iter().map(|&v| i16::from(v)).collect();
+    let kept = values
+        .into_iter()
+        .zip(valid)
+        .filter_map(|(x, &v)| v.then_some(x))
+        .collect();
+    (kept, levels)
+}
+
+/// The session index, stored as Parquet INT32 (UInt16 in the Arrow schema).
+fn session_values(session: u16, n: usize) -> ColumnValues {
+    ColumnValues::Int32(vec![i32::from(session); n], None)
+}
+
+/// Status bits, stored as Parquet INT32 (UInt8 in the Arrow schema).
+fn status_values(status: &[u8]) -> ColumnValues {
+    ColumnValues::Int32(status.iter().map(|&s| i32::from(s)).collect(), None)
 }
 
 /// What the current session's streams held.
@@ -67,8 +101,9 @@ pub struct SessionStats {
 }
 
 enum Message {
-    Acceleration(Vec<ArrayRef>),
-    Temperature(Vec<ArrayRef>),
+    /// A row group: rows and columns.
+    Acceleration(usize, Vec<ColumnValues>),
+    Temperature(usize, Vec<ColumnValues>),
     /// All batches sent: close the files and rename them into place.
     Finish,
 }
@@ -76,14 +111,14 @@ enum Message {
 /// The writer thread: writes batches until told to finish. If the sender goes away without
 /// `Finish` (the reading failed), the tables are dropped and their partial files removed.
 fn write_tables(
-    mut acceleration: TableWriter,
-    mut temperature: TableWriter,
+    mut acceleration: ColumnTableWriter,
+    mut temperature: ColumnTableWriter,
     rx: Receiver<Message>,
 ) -> Result<(u64, u64)> {
     for m in rx {
         match m {
-            Message::Acceleration(cols) => acceleration.write(cols)?,
-            Message::Temperature(cols) => temperature.write(cols)?,
+            Message::Acceleration(rows, cols) => acceleration.write_row_group(rows, &cols)?,
+            Message::Temperature(rows, cols) => temperature.write_row_group(rows, &cols)?,
             Message::Finish => return Ok((acceleration.finish()?, temperature.finish()?)),
         }
     }
@@ -103,40 +138,36 @@ pub struct StreamWriter {
     /// Per channel: acceleration values null because not connected, because over range;
     /// temperature values null because not connected.
     nulls: [[u64; 3]; 3],
-    acc: Columns<i32>,
+    acc: AccelerationColumns,
     temp: Columns<f64>,
 }
 
 impl StreamWriter {
     /// Starts both tables in `dir`, for a dataset with `sessions` (ids in manifest order).
     pub fn create(dir: &Path, sessions: &[String]) -> Result<Self> {
-        let acceleration = TableWriter::create(
+        let acceleration = ColumnTableWriter::create(
             dir,
             schema::acceleration::FILE,
             "acceleration",
             schema::acceleration::schema(sessions),
+            // Measured on a 250 Hz day (`cargo run --release -p ingest --example
+            // encodings`): session and status, nearly constant, cost least plain and
+            // zstd-compressed; the counts least delta-encoded and not compressed.
             Encodings {
                 dictionary: &[],
-                delta: &[
-                    schema::SESSION_INDEX,
-                    schema::acceleration::COUNTS[0],
-                    schema::acceleration::COUNTS[1],
-                    schema::acceleration::COUNTS[2],
-                    schema::STATUS,
-                ],
+                delta: &schema::acceleration::COUNTS,
+                uncompressed: &schema::acceleration::COUNTS,
             },
         )?;
-        let temperature = TableWriter::create(
+        let temperature = ColumnTableWriter::create(
             dir,
             schema::temperature::FILE,
             "temperature",
             schema::temperature::schema(sessions),
-            Encodings {
-                dictionary: &[],
-                delta: &[schema::SESSION_INDEX, schema::STATUS],
-            },
+            Encodings::default(),
         )?;
-        let (tx, rx) = sync_channel(4);
+        // Two row groups queued (about 25 MB) keep both threads busy.
+        let (tx, rx) = sync_channel(2);
         let writer = std::thread::Builder::new()
             .name("parquet-writer".to_owned())
             .spawn(move || write_tables(acceleration, temperature, rx))
@@ -147,7 +178,7 @@ impl StreamWriter {
             session: 0,
             stats: SessionStats::default(),
             nulls: [[0; 3]; 3],
-            acc: Columns::default(),
+            acc: AccelerationColumns::with_capacity(STREAM_ROWS_PER_GROUP),
             temp: Columns::default(),
         })
     }
@@ -160,13 +191,16 @@ impl StreamWriter {
         Ok(())
     }
 
-    /// What the current session's streams held so far.
-    pub fn stats(&self) -> &SessionStats {
-        &self.stats
+    /// What the current session's streams held so far (hands what is buffered to the writer).
+    pub fn stats(&mut self) -> Result<SessionStats> {
+        self.flush()?;
+        Ok(self.stats.clone())
     }
 
-    /// Values stored as null since the last call, by channel and reason (for a file's ledger).
-    pub fn take_null_counts(&mut self) -> BTreeMap<String, u64> {
+    /// Values stored as null since the last call, by channel and reason (for a file's ledger;
+    /// hands what is buffered to the writer).
+    pub fn take_null_counts(&mut self) -> Result<BTreeMap<String, u64>> {
+        self.flush()?;
         let mut out = BTreeMap::new();
         let what = ["not connected", "over range", "temperature not connected"];
         for (k, per_channel) in self.nulls.iter().enumerate() {
@@ -177,33 +211,20 @@ impl StreamWriter {
             }
         }
         self.nulls = [[0; 3]; 3];
-        out
+        Ok(out)
     }
 
     /// One acceleration sample; over-range and unconnected channels are stored as null and
     /// counted (see [`StreamWriter::take_null_counts`]).
+    #[inline]
     pub fn acceleration(&mut self, time_ns: i64, counts: [i32; 3], status: u8) -> Result<()> {
-        self.acc.time.push(time_ns);
-        self.stats.acceleration += 1;
-        self.stats.first_gps_ns.get_or_insert(time_ns);
-        self.stats.last_gps_ns = Some(time_ns);
-        for ch in 0..3 {
-            self.stats.connected_seen[ch] |= status & not_connected_bit(ch) == 0;
-            let null = if status & not_connected_bit(ch) != 0 {
-                Some(0)
-            } else if status & over_range_bit(ch) != 0 {
-                Some(1)
-            } else {
-                None
-            };
-            if let Some(k) = null {
-                self.nulls[k][ch] += 1;
-            }
-            self.acc.values[ch].push(if null.is_none() { counts[ch] } else { 0 });
-            self.acc.valid[ch].push(null.is_none());
+        let a = &mut self.acc;
+        a.time.push(time_ns);
+        for (column, value) in a.counts.iter_mut().zip(counts) {
+            column.push(value);
         }
-        self.acc.status.push(status);
-        if self.acc.len() >= ROWS_PER_BATCH {
+        a.status.push(status);
+        if a.time.len() >= STREAM_ROWS_PER_GROUP {
             self.flush_acceleration()?;
         }
         Ok(())
@@ -231,29 +252,61 @@ impl StreamWriter {
             self.temp.valid[ch].push(v.is_some());
         }
         self.temp.status.push(status);
-        if self.temp.len() >= ROWS_PER_BATCH {
+        if self.temp.len() >= STREAM_ROWS_PER_GROUP {
             self.flush_temperature()?;
         }
         Ok(())
     }
 
+    #[inline(never)]
     fn flush_acceleration(&mut self) -> Result<()> {
-        if self.acc.len() == 0 {
+        let Some((&first, &last)) = self.acc.time.first().zip(self.acc.time.last()) else {
             return Ok(());
+        };
+        let AccelerationColumns {
+            time,
+            counts,
+            status,
+        } = std::mem::replace(
+            &mut self.acc,
+            AccelerationColumns::with_capacity(STREAM_ROWS_PER_GROUP),
+        );
+        let n = time.len();
+        self.stats.acceleration += n as u64;
+        self.stats.first_gps_ns.get_or_insert(first);
+        self.stats.last_gps_ns = Some(last);
+        // Nearly always no status bit is set in a whole row group: nothing to look at per row.
+        let any_bit = status.iter().fold(0u8, |a, &s| a | s);
+        let mut cols = Vec::with_capacity(6);
+        cols.push(session_values(self.session, n));
+        cols.push(ColumnValues::Int64(time, None));
+        for (ch, values) in counts.into_iter().enumerate() {
+            let (nc, or) = (not_connected_bit(ch), over_range_bit(ch));
+            let (values, levels) = if any_bit & (nc | or) == 0 {
+                self.stats.connected_seen[ch] = true;
+                (values, vec![1; n])
+            } else {
+                let valid: Vec<bool> = status
+                    .iter()
+                    .map(|&s| {
+                        if s & nc != 0 {
+                            self.nulls[0][ch] += 1;
+                            false
+                        } else {
+                            self.stats.connected_seen[ch] = true;
+                            if s & or != 0 {
+                                self.nulls[1][ch] += 1;
+                            }
+                            s & or == 0
+                        }
+                    })
+                    .collect();
+                nullable(values, &valid)
+            };
+            cols.push(ColumnValues::Int32(values, Some(levels)));
         }
-        let c = self.acc.take();
-        let n = c.time.len();
-        let [v0, v1, v2] = c.values;
-        let [m0, m1, m2] = c.valid;
-        let cols: Vec<ArrayRef> = vec![
-            Arc::new(UInt16Array::from(vec![self.session; n])),
-            Arc::new(Int64Array::from(c.time)),
-            Arc::new(Int32Array::new(v0.into(), nulls(m0))),
-            Arc::new(Int32Array::new(v1.into(), nulls(m1))),
-            Arc::new(Int32Array::new(v2.into(), nulls(m2))),
-            Arc::new(UInt8Array::from(c.status)),
-        ];
-        self.send(Message::Acceleration(cols))
+        cols.push(status_values(&status));
+        self.send(Message::Acceleration(n, cols))
     }
 
     fn flush_temperature(&mut self) -> Result<()> {
@@ -262,17 +315,16 @@ impl StreamWriter {
         }
         let c = self.temp.take();
         let n = c.time.len();
-        let [v0, v1, v2] = c.values;
-        let [m0, m1, m2] = c.valid;
-        let cols: Vec<ArrayRef> = vec![
-            Arc::new(UInt16Array::from(vec![self.session; n])),
-            Arc::new(Int64Array::from(c.time)),
-            Arc::new(Float64Array::new(v0.into(), nulls(m0))),
-            Arc::new(Float64Array::new(v1.into(), nulls(m1))),
-            Arc::new(Float64Array::new(v2.into(), nulls(m2))),
-            Arc::new(UInt8Array::from(c.status)),
+        let mut cols = vec![
+            session_values(self.session, n),
+            ColumnValues::Int64(c.time, None),
         ];
-        self.send(Message::Temperature(cols))
+        for (values, valid) in c.values.into_iter().zip(&c.valid) {
+            let (values, levels) = nullable(values, valid);
+            cols.push(ColumnValues::Double(values, Some(levels)));
+        }
+        cols.push(status_values(&c.status));
+        self.send(Message::Temperature(n, cols))
     }
 
     /// Hands a message to the writer thread; if it has stopped, returns its error.

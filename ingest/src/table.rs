@@ -1,12 +1,20 @@
 //! Writing the Parquet tables: zstd, written under a temporary name and renamed when
 //! complete, so an interrupted run never leaves a half file under a final name.
+//!
+//! Two writers: [`TableWriter`] takes Arrow batches (Parquet's `ArrowWriter`), for the small
+//! tables; [`ColumnTableWriter`] takes whole row groups as plain vectors in Parquet's
+//! physical types and hands them to Parquet's column writers directly, for the two sample
+//! streams, where the Arrow path's per-value index lists and casts cost a third of the
+//! writing.
 
 use crate::error::{Error, Result};
 use arrow::array::{ArrayRef, DictionaryArray, Int32Array, RecordBatch, StringArray};
 use arrow::datatypes::{Int32Type, SchemaRef};
-use parquet::arrow::ArrowWriter;
+use parquet::arrow::{ArrowSchemaConverter, ArrowWriter, add_encoded_arrow_schema_to_metadata};
 use parquet::basic::{Compression, Encoding, ZstdLevel};
+use parquet::column::writer::ColumnWriter;
 use parquet::file::properties::WriterProperties;
+use parquet::file::writer::SerializedFileWriter;
 use parquet::schema::types::ColumnPath;
 use std::fs::File;
 use std::io::BufWriter;
@@ -17,6 +25,9 @@ use std::sync::Arc;
 pub const ROWS_PER_GROUP: usize = 1 << 20;
 /// Rows per Arrow batch handed to the writer (small enough to stay in cache).
 pub const ROWS_PER_BATCH: usize = 1 << 16;
+/// Rows per row group of the sample streams ([`ColumnTableWriter`]), which are buffered
+/// whole: about 12 MB of acceleration samples.
+pub const STREAM_ROWS_PER_GROUP: usize = 1 << 19;
 
 /// A Parquet table being written.
 pub struct TableWriter {
@@ -35,6 +46,9 @@ pub struct Encodings<'a> {
     pub dictionary: &'a [&'a str],
     /// Integer columns that change little from row to row: delta-encoded.
     pub delta: &'a [&'a str],
+    /// Columns left uncompressed: delta-encoded noisy counts, which zstd shrinks by 2% at
+    /// a fifth of their encoding time.
+    pub uncompressed: &'a [&'a str],
 }
 
 fn properties(enc: Encodings<'_>) -> WriterProperties {
@@ -53,6 +67,9 @@ fn properties(enc: Encodings<'_>) -> WriterProperties {
     }
     for c in enc.delta {
         b = b.set_column_encoding(ColumnPath::from(*c), Encoding::DELTA_BINARY_PACKED);
+    }
+    for c in enc.uncompressed {
+        b = b.set_column_compression(ColumnPath::from(*c), Compression::UNCOMPRESSED);
     }
     b.build()
 }
@@ -112,13 +129,143 @@ impl TableWriter {
                 path: self.path.clone(),
                 source,
             })?;
-            let f = inner
-                .into_inner()
-                .map_err(|e| Error::io(&self.tmp, e.into_error()))?;
-            f.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
+            commit(inner, &self.tmp, &self.path)?;
         }
-        std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
         Ok(self.rows)
+    }
+}
+
+/// Flushes, syncs and renames a finished table into place.
+fn commit(inner: BufWriter<File>, tmp: &Path, path: &Path) -> Result<()> {
+    let f = inner
+        .into_inner()
+        .map_err(|e| Error::io(tmp, e.into_error()))?;
+    f.sync_all().map_err(|e| Error::io(tmp, e))?;
+    std::fs::rename(tmp, path).map_err(|e| Error::io(path, e))
+}
+
+/// One column of a row group in the type Parquet stores it as (`UInt8`, `UInt16` and
+/// `Int32` as `Int32`), with definition levels if the column is nullable: one per row, 1
+/// where there is a value and 0 where it is null, `values` holding the non-null values only.
+#[derive(Clone, Debug)]
+pub enum ColumnValues {
+    /// INT32 values.
+    Int32(Vec<i32>, Option<Vec<i16>>),
+    /// INT64 values.
+    Int64(Vec<i64>, Option<Vec<i16>>),
+    /// DOUBLE values.
+    Double(Vec<f64>, Option<Vec<i16>>),
+}
+
+/// A Parquet table written a row group at a time from [`ColumnValues`]. The Arrow schema is
+/// stored in the file as `ArrowWriter` stores it, so Arrow readers see the same types.
+pub struct ColumnTableWriter {
+    table: &'static str,
+    path: PathBuf,
+    tmp: PathBuf,
+    writer: Option<SerializedFileWriter<BufWriter<File>>>,
+    rows: u64,
+}
+
+impl ColumnTableWriter {
+    /// Starts `dir/file` (written as `dir/.file.partial` until [`ColumnTableWriter::finish`]).
+    pub fn create(
+        dir: &Path,
+        file: &str,
+        table: &'static str,
+        schema: SchemaRef,
+        encodings: Encodings<'_>,
+    ) -> Result<Self> {
+        let path = dir.join(file);
+        let tmp = dir.join(format!(".{file}.partial"));
+        let parquet_error = |source| Error::Parquet {
+            path: path.clone(),
+            source,
+        };
+        let mut props = properties(encodings);
+        add_encoded_arrow_schema_to_metadata(&schema, &mut props);
+        let descriptor = ArrowSchemaConverter::new()
+            .convert(&schema)
+            .map_err(parquet_error)?;
+        let f = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        let writer = SerializedFileWriter::new(
+            BufWriter::with_capacity(1 << 20, f),
+            descriptor.root_schema_ptr(),
+            Arc::new(props),
+        )
+        .map_err(parquet_error)?;
+        Ok(ColumnTableWriter {
+            table,
+            path,
+            tmp,
+            writer: Some(writer),
+            rows: 0,
+        })
+    }
+
+    /// Writes one row group of `rows` rows; `columns` in schema order.
+    pub fn write_row_group(&mut self, rows: usize, columns: &[ColumnValues]) -> Result<()> {
+        let parquet_error = |source| Error::Parquet {
+            path: self.path.clone(),
+            source,
+        };
+        let Some(w) = self.writer.as_mut() else {
+            return Ok(());
+        };
+        let mut group = w.next_row_group().map_err(parquet_error)?;
+        for (index, values) in columns.iter().enumerate() {
+            let mut column = group
+                .next_column()
+                .map_err(parquet_error)?
+                .ok_or_else(|| parquet_error(too_many_columns(self.table, index)))?;
+            match (column.untyped(), values) {
+                (ColumnWriter::Int32ColumnWriter(c), ColumnValues::Int32(v, d)) => {
+                    c.write_batch(v, d.as_deref(), None)
+                }
+                (ColumnWriter::Int64ColumnWriter(c), ColumnValues::Int64(v, d)) => {
+                    c.write_batch(v, d.as_deref(), None)
+                }
+                (ColumnWriter::DoubleColumnWriter(c), ColumnValues::Double(v, d)) => {
+                    c.write_batch(v, d.as_deref(), None)
+                }
+                _ => Err(parquet::errors::ParquetError::General(format!(
+                    "{}: column {index} does not have the type of its values",
+                    self.table
+                ))),
+            }
+            .map_err(parquet_error)?;
+            column.close().map_err(parquet_error)?;
+        }
+        group.close().map_err(parquet_error)?;
+        self.rows += rows as u64;
+        Ok(())
+    }
+
+    /// Closes the file and renames it to its final name; returns the rows written.
+    pub fn finish(mut self) -> Result<u64> {
+        if let Some(w) = self.writer.take() {
+            let inner = w.into_inner().map_err(|source| Error::Parquet {
+                path: self.path.clone(),
+                source,
+            })?;
+            commit(inner, &self.tmp, &self.path)?;
+        }
+        Ok(self.rows)
+    }
+}
+
+fn too_many_columns(table: &str, index: usize) -> parquet::errors::ParquetError {
+    parquet::errors::ParquetError::General(format!(
+        "{table}: more columns given than the schema's {index}"
+    ))
+}
+
+impl Drop for ColumnTableWriter {
+    fn drop(&mut self) {
+        if self.writer.is_some() {
+            // Not finished: leave no partial file behind.
+            let _ = std::fs::remove_file(&self.tmp);
+        }
     }
 }
 
@@ -159,4 +306,131 @@ pub fn dictionary_column<'a>(values: impl Iterator<Item = &'a str>) -> ArrayRef 
         )
         .expect("keys index the distinct values"),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use arrow::array::{Array, Float64Array, Int64Array, UInt8Array, UInt16Array};
+    use arrow::datatypes::{DataType, Field, Schema};
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+
+    fn schema() -> SchemaRef {
+        Arc::new(Schema::new_with_metadata(
+            vec![
+                Field::new("s", DataType::UInt16, false),
+                Field::new("t", DataType::Int64, false),
+                Field::new("c", DataType::Int32, true),
+                Field::new("x", DataType::Float64, true),
+                Field::new("b", DataType::UInt8, false),
+            ],
+            arrow::datatypes::Metadata::new().with("k", "v"),
+        ))
+    }
+
+    /// Row groups written through the column writers read back through Arrow with the Arrow
+    /// types, the nulls where the levels put them, and the schema metadata.
+    #[test]
+    fn column_writer_round_trips_through_arrow() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut w = ColumnTableWriter::create(
+            dir.path(),
+            "t.parquet",
+            "t",
+            schema(),
+            Encodings {
+                delta: &["c"],
+                uncompressed: &["c"],
+                ..Encodings::default()
+            },
+        )
+        .expect("create");
+        let group = |t0: i64| {
+            vec![
+                ColumnValues::Int32(vec![7; 3], None),
+                ColumnValues::Int64(vec![t0, t0 + 1, t0 + 2], None),
+                ColumnValues::Int32(vec![-8_388_608, 8_388_607], Some(vec![1, 0, 1])),
+                ColumnValues::Double(vec![0.5], Some(vec![0, 0, 1])),
+                ColumnValues::Int32(vec![0, 0b0010_0000, 255], None),
+            ]
+        };
+        w.write_row_group(3, &group(10)).expect("group 1");
+        w.write_row_group(3, &group(20)).expect("group 2");
+        assert!(
+            !dir.path().join("t.parquet").exists(),
+            "renamed only at the end"
+        );
+        assert_eq!(w.finish().expect("finish"), 6);
+
+        let f = File::open(dir.path().join("t.parquet")).expect("open");
+        let builder = ParquetRecordBatchReaderBuilder::try_new(f).expect("reader");
+        assert_eq!(
+            builder.schema().metadata().get("k").map(String::as_str),
+            Some("v")
+        );
+        let reader = builder.build().expect("build");
+        let batches: Vec<_> = reader.map(|b| b.expect("batch")).collect();
+        let batch = arrow::compute::concat_batches(&batches[0].schema(), &batches).expect("concat");
+        assert_eq!(batch.schema().fields(), schema().fields());
+        let col = |i: usize| batch.column(i).clone();
+        assert_eq!(
+            col(0).as_any().downcast_ref::<UInt16Array>(),
+            Some(&UInt16Array::from(vec![7; 6]))
+        );
+        assert_eq!(
+            col(1).as_any().downcast_ref::<Int64Array>(),
+            Some(&Int64Array::from(vec![10, 11, 12, 20, 21, 22]))
+        );
+        let c = [Some(-8_388_608), None, Some(8_388_607)];
+        assert_eq!(
+            col(2).as_any().downcast_ref::<Int32Array>(),
+            Some(&Int32Array::from([c, c].concat()))
+        );
+        assert_eq!(col(3).null_count(), 4);
+        assert_eq!(
+            col(3).as_any().downcast_ref::<Float64Array>(),
+            Some(&Float64Array::from(vec![
+                None,
+                None,
+                Some(0.5),
+                None,
+                None,
+                Some(0.5)
+            ]))
+        );
+        assert_eq!(
+            col(4).as_any().downcast_ref::<UInt8Array>(),
+            Some(&UInt8Array::from(vec![0, 32, 255, 0, 32, 255]))
+        );
+    }
+
+    /// Values of the wrong type, or more columns than the schema has, are errors naming the
+    /// table; nothing is left behind.
+    #[test]
+    fn column_writer_rejects_mismatched_columns() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let create = || {
+            ColumnTableWriter::create(dir.path(), "t.parquet", "t", schema(), Encodings::default())
+                .expect("create")
+        };
+        let mut w = create();
+        let e = w
+            .write_row_group(1, &[ColumnValues::Int64(vec![1], None)])
+            .expect_err("wrong type");
+        assert!(e.to_string().contains("t: column 0"), "{e}");
+        drop(w);
+        let mut w = create();
+        let mut six = vec![
+            ColumnValues::Int32(vec![1], None),
+            ColumnValues::Int64(vec![1], None),
+            ColumnValues::Int32(vec![1], Some(vec![1])),
+            ColumnValues::Double(vec![1.0], Some(vec![1])),
+            ColumnValues::Int32(vec![1], None),
+        ];
+        six.push(ColumnValues::Int32(vec![1], None));
+        let e = w.write_row_group(1, &six).expect_err("six columns");
+        assert!(e.to_string().contains("more columns"), "{e}");
+        drop(w);
+        assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 0);
+    }
 }

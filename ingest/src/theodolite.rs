@@ -171,7 +171,7 @@ impl TheodoliteWriter {
                         schema::theodolite::DZ_UNIT,
                         schema::theodolite::TIME_SCALE,
                     ],
-                    delta: &[],
+                    ..Default::default()
                 },
             )?,
         })

@@ -119,6 +119,7 @@ pub fn week_of_date(date: (i32, u8, u8)) -> i64 {
 }
 
 /// The full GPS week nearest `reference_week` that is congruent to `week10` modulo 1024.
+#[inline]
 pub fn resolve_week(week10: u16, reference_week: i64) -> i64 {
     let w = i64::from(week10 % 1024);
     w + 1024 * (reference_week - w + 512).div_euclid(1024)
