@@ -227,19 +227,36 @@ impl FrameScanner {
         ledger: &mut FileLedger,
         emit: &mut impl FnMut(Frame) -> Result<(), E>,
     ) -> Result<(), E> {
-        if self.buf.is_empty() {
-            // Scan the chunk in place; keep only its unfinished tail.
-            let used = self.scan(chunk, false, ledger, emit)?;
-            self.offset += used as u64;
-            self.buf.extend_from_slice(&chunk[used..]);
-        } else {
+        let mut rest = chunk;
+        if !self.buf.is_empty() {
+            // The unfinished tail of the last chunk (shorter than a frame): complete it with
+            // at most a frame's worth of this chunk, rather than copying the whole chunk.
             let mut buf = std::mem::take(&mut self.buf);
-            buf.extend_from_slice(chunk);
+            let tail = buf.len();
+            let take = if chunk.len() >= FRAME_LEN {
+                FRAME_LEN
+            } else {
+                chunk.len()
+            };
+            buf.extend_from_slice(&chunk[..take]);
             let used = self.scan(&buf, false, ledger, emit)?;
             self.offset += used as u64;
-            buf.drain(..used);
+            if used < tail {
+                // Only when this chunk is shorter than a frame: wait for more bytes.
+                buf.drain(..used);
+                buf.extend_from_slice(&chunk[take..]);
+                self.buf = buf;
+                return Ok(());
+            }
+            // Everything from `tail` on is this chunk's, scanned in place from here.
+            rest = &chunk[used - tail..];
+            buf.clear();
             self.buf = buf;
         }
+        // Scan in place; keep only the unfinished tail.
+        let used = self.scan(rest, false, ledger, emit)?;
+        self.offset += used as u64;
+        self.buf.extend_from_slice(&rest[used..]);
         Ok(())
     }
 

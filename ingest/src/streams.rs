@@ -157,6 +157,7 @@ impl StreamWriter {
                 dictionary: &[],
                 delta: &schema::acceleration::COUNTS,
                 uncompressed: &schema::acceleration::COUNTS,
+                no_statistics: &schema::acceleration::COUNTS,
             },
         )?;
         let temperature = ColumnTableWriter::create(
@@ -216,7 +217,7 @@ impl StreamWriter {
 
     /// One acceleration sample; over-range and unconnected channels are stored as null and
     /// counted (see [`StreamWriter::take_null_counts`]).
-    #[inline]
+    #[inline(always)]
     pub fn acceleration(&mut self, time_ns: i64, counts: [i32; 3], status: u8) -> Result<()> {
         let a = &mut self.acc;
         a.time.push(time_ns);
