@@ -392,63 +392,20 @@ impl FrameScanner {
             i32::from_le_bytes(field(f, 18)),
         ];
         let status = f[22];
-        let mut reject = |this: &mut Self, why: &str, detail: String| {
-            ledger.reject(format!("byte {at}"), why, detail);
-            this.bytes.in_rejected_frames += FRAME_LEN as u64;
-        };
-        if status & RESERVED_BITS != 0 {
-            reject(
-                self,
-                reason::RESERVED_STATUS_BITS,
-                format!("status 0b{status:08b}"),
-            );
-            return Ok(());
-        }
-        if i64::from(tow_ms) * NS_PER_MS >= NS_PER_WEEK {
-            reject(self, reason::BAD_TIME_OF_WEEK, format!("tow_ms {tow_ms}"));
-            return Ok(());
-        }
-        let time_ns =
-            resolve_week(week10, self.reference_week) * NS_PER_WEEK + i64::from(tow_ms) * NS_PER_MS;
         let slot = usize::from(kind == TYPE_TEMPERATURE);
-        let name = if slot == 0 {
-            "acceleration"
-        } else {
-            "temperature"
-        };
-        if let Some(last) = self.last_time[slot] {
-            if time_ns == last {
-                reject(
-                    self,
-                    reason::DUPLICATE,
-                    format!("{name} frame at week10 {week10} tow_ms {tow_ms}"),
-                );
-                return Ok(());
-            }
-            if time_ns < last {
-                reject(
-                    self,
-                    reason::TIME_BACKWARDS,
-                    format!(
-                        "{name} frame at tow_ms {tow_ms}, {} ms before the previous one",
-                        (last - time_ns) / NS_PER_MS
-                    ),
-                );
-                return Ok(());
-            }
-        }
-        if slot == 0 && !counts_in_range(values, status) {
-            for (ch, &v) in values.iter().enumerate() {
-                let connected = status & (1 << (ch + 4)) == 0;
-                if connected && !(COUNT_MIN..=COUNT_MAX).contains(&v) {
-                    reject(
-                        self,
-                        reason::COUNT_OUT_OF_RANGE,
-                        format!("channel {} count {v}", ch + 1),
-                    );
-                    return Ok(());
-                }
-            }
+        // Wrapping: a time of week out of range is rejected below, before the time is used.
+        let time_ns = resolve_week(week10, self.reference_week)
+            .wrapping_mul(NS_PER_WEEK)
+            .wrapping_add(i64::from(tow_ms) * NS_PER_MS);
+        // All the checks at once, without a branch each; a frame that fails one is looked
+        // at again, check by check, to say why.
+        let usable = (status & RESERVED_BITS == 0)
+            & (i64::from(tow_ms) * NS_PER_MS < NS_PER_WEEK)
+            & self.last_time[slot].is_none_or(|last| time_ns > last)
+            & (slot == 1 || counts_in_range(values, status));
+        if !usable {
+            self.reject_frame(f, at, time_ns, ledger);
+            return Ok(());
         }
         self.last_time[slot] = Some(time_ns);
         self.bytes.in_accepted_frames += FRAME_LEN as u64;
@@ -466,6 +423,62 @@ impl FrameScanner {
                 status,
             }
         })
+    }
+
+    /// Rejects a well-formed frame that [`FrameScanner::frame`] found unusable, with the
+    /// reason of the first check it fails.
+    #[cold]
+    #[inline(never)]
+    fn reject_frame(
+        &mut self,
+        f: &[u8; FRAME_LEN],
+        at: u64,
+        time_ns: i64,
+        ledger: &mut FileLedger,
+    ) {
+        let week10 = u16::from_le_bytes(field(f, 4));
+        let tow_ms = u32::from_le_bytes(field(f, 6));
+        let status = f[22];
+        let slot = usize::from(f[2] == TYPE_TEMPERATURE);
+        let name = if slot == 0 {
+            "acceleration"
+        } else {
+            "temperature"
+        };
+        let (why, detail) = if status & RESERVED_BITS != 0 {
+            (
+                reason::RESERVED_STATUS_BITS,
+                format!("status 0b{status:08b}"),
+            )
+        } else if i64::from(tow_ms) * NS_PER_MS >= NS_PER_WEEK {
+            (reason::BAD_TIME_OF_WEEK, format!("tow_ms {tow_ms}"))
+        } else if self.last_time[slot] == Some(time_ns) {
+            (
+                reason::DUPLICATE,
+                format!("{name} frame at week10 {week10} tow_ms {tow_ms}"),
+            )
+        } else if let Some(last) = self.last_time[slot].filter(|&last| time_ns < last) {
+            (
+                reason::TIME_BACKWARDS,
+                format!(
+                    "{name} frame at tow_ms {tow_ms}, {} ms before the previous one",
+                    (last - time_ns) / NS_PER_MS
+                ),
+            )
+        } else {
+            let (ch, v) = (0..3)
+                .map(|ch| (ch, i32::from_le_bytes(field(f, 10 + 4 * ch))))
+                .find(|&(ch, v)| {
+                    status & (1 << (ch + 4)) == 0 && !(COUNT_MIN..=COUNT_MAX).contains(&v)
+                })
+                .unwrap_or((0, 0));
+            (
+                reason::COUNT_OUT_OF_RANGE,
+                format!("channel {} count {v}", ch + 1),
+            )
+        };
+        ledger.reject(format!("byte {at}"), why, detail);
+        self.bytes.in_rejected_frames += FRAME_LEN as u64;
     }
 }
 
