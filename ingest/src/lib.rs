@@ -241,54 +241,73 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
             message: "more than 65535 sessions".to_owned(),
         })?;
         streams.start_session(index)?;
-        match &s.acquisition {
-            Acquisition::Binary(path) => {
-                let mut ledger = new_ledger(&ds, path, id, "acquisition", "frames");
-                let pb = progress_bar(opts, path);
-                read_binary(
-                    path,
-                    time::week_of_date(s.date),
-                    &mut streams,
-                    &mut ledger,
-                    &pb,
-                )?;
-                pb.finish_and_clear();
-                files.push(ledger);
-            }
-            Acquisition::Csv { adc, temperature } => {
-                for (path, kind, role) in [
-                    (adc, csvlog::CsvKind::Adc, "adc_csv"),
-                    (temperature, csvlog::CsvKind::Temperature, "temperature_csv"),
-                ] {
-                    let mut ledger = new_ledger(&ds, path, id, role, "lines");
-                    let pb = progress_bar(opts, path);
-                    csvlog::read_csv(
-                        path,
-                        kind,
-                        opts.skip_bad_lines,
-                        &mut streams,
-                        &mut ledger,
-                        &pb,
-                    )?;
-                    pb.finish_and_clear();
-                    files.push(ledger);
-                }
-            }
-        }
+        // The theodolite log is read on its own thread while the acquisition log is: it is
+        // independent of it, and the Parquet writer is idle while the first row group fills.
         let mut ledger = new_ledger(&ds, &s.theodolite, id, "theodolite", "lines");
-        let readings = theodolite::read_theodolite(
-            s,
-            opts.skip_bad_lines,
-            &mut ledger,
-            &indicatif::ProgressBar::hidden(),
-        )?;
+        let skip_bad_lines = opts.skip_bad_lines;
+        let (readings, theodolite_ledger) = std::thread::scope(|scope| {
+            let theodolite = scope.spawn(move || {
+                theodolite::read_theodolite(
+                    s,
+                    skip_bad_lines,
+                    &mut ledger,
+                    &indicatif::ProgressBar::hidden(),
+                )
+                .map(|readings| (readings, ledger))
+            });
+            let acquisition = (|| -> Result<()> {
+                match &s.acquisition {
+                    Acquisition::Binary(path) => {
+                        let mut ledger = new_ledger(&ds, path, id, "acquisition", "frames");
+                        let pb = progress_bar(opts, path);
+                        read_binary(
+                            path,
+                            time::week_of_date(s.date),
+                            &mut streams,
+                            &mut ledger,
+                            &pb,
+                        )?;
+                        pb.finish_and_clear();
+                        files.push(ledger);
+                    }
+                    Acquisition::Csv { adc, temperature } => {
+                        for (path, kind, role) in [
+                            (adc, csvlog::CsvKind::Adc, "adc_csv"),
+                            (temperature, csvlog::CsvKind::Temperature, "temperature_csv"),
+                        ] {
+                            let mut ledger = new_ledger(&ds, path, id, role, "lines");
+                            let pb = progress_bar(opts, path);
+                            csvlog::read_csv(
+                                path,
+                                kind,
+                                opts.skip_bad_lines,
+                                &mut streams,
+                                &mut ledger,
+                                &pb,
+                            )?;
+                            pb.finish_and_clear();
+                            files.push(ledger);
+                        }
+                    }
+                }
+                Ok(())
+            })();
+            let readings = theodolite.join().map_err(|_| {
+                Error::io(
+                    &s.theodolite,
+                    std::io::Error::other("the theodolite reading thread panicked"),
+                )
+            })?;
+            acquisition?;
+            readings
+        })?;
         theo.write(
             id,
             s.session.theodolite_unit,
             s.session.theodolite_time_scale,
             &readings,
         )?;
-        files.push(ledger);
+        files.push(theodolite_ledger);
         let st = streams.stats()?;
         sessions.push(SessionSummary {
             id: id.to_owned(),

@@ -167,7 +167,7 @@ impl StreamWriter {
             schema::temperature::schema(sessions),
             Encodings::default(),
         )?;
-        // Two row groups queued (about 25 MB) keep both threads busy.
+        // Two row groups queued keep both threads busy.
         let (tx, rx) = sync_channel(2);
         let writer = std::thread::Builder::new()
             .name("parquet-writer".to_owned())
