@@ -35,13 +35,63 @@ pub const ROWS_PER_BATCH: usize = 1 << 16;
 /// and to the writer starting late and finishing alone.
 pub const STREAM_ROWS_PER_GROUP: usize = 1 << 17;
 
+/// A table's file while it is written: under `.name.partial`, renamed into place by
+/// [`PartialFile::commit`], removed if dropped before.
+struct PartialFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    committed: bool,
+}
+
+impl PartialFile {
+    /// Creates `dir/.file.partial`; returns it and a buffered writer to it.
+    fn create(dir: &Path, file: &str) -> Result<(Self, BufWriter<File>)> {
+        let tmp = dir.join(format!(".{file}.partial"));
+        let f = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        let partial = PartialFile {
+            path: dir.join(file),
+            tmp,
+            committed: false,
+        };
+        Ok((partial, BufWriter::with_capacity(1 << 20, f)))
+    }
+
+    fn parquet_error(&self, source: ParquetError) -> Error {
+        Error::Parquet {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
+    /// Flushes what the Parquet writer handed back (after writing the footer), syncs it to
+    /// disk and renames it into place.
+    fn commit(&mut self, inner: parquet::errors::Result<BufWriter<File>>) -> Result<()> {
+        let f = inner
+            .map_err(|e| self.parquet_error(e))?
+            .into_inner()
+            .map_err(|e| Error::io(&self.tmp, e.into_error()))?;
+        f.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for PartialFile {
+    fn drop(&mut self) {
+        if !self.committed {
+            // Not finished: leave no partial file behind.
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
 /// A Parquet table being written.
 pub struct TableWriter {
     table: &'static str,
-    path: PathBuf,
-    tmp: PathBuf,
+    file: PartialFile,
     schema: SchemaRef,
-    writer: Option<ArrowWriter<BufWriter<File>>>,
+    writer: ArrowWriter<BufWriter<File>>,
     rows: u64,
 }
 
@@ -95,24 +145,14 @@ impl TableWriter {
         schema: SchemaRef,
         encodings: Encodings<'_>,
     ) -> Result<Self> {
-        let path = dir.join(file);
-        let tmp = dir.join(format!(".{file}.partial"));
-        let f = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
-        let writer = ArrowWriter::try_new(
-            BufWriter::with_capacity(1 << 20, f),
-            schema.clone(),
-            Some(properties(encodings)),
-        )
-        .map_err(|source| Error::Parquet {
-            path: path.clone(),
-            source,
-        })?;
+        let (file, f) = PartialFile::create(dir, file)?;
+        let writer = ArrowWriter::try_new(f, schema.clone(), Some(properties(encodings)))
+            .map_err(|e| file.parquet_error(e))?;
         Ok(TableWriter {
             table,
-            path,
-            tmp,
+            file,
             schema,
-            writer: Some(writer),
+            writer,
             rows: 0,
         })
     }
@@ -125,35 +165,16 @@ impl TableWriter {
                 source,
             })?;
         self.rows += batch.num_rows() as u64;
-        if let Some(w) = self.writer.as_mut() {
-            w.write(&batch).map_err(|source| Error::Parquet {
-                path: self.path.clone(),
-                source,
-            })?;
-        }
-        Ok(())
+        self.writer
+            .write(&batch)
+            .map_err(|e| self.file.parquet_error(e))
     }
 
     /// Closes the file and renames it to its final name; returns the rows written.
     pub fn finish(mut self) -> Result<u64> {
-        if let Some(w) = self.writer.take() {
-            let inner = w.into_inner().map_err(|source| Error::Parquet {
-                path: self.path.clone(),
-                source,
-            })?;
-            commit(inner, &self.tmp, &self.path)?;
-        }
+        self.file.commit(self.writer.into_inner())?;
         Ok(self.rows)
     }
-}
-
-/// Flushes, syncs and renames a finished table into place.
-fn commit(inner: BufWriter<File>, tmp: &Path, path: &Path) -> Result<()> {
-    let f = inner
-        .into_inner()
-        .map_err(|e| Error::io(tmp, e.into_error()))?;
-    f.sync_all().map_err(|e| Error::io(tmp, e))?;
-    std::fs::rename(tmp, path).map_err(|e| Error::io(path, e))
 }
 
 /// One column of a row group in the type Parquet stores it as (`UInt8`, `UInt16` and
@@ -173,9 +194,8 @@ pub enum ColumnValues {
 /// stored in the file as `ArrowWriter` stores it, so Arrow readers see the same types.
 pub struct ColumnTableWriter {
     table: &'static str,
-    path: PathBuf,
-    tmp: PathBuf,
-    writer: Option<SerializedFileWriter<BufWriter<File>>>,
+    file: PartialFile,
+    writer: SerializedFileWriter<BufWriter<File>>,
     rows: u64,
 }
 
@@ -188,42 +208,26 @@ impl ColumnTableWriter {
         schema: SchemaRef,
         encodings: Encodings<'_>,
     ) -> Result<Self> {
-        let path = dir.join(file);
-        let tmp = dir.join(format!(".{file}.partial"));
-        let parquet_error = |source| Error::Parquet {
-            path: path.clone(),
-            source,
-        };
+        let (file, f) = PartialFile::create(dir, file)?;
         let mut props = properties(encodings);
         add_encoded_arrow_schema_to_metadata(&schema, &mut props);
         let descriptor = ArrowSchemaConverter::new()
             .convert(&schema)
-            .map_err(parquet_error)?;
-        let f = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
-        let writer = SerializedFileWriter::new(
-            BufWriter::with_capacity(1 << 20, f),
-            descriptor.root_schema_ptr(),
-            Arc::new(props),
-        )
-        .map_err(parquet_error)?;
+            .map_err(|e| file.parquet_error(e))?;
+        let writer = SerializedFileWriter::new(f, descriptor.root_schema_ptr(), Arc::new(props))
+            .map_err(|e| file.parquet_error(e))?;
         Ok(ColumnTableWriter {
             table,
-            path,
-            tmp,
-            writer: Some(writer),
+            file,
+            writer,
             rows: 0,
         })
     }
 
     /// Writes one row group of `rows` rows; `columns` in schema order.
     pub fn write_row_group(&mut self, rows: usize, columns: &[ColumnValues]) -> Result<()> {
-        let parquet_error = |source| Error::Parquet {
-            path: self.path.clone(),
-            source,
-        };
-        let Some(w) = self.writer.as_mut() else {
-            return Ok(());
-        };
+        let parquet_error = |e| self.file.parquet_error(e);
+        let w = &mut self.writer;
         let schema = w.schema_descr();
         if columns.len() != schema.num_columns() {
             return Err(parquet_error(ParquetError::General(format!(
@@ -255,13 +259,7 @@ impl ColumnTableWriter {
 
     /// Closes the file and renames it to its final name; returns the rows written.
     pub fn finish(mut self) -> Result<u64> {
-        if let Some(w) = self.writer.take() {
-            let inner = w.into_inner().map_err(|source| Error::Parquet {
-                path: self.path.clone(),
-                source,
-            })?;
-            commit(inner, &self.tmp, &self.path)?;
-        }
+        self.file.commit(self.writer.into_inner())?;
         Ok(self.rows)
     }
 }
@@ -294,24 +292,6 @@ fn encode_column(
         }
     };
     Ok((sink.into_inner()?.into(), close))
-}
-
-impl Drop for ColumnTableWriter {
-    fn drop(&mut self) {
-        if self.writer.is_some() {
-            // Not finished: leave no partial file behind.
-            let _ = std::fs::remove_file(&self.tmp);
-        }
-    }
-}
-
-impl Drop for TableWriter {
-    fn drop(&mut self) {
-        if self.writer.is_some() {
-            // Not finished: leave no partial file behind.
-            let _ = std::fs::remove_file(&self.tmp);
-        }
-    }
 }
 
 /// A session column of `n` rows, dictionary-encoded.
