@@ -22,7 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .nth(1)
         .ok_or("usage: encodings TABLE.parquet")?;
     let reader = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path)?)?
-        .with_batch_size(ingest::table::ROWS_PER_BATCH)
+        .with_batch_size(1 << 16)
         .build()?;
     let batches = reader.collect::<Result<Vec<RecordBatch>, _>>()?;
     let first = batches.first().ok_or("empty table")?;

@@ -104,11 +104,11 @@ enum Message {
     /// A row group: rows and columns.
     Acceleration(usize, Vec<ColumnValues>),
     Temperature(usize, Vec<ColumnValues>),
-    /// All batches sent: close the files and rename them into place.
+    /// All row groups sent: close the files and rename them into place.
     Finish,
 }
 
-/// The writer thread: writes batches until told to finish. If the sender goes away without
+/// The writer thread: writes row groups until told to finish. If the sender goes away without
 /// `Finish` (the reading failed), the tables are dropped and their partial files removed.
 fn write_tables(
     mut acceleration: ColumnTableWriter,

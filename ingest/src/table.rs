@@ -27,8 +27,6 @@ use std::sync::Arc;
 
 /// Rows per Parquet row group.
 pub const ROWS_PER_GROUP: usize = 1 << 20;
-/// Rows per Arrow batch handed to the writer (small enough to stay in cache).
-pub const ROWS_PER_BATCH: usize = 1 << 16;
 /// Rows per row group of the sample streams ([`ColumnTableWriter`]), which are buffered
 /// whole: about 3 MB of acceleration samples. Measured with `cargo xtask bench ingest`:
 /// 2^16 loses a fifth of the speed to per-column overheads, 2^19 a tenth to page faults
