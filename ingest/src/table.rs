@@ -28,9 +28,10 @@ use std::sync::Arc;
 /// Rows per Parquet row group.
 pub const ROWS_PER_GROUP: usize = 1 << 20;
 /// Rows per row group of the sample streams ([`ColumnTableWriter`]), which are buffered
-/// whole: about 3 MB of acceleration samples. Measured with `cargo xtask bench ingest`:
-/// 2^16 loses a fifth of the speed to per-column overheads, 2^19 a tenth to page faults
-/// and to the writer starting late and finishing alone.
+/// whole: about 3 MB of acceleration samples. Timing the release binary on the 250 Hz
+/// benchmark day (best of 7; runs here scatter by about 15 %), 2^16 lost about a fifth of
+/// the speed to per-column overheads and 2^19 about a tenth, to page faults and to the
+/// writer starting late and finishing alone.
 pub const STREAM_ROWS_PER_GROUP: usize = 1 << 17;
 
 /// A table's file while it is written: under `.name.partial`, renamed into place by
@@ -101,7 +102,7 @@ pub struct Encodings<'a> {
     /// Integer columns that change little from row to row: delta-encoded.
     pub delta: &'a [&'a str],
     /// Columns left uncompressed: delta-encoded noisy counts, which zstd shrinks by 2% at
-    /// a fifth of their encoding time.
+    /// a quarter of their encoding time (`examples/encodings.rs`).
     pub uncompressed: &'a [&'a str],
     /// Columns without min/max statistics: raw counts, on which nobody filters, where
     /// computing them is a tenth of the writing.
