@@ -19,6 +19,7 @@
 //! ```
 
 mod csvlog;
+pub mod encoding;
 mod error;
 pub mod gcb;
 pub mod ledger;

@@ -6,7 +6,7 @@ use crate::schema;
 use crate::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP};
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
 use std::thread::JoinHandle;
 
 /// Status bit: channel `ch` (0-based) over range.
@@ -108,16 +108,22 @@ enum Message {
     Finish,
 }
 
-/// The writer thread: writes row groups until told to finish. If the sender goes away without
-/// `Finish` (the reading failed), the tables are dropped and their partial files removed.
+/// The writer thread: writes row groups until told to finish, and hands the acceleration
+/// columns' buffers back for the next row groups. If the sender goes away without `Finish`
+/// (the reading failed), the tables are dropped and their partial files removed.
 fn write_tables(
     mut acceleration: ColumnTableWriter,
     mut temperature: ColumnTableWriter,
     rx: Receiver<Message>,
+    spent: Sender<Vec<ColumnValues>>,
 ) -> Result<(u64, u64)> {
     for m in rx {
         match m {
-            Message::Acceleration(rows, cols) => acceleration.write_row_group(rows, &cols)?,
+            Message::Acceleration(rows, cols) => {
+                acceleration.write_row_group(rows, &cols)?;
+                // The reader may have gone; then the buffers are simply freed.
+                let _ = spent.send(cols);
+            }
             Message::Temperature(rows, cols) => temperature.write_row_group(rows, &cols)?,
             Message::Finish => return Ok((acceleration.finish()?, temperature.finish()?)),
         }
@@ -140,6 +146,67 @@ pub struct StreamWriter {
     nulls: [[u64; 3]; 3],
     acc: AccelerationColumns,
     temp: Columns<f64>,
+    /// Row groups' columns back from the writer, and their buffers kept for reuse: fresh
+    /// buffers for every row group cost a page fault per 4 KiB written to them.
+    spent: Receiver<Vec<ColumnValues>>,
+    spare: Spare,
+}
+
+/// Buffers of written row groups, cleared, for the next ones.
+#[derive(Default)]
+struct Spare {
+    int32: Vec<Vec<i32>>,
+    int64: Vec<Vec<i64>>,
+    levels: Vec<Vec<i16>>,
+}
+
+impl Spare {
+    /// At most this many buffers of each kind are kept: a row group's worth for each queued
+    /// and each written group.
+    const KEEP: usize = 24;
+
+    fn keep(&mut self, columns: Vec<ColumnValues>) {
+        fn put<T>(pool: &mut Vec<Vec<T>>, mut v: Vec<T>) {
+            if pool.len() < Spare::KEEP && v.capacity() >= STREAM_ROWS_PER_GROUP {
+                v.clear();
+                pool.push(v);
+            }
+        }
+        for c in columns {
+            let levels = match c {
+                ColumnValues::Int32(v, l) => {
+                    put(&mut self.int32, v);
+                    l
+                }
+                ColumnValues::Int64(v, l) => {
+                    put(&mut self.int64, v);
+                    l
+                }
+                ColumnValues::Double(_, l) => l,
+            };
+            if let Some(l) = levels {
+                put(&mut self.levels, l);
+            }
+        }
+    }
+
+    fn int32(&mut self) -> Vec<i32> {
+        self.int32
+            .pop()
+            .unwrap_or_else(|| Vec::with_capacity(STREAM_ROWS_PER_GROUP))
+    }
+
+    fn int64(&mut self) -> Vec<i64> {
+        self.int64
+            .pop()
+            .unwrap_or_else(|| Vec::with_capacity(STREAM_ROWS_PER_GROUP))
+    }
+
+    fn levels(&mut self) -> Vec<i16> {
+        self.levels
+            .pop()
+            .unwrap_or_else(|| Vec::with_capacity(STREAM_ROWS_PER_GROUP))
+    }
 }
 
 impl StreamWriter {
@@ -151,11 +218,19 @@ impl StreamWriter {
             "acceleration",
             schema::acceleration::schema(sessions),
             // Measured on a 250 Hz day (`cargo run --release -p ingest --example
-            // encodings`): session and status, nearly constant, cost least plain and
-            // zstd-compressed; the counts least delta-encoded and not compressed.
+            // encodings`): the counts cost least delta-encoded and not compressed. Session
+            // and status, nearly constant, are delta-encoded too, by ingest's own encoder
+            // (`table::encode_delta_column`), which costs less than parquet-rs's plain
+            // encoding and zstd on 4 bytes a row; zstd then shrinks them to almost nothing.
             Encodings {
                 dictionary: &[],
-                delta: &schema::acceleration::COUNTS,
+                delta: &[
+                    schema::SESSION_INDEX,
+                    schema::acceleration::COUNTS[0],
+                    schema::acceleration::COUNTS[1],
+                    schema::acceleration::COUNTS[2],
+                    schema::STATUS,
+                ],
                 uncompressed: &schema::acceleration::COUNTS,
                 no_statistics: &schema::acceleration::COUNTS,
             },
@@ -169,9 +244,10 @@ impl StreamWriter {
         )?;
         // Two row groups queued keep both threads busy.
         let (tx, rx) = sync_channel(2);
+        let (spent_tx, spent) = channel();
         let writer = std::thread::Builder::new()
             .name("parquet-writer".to_owned())
-            .spawn(move || write_tables(acceleration, temperature, rx))
+            .spawn(move || write_tables(acceleration, temperature, rx, spent_tx))
             .map_err(|e| Error::io(dir, e))?;
         Ok(StreamWriter {
             to_writer: Some(tx),
@@ -181,6 +257,8 @@ impl StreamWriter {
             nulls: [[0; 3]; 3],
             acc: AccelerationColumns::with_capacity(STREAM_ROWS_PER_GROUP),
             temp: Columns::default(),
+            spent,
+            spare: Spare::default(),
         })
     }
 
@@ -264,14 +342,21 @@ impl StreamWriter {
         let Some((&first, &last)) = self.acc.time.first().zip(self.acc.time.last()) else {
             return Ok(());
         };
+        for columns in self.spent.try_iter() {
+            self.spare.keep(columns);
+        }
+        let spare = &mut self.spare;
+        let next = AccelerationColumns {
+            time: spare.int64(),
+            counts: std::array::from_fn(|_| spare.int32()),
+            // The status bits stay here: given back below once copied into the column.
+            status: Vec::new(),
+        };
         let AccelerationColumns {
             time,
             counts,
-            status,
-        } = std::mem::replace(
-            &mut self.acc,
-            AccelerationColumns::with_capacity(STREAM_ROWS_PER_GROUP),
-        );
+            mut status,
+        } = std::mem::replace(&mut self.acc, next);
         let n = time.len();
         self.stats.acceleration += n as u64;
         self.stats.first_gps_ns.get_or_insert(first);
@@ -279,13 +364,17 @@ impl StreamWriter {
         // Nearly always no status bit is set in a whole row group: nothing to look at per row.
         let any_bit = status.iter().fold(0u8, |a, &s| a | s);
         let mut cols = Vec::with_capacity(6);
-        cols.push(session_values(self.session, n));
+        let mut session = self.spare.int32();
+        session.resize(n, i32::from(self.session));
+        cols.push(ColumnValues::Int32(session, None));
         cols.push(ColumnValues::Int64(time, None));
         for (ch, values) in counts.into_iter().enumerate() {
             let (nc, or) = (not_connected_bit(ch), over_range_bit(ch));
             let (values, levels) = if any_bit & (nc | or) == 0 {
                 self.stats.connected_seen[ch] = true;
-                (values, vec![1; n])
+                let mut levels = self.spare.levels();
+                levels.resize(n, 1);
+                (values, levels)
             } else {
                 let valid: Vec<bool> = status
                     .iter()
@@ -306,7 +395,11 @@ impl StreamWriter {
             };
             cols.push(ColumnValues::Int32(values, Some(levels)));
         }
-        cols.push(status_values(&status));
+        let mut status_column = self.spare.int32();
+        status_column.extend(status.iter().map(|&s| i32::from(s)));
+        cols.push(ColumnValues::Int32(status_column, None));
+        status.clear();
+        self.acc.status = status;
         self.send(Message::Acceleration(n, cols))
     }
 

@@ -8,14 +8,24 @@
 //! writing. It encodes a row group's columns in parallel, into memory, and then appends
 //! them to the file in schema order, so the bytes do not depend on the threads.
 
+use crate::encoding::{self, DeltaValue};
 use crate::error::{Error, Result};
 use arrow::array::{ArrayRef, DictionaryArray, Int32Array, RecordBatch, StringArray};
 use arrow::datatypes::{Int32Type, SchemaRef};
 use parquet::arrow::{ArrowSchemaConverter, ArrowWriter, add_encoded_arrow_schema_to_metadata};
-use parquet::basic::{Compression, Encoding, ZstdLevel};
+use parquet::basic::{
+    BoundaryOrder, Compression, Encoding, EncodingMask, PageType, Type, ZstdLevel,
+};
+use parquet::column::page::{CompressedPage, Page, PageWriter};
 use parquet::column::writer::{ColumnCloseResult, ColumnWriter, get_column_writer};
 use parquet::errors::ParquetError;
-use parquet::file::properties::{EnabledStatistics, WriterProperties, WriterPropertiesPtr};
+use parquet::file::metadata::{
+    ColumnChunkMetaData, ColumnIndexBuilder, OffsetIndexBuilder, PageEncodingStats,
+};
+use parquet::file::properties::{
+    EnabledStatistics, WriterProperties, WriterPropertiesPtr, WriterVersion,
+};
+use parquet::file::statistics::{Statistics, ValueStatistics};
 use parquet::file::writer::{SerializedFileWriter, SerializedPageWriter, TrackedWrite};
 use parquet::schema::types::ColumnDescPtr;
 use parquet::schema::types::ColumnPath;
@@ -223,7 +233,8 @@ impl ColumnTableWriter {
         })
     }
 
-    /// Writes one row group of `rows` rows; `columns` in schema order.
+    /// Writes one row group of `rows` rows; `columns` in schema order. A group of no rows is
+    /// not written.
     pub fn write_row_group(&mut self, rows: usize, columns: &[ColumnValues]) -> Result<()> {
         let parquet_error = |e| self.file.parquet_error(e);
         let w = &mut self.writer;
@@ -235,6 +246,9 @@ impl ColumnTableWriter {
                 columns.len(),
                 schema.num_columns()
             ))));
+        }
+        if rows == 0 {
+            return Ok(());
         }
         let props = w.properties().clone();
         let encoded = columns
@@ -263,12 +277,29 @@ impl ColumnTableWriter {
     }
 }
 
+/// Rows per data page of the columns ingest delta-encodes itself ([`encode_delta_column`]):
+/// a multiple of the 128-value block, near parquet-rs's default of 20 000 rows.
+pub const DELTA_PAGE_ROWS: usize = 1 << 14;
+
 /// Encodes one column chunk into memory: its bytes and what closing its writer reported.
+/// Delta-encoded integer columns are encoded here ([`encode_delta_column`]), the others by
+/// parquet-rs's column writers.
 fn encode_column(
     descr: ColumnDescPtr,
     props: WriterPropertiesPtr,
     values: &ColumnValues,
 ) -> parquet::errors::Result<(bytes::Bytes, ColumnCloseResult)> {
+    if own_delta(&descr, &props) {
+        match values {
+            ColumnValues::Int32(v, d) if descr.physical_type() == Type::INT32 => {
+                return encode_delta_column(&descr, &props, v, d.as_deref());
+            }
+            ColumnValues::Int64(v, d) if descr.physical_type() == Type::INT64 => {
+                return encode_delta_column(&descr, &props, v, d.as_deref());
+            }
+            _ => {}
+        }
+    }
     let mut sink = TrackedWrite::new(Vec::new());
     let pages = Box::new(SerializedPageWriter::new(&mut sink));
     let close = match (get_column_writer(descr, props, pages), values) {
@@ -289,6 +320,229 @@ fn encode_column(
                 "the values are not of the column's type".to_owned(),
             ));
         }
+    };
+    Ok((sink.into_inner()?.into(), close))
+}
+
+/// Whether [`encode_delta_column`] writes this column: delta-encoded, flat (definition
+/// level at most 1), no dictionary or bloom filter, uncompressed or zstd, version 1 pages.
+fn own_delta(descr: &ColumnDescPtr, props: &WriterPropertiesPtr) -> bool {
+    let path = descr.path();
+    props.encoding(path) == Some(Encoding::DELTA_BINARY_PACKED)
+        && !props.dictionary_enabled(path)
+        && props.bloom_filter_properties(path).is_none()
+        && props.writer_version() == WriterVersion::PARQUET_1_0
+        && descr.max_rep_level() == 0
+        && descr.max_def_level() <= 1
+        && matches!(
+            props.compression(path),
+            Compression::UNCOMPRESSED | Compression::ZSTD(_)
+        )
+}
+
+/// An integer column type [`encode_delta_column`] writes: its statistics and its plain bytes.
+trait DeltaColumn: DeltaValue + Ord {
+    /// Chunk statistics: min and max (none if every value is null) and the null count.
+    fn statistics(min_max: Option<(Self, Self)>, nulls: u64) -> Statistics;
+    /// The value's PLAIN encoding, as the column index stores min and max.
+    fn plain(self) -> Vec<u8>;
+}
+
+impl DeltaColumn for i32 {
+    fn statistics(min_max: Option<(Self, Self)>, nulls: u64) -> Statistics {
+        let (min, max) = min_max.unzip();
+        ValueStatistics::new(min, max, None, Some(nulls), false)
+            .with_backwards_compatible_min_max(true)
+            .into()
+    }
+    fn plain(self) -> Vec<u8> {
+        self.to_le_bytes().to_vec()
+    }
+}
+
+impl DeltaColumn for i64 {
+    fn statistics(min_max: Option<(Self, Self)>, nulls: u64) -> Statistics {
+        let (min, max) = min_max.unzip();
+        ValueStatistics::new(min, max, None, Some(nulls), false)
+            .with_backwards_compatible_min_max(true)
+            .into()
+    }
+    fn plain(self) -> Vec<u8> {
+        self.to_le_bytes().to_vec()
+    }
+}
+
+/// The number of levels of 1 among levels that are 0 or 1.
+fn ones(levels: &[i16]) -> usize {
+    levels.iter().map(|&l| l as usize).sum()
+}
+
+/// Writes a delta-encoded integer column chunk as parquet-rs's column writer would, with
+/// ingest's own encoders ([`crate::encoding`]): version 1 data pages of
+/// [`DELTA_PAGE_ROWS`] rows, definition levels RLE-encoded, values DELTA_BINARY_PACKED,
+/// zstd-compressed if the column is; the offset index; and, where statistics are enabled,
+/// the chunk's min, max and null count and a column index of each page's. Not written (they
+/// are optional): page header statistics and level histograms.
+fn encode_delta_column<T: DeltaColumn>(
+    descr: &ColumnDescPtr,
+    props: &WriterPropertiesPtr,
+    values: &[T],
+    levels: Option<&[i16]>,
+) -> parquet::errors::Result<(bytes::Bytes, ColumnCloseResult)> {
+    let path = descr.path();
+    let nullable = descr.max_def_level() == 1;
+    let rows = match levels {
+        Some(l) if nullable => {
+            // All levels 0 or 1 exactly when their bits ORed (negative ones all set) are.
+            if l.iter().fold(0u16, |a, &l| a | l as u16) > 1
+                && let Some(bad) = l.iter().find(|&&l| l != 0 && l != 1)
+            {
+                return Err(ParquetError::General(format!(
+                    "definition level {bad} in a column whose maximum is 1"
+                )));
+            }
+            let defined = ones(l);
+            if defined != values.len() {
+                return Err(ParquetError::General(format!(
+                    "{} values for {defined} definition levels of 1",
+                    values.len()
+                )));
+            }
+            l.len()
+        }
+        Some(_) => {
+            return Err(ParquetError::General(
+                "definition levels for a required column".to_owned(),
+            ));
+        }
+        None if nullable => {
+            return Err(ParquetError::General(
+                "a nullable column needs definition levels".to_owned(),
+            ));
+        }
+        None => values.len(),
+    };
+    let mut zstd = match props.compression(path) {
+        Compression::ZSTD(level) => Some(
+            zstd::bulk::Compressor::new(level.compression_level())
+                .map_err(|e| ParquetError::External(Box::new(e)))?,
+        ),
+        _ => None,
+    };
+    let statistics = props.statistics_enabled(path);
+    let mut column_index = (statistics == EnabledStatistics::Page)
+        .then(|| ColumnIndexBuilder::new(descr.physical_type()));
+    let mut offset_index = (!props.offset_index_disabled()).then(OffsetIndexBuilder::new);
+    let (mut ascending, mut descending) = (true, true);
+    let mut last_page: Option<(T, T)> = None;
+    let mut chunk: Option<(T, T)> = None;
+
+    let mut sink = TrackedWrite::new(Vec::new());
+    let mut pages = SerializedPageWriter::new(&mut sink);
+    let (mut compressed, mut uncompressed, mut written, mut page_count) = (0u64, 0u64, 0, 0);
+    let mut buf = Vec::new();
+    let mut next_value = 0;
+    for first_row in (0..rows).step_by(DELTA_PAGE_ROWS) {
+        let page_rows = DELTA_PAGE_ROWS.min(rows - first_row);
+        buf.clear();
+        let page_values = match levels {
+            Some(l) => {
+                let l = &l[first_row..first_row + page_rows];
+                encoding::put_levels(l, &mut buf);
+                ones(l)
+            }
+            None => page_rows,
+        };
+        let page_values = &values[next_value..next_value + page_values];
+        next_value += page_values.len();
+        encoding::put_delta(page_values, &mut buf);
+        let nulls = (page_rows - page_values.len()) as i64;
+        let min_max = match page_values.split_first() {
+            Some((&v, rest)) if statistics != EnabledStatistics::None => Some(
+                rest.iter()
+                    .fold((v, v), |(lo, hi), &v| (lo.min(v), hi.max(v))),
+            ),
+            _ => None,
+        };
+        if let Some((lo, hi)) = min_max {
+            chunk = Some(chunk.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+            if let Some((plo, phi)) = last_page {
+                ascending &= plo <= lo && phi <= hi;
+                descending &= plo >= lo && phi >= hi;
+            }
+            last_page = Some((lo, hi));
+        }
+        if let Some(ci) = column_index.as_mut() {
+            match min_max {
+                Some((lo, hi)) => ci.append(false, lo.plain(), hi.plain(), nulls, None),
+                None => ci.append(true, Vec::new(), Vec::new(), nulls, None),
+            }
+        }
+        let uncompressed_size = buf.len();
+        let data = match zstd.as_mut() {
+            Some(z) => z
+                .compress(&buf)
+                .map_err(|e| ParquetError::External(Box::new(e)))?,
+            None => std::mem::take(&mut buf),
+        };
+        let page = Page::DataPage {
+            buf: data.into(),
+            num_values: page_rows as u32,
+            encoding: Encoding::DELTA_BINARY_PACKED,
+            def_level_encoding: Encoding::RLE,
+            rep_level_encoding: Encoding::RLE,
+            statistics: None,
+        };
+        let spec = pages.write_page(CompressedPage::new(page, uncompressed_size))?;
+        if let Some(oi) = offset_index.as_mut() {
+            oi.append_offset_and_size(spec.offset as i64, spec.compressed_size as i32);
+            oi.append_row_count(page_rows as i64);
+        }
+        compressed += spec.compressed_size as u64;
+        uncompressed += spec.uncompressed_size as u64;
+        written += spec.bytes_written;
+        page_count += 1;
+    }
+    pages.close()?;
+
+    let mut metadata = ColumnChunkMetaData::builder(descr.clone())
+        .set_compression(props.compression(path))
+        .set_encodings_mask(EncodingMask::new_from_encodings(
+            [Encoding::RLE, Encoding::DELTA_BINARY_PACKED].iter(),
+        ))
+        .set_page_encoding_stats(vec![PageEncodingStats {
+            page_type: PageType::DATA_PAGE,
+            encoding: Encoding::DELTA_BINARY_PACKED,
+            count: page_count,
+        }])
+        .set_total_compressed_size(compressed as i64)
+        .set_total_uncompressed_size(uncompressed as i64)
+        .set_num_values(rows as i64)
+        .set_data_page_offset(0);
+    if statistics != EnabledStatistics::None {
+        let nulls = (rows - values.len()) as u64;
+        metadata = metadata.set_statistics(T::statistics(chunk, nulls));
+    }
+    let column_index = match column_index {
+        Some(mut ci) => {
+            ci.set_boundary_order(if ascending {
+                BoundaryOrder::ASCENDING
+            } else if descending {
+                BoundaryOrder::DESCENDING
+            } else {
+                BoundaryOrder::UNORDERED
+            });
+            Some(ci.build()?)
+        }
+        None => None,
+    };
+    let close = ColumnCloseResult {
+        bytes_written: written,
+        rows_written: rows as u64,
+        metadata: metadata.build()?,
+        bloom_filter: None,
+        column_index,
+        offset_index: offset_index.map(OffsetIndexBuilder::build),
     };
     Ok((sink.into_inner()?.into(), close))
 }
