@@ -234,6 +234,17 @@ pub fn put_levels(levels: &[i16], out: &mut Vec<u8>) {
     out[start..start + 4].copy_from_slice(&len.to_le_bytes());
 }
 
+/// Appends the definition levels of `n` rows that all have a value, as [`put_levels`]
+/// would: one RLE run.
+pub fn put_all_defined(n: usize, out: &mut Vec<u8>) {
+    let start = out.len();
+    out.extend_from_slice(&[0; 4]);
+    put_varint(out, (n as u64) << 1);
+    out.push(1);
+    let len = (out.len() - start - 4) as u32;
+    out[start..start + 4].copy_from_slice(&len.to_le_bytes());
+}
+
 /// The run being built by [`put_levels`]: an RLE run (value and count) or bit-packed groups.
 #[derive(Default)]
 struct Hybrid {
@@ -318,6 +329,9 @@ mod tests {
     fn levels_hybrid_runs() {
         let mut out = Vec::new();
         put_levels(&[1; 20], &mut out);
+        assert_eq!(out, [2, 0, 0, 0, 40, 1]);
+        out.clear();
+        put_all_defined(20, &mut out);
         assert_eq!(out, [2, 0, 0, 0, 40, 1]);
         out.clear();
         put_levels(&[1, 0, 1], &mut out);

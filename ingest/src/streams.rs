@@ -61,10 +61,10 @@ impl AccelerationColumns {
 }
 
 /// A nullable column from all its values and their validity: the non-null values and the
-/// definition levels.
-fn nullable<T: Copy>(values: Vec<T>, valid: &[bool]) -> (Vec<T>, Vec<i16>) {
+/// definition levels (none if every value is valid).
+fn nullable<T: Copy>(values: Vec<T>, valid: &[bool]) -> (Vec<T>, Option<Vec<i16>>) {
     if valid.iter().all(|&v| v) {
-        return (values, vec![1; valid.len()]);
+        return (values, None);
     }
     let levels = valid.iter().map(|&v| i16::from(v)).collect();
     let kept = values
@@ -72,7 +72,7 @@ fn nullable<T: Copy>(values: Vec<T>, valid: &[bool]) -> (Vec<T>, Vec<i16>) {
         .zip(valid)
         .filter_map(|(x, &v)| v.then_some(x))
         .collect();
-    (kept, levels)
+    (kept, Some(levels))
 }
 
 /// The session index, stored as Parquet INT32 (UInt16 in the Arrow schema).
@@ -157,7 +157,6 @@ pub struct StreamWriter {
 struct Spare {
     int32: Vec<Vec<i32>>,
     int64: Vec<Vec<i64>>,
-    levels: Vec<Vec<i16>>,
 }
 
 impl Spare {
@@ -173,19 +172,10 @@ impl Spare {
             }
         }
         for c in columns {
-            let levels = match c {
-                ColumnValues::Int32(v, l) => {
-                    put(&mut self.int32, v);
-                    l
-                }
-                ColumnValues::Int64(v, l) => {
-                    put(&mut self.int64, v);
-                    l
-                }
-                ColumnValues::Double(_, l) => l,
-            };
-            if let Some(l) = levels {
-                put(&mut self.levels, l);
+            match c {
+                ColumnValues::Int32(v, _) => put(&mut self.int32, v),
+                ColumnValues::Int64(v, _) => put(&mut self.int64, v),
+                ColumnValues::Double(..) => {}
             }
         }
     }
@@ -198,12 +188,6 @@ impl Spare {
 
     fn int64(&mut self) -> Vec<i64> {
         self.int64
-            .pop()
-            .unwrap_or_else(|| Vec::with_capacity(STREAM_ROWS_PER_GROUP))
-    }
-
-    fn levels(&mut self) -> Vec<i16> {
-        self.levels
             .pop()
             .unwrap_or_else(|| Vec::with_capacity(STREAM_ROWS_PER_GROUP))
     }
@@ -372,9 +356,7 @@ impl StreamWriter {
             let (nc, or) = (not_connected_bit(ch), over_range_bit(ch));
             let (values, levels) = if any_bit & (nc | or) == 0 {
                 self.stats.connected_seen[ch] = true;
-                let mut levels = self.spare.levels();
-                levels.resize(n, 1);
-                (values, levels)
+                (values, None)
             } else {
                 let valid: Vec<bool> = status
                     .iter()
@@ -393,7 +375,7 @@ impl StreamWriter {
                     .collect();
                 nullable(values, &valid)
             };
-            cols.push(ColumnValues::Int32(values, Some(levels)));
+            cols.push(ColumnValues::Int32(values, levels));
         }
         let mut status_column = self.spare.int32();
         status_column.extend(status.iter().map(|&s| i32::from(s)));
@@ -415,7 +397,7 @@ impl StreamWriter {
         ];
         for (values, valid) in c.values.into_iter().zip(&c.valid) {
             let (values, levels) = nullable(values, valid);
-            cols.push(ColumnValues::Double(values, Some(levels)));
+            cols.push(ColumnValues::Double(values, levels));
         }
         cols.push(status_values(&c.status));
         self.send(Message::Temperature(n, cols))

@@ -187,8 +187,9 @@ impl TableWriter {
 }
 
 /// One column of a row group in the type Parquet stores it as (`UInt8`, `UInt16` and
-/// `Int32` as `Int32`), with definition levels if the column is nullable: one per row, 1
-/// where there is a value and 0 where it is null, `values` holding the non-null values only.
+/// `Int32` as `Int32`), with definition levels if the column is nullable and has nulls: one
+/// per row, 1 where there is a value and 0 where it is null, `values` holding the non-null
+/// values only. `None` for a nullable column: every row has a value.
 #[derive(Clone, Debug)]
 pub enum ColumnValues {
     /// INT32 values.
@@ -300,19 +301,28 @@ fn encode_column(
             _ => {}
         }
     }
+    // parquet-rs wants a level per row of a nullable column, also where all are 1.
+    let nullable = descr.max_def_level() > 0;
+    let ones: Vec<i16> = match values {
+        ColumnValues::Int32(v, None) if nullable => vec![1; v.len()],
+        ColumnValues::Int64(v, None) if nullable => vec![1; v.len()],
+        ColumnValues::Double(v, None) if nullable => vec![1; v.len()],
+        _ => Vec::new(),
+    };
+    let ones = nullable.then_some(&ones[..]);
     let mut sink = TrackedWrite::new(Vec::new());
     let pages = Box::new(SerializedPageWriter::new(&mut sink));
-    let close = match (get_column_writer(descr, props, pages), values) {
+    let close = match (get_column_writer(descr.clone(), props, pages), values) {
         (ColumnWriter::Int32ColumnWriter(mut c), ColumnValues::Int32(v, d)) => {
-            c.write_batch(v, d.as_deref(), None)?;
+            c.write_batch(v, d.as_deref().or(ones), None)?;
             c.close()?
         }
         (ColumnWriter::Int64ColumnWriter(mut c), ColumnValues::Int64(v, d)) => {
-            c.write_batch(v, d.as_deref(), None)?;
+            c.write_batch(v, d.as_deref().or(ones), None)?;
             c.close()?
         }
         (ColumnWriter::DoubleColumnWriter(mut c), ColumnValues::Double(v, d)) => {
-            c.write_batch(v, d.as_deref(), None)?;
+            c.write_batch(v, d.as_deref().or(ones), None)?;
             c.close()?
         }
         _ => {
@@ -415,11 +425,6 @@ fn encode_delta_column<T: DeltaColumn>(
                 "definition levels for a required column".to_owned(),
             ));
         }
-        None if nullable => {
-            return Err(ParquetError::General(
-                "a nullable column needs definition levels".to_owned(),
-            ));
-        }
         None => values.len(),
     };
     let mut zstd = match props.compression(path) {
@@ -450,6 +455,10 @@ fn encode_delta_column<T: DeltaColumn>(
                 let l = &l[first_row..first_row + page_rows];
                 encoding::put_levels(l, &mut buf);
                 ones(l)
+            }
+            None if nullable => {
+                encoding::put_all_defined(page_rows, &mut buf);
+                page_rows
             }
             None => page_rows,
         };
@@ -670,6 +679,52 @@ mod tests {
         assert_eq!(
             col(4).as_any().downcast_ref::<UInt8Array>(),
             Some(&UInt8Array::from(vec![0, 32, 255, 0, 32, 255]))
+        );
+    }
+
+    /// A nullable column given without levels has a value in every row, through parquet-rs's
+    /// column writer (f64) as through ingest's own (delta-encoded i32).
+    #[test]
+    fn nullable_columns_without_levels_have_no_nulls() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut w = ColumnTableWriter::create(
+            dir.path(),
+            "t.parquet",
+            "t",
+            schema(),
+            Encodings {
+                delta: &["c"],
+                ..Encodings::default()
+            },
+        )
+        .expect("create");
+        w.write_row_group(
+            2,
+            &[
+                ColumnValues::Int32(vec![1, 2], None),
+                ColumnValues::Int64(vec![3, 4], None),
+                ColumnValues::Int32(vec![5, 6], None),
+                ColumnValues::Double(vec![7.5, 8.5], None),
+                ColumnValues::Int32(vec![9, 10], None),
+            ],
+        )
+        .expect("row group");
+        w.finish().expect("finish");
+        let f = File::open(dir.path().join("t.parquet")).expect("open");
+        let batch = ParquetRecordBatchReaderBuilder::try_new(f)
+            .expect("reader")
+            .build()
+            .expect("build")
+            .next()
+            .expect("a batch")
+            .expect("batch");
+        assert_eq!(
+            batch.column(2).as_any().downcast_ref::<Int32Array>(),
+            Some(&Int32Array::from(vec![5, 6]))
+        );
+        assert_eq!(
+            batch.column(3).as_any().downcast_ref::<Float64Array>(),
+            Some(&Float64Array::from(vec![7.5, 8.5]))
         );
     }
 

@@ -42,12 +42,12 @@ fn reference_properties(group: usize) -> WriterProperties {
         .build()
 }
 
-/// A column as (values of the non-null rows, definition levels).
-fn split<T: Copy>(all: &[Option<T>]) -> (Vec<T>, Vec<i16>) {
-    (
-        all.iter().filter_map(|v| *v).collect(),
-        all.iter().map(|v| i16::from(v.is_some())).collect(),
-    )
+/// A column as (values of the non-null rows, definition levels), the levels left out if
+/// `all_given` is false and every row has a value.
+fn split<T: Copy>(all: &[Option<T>], all_given: bool) -> (Vec<T>, Option<Vec<i16>>) {
+    let levels = (all_given || all.iter().any(Option::is_none))
+        .then(|| all.iter().map(|v| i16::from(v.is_some())).collect());
+    (all.iter().filter_map(|v| *v).collect(), levels)
 }
 
 struct Table {
@@ -86,16 +86,16 @@ impl Table {
         let n = self.t.len();
         for start in (0..n).step_by(group.max(1)) {
             let end = (start + group).min(n);
-            let (c, cl) = split(&self.c[start..end]);
-            let (z, zl) = split(&self.z[start..end]);
-            let (wv, wl) = split(&self.w[start..end]);
+            let (c, cl) = split(&self.c[start..end], false);
+            let (z, zl) = split(&self.z[start..end], true);
+            let (wv, wl) = split(&self.w[start..end], false);
             w.write_row_group(
                 end - start,
                 &[
                     ColumnValues::Int64(self.t[start..end].to_vec(), None),
-                    ColumnValues::Int32(c, Some(cl)),
-                    ColumnValues::Int32(z, Some(zl)),
-                    ColumnValues::Int64(wv, Some(wl)),
+                    ColumnValues::Int32(c, cl),
+                    ColumnValues::Int32(z, zl),
+                    ColumnValues::Int64(wv, wl),
                 ],
             )
             .expect("row group");
