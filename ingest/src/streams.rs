@@ -41,21 +41,45 @@ impl<T: Default> Columns<T> {
     }
 }
 
+/// Rows of a stream row group.
+const N: usize = STREAM_ROWS_PER_GROUP;
+
 /// Acceleration samples not yet handed to the writer, as logged: which values are null
 /// follows from the status bits, worked out per row group in
-/// [`StreamWriter::flush_acceleration`] rather than per sample.
+/// [`StreamWriter::flush_acceleration`] rather than per sample. The columns are arrays of a
+/// whole row group with one count of the rows in them: a sample is stored with one bound
+/// check and one count updated, where five vectors' pushes checked and updated five.
 struct AccelerationColumns {
-    time: Vec<i64>,
-    counts: [Vec<i32>; 3],
-    status: Vec<u8>,
+    len: usize,
+    time: Box<[i64; N]>,
+    counts: [Box<[i32; N]>; 3],
+    status: Box<[u8; N]>,
+}
+
+/// A row group's array from a buffer of a written one (or a new one); what it holds is
+/// overwritten before it is read.
+fn whole<T: Copy + Default>(mut v: Vec<T>) -> Box<[T; N]> {
+    // A buffer back from the writer holds N values already: nothing to fill.
+    v.resize(N, T::default());
+    v.into_boxed_slice()
+        .try_into()
+        .unwrap_or_else(|_| unreachable!("resized to N"))
+}
+
+/// The first `n` values of a row group's array, as a column.
+fn column<T>(values: Box<[T; N]>, n: usize) -> Vec<T> {
+    let mut v = (values as Box<[T]>).into_vec();
+    v.truncate(n);
+    v
 }
 
 impl AccelerationColumns {
-    fn with_capacity(n: usize) -> Self {
+    fn new() -> Self {
         AccelerationColumns {
-            time: Vec::with_capacity(n),
-            counts: std::array::from_fn(|_| Vec::with_capacity(n)),
-            status: Vec::with_capacity(n),
+            len: 0,
+            time: whole(Vec::new()),
+            counts: std::array::from_fn(|_| whole(Vec::new())),
+            status: whole(Vec::new()),
         }
     }
 }
@@ -164,10 +188,10 @@ impl Spare {
     /// and each written group.
     const KEEP: usize = 24;
 
+    /// Keeps the buffers of a written row group, as they are (callers clear or overwrite).
     fn keep(&mut self, columns: Vec<ColumnValues>) {
-        fn put<T>(pool: &mut Vec<Vec<T>>, mut v: Vec<T>) {
+        fn put<T>(pool: &mut Vec<Vec<T>>, v: Vec<T>) {
             if pool.len() < Spare::KEEP && v.capacity() >= STREAM_ROWS_PER_GROUP {
-                v.clear();
                 pool.push(v);
             }
         }
@@ -239,7 +263,7 @@ impl StreamWriter {
             session: 0,
             stats: SessionStats::default(),
             nulls: [[0; 3]; 3],
-            acc: AccelerationColumns::with_capacity(STREAM_ROWS_PER_GROUP),
+            acc: AccelerationColumns::new(),
             temp: Columns::default(),
             spent,
             spare: Spare::default(),
@@ -282,12 +306,15 @@ impl StreamWriter {
     #[inline(always)]
     pub fn acceleration(&mut self, time_ns: i64, counts: [i32; 3], status: u8) -> Result<()> {
         let a = &mut self.acc;
-        a.time.push(time_ns);
+        // Below N: the row group is handed on as soon as it is full.
+        let i = a.len;
+        a.time[i] = time_ns;
         for (column, value) in a.counts.iter_mut().zip(counts) {
-            column.push(value);
+            column[i] = value;
         }
-        a.status.push(status);
-        if a.time.len() >= STREAM_ROWS_PER_GROUP {
+        a.status[i] = status;
+        a.len = i + 1;
+        if a.len >= N {
             self.flush_acceleration()?;
         }
         Ok(())
@@ -323,25 +350,26 @@ impl StreamWriter {
 
     #[inline(never)]
     fn flush_acceleration(&mut self) -> Result<()> {
-        let Some((&first, &last)) = self.acc.time.first().zip(self.acc.time.last()) else {
+        let n = self.acc.len;
+        if n == 0 {
             return Ok(());
-        };
+        }
+        let (first, last) = (self.acc.time[0], self.acc.time[n - 1]);
         for columns in self.spent.try_iter() {
             self.spare.keep(columns);
         }
         let spare = &mut self.spare;
-        let next = AccelerationColumns {
-            time: spare.int64(),
-            counts: std::array::from_fn(|_| spare.int32()),
-            // The status bits stay here: given back below once copied into the column.
-            status: Vec::new(),
-        };
-        let AccelerationColumns {
-            time,
-            counts,
-            mut status,
-        } = std::mem::replace(&mut self.acc, next);
-        let n = time.len();
+        let time = std::mem::replace(&mut self.acc.time, whole(spare.int64()));
+        let time = column(time, n);
+        let counts = std::array::from_fn::<_, 3, _>(|ch| {
+            column(
+                std::mem::replace(&mut self.acc.counts[ch], whole(spare.int32())),
+                n,
+            )
+        });
+        self.acc.len = 0;
+        // The status bits stay: read below, then overwritten by the next row group.
+        let status = &self.acc.status[..n];
         self.stats.acceleration += n as u64;
         self.stats.first_gps_ns.get_or_insert(first);
         self.stats.last_gps_ns = Some(last);
@@ -349,6 +377,7 @@ impl StreamWriter {
         let any_bit = status.iter().fold(0u8, |a, &s| a | s);
         let mut cols = Vec::with_capacity(6);
         let mut session = self.spare.int32();
+        session.clear();
         session.resize(n, i32::from(self.session));
         cols.push(ColumnValues::Int32(session, None));
         cols.push(ColumnValues::Int64(time, None));
@@ -378,10 +407,9 @@ impl StreamWriter {
             cols.push(ColumnValues::Int32(values, levels));
         }
         let mut status_column = self.spare.int32();
+        status_column.clear();
         status_column.extend(status.iter().map(|&s| i32::from(s)));
         cols.push(ColumnValues::Int32(status_column, None));
-        status.clear();
-        self.acc.status = status;
         self.send(Message::Acceleration(n, cols))
     }
 
