@@ -17,7 +17,8 @@ struct Args {
     /// Count and list malformed text lines instead of stopping at the first one.
     #[arg(long)]
     skip_bad_lines: bool,
-    /// Print `peak_rss_kb N` (the process's peak resident memory) at the end, for benchmarks.
+    /// Print `peak_rss_kb N` (the process's peak resident memory) and `cpu_s S` (its CPU
+    /// time) at the end, for benchmarks.
     #[arg(long, hide = true)]
     report_peak_rss: bool,
 }
@@ -38,6 +39,9 @@ fn main() -> ExitCode {
                 match ingest::peak_rss_kb() {
                     Some(kb) => eprintln!("peak_rss_kb {kb}"),
                     None => eprintln!("peak_rss_kb unavailable"),
+                }
+                if let Some(s) = ingest::cpu_seconds() {
+                    eprintln!("cpu_s {s}");
                 }
             }
             ExitCode::SUCCESS

@@ -3,7 +3,8 @@
 //! `bench ingest` generates large logs (never committed) with the simulator, ingests them
 //! with the release build, and converts the same CSV with polars and pyarrow (installed in a
 //! throwaway virtualenv under target/) for comparison. Files are read from the page cache
-//! (each is read once before timing); the best of three runs is reported.
+//! (each is read once before timing); the fastest and the median of `--runs` runs (3) are
+//! reported, with the CPU time (user + system) of the fastest.
 
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
@@ -25,23 +26,24 @@ elif method == "pyarrow":
     t = pc.read_csv(path, read_options=pc.ReadOptions(skip_rows=1))
     pq.write_table(t, out, compression="zstd")
 dt = time.perf_counter() - t0
-print(f"{dt} {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}")
+r = resource.getrusage(resource.RUSAGE_SELF)
+print(f"{dt} {r.ru_maxrss} {r.ru_utime + r.ru_stime}")
 "##;
 
+#[derive(Clone, Copy)]
 struct Run {
     seconds: f64,
     peak_rss_mb: f64,
+    /// CPU time, user plus system, if the program reported it.
+    cpu_seconds: Option<f64>,
 }
 
-fn best_of(n: usize, mut f: impl FnMut() -> Result<Run>) -> Result<Run> {
-    let mut best: Option<Run> = None;
-    for _ in 0..n {
-        let r = f()?;
-        if best.as_ref().is_none_or(|b| r.seconds < b.seconds) {
-            best = Some(r);
-        }
-    }
-    best.context("no run")
+/// Runs `f` `n` times; the fastest run, and the median wall time.
+fn best_of(n: usize, mut f: impl FnMut() -> Result<Run>) -> Result<(Run, f64)> {
+    let mut runs = (0..n).map(|_| f()).collect::<Result<Vec<_>>>()?;
+    runs.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
+    let median = runs.get(runs.len() / 2).context("no run")?.seconds;
+    Ok((runs[0], median))
 }
 
 fn ingest_once(bin: &Path, dataset: &Path, out: &Path) -> Result<Run> {
@@ -73,9 +75,14 @@ fn stage_once(bin: &Path, dataset: &Path, out: &Path) -> Result<Run> {
         .find_map(|l| l.strip_prefix("peak_rss_kb "))
         .and_then(|v| v.trim().parse().ok())
         .context("the stage binary did not report its peak RSS")?;
+    let cpu_seconds = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("cpu_s "))
+        .and_then(|v| v.trim().parse().ok());
     Ok(Run {
         seconds,
         peak_rss_mb: kb / 1024.0,
+        cpu_seconds,
     })
 }
 
@@ -130,6 +137,7 @@ fn peer_once(py: &Path, script: &Path, csv: &Path, out: &Path, method: &str) -> 
     Ok(Run {
         seconds,
         peak_rss_mb: kb / 1024.0,
+        cpu_seconds: it.next().and_then(|x| x.parse().ok()),
     })
 }
 
@@ -219,7 +227,7 @@ pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
     let ledger = ingest::IngestReport::load(&out.join("ingest"))?;
     let samples: u64 = ledger.sessions.iter().map(|s| s.acceleration_samples).sum();
     let readings_n: u64 = ledger.sessions.iter().map(|s| s.readings).sum();
-    let r = best_of(3, || {
+    let (r, _) = best_of(3, || {
         stage_once(&root.join("target/release/gravcal-align"), &dataset, &out)
     })?;
     let observations = align::AlignReport::load(&out.join("align"))?.observations;
@@ -233,8 +241,9 @@ pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
     Ok(())
 }
 
-/// Runs the ingest benchmark; `hours` scales the logs (31.25 Hz for 2x hours, 250 Hz for hours).
-pub fn ingest(root: &Path, hours: f64, peers: bool) -> Result<()> {
+/// Runs the ingest benchmark; `hours` scales the logs (31.25 Hz for 2x hours, 250 Hz for
+/// hours); each program runs `runs` times.
+pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
     release_build(root, &["ingest"])?;
     let bin = root.join("target/release/gravcal-ingest");
     let data = root.join("target/bench-data");
@@ -267,14 +276,14 @@ pub fn ingest(root: &Path, hours: f64, peers: bool) -> Result<()> {
         ] {
             warm(ds)?;
             let bytes = dir_bytes(ds, keep)?;
-            let r = best_of(3, || ingest_once(&bin, ds, &out))?;
+            let r = best_of(runs, || ingest_once(&bin, ds, &out))?;
             rows.push((format!("{rate} Hz, {h} h"), label.to_owned(), bytes, r));
         }
         if let Some(py) = &py {
             let csv = twin.join("raw/long_adc.csv");
             let bytes = std::fs::metadata(&csv)?.len();
             for method in ["polars-read-write", "polars-sink", "pyarrow"] {
-                let r = best_of(3, || {
+                let r = best_of(runs, || {
                     peer_once(py, &script, &csv, &data.join("peer.parquet"), method)
                 })?;
                 rows.push((
@@ -287,14 +296,18 @@ pub fn ingest(root: &Path, hours: f64, peers: bool) -> Result<()> {
         }
         let _ = std::fs::remove_dir_all(&out);
     }
-    println!("| log | what | input MB | seconds | MB/s | peak RSS MB |");
-    println!("|---|---|---|---|---|---|");
-    for (log, what, bytes, r) in rows {
+    println!(
+        "| log | what | input MB | seconds (fastest) | MB/s (fastest) | MB/s (median) | CPU s | peak RSS MB |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for (log, what, bytes, (r, median)) in rows {
         let mb = bytes as f64 / 1e6;
+        let cpu = r.cpu_seconds.map_or("-".to_owned(), |c| format!("{c:.2}"));
         println!(
-            "| {log} | {what} | {mb:.0} | {:.2} | {:.0} | {:.0} |",
+            "| {log} | {what} | {mb:.0} | {:.2} | {:.0} | {:.0} | {cpu} | {:.0} |",
             r.seconds,
             mb / r.seconds,
+            mb / median,
             r.peak_rss_mb
         );
     }

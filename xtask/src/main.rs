@@ -68,6 +68,9 @@ enum Cmd {
         /// Skip the Python peers (polars, pyarrow).
         #[arg(long)]
         no_peers: bool,
+        /// Ingest benchmark: runs of each program; the table gives the fastest and the median.
+        #[arg(long, default_value_t = 3)]
+        runs: usize,
         /// Align benchmark: stations per daily session (four sessions).
         #[arg(long, default_value_t = 250)]
         stations: usize,
@@ -268,11 +271,12 @@ fn run(cli: Cli) -> Result<()> {
             what,
             hours,
             no_peers,
+            runs,
             stations,
             readings,
             observations,
         } => match what.as_str() {
-            "ingest" => bench::ingest(&workspace_root(), hours, !no_peers),
+            "ingest" => bench::ingest(&workspace_root(), hours, !no_peers, runs.max(1)),
             "align" => bench::align(&workspace_root(), stations, readings),
             "adjust" => bench::adjust(&workspace_root(), observations, !no_peers),
             other => bail!("no benchmark `{other}`: there are ingest, align and adjust"),
