@@ -7,6 +7,10 @@
 //! streams, where the Arrow path's per-value index lists and casts cost a third of the
 //! writing. It encodes a row group's columns in parallel, into memory, and then appends
 //! them to the file in schema order, so the bytes do not depend on the threads.
+//! Delta-encoded integer columns it encodes itself ([`crate::encoding`]), pages, offset
+//! index, statistics and column index as parquet-rs's column writer makes them
+//! (`tests/delta_columns.rs` compares the two); parquet-rs's delta encoder was a quarter of
+//! ingest's CPU time.
 
 use crate::encoding::{self, DeltaValue};
 use crate::error::{Error, Result};
@@ -261,9 +265,24 @@ impl ColumnTableWriter {
                 })
             })
             .collect::<Vec<_>>();
+        // Every column checked before the row group is opened: an error leaves the file as
+        // it was, ready for the next row group.
+        let encoded = encoded
+            .into_iter()
+            .collect::<parquet::errors::Result<Vec<_>>>()
+            .map_err(parquet_error)?;
+        if let Some((index, (_, close))) = encoded
+            .iter()
+            .enumerate()
+            .find(|(_, (_, close))| close.rows_written != rows as u64)
+        {
+            return Err(parquet_error(ParquetError::General(format!(
+                "{}: column {index} has {} rows, the row group {rows}",
+                self.table, close.rows_written
+            ))));
+        }
         let mut group = w.next_row_group().map_err(parquet_error)?;
-        for column in encoded {
-            let (bytes, close) = column.map_err(parquet_error)?;
+        for (bytes, close) in encoded {
             group.append_column(&bytes, close).map_err(parquet_error)?;
         }
         group.close().map_err(parquet_error)?;
@@ -726,6 +745,62 @@ mod tests {
             batch.column(3).as_any().downcast_ref::<Float64Array>(),
             Some(&Float64Array::from(vec![7.5, 8.5]))
         );
+    }
+
+    /// Levels the own delta path cannot write are errors naming the column, not panics.
+    #[test]
+    fn delta_columns_reject_inconsistent_levels() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut w = ColumnTableWriter::create(
+            dir.path(),
+            "t.parquet",
+            "t",
+            schema(),
+            Encodings {
+                delta: &["t", "c"],
+                ..Encodings::default()
+            },
+        )
+        .expect("create");
+        let group = |t: Option<Vec<i16>>, c: Vec<i32>, cl: Option<Vec<i16>>| {
+            vec![
+                ColumnValues::Int32(vec![1, 2], None),
+                ColumnValues::Int64(vec![3, 4], t),
+                ColumnValues::Int32(c, cl),
+                ColumnValues::Double(vec![7.5, 8.5], None),
+                ColumnValues::Int32(vec![9, 10], None),
+            ]
+        };
+        for (columns, message) in [
+            (
+                group(None, vec![5, 6], Some(vec![1, 2])),
+                "column 2: Parquet error: definition level 2 in a column whose maximum is 1",
+            ),
+            (
+                group(None, vec![5, 6], Some(vec![1, 0])),
+                "column 2: Parquet error: 2 values for 1 definition levels of 1",
+            ),
+            (
+                group(Some(vec![1, 1]), vec![5, 6], None),
+                "column 1: Parquet error: definition levels for a required column",
+            ),
+        ] {
+            let e = w.write_row_group(2, &columns).expect_err(message);
+            assert!(e.to_string().contains(message), "{e}");
+        }
+        // Columns of other lengths than the row group's.
+        let e = w
+            .write_row_group(3, &group(None, vec![5, 6], None))
+            .expect_err("3 rows");
+        assert!(
+            e.to_string()
+                .contains("t: column 0 has 2 rows, the row group 3"),
+            "{e}"
+        );
+        // None of it touched the file.
+        w.write_row_group(2, &group(None, vec![5, 6], None))
+            .expect("a good row group after the bad ones");
+        assert_eq!(w.finish().expect("finish"), 2);
     }
 
     /// Values of the wrong type, or more columns than the schema has, are errors naming the
