@@ -99,14 +99,20 @@ fn nullable<T: Copy>(values: Vec<T>, valid: &[bool]) -> (Vec<T>, Option<Vec<i16>
     (kept, Some(levels))
 }
 
-/// The session index, stored as Parquet INT32 (UInt16 in the Arrow schema).
-fn session_values(session: u16, n: usize) -> ColumnValues {
-    ColumnValues::Int32(vec![i32::from(session); n], None)
+/// The session index of `n` rows, stored as Parquet INT32 (UInt16 in the Arrow schema), in
+/// `buf` (whatever it held).
+fn session_values(session: u16, n: usize, mut buf: Vec<i32>) -> ColumnValues {
+    buf.clear();
+    buf.resize(n, i32::from(session));
+    ColumnValues::Int32(buf, None)
 }
 
-/// Status bits, stored as Parquet INT32 (UInt8 in the Arrow schema).
-fn status_values(status: &[u8]) -> ColumnValues {
-    ColumnValues::Int32(status.iter().map(|&s| i32::from(s)).collect(), None)
+/// Status bits, stored as Parquet INT32 (UInt8 in the Arrow schema), in `buf` (whatever it
+/// held).
+fn status_values(status: &[u8], mut buf: Vec<i32>) -> ColumnValues {
+    buf.clear();
+    buf.extend(status.iter().map(|&s| i32::from(s)));
+    ColumnValues::Int32(buf, None)
 }
 
 /// What the current session's streams held.
@@ -176,7 +182,7 @@ pub struct StreamWriter {
     spare: Spare,
 }
 
-/// Buffers of written row groups, cleared, for the next ones.
+/// Buffers of written row groups, as they came back, for the next ones.
 #[derive(Default)]
 struct Spare {
     int32: Vec<Vec<i32>>,
@@ -376,10 +382,7 @@ impl StreamWriter {
         // Nearly always no status bit is set in a whole row group: nothing to look at per row.
         let any_bit = status.iter().fold(0u8, |a, &s| a | s);
         let mut cols = Vec::with_capacity(6);
-        let mut session = self.spare.int32();
-        session.clear();
-        session.resize(n, i32::from(self.session));
-        cols.push(ColumnValues::Int32(session, None));
+        cols.push(session_values(self.session, n, self.spare.int32()));
         cols.push(ColumnValues::Int64(time, None));
         for (ch, values) in counts.into_iter().enumerate() {
             let (nc, or) = (not_connected_bit(ch), over_range_bit(ch));
@@ -406,10 +409,7 @@ impl StreamWriter {
             };
             cols.push(ColumnValues::Int32(values, levels));
         }
-        let mut status_column = self.spare.int32();
-        status_column.clear();
-        status_column.extend(status.iter().map(|&s| i32::from(s)));
-        cols.push(ColumnValues::Int32(status_column, None));
+        cols.push(status_values(status, self.spare.int32()));
         self.send(Message::Acceleration(n, cols))
     }
 
@@ -420,14 +420,14 @@ impl StreamWriter {
         let c = self.temp.take();
         let n = c.time.len();
         let mut cols = vec![
-            session_values(self.session, n),
+            session_values(self.session, n, Vec::new()),
             ColumnValues::Int64(c.time, None),
         ];
         for (values, valid) in c.values.into_iter().zip(&c.valid) {
             let (values, levels) = nullable(values, valid);
             cols.push(ColumnValues::Double(values, levels));
         }
-        cols.push(status_values(&c.status));
+        cols.push(status_values(&c.status, Vec::new()));
         self.send(Message::Temperature(n, cols))
     }
 

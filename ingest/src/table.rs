@@ -377,29 +377,23 @@ trait DeltaColumn: DeltaValue + Ord {
     fn plain(self) -> Vec<u8>;
 }
 
-impl DeltaColumn for i32 {
-    fn statistics(min_max: Option<(Self, Self)>, nulls: u64) -> Statistics {
-        let (min, max) = min_max.unzip();
-        ValueStatistics::new(min, max, None, Some(nulls), false)
-            .with_backwards_compatible_min_max(true)
-            .into()
-    }
-    fn plain(self) -> Vec<u8> {
-        self.to_le_bytes().to_vec()
-    }
+macro_rules! delta_column {
+    ($($t:ty),*) => {$(
+        impl DeltaColumn for $t {
+            fn statistics(min_max: Option<(Self, Self)>, nulls: u64) -> Statistics {
+                let (min, max) = min_max.unzip();
+                ValueStatistics::new(min, max, None, Some(nulls), false)
+                    .with_backwards_compatible_min_max(true)
+                    .into()
+            }
+            fn plain(self) -> Vec<u8> {
+                self.to_le_bytes().to_vec()
+            }
+        }
+    )*};
 }
 
-impl DeltaColumn for i64 {
-    fn statistics(min_max: Option<(Self, Self)>, nulls: u64) -> Statistics {
-        let (min, max) = min_max.unzip();
-        ValueStatistics::new(min, max, None, Some(nulls), false)
-            .with_backwards_compatible_min_max(true)
-            .into()
-    }
-    fn plain(self) -> Vec<u8> {
-        self.to_le_bytes().to_vec()
-    }
-}
+delta_column!(i32, i64);
 
 /// The number of levels of 1 among levels that are 0 or 1.
 fn ones(levels: &[i16]) -> usize {
@@ -625,23 +619,24 @@ mod tests {
         ))
     }
 
+    /// A column table `t.parquet` of [`schema`] in `dir`.
+    fn writer(dir: &Path, encodings: Encodings<'_>) -> ColumnTableWriter {
+        ColumnTableWriter::create(dir, "t.parquet", "t", schema(), encodings).expect("create")
+    }
+
     /// Row groups written through the column writers read back through Arrow with the Arrow
     /// types, the nulls where the levels put them, and the schema metadata.
     #[test]
     fn column_writer_round_trips_through_arrow() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let mut w = ColumnTableWriter::create(
+        let mut w = writer(
             dir.path(),
-            "t.parquet",
-            "t",
-            schema(),
             Encodings {
                 delta: &["c"],
                 uncompressed: &["c"],
                 ..Encodings::default()
             },
-        )
-        .expect("create");
+        );
         let group = |t0: i64| {
             vec![
                 ColumnValues::Int32(vec![7; 3], None),
@@ -706,17 +701,13 @@ mod tests {
     #[test]
     fn nullable_columns_without_levels_have_no_nulls() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let mut w = ColumnTableWriter::create(
+        let mut w = writer(
             dir.path(),
-            "t.parquet",
-            "t",
-            schema(),
             Encodings {
                 delta: &["c"],
                 ..Encodings::default()
             },
-        )
-        .expect("create");
+        );
         w.write_row_group(
             2,
             &[
@@ -751,17 +742,13 @@ mod tests {
     #[test]
     fn delta_columns_reject_inconsistent_levels() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let mut w = ColumnTableWriter::create(
+        let mut w = writer(
             dir.path(),
-            "t.parquet",
-            "t",
-            schema(),
             Encodings {
                 delta: &["t", "c"],
                 ..Encodings::default()
             },
-        )
-        .expect("create");
+        );
         let group = |t: Option<Vec<i16>>, c: Vec<i32>, cl: Option<Vec<i16>>| {
             vec![
                 ColumnValues::Int32(vec![1, 2], None),
@@ -808,10 +795,7 @@ mod tests {
     #[test]
     fn column_writer_rejects_mismatched_columns() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let create = || {
-            ColumnTableWriter::create(dir.path(), "t.parquet", "t", schema(), Encodings::default())
-                .expect("create")
-        };
+        let create = || writer(dir.path(), Encodings::default());
         let mut w = create();
         let e = w
             .write_row_group(1, &[ColumnValues::Int64(vec![1], None)])
