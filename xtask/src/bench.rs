@@ -30,6 +30,74 @@ r = resource.getrusage(resource.RUSAGE_SELF)
 print(f"{dt} {r.ru_maxrss} {r.ru_utime + r.ru_stime}")
 "##;
 
+/// Reads an acceleration table with pyarrow, decoding every page: rows and, per column, the
+/// sum of its values (nulls left out; pyarrow's int64 sum wraps), as JSON.
+const PYARROW_READS: &str = r##"
+import json, sys
+import pyarrow.compute as pc, pyarrow.parquet as pq
+t = pq.read_table(sys.argv[1])
+print(json.dumps({"rows": t.num_rows,
+                  "sums": {n: int(pc.sum(t[n]).as_py() or 0) for n in t.column_names}}))
+"##;
+
+/// Checks that pyarrow (Arrow C++, an independent reader) decodes the acceleration table
+/// ingest wrote into `out` to the rows ingest counted and the sums of the values it stored.
+fn pyarrow_reads(py: &Path, script: &Path, out: &Path) -> Result<()> {
+    let table = out.join("ingest").join(ingest::schema::acceleration::FILE);
+    let o = Command::new(py).arg(script).arg(&table).output()?;
+    if !o.status.success() {
+        bail!(
+            "pyarrow could not read {}: {}",
+            table.display(),
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let got: serde_json::Value = serde_json::from_slice(&o.stdout)?;
+    let report = ingest::IngestReport::load(&out.join("ingest"))?;
+    let rows = report
+        .tables
+        .get(ingest::schema::acceleration::FILE)
+        .copied()
+        .context("no acceleration table in ingest.json")?;
+    if got["rows"].as_u64() != Some(rows) {
+        bail!(
+            "pyarrow read {} rows of {}, ingest wrote {rows}",
+            got["rows"],
+            table.display()
+        );
+    }
+    // The same sums from the Parquet reader of the Rust side.
+    let f = std::fs::File::open(&table)?;
+    let reader =
+        parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(f)?.build()?;
+    // Wrapping, as pyarrow's sum does: the times' sum passes 2^63.
+    let mut sums = std::collections::BTreeMap::<String, i64>::new();
+    for batch in reader {
+        let batch = batch?;
+        for (field, column) in batch.schema().fields().iter().zip(batch.columns()) {
+            let column = arrow::compute::cast(column, &arrow::datatypes::DataType::Int64)?;
+            let column = column
+                .as_any()
+                .downcast_ref::<arrow::array::Int64Array>()
+                .context("cast to Int64")?;
+            let sum = sums.entry(field.name().clone()).or_default();
+            *sum = column.iter().flatten().fold(*sum, i64::wrapping_add);
+        }
+    }
+    for (name, sum) in &sums {
+        let theirs = got["sums"][name].as_i64();
+        if theirs != Some(*sum) {
+            bail!("column {name}: pyarrow sums {theirs:?}, parquet-rs {sum}");
+        }
+    }
+    eprintln!(
+        "bench: pyarrow reads {} as parquet-rs does ({rows} rows, {} column sums)",
+        table.display(),
+        sums.len()
+    );
+    Ok(())
+}
+
 #[derive(Clone, Copy)]
 struct Run {
     seconds: f64,
@@ -255,6 +323,7 @@ pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
     let script = data.join("peers.py");
     std::fs::create_dir_all(&data)?;
     std::fs::write(&script, PEERS)?;
+    std::fs::write(data.join("pyarrow_reads.py"), PYARROW_READS)?;
     let mut rows = Vec::new();
     for (interval_ms, h) in [(32u32, 2.0 * hours), (4u32, hours)] {
         let scenario = fixtures::catalog::bench(interval_ms, h);
@@ -278,6 +347,9 @@ pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
             let bytes = dir_bytes(ds, keep)?;
             let r = best_of(runs, || ingest_once(&bin, ds, &out))?;
             rows.push((format!("{rate} Hz, {h} h"), label.to_owned(), bytes, r));
+            if let Some(py) = &py {
+                pyarrow_reads(py, &data.join("pyarrow_reads.py"), &out)?;
+            }
         }
         if let Some(py) = &py {
             let csv = twin.join("raw/long_adc.csv");
