@@ -323,8 +323,11 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
                 .collect(),
         });
     }
-    let (acc_rows, temp_rows) = streams.finish()?;
-    let theo_rows = theo.finish()?;
+    // The theodolite table is finished while the writer thread finishes the stream tables.
+    let closing = streams.close()?;
+    let theo_rows = theo.finish();
+    let (acc_rows, temp_rows) = closing.wait()?;
+    let theo_rows = theo_rows?;
     let report = IngestReport {
         format: LEDGER_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),

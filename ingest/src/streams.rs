@@ -466,12 +466,23 @@ impl StreamWriter {
         self.flush_temperature()
     }
 
-    /// Writes what is buffered and renames both tables into place; returns (acceleration rows,
-    /// temperature rows).
-    pub fn finish(mut self) -> Result<(u64, u64)> {
+    /// Hands what is buffered to the writer and tells it to finish, without waiting for it:
+    /// the caller can do other work (the theodolite table) meanwhile.
+    pub fn close(mut self) -> Result<Closing> {
         self.flush()?;
         self.send(Message::Finish)?;
-        self.join()
+        Ok(Closing(self))
+    }
+}
+
+/// Stream tables being finished by the writer thread ([`StreamWriter::close`]).
+pub struct Closing(StreamWriter);
+
+impl Closing {
+    /// Waits until both tables are renamed into place; returns (acceleration rows,
+    /// temperature rows).
+    pub fn wait(mut self) -> Result<(u64, u64)> {
+        self.0.join()
     }
 }
 

@@ -211,7 +211,12 @@ pub struct ColumnTableWriter {
     file: PartialFile,
     writer: SerializedFileWriter<BufWriter<File>>,
     rows: u64,
+    groups: u64,
 }
+
+/// Row groups between syncs of what is written so far: the sync before the rename then
+/// waits only for the rest (on the 250 Hz day it had waited about 50 ms for 68 MB).
+const GROUPS_PER_SYNC: u64 = 16;
 
 impl ColumnTableWriter {
     /// Starts `dir/file` (written as `dir/.file.partial` until [`ColumnTableWriter::finish`]).
@@ -235,6 +240,7 @@ impl ColumnTableWriter {
             file,
             writer,
             rows: 0,
+            groups: 0,
         })
     }
 
@@ -287,6 +293,14 @@ impl ColumnTableWriter {
         }
         group.close().map_err(parquet_error)?;
         self.rows += rows as u64;
+        self.groups += 1;
+        if self.groups.is_multiple_of(GROUPS_PER_SYNC) {
+            w.flush().map_err(|e| Error::io(&self.file.tmp, e))?;
+            w.inner()
+                .get_ref()
+                .sync_data()
+                .map_err(|e| Error::io(&self.file.tmp, e))?;
+        }
         Ok(())
     }
 
