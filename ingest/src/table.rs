@@ -312,7 +312,7 @@ impl ColumnTableWriter {
     }
 }
 
-/// Rows per data page of the columns ingest delta-encodes itself ([`encode_delta_column`]):
+/// Rows per data page of the columns ingest delta-encodes itself (`encode_delta_column`):
 /// a multiple of the 128-value block, near parquet-rs's default of 20 000 rows.
 pub const DELTA_PAGE_ROWS: usize = 1 << 14;
 
