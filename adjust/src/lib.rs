@@ -342,6 +342,7 @@ fn result_of(job: &Job<'_>, f: &calibrate::Fitted, terms: Terms) -> FitResult {
 /// Runs the stage: reads OUT/ingest and OUT/align, writes OUT/adjust.
 pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let ds = Dataset::load(dataset)?;
+    let _lock = ingest::lock::OutputLock::acquire(out)?;
     let ingest_report = ingest::IngestReport::load(&out.join("ingest"))?;
     let align_report = align::AlignReport::load(&out.join("align"))?;
     let rows = io::read_observations(&out.join("align"))?;

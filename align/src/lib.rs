@@ -183,6 +183,7 @@ struct Pending {
 /// Aligns the dataset: reads OUT/ingest, writes OUT/align. Returns the ledger.
 pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let ds = Dataset::load(dataset)?;
+    let _lock = ingest::lock::OutputLock::acquire(out)?;
     let ingest_dir = out.join("ingest");
     let ingest_report = ingest::IngestReport::load(&ingest_dir)?;
     let cfg = ds.manifest.align.clone();

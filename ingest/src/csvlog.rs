@@ -11,10 +11,17 @@ use crate::ledger::{FileLedger, reason};
 use crate::lines::{read_lines, strip_comment};
 use crate::streams::{StreamWriter, not_connected_bit, over_range_bit};
 use crate::time::NS_PER_WEEK;
+use crate::timegate::{Position, Sink, TimeGate};
 use std::path::Path;
 
 const COUNT_MIN: i64 = -8_388_608;
 const COUNT_MAX: i64 = 8_388_607;
+/// The last full GPS week a line may give (the year 2171): any later one is not a GPS week
+/// of a real log, and its time in ns would not fit an i64 far beyond it. A week inside
+/// this range but outside the session is rejected by the time gate instead.
+const MAX_WEEK: i64 = 9_999;
+/// Plausible temperatures, degC (the binary reader's range too).
+const CELSIUS_RANGE: std::ops::RangeInclusive<f64> = -100.0..=200.0;
 
 /// Which of the two CSV logs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -112,7 +119,7 @@ fn parse_adc_fast(line: &[u8]) -> Option<Row> {
     let mut p = 0usize;
     let n = line.len();
     let uint = |p: &mut usize, max_digits: usize| digits(line, p, max_digits);
-    let week = uint(&mut p, 5)?;
+    let week = uint(&mut p, 4)?;
     (line.get(p) == Some(&b',')).then_some(())?;
     p += 1;
     let sec = uint(&mut p, 6)?;
@@ -235,11 +242,14 @@ fn parse_row_general(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
         ));
     }
     let week = parse_int(fields[0])
-        .filter(|w| (0..100_000).contains(w))
+        .filter(|w| (0..=MAX_WEEK).contains(w))
         .ok_or_else(|| {
             bad(
                 "gps_week",
-                format!("`{}` is not a GPS week number", text(fields[0])),
+                format!(
+                    "`{}` is not a GPS week number [0, {MAX_WEEK}]",
+                    text(fields[0])
+                ),
             )
         })?;
     let tow = parse_tow_ns(fields[1])
@@ -298,7 +308,7 @@ fn parse_row_general(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
                 let v: f64 = std::str::from_utf8(f)
                     .ok()
                     .and_then(|s| s.parse().ok())
-                    .filter(|v: &f64| v.is_finite() && (-100.0..=200.0).contains(v))
+                    .filter(|v: &f64| v.is_finite())
                     .ok_or_else(|| {
                         bad(
                             names[2 + ch],
@@ -316,20 +326,61 @@ fn parse_row_general(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
     }
 }
 
-/// Reads one CSV log of `kind` into `streams`, filling in `ledger`.
+/// Where the time gate's verdicts on CSV rows go.
+struct RowSink<'a> {
+    streams: &'a mut StreamWriter,
+    ledger: &'a mut FileLedger,
+}
+
+impl Sink<Row> for RowSink<'_> {
+    type Error = Error;
+    fn accept(&mut self, _: i64, row: Row) -> Result<()> {
+        match row {
+            Row::Adc {
+                time_ns,
+                counts,
+                status,
+            } => self.streams.acceleration(time_ns, counts, status),
+            Row::Temperature {
+                time_ns,
+                celsius,
+                status,
+            } => self.streams.temperature(time_ns, celsius, status),
+        }
+    }
+    fn reject(&mut self, at: Position, why: &'static str, detail: String, _: Row) {
+        self.ledger.reject(at.to_string(), why, detail);
+    }
+}
+
+/// What the CSV reader needs to know of its session.
+#[derive(Clone, Copy, Debug)]
+pub struct CsvConfig {
+    /// Which log.
+    pub kind: CsvKind,
+    /// Count and list malformed lines instead of failing.
+    pub skip_bad_lines: bool,
+    /// Nominal interval between rows, ns.
+    pub interval_ns: i64,
+    /// The session's range of GPS time, ns.
+    pub range_ns: (i64, i64),
+}
+
+/// Reads one CSV log into `streams`, filling in `ledger`. Returns the median interval
+/// between accepted rows (ns), if there were two.
 pub fn read_csv(
     path: &Path,
-    kind: CsvKind,
-    skip_bad_lines: bool,
+    config: CsvConfig,
     streams: &mut StreamWriter,
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
-) -> Result<()> {
+) -> Result<Option<i64>> {
+    let kind = config.kind;
     let mut header_seen = false;
     let mut other_lines = 0u64;
-    let mut last: Option<i64> = None;
-    let mut accepted = 0u64;
+    let mut gate = TimeGate::new(config.interval_ns, config.range_ns);
     let names = kind.header();
+    let mut sink = RowSink { streams, ledger };
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
         // A line the fast ADC parser takes whole holds only digits, signs, points and
         // commas: no comment or white space to strip, which saves a search per line.
@@ -363,8 +414,8 @@ pub fn read_csv(
         }
         let row = match fast.map_or_else(|| parse_row(kind, line), Ok) {
             Ok(r) => r,
-            Err(b) if skip_bad_lines => {
-                ledger.reject(
+            Err(b) if config.skip_bad_lines => {
+                sink.ledger.reject(
                     format!("line {line_no}"),
                     reason::MALFORMED,
                     format!("{}: {}", b.field, b.message),
@@ -381,41 +432,28 @@ pub fn read_csv(
             }
         };
         let time_ns = match &row {
-            Row::Adc { time_ns, .. } | Row::Temperature { time_ns, .. } => *time_ns,
-        };
-        if let Some(prev) = last {
-            if time_ns == prev {
-                ledger.reject(
-                    format!("line {line_no}"),
-                    reason::DUPLICATE,
-                    "same time as the line before".to_owned(),
-                );
-                return Ok(());
-            }
-            if time_ns < prev {
-                ledger.reject(
-                    format!("line {line_no}"),
-                    reason::TIME_BACKWARDS,
-                    format!("{} ns before the line accepted before it", prev - time_ns),
-                );
-                return Ok(());
-            }
-        }
-        last = Some(time_ns);
-        accepted += 1;
-        match row {
-            Row::Adc {
-                time_ns,
-                counts,
-                status,
-            } => streams.acceleration(time_ns, counts, status),
+            Row::Adc { time_ns, .. } => *time_ns,
             Row::Temperature {
-                time_ns,
-                celsius,
-                status,
-            } => streams.temperature(time_ns, celsius, status),
-        }
+                time_ns, celsius, ..
+            } => {
+                if let Some((ch, v)) = celsius
+                    .iter()
+                    .enumerate()
+                    .find_map(|(ch, v)| v.filter(|v| !CELSIUS_RANGE.contains(v)).map(|v| (ch, v)))
+                {
+                    sink.ledger.reject(
+                        format!("line {line_no}"),
+                        reason::TEMPERATURE_OUT_OF_RANGE,
+                        format!("{}: {v} degC", names[2 + ch]),
+                    );
+                    return Ok(());
+                }
+                *time_ns
+            }
+        };
+        gate.offer(time_ns, Position::Line(line_no), row, &mut sink)
     })?;
+    gate.finish(&mut sink)?;
     if !header_seen {
         return Err(Error::Line {
             path: path.to_path_buf(),
@@ -424,19 +462,20 @@ pub fn read_csv(
             message: format!("no header line `{}`", names.join(",")),
         });
     }
+    let RowSink { streams, ledger } = sink;
     ledger.accept(
         if kind == CsvKind::Adc {
             "acceleration"
         } else {
             "temperature"
         },
-        accepted,
+        gate.accepted(),
     );
     ledger.null_values = streams.take_null_counts()?;
     ledger.sha256 = sha;
     ledger.bytes = bytes;
     ledger.comment_blank_or_header_lines = Some(other_lines);
-    Ok(())
+    Ok(gate.median_interval_ns())
 }
 
 #[cfg(test)]

@@ -45,6 +45,15 @@ pub enum Error {
         /// The underlying error.
         source: parquet::errors::ParquetError,
     },
+    /// The run wrote its outputs, but some session is unusable as a whole (no data, a sample
+    /// rate off the declared one): the ledger `path` lists why.
+    #[error("{}: {}", path.display(), errors.join("; "))]
+    Unusable {
+        /// The ledger that records the errors.
+        path: PathBuf,
+        /// One message per problem, naming the session and file.
+        errors: Vec<String>,
+    },
     /// Building an Arrow batch failed (a bug: the batches are built to their schema).
     #[error("building an Arrow batch for {table}: {source}")]
     Arrow {

@@ -10,6 +10,7 @@
 
 use crate::ledger::{ByteLedger, FileLedger, reason};
 use crate::time::{NS_PER_MS, NS_PER_WEEK, resolve_week};
+use crate::timegate::{Position, Sink, TimeGate};
 
 /// Frame sync word.
 pub const SYNC: [u8; 2] = [0xA5, 0x5A];
@@ -142,19 +143,56 @@ pub enum Frame {
 }
 
 /// Scans a binary log chunk by chunk, handing accepted frames to a callback and counting
-/// everything else in a [`FileLedger`].
-#[derive(Debug)]
+/// everything else in a [`FileLedger`]. Frames pass a [`TimeGate`] per frame type.
 pub struct FrameScanner {
     reference_week: i64,
     buf: Vec<u8>,
     /// File offset of `buf[0]`.
     offset: u64,
-    last_time: [Option<i64>; 2],
+    /// Acceleration and temperature.
+    gates: [TimeGate<Frame>; 2],
     bytes: ByteLedger,
     /// Start of the stretch currently being skipped, for listing it once.
     skip_start: Option<u64>,
-    /// Accepted acceleration and temperature frames.
-    accepted: [u64; 2],
+}
+
+/// The nominal interval of temperature frames (FORMATS.md section 3), ns.
+pub const TEMPERATURE_INTERVAL_NS: i64 = 4_096_000_000;
+
+/// What the scanner needs to know of the session.
+#[derive(Clone, Copy, Debug)]
+pub struct ScanConfig {
+    /// GPS week nearest the session's date, for resolving 10-bit weeks.
+    pub reference_week: i64,
+    /// Nominal acceleration sample interval, ns.
+    pub acceleration_interval_ns: i64,
+    /// The session's range of GPS time, ns.
+    pub range_ns: (i64, i64),
+}
+
+/// Where the time gate's verdicts go: the byte ledger, the file ledger and the caller.
+struct FrameSink<'a, F> {
+    bytes: &'a mut ByteLedger,
+    ledger: &'a mut FileLedger,
+    emit: &'a mut F,
+}
+
+impl<F: FnMut(Frame) -> Result<(), E>, E> Sink<Frame> for FrameSink<'_, F> {
+    type Error = E;
+    #[inline]
+    fn accept(&mut self, _: i64, frame: Frame) -> Result<(), E> {
+        self.bytes.in_accepted_frames += FRAME_LEN as u64;
+        (self.emit)(frame)
+    }
+    fn reject(&mut self, at: Position, why: &'static str, detail: String, frame: Frame) {
+        let kind = match frame {
+            Frame::Acceleration { .. } => "acceleration",
+            Frame::Temperature { .. } => "temperature",
+        };
+        self.ledger
+            .reject(at.to_string(), why, format!("{kind} frame: {detail}"));
+        self.bytes.in_rejected_frames += FRAME_LEN as u64;
+    }
 }
 
 /// Whether every connected channel's count is a 24-bit value, without a branch per channel.
@@ -170,6 +208,21 @@ fn counts_in_range(values: [i32; 3], status: u8) -> bool {
     out == 0
 }
 
+/// Plausible temperatures, milli-degrees C: the range the CSV reader accepts too.
+const MILLIDEGREE_MIN: i32 = -100_000;
+const MILLIDEGREE_MAX: i32 = 200_000;
+
+/// Whether every connected channel's temperature is plausible, without a branch per channel.
+#[inline]
+fn temperatures_in_range(values: [i32; 3], status: u8) -> bool {
+    let mut ok = true;
+    for (ch, v) in values.into_iter().enumerate() {
+        let connected = status >> (ch + 4) & 1 == 0;
+        ok &= !connected | (MILLIDEGREE_MIN..=MILLIDEGREE_MAX).contains(&v);
+    }
+    ok
+}
+
 /// `N` bytes of a frame from `at`: one load, where assembling the bytes one by one made the
 /// compiler store them singly and load them whole, stalling on every frame.
 #[inline]
@@ -180,17 +233,24 @@ fn field<const N: usize>(f: &[u8; FRAME_LEN], at: usize) -> [u8; N] {
 }
 
 impl FrameScanner {
-    /// A scanner resolving 10-bit GPS weeks to the week nearest `reference_week`.
-    pub fn new(reference_week: i64) -> Self {
+    /// A scanner for one session's log.
+    pub fn new(config: ScanConfig) -> Self {
         FrameScanner {
-            reference_week,
+            reference_week: config.reference_week,
             buf: Vec::with_capacity(1 << 20),
             offset: 0,
-            last_time: [None, None],
+            gates: [
+                TimeGate::new(config.acceleration_interval_ns, config.range_ns),
+                TimeGate::new(TEMPERATURE_INTERVAL_NS, config.range_ns),
+            ],
             bytes: ByteLedger::default(),
             skip_start: None,
-            accepted: [0, 0],
         }
+    }
+
+    /// Median interval between accepted acceleration frames, ns (sampled).
+    pub fn acceleration_interval_ns(&self) -> Option<i64> {
+        self.gates[0].median_interval_ns()
     }
 
     fn skip(&mut self, at: u64, n: usize) {
@@ -260,22 +320,32 @@ impl FrameScanner {
         Ok(())
     }
 
-    /// Ends the file: reports a cut-off last frame or trailing junk, and fills in the byte ledger.
+    /// Ends the file: reports a cut-off last frame or trailing junk, decides the frames the
+    /// time gates still hold, and fills in the byte ledger. Returns the median interval
+    /// between accepted acceleration frames (ns), if there were two.
     pub fn finish<E>(
         mut self,
         ledger: &mut FileLedger,
         emit: &mut impl FnMut(Frame) -> Result<(), E>,
-    ) -> Result<(), E> {
+    ) -> Result<Option<i64>, E> {
         let buf = std::mem::take(&mut self.buf);
         let used = self.scan(&buf, true, ledger, emit)?;
         debug_assert_eq!(used, buf.len());
         self.offset += used as u64;
         let end = self.offset;
         self.end_skip(ledger, end);
-        ledger.accept("acceleration", self.accepted[0]);
-        ledger.accept("temperature", self.accepted[1]);
+        for gate in &mut self.gates {
+            let mut sink = FrameSink {
+                bytes: &mut self.bytes,
+                ledger,
+                emit,
+            };
+            gate.finish(&mut sink)?;
+        }
+        ledger.accept("acceleration", self.gates[0].accepted());
+        ledger.accept("temperature", self.gates[1].accepted());
         ledger.byte_ledger = Some(self.bytes);
-        Ok(())
+        Ok(self.gates[0].median_interval_ns())
     }
 
     /// Scans `b` (starting at file offset `self.offset`); returns how many bytes were consumed.
@@ -397,20 +467,21 @@ impl FrameScanner {
         let time_ns = resolve_week(week10, self.reference_week)
             .wrapping_mul(NS_PER_WEEK)
             .wrapping_add(i64::from(tow_ms) * NS_PER_MS);
-        // All the checks at once, without a branch each; a frame that fails one is looked
-        // at again, check by check, to say why.
+        // All the checks of the frame alone at once, without a branch each; a frame that
+        // fails one is looked at again, check by check, to say why. Its time is judged
+        // against its neighbours by the gate.
         let usable = (status & RESERVED_BITS == 0)
             & (i64::from(tow_ms) * NS_PER_MS < NS_PER_WEEK)
-            & self.last_time[slot].is_none_or(|last| time_ns > last)
-            & (slot == 1 || counts_in_range(values, status));
+            & if slot == 0 {
+                counts_in_range(values, status)
+            } else {
+                temperatures_in_range(values, status)
+            };
         if !usable {
-            self.reject_frame(f, at, time_ns, ledger);
+            self.reject_frame(f, at, ledger);
             return Ok(());
         }
-        self.last_time[slot] = Some(time_ns);
-        self.bytes.in_accepted_frames += FRAME_LEN as u64;
-        self.accepted[slot] += 1;
-        emit(if slot == 0 {
+        let frame = if slot == 0 {
             Frame::Acceleration {
                 time_ns,
                 counts: values,
@@ -422,28 +493,28 @@ impl FrameScanner {
                 millidegrees: values,
                 status,
             }
-        })
+        };
+        let mut sink = FrameSink {
+            bytes: &mut self.bytes,
+            ledger,
+            emit,
+        };
+        self.gates[slot].offer(time_ns, Position::Byte(at), frame, &mut sink)
     }
 
     /// Rejects a well-formed frame that [`FrameScanner::frame`] found unusable, with the
     /// reason of the first check it fails.
     #[cold]
     #[inline(never)]
-    fn reject_frame(
-        &mut self,
-        f: &[u8; FRAME_LEN],
-        at: u64,
-        time_ns: i64,
-        ledger: &mut FileLedger,
-    ) {
-        let week10 = u16::from_le_bytes(field(f, 4));
+    fn reject_frame(&mut self, f: &[u8; FRAME_LEN], at: u64, ledger: &mut FileLedger) {
         let tow_ms = u32::from_le_bytes(field(f, 6));
         let status = f[22];
-        let slot = usize::from(f[2] == TYPE_TEMPERATURE);
-        let name = if slot == 0 {
-            "acceleration"
-        } else {
-            "temperature"
+        let temperature = f[2] == TYPE_TEMPERATURE;
+        let connected_out_of = |lo: i32, hi: i32| {
+            (0..3)
+                .map(|ch| (ch, i32::from_le_bytes(field(f, 10 + 4 * ch))))
+                .find(|&(ch, v)| status & (1 << (ch + 4)) == 0 && !(lo..=hi).contains(&v))
+                .unwrap_or((0, 0))
         };
         let (why, detail) = if status & RESERVED_BITS != 0 {
             (
@@ -452,26 +523,14 @@ impl FrameScanner {
             )
         } else if i64::from(tow_ms) * NS_PER_MS >= NS_PER_WEEK {
             (reason::BAD_TIME_OF_WEEK, format!("tow_ms {tow_ms}"))
-        } else if self.last_time[slot] == Some(time_ns) {
+        } else if temperature {
+            let (ch, v) = connected_out_of(MILLIDEGREE_MIN, MILLIDEGREE_MAX);
             (
-                reason::DUPLICATE,
-                format!("{name} frame at week10 {week10} tow_ms {tow_ms}"),
-            )
-        } else if let Some(last) = self.last_time[slot].filter(|&last| time_ns < last) {
-            (
-                reason::TIME_BACKWARDS,
-                format!(
-                    "{name} frame at tow_ms {tow_ms}, {} ms before the previous one",
-                    (last - time_ns) / NS_PER_MS
-                ),
+                reason::TEMPERATURE_OUT_OF_RANGE,
+                format!("channel {} temperature {} degC", ch + 1, f64::from(v) / 1000.0),
             )
         } else {
-            let (ch, v) = (0..3)
-                .map(|ch| (ch, i32::from_le_bytes(field(f, 10 + 4 * ch))))
-                .find(|&(ch, v)| {
-                    status & (1 << (ch + 4)) == 0 && !(COUNT_MIN..=COUNT_MAX).contains(&v)
-                })
-                .unwrap_or((0, 0));
+            let (ch, v) = connected_out_of(COUNT_MIN, COUNT_MAX);
             (
                 reason::COUNT_OUT_OF_RANGE,
                 format!("channel {} count {v}", ch + 1),
@@ -540,7 +599,11 @@ mod tests {
     }
 
     fn scan_all(bytes: &[u8], chunk: usize) -> (Vec<Frame>, FileLedger) {
-        let mut s = FrameScanner::new(1310);
+        let mut s = FrameScanner::new(ScanConfig {
+            reference_week: 1310,
+            acceleration_interval_ns: 32 * NS_PER_MS,
+            range_ns: (0, i64::MAX),
+        });
         let mut ledger = FileLedger::default();
         let mut out = Vec::new();
         let mut emit = |f: Frame| -> Result<(), ()> {

@@ -27,8 +27,13 @@ pub mod reason {
     pub const TRUNCATED_TAIL: &str = "truncated_tail";
     /// A text line that does not parse (only with skip-bad-lines; otherwise it is an error).
     pub const MALFORMED: &str = "malformed";
-    /// A theodolite reading dated outside its session (not on the session's date or the day after).
+    /// A record timed outside its session's range (`ResolvedSession::gps_range_ns`: from 00:00
+    /// UTC of its date for `days` days).
     pub const OUTSIDE_SESSION: &str = "outside_session";
+    /// A record whose time jumps ahead of its neighbours and back ([`crate::timegate`]).
+    pub const TIME_OUTLIER: &str = "time_outlier";
+    /// A temperature outside [-100, 200] degC on a connected channel.
+    pub const TEMPERATURE_OUT_OF_RANGE: &str = "temperature_out_of_range";
 }
 
 /// How the bytes of a binary log were spent: they add up to the file size.

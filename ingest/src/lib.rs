@@ -24,12 +24,14 @@ mod error;
 pub mod gcb;
 pub mod ledger;
 mod lines;
+pub mod lock;
 pub mod manifest;
 pub mod schema;
 mod streams;
 pub mod table;
 pub mod theodolite;
 pub mod time;
+pub mod timegate;
 
 pub use error::{Error, Result};
 
@@ -71,6 +73,8 @@ pub struct SessionSummary {
     pub last_gps_ns: Option<i64>,
     /// Channels (1..3) flagged not connected in every accepted acceleration sample.
     pub channels_never_connected: Vec<u8>,
+    /// Acceleration sample rate measured from the accepted samples (the median interval), Hz.
+    pub measured_sample_rate_hz: Option<f64>,
 }
 
 /// `ingest.json`.
@@ -88,6 +92,10 @@ pub struct IngestReport {
     pub sessions: Vec<SessionSummary>,
     /// Rows written per table file.
     pub tables: std::collections::BTreeMap<String, u64>,
+    /// What makes the run fail although every table was written (a session that gave no
+    /// data, a sample rate off the declared one); downstream stages refuse a ledger with any.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub errors: Vec<String>,
 }
 
 impl IngestReport {
@@ -182,12 +190,12 @@ fn new_ledger(ds: &Dataset, path: &Path, session: &str, role: &str, unit: &str) 
 
 fn read_binary(
     path: &Path,
-    reference_week: i64,
+    config: gcb::ScanConfig,
     streams: &mut StreamWriter,
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
-) -> Result<()> {
-    let mut scanner = gcb::FrameScanner::new(reference_week);
+) -> Result<Option<i64>> {
+    let mut scanner = gcb::FrameScanner::new(config);
     let mut emit = |f: gcb::Frame| -> Result<()> {
         match f {
             gcb::Frame::Acceleration {
@@ -210,11 +218,53 @@ fn read_binary(
         progress.inc(chunk.len() as u64);
         scanner.push(chunk, ledger, &mut emit)
     })?;
-    scanner.finish(ledger, &mut emit)?;
+    let interval = scanner.finish(ledger, &mut emit)?;
     ledger.null_values = streams.take_null_counts()?;
     ledger.sha256 = sha;
     ledger.bytes = bytes;
-    Ok(())
+    Ok(interval)
+}
+
+/// A measured rate further than this fraction from the declared one is an error.
+pub const RATE_TOLERANCE: f64 = 0.01;
+
+/// What makes a session unusable as a whole, if anything: no data, or a sample rate that is
+/// not the declared one.
+fn session_errors(
+    ds: &Dataset,
+    s: &manifest::ResolvedSession,
+    summary: &SessionSummary,
+    acquisition: &[String],
+) -> Vec<String> {
+    let id = &s.session.id;
+    let files = acquisition.join(", ");
+    let mut errors = Vec::new();
+    if s.session.expect_empty {
+        return errors;
+    }
+    let hint = "(if this is expected, set `expect_empty = true` in its [[session]])";
+    if summary.acceleration_samples == 0 {
+        errors.push(format!(
+            "session {id}: {files} gave no usable acceleration sample {hint}"
+        ));
+    }
+    if summary.readings == 0 {
+        errors.push(format!(
+            "session {id}: {} gave no usable theodolite reading {hint}",
+            relative(ds, &s.theodolite)
+        ));
+    }
+    let declared = ds.manifest.instrument.sample_rate_hz;
+    if let Some(measured) = summary.measured_sample_rate_hz
+        && (measured / declared - 1.0).abs() > RATE_TOLERANCE
+    {
+        errors.push(format!(
+            "session {id}: {files}: the acceleration samples come at {measured:.4} Hz, but \
+             instrument.sample_rate_hz declares {declared} Hz (more than {:.0} % off)",
+            RATE_TOLERANCE * 100.0
+        ));
+    }
+    errors
 }
 
 /// Ingests `dataset` into `out/ingest/` with default options.
@@ -225,6 +275,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<IngestReport> {
 /// Ingests `dataset` into `out/ingest/`.
 pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestReport> {
     let ds = Dataset::load(dataset)?;
+    let _lock = lock::OutputLock::acquire(out)?;
     let dir: PathBuf = out.join("ingest");
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     let ledger_path = dir.join(LEDGER_FILE);
@@ -234,6 +285,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
     let mut theo = theodolite::TheodoliteWriter::create(&dir)?;
     let mut files = Vec::new();
     let mut sessions = Vec::new();
+    let mut errors = Vec::new();
     for (index, s) in ds.sessions.iter().enumerate() {
         let id = s.session.id.as_str();
         let index = u16::try_from(index).map_err(|_| Error::Manifest {
@@ -246,7 +298,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
         // independent of it, and the Parquet writer is idle while the first row group fills.
         let mut ledger = new_ledger(&ds, &s.theodolite, id, "theodolite", "lines");
         let skip_bad_lines = opts.skip_bad_lines;
-        let (readings, theodolite_ledger) = std::thread::scope(|scope| {
+        let ((readings, theodolite_ledger), interval_ns) = std::thread::scope(|scope| {
             let theodolite = scope.spawn(move || {
                 theodolite::read_theodolite(
                     s,
@@ -256,42 +308,59 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
                 )
                 .map(|readings| (readings, ledger))
             });
-            let acquisition = (|| -> Result<()> {
+            let acquisition = (|| -> Result<Option<i64>> {
+                let acceleration_interval_ns =
+                    (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
                 match &s.acquisition {
                     Acquisition::Binary(path) => {
                         let mut ledger = new_ledger(&ds, path, id, "acquisition", "frames");
                         let pb = progress_bar(opts, path);
-                        read_binary(
-                            path,
-                            time::week_of_date(s.date),
-                            &mut streams,
-                            &mut ledger,
-                            &pb,
-                        )?;
+                        let config = gcb::ScanConfig {
+                            reference_week: time::week_of_date(s.date),
+                            acceleration_interval_ns,
+                            range_ns: s.gps_range_ns(),
+                        };
+                        let interval =
+                            read_binary(path, config, &mut streams, &mut ledger, &pb)?;
                         pb.finish_and_clear();
                         files.push(ledger);
+                        Ok(interval)
                     }
                     Acquisition::Csv { adc, temperature } => {
-                        for (path, kind, role) in [
-                            (adc, csvlog::CsvKind::Adc, "adc_csv"),
-                            (temperature, csvlog::CsvKind::Temperature, "temperature_csv"),
+                        let mut interval = None;
+                        for (path, kind, role, interval_ns) in [
+                            (
+                                adc,
+                                csvlog::CsvKind::Adc,
+                                "adc_csv",
+                                acceleration_interval_ns,
+                            ),
+                            (
+                                temperature,
+                                csvlog::CsvKind::Temperature,
+                                "temperature_csv",
+                                gcb::TEMPERATURE_INTERVAL_NS,
+                            ),
                         ] {
                             let mut ledger = new_ledger(&ds, path, id, role, "lines");
                             let pb = progress_bar(opts, path);
-                            csvlog::read_csv(
-                                path,
+                            let config = csvlog::CsvConfig {
                                 kind,
-                                opts.skip_bad_lines,
-                                &mut streams,
-                                &mut ledger,
-                                &pb,
-                            )?;
+                                skip_bad_lines: opts.skip_bad_lines,
+                                interval_ns,
+                                range_ns: s.gps_range_ns(),
+                            };
+                            let median =
+                                csvlog::read_csv(path, config, &mut streams, &mut ledger, &pb)?;
+                            if kind == csvlog::CsvKind::Adc {
+                                interval = median;
+                            }
                             pb.finish_and_clear();
                             files.push(ledger);
                         }
+                        Ok(interval)
                     }
                 }
-                Ok(())
             })();
             let readings = theodolite.join().map_err(|_| {
                 Error::io(
@@ -299,8 +368,8 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
                     std::io::Error::other("the theodolite reading thread panicked"),
                 )
             })?;
-            acquisition?;
-            readings
+            let interval_ns = acquisition?;
+            readings.map(|r| (r, interval_ns))
         })?;
         theo.write(
             id,
@@ -310,7 +379,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
         )?;
         files.push(theodolite_ledger);
         let st = streams.stats()?;
-        sessions.push(SessionSummary {
+        let summary = SessionSummary {
             id: id.to_owned(),
             acceleration_samples: st.acceleration,
             temperature_samples: st.temperature,
@@ -321,7 +390,15 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
                 .filter(|&ch| st.acceleration > 0 && !st.connected_seen[usize::from(ch)])
                 .map(|ch| ch + 1)
                 .collect(),
-        });
+            measured_sample_rate_hz: interval_ns.filter(|&i| i > 0).map(|i| 1e9 / i as f64),
+        };
+        let acquisition_files: Vec<String> = files
+            .iter()
+            .filter(|f| f.session == id && f.role != "theodolite")
+            .map(|f| f.path.clone())
+            .collect();
+        errors.extend(session_errors(&ds, s, &summary, &acquisition_files));
+        sessions.push(summary);
     }
     // The theodolite table is finished while the writer thread finishes the stream tables.
     let closing = streams.close()?;
@@ -341,8 +418,15 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
         ]
         .into_iter()
         .collect(),
+        errors,
     };
     write_json_atomically(&ledger_path, &report)?;
+    if !report.errors.is_empty() {
+        return Err(Error::Unusable {
+            path: ledger_path,
+            errors: report.errors,
+        });
+    }
     Ok(report)
 }
 

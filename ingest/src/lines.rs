@@ -107,8 +107,12 @@ pub fn read_chunks(
     })
 }
 
-/// Calls `on_line(number, line)` for every line of `path` (without `\n` or `\r\n`; 1-based
-/// numbers); returns the SHA-256 and size.
+/// The UTF-8 byte order mark some editors put at the start of a text file.
+pub const BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// Calls `on_line(number, line)` for every line of `path` (without `\n` or `\r\n`, and
+/// without a UTF-8 byte order mark at the start of the file; 1-based numbers); returns the
+/// SHA-256 and size.
 pub fn read_lines(
     path: &Path,
     progress: &indicatif::ProgressBar,
@@ -119,6 +123,11 @@ pub fn read_lines(
     let mut emit = |number: &mut u64, line: &[u8]| {
         *number += 1;
         let line = line.strip_suffix(b"\r").unwrap_or(line);
+        let line = if *number == 1 {
+            line.strip_prefix(BOM).unwrap_or(line)
+        } else {
+            line
+        };
         on_line(*number, line)
     };
     let (hash, bytes) = read_chunks(path, |chunk| {

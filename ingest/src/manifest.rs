@@ -197,6 +197,18 @@ pub struct Session {
     /// Unit of the theodolite log.
     #[serde(default)]
     pub theodolite_unit: AngleUnit,
+    /// UTC days the session spans from 00:00 of its date (default 2: the date and the day
+    /// after); records timed outside are rejected as `outside_session`.
+    #[serde(default = "default_days")]
+    pub days: u32,
+    /// The session is expected to give no data (e.g. a logger known to have failed): its
+    /// emptiness is then not an error.
+    #[serde(default)]
+    pub expect_empty: bool,
+}
+
+fn default_days() -> u32 {
+    2
 }
 
 /// `[adjust]`.
@@ -266,6 +278,8 @@ pub struct ResolvedSession {
     pub session: Session,
     /// UTC date (year, month, day).
     pub date: (i32, u8, u8),
+    /// GPS time of 00:00 UTC of `date`, ns.
+    pub start_gps_ns: i64,
     /// Acquisition logs.
     pub acquisition: Acquisition,
     /// Theodolite log.
@@ -283,6 +297,15 @@ pub struct Dataset {
     pub manifest: Manifest,
     /// Sessions, in manifest order.
     pub sessions: Vec<ResolvedSession>,
+}
+
+impl ResolvedSession {
+    /// The session's range of GPS time, `[00:00 UTC of its date, + days)`, ns: every
+    /// record of the session must lie inside it.
+    pub fn gps_range_ns(&self) -> (i64, i64) {
+        let span = i64::from(self.session.days) * 86_400 * 1_000_000_000;
+        (self.start_gps_ns, self.start_gps_ns.saturating_add(span))
+    }
 }
 
 /// Parses `YYYY-MM-DD` into a valid calendar date.
@@ -309,8 +332,13 @@ impl Dataset {
     /// Reads and validates `<dir>/dataset.toml`.
     pub fn load(dir: &Path) -> Result<Dataset> {
         let manifest_path = dir.join("dataset.toml");
-        let text =
-            std::fs::read_to_string(&manifest_path).map_err(|e| Error::io(&manifest_path, e))?;
+        let bytes = std::fs::read(&manifest_path).map_err(|e| Error::io(&manifest_path, e))?;
+        let bytes = bytes.strip_prefix(crate::lines::BOM).unwrap_or(&bytes);
+        let text = std::str::from_utf8(bytes).map_err(|e| Error::Manifest {
+            path: manifest_path.clone(),
+            key: format!("byte {}", e.valid_up_to()),
+            message: "not UTF-8 text (a manifest is UTF-8 TOML)".to_owned(),
+        })?;
         let manifest: Manifest = toml::from_str(&text).map_err(|e| {
             // toml names the key (unknown field `x`, missing field `y`) and the line.
             let key = e
@@ -430,9 +458,19 @@ impl Dataset {
         }
         let mut sids = BTreeSet::new();
         let mut sessions = Vec::new();
+        let root = dir.canonicalize().map_err(|e| Error::io(dir, e))?;
         let file = |key: String, rel: &str| -> Result<PathBuf> {
             let p = dir.join(rel);
-            if p.is_file() {
+            // A path must stay inside the dataset folder: no absolute path, no `..` out of it,
+            // no symbolic link that leads out.
+            let inside = Path::new(rel).is_relative()
+                && p.canonicalize().is_ok_and(|c| c.starts_with(&root));
+            if p.is_file() && !inside {
+                Err(err(
+                    key,
+                    format!("`{rel}` is outside the dataset folder {}", dir.display()),
+                ))
+            } else if p.is_file() {
                 Ok(p)
             } else {
                 Err(err(
@@ -488,9 +526,26 @@ impl Dataset {
                 }
             };
             let theodolite = file(format!("session[{i}].theodolite"), &s.theodolite)?;
+            if !(1..=366).contains(&s.days) {
+                return Err(err(
+                    format!("session[{i}].days"),
+                    format!("{} is out of range [1, 366]", s.days),
+                ));
+            }
+            let start_gps_ns = crate::time::gps_ns(
+                crate::time::Calendar::midnight(date),
+                TimeScale::Utc,
+            )
+            .ok_or_else(|| {
+                err(
+                    format!("session[{i}].date"),
+                    format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
+                )
+            })?;
             sessions.push(ResolvedSession {
                 session: s.clone(),
                 date,
+                start_gps_ns,
                 acquisition,
                 theodolite,
             });

@@ -37,19 +37,9 @@ fn scale_name(s: TimeScale) -> &'static str {
     }
 }
 
-/// Days from 0000-03-01 of a civil date, for comparing dates.
-fn day_number(y: i32, m: u8, d: u8) -> i64 {
-    let (y, m) = if m <= 2 {
-        (i64::from(y) - 1, i64::from(m) + 9)
-    } else {
-        (i64::from(y), i64::from(m) - 3)
-    };
-    365 * y + y / 4 - y / 100 + y / 400 + (153 * m + 2) / 5 + i64::from(d) - 1
-}
-
 /// Reads the theodolite log of `session`. A malformed line is an error (or, with
-/// `skip_bad_lines`, counted); a reading dated neither on the session's date nor the day after
-/// is rejected as outside the session, counted and listed.
+/// `skip_bad_lines`, counted); a reading timed outside the session's range
+/// ([`ResolvedSession::gps_range_ns`]) is rejected as outside the session, counted and listed.
 pub fn read_theodolite(
     session: &ResolvedSession,
     skip_bad_lines: bool,
@@ -59,7 +49,7 @@ pub fn read_theodolite(
     let path: &Path = &session.theodolite;
     let scale = session.session.theodolite_time_scale;
     let unit = session.session.theodolite_unit;
-    let session_day = day_number(session.date.0, session.date.1, session.date.2);
+    let range = session.gps_range_ns();
     let mut out = Vec::new();
     let mut other = 0u64;
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
@@ -104,27 +94,24 @@ pub fn read_theodolite(
             }
             let line = u32::try_from(line_no)
                 .map_err(|_| fail("line", "more than 2^32 lines".to_owned()))?;
-            Ok((
-                day_number(cal.year, cal.month, cal.day),
-                Reading {
-                    station: f[0].to_owned(),
-                    time_gps_ns,
-                    dz_rad: unit.to_rad(dz_value),
-                    dz_value,
-                    time_as_read: f[1].to_owned(),
-                    line,
-                },
-            ))
+            Ok(Reading {
+                station: f[0].to_owned(),
+                time_gps_ns,
+                dz_rad: unit.to_rad(dz_value),
+                dz_value,
+                time_as_read: f[1].to_owned(),
+                line,
+            })
         })();
         match parsed {
-            Ok((day, r)) => {
-                if day != session_day && day != session_day + 1 {
+            Ok(r) => {
+                if r.time_gps_ns < range.0 || r.time_gps_ns >= range.1 {
                     ledger.reject(
                         format!("line {line_no}"),
                         reason::OUTSIDE_SESSION,
                         format!(
-                            "time {} is not on the session's date {} or the day after",
-                            r.time_as_read, session.session.date
+                            "time {} is outside the session's {} day(s) from {}",
+                            r.time_as_read, session.session.days, session.session.date
                         ),
                     );
                 } else {

@@ -28,6 +28,21 @@ pub struct Calendar {
     pub nanos: u32,
 }
 
+impl Calendar {
+    /// 00:00:00 of `date` (year, month, day).
+    pub fn midnight(date: (i32, u8, u8)) -> Self {
+        Calendar {
+            year: date.0,
+            month: date.1,
+            day: date.2,
+            hour: 0,
+            minute: 0,
+            second: 0,
+            nanos: 0,
+        }
+    }
+}
+
 /// Parses `YYYY-MM-DDTHH:MM:SS[.fraction]` (no zone suffix; up to 9 decimals).
 pub fn parse_calendar(s: &str) -> Result<Calendar, String> {
     let b = s.as_bytes();
@@ -87,7 +102,9 @@ fn hifi(scale: TimeScale) -> hifitime::TimeScale {
     }
 }
 
-/// GPS time of a calendar instant read in time scale `scale`, ns; `None` before the GPS epoch.
+/// GPS time of a calendar instant read in time scale `scale`, ns; `None` before the GPS epoch
+/// (or past 2262, beyond i64 nanoseconds). hifitime's `to_gpst_nanoseconds` refuses instants
+/// a century or more past 1980 (it called 2080 "before the epoch"); the duration does not.
 pub fn gps_ns(c: Calendar, scale: TimeScale) -> Option<i64> {
     let e = Epoch::maybe_from_gregorian(
         c.year,
@@ -100,22 +117,16 @@ pub fn gps_ns(c: Calendar, scale: TimeScale) -> Option<i64> {
         hifi(scale),
     )
     .ok()?;
-    let ns = e.to_gpst_nanoseconds().ok()?;
+    let ns = e.to_gpst_duration().total_nanoseconds();
+    if ns < 0 {
+        return None;
+    }
     i64::try_from(ns).ok()
 }
 
 /// GPS week containing 00:00 UTC of `date`.
 pub fn week_of_date(date: (i32, u8, u8)) -> i64 {
-    let c = Calendar {
-        year: date.0,
-        month: date.1,
-        day: date.2,
-        hour: 0,
-        minute: 0,
-        second: 0,
-        nanos: 0,
-    };
-    gps_ns(c, TimeScale::Utc).map_or(0, |ns| ns.div_euclid(NS_PER_WEEK))
+    gps_ns(Calendar::midnight(date), TimeScale::Utc).map_or(0, |ns| ns.div_euclid(NS_PER_WEEK))
 }
 
 /// The full GPS week nearest `reference_week` that is congruent to `week10` modulo 1024.
@@ -142,6 +153,16 @@ mod tests {
         assert_eq!(gpst - tai, 19_000_000_000);
         let utc = gps_ns(cal("2019-04-06T23:59:42"), TimeScale::Utc).expect("after epoch");
         assert_eq!(utc, 2048 * NS_PER_WEEK);
+    }
+
+    /// Regression: hifitime's GPST nanoseconds refuse a century past 1980, and readings
+    /// after 2080 were called "before the GPS epoch".
+    #[test]
+    fn dates_after_2080_are_after_the_epoch() {
+        let a = gps_ns(cal("2081-03-01T00:00:00"), TimeScale::Gpst).expect("after epoch");
+        let b = gps_ns(cal("2081-03-02T00:00:00"), TimeScale::Gpst).expect("after epoch");
+        assert_eq!(b - a, 86_400 * 1_000_000_000);
+        assert!(gps_ns(cal("1980-01-05T23:59:59"), TimeScale::Gpst).is_none());
     }
 
     #[test]

@@ -687,6 +687,7 @@ pub struct Written {
 /// Builds the report from OUT/ingest, OUT/align and OUT/adjust; writes OUT/report.
 pub fn run(dataset: &Path, out: &Path) -> Result<Written, Error> {
     let ds = Dataset::load(dataset)?;
+    let _lock = ingest::lock::OutputLock::acquire(out)?;
     let sections = build(&ds, out)?;
     let dir = out.join("report");
     let plot_dir = dir.join("plots");

@@ -148,6 +148,8 @@ const STAGES: [(&str, Stage); 4] = [
 
 fn run_stages(args: &DatasetArgs, which: &[&str]) -> Result<()> {
     let out = out_dir(args)?;
+    // Held across the stages, so no other run slips in between them.
+    let _lock = ingest::lock::OutputLock::acquire(&out)?;
     for (name, stage) in STAGES.iter().filter(|(n, _)| which.contains(n)) {
         let t0 = std::time::Instant::now();
         stage(&args.dataset, &out)
