@@ -180,6 +180,46 @@ struct Pending {
     sums: [WindowSums; 3],
 }
 
+/// Where a station's sigma_Dz comes from, as written in `sigma_dz_source`.
+pub mod sigma_source {
+    /// The sample sd of the station's readings (eq. 4).
+    pub const STATION_SD: &str = "station_sd";
+    /// The manifest's `theodolite_sigma_arcsec` (fewer than 2 readings).
+    pub const MANIFEST: &str = "manifest";
+    /// The floor: the quantisation of the readings as logged, step / sqrt(12), because the
+    /// station's sd was smaller (readings logged coarsely can all be equal).
+    pub const RESOLUTION: &str = "resolution";
+}
+
+/// sigma_Dz per station of one session (eq. 4), never below the quantisation of the log:
+/// the step of the finest last decimal the session's readings were logged with, over
+/// sqrt(12). A station of one reading takes the manifest's `theodolite_sigma_arcsec`.
+fn station_sigmas(readings: &[Pending], fallback_rad: f64) -> BTreeMap<String, (f64, &'static str)> {
+    let floor_rad = readings
+        .iter()
+        .map(|p| p.reading.step_rad)
+        .fold(f64::INFINITY, f64::min)
+        / 12f64.sqrt();
+    let mut by_station: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
+    for p in readings {
+        by_station
+            .entry(p.reading.station.as_str())
+            .or_default()
+            .push(p.reading.dz_rad);
+    }
+    by_station
+        .into_iter()
+        .map(|(station, dz)| {
+            let sigma = match sample_sd(&dz) {
+                None => (fallback_rad, sigma_source::MANIFEST),
+                Some(sd) if sd >= floor_rad => (sd, sigma_source::STATION_SD),
+                Some(_) => (floor_rad, sigma_source::RESOLUTION),
+            };
+            (station.to_owned(), sigma)
+        })
+        .collect()
+}
+
 /// Aligns the dataset: reads OUT/ingest, writes OUT/align. Returns the ledger.
 pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let ds = Dataset::load(dataset)?;
@@ -256,23 +296,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let mut disconnected = Vec::new();
     for (si, s) in ds.sessions.iter().enumerate() {
         let id = &s.session.id;
-        let mut by_station: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
-        for p in &pending[si] {
-            by_station
-                .entry(p.reading.station.as_str())
-                .or_default()
-                .push(p.reading.dz_rad);
-        }
-        let sigma: BTreeMap<&str, (f64, &'static str)> = by_station
-            .iter()
-            .map(|(st, v)| {
-                let s = match sample_sd(v) {
-                    Some(sd) if sd > 0.0 => (sd, "station_sd"),
-                    _ => (fallback_sigma_rad, "manifest"),
-                };
-                (*st, s)
-            })
-            .collect();
+        let sigma = station_sigmas(&pending[si], fallback_sigma_rad);
         let never = ingest_report
             .sessions
             .iter()

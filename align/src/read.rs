@@ -1,5 +1,6 @@
 //! Reading ingest's tables and writing the observations table.
 
+use ingest::manifest::AngleUnit;
 use crate::{Error, Observation, Result};
 use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, StringArray};
 use arrow::datatypes::{
@@ -92,6 +93,22 @@ pub struct TheodoliteRow {
     pub time_gps_ns: i64,
     /// Zenith distance, rad.
     pub dz_rad: f64,
+    /// The step of the last decimal the reading was logged with, rad.
+    pub step_rad: f64,
+}
+
+/// The step of the last decimal of `value` as logged (e.g. 0.001 for `121.112`): the finest
+/// power of ten, down to 1e-9, of which the value is a whole multiple.
+pub fn logged_step(value: f64) -> f64 {
+    let mut step = 1.0;
+    for d in 0..=9 {
+        let x = value * 10f64.powi(d);
+        if (x - x.round()).abs() < 1e-3 {
+            return step;
+        }
+        step /= 10.0;
+    }
+    step
 }
 
 /// Readings per session.
@@ -109,6 +126,10 @@ pub fn theodolite(dir: &Path) -> Result<BTreeMap<String, Vec<TheodoliteRow>>> {
             column(&path, &b, schema::TIME_GPS_NS, &DataType::Int64)?.as_primitive::<Int64Type>();
         let dz = column(&path, &b, schema::theodolite::DZ_RAD, &DataType::Float64)?
             .as_primitive::<Float64Type>();
+        let value = column(&path, &b, schema::theodolite::DZ_VALUE, &DataType::Float64)?
+            .as_primitive::<Float64Type>();
+        let unit = column(&path, &b, schema::theodolite::DZ_UNIT, &DataType::Utf8)?
+            .as_string::<i32>();
         for i in 0..b.num_rows() {
             out.entry(ids[keys[i]].clone())
                 .or_default()
@@ -117,6 +138,16 @@ pub fn theodolite(dir: &Path) -> Result<BTreeMap<String, Vec<TheodoliteRow>>> {
                     line: line.value(i),
                     time_gps_ns: time.value(i),
                     dz_rad: dz.value(i),
+                    step_rad: {
+                        let unit = [AngleUnit::Deg, AngleUnit::Gon, AngleUnit::Rad]
+                            .into_iter()
+                            .find(|u| u.name() == unit.value(i))
+                            .ok_or_else(|| Error::Table {
+                                path: path.clone(),
+                                message: format!("unknown angle unit `{}`", unit.value(i)),
+                            })?;
+                        unit.to_rad(logged_step(value.value(i)))
+                    },
                 });
         }
     }

@@ -2,6 +2,9 @@
 //! window's first value (so the squares keep their precision) and of time, from which the
 //! mean, the sd of the mean, and the t statistic of a linear trend follow.
 
+/// Variance of the rounding of a reading to whole counts, count^2.
+pub const QUANTISATION_VARIANCE: f64 = 1.0 / 12.0;
+
 /// Running sums for one (reading, channel) window.
 #[derive(Clone, Debug, Default)]
 pub struct WindowSums {
@@ -26,7 +29,8 @@ pub struct WindowSums {
 pub struct WindowStats {
     /// Mean count.
     pub mean: f64,
-    /// Sd of the mean (sample sd / sqrt(n)).
+    /// Sd of the mean (sample sd / sqrt(n)), never below the quantisation of the counts
+    /// (an sd of 1/sqrt(12) count per sample): samples all equal do not make a mean exact.
     pub sigma_mean: f64,
     /// t statistic of the slope of a straight line through the samples (0 when n < 4).
     pub drift_t: f64,
@@ -72,7 +76,7 @@ impl WindowSums {
         };
         Some(WindowStats {
             mean: x0 + mean_d,
-            sigma_mean: (var / n).sqrt(),
+            sigma_mean: (var.max(QUANTISATION_VARIANCE) / n).sqrt(),
             drift_t,
         })
     }

@@ -2,8 +2,10 @@
 //! are only counted, so neither the disk, the hashing nor the Parquet writer is in the way.
 //!
 //! ```text
-//! cargo run --release -p ingest --example scan_speed -- target/bench-data/bench-250hz-24h/raw/long.gcb
+//! cargo run --release -p ingest --example scan_speed -- target/bench-data/bench-250hz-24h/raw/long.gcb [RATE_HZ]
 //! ```
+//!
+//! RATE_HZ is the nominal acceleration rate the time gate expects (default 250).
 
 use std::time::Instant;
 
@@ -11,12 +13,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = std::env::args()
         .nth(1)
         .ok_or("usage: scan_speed FILE.gcb")?;
+    let rate_hz: f64 = match std::env::args().nth(2) {
+        Some(r) => r.parse()?,
+        None => 250.0,
+    };
+    let config = ingest::gcb::ScanConfig {
+        reference_week: 1310,
+        acceleration_interval_ns: (1e9 / rate_hz).round() as i64,
+        range_ns: (0, i64::MAX),
+    };
     let bytes = std::fs::read(&path)?;
     let mut best = f64::INFINITY;
     let mut frames = 0u64;
     for _ in 0..3 {
         let t0 = Instant::now();
-        let mut scanner = ingest::gcb::FrameScanner::new(1310);
+        let mut scanner = ingest::gcb::FrameScanner::new(config);
         let mut ledger = ingest::ledger::FileLedger::default();
         let mut n = 0u64;
         let mut count = |f: ingest::gcb::Frame| -> Result<(), ()> {

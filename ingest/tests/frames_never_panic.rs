@@ -1,13 +1,18 @@
 //! The frame reader on arbitrary and mutated bytes: it never panics, accepted plus rejected
-//! is what it read, its bytes add up to the input, and chunking changes nothing.
+//! is what it read, its bytes add up to the input, and chunking changes nothing. A valid
+//! log with one out-of-place frame inserted anywhere loses at most one frame.
 
 use fixtures::gcb::{Frame, TYPE_ACCELERATION, TYPE_TEMPERATURE};
-use ingest::gcb::FrameScanner;
+use ingest::gcb::{FrameScanner, ScanConfig};
 use ingest::ledger::FileLedger;
 use proptest::prelude::*;
 
 fn scan(bytes: &[u8], chunk: usize) -> (Vec<ingest::gcb::Frame>, FileLedger) {
-    let mut s = FrameScanner::new(1310);
+    let mut s = FrameScanner::new(ScanConfig {
+        reference_week: 1310,
+        acceleration_interval_ns: 32_000_000,
+        range_ns: (0, i64::MAX),
+    });
     let mut ledger = FileLedger::default();
     let mut out = Vec::new();
     let mut emit = |f| -> Result<(), ()> {
@@ -42,6 +47,8 @@ fn valid_log(n: usize, seed: u64) -> Vec<u8> {
             TYPE_ACCELERATION
         };
         let v = (seed as i32).wrapping_mul(i as i32 + 1) & 0x7F_FFFF;
+        // Temperatures in milli-degrees, within [-50, 50] degC.
+        let v = if kind == TYPE_TEMPERATURE { v % 50_000 } else { v };
         let f = Frame {
             kind,
             week10: 286,
@@ -93,5 +100,42 @@ proptest! {
         let (frames, l) = scan(&bytes, chunk);
         prop_assert_eq!(frames.len(), n);
         prop_assert!(l.rejected.is_empty());
+    }
+
+    /// One valid frame with any time, inserted anywhere into a valid log, costs at most one
+    /// frame: itself, or (when it lands within one and a half intervals after the frame
+    /// before it, where it cannot be told from the next sample) the sample it displaces.
+    /// Before the time gate, a frame stamped ahead made every good frame after it go
+    /// `time_backwards`.
+    #[test]
+    fn one_out_of_place_frame_costs_at_most_one(
+        n in 2usize..300,
+        seed in any::<u64>(),
+        at in any::<usize>(),
+        tow_ms in 0u32..604_800_000,
+        temperature in any::<bool>(),
+        chunk in 1usize..300,
+    ) {
+        let log = valid_log(n, seed);
+        let (originals, _) = scan(&log, log.len());
+        let at = at % (n + 1) * 25;
+        let stray = Frame {
+            kind: if temperature { TYPE_TEMPERATURE } else { TYPE_ACCELERATION },
+            week10: 286,
+            tow_ms,
+            values: [7, 7, 7],
+            status: 0,
+        };
+        let mut bytes = log[..at].to_vec();
+        bytes.extend_from_slice(&stray.encode());
+        bytes.extend_from_slice(&log[at..]);
+        let (frames, l) = scan(&bytes, chunk);
+        prop_assert!(l.rejected_total() <= 1, "{:?}", l.rejections);
+        let kept = originals.iter().filter(|f| frames.contains(f)).count();
+        prop_assert!(kept + 1 >= originals.len(), "{} of {} kept", kept, originals.len());
+        if frames.len() < originals.len() + 1 && kept == originals.len() {
+            // The stray is the one rejected.
+            prop_assert_eq!(l.rejected_total(), 1);
+        }
     }
 }
