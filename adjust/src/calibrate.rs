@@ -30,10 +30,19 @@ pub struct Obs {
 #[non_exhaustive]
 pub enum CalError {
     /// The design cannot determine this parameter.
-    #[error("parameter {parameter} is not estimable from these observations")]
+    #[error("parameter {parameter} is not estimable: {why}")]
     NotEstimable {
         /// Its name.
         parameter: &'static str,
+        /// What in the design leaves it undetermined, and what would fix it.
+        why: String,
+    },
+    /// An observation's condition has no variance (both its sds, or their derivatives,
+    /// vanish); `index` is into the fit's observations, for the caller to name it.
+    #[error("observation {index} has zero variance")]
+    ZeroVariance {
+        /// Index into the fit's observations.
+        index: usize,
     },
     /// Too few observations.
     #[error("{n} observations for {m} parameters")]
@@ -146,6 +155,95 @@ pub enum Snooping {
     Off,
 }
 
+/// Tilt positions closer than this many sds of Dz are one position in [`design_check`].
+const LEVEL_SEPARATION_SIGMAS: f64 = 10.0;
+/// Counts whose whole spread is below this many sds of a window mean do not vary with tilt.
+const COUNT_SPREAD_SIGMAS: f64 = 10.0;
+/// Temperature terms need observations at least this far apart, degC (the same step that
+/// makes the default models add the thermal one).
+pub const MIN_TEMPERATURE_SPREAD_C: f64 = 1.0;
+
+/// Whether the design can determine every parameter of `terms`, by what varies in it: the
+/// polynomial of order n needs n + 1 distinct tilt positions (Dz values further apart than
+/// [`LEVEL_SEPARATION_SIGMAS`] of their sd) and counts that vary by more than noise
+/// ([`COUNT_SPREAD_SIGMAS`] sds of a window mean); temperature terms need temperatures
+/// spread over [`MIN_TEMPERATURE_SPREAD_C`]. These are the columns of the design scaled by
+/// their noise: a column that varies by no more than its noise is numerically of full rank
+/// and statistically empty, and would give a number with an absurd sigma. The QR of the
+/// adjustment still catches exact rank loss (e.g. beta with tilts on one side only).
+pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
+    let names = terms.names();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    let mut dz: Vec<f64> = obs.iter().map(|o| o.dz_rad).collect();
+    dz.sort_by(f64::total_cmp);
+    let separation = LEVEL_SEPARATION_SIGMAS * median(obs.iter().map(|o| o.sigma_dz_rad).collect());
+    let levels = 1 + dz.windows(2).filter(|w| w[1] - w[0] > separation.max(1e-9)).count();
+    if levels < terms.order + 1 && !obs.is_empty() {
+        return Err(CalError::NotEstimable {
+            parameter: names[levels].name,
+            why: format!(
+                "the observations come from {levels} tilt position(s) (Dz {:.4} to {:.4} deg); \
+                 a polynomial of order {} needs {} positions at different Dz",
+                dz[0].to_degrees(),
+                dz[dz.len() - 1].to_degrees(),
+                terms.order,
+                terms.order + 1
+            ),
+        });
+    }
+    let (lo, hi) = obs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), o| (a.min(o.ng), b.max(o.ng)));
+    let noise = median(obs.iter().map(|o| o.sigma_ng).collect());
+    if hi - lo <= COUNT_SPREAD_SIGMAS * noise {
+        return Err(CalError::NotEstimable {
+            parameter: names[1].name,
+            why: format!(
+                "the counts do not vary with the tilt: they span {:.3} counts, against a noise \
+                 of {noise:.3} counts per window mean",
+                hi - lo
+            ),
+        });
+    }
+    if terms.temperature {
+        let (lo, hi) = obs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), o| {
+            (a.min(o.temperature_c), b.max(o.temperature_c))
+        });
+        if hi - lo < MIN_TEMPERATURE_SPREAD_C {
+            return Err(CalError::NotEstimable {
+                parameter: "b_t",
+                why: format!(
+                    "one temperature set: the observations span {lo:.2} to {hi:.2} degC; b_t \
+                     and k_t need temperatures at least {MIN_TEMPERATURE_SPREAD_C} degC apart \
+                     (a second session at another temperature)"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Start values of the scaled parameters: b and k from an ordinary least-squares line of
+/// `-g cos Dz` on `x` (so that the first linearisation sees the slope, and a reading at
+/// Dz = 0 has a variance), the rest 0.
+fn start_values(used: &[&Obs], model: &Calibration<'_>) -> Vec<f64> {
+    let mut p = vec![0.0; model.terms.len()];
+    let n = used.len() as f64;
+    let xs: Vec<f64> = used.iter().map(|o| (o.ng - model.centre) / model.scale).collect();
+    let ys: Vec<f64> = used.iter().map(|o| -model.g_mgal * o.dz_rad.cos()).collect();
+    let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
+    let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
+    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    // The condition is g cos Dz + c = 0: c(x) is the line of -g cos Dz on x.
+    p[0] = my - slope * mx;
+    p[1] = slope;
+    p
+}
+
 /// Fits `terms` to `obs` with gravity `g_mgal`, removing blunders one at a time while a
 /// w-test exceeds [`W_CRITICAL`] (at most a tenth of the observations).
 pub fn fit(obs: &[Obs], terms: Terms, g_mgal: f64) -> Result<Fitted, CalError> {
@@ -163,6 +261,7 @@ pub fn fit_with(
     if obs.len() <= m {
         return Err(CalError::TooFew { n: obs.len(), m });
     }
+    design_check(obs, terms)?;
     let max_removals = match snooping {
         Snooping::TenthAtMost => obs.len() / 10,
         Snooping::Off => 0,
@@ -194,15 +293,20 @@ pub fn fit_with(
         };
         let l: Vec<[f64; 2]> = used.iter().map(|o| [o.dz_rad, o.ng]).collect();
         let sigma: Vec<[f64; 2]> = used.iter().map(|o| [o.sigma_dz_rad, o.sigma_ng]).collect();
-        let s = gh::adjust(&model, &l, &sigma, &vec![0.0; m], &Options::default()).map_err(
-            |e| match e {
-                GhError::NotEstimable { index } => CalError::NotEstimable {
-                    parameter: names[index].name,
-                },
-                GhError::TooFewObservations { n, m } => CalError::TooFew { n, m },
-                other => CalError::Adjustment(other.to_string()),
+        let p0 = start_values(&used, &model);
+        let s = gh::adjust(&model, &l, &sigma, &p0, &Options::default()).map_err(|e| match e {
+            GhError::NotEstimable { index } => CalError::NotEstimable {
+                parameter: names[index].name,
+                why: "its column of the design depends on the others (e.g. beta with tilts on \
+                      one side of the vertical only)"
+                    .to_owned(),
             },
-        )?;
+            GhError::TooFewObservations { n, m } => CalError::TooFew { n, m },
+            GhError::ZeroVariance { index } => CalError::ZeroVariance {
+                index: active[index],
+            },
+            other => CalError::Adjustment(other.to_string()),
+        })?;
         let worst = s
             .w_test
             .iter()

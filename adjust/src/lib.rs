@@ -339,6 +339,33 @@ fn result_of(job: &Job<'_>, f: &calibrate::Fitted, terms: Terms) -> FitResult {
     }
 }
 
+/// Why a fit was skipped, naming an observation by its theodolite log and line, never by an
+/// internal index.
+fn skip_reason(ds: &Dataset, job: &Job<'_>, e: &CalError) -> String {
+    match e {
+        CalError::ZeroVariance { index } => {
+            let o = job.obs[*index];
+            let log = ds
+                .sessions
+                .iter()
+                .find(|s| s.session.id == o.session)
+                .map(|s| {
+                    s.theodolite
+                        .strip_prefix(&ds.dir)
+                        .unwrap_or(&s.theodolite)
+                        .display()
+                        .to_string()
+                })
+                .unwrap_or_default();
+            format!(
+                "the reading at {log} line {} (session {}, station {}) has zero variance: its sd of Dz and of the counts are both 0",
+                o.line, o.session, o.station
+            )
+        }
+        other => other.to_string(),
+    }
+}
+
 /// Runs the stage: reads OUT/ingest and OUT/align, writes OUT/adjust.
 pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let ds = Dataset::load(dataset)?;
@@ -471,7 +498,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
                 reason: if job.obs.is_empty() {
                     "no usable observations".to_owned()
                 } else {
-                    e.to_string()
+                    skip_reason(&ds, job, e)
                 },
             }),
         }

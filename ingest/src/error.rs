@@ -54,6 +54,15 @@ pub enum Error {
         /// One message per problem, naming the session and file.
         errors: Vec<String>,
     },
+    /// An upstream file is not the one its stage recorded (changed, missing, or from another
+    /// dataset): the message names the command to re-run.
+    #[error("{}: {message}", path.display())]
+    Stale {
+        /// The file.
+        path: PathBuf,
+        /// What differs and what to re-run.
+        message: String,
+    },
     /// Building an Arrow batch failed (a bug: the batches are built to their schema).
     #[error("building an Arrow batch for {table}: {source}")]
     Arrow {

@@ -19,6 +19,7 @@
 //! ```
 
 mod csvlog;
+pub mod custody;
 pub mod encoding;
 mod error;
 pub mod gcb;
@@ -44,6 +45,10 @@ use streams::StreamWriter;
 
 /// File name of the ledger.
 pub const LEDGER_FILE: &str = "ingest.json";
+/// The stage's folder in OUT.
+pub const STAGE_DIR: &str = "ingest";
+/// The manifest's file name in a dataset folder.
+pub const MANIFEST_FILE: &str = "dataset.toml";
 /// Format tag of the ledger.
 pub const LEDGER_FORMAT: &str = "gravcal-ingest/1";
 
@@ -92,6 +97,8 @@ pub struct IngestReport {
     pub sessions: Vec<SessionSummary>,
     /// Rows written per table file.
     pub tables: std::collections::BTreeMap<String, u64>,
+    /// Every file ingest read (the manifest and the raw logs) and wrote, with its SHA-256.
+    pub custody: custody::Custody,
     /// What makes the run fail although every table was written (a session that gave no
     /// data, a sample rate off the declared one); downstream stages refuse a ledger with any.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -99,6 +106,28 @@ pub struct IngestReport {
 }
 
 impl IngestReport {
+    /// Reads OUT/ingest/ingest.json and checks it is this dataset's and still true: written
+    /// for `ds`, without errors, and every file it records (manifest, raw logs, tables)
+    /// unchanged on disk. What every downstream stage calls before it reads ingest's tables.
+    pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self> {
+        let dir = out.join("ingest");
+        let report = IngestReport::load(&dir)?;
+        let path = dir.join(LEDGER_FILE);
+        custody::check_dataset(&path, &report.dataset, &ds.manifest.name)?;
+        if !report.errors.is_empty() {
+            return Err(Error::Unusable {
+                path,
+                errors: report.errors,
+            });
+        }
+        let folders = custody::Folders {
+            dataset: &ds.dir,
+            out,
+        };
+        folders.verify(&report.custody, "ingest", "ingest")?;
+        Ok(report)
+    }
+
     /// Reads `dir/ingest.json` (`dir` being OUT/ingest).
     pub fn load(dir: &Path) -> Result<Self> {
         let path = dir.join(LEDGER_FILE);
@@ -276,7 +305,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<IngestReport> {
 pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestReport> {
     let ds = Dataset::load(dataset)?;
     let _lock = lock::OutputLock::acquire(out)?;
-    let dir: PathBuf = out.join("ingest");
+    let dir: PathBuf = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     let ledger_path = dir.join(LEDGER_FILE);
     remove_stale(&ledger_path)?;
@@ -405,6 +434,24 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
     let theo_rows = theo.finish();
     let (acc_rows, temp_rows) = closing.wait()?;
     let theo_rows = theo_rows?;
+    let folders = custody::Folders {
+        dataset: &ds.dir,
+        out,
+    };
+    let mut inputs = vec![folders.record(custody::Root::Dataset, MANIFEST_FILE)?];
+    inputs.extend(files.iter().map(|f| custody::FileHash {
+        root: custody::Root::Dataset,
+        path: f.path.clone(),
+        sha256: f.sha256.clone(),
+    }));
+    let outputs = [
+        schema::acceleration::FILE,
+        schema::temperature::FILE,
+        schema::theodolite::FILE,
+    ]
+    .iter()
+    .map(|t| folders.record(custody::Root::Out, &format!("{STAGE_DIR}/{t}")))
+    .collect::<Result<Vec<_>>>()?;
     let report = IngestReport {
         format: LEDGER_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
@@ -418,6 +465,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
         ]
         .into_iter()
         .collect(),
+        custody: custody::Custody { inputs, outputs },
         errors,
     };
     write_json_atomically(&ledger_path, &report)?;

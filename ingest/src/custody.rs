@@ -1,0 +1,131 @@
+//! Chain of custody: every stage records the SHA-256 of every file it read and wrote, and
+//! checks, before it reads an upstream folder, that the files on disk are still the ones
+//! the upstream stages recorded. A stale or foreign folder is refused with a message naming
+//! the file that changed and the command to re-run.
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// Which folder a recorded path is relative to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Root {
+    /// The dataset folder (the manifest and the raw logs).
+    Dataset,
+    /// The output folder OUT (the stages' tables and ledgers).
+    Out,
+}
+
+/// A file and its hash.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FileHash {
+    /// Folder `path` is relative to.
+    pub root: Root,
+    /// Path relative to `root`, with `/`.
+    pub path: String,
+    /// SHA-256 of its bytes, hex.
+    pub sha256: String,
+}
+
+/// What a stage read and wrote.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Custody {
+    /// Every file the stage read.
+    pub inputs: Vec<FileHash>,
+    /// Every table it wrote (its own ledger is not among them: it holds this record).
+    pub outputs: Vec<FileHash>,
+}
+
+/// The two folders paths are relative to.
+#[derive(Clone, Copy, Debug)]
+pub struct Folders<'a> {
+    /// The dataset folder.
+    pub dataset: &'a Path,
+    /// The output folder OUT.
+    pub out: &'a Path,
+}
+
+impl Folders<'_> {
+    fn resolve(&self, root: Root, path: &str) -> PathBuf {
+        match root {
+            Root::Dataset => self.dataset.join(path),
+            Root::Out => self.out.join(path),
+        }
+    }
+
+    /// Hashes `path` (relative to `root`) now.
+    pub fn record(&self, root: Root, path: &str) -> Result<FileHash> {
+        Ok(FileHash {
+            root,
+            path: path.to_owned(),
+            sha256: sha256_file(&self.resolve(root, path))?,
+        })
+    }
+
+    /// Checks that every file of `custody` still has its recorded hash. `stage` is the stage
+    /// that recorded it, `rerun` the stage to re-run from when an input changed.
+    pub fn verify(&self, custody: &Custody, stage: &str, rerun: &str) -> Result<()> {
+        for (list, what, from) in [
+            (&custody.inputs, "read", rerun),
+            (&custody.outputs, "wrote", stage),
+        ] {
+            for f in list {
+                let path = self.resolve(f.root, &f.path);
+                let now = match sha256_file(&path) {
+                    Ok(h) => h,
+                    Err(_) => String::from("(missing)"),
+                };
+                if now != f.sha256 {
+                    return Err(Error::Stale {
+                        path,
+                        message: format!(
+                            "is not the file {stage} {what} (sha256 {} recorded, {} now); \
+                             re-run from {from}: `cargo xtask pipeline {}` or `cargo xtask {from} {}`",
+                            short(&f.sha256),
+                            short(&now),
+                            self.dataset.display(),
+                            self.dataset.display()
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn short(h: &str) -> &str {
+    &h[..h.len().min(12)]
+}
+
+/// SHA-256 of a file's bytes, hex.
+pub fn sha256_file(path: &Path) -> Result<String> {
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut hasher = Sha256::new();
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let n = f.read(&mut buf).map_err(|e| Error::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        hasher.update(&buf[..n]);
+    }
+    Ok(hasher.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Checks that a ledger `ledger` was written for the dataset named `expected`.
+pub fn check_dataset(ledger: &Path, recorded: &str, expected: &str) -> Result<()> {
+    if recorded == expected {
+        Ok(())
+    } else {
+        Err(Error::Stale {
+            path: ledger.to_path_buf(),
+            message: format!(
+                "was written for dataset `{recorded}`, not `{expected}`: this output folder belongs to another dataset; choose another --out"
+            ),
+        })
+    }
+}
