@@ -17,6 +17,7 @@ pub mod io;
 pub mod model;
 
 use calibrate::{CalError, Obs};
+use ingest::custody::{Custody, Folders, Root, check_dataset};
 use ingest::manifest::{Dataset, ModelDecl, Per};
 use model::Terms;
 use rayon::prelude::*;
@@ -183,12 +184,35 @@ pub struct Calibration {
     pub results: Vec<FitResult>,
     /// Fits without a result.
     pub skipped: Vec<Skipped>,
+    /// Every file adjust read (the manifest, the upstream ledgers and observations) and
+    /// wrote (residuals.parquet), with its SHA-256: with `inputs`, exactly what the numbers
+    /// came from.
+    pub custody: Custody,
 }
+
+/// The stage's folder in OUT.
+pub const STAGE_DIR: &str = "adjust";
 
 impl Calibration {
     /// Reads `dir/calibration.json` (`dir` being OUT/adjust).
     pub fn load(dir: &Path) -> Result<Self, Error> {
         Ok(ingest::read_json(&dir.join(CALIBRATION_FILE))?)
+    }
+
+    /// Reads OUT/adjust/calibration.json and checks the whole chain behind it: ingest's and
+    /// align's records and its own still match the files on disk, all for `ds`.
+    pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self, Error> {
+        ingest::IngestReport::load_verified(ds, out)?;
+        align::AlignReport::load_verified(ds, out)?;
+        let dir = out.join(STAGE_DIR);
+        let c = Calibration::load(&dir)?;
+        check_dataset(&dir.join(CALIBRATION_FILE), &c.dataset, &ds.manifest.name)?;
+        let folders = Folders {
+            dataset: &ds.dir,
+            out,
+        };
+        folders.verify(&c.custody, STAGE_DIR, STAGE_DIR)?;
+        Ok(c)
     }
 }
 
@@ -370,9 +394,9 @@ fn skip_reason(ds: &Dataset, job: &Job<'_>, e: &CalError) -> String {
 pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let ds = Dataset::load(dataset)?;
     let _lock = ingest::lock::OutputLock::acquire(out)?;
-    let ingest_report = ingest::IngestReport::load(&out.join("ingest"))?;
-    let align_report = align::AlignReport::load(&out.join("align"))?;
-    let rows = io::read_observations(&out.join("align"))?;
+    let ingest_report = ingest::IngestReport::load_verified(&ds, out)?;
+    let align_report = align::AlignReport::load_verified(&ds, out)?;
+    let rows = io::read_observations(&out.join(align::STAGE_DIR))?;
     let g = ds.manifest.site.gravity_mgal();
     let used: Vec<&io::ObservationRow> = rows
         .iter()
@@ -503,7 +527,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
             }),
         }
     }
-    let dir = out.join("adjust");
+    let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
         path: dir.clone(),
         source: e,
@@ -511,6 +535,22 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let cal_path = dir.join(CALIBRATION_FILE);
     ingest::remove_stale(&cal_path)?;
     io::write_residuals(&dir, &residual_rows)?;
+    let folders = Folders {
+        dataset: &ds.dir,
+        out,
+    };
+    let mut inputs = vec![folders.record(Root::Dataset, ingest::MANIFEST_FILE)?];
+    for file in [
+        format!("{}/{}", ingest::STAGE_DIR, ingest::LEDGER_FILE),
+        format!("{}/{}", align::STAGE_DIR, align::LEDGER_FILE),
+        format!("{}/{}", align::STAGE_DIR, ingest::schema::observations::FILE),
+    ] {
+        inputs.push(folders.record(Root::Out, &file)?);
+    }
+    let outputs = vec![folders.record(
+        Root::Out,
+        &format!("{STAGE_DIR}/{}", ingest::schema::residuals::FILE),
+    )?];
     let calibration = Calibration {
         format: CALIBRATION_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
@@ -526,6 +566,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         gravity_mgal: g,
         results,
         skipped,
+        custody: Custody { inputs, outputs },
     };
     ingest::write_json_atomically(&cal_path, &calibration)?;
     Ok(calibration)

@@ -18,6 +18,8 @@
 mod read;
 pub mod window;
 
+use ingest::schema;
+use ingest::custody::{Custody, Folders, Root, check_dataset};
 use ingest::manifest::{AlignConfig, Dataset};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -163,6 +165,12 @@ pub struct AlignReport {
     pub disconnected: Vec<Disconnected>,
     /// Rows in observations.parquet.
     pub observations: u64,
+    /// Every file align read (the manifest, ingest's ledger and tables) and wrote.
+    pub custody: Custody,
+    /// Sessions that gave no usable observation (and were not declared `expect_empty`):
+    /// the run fails, and downstream stages refuse this ledger.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub errors: Vec<String>,
 }
 
 impl AlignReport {
@@ -170,7 +178,31 @@ impl AlignReport {
     pub fn load(dir: &Path) -> Result<Self> {
         Ok(ingest::read_json(&dir.join(LEDGER_FILE))?)
     }
+
+    /// Reads OUT/align/align.json and checks it is this dataset's and still true: every file
+    /// it records (manifest, ingest's ledger and tables, observations.parquet) unchanged.
+    pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self> {
+        let dir = out.join(STAGE_DIR);
+        let report = AlignReport::load(&dir)?;
+        check_dataset(&dir.join(LEDGER_FILE), &report.dataset, &ds.manifest.name)?;
+        if !report.errors.is_empty() {
+            return Err(ingest::Error::Unusable {
+                path: dir.join(LEDGER_FILE),
+                errors: report.errors,
+            }
+            .into());
+        }
+        let folders = Folders {
+            dataset: &ds.dir,
+            out,
+        };
+        folders.verify(&report.custody, STAGE_DIR, STAGE_DIR)?;
+        Ok(report)
+    }
 }
+
+/// The stage's folder in OUT.
+pub const STAGE_DIR: &str = "align";
 
 /// A reading with its windows being filled.
 struct Pending {
@@ -224,8 +256,8 @@ fn station_sigmas(readings: &[Pending], fallback_rad: f64) -> BTreeMap<String, (
 pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let ds = Dataset::load(dataset)?;
     let _lock = ingest::lock::OutputLock::acquire(out)?;
-    let ingest_dir = out.join("ingest");
-    let ingest_report = ingest::IngestReport::load(&ingest_dir)?;
+    let ingest_dir = out.join(ingest::STAGE_DIR);
+    let ingest_report = ingest::IngestReport::load_verified(&ds, out)?;
     let cfg = ds.manifest.align.clone();
     let g = ds.manifest.site.gravity_mgal();
     let rate = ds.manifest.instrument.sample_rate_hz;
@@ -373,7 +405,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
         }
     }
 
-    let dir = out.join("align");
+    let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| ingest::Error::Io {
         path: dir.clone(),
         source: e,
@@ -381,6 +413,23 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
     let rows = read::write_observations(&dir, &observations)?;
+    let folders = Folders {
+        dataset: &ds.dir,
+        out,
+    };
+    let mut inputs = vec![folders.record(Root::Dataset, ingest::MANIFEST_FILE)?];
+    for file in [
+        ingest::LEDGER_FILE,
+        schema::acceleration::FILE,
+        schema::temperature::FILE,
+        schema::theodolite::FILE,
+    ] {
+        inputs.push(folders.record(Root::Out, &format!("{}/{file}", ingest::STAGE_DIR))?);
+    }
+    let outputs = vec![folders.record(
+        Root::Out,
+        &format!("{STAGE_DIR}/{}", schema::observations::FILE),
+    )?];
     let report = AlignReport {
         format: LEDGER_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
@@ -390,8 +439,39 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
         counts,
         disconnected,
         observations: rows,
+        custody: Custody { inputs, outputs },
+        errors: Vec::new(),
+    };
+    let report = AlignReport {
+        errors: ds
+            .sessions
+            .iter()
+            .filter(|s| !s.session.expect_empty)
+            .filter(|s| {
+                report
+                    .counts
+                    .iter()
+                    .filter(|c| c.session == s.session.id)
+                    .all(|c| c.used == 0)
+            })
+            .map(|s| {
+                format!(
+                    "session {}: no usable observation for any accelerometer (align.json counts why; \
+                     if this is expected, set `expect_empty = true` in its [[session]])",
+                    s.session.id
+                )
+            })
+            .collect(),
+        ..report
     };
     ingest::write_json_atomically(&ledger_path, &report)?;
+    if !report.errors.is_empty() {
+        return Err(ingest::Error::Unusable {
+            path: ledger_path,
+            errors: report.errors,
+        }
+        .into());
+    }
     Ok(report)
 }
 

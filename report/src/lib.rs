@@ -142,12 +142,38 @@ fn gps(ns: i64) -> String {
     format!("{week} / {tow:.3}")
 }
 
+/// Every file the stages read and wrote, with its hash.
+fn custody_table(
+    ingest_report: &ingest::IngestReport,
+    align_report: &align::AlignReport,
+    cal: &Calibration,
+) -> Table {
+    let mut t = Table::new(&["stage", "read or wrote", "file", "SHA-256"]);
+    for (stage, custody) in [
+        ("ingest", &ingest_report.custody),
+        ("align", &align_report.custody),
+        ("adjust", &cal.custody),
+    ] {
+        for (what, list) in [("read", &custody.inputs), ("wrote", &custody.outputs)] {
+            for f in list {
+                let path = match f.root {
+                    ingest::custody::Root::Dataset => f.path.clone(),
+                    ingest::custody::Root::Out => format!("OUT/{}", f.path),
+                };
+                t.rows
+                    .push(vec![stage.to_owned(), what.to_owned(), path, f.sha256.clone()]);
+            }
+        }
+    }
+    t
+}
+
 /// Builds the report's sections from the stage outputs under `out`.
 pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
-    let ingest_report = ingest::IngestReport::load(&out.join("ingest"))?;
-    let align_report = align::AlignReport::load(&out.join("align"))?;
-    let cal = Calibration::load(&out.join("adjust"))?;
-    let residuals = adjust::io::read_residuals(&out.join("adjust"))?;
+    let cal = Calibration::load_verified(ds, out)?;
+    let ingest_report = ingest::IngestReport::load(&out.join(ingest::STAGE_DIR))?;
+    let align_report = align::AlignReport::load(&out.join(align::STAGE_DIR))?;
+    let residuals = adjust::io::read_residuals(&out.join(adjust::STAGE_DIR))?;
     let m = &ds.manifest;
     let mut sections = Vec::new();
 
@@ -175,6 +201,10 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
             .push(vec![f.path.clone(), f.sha256.clone(), f.bytes.to_string()]);
     }
     s.tables.push(("Inputs".to_owned(), inputs));
+    s.tables.push((
+        "Chain of custody: every file each stage read and wrote, checked unchanged before this report was built".to_owned(),
+        custody_table(&ingest_report, &align_report, &cal),
+    ));
     sections.push(s);
 
     // The function, stated with its direction.
