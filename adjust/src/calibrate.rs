@@ -64,7 +64,8 @@ pub struct Removal {
     pub index: usize,
     /// Its w-test value when it was removed.
     pub w: f64,
-    /// The adjustment round (1-based) that flagged it.
+    /// The adjustment round (1-based) that flagged it; 0 for a gross error screened out
+    /// before the adjustment ([`GROSS_ERROR_SDS`]).
     pub round: usize,
 }
 
@@ -180,7 +181,10 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
     let mut dz: Vec<f64> = obs.iter().map(|o| o.dz_rad).collect();
     dz.sort_by(f64::total_cmp);
     let separation = LEVEL_SEPARATION_SIGMAS * median(obs.iter().map(|o| o.sigma_dz_rad).collect());
-    let levels = 1 + dz.windows(2).filter(|w| w[1] - w[0] > separation.max(1e-9)).count();
+    let levels = 1 + dz
+        .windows(2)
+        .filter(|w| w[1] - w[0] > separation.max(1e-9))
+        .count();
     if levels < terms.order + 1 && !obs.is_empty() {
         return Err(CalError::NotEstimable {
             parameter: names[levels].name,
@@ -196,7 +200,9 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
     }
     let (lo, hi) = obs
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), o| (a.min(o.ng), b.max(o.ng)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), o| {
+            (a.min(o.ng), b.max(o.ng))
+        });
     let noise = median(obs.iter().map(|o| o.sigma_ng).collect());
     if hi - lo <= COUNT_SPREAD_SIGMAS * noise {
         return Err(CalError::NotEstimable {
@@ -209,9 +215,11 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
         });
     }
     if terms.temperature {
-        let (lo, hi) = obs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), o| {
-            (a.min(o.temperature_c), b.max(o.temperature_c))
-        });
+        let (lo, hi) = obs
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), o| {
+                (a.min(o.temperature_c), b.max(o.temperature_c))
+            });
         if hi - lo < MIN_TEMPERATURE_SPREAD_C {
             return Err(CalError::NotEstimable {
                 parameter: "b_t",
@@ -226,14 +234,92 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
     Ok(())
 }
 
+/// A misclosure further than this many robust sds from a robust straight line of
+/// `-g cos Dz` on the counts is a gross error, removed before the adjustment: one reading of Dz = 0 among
+/// readings at 120 deg misses by 10^5 sds, pulls the first linearisation so far that the
+/// other readings' Dz residuals reach radians, and the iteration never settles. Fixed
+/// high so that every blunder within reach of the w-test is left to it.
+pub const GROSS_ERROR_SDS: f64 = 1000.0;
+
+/// Removes gross errors one at a time (the largest first, at most `max_removals`): an
+/// observation whose residual from a robust straight line of `-g cos Dz` on Ng exceeds
+/// [`GROSS_ERROR_SDS`] robust sds (1.4826 x the median absolute residual). Returns them as
+/// removals of round 0, with the residual in robust sds as their w.
+fn screen_gross_errors(
+    obs: &[Obs],
+    active: &mut Vec<usize>,
+    g_mgal: f64,
+    max_removals: usize,
+) -> Vec<Removal> {
+    let mut removed = Vec::new();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    while removed.len() < max_removals && active.len() > 3 {
+        // A robust line: the median slope between points half the sample apart in Ng, and
+        // the median intercept; a gross error moves neither.
+        let mut pts: Vec<(f64, f64)> = active
+            .iter()
+            .map(|&i| (obs[i].ng, -g_mgal * obs[i].dz_rad.cos()))
+            .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let h = pts.len() / 2;
+        let slopes: Vec<f64> = (0..pts.len() - h)
+            .filter(|&j| pts[j + h].0 > pts[j].0)
+            .map(|j| (pts[j + h].1 - pts[j].1) / (pts[j + h].0 - pts[j].0))
+            .collect();
+        if slopes.is_empty() {
+            break;
+        }
+        let slope = median(slopes);
+        let intercept = median(
+            active
+                .iter()
+                .map(|&i| -g_mgal * obs[i].dz_rad.cos() - slope * obs[i].ng)
+                .collect(),
+        );
+        let r: Vec<f64> = active
+            .iter()
+            .map(|&i| -g_mgal * obs[i].dz_rad.cos() - intercept - slope * obs[i].ng)
+            .collect();
+        let mut abs: Vec<f64> = r.iter().map(|v| v.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        let sd = 1.4826 * abs[abs.len() / 2];
+        let Some((k, worst)) = r
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        else {
+            break;
+        };
+        if !(sd > 0.0) || worst.abs() <= GROSS_ERROR_SDS * sd {
+            break;
+        }
+        removed.push(Removal {
+            index: active[k],
+            w: worst / sd,
+            round: 0,
+        });
+        active.remove(k);
+    }
+    removed
+}
+
 /// Start values of the scaled parameters: b and k from an ordinary least-squares line of
 /// `-g cos Dz` on `x` (so that the first linearisation sees the slope, and a reading at
 /// Dz = 0 has a variance), the rest 0.
 fn start_values(used: &[&Obs], model: &Calibration<'_>) -> Vec<f64> {
     let mut p = vec![0.0; model.terms.len()];
     let n = used.len() as f64;
-    let xs: Vec<f64> = used.iter().map(|o| (o.ng - model.centre) / model.scale).collect();
-    let ys: Vec<f64> = used.iter().map(|o| -model.g_mgal * o.dz_rad.cos()).collect();
+    let xs: Vec<f64> = used
+        .iter()
+        .map(|o| (o.ng - model.centre) / model.scale)
+        .collect();
+    let ys: Vec<f64> = used
+        .iter()
+        .map(|o| -model.g_mgal * o.dz_rad.cos())
+        .collect();
     let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
     let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
     let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
@@ -267,7 +353,10 @@ pub fn fit_with(
         Snooping::Off => 0,
     };
     let mut active: Vec<usize> = (0..obs.len()).collect();
-    let mut removed = Vec::new();
+    let mut removed = match snooping {
+        Snooping::TenthAtMost => screen_gross_errors(obs, &mut active, g_mgal, max_removals),
+        Snooping::Off => Vec::new(),
+    };
     let names = terms.names();
     let mut round = 0;
     loop {

@@ -543,7 +543,11 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     for file in [
         format!("{}/{}", ingest::STAGE_DIR, ingest::LEDGER_FILE),
         format!("{}/{}", align::STAGE_DIR, align::LEDGER_FILE),
-        format!("{}/{}", align::STAGE_DIR, ingest::schema::observations::FILE),
+        format!(
+            "{}/{}",
+            align::STAGE_DIR,
+            ingest::schema::observations::FILE
+        ),
     ] {
         inputs.push(folders.record(Root::Out, &file)?);
     }

@@ -97,7 +97,13 @@ fn replica_recovers_the_truth() {
     let skipped: Vec<(&str, &str, &str)> = c
         .skipped
         .iter()
-        .map(|s| (s.model.as_str(), s.accelerometer.as_str(), s.session.as_str()))
+        .map(|s| {
+            (
+                s.model.as_str(),
+                s.accelerometer.as_str(),
+                s.session.as_str(),
+            )
+        })
         .collect();
     assert_eq!(
         skipped,

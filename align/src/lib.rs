@@ -18,9 +18,9 @@
 mod read;
 pub mod window;
 
-use ingest::schema;
 use ingest::custody::{Custody, Folders, Root, check_dataset};
 use ingest::manifest::{AlignConfig, Dataset};
+use ingest::schema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -226,7 +226,10 @@ pub mod sigma_source {
 /// sigma_Dz per station of one session (eq. 4), never below the quantisation of the log:
 /// the step of the finest last decimal the session's readings were logged with, over
 /// sqrt(12). A station of one reading takes the manifest's `theodolite_sigma_arcsec`.
-fn station_sigmas(readings: &[Pending], fallback_rad: f64) -> BTreeMap<String, (f64, &'static str)> {
+fn station_sigmas(
+    readings: &[Pending],
+    fallback_rad: f64,
+) -> BTreeMap<String, (f64, &'static str)> {
     let floor_rad = readings
         .iter()
         .map(|p| p.reading.step_rad)

@@ -1,11 +1,11 @@
 //! Reading ingest's tables and writing the observations table.
 
-use ingest::manifest::AngleUnit;
 use crate::{Error, Observation, Result};
 use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, StringArray};
 use arrow::datatypes::{
     DataType, Float64Type, Int32Type, Int64Type, UInt8Type, UInt16Type, UInt32Type,
 };
+use ingest::manifest::AngleUnit;
 use ingest::schema;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::collections::BTreeMap;
@@ -128,8 +128,8 @@ pub fn theodolite(dir: &Path) -> Result<BTreeMap<String, Vec<TheodoliteRow>>> {
             .as_primitive::<Float64Type>();
         let value = column(&path, &b, schema::theodolite::DZ_VALUE, &DataType::Float64)?
             .as_primitive::<Float64Type>();
-        let unit = column(&path, &b, schema::theodolite::DZ_UNIT, &DataType::Utf8)?
-            .as_string::<i32>();
+        let unit =
+            column(&path, &b, schema::theodolite::DZ_UNIT, &DataType::Utf8)?.as_string::<i32>();
         for i in 0..b.num_rows() {
             out.entry(ids[keys[i]].clone())
                 .or_default()

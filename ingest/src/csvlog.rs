@@ -431,26 +431,25 @@ pub fn read_csv(
                 });
             }
         };
-        let time_ns = match &row {
-            Row::Adc { time_ns, .. } => *time_ns,
-            Row::Temperature {
-                time_ns, celsius, ..
-            } => {
-                if let Some((ch, v)) = celsius
-                    .iter()
-                    .enumerate()
-                    .find_map(|(ch, v)| v.filter(|v| !CELSIUS_RANGE.contains(v)).map(|v| (ch, v)))
-                {
-                    sink.ledger.reject(
-                        format!("line {line_no}"),
-                        reason::TEMPERATURE_OUT_OF_RANGE,
-                        format!("{}: {v} degC", names[2 + ch]),
-                    );
-                    return Ok(());
+        let time_ns =
+            match &row {
+                Row::Adc { time_ns, .. } => *time_ns,
+                Row::Temperature {
+                    time_ns, celsius, ..
+                } => {
+                    if let Some((ch, v)) = celsius.iter().enumerate().find_map(|(ch, v)| {
+                        v.filter(|v| !CELSIUS_RANGE.contains(v)).map(|v| (ch, v))
+                    }) {
+                        sink.ledger.reject(
+                            format!("line {line_no}"),
+                            reason::TEMPERATURE_OUT_OF_RANGE,
+                            format!("{}: {v} degC", names[2 + ch]),
+                        );
+                        return Ok(());
+                    }
+                    *time_ns
                 }
-                *time_ns
-            }
-        };
+            };
         gate.offer(time_ns, Position::Line(line_no), row, &mut sink)
     })?;
     gate.finish(&mut sink)?;

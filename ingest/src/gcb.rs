@@ -527,7 +527,11 @@ impl FrameScanner {
             let (ch, v) = connected_out_of(MILLIDEGREE_MIN, MILLIDEGREE_MAX);
             (
                 reason::TEMPERATURE_OUT_OF_RANGE,
-                format!("channel {} temperature {} degC", ch + 1, f64::from(v) / 1000.0),
+                format!(
+                    "channel {} temperature {} degC",
+                    ch + 1,
+                    f64::from(v) / 1000.0
+                ),
             )
         } else {
             let (ch, v) = connected_out_of(COUNT_MIN, COUNT_MAX);

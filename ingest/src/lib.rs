@@ -349,8 +349,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
                             acceleration_interval_ns,
                             range_ns: s.gps_range_ns(),
                         };
-                        let interval =
-                            read_binary(path, config, &mut streams, &mut ledger, &pb)?;
+                        let interval = read_binary(path, config, &mut streams, &mut ledger, &pb)?;
                         pb.finish_and_clear();
                         files.push(ledger);
                         Ok(interval)

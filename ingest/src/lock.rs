@@ -92,9 +92,15 @@ mod tests {
             .write(true)
             .open(dir.path().join(LOCK_FILE))
             .expect("open");
-        assert!(matches!(other.try_lock(), Err(std::fs::TryLockError::WouldBlock)));
+        assert!(matches!(
+            other.try_lock(),
+            Err(std::fs::TryLockError::WouldBlock)
+        ));
         drop(a);
-        assert!(matches!(other.try_lock(), Err(std::fs::TryLockError::WouldBlock)));
+        assert!(matches!(
+            other.try_lock(),
+            Err(std::fs::TryLockError::WouldBlock)
+        ));
         drop(b);
         other.try_lock().expect("free once every holder dropped it");
     }

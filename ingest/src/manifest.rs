@@ -532,16 +532,14 @@ impl Dataset {
                     format!("{} is out of range [1, 366]", s.days),
                 ));
             }
-            let start_gps_ns = crate::time::gps_ns(
-                crate::time::Calendar::midnight(date),
-                TimeScale::Utc,
-            )
-            .ok_or_else(|| {
-                err(
-                    format!("session[{i}].date"),
-                    format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
-                )
-            })?;
+            let start_gps_ns =
+                crate::time::gps_ns(crate::time::Calendar::midnight(date), TimeScale::Utc)
+                    .ok_or_else(|| {
+                        err(
+                            format!("session[{i}].date"),
+                            format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
+                        )
+                    })?;
             sessions.push(ResolvedSession {
                 session: s.clone(),
                 date,

@@ -145,17 +145,25 @@ impl<T> TimeGate<T> {
         while let Some(front) = self.held.front() {
             let t = front.time_ns;
             let verdict = match self.last {
-                Some(last) if t == last => Some(Err((reason::DUPLICATE, "same time as the record accepted before it".to_owned()))),
+                Some(last) if t == last => Some(Err((
+                    reason::DUPLICATE,
+                    "same time as the record accepted before it".to_owned(),
+                ))),
                 Some(last) if t < last => Some(Err((
                     reason::TIME_BACKWARDS,
-                    format!("{} ms before the record accepted before it", (last - t) / crate::time::NS_PER_MS),
+                    format!(
+                        "{} ms before the record accepted before it",
+                        (last - t) / crate::time::NS_PER_MS
+                    ),
                 ))),
                 Some(last) if t - last <= self.max_step_ns => Some(Ok(())),
                 _ if self.held.len() > NEIGHBOURS || end => Some(self.judge_jump()),
                 _ => None,
             };
             let Some(verdict) = verdict else { break };
-            let Some(h) = self.held.pop_front() else { break };
+            let Some(h) = self.held.pop_front() else {
+                break;
+            };
             match verdict {
                 Ok(()) => {
                     self.accept(h.time_ns);
@@ -250,7 +258,8 @@ mod tests {
         let mut gate = TimeGate::new(10, (0, 1_000_000));
         let mut c = Collect::default();
         for (i, &t) in times.iter().enumerate() {
-            gate.offer(t, Position::Line(i as u64), t, &mut c).expect("collects");
+            gate.offer(t, Position::Line(i as u64), t, &mut c)
+                .expect("collects");
         }
         gate.finish(&mut c).expect("collects");
         c
@@ -283,7 +292,10 @@ mod tests {
         let c = run(&times);
         assert_eq!(
             c.rejected,
-            vec![(100, reason::TIME_BACKWARDS), (2_000_000, reason::OUTSIDE_SESSION)]
+            vec![
+                (100, reason::TIME_BACKWARDS),
+                (2_000_000, reason::OUTSIDE_SESSION)
+            ]
         );
         assert_eq!(c.accepted.len(), 99);
         assert!(c.accepted.windows(2).all(|w| w[0] < w[1]));
@@ -295,7 +307,8 @@ mod tests {
         let mut gate = TimeGate::new(10, (0, 1_000_000));
         let mut c = Collect::default();
         for &t in &times {
-            gate.offer(t, Position::Byte(0), t, &mut c).expect("collects");
+            gate.offer(t, Position::Byte(0), t, &mut c)
+                .expect("collects");
         }
         gate.finish(&mut c).expect("collects");
         assert_eq!(gate.median_interval_ns(), Some(10));

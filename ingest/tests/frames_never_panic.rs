@@ -48,7 +48,11 @@ fn valid_log(n: usize, seed: u64) -> Vec<u8> {
         };
         let v = (seed as i32).wrapping_mul(i as i32 + 1) & 0x7F_FFFF;
         // Temperatures in milli-degrees, within [-50, 50] degC.
-        let v = if kind == TYPE_TEMPERATURE { v % 50_000 } else { v };
+        let v = if kind == TYPE_TEMPERATURE {
+            v % 50_000
+        } else {
+            v
+        };
         let f = Frame {
             kind,
             week10: 286,

@@ -160,8 +160,12 @@ fn custody_table(
                     ingest::custody::Root::Dataset => f.path.clone(),
                     ingest::custody::Root::Out => format!("OUT/{}", f.path),
                 };
-                t.rows
-                    .push(vec![stage.to_owned(), what.to_owned(), path, f.sha256.clone()]);
+                t.rows.push(vec![
+                    stage.to_owned(),
+                    what.to_owned(),
+                    path,
+                    f.sha256.clone(),
+                ]);
             }
         }
     }
@@ -452,9 +456,10 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         ]);
     }
     s.tables.push((
-        "Align (window of {} s, fill >= {})"
-            .replace("{}", "")
-            .to_owned(),
+        format!(
+            "Align (window of {} s, fill >= {})",
+            align_report.config.window_s, align_report.config.min_window_fill
+        ),
         al,
     ));
     s.text.push(format!(
