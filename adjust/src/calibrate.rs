@@ -293,7 +293,7 @@ fn screen_gross_errors(
         else {
             break;
         };
-        if !(sd > 0.0) || worst.abs() <= GROSS_ERROR_SDS * sd {
+        if sd.is_nan() || sd <= 0.0 || worst.abs() <= GROSS_ERROR_SDS * sd {
             break;
         }
         removed.push(Removal {

@@ -339,7 +339,7 @@ impl Dataset {
             key: format!("byte {}", e.valid_up_to()),
             message: "not UTF-8 text (a manifest is UTF-8 TOML)".to_owned(),
         })?;
-        let manifest: Manifest = toml::from_str(&text).map_err(|e| {
+        let manifest: Manifest = toml::from_str(text).map_err(|e| {
             // toml names the key (unknown field `x`, missing field `y`) and the line.
             let key = e
                 .span()

@@ -172,15 +172,45 @@ fn custody_table(
     t
 }
 
-/// Builds the report's sections from the stage outputs under `out`.
-pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
-    let cal = Calibration::load_verified(ds, out)?;
-    let ingest_report = ingest::IngestReport::load(&out.join(ingest::STAGE_DIR))?;
-    let align_report = align::AlignReport::load(&out.join(align::STAGE_DIR))?;
-    let residuals = adjust::io::read_residuals(&out.join(adjust::STAGE_DIR))?;
-    let m = &ds.manifest;
-    let mut sections = Vec::new();
+/// What the report is built from: the stage outputs, their chain of custody checked.
+struct Stages<'a> {
+    ds: &'a Dataset,
+    cal: Calibration,
+    ingest_report: ingest::IngestReport,
+    align_report: align::AlignReport,
+    residuals: Vec<adjust::io::ResidualRecord>,
+}
 
+/// Builds the report's sections from the stage outputs under `out`, one function a section.
+pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
+    let st = Stages {
+        ds,
+        cal: Calibration::load_verified(ds, out)?,
+        ingest_report: ingest::IngestReport::load(&out.join(ingest::STAGE_DIR))?,
+        align_report: align::AlignReport::load(&out.join(align::STAGE_DIR))?,
+        residuals: adjust::io::read_residuals(&out.join(adjust::STAGE_DIR))?,
+    };
+    Ok(vec![
+        dataset_section(&st),
+        function_section(),
+        table1_section(&st),
+        extra_terms_section(&st),
+        snooping_section(&st),
+        ledger_section(&st),
+        plots_section(&st)?,
+    ])
+}
+
+/// The dataset, the gravity used and the files read.
+fn dataset_section(st: &Stages<'_>) -> Section {
+    let Stages {
+        ds,
+        cal,
+        ingest_report,
+        align_report,
+        ..
+    } = st;
+    let m = &ds.manifest;
     // Dataset and gravity.
     let mut s = section("Dataset");
     s.text.push(format!(
@@ -207,10 +237,13 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
     s.tables.push(("Inputs".to_owned(), inputs));
     s.tables.push((
         "Chain of custody: every file each stage read and wrote, checked unchanged before this report was built".to_owned(),
-        custody_table(&ingest_report, &align_report, &cal),
+        custody_table(ingest_report, align_report, cal),
     ));
-    sections.push(s);
+    s
+}
 
+/// The calibration function, stated with its direction.
+fn function_section() -> Section {
     // The function, stated with its direction.
     let mut s = section("The calibration function");
     s.text.push(
@@ -221,8 +254,12 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
          The reference acceleration in the adjustment is F = −g·cos(Dz + beta) for the platform's zenith distance Dz."
             .to_owned(),
     );
-    sections.push(s);
+    s
+}
 
+/// Results in the form of the paper's Table 1.
+fn table1_section(st: &Stages<'_>) -> Section {
+    let Stages { cal, .. } = st;
     // Table 1.
     let mut s = section("Results in the form of the paper's Table 1");
     s.text.push(
@@ -283,8 +320,12 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         ]);
     }
     s.tables.push(("Table 1".to_owned(), t1));
-    sections.push(s);
+    s
+}
 
+/// Temperature, higher orders and misalignment: the significance of the extra terms.
+fn extra_terms_section(st: &Stages<'_>) -> Section {
+    let Stages { cal, .. } = st;
     // Temperature, higher orders, misalignment: significance of the extra terms.
     let mut s = section("Temperature, higher orders and misalignment");
     s.text.push(
@@ -347,8 +388,12 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
             ));
         }
     }
-    sections.push(s);
+    s
+}
 
+/// The global test, data snooping and the fits skipped.
+fn snooping_section(st: &Stages<'_>) -> Section {
+    let Stages { cal, .. } = st;
     // Blunders and skipped fits.
     let mut s = section("Global test and data snooping");
     s.text.push(format!(
@@ -390,8 +435,16 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         ]);
     }
     s.tables.push(("Fits without a result".to_owned(), skipped));
-    sections.push(s);
+    s
+}
 
+/// What was read, used and excluded, from the ledgers.
+fn ledger_section(st: &Stages<'_>) -> Section {
+    let Stages {
+        ingest_report,
+        align_report,
+        ..
+    } = st;
     // Ledgers.
     let mut s = section("What was read, used and excluded");
     let mut files = Table::new(&[
@@ -469,156 +522,182 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         align_report.config.max_temperature_gap_s,
         align_report.config.theodolite_sigma_arcsec
     ));
-    sections.push(s);
+    s
+}
 
-    // Plots.
+/// Residual plots, calibration curves and the sigma of one reading (eq. 4).
+fn plots_section(st: &Stages<'_>) -> Result<Section, Error> {
     let mut s = section("Residuals, observation sigmas and calibration curves");
     s.text.push("Condition residuals B·v in mGal of every per-session fit; crosses mark observations removed by data snooping, drawn at their misclosure under the final parameters.".to_owned());
-    let g = cal.gravity_mgal;
-    for r in cal.results.iter().filter(|r| r.session != "all") {
-        let mine: Vec<&adjust::io::ResidualRecord> = residuals
-            .iter()
-            .filter(|x| {
-                x.model == r.model
-                    && x.accelerometer == r.accelerometer
-                    && x.fit_session == r.session
-            })
-            .collect();
-        if mine.is_empty() {
-            continue;
-        }
-        let misclosure = |x: &adjust::io::ResidualRecord| -> f64 {
-            x.residual_mgal
-                .unwrap_or_else(|| -predict_misclosure(r, g, x))
-        };
-        let t0 = mine.iter().map(|x| x.time_gps_ns).min().unwrap_or(0);
-        let split = |f: &dyn Fn(&adjust::io::ResidualRecord) -> f64| -> (Points, Points) {
-            let used = mine
-                .iter()
-                .filter(|x| !x.removed)
-                .map(|x| (f(x), misclosure(x)))
-                .collect();
-            let removed = mine
-                .iter()
-                .filter(|x| x.removed)
-                .map(|x| (f(x), misclosure(x)))
-                .collect();
-            (used, removed)
-        };
-        let name = format!("{}-{}-{}", r.model, r.accelerometer, r.session);
-        let axes: [Axis<'_>; 3] = [
-            ("dz", "Dz (deg)", Box::new(|x| x.dz_rad.to_degrees())),
-            (
-                "time",
-                "time since first reading (min)",
-                Box::new(move |x| (x.time_gps_ns - t0) as f64 / 60e9),
-            ),
-            (
-                "temperature",
-                "temperature (degC)",
-                Box::new(|x| x.temperature_c),
-            ),
-        ];
-        for (key, xl, f) in axes {
-            let (used, removed) = split(&*f);
-            let title = format!(
-                "{} {} ({}): residual vs {key}",
-                r.accelerometer, r.session, r.model
-            );
-            let svg = plots::scatter(&plots::Scatter {
-                title: &title,
-                x_label: xl,
-                y_label: "residual (mGal)",
-                used: &used,
-                removed: &removed,
-                line: &[],
-                zero_line: true,
-            })
-            .map_err(|message| Error::Plot {
-                name: name.clone(),
-                message,
-            })?;
-            s.plots.push((format!("{name}-residual-{key}.svg"), svg));
-        }
-        // The calibration curve: F = -g cos(Dz) against Ng, with the fitted function.
-        if let (Some(b), Some(k)) = (param(r, "b"), param(r, "k")) {
-            let pts: Vec<(f64, f64)> = mine
-                .iter()
-                .filter(|x| !x.removed)
-                .map(|x| (x.ng / 1e6, -g * x.dz_rad.cos()))
-                .collect();
-            let rem: Vec<(f64, f64)> = mine
-                .iter()
-                .filter(|x| x.removed)
-                .map(|x| (x.ng / 1e6, -g * x.dz_rad.cos()))
-                .collect();
-            let (lo, hi) = pts
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| {
-                    (a.min(p.0), c.max(p.0))
-                });
-            let line: Vec<(f64, f64)> = (0..=20)
-                .map(|i| lo + (hi - lo) * f64::from(i) / 20.0)
-                .map(|u| (u, b.value + k.value * u * 1e6))
-                .collect();
-            let title = format!(
-                "{} {} ({}): calibration a = b + k Ng",
-                r.accelerometer, r.session, r.model
-            );
-            let svg = plots::scatter(&plots::Scatter {
-                title: &title,
-                x_label: "Ng (million counts)",
-                y_label: "acceleration (mGal)",
-                used: &pts,
-                removed: &rem,
-                line: &line,
-                zero_line: false,
-            })
-            .map_err(|message| Error::Plot {
-                name: name.clone(),
-                message,
-            })?;
-            s.plots.push((format!("{name}-calibration.svg"), svg));
-        }
+    for r in st.cal.results.iter().filter(|r| r.session != "all") {
+        s.plots.extend(fit_plots(st, r)?);
     }
-    // Eq. 4: the sigma of each observation, per session.
-    for session in &ds.sessions {
-        let id = &session.session.id;
-        let Some(first) = cal.results.iter().find(|r| &r.session == id) else {
-            continue;
-        };
-        let pts: Vec<(f64, f64)> = residuals
+    for session in &st.ds.sessions {
+        s.plots.extend(sigma_plot(st, &session.session.id)?);
+    }
+    Ok(s)
+}
+
+/// A plot: its file name and SVG.
+type Plot = (String, String);
+
+/// One per-session fit's residuals against Dz, time and temperature, and its calibration
+/// curve.
+fn fit_plots(st: &Stages<'_>, r: &FitResult) -> Result<Vec<Plot>, Error> {
+    let g = st.cal.gravity_mgal;
+    let residuals = &st.residuals;
+    let mut plots = Vec::new();
+    let mine: Vec<&adjust::io::ResidualRecord> = residuals
+        .iter()
+        .filter(|x| {
+            x.model == r.model && x.accelerometer == r.accelerometer && x.fit_session == r.session
+        })
+        .collect();
+    if mine.is_empty() {
+        return Ok(Vec::new());
+    }
+    let misclosure = |x: &adjust::io::ResidualRecord| -> f64 {
+        x.residual_mgal
+            .unwrap_or_else(|| -predict_misclosure(r, g, x))
+    };
+    let t0 = mine.iter().map(|x| x.time_gps_ns).min().unwrap_or(0);
+    let split = |f: &dyn Fn(&adjust::io::ResidualRecord) -> f64| -> (Points, Points) {
+        let used = mine
             .iter()
-            .filter(|x| {
-                x.model == first.model
-                    && x.accelerometer == first.accelerometer
-                    && &x.fit_session == id
-            })
-            .map(|x| {
-                (
-                    x.dz_rad.to_degrees(),
-                    g * x.dz_rad.sin().abs() * x.sigma_dz_rad,
-                )
-            })
+            .filter(|x| !x.removed)
+            .map(|x| (f(x), misclosure(x)))
             .collect();
-        let title = format!("{id}: sigma of one reading (eq. 4), g |sin Dz| sigma_Dz");
+        let removed = mine
+            .iter()
+            .filter(|x| x.removed)
+            .map(|x| (f(x), misclosure(x)))
+            .collect();
+        (used, removed)
+    };
+    let name = format!("{}-{}-{}", r.model, r.accelerometer, r.session);
+    let axes: [Axis<'_>; 3] = [
+        ("dz", "Dz (deg)", Box::new(|x| x.dz_rad.to_degrees())),
+        (
+            "time",
+            "time since first reading (min)",
+            Box::new(move |x| (x.time_gps_ns - t0) as f64 / 60e9),
+        ),
+        (
+            "temperature",
+            "temperature (degC)",
+            Box::new(|x| x.temperature_c),
+        ),
+    ];
+    for (key, xl, f) in axes {
+        let (used, removed) = split(&*f);
+        let title = format!(
+            "{} {} ({}): residual vs {key}",
+            r.accelerometer, r.session, r.model
+        );
         let svg = plots::scatter(&plots::Scatter {
             title: &title,
-            x_label: "Dz (deg)",
-            y_label: "sigma (mGal)",
-            used: &pts,
-            removed: &[],
+            x_label: xl,
+            y_label: "residual (mGal)",
+            used: &used,
+            removed: &removed,
             line: &[],
-            zero_line: false,
+            zero_line: true,
         })
         .map_err(|message| Error::Plot {
-            name: id.clone(),
+            name: name.clone(),
             message,
         })?;
-        s.plots.push((format!("sigma-{id}.svg"), svg));
+        plots.push((format!("{name}-residual-{key}.svg"), svg));
     }
-    sections.push(s);
-    Ok(sections)
+    if let Some(curve) = calibration_curve(r, g, &mine, &name)? {
+        plots.push(curve);
+    }
+    Ok(plots)
+}
+
+/// The calibration curve: F = -g cos(Dz) against Ng, with the fitted function.
+fn calibration_curve(
+    r: &FitResult,
+    g: f64,
+    mine: &[&adjust::io::ResidualRecord],
+    name: &str,
+) -> Result<Option<Plot>, Error> {
+    let (Some(b), Some(k)) = (param(r, "b"), param(r, "k")) else {
+        return Ok(None);
+    };
+    let pts: Vec<(f64, f64)> = mine
+        .iter()
+        .filter(|x| !x.removed)
+        .map(|x| (x.ng / 1e6, -g * x.dz_rad.cos()))
+        .collect();
+    let rem: Vec<(f64, f64)> = mine
+        .iter()
+        .filter(|x| x.removed)
+        .map(|x| (x.ng / 1e6, -g * x.dz_rad.cos()))
+        .collect();
+    let (lo, hi) = pts
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| {
+            (a.min(p.0), c.max(p.0))
+        });
+    let line: Vec<(f64, f64)> = (0..=20)
+        .map(|i| lo + (hi - lo) * f64::from(i) / 20.0)
+        .map(|u| (u, b.value + k.value * u * 1e6))
+        .collect();
+    let title = format!(
+        "{} {} ({}): calibration a = b + k Ng",
+        r.accelerometer, r.session, r.model
+    );
+    let svg = plots::scatter(&plots::Scatter {
+        title: &title,
+        x_label: "Ng (million counts)",
+        y_label: "acceleration (mGal)",
+        used: &pts,
+        removed: &rem,
+        line: &line,
+        zero_line: false,
+    })
+    .map_err(|message| Error::Plot {
+        name: name.to_owned(),
+        message,
+    })?;
+    Ok(Some((format!("{name}-calibration.svg"), svg)))
+}
+
+/// The sigma of one reading (eq. 4) against Dz, for session `id`.
+fn sigma_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
+    let (cal, residuals) = (&st.cal, &st.residuals);
+    let g = cal.gravity_mgal;
+    let Some(first) = cal.results.iter().find(|r| r.session == id) else {
+        return Ok(None);
+    };
+    let pts: Vec<(f64, f64)> = residuals
+        .iter()
+        .filter(|x| {
+            x.model == first.model && x.accelerometer == first.accelerometer && x.fit_session == id
+        })
+        .map(|x| {
+            (
+                x.dz_rad.to_degrees(),
+                g * x.dz_rad.sin().abs() * x.sigma_dz_rad,
+            )
+        })
+        .collect();
+    let title = format!("{id}: sigma of one reading (eq. 4), g |sin Dz| sigma_Dz");
+    let svg = plots::scatter(&plots::Scatter {
+        title: &title,
+        x_label: "Dz (deg)",
+        y_label: "sigma (mGal)",
+        used: &pts,
+        removed: &[],
+        line: &[],
+        zero_line: false,
+    })
+    .map_err(|message| Error::Plot {
+        name: id.to_owned(),
+        message,
+    })?;
+    Ok(Some((format!("sigma-{id}.svg"), svg)))
 }
 
 /// The condition value g cos(Dz + beta) + c(Ng, T) of an observation under the fit's final
