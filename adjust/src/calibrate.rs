@@ -4,7 +4,7 @@
 //! counts. No I/O.
 
 use crate::gh::{self, GhError, Options};
-use crate::model::{Calibration, Terms, apply, propagate};
+use crate::model::{CalibrationConditions, Terms, apply, propagate};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Critical value of the w-test (two-sided, alpha = 0.001).
@@ -88,7 +88,7 @@ pub struct Residual {
 
 /// A fitted calibration.
 #[derive(Clone, Debug)]
-pub struct Fitted {
+pub struct CalibrationSolution {
     /// Parameters in counts: b, k, [k2], [k3], [b_t, k_t], [beta].
     pub values: Vec<f64>,
     /// Their a-priori covariance (sigma0 = 1), row-major.
@@ -113,7 +113,7 @@ pub struct Fitted {
     pub residuals: Vec<Residual>,
 }
 
-impl Fitted {
+impl CalibrationSolution {
     /// A-posteriori sd of parameter j.
     pub fn sigma(&self, j: usize) -> f64 {
         self.sigma0 * self.sigma_apriori(j)
@@ -309,7 +309,7 @@ fn screen_gross_errors(
 /// Start values of the scaled parameters: b and k from an ordinary least-squares line of
 /// `-g cos Dz` on `x` (so that the first linearisation sees the slope, and a reading at
 /// Dz = 0 has a variance), the rest 0.
-fn start_values(used: &[&Obs], model: &Calibration<'_>) -> Vec<f64> {
+fn start_values(used: &[&Obs], model: &CalibrationConditions<'_>) -> Vec<f64> {
     let mut p = vec![0.0; model.terms.len()];
     let n = used.len() as f64;
     let xs: Vec<f64> = used
@@ -332,17 +332,17 @@ fn start_values(used: &[&Obs], model: &Calibration<'_>) -> Vec<f64> {
 
 /// Fits `terms` to `obs` with gravity `g_mgal`, removing blunders one at a time while a
 /// w-test exceeds [`W_CRITICAL`] (at most a tenth of the observations).
-pub fn fit(obs: &[Obs], terms: Terms, g_mgal: f64) -> Result<Fitted, CalError> {
-    fit_with(obs, terms, g_mgal, Snooping::TenthAtMost)
+pub fn calibrate(obs: &[Obs], terms: Terms, g_mgal: f64) -> Result<CalibrationSolution, CalError> {
+    calibrate_with(obs, terms, g_mgal, Snooping::TenthAtMost)
 }
 
-/// [`fit`] with a choice of data snooping.
-pub fn fit_with(
+/// [`calibrate`] with a choice of data snooping.
+pub fn calibrate_with(
     obs: &[Obs],
     terms: Terms,
     g_mgal: f64,
     snooping: Snooping,
-) -> Result<Fitted, CalError> {
+) -> Result<CalibrationSolution, CalError> {
     let m = terms.len();
     if obs.len() <= m {
         return Err(CalError::TooFew { n: obs.len(), m });
@@ -372,7 +372,7 @@ pub fn fit_with(
         let mean_t = used.iter().map(|o| o.temperature_c).sum::<f64>() / n;
         let t_ref_c = (mean_t * 100.0).round() / 100.0;
         let temps: Vec<f64> = used.iter().map(|o| o.temperature_c).collect();
-        let model = Calibration {
+        let model = CalibrationConditions {
             terms,
             g_mgal,
             centre,
@@ -383,7 +383,7 @@ pub fn fit_with(
         let l: Vec<[f64; 2]> = used.iter().map(|o| [o.dz_rad, o.ng]).collect();
         let sigma: Vec<[f64; 2]> = used.iter().map(|o| [o.sigma_dz_rad, o.sigma_ng]).collect();
         let p0 = start_values(&used, &model);
-        let s = gh::adjust(&model, &l, &sigma, &p0, &Options::default()).map_err(|e| match e {
+        let s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(|e| match e {
             GhError::NotEstimable { index } => CalError::NotEstimable {
                 parameter: names[index].name,
                 why: "its column of the design depends on the others (e.g. beta with tilts on \
@@ -437,7 +437,7 @@ pub fn fit_with(
                 w: s.w_test[k],
             })
             .collect();
-        return Ok(Fitted {
+        return Ok(CalibrationSolution {
             values,
             covariance_apriori,
             sigma0: s.sigma0(),

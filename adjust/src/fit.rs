@@ -104,7 +104,7 @@ pub fn fit(
         scale,
     };
     let p0 = vec![0.0; degree + 1];
-    let s = gh::adjust(&model, &l, &sigma, &p0, &Options::default()).map_err(|e| match e {
+    let s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(|e| match e {
         GhError::NotEstimable { index } => {
             FitError::Adjustment(format!("p{index} is not estimable from these x values"))
         }

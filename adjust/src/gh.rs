@@ -139,7 +139,7 @@ fn invert_upper(r: &[f64], m: usize) -> Vec<f64> {
 }
 
 /// Adjusts the conditions `c` for observations `l` with sds `sigma`, from parameters `p0`.
-pub fn adjust(
+pub fn solve(
     c: &impl Conditions,
     l: &[[f64; 2]],
     sigma: &[[f64; 2]],
@@ -325,7 +325,7 @@ mod tests {
             .map(|(&x, e)| [x, 2.0 + 0.5 * x + e])
             .collect();
         let sigma = vec![[0.0, 1.0]; 20];
-        let s = adjust(&Line, &l, &sigma, &[0.0, 0.0], &Options::default()).expect("solves");
+        let s = solve(&Line, &l, &sigma, &[0.0, 0.0], &Options::default()).expect("solves");
         // Residuals are orthogonal to the design: sum v = 0 and sum x v = 0.
         let sv: f64 = s.v.iter().map(|v| v[1]).sum();
         let sxv: f64 = s.v.iter().zip(&x).map(|(v, x)| v[1] * x).sum();
@@ -356,7 +356,7 @@ mod tests {
         let l: Vec<[f64; 2]> = (1..10)
             .map(|i| [f64::from(i), 3.0 * f64::from(i)])
             .collect();
-        let e = adjust(
+        let e = solve(
             &Twice,
             &l,
             &[[0.0, 1.0]; 9],

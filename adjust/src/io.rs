@@ -6,7 +6,7 @@ use arrow::array::{
     UInt32Array,
 };
 use arrow::datatypes::{Float64Type, Int32Type, Int64Type, UInt32Type};
-use ingest::schema::{self, observations as col};
+use ingest::contract::tables::{self, observations as col};
 use ingest::table::dictionary_column;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::path::Path;
@@ -136,9 +136,9 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
             path: &path,
             batch: &b,
         };
-        let (session, acc) = (c.dict(schema::SESSION)?, c.dict(col::ACCELEROMETER)?);
+        let (session, acc) = (c.dict(tables::SESSION)?, c.dict(col::ACCELEROMETER)?);
         let (station, excluded) = (c.strings(col::STATION)?, c.strings(col::EXCLUDED)?);
-        let (line, time) = (c.u32s(col::LINE)?, c.i64s(schema::TIME_GPS_NS)?);
+        let (line, time) = (c.u32s(col::LINE)?, c.i64s(tables::TIME_GPS_NS)?);
         let (dz, sdz) = (c.f64s(col::DZ_RAD)?, c.f64s(col::SIGMA_DZ_RAD)?);
         let (ng, sng, temp) = (
             c.f64s(col::NG)?,
@@ -193,16 +193,16 @@ pub struct ResidualRow<'a> {
 pub fn write_residuals(dir: &Path, rows: &[ResidualRow<'_>]) -> Result<u64, Error> {
     let mut t = ingest::table::TableWriter::create(
         dir,
-        schema::residuals::FILE,
+        tables::residuals::FILE,
         "residuals",
-        schema::residuals::schema(),
+        tables::residuals::schema(),
         ingest::table::Encodings {
             dictionary: &[
-                "model",
-                "accelerometer",
-                "fit_session",
-                schema::SESSION,
-                "station",
+                tables::residuals::MODEL,
+                tables::residuals::ACCELEROMETER,
+                tables::residuals::FIT_SESSION,
+                tables::SESSION,
+                tables::residuals::STATION,
             ],
             ..Default::default()
         },
@@ -284,32 +284,38 @@ pub struct ResidualRecord {
 
 /// Reads OUT/adjust/residuals.parquet.
 pub fn read_residuals(adjust_dir: &Path) -> Result<Vec<ResidualRecord>, Error> {
-    let path = adjust_dir.join(schema::residuals::FILE);
+    let path = adjust_dir.join(tables::residuals::FILE);
     let mut out = Vec::new();
     for b in batches(&path)? {
         let c = Columns {
             path: &path,
             batch: &b,
         };
-        let (model, acc) = (c.dict("model")?, c.dict("accelerometer")?);
-        let (fit_session, session) = (c.dict("fit_session")?, c.dict(schema::SESSION)?);
+        let (model, acc) = (
+            c.dict(tables::residuals::MODEL)?,
+            c.dict(tables::residuals::ACCELEROMETER)?,
+        );
+        let (fit_session, session) = (
+            c.dict(tables::residuals::FIT_SESSION)?,
+            c.dict(tables::SESSION)?,
+        );
         let (station, line, time, removed) = (
-            c.strings("station")?,
-            c.u32s("line")?,
-            c.i64s(schema::TIME_GPS_NS)?,
-            c.bools("removed")?,
+            c.strings(tables::residuals::STATION)?,
+            c.u32s(tables::residuals::LINE)?,
+            c.i64s(tables::TIME_GPS_NS)?,
+            c.bools(tables::residuals::REMOVED)?,
         );
         let (dz, sdz, ng, sng) = (
-            c.f64s("dz_rad")?,
-            c.f64s("sigma_dz_rad")?,
-            c.f64s("ng")?,
-            c.f64s("sigma_ng")?,
+            c.f64s(tables::residuals::DZ_RAD)?,
+            c.f64s(tables::residuals::SIGMA_DZ_RAD)?,
+            c.f64s(tables::residuals::NG)?,
+            c.f64s(tables::residuals::SIGMA_NG)?,
         );
         let (temp, res, red, w) = (
-            c.f64s("temperature_c")?,
-            c.f64s("residual_mgal")?,
-            c.f64s("redundancy")?,
-            c.f64s("w")?,
+            c.f64s(tables::residuals::TEMPERATURE_C)?,
+            c.f64s(tables::residuals::RESIDUAL_MGAL)?,
+            c.f64s(tables::residuals::REDUNDANCY)?,
+            c.f64s(tables::residuals::W)?,
         );
         for i in 0..b.num_rows() {
             out.push(ResidualRecord {

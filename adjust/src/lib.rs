@@ -17,11 +17,16 @@ pub mod io;
 pub mod model;
 
 use calibrate::{CalError, Obs};
-use ingest::custody::{Custody, Folders, Root, check_dataset};
-use ingest::manifest::{Dataset, ModelDecl, Per};
+use ingest::contract::align_ledger::{self, AlignReport};
+use ingest::contract::calibration::{
+    CALIBRATION_FILE, CALIBRATION_FORMAT, Calibration, CalibrationResult, GlobalTest, Input,
+    Parameter, Removed, STAGE_DIR, Skipped,
+};
+use ingest::contract::custody::{Custody, Folders, Root};
+use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
+use ingest::contract::manifest::{Dataset, ModelDecl, Per};
 use model::Terms;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// What can go wrong in adjust.
@@ -53,167 +58,6 @@ pub enum Error {
     /// The fit command's input is unusable.
     #[error("{0}")]
     Fit(String),
-}
-
-/// File name of the result.
-pub const CALIBRATION_FILE: &str = "calibration.json";
-/// Format tag of calibration.json.
-pub const CALIBRATION_FORMAT: &str = "gravcal-calibration/1";
-
-/// An input file and its hash.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Input {
-    /// Path relative to the dataset.
-    pub path: String,
-    /// SHA-256, hex.
-    pub sha256: String,
-}
-
-/// The global test of v^T P v against chi-square(dof), two-sided at 5 %.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct GlobalTest {
-    /// v^T P v.
-    pub statistic: f64,
-    /// 2.5 % quantile.
-    pub lower: f64,
-    /// 97.5 % quantile.
-    pub upper: f64,
-    /// Within the bounds.
-    pub passed: bool,
-}
-
-/// One parameter.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Parameter {
-    /// b, k, k2, k3, beta, b_t, k_t.
-    pub name: String,
-    /// Unit.
-    pub unit: String,
-    /// Estimate.
-    pub value: f64,
-    /// A-posteriori sd (scaled by sigma0).
-    pub sigma: f64,
-    /// A-priori sd.
-    pub sigma_apriori: f64,
-}
-
-/// An observation removed by data snooping.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Removed {
-    /// Session of the observation.
-    pub session: String,
-    /// Station.
-    pub station: String,
-    /// Line in the theodolite log.
-    pub line: u32,
-    /// GPS time, ns.
-    pub time_gps_ns: i64,
-    /// w-test value when removed.
-    pub w: f64,
-}
-
-/// One fitted calibration function (FORMATS.md section 6).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct FitResult {
-    /// Accelerometer id.
-    pub accelerometer: String,
-    /// Session id or `all`.
-    pub session: String,
-    /// Model name.
-    pub model: String,
-    /// Polynomial order.
-    pub order: u8,
-    /// Temperature terms.
-    pub temperature: bool,
-    /// Misalignment.
-    pub misalignment: bool,
-    /// Reference temperature of b and k (temperature models), degC.
-    pub t_ref_c: Option<f64>,
-    /// Mean temperature of the observations used, degC.
-    pub mean_temperature_c: f64,
-    /// Observations in the final adjustment.
-    pub n_observations: usize,
-    /// Observations removed by data snooping.
-    pub n_excluded: usize,
-    /// Degrees of freedom.
-    pub dof: usize,
-    /// Iterations of the final adjustment.
-    pub iterations: usize,
-    /// A-posteriori sigma0.
-    pub sigma0: f64,
-    /// The global test.
-    pub global_test: GlobalTest,
-    /// Parameters.
-    pub parameters: Vec<Parameter>,
-    /// Correlation matrix of the parameters.
-    pub correlation: Vec<Vec<f64>>,
-    /// Each removed observation with its w-test value.
-    pub removed: Vec<Removed>,
-    /// Notes on estimability (a parameter correlated above 0.999 with another).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub warnings: Vec<String>,
-}
-
-/// A fit that has no result, with the reason.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Skipped {
-    /// Accelerometer id.
-    pub accelerometer: String,
-    /// Session id or `all`.
-    pub session: String,
-    /// Model name.
-    pub model: String,
-    /// Why.
-    pub reason: String,
-}
-
-/// `calibration.json`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Calibration {
-    /// [`CALIBRATION_FORMAT`].
-    pub format: String,
-    /// Dataset name.
-    pub dataset: String,
-    /// Software and version.
-    pub software: String,
-    /// Raw inputs and their hashes.
-    pub inputs: Vec<Input>,
-    /// Gravity at the proof masses, mGal.
-    pub gravity_mgal: f64,
-    /// Fitted calibrations.
-    pub results: Vec<FitResult>,
-    /// Fits without a result.
-    pub skipped: Vec<Skipped>,
-    /// Every file adjust read (the manifest, the upstream ledgers and observations) and
-    /// wrote (residuals.parquet), with its SHA-256: with `inputs`, exactly what the numbers
-    /// came from.
-    pub custody: Custody,
-}
-
-/// The stage's folder in OUT.
-pub const STAGE_DIR: &str = "adjust";
-
-impl Calibration {
-    /// Reads `dir/calibration.json` (`dir` being OUT/adjust).
-    pub fn load(dir: &Path) -> Result<Self, Error> {
-        Ok(ingest::read_json(&dir.join(CALIBRATION_FILE))?)
-    }
-
-    /// Reads OUT/adjust/calibration.json and checks the whole chain behind it: ingest's and
-    /// align's records and its own still match the files on disk, all for `ds`.
-    pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self, Error> {
-        ingest::IngestReport::load_verified(ds, out)?;
-        align::AlignReport::load_verified(ds, out)?;
-        let dir = out.join(STAGE_DIR);
-        let c = Calibration::load(&dir)?;
-        check_dataset(&dir.join(CALIBRATION_FILE), &c.dataset, &ds.manifest.name)?;
-        let folders = Folders {
-            dataset: &ds.dir,
-            out,
-        };
-        folders.verify(&c.custody, STAGE_DIR, STAGE_DIR)?;
-        Ok(c)
-    }
 }
 
 /// The models to fit: the manifest's, or the defaults (FORMATS.md section 2): `linear`, plus
@@ -291,7 +135,7 @@ fn multiple_correlation(c: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-fn result_of(job: &Job<'_>, f: &calibrate::Fitted, terms: Terms) -> FitResult {
+fn result_of(job: &Job<'_>, f: &calibrate::CalibrationSolution, terms: Terms) -> CalibrationResult {
     let names = terms.names();
     let correlation = f.correlation();
     // b and k are always strongly correlated (the counts are far from zero): the report says
@@ -313,7 +157,7 @@ fn result_of(job: &Job<'_>, f: &calibrate::Fitted, terms: Terms) -> FitResult {
             ));
         }
     }
-    FitResult {
+    CalibrationResult {
         accelerometer: job.accelerometer.clone(),
         session: job.session.clone(),
         model: job.model.name.clone(),
@@ -394,9 +238,9 @@ fn skip_reason(ds: &Dataset, job: &Job<'_>, e: &CalError) -> String {
 pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let ds = Dataset::load(dataset)?;
     let _lock = ingest::lock::OutputLock::acquire(out)?;
-    let ingest_report = ingest::IngestReport::load_verified(&ds, out)?;
-    let align_report = align::AlignReport::load_verified(&ds, out)?;
-    let rows = io::read_observations(&out.join(align::STAGE_DIR))?;
+    let ingest_report = IngestReport::load_verified(&ds, out)?;
+    let align_report = AlignReport::load_verified(&ds, out)?;
+    let rows = io::read_observations(&out.join(align_ledger::STAGE_DIR))?;
     let g = ds.manifest.site.gravity_mgal();
     let used: Vec<&io::ObservationRow> = rows
         .iter()
@@ -458,7 +302,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
             }
         }
     }
-    let outcomes: Vec<Result<(FitResult, calibrate::Fitted), CalError>> = jobs
+    let outcomes: Vec<Result<(CalibrationResult, calibrate::CalibrationSolution), CalError>> = jobs
         .par_iter()
         .map(|job| {
             let terms = Terms {
@@ -477,7 +321,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
                     temperature_c: o.temperature_c.unwrap_or_default(),
                 })
                 .collect();
-            calibrate::fit(&obs, terms, g).map(|f| (result_of(job, &f, terms), f))
+            calibrate::calibrate(&obs, terms, g).map(|f| (result_of(job, &f, terms), f))
         })
         .collect();
     let mut results = Vec::new();
@@ -539,21 +383,25 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         dataset: &ds.dir,
         out,
     };
-    let mut inputs = vec![folders.record(Root::Dataset, ingest::MANIFEST_FILE)?];
+    let mut inputs = vec![folders.record(Root::Dataset, ingest_ledger::MANIFEST_FILE)?];
     for file in [
-        format!("{}/{}", ingest::STAGE_DIR, ingest::LEDGER_FILE),
-        format!("{}/{}", align::STAGE_DIR, align::LEDGER_FILE),
         format!(
             "{}/{}",
-            align::STAGE_DIR,
-            ingest::schema::observations::FILE
+            ingest_ledger::STAGE_DIR,
+            ingest_ledger::LEDGER_FILE
+        ),
+        format!("{}/{}", align_ledger::STAGE_DIR, align_ledger::LEDGER_FILE),
+        format!(
+            "{}/{}",
+            align_ledger::STAGE_DIR,
+            ingest::contract::tables::observations::FILE
         ),
     ] {
         inputs.push(folders.record(Root::Out, &file)?);
     }
     let outputs = vec![folders.record(
         Root::Out,
-        &format!("{STAGE_DIR}/{}", ingest::schema::residuals::FILE),
+        &format!("{STAGE_DIR}/{}", ingest::contract::tables::residuals::FILE),
     )?];
     let calibration = Calibration {
         format: CALIBRATION_FORMAT.to_owned(),

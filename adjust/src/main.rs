@@ -62,8 +62,9 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
         misalignment: false,
     };
     let t0 = std::time::Instant::now();
-    let f = adjust::calibrate::fit_with(&obs, terms, g_mgal, adjust::calibrate::Snooping::Off)
-        .map_err(|e| e.to_string())?;
+    let f =
+        adjust::calibrate::calibrate_with(&obs, terms, g_mgal, adjust::calibrate::Snooping::Off)
+            .map_err(|e| e.to_string())?;
     let flagged = f
         .residuals
         .iter()

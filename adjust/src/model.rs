@@ -127,7 +127,7 @@ pub fn apply(m: &[f64], p: &[f64]) -> Vec<f64> {
 /// The calibration condition `g cos(Dz + beta) + c(Ng, T) = 0` with
 /// `c = a0 + a1 x + a2 x^2 + a3 x^3 + (at0 + at1 x) (T - t_ref)`, `x = (Ng - centre) / scale`.
 /// Observations are `(Dz, Ng)`.
-pub struct Calibration<'a> {
+pub struct CalibrationConditions<'a> {
     /// The terms.
     pub terms: Terms,
     /// Gravity at the proof masses, mGal.
@@ -142,7 +142,7 @@ pub struct Calibration<'a> {
     pub temperature_c: &'a [f64],
 }
 
-impl Calibration<'_> {
+impl CalibrationConditions<'_> {
     /// The map from the scaled parameters to b, k, [k2], [k3], [b_t, k_t], [beta]
     /// (row-major, len x len).
     pub fn to_counts(&self) -> Vec<f64> {
@@ -170,7 +170,7 @@ impl Calibration<'_> {
     }
 }
 
-impl Conditions for Calibration<'_> {
+impl Conditions for CalibrationConditions<'_> {
     fn n_params(&self) -> usize {
         self.terms.len()
     }

@@ -2,8 +2,8 @@
 //! blunders, disconnected channels, misalignment, and (gated) a Monte-Carlo check that the
 //! reported sigmas are honest.
 
-use adjust::{Calibration, FitResult};
 use fixtures::write::Truth;
+use ingest::contract::calibration::{Calibration, CalibrationResult};
 use std::path::Path;
 
 fn pipeline(dataset: &Path) -> (tempfile::TempDir, Calibration) {
@@ -14,7 +14,7 @@ fn pipeline(dataset: &Path) -> (tempfile::TempDir, Calibration) {
     (out, c)
 }
 
-fn param(r: &FitResult, name: &str) -> (f64, f64) {
+fn param(r: &CalibrationResult, name: &str) -> (f64, f64) {
     let p = r
         .parameters
         .iter()
@@ -48,7 +48,8 @@ fn replica_recovers_the_truth() {
         .map(|r| (r.session.clone(), r.station.clone(), r.time_gps_ns))
         .collect();
     assert_eq!(blunders.len(), 2);
-    let linear: Vec<&FitResult> = c.results.iter().filter(|r| r.model == "linear").collect();
+    let linear: Vec<&CalibrationResult> =
+        c.results.iter().filter(|r| r.model == "linear").collect();
     assert_eq!(linear.len(), 5);
     for r in &linear {
         let s = truth
@@ -158,7 +159,7 @@ fn two_sided_design_recovers_beta() {
     let dataset = fixtures::dataset_dir("two-sided");
     let truth = fixtures::read_truth(&dataset).expect("truth");
     let (_out, c) = pipeline(&dataset);
-    let fits: Vec<&FitResult> = c
+    let fits: Vec<&CalibrationResult> = c
         .results
         .iter()
         .filter(|r| r.model == "linear-beta")
@@ -281,7 +282,7 @@ fn monte_carlo(replicas: usize, station_sd: bool) -> MonteCarlo {
             temperature: false,
             misalignment: false,
         };
-        let f = adjust::calibrate::fit(&obs, terms, truth.gravity_mgal).expect("fit");
+        let f = adjust::calibrate::calibrate(&obs, terms, truth.gravity_mgal).expect("fit");
         bs.push(f.values[0]);
         ks.push(f.values[1]);
         sb.push(f.sigma(0));

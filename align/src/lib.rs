@@ -10,7 +10,7 @@
 //! the window (the platform was not still). A channel not connected for a whole session
 //! yields no observations, and one line saying so.
 //!
-//! Reads OUT/ingest/ (the tables of [`ingest::schema`] and `ingest.json`), writes
+//! Reads OUT/ingest/ (the tables of [`ingest::contract::tables`] and `ingest.json`), writes
 //! OUT/align/observations.parquet and OUT/align/align.json. The acceleration table is
 //! streamed once, in order: time is linear in the number of samples and memory does not
 //! grow with it.
@@ -18,10 +18,14 @@
 mod read;
 pub mod window;
 
-use ingest::custody::{Custody, Folders, Root, check_dataset};
-use ingest::manifest::{AlignConfig, Dataset};
-use ingest::schema;
-use serde::{Deserialize, Serialize};
+use ingest::contract::align_ledger::{
+    AlignReport, Counts, DRIFT_T_LIMIT, Disconnected, LEDGER_FILE, LEDGER_FORMAT, STAGE_DIR,
+    reason, sigma_source,
+};
+use ingest::contract::custody::{Custody, Folders, Root};
+use ingest::contract::ledger as ingest_ledger;
+use ingest::contract::manifest::Dataset;
+use ingest::contract::{status, tables};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use window::{WindowSums, interpolate, sample_sd};
@@ -53,31 +57,6 @@ pub enum Error {
 
 /// Result with this crate's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
-
-/// Exclusion reasons, as written in `observations.parquet` and `align.json`.
-pub mod reason {
-    /// A sample in the window is flagged not connected.
-    pub const NOT_CONNECTED: &str = "not_connected";
-    /// A sample in the window is over range.
-    pub const SATURATED: &str = "saturated";
-    /// The window holds fewer than `min_window_fill` of the expected samples.
-    pub const WINDOW_UNDERFILLED: &str = "window_underfilled";
-    /// No temperature of this channel in the session.
-    pub const NO_TEMPERATURE: &str = "no_temperature";
-    /// The nearest temperature sample is further than `max_temperature_gap_s`.
-    pub const TEMPERATURE_GAP: &str = "temperature_gap";
-    /// The counts in the window trend (|t| > [`super::DRIFT_T_LIMIT`]): the platform was not still.
-    pub const WINDOW_DRIFT: &str = "window_drift";
-}
-
-/// A window whose linear trend has |t| above this is flagged as drifting. For white noise the
-/// chance of that is below 1e-6 per window, so a flag means the platform moved.
-pub const DRIFT_T_LIMIT: f64 = 5.0;
-
-/// File name of the ledger.
-pub const LEDGER_FILE: &str = "align.json";
-/// Format tag of the ledger.
-pub const LEDGER_FORMAT: &str = "gravcal-align/1";
 
 /// One observation.
 #[derive(Clone, Debug, PartialEq)]
@@ -118,109 +97,12 @@ pub struct Observation {
     pub excluded: Option<&'static str>,
 }
 
-/// Counts for one (session, accelerometer).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Counts {
-    /// Session id.
-    pub session: String,
-    /// Accelerometer id.
-    pub accelerometer: String,
-    /// Theodolite readings.
-    pub readings: u64,
-    /// Observations usable.
-    pub used: u64,
-    /// Excluded, by reason.
-    pub excluded: BTreeMap<String, u64>,
-}
-
-/// An accelerometer that gave no observations in a session.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Disconnected {
-    /// Session id.
-    pub session: String,
-    /// Accelerometer id.
-    pub accelerometer: String,
-    /// Channel 1..3.
-    pub channel: u8,
-    /// Why.
-    pub reason: String,
-}
-
-/// `align.json`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct AlignReport {
-    /// [`LEDGER_FORMAT`].
-    pub format: String,
-    /// Dataset name.
-    pub dataset: String,
-    /// Software and version.
-    pub software: String,
-    /// The settings used.
-    pub config: AlignConfig,
-    /// Gravity at the proof masses, mGal.
-    pub gravity_mgal: f64,
-    /// Per (session, accelerometer).
-    pub counts: Vec<Counts>,
-    /// Accelerometers without observations in a session.
-    pub disconnected: Vec<Disconnected>,
-    /// Rows in observations.parquet.
-    pub observations: u64,
-    /// Every file align read (the manifest, ingest's ledger and tables) and wrote.
-    pub custody: Custody,
-    /// Sessions that gave no usable observation (and were not declared `expect_empty`):
-    /// the run fails, and downstream stages refuse this ledger.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub errors: Vec<String>,
-}
-
-impl AlignReport {
-    /// Reads `dir/align.json` (`dir` being OUT/align).
-    pub fn load(dir: &Path) -> Result<Self> {
-        Ok(ingest::read_json(&dir.join(LEDGER_FILE))?)
-    }
-
-    /// Reads OUT/align/align.json and checks it is this dataset's and still true: every file
-    /// it records (manifest, ingest's ledger and tables, observations.parquet) unchanged.
-    pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self> {
-        let dir = out.join(STAGE_DIR);
-        let report = AlignReport::load(&dir)?;
-        check_dataset(&dir.join(LEDGER_FILE), &report.dataset, &ds.manifest.name)?;
-        if !report.errors.is_empty() {
-            return Err(ingest::Error::Unusable {
-                path: dir.join(LEDGER_FILE),
-                errors: report.errors,
-            }
-            .into());
-        }
-        let folders = Folders {
-            dataset: &ds.dir,
-            out,
-        };
-        folders.verify(&report.custody, STAGE_DIR, STAGE_DIR)?;
-        Ok(report)
-    }
-}
-
-/// The stage's folder in OUT.
-pub const STAGE_DIR: &str = "align";
-
 /// A reading with its windows being filled.
 struct Pending {
     reading: read::TheodoliteRow,
     start_ns: i64,
     end_ns: i64,
     sums: [WindowSums; 3],
-}
-
-/// Where a station's sigma_Dz comes from, as written in `sigma_dz_source`.
-pub mod sigma_source {
-    /// The sample sd of the station's readings (eq. 4).
-    pub const STATION_SD: &str = "station_sd";
-    /// The manifest's `theodolite_sigma_arcsec` (fewer than 2 readings).
-    pub const MANIFEST: &str = "manifest";
-    /// The floor: the quantisation of the readings as logged, step / sqrt(12), because the
-    /// station's sd was smaller (readings logged coarsely can all be equal).
-    pub const RESOLUTION: &str = "resolution";
 }
 
 /// sigma_Dz per station of one session (eq. 4), never below the quantisation of the log:
@@ -259,8 +141,8 @@ fn station_sigmas(
 pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let ds = Dataset::load(dataset)?;
     let _lock = ingest::lock::OutputLock::acquire(out)?;
-    let ingest_dir = out.join(ingest::STAGE_DIR);
-    let ingest_report = ingest::IngestReport::load_verified(&ds, out)?;
+    let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
+    let ingest_report = ingest_ledger::IngestReport::load_verified(&ds, out)?;
     let cfg = ds.manifest.align.clone();
     let g = ds.manifest.site.gravity_mgal();
     let rate = ds.manifest.instrument.sample_rate_hz;
@@ -314,9 +196,9 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
             for ch in 0..3 {
                 let s = &mut w.sums[ch];
                 s.rows += 1;
-                if status & (1 << (ch + 4)) != 0 {
+                if status::not_connected(status, ch) {
                     s.not_connected += 1;
-                } else if status & (1 << ch) != 0 {
+                } else if status::over_range(status, ch) {
                     s.saturated += 1;
                 } else if let Some(x) = counts[ch] {
                     s.add(t_s, f64::from(x));
@@ -420,18 +302,18 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
         dataset: &ds.dir,
         out,
     };
-    let mut inputs = vec![folders.record(Root::Dataset, ingest::MANIFEST_FILE)?];
+    let mut inputs = vec![folders.record(Root::Dataset, ingest_ledger::MANIFEST_FILE)?];
     for file in [
-        ingest::LEDGER_FILE,
-        schema::acceleration::FILE,
-        schema::temperature::FILE,
-        schema::theodolite::FILE,
+        ingest_ledger::LEDGER_FILE,
+        tables::acceleration::FILE,
+        tables::temperature::FILE,
+        tables::theodolite::FILE,
     ] {
-        inputs.push(folders.record(Root::Out, &format!("{}/{file}", ingest::STAGE_DIR))?);
+        inputs.push(folders.record(Root::Out, &format!("{}/{file}", ingest_ledger::STAGE_DIR))?);
     }
     let outputs = vec![folders.record(
         Root::Out,
-        &format!("{STAGE_DIR}/{}", schema::observations::FILE),
+        &format!("{STAGE_DIR}/{}", tables::observations::FILE),
     )?];
     let report = AlignReport {
         format: LEDGER_FORMAT.to_owned(),

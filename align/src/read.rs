@@ -5,8 +5,8 @@ use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, StringArray};
 use arrow::datatypes::{
     DataType, Float64Type, Int32Type, Int64Type, UInt8Type, UInt16Type, UInt32Type,
 };
-use ingest::manifest::AngleUnit;
-use ingest::schema;
+use ingest::contract::manifest::AngleUnit;
+use ingest::contract::tables;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -59,7 +59,7 @@ fn column<'a>(
 /// Session index of every row of a batch of the acceleration or temperature table.
 fn session_index<'a>(path: &Path, batch: &'a RecordBatch) -> Result<&'a [u16]> {
     Ok(
-        column(path, batch, schema::SESSION_INDEX, &DataType::UInt16)?
+        column(path, batch, tables::SESSION_INDEX, &DataType::UInt16)?
             .as_primitive::<UInt16Type>()
             .values(),
     )
@@ -67,7 +67,7 @@ fn session_index<'a>(path: &Path, batch: &'a RecordBatch) -> Result<&'a [u16]> {
 
 /// Session id of every row of a batch: (distinct ids, index into them per row).
 fn sessions(path: &Path, batch: &RecordBatch) -> Result<(Vec<String>, Vec<usize>)> {
-    let c = column(path, batch, schema::SESSION, &schema::session_type())?;
+    let c = column(path, batch, tables::SESSION, &tables::session_type())?;
     let d = c.as_dictionary::<Int32Type>();
     let values = d.values().as_string::<i32>();
     let ids = (0..values.len())
@@ -113,23 +113,23 @@ pub fn logged_step(value: f64) -> f64 {
 
 /// Readings per session.
 pub fn theodolite(dir: &Path) -> Result<BTreeMap<String, Vec<TheodoliteRow>>> {
-    let path = dir.join(schema::theodolite::FILE);
+    let path = dir.join(tables::theodolite::FILE);
     let mut out: BTreeMap<String, Vec<TheodoliteRow>> = BTreeMap::new();
     for b in batches(&path)? {
         let b = b?;
         let (ids, keys) = sessions(&path, &b)?;
         let station =
-            column(&path, &b, schema::theodolite::STATION, &DataType::Utf8)?.as_string::<i32>();
-        let line = column(&path, &b, schema::theodolite::LINE, &DataType::UInt32)?
+            column(&path, &b, tables::theodolite::STATION, &DataType::Utf8)?.as_string::<i32>();
+        let line = column(&path, &b, tables::theodolite::LINE, &DataType::UInt32)?
             .as_primitive::<UInt32Type>();
         let time =
-            column(&path, &b, schema::TIME_GPS_NS, &DataType::Int64)?.as_primitive::<Int64Type>();
-        let dz = column(&path, &b, schema::theodolite::DZ_RAD, &DataType::Float64)?
+            column(&path, &b, tables::TIME_GPS_NS, &DataType::Int64)?.as_primitive::<Int64Type>();
+        let dz = column(&path, &b, tables::theodolite::DZ_RAD, &DataType::Float64)?
             .as_primitive::<Float64Type>();
-        let value = column(&path, &b, schema::theodolite::DZ_VALUE, &DataType::Float64)?
+        let value = column(&path, &b, tables::theodolite::DZ_VALUE, &DataType::Float64)?
             .as_primitive::<Float64Type>();
         let unit =
-            column(&path, &b, schema::theodolite::DZ_UNIT, &DataType::Utf8)?.as_string::<i32>();
+            column(&path, &b, tables::theodolite::DZ_UNIT, &DataType::Utf8)?.as_string::<i32>();
         for i in 0..b.num_rows() {
             out.entry(ids[keys[i]].clone())
                 .or_default()
@@ -160,14 +160,14 @@ pub type Temperatures = BTreeMap<(u16, u8), (Vec<i64>, Vec<f64>)>;
 
 /// The temperature table, by session and channel.
 pub fn temperatures(dir: &Path) -> Result<Temperatures> {
-    let path = dir.join(schema::temperature::FILE);
+    let path = dir.join(tables::temperature::FILE);
     let mut out = Temperatures::new();
     for b in batches(&path)? {
         let b = b?;
         let session = session_index(&path, &b)?;
         let time =
-            column(&path, &b, schema::TIME_GPS_NS, &DataType::Int64)?.as_primitive::<Int64Type>();
-        for (ch, name) in schema::temperature::TEMPERATURE_C.iter().enumerate() {
+            column(&path, &b, tables::TIME_GPS_NS, &DataType::Int64)?.as_primitive::<Int64Type>();
+        for (ch, name) in tables::temperature::TEMPERATURE_C.iter().enumerate() {
             let v = column(&path, &b, name, &DataType::Float64)?.as_primitive::<Float64Type>();
             for i in 0..b.num_rows() {
                 if v.is_valid(i) {
@@ -183,17 +183,17 @@ pub fn temperatures(dir: &Path) -> Result<Temperatures> {
 
 /// Streams the acceleration table in file order: `f(session index, time_ns, counts, status)`.
 pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8)) -> Result<()> {
-    let path = dir.join(schema::acceleration::FILE);
+    let path = dir.join(tables::acceleration::FILE);
     for b in batches(&path)? {
         let b = b?;
         let session = session_index(&path, &b)?;
-        let time = column(&path, &b, schema::TIME_GPS_NS, &DataType::Int64)?
+        let time = column(&path, &b, tables::TIME_GPS_NS, &DataType::Int64)?
             .as_primitive::<Int64Type>()
             .values();
-        let status = column(&path, &b, schema::STATUS, &DataType::UInt8)?
+        let status = column(&path, &b, tables::STATUS, &DataType::UInt8)?
             .as_primitive::<UInt8Type>()
             .values();
-        let c: Vec<_> = schema::acceleration::COUNTS
+        let c: Vec<_> = tables::acceleration::COUNTS
             .iter()
             .map(|n| column(&path, &b, n, &DataType::Int32).map(|c| c.as_primitive::<Int32Type>()))
             .collect::<Result<_>>()?;
@@ -210,14 +210,14 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
     use arrow::array::{Float64Array, Int64Array, UInt8Array, UInt32Array};
     let mut table = ingest::table::TableWriter::create(
         dir,
-        schema::observations::FILE,
+        tables::observations::FILE,
         "observations",
-        schema::observations::schema(),
+        tables::observations::schema(),
         ingest::table::Encodings {
             dictionary: &[
-                schema::SESSION,
-                schema::observations::ACCELEROMETER,
-                schema::observations::STATION,
+                tables::SESSION,
+                tables::observations::ACCELEROMETER,
+                tables::observations::STATION,
             ],
             ..Default::default()
         },

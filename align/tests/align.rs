@@ -4,7 +4,7 @@
 use arrow::array::{Array, AsArray, RecordBatch};
 use arrow::datatypes::{Float64Type, Int32Type, Int64Type, UInt32Type};
 use fixtures::write::Truth;
-use ingest::schema::{self, observations as col};
+use ingest::contract::tables::{self, observations as col};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::path::Path;
 
@@ -21,7 +21,12 @@ struct Obs {
     excluded: Option<String>,
 }
 
-fn pipeline(dataset: &Path) -> (tempfile::TempDir, align::AlignReport) {
+fn pipeline(
+    dataset: &Path,
+) -> (
+    tempfile::TempDir,
+    ingest::contract::align_ledger::AlignReport,
+) {
     let out = tempfile::tempdir().expect("tempdir");
     ingest::run(dataset, out.path()).expect("ingest");
     let report = align::run(dataset, out.path()).expect("align");
@@ -64,7 +69,7 @@ fn observations(out: &Path) -> Vec<Obs> {
             .as_primitive::<UInt32Type>()
             .clone();
         let time = b
-            .column_by_name(schema::TIME_GPS_NS)
+            .column_by_name(tables::TIME_GPS_NS)
             .expect("time")
             .as_primitive::<Int64Type>()
             .clone();
@@ -76,7 +81,7 @@ fn observations(out: &Path) -> Vec<Obs> {
         let opt = |a: &arrow::array::Float64Array, i: usize| a.is_valid(i).then(|| a.value(i));
         for i in 0..b.num_rows() {
             v.push(Obs {
-                session: dict(schema::SESSION, i),
+                session: dict(tables::SESSION, i),
                 accelerometer: dict(col::ACCELEROMETER, i),
                 line: line.value(i),
                 time: time.value(i),
@@ -204,7 +209,7 @@ fn leap_second_slip_is_caught() {
         .iter()
         .map(|c| {
             c.excluded
-                .get(align::reason::WINDOW_DRIFT)
+                .get(ingest::contract::align_ledger::reason::WINDOW_DRIFT)
                 .copied()
                 .unwrap_or(0)
         })
@@ -236,9 +241,9 @@ fn damaged_log_exclusions_are_the_generators() {
                 && hits(k.start_gps_ns, k.end_gps_ns, o.time)
         });
         let expected = if knock {
-            Some(align::reason::SATURATED)
+            Some(ingest::contract::align_ledger::reason::SATURATED)
         } else if gap {
-            Some(align::reason::WINDOW_UNDERFILLED)
+            Some(ingest::contract::align_ledger::reason::WINDOW_UNDERFILLED)
         } else {
             None
         };
@@ -252,11 +257,13 @@ fn damaged_log_exclusions_are_the_generators() {
     }
     assert!(
         obs.iter()
-            .any(|o| o.excluded.as_deref() == Some(align::reason::SATURATED))
+            .any(|o| o.excluded.as_deref()
+                == Some(ingest::contract::align_ledger::reason::SATURATED))
     );
     assert_eq!(
         obs.iter()
-            .filter(|o| o.excluded.as_deref() == Some(align::reason::WINDOW_UNDERFILLED))
+            .filter(|o| o.excluded.as_deref()
+                == Some(ingest::contract::align_ledger::reason::WINDOW_UNDERFILLED))
             .count(),
         3
     );

@@ -51,13 +51,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         Ok(out)
     };
-    let time_ns: Vec<i64> = column(ingest::schema::TIME_GPS_NS)?
+    let time_ns: Vec<i64> = column(ingest::contract::tables::TIME_GPS_NS)?
         .iter()
         .filter_map(|c| c.as_any().downcast_ref::<Int64Array>())
         .flat_map(|c| c.values().iter().copied())
         .collect();
-    time(ingest::schema::TIME_GPS_NS, &time_ns);
-    for name in ingest::schema::acceleration::COUNTS {
+    time(ingest::contract::tables::TIME_GPS_NS, &time_ns);
+    for name in ingest::contract::tables::acceleration::COUNTS {
         let counts: Vec<i32> = column(name)?
             .iter()
             .filter_map(|c| c.as_any().downcast_ref::<Int32Array>())

@@ -6,10 +6,11 @@
 //! field is a channel not connected, and a count at either end of the 24-bit range is taken
 //! as over range (saturated).
 
+use crate::contract::ledger::{FileLedger, reason};
+use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::error::{Error, Result};
-use crate::ledger::{FileLedger, reason};
 use crate::lines::{read_lines, strip_comment};
-use crate::streams::{StreamWriter, not_connected_bit, over_range_bit};
+use crate::streams::StreamWriter;
 use crate::time::NS_PER_WEEK;
 use crate::timegate::{Position, Sink, TimeGate};
 use std::path::Path;

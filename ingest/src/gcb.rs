@@ -8,7 +8,8 @@
 //! (duplicate, time going backwards, reserved status bits, time of week out of range, count
 //! out of the 24-bit range) are rejected whole. It never panics on any byte sequence.
 
-use crate::ledger::{ByteLedger, FileLedger, reason};
+use crate::contract::ledger::{ByteLedger, FileLedger, reason};
+use crate::contract::status::{RESERVED_BITS, not_connected};
 use crate::time::{NS_PER_MS, NS_PER_WEEK, resolve_week};
 use crate::timegate::{Position, Sink, TimeGate};
 
@@ -22,8 +23,6 @@ const TYPE_ACCELERATION: u8 = 0x01;
 const TYPE_TEMPERATURE: u8 = 0x02;
 const COUNT_MIN: i32 = -8_388_608;
 const COUNT_MAX: i32 = 8_388_607;
-/// Status bits that must be 0.
-const RESERVED_BITS: u8 = 0b1000_1000;
 
 const fn crc_table() -> [u16; 256] {
     let mut table = [0u16; 256];
@@ -202,7 +201,7 @@ fn counts_in_range(values: [i32; 3], status: u8) -> bool {
     for (ch, v) in values.into_iter().enumerate() {
         // Shifted into 0..2^24 if in range; the top byte is then 0.
         let shifted = v.wrapping_sub(COUNT_MIN) as u32;
-        let connected = u32::from(status >> (ch + 4) & 1 == 0);
+        let connected = u32::from(!not_connected(status, ch));
         out |= (shifted >> 24) * connected;
     }
     out == 0
@@ -217,7 +216,7 @@ const MILLIDEGREE_MAX: i32 = 200_000;
 fn temperatures_in_range(values: [i32; 3], status: u8) -> bool {
     let mut ok = true;
     for (ch, v) in values.into_iter().enumerate() {
-        let connected = status >> (ch + 4) & 1 == 0;
+        let connected = !not_connected(status, ch);
         ok &= !connected | (MILLIDEGREE_MIN..=MILLIDEGREE_MAX).contains(&v);
     }
     ok
@@ -270,9 +269,9 @@ impl FrameScanner {
     #[cold]
     fn list_skip(&mut self, ledger: &mut FileLedger, at: u64) {
         if let Some(start) = self.skip_start.take()
-            && ledger.rejections.len() < crate::ledger::MAX_LISTED
+            && ledger.rejections.len() < crate::contract::ledger::MAX_LISTED
         {
-            ledger.rejections.push(crate::ledger::Rejection {
+            ledger.rejections.push(crate::contract::ledger::Rejection {
                 at: format!("byte {start}"),
                 reason: "skipped".to_owned(),
                 detail: format!("{} bytes skipped while resynchronising", at - start),
@@ -513,7 +512,7 @@ impl FrameScanner {
         let connected_out_of = |lo: i32, hi: i32| {
             (0..3)
                 .map(|ch| (ch, i32::from_le_bytes(field(f, 10 + 4 * ch))))
-                .find(|&(ch, v)| status & (1 << (ch + 4)) == 0 && !(lo..=hi).contains(&v))
+                .find(|&(ch, v)| !not_connected(status, ch) && !(lo..=hi).contains(&v))
                 .unwrap_or((0, 0))
         };
         let (why, detail) = if status & RESERVED_BITS != 0 {

@@ -18,16 +18,13 @@
 //! # Ok::<(), ingest::Error>(())
 //! ```
 
+pub mod contract;
 mod csvlog;
-pub mod custody;
 pub mod encoding;
 mod error;
 pub mod gcb;
-pub mod ledger;
 mod lines;
 pub mod lock;
-pub mod manifest;
-pub mod schema;
 mod streams;
 pub mod table;
 pub mod theodolite;
@@ -36,21 +33,16 @@ pub mod timegate;
 
 pub use error::{Error, Result};
 
-use ledger::FileLedger;
-use manifest::{Acquisition, Dataset};
-use serde::{Deserialize, Serialize};
+use contract::custody;
+use contract::ledger::{
+    FileLedger, IngestReport, LEDGER_FILE, LEDGER_FORMAT, MANIFEST_FILE, STAGE_DIR, SessionSummary,
+};
+use contract::manifest::{self, Acquisition, Dataset};
+use contract::tables;
+use serde::Serialize;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use streams::StreamWriter;
-
-/// File name of the ledger.
-pub const LEDGER_FILE: &str = "ingest.json";
-/// The stage's folder in OUT.
-pub const STAGE_DIR: &str = "ingest";
-/// The manifest's file name in a dataset folder.
-pub const MANIFEST_FILE: &str = "dataset.toml";
-/// Format tag of the ledger.
-pub const LEDGER_FORMAT: &str = "gravcal-ingest/1";
 
 /// How to ingest.
 #[derive(Clone, Debug, Default)]
@@ -59,93 +51,6 @@ pub struct Options {
     pub skip_bad_lines: bool,
     /// Show a progress bar (only when stderr is a terminal).
     pub progress: bool,
-}
-
-/// What a session gave.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct SessionSummary {
-    /// Session id.
-    pub id: String,
-    /// Acceleration samples accepted.
-    pub acceleration_samples: u64,
-    /// Temperature samples accepted.
-    pub temperature_samples: u64,
-    /// Theodolite readings accepted.
-    pub readings: u64,
-    /// GPS time of the first accepted acceleration sample, ns.
-    pub first_gps_ns: Option<i64>,
-    /// GPS time of the last accepted acceleration sample, ns.
-    pub last_gps_ns: Option<i64>,
-    /// Channels (1..3) flagged not connected in every accepted acceleration sample.
-    pub channels_never_connected: Vec<u8>,
-    /// Acceleration sample rate measured from the accepted samples (the median interval), Hz.
-    pub measured_sample_rate_hz: Option<f64>,
-}
-
-/// `ingest.json`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct IngestReport {
-    /// [`LEDGER_FORMAT`].
-    pub format: String,
-    /// Dataset name.
-    pub dataset: String,
-    /// Software and version.
-    pub software: String,
-    /// Per input file, in manifest order.
-    pub files: Vec<FileLedger>,
-    /// Per session.
-    pub sessions: Vec<SessionSummary>,
-    /// Rows written per table file.
-    pub tables: std::collections::BTreeMap<String, u64>,
-    /// Every file ingest read (the manifest and the raw logs) and wrote, with its SHA-256.
-    pub custody: custody::Custody,
-    /// What makes the run fail although every table was written (a session that gave no
-    /// data, a sample rate off the declared one); downstream stages refuse a ledger with any.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub errors: Vec<String>,
-}
-
-impl IngestReport {
-    /// Reads OUT/ingest/ingest.json and checks it is this dataset's and still true: written
-    /// for `ds`, without errors, and every file it records (manifest, raw logs, tables)
-    /// unchanged on disk. What every downstream stage calls before it reads ingest's tables.
-    pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self> {
-        let dir = out.join("ingest");
-        let report = IngestReport::load(&dir)?;
-        let path = dir.join(LEDGER_FILE);
-        custody::check_dataset(&path, &report.dataset, &ds.manifest.name)?;
-        if !report.errors.is_empty() {
-            return Err(Error::Unusable {
-                path,
-                errors: report.errors,
-            });
-        }
-        let folders = custody::Folders {
-            dataset: &ds.dir,
-            out,
-        };
-        folders.verify(&report.custody, "ingest", "ingest")?;
-        Ok(report)
-    }
-
-    /// Reads `dir/ingest.json` (`dir` being OUT/ingest).
-    pub fn load(dir: &Path) -> Result<Self> {
-        let path = dir.join(LEDGER_FILE);
-        let invalid = |m: String| {
-            Error::io(
-                &path,
-                std::io::Error::new(std::io::ErrorKind::InvalidData, m),
-            )
-        };
-        let report: IngestReport = read_json(&path)?;
-        if report.format != LEDGER_FORMAT {
-            return Err(invalid(format!(
-                "format `{}`, expected `{LEDGER_FORMAT}`",
-                report.format
-            )));
-        }
-        Ok(report)
-    }
 }
 
 /// Reads a JSON file written by a stage; a file that does not parse is an error naming it.
@@ -444,9 +349,9 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
         sha256: f.sha256.clone(),
     }));
     let outputs = [
-        schema::acceleration::FILE,
-        schema::temperature::FILE,
-        schema::theodolite::FILE,
+        tables::acceleration::FILE,
+        tables::temperature::FILE,
+        tables::theodolite::FILE,
     ]
     .iter()
     .map(|t| folders.record(custody::Root::Out, &format!("{STAGE_DIR}/{t}")))
@@ -458,9 +363,9 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
         files,
         sessions,
         tables: [
-            (schema::acceleration::FILE.to_owned(), acc_rows),
-            (schema::temperature::FILE.to_owned(), temp_rows),
-            (schema::theodolite::FILE.to_owned(), theo_rows),
+            (tables::acceleration::FILE.to_owned(), acc_rows),
+            (tables::temperature::FILE.to_owned(), temp_rows),
+            (tables::theodolite::FILE.to_owned(), theo_rows),
         ]
         .into_iter()
         .collect(),

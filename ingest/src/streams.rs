@@ -1,22 +1,14 @@
 //! Collects accepted acceleration and temperature samples into row groups and writes them
 //! to `acceleration.parquet` and `temperature.parquet`; counts the values stored as null.
 
+use crate::contract::status::{not_connected_bit, over_range_bit};
+use crate::contract::tables;
 use crate::error::{Error, Result};
-use crate::schema;
 use crate::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
 use std::thread::JoinHandle;
-
-/// Status bit: channel `ch` (0-based) over range.
-pub fn over_range_bit(ch: usize) -> u8 {
-    1 << ch
-}
-/// Status bit: channel `ch` (0-based) not connected.
-pub fn not_connected_bit(ch: usize) -> u8 {
-    1 << (ch + 4)
-}
 
 /// Temperature samples not yet handed to the writer.
 #[derive(Default)]
@@ -228,9 +220,9 @@ impl StreamWriter {
     pub fn create(dir: &Path, sessions: &[String]) -> Result<Self> {
         let acceleration = ColumnTableWriter::create(
             dir,
-            schema::acceleration::FILE,
+            tables::acceleration::FILE,
             "acceleration",
-            schema::acceleration::schema(sessions),
+            tables::acceleration::schema(sessions),
             // Measured on a 250 Hz day (`cargo run --release -p ingest --example
             // encodings`): the counts cost least delta-encoded and not compressed. Session
             // and status, nearly constant, are delta-encoded too, by ingest's own encoder
@@ -239,21 +231,21 @@ impl StreamWriter {
             Encodings {
                 dictionary: &[],
                 delta: &[
-                    schema::SESSION_INDEX,
-                    schema::acceleration::COUNTS[0],
-                    schema::acceleration::COUNTS[1],
-                    schema::acceleration::COUNTS[2],
-                    schema::STATUS,
+                    tables::SESSION_INDEX,
+                    tables::acceleration::COUNTS[0],
+                    tables::acceleration::COUNTS[1],
+                    tables::acceleration::COUNTS[2],
+                    tables::STATUS,
                 ],
-                uncompressed: &schema::acceleration::COUNTS,
-                no_statistics: &schema::acceleration::COUNTS,
+                uncompressed: &tables::acceleration::COUNTS,
+                no_statistics: &tables::acceleration::COUNTS,
             },
         )?;
         let temperature = ColumnTableWriter::create(
             dir,
-            schema::temperature::FILE,
+            tables::temperature::FILE,
             "temperature",
-            schema::temperature::schema(sessions),
+            tables::temperature::schema(sessions),
             Encodings::default(),
         )?;
         // Two row groups queued keep both threads busy.

@@ -131,7 +131,7 @@ fn properties(enc: Encodings<'_>) -> WriterProperties {
         .set_dictionary_enabled(false)
         .set_max_row_group_row_count(Some(ROWS_PER_GROUP))
         .set_column_encoding(
-            ColumnPath::from(crate::schema::TIME_GPS_NS),
+            ColumnPath::from(crate::contract::tables::TIME_GPS_NS),
             Encoding::DELTA_BINARY_PACKED,
         );
     for c in enc.dictionary {

@@ -1,11 +1,11 @@
 //! Reader of the theodolite log (FORMATS.md section 5): station, time in the session's time
 //! scale, zenith distance in the session's unit. Times leave as GPS time; angles as radians.
 
+use crate::contract::ledger::{FileLedger, reason};
+use crate::contract::manifest::{AngleUnit, ResolvedSession, TimeScale};
+use crate::contract::tables;
 use crate::error::{Error, Result};
-use crate::ledger::{FileLedger, reason};
 use crate::lines::{read_lines, strip_comment};
-use crate::manifest::{AngleUnit, ResolvedSession, TimeScale};
-use crate::schema;
 use crate::table::{TableWriter, session_column};
 use crate::time::{gps_ns, parse_calendar};
 use arrow::array::{ArrayRef, Float64Array, Int64Array, StringArray, UInt32Array};
@@ -148,15 +148,15 @@ impl TheodoliteWriter {
         Ok(TheodoliteWriter {
             table: TableWriter::create(
                 dir,
-                schema::theodolite::FILE,
+                tables::theodolite::FILE,
                 "theodolite",
-                schema::theodolite::schema(),
+                tables::theodolite::schema(),
                 crate::table::Encodings {
                     dictionary: &[
-                        schema::SESSION,
-                        schema::theodolite::STATION,
-                        schema::theodolite::DZ_UNIT,
-                        schema::theodolite::TIME_SCALE,
+                        tables::SESSION,
+                        tables::theodolite::STATION,
+                        tables::theodolite::DZ_UNIT,
+                        tables::theodolite::TIME_SCALE,
                     ],
                     ..Default::default()
                 },

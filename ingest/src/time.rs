@@ -1,7 +1,7 @@
 //! Time scales: every time leaves ingest as GPS time, i64 nanoseconds since 1980-01-06.
 //! Leap seconds come from hifitime's maintained table, not from a list written here.
 
-use crate::manifest::TimeScale;
+use crate::contract::manifest::TimeScale;
 use hifitime::Epoch;
 
 /// Nanoseconds in a GPS week.
@@ -63,7 +63,7 @@ pub fn parse_calendar(s: &str) -> Result<Calendar, String> {
             Err(bad())
         }
     };
-    let date = crate::manifest::parse_date(&s[..10])
+    let date = crate::contract::manifest::parse_date(&s[..10])
         .ok_or_else(|| format!("`{}` is not a valid date", &s[..10]))?;
     let hour = digits(11, 13)?;
     let minute = digits(14, 16)?;

@@ -26,7 +26,7 @@
 //! none follow. A logger whose clock really steps backwards loses the overlap: times must
 //! increase in the tables.
 
-use crate::ledger::reason;
+use crate::contract::ledger::reason;
 use std::collections::VecDeque;
 
 /// Records after a jump that decide it.

@@ -3,8 +3,8 @@
 //! log with one out-of-place frame inserted anywhere loses at most one frame.
 
 use fixtures::gcb::{Frame, TYPE_ACCELERATION, TYPE_TEMPERATURE};
+use ingest::contract::ledger::FileLedger;
 use ingest::gcb::{FrameScanner, ScanConfig};
-use ingest::ledger::FileLedger;
 use proptest::prelude::*;
 
 fn scan(bytes: &[u8], chunk: usize) -> (Vec<ingest::gcb::Frame>, FileLedger) {

@@ -3,8 +3,9 @@
 
 use arrow::array::{AsArray, RecordBatch};
 use arrow::datatypes::{Float64Type, Int32Type, Int64Type};
-use ingest::ledger::reason;
-use ingest::{IngestReport, Options};
+use ingest::Options;
+use ingest::contract::ledger::IngestReport;
+use ingest::contract::ledger::reason;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use sha2::Digest;
 use std::path::{Path, PathBuf};
@@ -153,10 +154,10 @@ fn binary_and_csv_give_the_same_streams() {
     let (bin_out, bin) = ingest("esgt-2005");
     let (csv_out, _) = ingest("esgt-2005-csv");
     let truth = fixtures::read_truth(&fixtures::dataset_dir("esgt-2005")).expect("truth");
-    let b = read_table(bin_out.path(), ingest::schema::acceleration::FILE);
-    let c = read_table(csv_out.path(), ingest::schema::acceleration::FILE);
-    let bt = i64_col(&b, ingest::schema::TIME_GPS_NS);
-    let ct = i64_col(&c, ingest::schema::TIME_GPS_NS);
+    let b = read_table(bin_out.path(), ingest::contract::tables::acceleration::FILE);
+    let c = read_table(csv_out.path(), ingest::contract::tables::acceleration::FILE);
+    let bt = i64_col(&b, ingest::contract::tables::TIME_GPS_NS);
+    let ct = i64_col(&c, ingest::contract::tables::TIME_GPS_NS);
     let damaged: u64 = truth
         .session
         .iter()
@@ -177,10 +178,10 @@ fn binary_and_csv_give_the_same_streams() {
     );
     assert_eq!(bt.len() as u64 + damaged, ct.len() as u64);
     assert_eq!(
-        bin.tables[ingest::schema::acceleration::FILE],
+        bin.tables[ingest::contract::tables::acceleration::FILE],
         bt.len() as u64
     );
-    for name in ingest::schema::acceleration::COUNTS {
+    for name in ingest::contract::tables::acceleration::COUNTS {
         let bv = opt_i32_col(&b, name);
         let cv = opt_i32_col(&c, name);
         let mut j = 0;
@@ -209,9 +210,9 @@ fn binary_and_csv_give_the_same_streams() {
     for w in bt.windows(2) {
         assert!(w[1] > w[0]);
     }
-    let tb = read_table(bin_out.path(), ingest::schema::temperature::FILE);
-    let tc = read_table(csv_out.path(), ingest::schema::temperature::FILE);
-    for name in ingest::schema::temperature::TEMPERATURE_C {
+    let tb = read_table(bin_out.path(), ingest::contract::tables::temperature::FILE);
+    let tc = read_table(csv_out.path(), ingest::contract::tables::temperature::FILE);
+    for name in ingest::contract::tables::temperature::TEMPERATURE_C {
         assert_eq!(opt_f64_col(&tb, name), opt_f64_col(&tc, name), "{name}");
     }
 }
@@ -223,9 +224,9 @@ fn theodolite_times_and_angles_are_the_truth() {
     for name in ["esgt-2005", "week-rollover", "gon-gpst", "two-sided"] {
         let truth = fixtures::read_truth(&fixtures::dataset_dir(name)).expect("truth");
         let (out, _) = ingest(name);
-        let t = read_table(out.path(), ingest::schema::theodolite::FILE);
-        let times = i64_col(&t, ingest::schema::TIME_GPS_NS);
-        let dz = opt_f64_col(&t, ingest::schema::theodolite::DZ_RAD);
+        let t = read_table(out.path(), ingest::contract::tables::theodolite::FILE);
+        let times = i64_col(&t, ingest::contract::tables::TIME_GPS_NS);
+        let dz = opt_f64_col(&t, ingest::contract::tables::theodolite::DZ_RAD);
         assert_eq!(times.len(), truth.reading.len(), "{name}");
         for ((time, dz), r) in times.iter().zip(&dz).zip(&truth.reading) {
             assert_eq!(*time, r.time_gps_ns, "{name} {}", r.station);
@@ -244,8 +245,8 @@ fn week_rollover_is_continuous() {
     let truth = fixtures::read_truth(&fixtures::dataset_dir("week-rollover")).expect("truth");
     let (out, _) = ingest("week-rollover");
     let t = i64_col(
-        &read_table(out.path(), ingest::schema::acceleration::FILE),
-        ingest::schema::TIME_GPS_NS,
+        &read_table(out.path(), ingest::contract::tables::acceleration::FILE),
+        ingest::contract::tables::TIME_GPS_NS,
     );
     assert_eq!(t[0], truth.session[0].start_gps_ns);
     assert_eq!(*t.last().expect("rows"), truth.session[0].end_gps_ns);

@@ -6,8 +6,11 @@
 
 mod plots;
 
-use adjust::{Calibration, FitResult};
-use ingest::manifest::Dataset;
+use ingest::contract::align_ledger::{self, AlignReport};
+use ingest::contract::calibration::{self, Calibration, CalibrationResult, Parameter};
+use ingest::contract::custody::Root;
+use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
+use ingest::contract::manifest::Dataset;
 use statrs::distribution::{ContinuousCDF, StudentsT};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -119,7 +122,7 @@ fn section(title: &str) -> Section {
     }
 }
 
-fn param<'a>(r: &'a FitResult, name: &str) -> Option<&'a adjust::Parameter> {
+fn param<'a>(r: &'a CalibrationResult, name: &str) -> Option<&'a Parameter> {
     r.parameters.iter().find(|p| p.name == name)
 }
 
@@ -144,8 +147,8 @@ fn gps(ns: i64) -> String {
 
 /// Every file the stages read and wrote, with its hash.
 fn custody_table(
-    ingest_report: &ingest::IngestReport,
-    align_report: &align::AlignReport,
+    ingest_report: &IngestReport,
+    align_report: &AlignReport,
     cal: &Calibration,
 ) -> Table {
     let mut t = Table::new(&["stage", "read or wrote", "file", "SHA-256"]);
@@ -157,8 +160,8 @@ fn custody_table(
         for (what, list) in [("read", &custody.inputs), ("wrote", &custody.outputs)] {
             for f in list {
                 let path = match f.root {
-                    ingest::custody::Root::Dataset => f.path.clone(),
-                    ingest::custody::Root::Out => format!("OUT/{}", f.path),
+                    Root::Dataset => f.path.clone(),
+                    Root::Out => format!("OUT/{}", f.path),
                 };
                 t.rows.push(vec![
                     stage.to_owned(),
@@ -176,8 +179,8 @@ fn custody_table(
 struct Stages<'a> {
     ds: &'a Dataset,
     cal: Calibration,
-    ingest_report: ingest::IngestReport,
-    align_report: align::AlignReport,
+    ingest_report: IngestReport,
+    align_report: AlignReport,
     residuals: Vec<adjust::io::ResidualRecord>,
 }
 
@@ -186,9 +189,9 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
     let st = Stages {
         ds,
         cal: Calibration::load_verified(ds, out)?,
-        ingest_report: ingest::IngestReport::load(&out.join(ingest::STAGE_DIR))?,
-        align_report: align::AlignReport::load(&out.join(align::STAGE_DIR))?,
-        residuals: adjust::io::read_residuals(&out.join(adjust::STAGE_DIR))?,
+        ingest_report: IngestReport::load(&out.join(ingest_ledger::STAGE_DIR))?,
+        align_report: AlignReport::load(&out.join(align_ledger::STAGE_DIR))?,
+        residuals: adjust::io::read_residuals(&out.join(calibration::STAGE_DIR))?,
     };
     Ok(vec![
         dataset_section(&st),
@@ -543,7 +546,7 @@ type Plot = (String, String);
 
 /// One per-session fit's residuals against Dz, time and temperature, and its calibration
 /// curve.
-fn fit_plots(st: &Stages<'_>, r: &FitResult) -> Result<Vec<Plot>, Error> {
+fn fit_plots(st: &Stages<'_>, r: &CalibrationResult) -> Result<Vec<Plot>, Error> {
     let g = st.cal.gravity_mgal;
     let residuals = &st.residuals;
     let mut plots = Vec::new();
@@ -617,7 +620,7 @@ fn fit_plots(st: &Stages<'_>, r: &FitResult) -> Result<Vec<Plot>, Error> {
 
 /// The calibration curve: F = -g cos(Dz) against Ng, with the fitted function.
 fn calibration_curve(
-    r: &FitResult,
+    r: &CalibrationResult,
     g: f64,
     mine: &[&adjust::io::ResidualRecord],
     name: &str,
@@ -702,7 +705,7 @@ fn sigma_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
 
 /// The condition value g cos(Dz + beta) + c(Ng, T) of an observation under the fit's final
 /// parameters (the misclosure before residuals), for observations removed by snooping.
-fn predict_misclosure(r: &FitResult, g: f64, x: &adjust::io::ResidualRecord) -> f64 {
+fn predict_misclosure(r: &CalibrationResult, g: f64, x: &adjust::io::ResidualRecord) -> f64 {
     let v = |name: &str| param(r, name).map_or(0.0, |p| p.value);
     let tau = r.t_ref_c.map_or(0.0, |t| x.temperature_c - t);
     let ng = x.ng;

@@ -82,7 +82,8 @@ fn index_html_renders_in_chromium() {
         String::from_utf8_lossy(&dom.stderr)
     );
     let dom = String::from_utf8_lossy(&dom.stdout);
-    let cal = adjust::Calibration::load(&out.path().join("adjust")).expect("calibration.json");
+    let cal = ingest::contract::calibration::Calibration::load(&out.path().join("adjust"))
+        .expect("calibration.json");
     let r = cal
         .results
         .iter()

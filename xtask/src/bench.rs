@@ -43,7 +43,9 @@ print(json.dumps({"rows": t.num_rows,
 /// Checks that pyarrow (Arrow C++, an independent reader) decodes the acceleration table
 /// ingest wrote into `out` to the rows ingest counted and the sums of the values it stored.
 fn pyarrow_reads(py: &Path, script: &Path, out: &Path) -> Result<()> {
-    let table = out.join("ingest").join(ingest::schema::acceleration::FILE);
+    let table = out
+        .join("ingest")
+        .join(ingest::contract::tables::acceleration::FILE);
     let o = Command::new(py).arg(script).arg(&table).output()?;
     if !o.status.success() {
         bail!(
@@ -53,10 +55,10 @@ fn pyarrow_reads(py: &Path, script: &Path, out: &Path) -> Result<()> {
         );
     }
     let got: serde_json::Value = serde_json::from_slice(&o.stdout)?;
-    let report = ingest::IngestReport::load(&out.join("ingest"))?;
+    let report = ingest::contract::ledger::IngestReport::load(&out.join("ingest"))?;
     let rows = report
         .tables
-        .get(ingest::schema::acceleration::FILE)
+        .get(ingest::contract::tables::acceleration::FILE)
         .copied()
         .context("no acceleration table in ingest.json")?;
     if got["rows"].as_u64() != Some(rows) {
@@ -292,13 +294,14 @@ pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
     let out = data.join("out-align");
     let _ = std::fs::remove_dir_all(&out);
     ingest_once(&root.join("target/release/gravcal-ingest"), &dataset, &out)?;
-    let ledger = ingest::IngestReport::load(&out.join("ingest"))?;
+    let ledger = ingest::contract::ledger::IngestReport::load(&out.join("ingest"))?;
     let samples: u64 = ledger.sessions.iter().map(|s| s.acceleration_samples).sum();
     let readings_n: u64 = ledger.sessions.iter().map(|s| s.readings).sum();
     let (r, _) = best_of(3, || {
         stage_once(&root.join("target/release/gravcal-align"), &dataset, &out)
     })?;
-    let observations = align::AlignReport::load(&out.join("align"))?.observations;
+    let observations =
+        ingest::contract::align_ledger::AlignReport::load(&out.join("align"))?.observations;
     println!("| samples | readings | observations | seconds | peak RSS MB |");
     println!("|---|---|---|---|---|");
     println!(

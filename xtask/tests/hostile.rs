@@ -2,7 +2,7 @@
 //! a hand-edited copy): every case gives the right result or a clear error, and the ledgers
 //! still add up. Issue #12 listed them; each test names the case it holds.
 
-use ingest::ledger::reason;
+use ingest::contract::ledger::reason;
 use std::path::{Path, PathBuf};
 
 /// A copy of fixture `name` in a fresh folder, its manifest passed through `edit`.
@@ -45,7 +45,8 @@ fn pipeline(ds: &Path, out: &Path) {
 }
 
 fn used_observations(out: &Path) -> u64 {
-    let a = align::AlignReport::load(&out.join("align")).expect("align.json");
+    let a =
+        ingest::contract::align_ledger::AlignReport::load(&out.join("align")).expect("align.json");
     a.counts.iter().map(|c| c.used).sum()
 }
 
@@ -153,7 +154,7 @@ fn stale_and_foreign_upstream_folders_are_refused() {
     // Re-run onward: accepted again, and calibration.json names the new log's hash.
     align::run(&ds, &out).expect("align");
     let c = adjust::run(&ds, &out).expect("adjust");
-    let sha = ingest::custody::sha256_file(&theodolite).expect("hash");
+    let sha = ingest::contract::custody::sha256_file(&theodolite).expect("hash");
     assert!(c.inputs.iter().any(|i| i.sha256 == sha));
     report::run(&ds, &out).expect("report");
 
@@ -187,10 +188,12 @@ fn coarsely_logged_readings_get_the_quantisation_floor() {
     }
     let out = out_of(&dir);
     pipeline(&ds, &out);
-    let a = align::AlignReport::load(&out.join("align")).expect("align.json");
+    let a =
+        ingest::contract::align_ledger::AlignReport::load(&out.join("align")).expect("align.json");
     assert!(a.errors.is_empty());
     let truth = fixtures::read_truth(&fixtures::dataset_dir("esgt-2005")).expect("truth");
-    let c = adjust::Calibration::load(&out.join("adjust")).expect("calibration");
+    let c =
+        ingest::contract::calibration::Calibration::load(&out.join("adjust")).expect("calibration");
     let floor = (0.001f64).to_radians() / 12f64.sqrt();
     let rows = adjust::io::read_observations(&out.join("align")).expect("observations");
     assert!(rows.iter().all(|o| o.sigma_dz_rad >= floor * (1.0 - 1e-9)));
@@ -240,7 +243,8 @@ fn a_reading_at_dz_zero_is_a_blunder_not_a_crash() {
     std::fs::write(&p, lines.join("\n") + "\n").expect("write");
     let out = out_of(&dir);
     pipeline(&ds, &out);
-    let c = adjust::Calibration::load(&out.join("adjust")).expect("calibration");
+    let c =
+        ingest::contract::calibration::Calibration::load(&out.join("adjust")).expect("calibration");
     assert!(c.skipped.is_empty(), "{:?}", c.skipped);
     for r in &c.results {
         assert!(

@@ -1,9 +1,14 @@
-//! The ledger of ingest (`ingest.json`): per input file, what was read, accepted and rejected
+//! The ledger of ingest (`OUT/ingest/ingest.json`): per input file, what was read, accepted and rejected
 //! by reason, so that nothing is lost silently. Accepted plus rejected equals read; for a
 //! binary log the bytes add up too.
 
+use crate::contract::custody;
+use crate::contract::manifest::Dataset;
+use crate::error::{Error, Result};
+use crate::read_json;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::path::Path;
 
 /// Rejection reasons, as they appear in `ingest.json`.
 pub mod reason {
@@ -134,5 +139,101 @@ impl FileLedger {
     /// Total rejected.
     pub fn rejected_total(&self) -> u64 {
         self.rejected.values().sum()
+    }
+}
+
+/// File name of the ledger.
+pub const LEDGER_FILE: &str = "ingest.json";
+/// The stage's folder in OUT.
+pub const STAGE_DIR: &str = "ingest";
+/// The manifest's file name in a dataset folder.
+pub const MANIFEST_FILE: &str = "dataset.toml";
+/// Format tag of the ledger.
+pub const LEDGER_FORMAT: &str = "gravcal-ingest/1";
+
+/// What a session gave.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SessionSummary {
+    /// Session id.
+    pub id: String,
+    /// Acceleration samples accepted.
+    pub acceleration_samples: u64,
+    /// Temperature samples accepted.
+    pub temperature_samples: u64,
+    /// Theodolite readings accepted.
+    pub readings: u64,
+    /// GPS time of the first accepted acceleration sample, ns.
+    pub first_gps_ns: Option<i64>,
+    /// GPS time of the last accepted acceleration sample, ns.
+    pub last_gps_ns: Option<i64>,
+    /// Channels (1..3) flagged not connected in every accepted acceleration sample.
+    pub channels_never_connected: Vec<u8>,
+    /// Acceleration sample rate measured from the accepted samples (the median interval), Hz.
+    pub measured_sample_rate_hz: Option<f64>,
+}
+
+/// `ingest.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct IngestReport {
+    /// [`LEDGER_FORMAT`].
+    pub format: String,
+    /// Dataset name.
+    pub dataset: String,
+    /// Software and version.
+    pub software: String,
+    /// Per input file, in manifest order.
+    pub files: Vec<FileLedger>,
+    /// Per session.
+    pub sessions: Vec<SessionSummary>,
+    /// Rows written per table file.
+    pub tables: BTreeMap<String, u64>,
+    /// Every file ingest read (the manifest and the raw logs) and wrote, with its SHA-256.
+    pub custody: custody::Custody,
+    /// What makes the run fail although every table was written (a session that gave no
+    /// data, a sample rate off the declared one); downstream stages refuse a ledger with any.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub errors: Vec<String>,
+}
+
+impl IngestReport {
+    /// Reads OUT/ingest/ingest.json and checks it is this dataset's and still true: written
+    /// for `ds`, without errors, and every file it records (manifest, raw logs, tables)
+    /// unchanged on disk. What every downstream stage calls before it reads ingest's tables.
+    pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self> {
+        let dir = out.join("ingest");
+        let report = IngestReport::load(&dir)?;
+        let path = dir.join(LEDGER_FILE);
+        custody::check_dataset(&path, &report.dataset, &ds.manifest.name)?;
+        if !report.errors.is_empty() {
+            return Err(Error::Unusable {
+                path,
+                errors: report.errors,
+            });
+        }
+        let folders = custody::Folders {
+            dataset: &ds.dir,
+            out,
+        };
+        folders.verify(&report.custody, "ingest", "ingest")?;
+        Ok(report)
+    }
+
+    /// Reads `dir/ingest.json` (`dir` being OUT/ingest).
+    pub fn load(dir: &Path) -> Result<Self> {
+        let path = dir.join(LEDGER_FILE);
+        let invalid = |m: String| {
+            Error::io(
+                &path,
+                std::io::Error::new(std::io::ErrorKind::InvalidData, m),
+            )
+        };
+        let report: IngestReport = read_json(&path)?;
+        if report.format != LEDGER_FORMAT {
+            return Err(invalid(format!(
+                "format `{}`, expected `{LEDGER_FORMAT}`",
+                report.format
+            )));
+        }
+        Ok(report)
     }
 }

@@ -331,7 +331,7 @@ pub fn parse_date(s: &str) -> Option<(i32, u8, u8)> {
 impl Dataset {
     /// Reads and validates `<dir>/dataset.toml`.
     pub fn load(dir: &Path) -> Result<Dataset> {
-        let manifest_path = dir.join(crate::MANIFEST_FILE);
+        let manifest_path = dir.join(crate::contract::ledger::MANIFEST_FILE);
         let bytes = std::fs::read(&manifest_path).map_err(|e| Error::io(&manifest_path, e))?;
         let bytes = bytes.strip_prefix(crate::lines::BOM).unwrap_or(&bytes);
         let text = std::str::from_utf8(bytes).map_err(|e| Error::Manifest {

@@ -239,28 +239,60 @@ pub mod residuals {
     use super::*;
     /// File name.
     pub const FILE: &str = "residuals.parquet";
+    /// Model name.
+    pub const MODEL: &str = "model";
+    /// Accelerometer id.
+    pub const ACCELEROMETER: &str = "accelerometer";
+    /// The fit's session id, or `all`.
+    pub const FIT_SESSION: &str = "fit_session";
+    /// Station id.
+    pub const STATION: &str = "station";
+    /// Line in the theodolite log.
+    pub const LINE: &str = "line";
+    /// Zenith distance, rad.
+    pub const DZ_RAD: &str = "dz_rad";
+    /// Its sd, rad.
+    pub const SIGMA_DZ_RAD: &str = "sigma_dz_rad";
+    /// Mean counts.
+    pub const NG: &str = "ng";
+    /// Their sd.
+    pub const SIGMA_NG: &str = "sigma_ng";
+    /// Temperature, degC.
+    pub const TEMPERATURE_C: &str = "temperature_c";
+    /// Residual of Dz, rad.
+    pub const V_DZ_RAD: &str = "v_dz_rad";
+    /// Residual of Ng, counts.
+    pub const V_NG: &str = "v_ng";
+    /// Condition residual, mGal.
+    pub const RESIDUAL_MGAL: &str = "residual_mgal";
+    /// Redundancy number.
+    pub const REDUNDANCY: &str = "redundancy";
+    /// Normalised residual.
+    pub const W: &str = "w";
+    /// Removed by data snooping.
+    pub const REMOVED: &str = "removed";
     /// The Arrow schema.
     pub fn schema() -> SchemaRef {
         let dict = session_type;
         Arc::new(Schema::new(vec![
-            Field::new("model", dict(), false),
-            Field::new("accelerometer", dict(), false),
-            Field::new("fit_session", dict(), false),
+            Field::new(MODEL, dict(), false),
+            Field::new(ACCELEROMETER, dict(), false),
+            Field::new(FIT_SESSION, dict(), false),
             Field::new(SESSION, dict(), false),
-            Field::new("station", DataType::Utf8, false),
-            Field::new("line", DataType::UInt32, false),
+            Field::new(STATION, DataType::Utf8, false),
+            Field::new(LINE, DataType::UInt32, false),
             Field::new(TIME_GPS_NS, DataType::Int64, false),
-            Field::new("dz_rad", DataType::Float64, false),
-            Field::new("sigma_dz_rad", DataType::Float64, false),
-            Field::new("ng", DataType::Float64, false),
-            Field::new("sigma_ng", DataType::Float64, false),
-            Field::new("temperature_c", DataType::Float64, false),
-            Field::new("v_dz_rad", DataType::Float64, true),
-            Field::new("v_ng", DataType::Float64, true),
-            Field::new("residual_mgal", DataType::Float64, true),
-            Field::new("redundancy", DataType::Float64, true),
-            Field::new("w", DataType::Float64, false),
-            Field::new("removed", DataType::Boolean, false),
+            Field::new(DZ_RAD, DataType::Float64, false),
+            Field::new(SIGMA_DZ_RAD, DataType::Float64, false),
+            Field::new(NG, DataType::Float64, false),
+            Field::new(SIGMA_NG, DataType::Float64, false),
+            Field::new(TEMPERATURE_C, DataType::Float64, false),
+            Field::new(V_DZ_RAD, DataType::Float64, true),
+            Field::new(V_NG, DataType::Float64, true),
+            Field::new(RESIDUAL_MGAL, DataType::Float64, true),
+            Field::new(REDUNDANCY, DataType::Float64, true),
+            Field::new(W, DataType::Float64, false),
+            Field::new(REMOVED, DataType::Boolean, false),
         ]))
     }
 }

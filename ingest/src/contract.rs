@@ -1,0 +1,24 @@
+//! The contract between the stages, in one home: everything one stage writes and another
+//! reads. Every stage imports it by this name (`ingest::contract::...`); no column name,
+//! ledger field or status bit is written as a literal anywhere else.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`manifest`] | `dataset.toml`: the dataset every stage reads (FORMATS.md section 2) |
+//! | [`status`] | the status bits of a sample, as logged and as stored |
+//! | [`tables`] | the Parquet tables: file names, columns, types, units |
+//! | [`ledger`] | `ingest.json`: per input file, what was read, accepted and rejected |
+//! | [`align_ledger`] | `align.json`: observations used and excluded, by reason |
+//! | [`calibration`] | `calibration.json`: the results (FORMATS.md section 6) |
+//! | [`custody`] | the SHA-256 of every file each stage read and wrote, and its check |
+//!
+//! Outputs live under `OUT/<stage>/`, the stage folders named by each ledger module's
+//! `STAGE_DIR`.
+
+pub mod align_ledger;
+pub mod calibration;
+pub mod custody;
+pub mod ledger;
+pub mod manifest;
+pub mod status;
+pub mod tables;

@@ -1,0 +1,131 @@
+//! The ledger of align (`OUT/align/align.json`): per session and accelerometer, the
+//! observations used and excluded by reason, and the settings used; and the values of the
+//! observation table's `excluded` and `sigma_dz_source` columns.
+
+use crate::contract::custody::{Custody, Folders, check_dataset};
+use crate::contract::manifest::{AlignConfig, Dataset};
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Exclusion reasons, as written in `observations.parquet` and `align.json`.
+pub mod reason {
+    /// A sample in the window is flagged not connected.
+    pub const NOT_CONNECTED: &str = "not_connected";
+    /// A sample in the window is over range.
+    pub const SATURATED: &str = "saturated";
+    /// The window holds fewer than `min_window_fill` of the expected samples.
+    pub const WINDOW_UNDERFILLED: &str = "window_underfilled";
+    /// No temperature of this channel in the session.
+    pub const NO_TEMPERATURE: &str = "no_temperature";
+    /// The nearest temperature sample is further than `max_temperature_gap_s`.
+    pub const TEMPERATURE_GAP: &str = "temperature_gap";
+    /// The counts in the window trend (|t| > [`DRIFT_T_LIMIT`]): the platform was not still.
+    pub const WINDOW_DRIFT: &str = "window_drift";
+}
+
+/// A window whose linear trend has |t| above this is flagged as drifting. For white noise the
+/// chance of that is below 1e-6 per window, so a flag means the platform moved.
+pub const DRIFT_T_LIMIT: f64 = 5.0;
+
+/// File name of the ledger.
+pub const LEDGER_FILE: &str = "align.json";
+/// Format tag of the ledger.
+pub const LEDGER_FORMAT: &str = "gravcal-align/1";
+
+/// Where a station's sigma_Dz comes from, as written in `sigma_dz_source`.
+pub mod sigma_source {
+    /// The sample sd of the station's readings (eq. 4).
+    pub const STATION_SD: &str = "station_sd";
+    /// The manifest's `theodolite_sigma_arcsec` (fewer than 2 readings).
+    pub const MANIFEST: &str = "manifest";
+    /// The floor: the quantisation of the readings as logged, step / sqrt(12), because the
+    /// station's sd was smaller (readings logged coarsely can all be equal).
+    pub const RESOLUTION: &str = "resolution";
+}
+
+/// Counts for one (session, accelerometer).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Counts {
+    /// Session id.
+    pub session: String,
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Theodolite readings.
+    pub readings: u64,
+    /// Observations usable.
+    pub used: u64,
+    /// Excluded, by reason.
+    pub excluded: BTreeMap<String, u64>,
+}
+
+/// An accelerometer that gave no observations in a session.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Disconnected {
+    /// Session id.
+    pub session: String,
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Channel 1..3.
+    pub channel: u8,
+    /// Why.
+    pub reason: String,
+}
+
+/// `align.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct AlignReport {
+    /// [`LEDGER_FORMAT`].
+    pub format: String,
+    /// Dataset name.
+    pub dataset: String,
+    /// Software and version.
+    pub software: String,
+    /// The settings used.
+    pub config: AlignConfig,
+    /// Gravity at the proof masses, mGal.
+    pub gravity_mgal: f64,
+    /// Per (session, accelerometer).
+    pub counts: Vec<Counts>,
+    /// Accelerometers without observations in a session.
+    pub disconnected: Vec<Disconnected>,
+    /// Rows in observations.parquet.
+    pub observations: u64,
+    /// Every file align read (the manifest, ingest's ledger and tables) and wrote.
+    pub custody: Custody,
+    /// Sessions that gave no usable observation (and were not declared `expect_empty`):
+    /// the run fails, and downstream stages refuse this ledger.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub errors: Vec<String>,
+}
+
+impl AlignReport {
+    /// Reads `dir/align.json` (`dir` being OUT/align).
+    pub fn load(dir: &Path) -> Result<Self> {
+        crate::read_json(&dir.join(LEDGER_FILE))
+    }
+
+    /// Reads OUT/align/align.json and checks it is this dataset's and still true: every file
+    /// it records (manifest, ingest's ledger and tables, observations.parquet) unchanged.
+    pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self> {
+        let dir = out.join(STAGE_DIR);
+        let report = AlignReport::load(&dir)?;
+        check_dataset(&dir.join(LEDGER_FILE), &report.dataset, &ds.manifest.name)?;
+        if !report.errors.is_empty() {
+            return Err(Error::Unusable {
+                path: dir.join(LEDGER_FILE),
+                errors: report.errors,
+            });
+        }
+        let folders = Folders {
+            dataset: &ds.dir,
+            out,
+        };
+        folders.verify(&report.custody, STAGE_DIR, STAGE_DIR)?;
+        Ok(report)
+    }
+}
+
+/// The stage's folder in OUT.
+pub const STAGE_DIR: &str = "align";

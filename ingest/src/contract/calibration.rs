@@ -1,0 +1,170 @@
+//! `OUT/adjust/calibration.json` (FORMATS.md section 6): the fitted calibration functions,
+//! the fits skipped with their reasons, and exactly the files the numbers came from.
+
+use crate::contract::custody::{Custody, Folders, check_dataset};
+use crate::contract::manifest::Dataset;
+use crate::contract::{align_ledger, ledger};
+use crate::error::Result;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// File name of the result.
+pub const CALIBRATION_FILE: &str = "calibration.json";
+/// Format tag of calibration.json.
+pub const CALIBRATION_FORMAT: &str = "gravcal-calibration/1";
+
+/// An input file and its hash.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Input {
+    /// Path relative to the dataset.
+    pub path: String,
+    /// SHA-256, hex.
+    pub sha256: String,
+}
+
+/// The global test of v^T P v against chi-square(dof), two-sided at 5 %.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct GlobalTest {
+    /// v^T P v.
+    pub statistic: f64,
+    /// 2.5 % quantile.
+    pub lower: f64,
+    /// 97.5 % quantile.
+    pub upper: f64,
+    /// Within the bounds.
+    pub passed: bool,
+}
+
+/// One parameter.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Parameter {
+    /// b, k, k2, k3, beta, b_t, k_t.
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// Estimate.
+    pub value: f64,
+    /// A-posteriori sd (scaled by sigma0).
+    pub sigma: f64,
+    /// A-priori sd.
+    pub sigma_apriori: f64,
+}
+
+/// An observation removed by data snooping.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Removed {
+    /// Session of the observation.
+    pub session: String,
+    /// Station.
+    pub station: String,
+    /// Line in the theodolite log.
+    pub line: u32,
+    /// GPS time, ns.
+    pub time_gps_ns: i64,
+    /// w-test value when removed.
+    pub w: f64,
+}
+
+/// One fitted calibration function (FORMATS.md section 6).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CalibrationResult {
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Session id or `all`.
+    pub session: String,
+    /// Model name.
+    pub model: String,
+    /// Polynomial order.
+    pub order: u8,
+    /// Temperature terms.
+    pub temperature: bool,
+    /// Misalignment.
+    pub misalignment: bool,
+    /// Reference temperature of b and k (temperature models), degC.
+    pub t_ref_c: Option<f64>,
+    /// Mean temperature of the observations used, degC.
+    pub mean_temperature_c: f64,
+    /// Observations in the final adjustment.
+    pub n_observations: usize,
+    /// Observations removed by data snooping.
+    pub n_excluded: usize,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Iterations of the final adjustment.
+    pub iterations: usize,
+    /// A-posteriori sigma0.
+    pub sigma0: f64,
+    /// The global test.
+    pub global_test: GlobalTest,
+    /// Parameters.
+    pub parameters: Vec<Parameter>,
+    /// Correlation matrix of the parameters.
+    pub correlation: Vec<Vec<f64>>,
+    /// Each removed observation with its w-test value.
+    pub removed: Vec<Removed>,
+    /// Notes on estimability (a parameter correlated above 0.999 with another).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+}
+
+/// A fit that has no result, with the reason.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Skipped {
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Session id or `all`.
+    pub session: String,
+    /// Model name.
+    pub model: String,
+    /// Why.
+    pub reason: String,
+}
+
+/// `calibration.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Calibration {
+    /// [`CALIBRATION_FORMAT`].
+    pub format: String,
+    /// Dataset name.
+    pub dataset: String,
+    /// Software and version.
+    pub software: String,
+    /// Raw inputs and their hashes.
+    pub inputs: Vec<Input>,
+    /// Gravity at the proof masses, mGal.
+    pub gravity_mgal: f64,
+    /// Fitted calibrations.
+    pub results: Vec<CalibrationResult>,
+    /// Fits without a result.
+    pub skipped: Vec<Skipped>,
+    /// Every file adjust read (the manifest, the upstream ledgers and observations) and
+    /// wrote (residuals.parquet), with its SHA-256: with `inputs`, exactly what the numbers
+    /// came from.
+    pub custody: Custody,
+}
+
+/// The stage's folder in OUT.
+pub const STAGE_DIR: &str = "adjust";
+
+impl Calibration {
+    /// Reads `dir/calibration.json` (`dir` being OUT/adjust).
+    pub fn load(dir: &Path) -> Result<Self> {
+        crate::read_json(&dir.join(CALIBRATION_FILE))
+    }
+
+    /// Reads OUT/adjust/calibration.json and checks the whole chain behind it: ingest's and
+    /// align's records and its own still match the files on disk, all for `ds`.
+    pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self> {
+        ledger::IngestReport::load_verified(ds, out)?;
+        align_ledger::AlignReport::load_verified(ds, out)?;
+        let dir = out.join(STAGE_DIR);
+        let c = Calibration::load(&dir)?;
+        check_dataset(&dir.join(CALIBRATION_FILE), &c.dataset, &ds.manifest.name)?;
+        let folders = Folders {
+            dataset: &ds.dir,
+            out,
+        };
+        folders.verify(&c.custody, STAGE_DIR, STAGE_DIR)?;
+        Ok(c)
+    }
+}
