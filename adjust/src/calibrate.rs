@@ -452,3 +452,108 @@ pub fn calibrate_with(
         });
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const G: f64 = 980_000.0;
+
+    /// Observations at the given Dz (deg), with counts from a = b + k Ng, or `counts` when
+    /// given, a small deterministic noise, and temperature `t`.
+    fn design(dz_deg: &[f64], counts: Option<f64>, t: f64) -> Vec<Obs> {
+        let (b, k) = (-29_500.0, 0.243);
+        dz_deg
+            .iter()
+            .enumerate()
+            .map(|(i, &dz)| {
+                let dz_rad = dz.to_radians();
+                let noise = ((i * 7919) % 13) as f64 / 13.0 - 0.5;
+                Obs {
+                    dz_rad,
+                    sigma_dz_rad: 2e-6,
+                    ng: counts.unwrap_or((-G * dz_rad.cos() - b) / k) + noise,
+                    sigma_ng: 0.3,
+                    temperature_c: t + 0.001 * i as f64,
+                }
+            })
+            .collect()
+    }
+
+    fn terms(order: usize, temperature: bool) -> Terms {
+        Terms {
+            order,
+            temperature,
+            misalignment: false,
+        }
+    }
+
+    fn tilts(n: usize) -> Vec<f64> {
+        (0..n).map(|i| 110.0 + (i % 8) as f64 * 4.0).collect()
+    }
+
+    #[test]
+    fn a_good_design_passes_the_check_and_fits() {
+        let obs = design(&tilts(40), None, 25.0);
+        design_check(&obs, terms(1, false)).expect("estimable");
+        let s = calibrate(&obs, terms(1, false), G).expect("fits");
+        assert!((s.values[1] - 0.243).abs() < 1e-4, "k {}", s.values[1]);
+    }
+
+    /// Regression: counts that do not change with the tilt (a dead channel) gave k near 0
+    /// with a small sigma.
+    #[test]
+    fn counts_without_spread_name_k() {
+        let obs = design(&tilts(40), Some(1_500_000.0), 25.0);
+        match calibrate(&obs, terms(1, false), G) {
+            Err(CalError::NotEstimable { parameter, why }) => {
+                assert_eq!(parameter, "k");
+                assert!(why.contains("do not vary with the tilt"), "{why}");
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// Two tilt positions determine a line but not a parabola: k2 is named.
+    #[test]
+    fn an_order_beyond_the_positions_is_named() {
+        let dz: Vec<f64> = (0..40)
+            .map(|i| if i % 2 == 0 { 110.0 } else { 130.0 })
+            .collect();
+        let obs = design(&dz, None, 25.0);
+        design_check(&obs, terms(1, false)).expect("a line from two positions");
+        match design_check(&obs, terms(2, false)) {
+            Err(CalError::NotEstimable { parameter, why }) => {
+                assert_eq!(parameter, "k2");
+                assert!(why.contains("2 tilt position(s)"), "{why}");
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn one_temperature_set_names_b_t() {
+        let obs = design(&tilts(40), None, 25.0);
+        match design_check(&obs, terms(1, true)) {
+            Err(CalError::NotEstimable { parameter, why }) => {
+                assert_eq!(parameter, "b_t");
+                assert!(why.contains("one temperature set"), "{why}");
+            }
+            other => panic!("{other:?}"),
+        }
+        let mut two = design(&tilts(40), None, 25.0);
+        two.extend(design(&tilts(40), None, 31.0));
+        design_check(&two, terms(1, true)).expect("two temperature sets");
+    }
+
+    /// A gross error is screened out before the adjustment and listed as round 0; the
+    /// fit recovers k.
+    #[test]
+    fn a_gross_error_is_screened_out() {
+        let mut obs = design(&tilts(40), None, 25.0);
+        obs[9].dz_rad = 0.0;
+        let s = calibrate(&obs, terms(1, false), G).expect("fits");
+        assert_eq!(s.removed.first().map(|r| (r.index, r.round)), Some((9, 0)));
+        assert!((s.values[1] - 0.243).abs() < 1e-4, "k {}", s.values[1]);
+    }
+}
