@@ -16,6 +16,7 @@
 //! grow with it.
 
 mod read;
+pub mod tide;
 pub mod window;
 
 use ingest::contract::align_ledger::{

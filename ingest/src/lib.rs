@@ -162,8 +162,8 @@ fn read_binary(
 /// A measured rate further than this fraction from the declared one is an error.
 pub const RATE_TOLERANCE: f64 = 0.01;
 
-/// What makes a session unusable as a whole, if anything: no data, or a sample rate that is
-/// not the declared one.
+/// What makes a session unusable as a whole, if anything: no data (unless the manifest
+/// expects none), or a sample rate that is not the declared one.
 fn session_errors(
     ds: &Dataset,
     s: &manifest::ResolvedSession,
@@ -173,16 +173,13 @@ fn session_errors(
     let id = &s.session.id;
     let files = acquisition.join(", ");
     let mut errors = Vec::new();
-    if s.session.expect_empty {
-        return errors;
-    }
     let hint = "(if this is expected, set `expect_empty = true` in its [[session]])";
-    if summary.acceleration_samples == 0 {
+    if summary.acceleration_samples == 0 && !s.session.expect_empty {
         errors.push(format!(
             "session {id}: {files} gave no usable acceleration sample {hint}"
         ));
     }
-    if summary.readings == 0 {
+    if summary.readings == 0 && !s.session.expect_empty {
         errors.push(format!(
             "session {id}: {} gave no usable theodolite reading {hint}",
             relative(ds, &s.theodolite)
