@@ -23,6 +23,8 @@ pub struct Obs {
     pub sigma_ng: f64,
     /// Temperature, degC.
     pub temperature_c: f64,
+    /// Body tide at the reading, mGal, added to the fit's gravity (0 when none).
+    pub tide_mgal: f64,
 }
 
 /// Why a fit has no result.
@@ -330,7 +332,7 @@ fn start_values(used: &[&Obs], model: &CalibrationConditions<'_>) -> Vec<f64> {
     p
 }
 
-/// Fits `terms` to `obs` with gravity `g_mgal`, removing blunders one at a time while a
+/// Fits `terms` to `obs` with gravity `g_mgal` (plus each observation's tide), removing blunders one at a time while a
 /// w-test exceeds [`W_CRITICAL`] (at most a tenth of the observations).
 pub fn calibrate(obs: &[Obs], terms: Terms, g_mgal: f64) -> Result<CalibrationSolution, CalError> {
     calibrate_with(obs, terms, g_mgal, Snooping::TenthAtMost)
@@ -372,6 +374,7 @@ pub fn calibrate_with(
         let mean_t = used.iter().map(|o| o.temperature_c).sum::<f64>() / n;
         let t_ref_c = (mean_t * 100.0).round() / 100.0;
         let temps: Vec<f64> = used.iter().map(|o| o.temperature_c).collect();
+        let tides: Vec<f64> = used.iter().map(|o| o.tide_mgal).collect();
         let model = CalibrationConditions {
             terms,
             g_mgal,
@@ -379,6 +382,7 @@ pub fn calibrate_with(
             scale,
             t_ref_c,
             temperature_c: &temps,
+            tide_mgal: &tides,
         };
         let l: Vec<[f64; 2]> = used.iter().map(|o| [o.dz_rad, o.ng]).collect();
         let sigma: Vec<[f64; 2]> = used.iter().map(|o| [o.sigma_dz_rad, o.sigma_ng]).collect();
@@ -475,6 +479,7 @@ mod tests {
                     ng: counts.unwrap_or((-G * dz_rad.cos() - b) / k) + noise,
                     sigma_ng: 0.3,
                     temperature_c: t + 0.001 * i as f64,
+                    tide_mgal: 0.0,
                 }
             })
             .collect()

@@ -37,6 +37,8 @@ pub struct ObservationRow {
     pub temperature_c: Option<f64>,
     /// Align's exclusion reason.
     pub excluded: Option<String>,
+    /// Body tide at the reading, mGal (None when none is applied).
+    pub tide_mgal: Option<f64>,
 }
 
 fn bad(path: &Path, message: String) -> Error {
@@ -145,6 +147,7 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
             c.f64s(col::SIGMA_NG)?,
             c.f64s(col::TEMPERATURE_C)?,
         );
+        let tide = c.f64s(col::TIDE_MGAL)?;
         for i in 0..b.num_rows() {
             out.push(ObservationRow {
                 session: session[i].clone(),
@@ -158,6 +161,7 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
                 sigma_ng: opt(&sng, i),
                 temperature_c: opt(&temp, i),
                 excluded: excluded.is_valid(i).then(|| excluded.value(i).to_owned()),
+                tide_mgal: opt(&tide, i),
             });
         }
     }

@@ -207,6 +207,27 @@ fn result_of(job: &Job<'_>, f: &calibrate::CalibrationSolution, terms: Terms) ->
     }
 }
 
+/// What calibration.json says of the body tide: applied, with its range over the
+/// observations used, or not, with its size (FORMATS.md 8.1).
+fn earth_tide_note(used: &[&io::ObservationRow]) -> String {
+    let tides: Vec<f64> = used.iter().filter_map(|o| o.tide_mgal).collect();
+    if tides.is_empty() {
+        return "no body tide applied: the site has no latitude_deg and longitude_deg (or earth_tide = false); \
+                the tide changes g by up to about 0.25 mGal peak to peak"
+            .to_owned();
+    }
+    let (lo, hi) = tides
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| {
+            (a.min(t), b.max(t))
+        });
+    format!(
+        "body tide applied to g per observation (Longman 1959, gravimetric factor {:.4}): \
+         {lo:.4} to {hi:.4} mGal over the observations used",
+        align::tide::GRAVIMETRIC_FACTOR
+    )
+}
+
 /// Why a fit was skipped, naming an observation by its theodolite log and line, never by an
 /// internal index.
 fn skip_reason(ds: &Dataset, job: &Job<'_>, e: &CalError) -> String {
@@ -319,6 +340,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
                     ng: o.ng.unwrap_or_default(),
                     sigma_ng: o.sigma_ng.unwrap_or_default(),
                     temperature_c: o.temperature_c.unwrap_or_default(),
+                    tide_mgal: o.tide_mgal.unwrap_or_default(),
                 })
                 .collect();
             calibrate::calibrate(&obs, terms, g).map(|f| (result_of(job, &f, terms), f))
@@ -419,6 +441,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         results,
         skipped,
         custody: Custody { inputs, outputs },
+        earth_tide: earth_tide_note(&used),
     };
     ingest::write_json_atomically(&cal_path, &calibration)?;
     Ok(calibration)

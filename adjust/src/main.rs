@@ -54,6 +54,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
             ng: v[2],
             sigma_ng: v[3],
             temperature_c: 20.0,
+            tide_mgal: 0.0,
         });
     }
     let terms = adjust::model::Terms {

@@ -124,7 +124,7 @@ pub fn apply(m: &[f64], p: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// The calibration condition `g cos(Dz + beta) + c(Ng, T) = 0` with
+/// The calibration condition `g_i cos(Dz + beta) + c(Ng, T) = 0`, `g_i = g + tide_i`, with
 /// `c = a0 + a1 x + a2 x^2 + a3 x^3 + (at0 + at1 x) (T - t_ref)`, `x = (Ng - centre) / scale`.
 /// Observations are `(Dz, Ng)`.
 pub struct CalibrationConditions<'a> {
@@ -140,6 +140,8 @@ pub struct CalibrationConditions<'a> {
     pub t_ref_c: f64,
     /// Temperature of each observation, degC.
     pub temperature_c: &'a [f64],
+    /// Body tide at each observation, mGal (all 0 when none is applied).
+    pub tide_mgal: &'a [f64],
 }
 
 impl CalibrationConditions<'_> {
@@ -200,14 +202,12 @@ impl Conditions for CalibrationConditions<'_> {
         }
         let beta = if self.terms.misalignment { p[at] } else { 0.0 };
         let angle = l[0] + beta;
-        let g_sin = self.g_mgal * angle.sin();
+        let g = self.g_mgal + self.tide_mgal[i];
+        let g_sin = g * angle.sin();
         if self.terms.misalignment {
             a[at] = -g_sin;
         }
-        (
-            self.g_mgal * angle.cos() + value,
-            [-g_sin, slope / self.scale],
-        )
+        (g * angle.cos() + value, [-g_sin, slope / self.scale])
     }
 }
 

@@ -275,6 +275,7 @@ fn monte_carlo(replicas: usize, station_sd: bool) -> MonteCarlo {
                 ng: m,
                 sigma_ng: s / 80f64.sqrt(),
                 temperature_c: r.temperature_c[a],
+                tide_mgal: r.tide_mgal,
             });
         }
         let terms = adjust::model::Terms {

@@ -96,6 +96,10 @@ pub struct Observation {
     pub drift_t: Option<f64>,
     /// Why it is not used.
     pub excluded: Option<&'static str>,
+    /// Body tide at the reading's time, mGal (None when no tide is applied).
+    pub tide_mgal: Option<f64>,
+    /// Gravity at the proof masses at the reading: g, plus the tide when applied, mGal.
+    pub gravity_mgal: f64,
 }
 
 /// A reading with its windows being filled.
@@ -151,6 +155,17 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let half_ns = (cfg.window_s * 0.5e9).round() as i64;
     let max_gap_ns = (cfg.max_temperature_gap_s * 1e9).round() as i64;
     let fallback_sigma_rad = (cfg.theodolite_sigma_arcsec / 3600.0).to_radians();
+    let location = ds.manifest.site.tide_location();
+    let tide = |gps_ns: i64| {
+        location.map(|l| {
+            let site = tide::Site {
+                latitude_deg: l.latitude_deg,
+                longitude_deg: l.longitude_deg,
+                height_m: l.height_m,
+            };
+            tide::body_tide_mgal(site, tide::utc_seconds_of_gps(gps_ns))
+        })
+    };
 
     let theodolite = read::theodolite(&ingest_dir)?;
     let temperatures = read::temperatures(&ingest_dir)?;
@@ -285,6 +300,8 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
                     temperature_c: temperature.map(|(v, _)| v),
                     drift_t: stats.map(|s| s.drift_t),
                     excluded,
+                    tide_mgal: tide(p.reading.time_gps_ns),
+                    gravity_mgal: g + tide(p.reading.time_gps_ns).unwrap_or(0.0),
                 });
             }
             counts.push(c);
@@ -326,6 +343,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
         disconnected,
         observations: rows,
         custody: Custody { inputs, outputs },
+        earth_tide_applied: location.is_some(),
         errors: Vec::new(),
     };
     let report = AlignReport {

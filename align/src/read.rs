@@ -254,6 +254,10 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
         Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.temperature_c))),
         Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.drift_t))),
         Arc::new(StringArray::from_iter(obs.iter().map(|o| o.excluded))),
+        Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.tide_mgal))),
+        Arc::new(Float64Array::from_iter_values(
+            obs.iter().map(|o| o.gravity_mgal),
+        )),
     ];
     table.write(cols)?;
     Ok(table.finish()?)

@@ -11,7 +11,7 @@
 //! Longman implementation; the README gives the figures.
 
 /// Where the benchmark is.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Site {
     /// Geodetic latitude, deg, north positive.
     pub latitude_deg: f64,

@@ -19,6 +19,8 @@ struct Obs {
     temperature: Option<f64>,
     sigma_am: f64,
     excluded: Option<String>,
+    tide: Option<f64>,
+    gravity: f64,
 }
 
 fn pipeline(
@@ -63,6 +65,7 @@ fn observations(out: &Path) -> Vec<Obs> {
             f64c(col::TEMPERATURE_C),
             f64c(col::SIGMA_AM_MGAL),
         );
+        let (tide, gravity) = (f64c(col::TIDE_MGAL), f64c(col::GRAVITY_MGAL));
         let line = b
             .column_by_name(col::LINE)
             .expect("line")
@@ -90,6 +93,8 @@ fn observations(out: &Path) -> Vec<Obs> {
                 temperature: opt(&temp, i),
                 sigma_am: sam.value(i),
                 excluded: ex.is_valid(i).then(|| ex.value(i).to_owned()),
+                tide: opt(&tide, i),
+                gravity: gravity.value(i),
             });
         }
     }
@@ -276,4 +281,37 @@ fn missing_ingest_output_is_named() {
     let e =
         align::run(&fixtures::dataset_dir("gon-gpst"), out.path()).expect_err("no ingest folder");
     assert!(e.to_string().contains("ingest.json"), "{e}");
+}
+
+/// FORMATS 8.1: with the site's location, every observation carries the body tide at its
+/// reading's time (the simulator's, in the gravity that made the counts) and its gravity
+/// includes it; without one, no tide, and the ledger says so.
+#[test]
+fn the_body_tide_goes_into_each_observation() {
+    let dataset = fixtures::dataset_dir("esgt-2005");
+    let truth: Truth = fixtures::read_truth(&dataset).expect("truth");
+    let (out, report) = pipeline(&dataset);
+    assert!(report.earth_tide_applied);
+    let rows = observations(out.path());
+    let g = truth.gravity_mgal;
+    for o in &rows {
+        let t = truth
+            .reading
+            .iter()
+            .find(|r| r.session == o.session && r.time_gps_ns == o.time)
+            .expect("a true reading");
+        let tide = o.tide.expect("a tide");
+        assert!(
+            (tide - t.tide_mgal).abs() < 1e-12,
+            "{tide} vs {}",
+            t.tide_mgal
+        );
+        assert!(t.tide_mgal.abs() > 0.01);
+        assert!((o.gravity - g - tide).abs() < 1e-9);
+    }
+    assert!(rows.len() > 600);
+
+    let (out, report) = pipeline(&fixtures::dataset_dir("gon-gpst"));
+    assert!(!report.earth_tide_applied);
+    assert!(observations(out.path()).iter().all(|o| o.tide.is_none()));
 }

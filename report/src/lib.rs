@@ -182,6 +182,7 @@ struct Stages<'a> {
     ingest_report: IngestReport,
     align_report: AlignReport,
     residuals: Vec<adjust::io::ResidualRecord>,
+    observations: Vec<adjust::io::ObservationRow>,
 }
 
 /// Builds the report's sections from the stage outputs under `out`, one function a section.
@@ -192,6 +193,7 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         ingest_report: IngestReport::load(&out.join(ingest_ledger::STAGE_DIR))?,
         align_report: AlignReport::load(&out.join(align_ledger::STAGE_DIR))?,
         residuals: adjust::io::read_residuals(&out.join(calibration::STAGE_DIR))?,
+        observations: adjust::io::read_observations(&out.join(align_ledger::STAGE_DIR))?,
     };
     Ok(vec![
         dataset_section(&st),
@@ -231,6 +233,7 @@ fn dataset_section(st: &Stages<'_>) -> Section {
         "Gravity used in the model, at the proof masses: g = g_abs + gradient x height = {:.1} mGal + ({} mGal/m x {} m) = {:.3} mGal.",
         m.site.g_abs_mgal, m.site.gradient_mgal_per_m, m.site.sensor_height_m, cal.gravity_mgal
     ));
+    s.text.push(format!("Earth tide: {}.", cal.earth_tide));
     let mut inputs = Table::new(&["file", "SHA-256", "bytes"]);
     for f in &ingest_report.files {
         inputs
@@ -537,6 +540,7 @@ fn plots_section(st: &Stages<'_>) -> Result<Section, Error> {
     }
     for session in &st.ds.sessions {
         s.plots.extend(sigma_plot(st, &session.session.id)?);
+        s.plots.extend(tide_plot(st, &session.session.id)?);
     }
     Ok(s)
 }
@@ -665,6 +669,46 @@ fn calibration_curve(
         message,
     })?;
     Ok(Some((format!("{name}-calibration.svg"), svg)))
+}
+
+/// The body tide applied at each reading of session `id` against time, when one was.
+fn tide_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
+    let Some(first) = st.ds.manifest.instrument.accelerometer.first() else {
+        return Ok(None);
+    };
+    let mine: Vec<&adjust::io::ObservationRow> = st
+        .observations
+        .iter()
+        .filter(|o| o.session == id && o.accelerometer == first.id)
+        .collect();
+    let Some(t0) = mine.iter().map(|o| o.time_gps_ns).min() else {
+        return Ok(None);
+    };
+    let pts: Vec<(f64, f64)> = mine
+        .iter()
+        .filter_map(|o| {
+            o.tide_mgal
+                .map(|t| ((o.time_gps_ns - t0) as f64 / 3.6e12, t * 1e3))
+        })
+        .collect();
+    if pts.is_empty() {
+        return Ok(None);
+    }
+    let title = format!("{id}: body tide added to g at each reading");
+    let svg = plots::scatter(&plots::Scatter {
+        title: &title,
+        x_label: "time since first reading (h)",
+        y_label: "tide (microGal)",
+        used: &pts,
+        removed: &[],
+        line: &[],
+        zero_line: true,
+    })
+    .map_err(|message| Error::Plot {
+        name: format!("tide-{id}"),
+        message,
+    })?;
+    Ok(Some((format!("tide-{id}.svg"), svg)))
 }
 
 /// The sigma of one reading (eq. 4) against Dz, for session `id`.

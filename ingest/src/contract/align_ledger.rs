@@ -94,6 +94,10 @@ pub struct AlignReport {
     pub observations: u64,
     /// Every file align read (the manifest, ingest's ledger and tables) and wrote.
     pub custody: Custody,
+    /// Whether each observation's gravity includes the body tide (the site's location is
+    /// given and `earth_tide` is not false).
+    #[serde(default)]
+    pub earth_tide_applied: bool,
     /// Sessions that gave no usable observation (and were not declared `expect_empty`):
     /// the run fails, and downstream stages refuse this ledger.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

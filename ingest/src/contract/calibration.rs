@@ -141,6 +141,9 @@ pub struct Calibration {
     /// wrote (residuals.parquet), with its SHA-256: with `inputs`, exactly what the numbers
     /// came from.
     pub custody: Custody,
+    /// Whether the body tide was applied to g per observation, and its range; or why not.
+    #[serde(default)]
+    pub earth_tide: String,
 }
 
 /// The stage's folder in OUT.

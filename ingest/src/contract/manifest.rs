@@ -41,13 +41,49 @@ pub struct Site {
     /// Proof masses above the benchmark, m.
     #[serde(default)]
     pub sensor_height_m: f64,
+    /// Geodetic latitude of the benchmark, deg, north positive (FORMATS.md 8.1).
+    #[serde(default)]
+    pub latitude_deg: Option<f64>,
+    /// Longitude, deg, east positive.
+    #[serde(default)]
+    pub longitude_deg: Option<f64>,
+    /// Ellipsoidal height of the benchmark, m (default 0).
+    #[serde(default)]
+    pub height_m: Option<f64>,
+    /// Apply the body tide to g per observation (default: when the location is given).
+    #[serde(default)]
+    pub earth_tide: Option<bool>,
 }
 
 fn default_gradient() -> f64 {
     -0.3086
 }
 
+/// Where the benchmark is, when the manifest says, and whether to apply the tide there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Location {
+    /// Geodetic latitude, deg.
+    pub latitude_deg: f64,
+    /// Longitude, deg, east positive.
+    pub longitude_deg: f64,
+    /// Ellipsoidal height, m.
+    pub height_m: f64,
+}
+
 impl Site {
+    /// The benchmark's location when the body tide is to be applied (a location given and
+    /// `earth_tide` not false); `None` otherwise.
+    pub fn tide_location(&self) -> Option<Location> {
+        match (self.latitude_deg, self.longitude_deg, self.earth_tide) {
+            (Some(latitude_deg), Some(longitude_deg), None | Some(true)) => Some(Location {
+                latitude_deg,
+                longitude_deg,
+                height_m: self.height_m.unwrap_or(0.0),
+            }),
+            _ => None,
+        }
+    }
+
     /// Gravity used in the model: `g_abs + gradient * sensor_height`, mGal.
     pub fn gravity_mgal(&self) -> f64 {
         self.g_abs_mgal + self.gradient_mgal_per_m * self.sensor_height_m
@@ -389,6 +425,27 @@ impl Dataset {
             5.0,
         )?;
         range("site.sensor_height_m", m.site.sensor_height_m, -10.0, 10.0)?;
+        for (key, value, lo, hi) in [
+            ("site.latitude_deg", m.site.latitude_deg, -90.0, 90.0),
+            ("site.longitude_deg", m.site.longitude_deg, -180.0, 360.0),
+            ("site.height_m", m.site.height_m, -500.0, 9000.0),
+        ] {
+            if let Some(v) = value {
+                range(key, v, lo, hi)?;
+            }
+        }
+        if m.site.latitude_deg.is_some() != m.site.longitude_deg.is_some() {
+            return Err(err(
+                "site.latitude_deg".into(),
+                "give latitude_deg and longitude_deg together".into(),
+            ));
+        }
+        if m.site.earth_tide == Some(true) && m.site.latitude_deg.is_none() {
+            return Err(err(
+                "site.earth_tide".into(),
+                "the body tide needs the site's latitude_deg and longitude_deg".into(),
+            ));
+        }
         range(
             "instrument.sample_rate_hz",
             m.instrument.sample_rate_hz,

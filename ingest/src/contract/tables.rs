@@ -156,6 +156,8 @@ pub mod theodolite {
 /// | expected_samples | float64 | window_s x sample_rate_hz |
 /// | temperature_c | float64, null | accelerometer temperature at the reading, degC |
 /// | drift_t | float64, null | t statistic of a linear trend of the counts in the window |
+/// | tide_mgal | float64, null | body tide at the reading's time, mGal; null when none is applied |
+/// | gravity_mgal | float64 | gravity at the proof masses at the reading: g (+ tide), mGal |
 /// | excluded | utf8, null | why the observation is not used; null when used |
 pub mod observations {
     use super::*;
@@ -189,6 +191,10 @@ pub mod observations {
     pub const TEMPERATURE_C: &str = "temperature_c";
     /// Trend t statistic.
     pub const DRIFT_T: &str = "drift_t";
+    /// Body tide, mGal.
+    pub const TIDE_MGAL: &str = "tide_mgal";
+    /// Gravity at the reading, mGal.
+    pub const GRAVITY_MGAL: &str = "gravity_mgal";
     /// Exclusion reason.
     pub const EXCLUDED: &str = "excluded";
     /// The Arrow schema.
@@ -211,6 +217,8 @@ pub mod observations {
             Field::new(TEMPERATURE_C, DataType::Float64, true),
             Field::new(DRIFT_T, DataType::Float64, true),
             Field::new(EXCLUDED, DataType::Utf8, true),
+            Field::new(TIDE_MGAL, DataType::Float64, true),
+            Field::new(GRAVITY_MGAL, DataType::Float64, false),
         ]))
     }
 }
