@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Creates target/peers-venv with the Python peers the tests compare against: PyGTide (ETERNA,
-# built from source: needs gfortran) and tidegravity (Longman). Idempotent.
+# built from source: needs gfortran), tidegravity (Longman) and allantools (Allan deviation).
+# numpy is pinned with them: PyGTide's compiled part breaks under a numpy other than the one
+# it was built with, and tidegravity asks for 1.25. Idempotent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! command -v gfortran >/dev/null; then
@@ -10,7 +12,7 @@ if ! command -v gfortran >/dev/null; then
 fi
 venv=target/peers-venv
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
-if ! "$venv/bin/python" -c 'import pygtide, tidegravity' 2>/dev/null; then
-  "$venv/bin/python" -m pip install -q pygtide==0.9.7 tidegravity==0.5.0
+if ! "$venv/bin/python" -c 'import pygtide, tidegravity, allantools' 2>/dev/null; then
+  "$venv/bin/python" -m pip install -q numpy==1.25.0 pygtide==0.9.7 tidegravity==0.5.0 allantools==2024.6
 fi
-"$venv/bin/python" -c 'import pygtide, tidegravity; print("peers-venv: pygtide and tidegravity ready")'
+"$venv/bin/python" -c 'import pygtide, tidegravity, allantools; print("peers-venv: pygtide, tidegravity and allantools ready")'

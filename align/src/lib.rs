@@ -15,6 +15,7 @@
 //! streamed once, in order: time is linear in the number of samples and memory does not
 //! grow with it.
 
+pub mod allan;
 mod read;
 pub mod tide;
 pub mod window;

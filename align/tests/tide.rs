@@ -6,25 +6,11 @@
 use align::tide::{Site, body_tide_mgal, utc_seconds_of_gps};
 use ingest::contract::manifest::TimeScale;
 use ingest::time::{gps_ns, parse_calendar};
+mod peers;
+
+use peers::peers_python;
 use std::path::PathBuf;
 use std::process::Command;
-
-fn peers_python() -> Option<PathBuf> {
-    if std::env::var("GRAVCAL_SKIP_PEERS").as_deref() == Ok("1") {
-        eprintln!("GRAVCAL_SKIP_PEERS=1: the tide is not compared with ETERNA");
-        return None;
-    }
-    let py = std::env::var_os("GRAVCAL_PEERS_PYTHON").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/peers-venv/bin/python"),
-        PathBuf::from,
-    );
-    assert!(
-        py.exists(),
-        "no peers' Python at {}: run `bash .ci/peers-venv.sh` (or set GRAVCAL_SKIP_PEERS=1)",
-        py.display()
-    );
-    Some(py)
-}
 
 /// (utc seconds since the GPS epoch, ETERNA, Longman in Python), mGal.
 fn reference(py: &PathBuf, site: Site, start: &str, hours: u32) -> Vec<(f64, f64, f64)> {
