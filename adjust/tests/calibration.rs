@@ -230,10 +230,20 @@ struct MonteCarlo {
     rejection_rate: f64,
 }
 
+/// How the Monte-Carlo weighs the theodolite readings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Weights {
+    /// The generating sigma of each station.
+    Generating,
+    /// Each station's own sample sd (eq. 4).
+    StationSd,
+    /// Each station's variance moderated toward the session's (align's default).
+    Moderated,
+}
+
 /// `replicas` replicas of the day-1 design for acc1 with fresh noise: 80 ADC samples per
-/// window averaged as align does; sigma_Dz either the generating value or, with
-/// `station_sd`, the sample sd of the station's readings (eq. 4, as align does).
-fn monte_carlo(replicas: usize, station_sd: bool) -> MonteCarlo {
+/// window averaged as align does; sigma_Dz as `weights` says (as align forms it).
+fn monte_carlo(replicas: usize, weights: Weights) -> MonteCarlo {
     let truth = fixtures::read_truth(&fixtures::dataset_dir("esgt-2005")).expect("truth");
     let day1: Vec<_> = truth
         .reading
@@ -249,20 +259,36 @@ fn monte_carlo(replicas: usize, station_sd: bool) -> MonteCarlo {
             .iter()
             .map(|r| r.dz_true_rad + r.sigma_dz_rad * rng.normal())
             .collect();
-        let mut obs = Vec::new();
-        for (i, r) in day1.iter().enumerate() {
-            let sigma_dz_rad = if station_sd {
-                let station: Vec<f64> = day1
+        let mut stations: Vec<&str> = day1.iter().map(|r| r.station.as_str()).collect();
+        stations.dedup();
+        let own: Vec<(f64, f64)> = stations
+            .iter()
+            .map(|st| {
+                let v: Vec<f64> = day1
                     .iter()
                     .zip(&dz)
-                    .filter(|(x, _)| x.station == r.station)
+                    .filter(|(x, _)| x.station == *st)
                     .map(|(_, d)| *d)
                     .collect();
-                let n = station.len() as f64;
-                let mean = station.iter().sum::<f64>() / n;
-                (station.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-            } else {
-                r.sigma_dz_rad
+                let n = v.len() as f64;
+                let mean = v.iter().sum::<f64>() / n;
+                (
+                    v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0),
+                    n - 1.0,
+                )
+            })
+            .collect();
+        let moderated = align::weights::moderate(&own).expect("stations with readings");
+        let mut obs = Vec::new();
+        for (i, r) in day1.iter().enumerate() {
+            let k = stations
+                .iter()
+                .position(|st| *st == r.station)
+                .expect("station");
+            let sigma_dz_rad = match weights {
+                Weights::Generating => r.sigma_dz_rad,
+                Weights::StationSd => own[k].0.sqrt(),
+                Weights::Moderated => moderated.variances[k].sqrt(),
             };
             let samples: Vec<f64> = (0..80)
                 .map(|_| r.ng_true[a] + r.sigma_sample_bits[a] * rng.normal())
@@ -313,9 +339,14 @@ fn monte_carlo_sigmas_are_honest() {
         eprintln!("skipped: set GRAVCAL_MONTE_CARLO=1 to run the Monte-Carlo check");
         return;
     }
-    let mc = monte_carlo(500, false);
-    let eq4 = monte_carlo(500, true);
-    for (label, m) in [("generating sigmas", &mc), ("eq. 4 station sd", &eq4)] {
+    let mc = monte_carlo(500, Weights::Generating);
+    let eq4 = monte_carlo(500, Weights::StationSd);
+    let moderated = monte_carlo(500, Weights::Moderated);
+    for (label, m) in [
+        ("generating sigmas", &mc),
+        ("eq. 4 station sd", &eq4),
+        ("moderated station variances", &moderated),
+    ] {
         eprintln!(
             "monte carlo, {label}: sd(b)/sigma_b {:.3}, sd(k)/sigma_k {:.3}, global test rejects {:.1} %",
             m.sd_over_sigma_b,

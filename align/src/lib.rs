@@ -18,6 +18,7 @@
 pub mod allan;
 mod read;
 pub mod tide;
+pub mod weights;
 pub mod window;
 
 use ingest::contract::align_ledger::{
@@ -26,7 +27,7 @@ use ingest::contract::align_ledger::{
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger as ingest_ledger;
-use ingest::contract::manifest::Dataset;
+use ingest::contract::manifest::{Dataset, SigmaDzMethod};
 use ingest::contract::{status, tables};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -111,12 +112,16 @@ struct Pending {
     sums: [WindowSums; 3],
 }
 
-/// sigma_Dz per station of one session (eq. 4), never below the quantisation of the log:
-/// the step of the finest last decimal the session's readings were logged with, over
-/// sqrt(12). A station of one reading takes the manifest's `theodolite_sigma_arcsec`.
+/// sigma_Dz per station of one session, never below the quantisation of the log: the step
+/// of the finest last decimal the session's readings were logged with, over sqrt(12). By
+/// default each station's variance is moderated toward the session's ([`weights`]; a
+/// station of one reading takes the session's prior); with `sigma_dz = "station"` it is the
+/// station's own sd (eq. 4), and a station of one reading takes the manifest's
+/// `theodolite_sigma_arcsec`.
 fn station_sigmas(
     readings: &[Pending],
     fallback_rad: f64,
+    method: SigmaDzMethod,
 ) -> BTreeMap<String, (f64, &'static str)> {
     let floor_rad = readings
         .iter()
@@ -130,13 +135,29 @@ fn station_sigmas(
             .or_default()
             .push(p.reading.dz_rad);
     }
+    let own: Vec<(f64, f64)> = by_station
+        .values()
+        .map(|dz| match sample_sd(dz) {
+            Some(sd) => (sd.max(floor_rad).powi(2), (dz.len() - 1) as f64),
+            None => (0.0, 0.0),
+        })
+        .collect();
+    let moderated = match method {
+        SigmaDzMethod::Moderated => weights::moderate(&own),
+        SigmaDzMethod::Station => None,
+    };
     by_station
         .into_iter()
-        .map(|(station, dz)| {
-            let sigma = match sample_sd(&dz) {
-                None => (fallback_rad, sigma_source::MANIFEST),
-                Some(sd) if sd >= floor_rad => (sd, sigma_source::STATION_SD),
-                Some(_) => (floor_rad, sigma_source::RESOLUTION),
+        .enumerate()
+        .map(|(i, (station, dz))| {
+            let sigma = match (&moderated, sample_sd(&dz)) {
+                (Some(m), _) if m.variances[i].sqrt() >= floor_rad => {
+                    (m.variances[i].sqrt(), sigma_source::MODERATED)
+                }
+                (Some(_), _) => (floor_rad, sigma_source::RESOLUTION),
+                (None, None) => (fallback_rad, sigma_source::MANIFEST),
+                (None, Some(sd)) if sd >= floor_rad => (sd, sigma_source::STATION_SD),
+                (None, Some(_)) => (floor_rad, sigma_source::RESOLUTION),
             };
             (station.to_owned(), sigma)
         })
@@ -230,7 +251,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let mut disconnected = Vec::new();
     for (si, s) in ds.sessions.iter().enumerate() {
         let id = &s.session.id;
-        let sigma = station_sigmas(&pending[si], fallback_sigma_rad);
+        let sigma = station_sigmas(&pending[si], fallback_sigma_rad, cfg.sigma_dz);
         let never = ingest_report
             .sessions
             .iter()

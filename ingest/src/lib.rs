@@ -3,8 +3,8 @@
 //! Reads a dataset folder (FORMATS.md sections 2-5): the manifest, validated strictly; per
 //! session the binary acquisition log or the CSV pair, and the theodolite log. Writes, under
 //! `OUT/ingest/`, the raw streams as zstd Parquet tables in one time scale (GPS time, i64 ns
-//! since 1980-01-06; see [`schema`]) and `ingest.json`, the ledger: per input file its
-//! SHA-256, size, and what was read, accepted and rejected by reason ([`ledger`]).
+//! since 1980-01-06; see [`contract::tables`]) and `ingest.json`, the ledger: per input file its
+//! SHA-256, size, and what was read, accepted and rejected by reason ([`contract::ledger`]).
 //!
 //! ```no_run
 //! let report = ingest::run_with(

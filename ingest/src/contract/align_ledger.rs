@@ -21,7 +21,7 @@ pub mod reason {
     pub const NO_TEMPERATURE: &str = "no_temperature";
     /// The nearest temperature sample is further than `max_temperature_gap_s`.
     pub const TEMPERATURE_GAP: &str = "temperature_gap";
-    /// The counts in the window trend (|t| > [`DRIFT_T_LIMIT`]): the platform was not still.
+    /// The counts in the window trend (|t| > [`super::DRIFT_T_LIMIT`]): the platform was not still.
     pub const WINDOW_DRIFT: &str = "window_drift";
 }
 
@@ -38,8 +38,11 @@ pub const LEDGER_FORMAT: &str = "gravcal-align/1";
 pub mod sigma_source {
     /// The sample sd of the station's readings (eq. 4).
     pub const STATION_SD: &str = "station_sd";
-    /// The manifest's `theodolite_sigma_arcsec` (fewer than 2 readings).
+    /// The manifest's `theodolite_sigma_arcsec` (no station of the session has 2 readings,
+    /// or, with eq. 4, this one has fewer).
     pub const MANIFEST: &str = "manifest";
+    /// The station's variance moderated toward the session's (MODEL.md 6.1; the default).
+    pub const MODERATED: &str = "moderated";
     /// The floor: the quantisation of the readings as logged, step / sqrt(12), because the
     /// station's sd was smaller (readings logged coarsely can all be equal).
     pub const RESOLUTION: &str = "resolution";

@@ -138,6 +138,19 @@ pub struct AlignConfig {
     pub max_temperature_gap_s: f64,
     /// Sd of one reading where a station has fewer than 2 readings, arcsec.
     pub theodolite_sigma_arcsec: f64,
+    /// How sigma_Dz per station is formed.
+    pub sigma_dz: SigmaDzMethod,
+}
+
+/// How sigma_Dz per station is formed (MODEL.md 6.1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SigmaDzMethod {
+    /// Each station's variance moderated toward the session's (empirical Bayes): the default.
+    #[default]
+    Moderated,
+    /// Each station's own sample sd (eq. 4 of the paper).
+    Station,
 }
 
 impl Default for AlignConfig {
@@ -147,6 +160,7 @@ impl Default for AlignConfig {
             min_window_fill: 0.8,
             max_temperature_gap_s: 10.0,
             theodolite_sigma_arcsec: 1.0,
+            sigma_dz: SigmaDzMethod::default(),
         }
     }
 }

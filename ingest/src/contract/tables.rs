@@ -148,7 +148,7 @@ pub mod theodolite {
 /// | time_gps_ns | int64 | GPS time of the reading, ns |
 /// | dz_rad | float64 | zenith distance, rad |
 /// | sigma_dz_rad | float64 | sd of one reading at this station, rad (eq. 4) |
-/// | sigma_dz_source | utf8 | `station_sd` or `manifest` (fewer than 2 readings, or sd 0) |
+/// | sigma_dz_source | utf8 | `moderated`, `station_sd`, `manifest` or `resolution` ([`super::align_ledger::sigma_source`]) |
 /// | sigma_am_mgal | float64 | g sin(Dz) sigma_Dz, mGal |
 /// | ng | float64, null | mean counts in the window |
 /// | sigma_ng | float64, null | sd of that mean, counts |
