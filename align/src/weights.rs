@@ -152,7 +152,9 @@ mod tests {
     /// variance; stations alike shrink to the pooled value.
     #[test]
     fn shrinks_by_how_much_stations_differ() {
-        let spread: Vec<(f64, f64)> = (0..15).map(|i| ((1.0 + i as f64).powi(2), 14.0)).collect();
+        let spread: Vec<(f64, f64)> = (0..15_i32)
+            .map(|i| ((1.0 + f64::from(i)).powi(2), 14.0))
+            .collect();
         let m = moderate(&spread).expect("moderated");
         assert!(m.prior_dof.is_finite() && m.prior_dof < 14.0, "{m:?}");
         assert!(m.variances[0] < m.variances[14]);
