@@ -198,6 +198,25 @@ fn fixtures_check() -> Result<()> {
     }
 }
 
+/// Makes the Python peers' environment the tests compare against (`.ci/peers-venv.sh`),
+/// unless `GRAVCAL_SKIP_PEERS=1`.
+fn peers_venv() -> Result<()> {
+    if std::env::var("GRAVCAL_SKIP_PEERS").as_deref() == Ok("1") {
+        eprintln!("GRAVCAL_SKIP_PEERS=1: the tests against the Python peers are left out");
+        return Ok(());
+    }
+    eprintln!("$ bash .ci/peers-venv.sh");
+    let ok = Command::new("bash")
+        .arg(workspace_root().join(".ci/peers-venv.sh"))
+        .status()
+        .context("running .ci/peers-venv.sh")?
+        .success();
+    if !ok {
+        bail!(".ci/peers-venv.sh failed (or set GRAVCAL_SKIP_PEERS=1 to leave those tests out)");
+    }
+    Ok(())
+}
+
 fn ci() -> Result<()> {
     cargo(&["fmt", "--all", "--", "--check"])?;
     cargo(&[
@@ -208,6 +227,7 @@ fn ci() -> Result<()> {
         "-D",
         "warnings",
     ])?;
+    peers_venv()?;
     cargo(&["test", "--workspace"])?;
     fixtures_check()?;
     let scratch = std::env::temp_dir().join(format!("gravcal-ci-{}", std::process::id()));
