@@ -27,7 +27,7 @@ use ingest::contract::align_ledger::{
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger as ingest_ledger;
-use ingest::contract::manifest::{Dataset, SigmaDzMethod};
+use ingest::contract::manifest::{AlignConfig, Dataset, Location, SigmaDzMethod};
 use ingest::contract::{status, tables};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -164,22 +164,34 @@ fn station_sigmas(
         .collect()
 }
 
-/// Aligns the dataset: reads OUT/ingest, writes OUT/align. Returns the ledger.
-pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
-    let ds = Dataset::load(dataset)?;
-    let _lock = ingest::lock::OutputLock::acquire(out)?;
-    let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
-    let ingest_report = ingest_ledger::IngestReport::load_verified(&ds, out)?;
-    let cfg = ds.manifest.align.clone();
-    let g = ds.manifest.site.gravity_mgal();
-    let rate = ds.manifest.instrument.sample_rate_hz;
-    let expected = cfg.window_s * rate;
-    let half_ns = (cfg.window_s * 0.5e9).round() as i64;
-    let max_gap_ns = (cfg.max_temperature_gap_s * 1e9).round() as i64;
-    let fallback_sigma_rad = (cfg.theodolite_sigma_arcsec / 3600.0).to_radians();
-    let location = ds.manifest.site.tide_location();
-    let tide = |gps_ns: i64| {
-        location.map(|l| {
+/// What forming observations needs, from the manifest.
+struct Setup {
+    cfg: AlignConfig,
+    g: f64,
+    expected: f64,
+    half_ns: i64,
+    max_gap_ns: i64,
+    fallback_sigma_rad: f64,
+    location: Option<Location>,
+}
+
+impl Setup {
+    fn new(ds: &Dataset) -> Self {
+        let cfg = ds.manifest.align.clone();
+        Setup {
+            g: ds.manifest.site.gravity_mgal(),
+            expected: cfg.window_s * ds.manifest.instrument.sample_rate_hz,
+            half_ns: (cfg.window_s * 0.5e9).round() as i64,
+            max_gap_ns: (cfg.max_temperature_gap_s * 1e9).round() as i64,
+            fallback_sigma_rad: (cfg.theodolite_sigma_arcsec / 3600.0).to_radians(),
+            location: ds.manifest.site.tide_location(),
+            cfg,
+        }
+    }
+
+    /// The body tide at `gps_ns`, when the site's location asks for it.
+    fn tide(&self, gps_ns: i64) -> Option<f64> {
+        self.location.map(|l| {
             let site = tide::Site {
                 latitude_deg: l.latitude_deg,
                 longitude_deg: l.longitude_deg,
@@ -187,18 +199,81 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
             };
             tide::body_tide_mgal(site, tide::utc_seconds_of_gps(gps_ns))
         })
-    };
+    }
 
-    let theodolite = read::theodolite(&ingest_dir)?;
+    /// Why a window cannot be used, the first reason that applies; None when it can.
+    fn exclusion(
+        &self,
+        w: &WindowSums,
+        has_temperatures: bool,
+        temperature: Option<f64>,
+    ) -> Option<&'static str> {
+        let stats = w.stats();
+        if w.not_connected > 0 {
+            Some(reason::NOT_CONNECTED)
+        } else if w.saturated > 0 {
+            Some(reason::SATURATED)
+        } else if f64::from(w.rows) < self.cfg.min_window_fill * self.expected || stats.is_none() {
+            Some(reason::WINDOW_UNDERFILLED)
+        } else if !has_temperatures {
+            Some(reason::NO_TEMPERATURE)
+        } else if temperature.is_none() {
+            Some(reason::TEMPERATURE_GAP)
+        } else if stats.is_some_and(|s| s.drift_t.abs() > DRIFT_T_LIMIT) {
+            Some(reason::WINDOW_DRIFT)
+        } else {
+            None
+        }
+    }
+}
+
+/// Aligns the dataset: reads OUT/ingest, writes OUT/align. Returns the ledger.
+pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
+    let ds = Dataset::load(dataset)?;
+    let _lock = ingest::lock::OutputLock::acquire(out)?;
+    let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
+    let ingest_report = ingest_ledger::IngestReport::load_verified(&ds, out)?;
+    let setup = Setup::new(&ds);
     let temperatures = read::temperatures(&ingest_dir)?;
+    let mut pending = open_windows(&ds, &read::theodolite(&ingest_dir)?, setup.half_ns);
+    fill_windows(&ingest_dir, &mut pending)?;
+    let mut formed = Formed::default();
+    for (si, s) in ds.sessions.iter().enumerate() {
+        let never = ingest_report
+            .sessions
+            .iter()
+            .find(|x| x.id == s.session.id)
+            .map(|x| x.channels_never_connected.clone())
+            .unwrap_or_default();
+        let temps = |channel: u8| {
+            u16::try_from(si)
+                .ok()
+                .and_then(|i| temperatures.get(&(i, channel)))
+        };
+        observe_session(
+            &ds,
+            &setup,
+            &s.session.id,
+            &pending[si],
+            &never,
+            temps,
+            &mut formed,
+        );
+    }
+    write_outputs(&ds, out, setup, formed)
+}
 
-    // Windows per session, in time order.
-    let session_ids: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
-    let mut pending: Vec<Vec<Pending>> = session_ids
+/// The windows of every session's readings, in time order.
+fn open_windows(
+    ds: &Dataset,
+    theodolite: &BTreeMap<String, Vec<read::TheodoliteRow>>,
+    half_ns: i64,
+) -> Vec<Vec<Pending>> {
+    ds.sessions
         .iter()
-        .map(|id| {
+        .map(|s| {
             let mut rows: Vec<read::TheodoliteRow> =
-                theodolite.get(id).cloned().unwrap_or_default();
+                theodolite.get(&s.session.id).cloned().unwrap_or_default();
             rows.sort_by_key(|r| (r.time_gps_ns, r.line));
             rows.into_iter()
                 .map(|r| Pending {
@@ -209,11 +284,13 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
                 })
                 .collect()
         })
-        .collect();
+        .collect()
+}
 
-    // One pass over the acceleration stream.
-    let mut cursor: Vec<(usize, usize)> = vec![(0, 0); session_ids.len()]; // (first active, next to open)
-    read::acceleration(&ingest_dir, |session, time_ns, counts, status| {
+/// One pass over the acceleration stream, adding every sample to the windows it falls in.
+fn fill_windows(ingest_dir: &Path, pending: &mut [Vec<Pending>]) -> Result<()> {
+    let mut cursor: Vec<(usize, usize)> = vec![(0, 0); pending.len()]; // (first active, next to open)
+    read::acceleration(ingest_dir, |session, time_ns, counts, status| {
         let si = usize::from(session);
         if si >= pending.len() {
             return;
@@ -243,93 +320,90 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
                 }
             }
         }
-    })?;
+    })
+}
 
-    // sigma_Dz per (session, station): eq. 4.
-    let mut observations = Vec::new();
-    let mut counts = Vec::new();
-    let mut disconnected = Vec::new();
-    for (si, s) in ds.sessions.iter().enumerate() {
-        let id = &s.session.id;
-        let sigma = station_sigmas(&pending[si], fallback_sigma_rad, cfg.sigma_dz);
-        let never = ingest_report
-            .sessions
-            .iter()
-            .find(|x| &x.id == id)
-            .map(|x| x.channels_never_connected.clone())
-            .unwrap_or_default();
-        for acc in &ds.manifest.instrument.accelerometer {
-            let ch = usize::from(acc.channel) - 1;
-            if never.contains(&acc.channel) {
-                disconnected.push(Disconnected {
-                    session: id.clone(),
-                    accelerometer: acc.id.clone(),
-                    channel: acc.channel,
-                    reason: "channel not connected in any sample of the session".to_owned(),
-                });
-                continue;
-            }
-            let temps = u16::try_from(si)
-                .ok()
-                .and_then(|i| temperatures.get(&(i, acc.channel)));
-            let mut c = Counts {
-                session: id.clone(),
+/// What the sessions gave: observations and their counts.
+#[derive(Default)]
+struct Formed {
+    observations: Vec<Observation>,
+    counts: Vec<Counts>,
+    disconnected: Vec<Disconnected>,
+}
+
+/// The observations of one session, one per (reading, accelerometer); `never` lists the
+/// channels not connected in any sample, `temps` gives a channel's temperature series.
+fn observe_session<'t>(
+    ds: &Dataset,
+    setup: &Setup,
+    id: &str,
+    pending: &[Pending],
+    never: &[u8],
+    temps: impl Fn(u8) -> Option<&'t (Vec<i64>, Vec<f64>)>,
+    formed: &mut Formed,
+) {
+    let sigma = station_sigmas(pending, setup.fallback_sigma_rad, setup.cfg.sigma_dz);
+    for acc in &ds.manifest.instrument.accelerometer {
+        let ch = usize::from(acc.channel) - 1;
+        if never.contains(&acc.channel) {
+            formed.disconnected.push(Disconnected {
+                session: id.to_owned(),
                 accelerometer: acc.id.clone(),
-                readings: pending[si].len() as u64,
-                used: 0,
-                excluded: BTreeMap::new(),
-            };
-            for p in &pending[si] {
-                let w = &p.sums[ch];
-                let stats = w.stats();
-                let (sigma_dz_rad, source) = sigma[p.reading.station.as_str()];
-                let temperature =
-                    temps.and_then(|(t, v)| interpolate(t, v, p.reading.time_gps_ns, max_gap_ns));
-                let excluded = if w.not_connected > 0 {
-                    Some(reason::NOT_CONNECTED)
-                } else if w.saturated > 0 {
-                    Some(reason::SATURATED)
-                } else if f64::from(w.rows) < cfg.min_window_fill * expected || stats.is_none() {
-                    Some(reason::WINDOW_UNDERFILLED)
-                } else if temps.is_none_or(|(t, _)| t.is_empty()) {
-                    Some(reason::NO_TEMPERATURE)
-                } else if temperature.is_none() {
-                    Some(reason::TEMPERATURE_GAP)
-                } else if stats.is_some_and(|s| s.drift_t.abs() > DRIFT_T_LIMIT) {
-                    Some(reason::WINDOW_DRIFT)
-                } else {
-                    None
-                };
-                match excluded {
-                    Some(r) => *c.excluded.entry(r.to_owned()).or_default() += 1,
-                    None => c.used += 1,
-                }
-                observations.push(Observation {
-                    session: id.clone(),
-                    accelerometer: acc.id.clone(),
-                    channel: acc.channel,
-                    station: p.reading.station.clone(),
-                    line: p.reading.line,
-                    time_gps_ns: p.reading.time_gps_ns,
-                    dz_rad: p.reading.dz_rad,
-                    sigma_dz_rad,
-                    sigma_dz_source: source,
-                    sigma_am_mgal: g * p.reading.dz_rad.sin().abs() * sigma_dz_rad,
-                    ng: stats.map(|s| s.mean),
-                    sigma_ng: stats.map(|s| s.sigma_mean),
-                    n_samples: w.n,
-                    expected_samples: expected,
-                    temperature_c: temperature.map(|(v, _)| v),
-                    drift_t: stats.map(|s| s.drift_t),
-                    excluded,
-                    tide_mgal: tide(p.reading.time_gps_ns),
-                    gravity_mgal: g + tide(p.reading.time_gps_ns).unwrap_or(0.0),
-                });
-            }
-            counts.push(c);
+                channel: acc.channel,
+                reason: "channel not connected in any sample of the session".to_owned(),
+            });
+            continue;
         }
+        let temps = temps(acc.channel);
+        let mut c = Counts {
+            session: id.to_owned(),
+            accelerometer: acc.id.clone(),
+            readings: pending.len() as u64,
+            used: 0,
+            excluded: BTreeMap::new(),
+        };
+        for p in pending {
+            let w = &p.sums[ch];
+            let stats = w.stats();
+            let (sigma_dz_rad, source) = sigma[p.reading.station.as_str()];
+            let temperature =
+                temps.and_then(|(t, v)| interpolate(t, v, p.reading.time_gps_ns, setup.max_gap_ns));
+            let has_temperatures = temps.is_some_and(|(t, _)| !t.is_empty());
+            let excluded = setup.exclusion(w, has_temperatures, temperature.map(|(v, _)| v));
+            match excluded {
+                Some(r) => *c.excluded.entry(r.to_owned()).or_default() += 1,
+                None => c.used += 1,
+            }
+            let tide_mgal = setup.tide(p.reading.time_gps_ns);
+            formed.observations.push(Observation {
+                session: id.to_owned(),
+                accelerometer: acc.id.clone(),
+                channel: acc.channel,
+                station: p.reading.station.clone(),
+                line: p.reading.line,
+                time_gps_ns: p.reading.time_gps_ns,
+                dz_rad: p.reading.dz_rad,
+                sigma_dz_rad,
+                sigma_dz_source: source,
+                sigma_am_mgal: setup.g * p.reading.dz_rad.sin().abs() * sigma_dz_rad,
+                ng: stats.map(|s| s.mean),
+                sigma_ng: stats.map(|s| s.sigma_mean),
+                n_samples: w.n,
+                expected_samples: setup.expected,
+                temperature_c: temperature.map(|(v, _)| v),
+                drift_t: stats.map(|s| s.drift_t),
+                excluded,
+                tide_mgal,
+                gravity_mgal: setup.g + tide_mgal.unwrap_or(0.0),
+            });
+        }
+        formed.counts.push(c);
     }
+}
 
+/// Writes observations.parquet and align.json (with the chain of custody); fails, after
+/// writing, when a session gave no usable observation.
+fn write_outputs(ds: &Dataset, out: &Path, setup: Setup, formed: Formed) -> Result<AlignReport> {
     let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| ingest::Error::Io {
         path: dir.clone(),
@@ -337,7 +411,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     })?;
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
-    let rows = read::write_observations(&dir, &observations)?;
+    let rows = read::write_observations(&dir, &formed.observations)?;
     let folders = Folders {
         dataset: &ds.dir,
         out,
@@ -355,40 +429,37 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
         Root::Out,
         &format!("{STAGE_DIR}/{}", tables::observations::FILE),
     )?];
+    let errors = ds
+        .sessions
+        .iter()
+        .filter(|s| !s.session.expect_empty)
+        .filter(|s| {
+            formed
+                .counts
+                .iter()
+                .filter(|c| c.session == s.session.id)
+                .all(|c| c.used == 0)
+        })
+        .map(|s| {
+            format!(
+                "session {}: no usable observation for any accelerometer (align.json counts why; \
+                 if this is expected, set `expect_empty = true` in its [[session]])",
+                s.session.id
+            )
+        })
+        .collect();
     let report = AlignReport {
         format: LEDGER_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
         software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
-        config: cfg,
-        gravity_mgal: g,
-        counts,
-        disconnected,
+        gravity_mgal: setup.g,
+        earth_tide_applied: setup.location.is_some(),
+        config: setup.cfg,
+        counts: formed.counts,
+        disconnected: formed.disconnected,
         observations: rows,
         custody: Custody { inputs, outputs },
-        earth_tide_applied: location.is_some(),
-        errors: Vec::new(),
-    };
-    let report = AlignReport {
-        errors: ds
-            .sessions
-            .iter()
-            .filter(|s| !s.session.expect_empty)
-            .filter(|s| {
-                report
-                    .counts
-                    .iter()
-                    .filter(|c| c.session == s.session.id)
-                    .all(|c| c.used == 0)
-            })
-            .map(|s| {
-                format!(
-                    "session {}: no usable observation for any accelerometer (align.json counts why; \
-                     if this is expected, set `expect_empty = true` in its [[session]])",
-                    s.session.id
-                )
-            })
-            .collect(),
-        ..report
+        errors,
     };
     ingest::write_json_atomically(&ledger_path, &report)?;
     if !report.errors.is_empty() {
