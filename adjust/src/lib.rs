@@ -255,49 +255,42 @@ fn skip_reason(ds: &Dataset, job: &Job<'_>, e: &CalError) -> String {
     }
 }
 
-/// Runs the stage: reads OUT/ingest and OUT/align, writes OUT/adjust.
-pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
-    let ds = Dataset::load(dataset)?;
-    let _lock = ingest::lock::OutputLock::acquire(out)?;
-    let ingest_report = IngestReport::load_verified(&ds, out)?;
-    let align_report = AlignReport::load_verified(&ds, out)?;
-    let rows = io::read_observations(&out.join(align_ledger::STAGE_DIR))?;
-    let g = ds.manifest.site.gravity_mgal();
-    let used: Vec<&io::ObservationRow> = rows
+/// Each session's mean temperature over the observations used (sessions without any left out).
+fn session_mean_temperatures(ds: &Dataset, used: &[&io::ObservationRow]) -> Vec<f64> {
+    ds.sessions
         .iter()
-        .filter(|o| {
-            o.excluded.is_none()
-                && o.ng.is_some()
-                && o.sigma_ng.is_some()
-                && o.temperature_c.is_some()
-        })
-        .collect();
-    let session_ids: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
-    let mean_temperatures: Vec<f64> = session_ids
-        .iter()
-        .filter_map(|id| {
+        .filter_map(|s| {
             let t: Vec<f64> = used
                 .iter()
-                .filter(|o| &o.session == id)
+                .filter(|o| o.session == s.session.id)
                 .filter_map(|o| o.temperature_c)
                 .collect();
             (!t.is_empty()).then(|| t.iter().sum::<f64>() / t.len() as f64)
         })
-        .collect();
-    let models = models(&ds.manifest.adjust.model, &mean_temperatures);
+        .collect()
+}
+
+/// One job per (model, accelerometer, session or `all`), with its observations; an
+/// accelerometer disconnected for the session is skipped.
+fn plan_jobs<'a>(
+    ds: &Dataset,
+    models: &'a [ModelDecl],
+    used: &[&'a io::ObservationRow],
+    align_report: &AlignReport,
+) -> (Vec<Job<'a>>, Vec<Skipped>) {
     let mut jobs = Vec::new();
     let mut skipped = Vec::new();
-    for model in &models {
+    for model in models {
         for acc in &ds.manifest.instrument.accelerometer {
             let groups: Vec<String> = match model.per {
-                Per::Session => session_ids.clone(),
+                Per::Session => ds.sessions.iter().map(|s| s.session.id.clone()).collect(),
                 Per::All => vec!["all".to_owned()],
             };
             for session in groups {
                 let disconnected = align_report
                     .disconnected
                     .iter()
-                    .any(|d| d.accelerometer == acc.id && (d.session == session));
+                    .any(|d| d.accelerometer == acc.id && d.session == session);
                 if disconnected {
                     skipped.push(Skipped {
                         accelerometer: acc.id.clone(),
@@ -323,76 +316,71 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
             }
         }
     }
-    let outcomes: Vec<Result<(CalibrationResult, calibrate::CalibrationSolution), CalError>> = jobs
-        .par_iter()
-        .map(|job| {
-            let terms = Terms {
-                order: usize::from(job.model.order),
-                temperature: job.model.temperature,
-                misalignment: job.model.misalignment,
-            };
-            let obs: Vec<Obs> = job
-                .obs
-                .iter()
-                .map(|o| Obs {
-                    dz_rad: o.dz_rad,
-                    sigma_dz_rad: o.sigma_dz_rad,
-                    ng: o.ng.unwrap_or_default(),
-                    sigma_ng: o.sigma_ng.unwrap_or_default(),
-                    temperature_c: o.temperature_c.unwrap_or_default(),
-                    tide_mgal: o.tide_mgal.unwrap_or_default(),
-                })
-                .collect();
-            calibrate::calibrate(&obs, terms, g).map(|f| (result_of(job, &f, terms), f))
+    (jobs, skipped)
+}
+
+/// Calibrates one job.
+fn fit_job(
+    job: &Job<'_>,
+    g: f64,
+) -> Result<(CalibrationResult, calibrate::CalibrationSolution), CalError> {
+    let terms = Terms {
+        order: usize::from(job.model.order),
+        temperature: job.model.temperature,
+        misalignment: job.model.misalignment,
+    };
+    let obs: Vec<Obs> = job
+        .obs
+        .iter()
+        .map(|o| Obs {
+            dz_rad: o.dz_rad,
+            sigma_dz_rad: o.sigma_dz_rad,
+            ng: o.ng.unwrap_or_default(),
+            sigma_ng: o.sigma_ng.unwrap_or_default(),
+            temperature_c: o.temperature_c.unwrap_or_default(),
+            tide_mgal: o.tide_mgal.unwrap_or_default(),
         })
         .collect();
-    let mut results = Vec::new();
-    let mut residual_rows = Vec::new();
-    for (job, outcome) in jobs.iter().zip(&outcomes) {
-        match outcome {
-            Ok((r, f)) => {
-                results.push(r.clone());
-                for res in &f.residuals {
-                    residual_rows.push(io::ResidualRow {
-                        model: &job.model.name,
-                        accelerometer: &job.accelerometer,
-                        fit_session: &job.session,
-                        obs: job.obs[res.index],
-                        v_dz_rad: Some(res.v_dz_rad),
-                        v_ng: Some(res.v_ng),
-                        residual_mgal: Some(res.misclosure_mgal),
-                        redundancy: Some(res.redundancy),
-                        w: res.w,
-                        removed: false,
-                    });
-                }
-                for rem in &f.removed {
-                    residual_rows.push(io::ResidualRow {
-                        model: &job.model.name,
-                        accelerometer: &job.accelerometer,
-                        fit_session: &job.session,
-                        obs: job.obs[rem.index],
-                        v_dz_rad: None,
-                        v_ng: None,
-                        residual_mgal: None,
-                        redundancy: None,
-                        w: rem.w,
-                        removed: true,
-                    });
-                }
-            }
-            Err(e) => skipped.push(Skipped {
-                accelerometer: job.accelerometer.clone(),
-                session: job.session.clone(),
-                model: job.model.name.clone(),
-                reason: if job.obs.is_empty() {
-                    "no usable observations".to_owned()
-                } else {
-                    skip_reason(&ds, job, e)
-                },
-            }),
-        }
-    }
+    calibrate::calibrate(&obs, terms, g).map(|f| (result_of(job, &f, terms), f))
+}
+
+/// residuals.parquet's rows of one calibration: the observations used, then those removed.
+fn residual_rows_of<'a>(
+    job: &'a Job<'a>,
+    f: &calibrate::CalibrationSolution,
+) -> Vec<io::ResidualRow<'a>> {
+    let row = |index: usize, w: f64| io::ResidualRow {
+        model: &job.model.name,
+        accelerometer: &job.accelerometer,
+        fit_session: &job.session,
+        obs: job.obs[index],
+        v_dz_rad: None,
+        v_ng: None,
+        residual_mgal: None,
+        redundancy: None,
+        w,
+        removed: true,
+    };
+    let used = f.residuals.iter().map(|res| io::ResidualRow {
+        v_dz_rad: Some(res.v_dz_rad),
+        v_ng: Some(res.v_ng),
+        residual_mgal: Some(res.misclosure_mgal),
+        redundancy: Some(res.redundancy),
+        removed: false,
+        ..row(res.index, res.w)
+    });
+    let removed = f.removed.iter().map(|rem| row(rem.index, rem.w));
+    used.chain(removed).collect()
+}
+
+/// Writes residuals.parquet and calibration.json, with the chain of custody: every file
+/// adjust read and the table it wrote.
+fn write_outputs(
+    ds: &Dataset,
+    out: &Path,
+    mut calibration: Calibration,
+    residual_rows: &[io::ResidualRow<'_>],
+) -> Result<Calibration, Error> {
     let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
         path: dir.clone(),
@@ -400,7 +388,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     })?;
     let cal_path = dir.join(CALIBRATION_FILE);
     ingest::remove_stale(&cal_path)?;
-    io::write_residuals(&dir, &residual_rows)?;
+    io::write_residuals(&dir, residual_rows)?;
     let folders = Folders {
         dataset: &ds.dir,
         out,
@@ -425,6 +413,54 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         Root::Out,
         &format!("{STAGE_DIR}/{}", ingest::contract::tables::residuals::FILE),
     )?];
+    calibration.custody = Custody { inputs, outputs };
+    ingest::write_json_atomically(&cal_path, &calibration)?;
+    Ok(calibration)
+}
+
+/// Runs the stage: reads OUT/ingest and OUT/align, writes OUT/adjust.
+pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
+    let ds = Dataset::load(dataset)?;
+    let _lock = ingest::lock::OutputLock::acquire(out)?;
+    let ingest_report = IngestReport::load_verified(&ds, out)?;
+    let align_report = AlignReport::load_verified(&ds, out)?;
+    let rows = io::read_observations(&out.join(align_ledger::STAGE_DIR))?;
+    let g = ds.manifest.site.gravity_mgal();
+    let used: Vec<&io::ObservationRow> = rows
+        .iter()
+        .filter(|o| {
+            o.excluded.is_none()
+                && o.ng.is_some()
+                && o.sigma_ng.is_some()
+                && o.temperature_c.is_some()
+        })
+        .collect();
+    let models = models(
+        &ds.manifest.adjust.model,
+        &session_mean_temperatures(&ds, &used),
+    );
+    let (jobs, mut skipped) = plan_jobs(&ds, &models, &used, &align_report);
+    let outcomes: Vec<_> = jobs.par_iter().map(|job| fit_job(job, g)).collect();
+    let mut results = Vec::new();
+    let mut residual_rows = Vec::new();
+    for (job, outcome) in jobs.iter().zip(&outcomes) {
+        match outcome {
+            Ok((r, f)) => {
+                results.push(r.clone());
+                residual_rows.extend(residual_rows_of(job, f));
+            }
+            Err(e) => skipped.push(Skipped {
+                accelerometer: job.accelerometer.clone(),
+                session: job.session.clone(),
+                model: job.model.name.clone(),
+                reason: if job.obs.is_empty() {
+                    "no usable observations".to_owned()
+                } else {
+                    skip_reason(&ds, job, e)
+                },
+            }),
+        }
+    }
     let calibration = Calibration {
         format: CALIBRATION_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
@@ -440,11 +476,10 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         gravity_mgal: g,
         results,
         skipped,
-        custody: Custody { inputs, outputs },
+        custody: Custody::default(),
         earth_tide: earth_tide_note(&used),
     };
-    ingest::write_json_atomically(&cal_path, &calibration)?;
-    Ok(calibration)
+    write_outputs(&ds, out, calibration, &residual_rows)
 }
 
 /// A few lines per fit: b, k and sigma0; and every skipped fit with its reason.
