@@ -203,6 +203,134 @@ pub fn run(dataset: &Path, out: &Path) -> Result<IngestReport> {
     run_with(dataset, out, &Options::default())
 }
 
+/// Reads a session's acquisition logs (the binary log, or the CSV pair) into `streams`,
+/// their ledgers into `files`; returns the median interval between acceleration samples.
+fn read_acquisition(
+    ds: &Dataset,
+    s: &manifest::ResolvedSession,
+    opts: &Options,
+    streams: &mut StreamWriter,
+    files: &mut Vec<FileLedger>,
+) -> Result<Option<i64>> {
+    let id = s.session.id.as_str();
+    let acceleration_interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
+    match &s.acquisition {
+        Acquisition::Binary(path) => {
+            let mut ledger = new_ledger(ds, path, id, "acquisition", "frames");
+            let pb = progress_bar(opts, path);
+            let config = gcb::ScanConfig {
+                reference_week: time::week_of_date(s.date),
+                acceleration_interval_ns,
+                range_ns: s.gps_range_ns(),
+            };
+            let interval = read_binary(path, config, streams, &mut ledger, &pb)?;
+            pb.finish_and_clear();
+            files.push(ledger);
+            Ok(interval)
+        }
+        Acquisition::Csv { adc, temperature } => {
+            let mut interval = None;
+            for (path, kind, role, interval_ns) in [
+                (
+                    adc,
+                    csvlog::CsvKind::Adc,
+                    "adc_csv",
+                    acceleration_interval_ns,
+                ),
+                (
+                    temperature,
+                    csvlog::CsvKind::Temperature,
+                    "temperature_csv",
+                    gcb::TEMPERATURE_INTERVAL_NS,
+                ),
+            ] {
+                let mut ledger = new_ledger(ds, path, id, role, "lines");
+                let pb = progress_bar(opts, path);
+                let config = csvlog::CsvConfig {
+                    kind,
+                    skip_bad_lines: opts.skip_bad_lines,
+                    interval_ns,
+                    range_ns: s.gps_range_ns(),
+                };
+                let median = csvlog::read_csv(path, config, streams, &mut ledger, &pb)?;
+                if kind == csvlog::CsvKind::Adc {
+                    interval = median;
+                }
+                pb.finish_and_clear();
+                files.push(ledger);
+            }
+            Ok(interval)
+        }
+    }
+}
+
+/// Ingests one session: its acquisition logs and, on a thread of its own meanwhile, its
+/// theodolite log. Returns what it gave, and what makes it unusable as a whole, if anything.
+fn ingest_session(
+    ds: &Dataset,
+    s: &manifest::ResolvedSession,
+    index: u16,
+    opts: &Options,
+    streams: &mut StreamWriter,
+    theo: &mut theodolite::TheodoliteWriter,
+    files: &mut Vec<FileLedger>,
+) -> Result<(SessionSummary, Vec<String>)> {
+    let id = s.session.id.as_str();
+    streams.start_session(index)?;
+    // The theodolite log is read on its own thread while the acquisition log is: it is
+    // independent of it, and the Parquet writer is idle while the first row group fills.
+    let mut ledger = new_ledger(ds, &s.theodolite, id, "theodolite", "lines");
+    let skip_bad_lines = opts.skip_bad_lines;
+    let ((readings, theodolite_ledger), interval_ns) = std::thread::scope(|scope| {
+        let theodolite = scope.spawn(move || {
+            theodolite::read_theodolite(
+                s,
+                skip_bad_lines,
+                &mut ledger,
+                &indicatif::ProgressBar::hidden(),
+            )
+            .map(|readings| (readings, ledger))
+        });
+        let acquisition = read_acquisition(ds, s, opts, streams, files);
+        let readings = theodolite.join().map_err(|_| {
+            Error::io(
+                &s.theodolite,
+                std::io::Error::other("the theodolite reading thread panicked"),
+            )
+        })?;
+        let interval_ns = acquisition?;
+        readings.map(|r| (r, interval_ns))
+    })?;
+    theo.write(
+        id,
+        s.session.theodolite_unit,
+        s.session.theodolite_time_scale,
+        &readings,
+    )?;
+    files.push(theodolite_ledger);
+    let st = streams.stats()?;
+    let summary = SessionSummary {
+        id: id.to_owned(),
+        acceleration_samples: st.acceleration,
+        temperature_samples: st.temperature,
+        readings: readings.len() as u64,
+        first_gps_ns: st.first_gps_ns,
+        last_gps_ns: st.last_gps_ns,
+        channels_never_connected: (0..3u8)
+            .filter(|&ch| st.acceleration > 0 && !st.connected_seen[usize::from(ch)])
+            .map(|ch| ch + 1)
+            .collect(),
+        measured_sample_rate_hz: interval_ns.filter(|&i| i > 0).map(|i| 1e9 / i as f64),
+    };
+    let acquisition_files: Vec<String> = files
+        .iter()
+        .filter(|f| f.session == id && f.role != "theodolite")
+        .map(|f| f.path.clone())
+        .collect();
+    let errors = session_errors(ds, s, &summary, &acquisition_files);
+    Ok((summary, errors))
+}
+
 /// Ingests `dataset` into `out/ingest/`.
 pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestReport> {
     let ds = Dataset::load(dataset)?;
@@ -218,116 +346,14 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
     let mut sessions = Vec::new();
     let mut errors = Vec::new();
     for (index, s) in ds.sessions.iter().enumerate() {
-        let id = s.session.id.as_str();
         let index = u16::try_from(index).map_err(|_| Error::Manifest {
             path: ds.manifest_path.clone(),
             key: "session".to_owned(),
             message: "more than 65535 sessions".to_owned(),
         })?;
-        streams.start_session(index)?;
-        // The theodolite log is read on its own thread while the acquisition log is: it is
-        // independent of it, and the Parquet writer is idle while the first row group fills.
-        let mut ledger = new_ledger(&ds, &s.theodolite, id, "theodolite", "lines");
-        let skip_bad_lines = opts.skip_bad_lines;
-        let ((readings, theodolite_ledger), interval_ns) = std::thread::scope(|scope| {
-            let theodolite = scope.spawn(move || {
-                theodolite::read_theodolite(
-                    s,
-                    skip_bad_lines,
-                    &mut ledger,
-                    &indicatif::ProgressBar::hidden(),
-                )
-                .map(|readings| (readings, ledger))
-            });
-            let acquisition = (|| -> Result<Option<i64>> {
-                let acceleration_interval_ns =
-                    (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
-                match &s.acquisition {
-                    Acquisition::Binary(path) => {
-                        let mut ledger = new_ledger(&ds, path, id, "acquisition", "frames");
-                        let pb = progress_bar(opts, path);
-                        let config = gcb::ScanConfig {
-                            reference_week: time::week_of_date(s.date),
-                            acceleration_interval_ns,
-                            range_ns: s.gps_range_ns(),
-                        };
-                        let interval = read_binary(path, config, &mut streams, &mut ledger, &pb)?;
-                        pb.finish_and_clear();
-                        files.push(ledger);
-                        Ok(interval)
-                    }
-                    Acquisition::Csv { adc, temperature } => {
-                        let mut interval = None;
-                        for (path, kind, role, interval_ns) in [
-                            (
-                                adc,
-                                csvlog::CsvKind::Adc,
-                                "adc_csv",
-                                acceleration_interval_ns,
-                            ),
-                            (
-                                temperature,
-                                csvlog::CsvKind::Temperature,
-                                "temperature_csv",
-                                gcb::TEMPERATURE_INTERVAL_NS,
-                            ),
-                        ] {
-                            let mut ledger = new_ledger(&ds, path, id, role, "lines");
-                            let pb = progress_bar(opts, path);
-                            let config = csvlog::CsvConfig {
-                                kind,
-                                skip_bad_lines: opts.skip_bad_lines,
-                                interval_ns,
-                                range_ns: s.gps_range_ns(),
-                            };
-                            let median =
-                                csvlog::read_csv(path, config, &mut streams, &mut ledger, &pb)?;
-                            if kind == csvlog::CsvKind::Adc {
-                                interval = median;
-                            }
-                            pb.finish_and_clear();
-                            files.push(ledger);
-                        }
-                        Ok(interval)
-                    }
-                }
-            })();
-            let readings = theodolite.join().map_err(|_| {
-                Error::io(
-                    &s.theodolite,
-                    std::io::Error::other("the theodolite reading thread panicked"),
-                )
-            })?;
-            let interval_ns = acquisition?;
-            readings.map(|r| (r, interval_ns))
-        })?;
-        theo.write(
-            id,
-            s.session.theodolite_unit,
-            s.session.theodolite_time_scale,
-            &readings,
-        )?;
-        files.push(theodolite_ledger);
-        let st = streams.stats()?;
-        let summary = SessionSummary {
-            id: id.to_owned(),
-            acceleration_samples: st.acceleration,
-            temperature_samples: st.temperature,
-            readings: readings.len() as u64,
-            first_gps_ns: st.first_gps_ns,
-            last_gps_ns: st.last_gps_ns,
-            channels_never_connected: (0..3u8)
-                .filter(|&ch| st.acceleration > 0 && !st.connected_seen[usize::from(ch)])
-                .map(|ch| ch + 1)
-                .collect(),
-            measured_sample_rate_hz: interval_ns.filter(|&i| i > 0).map(|i| 1e9 / i as f64),
-        };
-        let acquisition_files: Vec<String> = files
-            .iter()
-            .filter(|f| f.session == id && f.role != "theodolite")
-            .map(|f| f.path.clone())
-            .collect();
-        errors.extend(session_errors(&ds, s, &summary, &acquisition_files));
+        let (summary, problems) =
+            ingest_session(&ds, s, index, opts, &mut streams, &mut theo, &mut files)?;
+        errors.extend(problems);
         sessions.push(summary);
     }
     // The theodolite table is finished while the writer thread finishes the stream tables.
