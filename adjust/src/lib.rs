@@ -20,7 +20,7 @@ use calibrate::{CalError, Obs};
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{
     CALIBRATION_FILE, CALIBRATION_FORMAT, Calibration, CalibrationResult, GlobalTest, Input,
-    Parameter, Removed, STAGE_DIR, Skipped,
+    KalibrNoise, Parameter, Removed, STAGE_DIR, Skipped,
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
@@ -205,6 +205,29 @@ fn result_of(job: &Job<'_>, f: &calibrate::CalibrationSolution, terms: Terms) ->
             .collect(),
         warnings,
     }
+}
+
+/// Each accelerometer's Allan noise terms (counts) in SI units, by the |k| of its first fit.
+fn kalibr_noise(align_report: &AlignReport, results: &[CalibrationResult]) -> Vec<KalibrNoise> {
+    const M_S2_PER_MGAL: f64 = 1e-5;
+    align_report
+        .noise
+        .iter()
+        .filter_map(|n| {
+            let r = results
+                .iter()
+                .find(|r| r.accelerometer == n.accelerometer)?;
+            let k = r.parameters.iter().find(|p| p.name == "k")?.value.abs();
+            let si = k * M_S2_PER_MGAL;
+            Some(KalibrNoise {
+                accelerometer: n.accelerometer.clone(),
+                scale_from: format!("{} {}", r.model, r.session),
+                accelerometer_noise_density: n.white_density_counts_per_sqrt_hz * si,
+                accelerometer_random_walk: n.random_walk_counts_sqrt_hz * si,
+                bias_instability: n.bias_instability_counts * si,
+            })
+        })
+        .collect()
 }
 
 /// What calibration.json says of the body tide: applied, with its range over the
@@ -477,7 +500,12 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         results,
         skipped,
         custody: Custody::default(),
+        adc_noise: Vec::new(),
         earth_tide: earth_tide_note(&used),
+    };
+    let calibration = Calibration {
+        adc_noise: kalibr_noise(&align_report, &calibration.results),
+        ..calibration
     };
     write_outputs(&ds, out, calibration, &residual_rows)
 }

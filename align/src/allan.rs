@@ -37,7 +37,11 @@ pub fn octave_factors(n: usize) -> Vec<usize> {
 /// Overlapping Allan deviation of `y` sampled every `tau0_s`, at the averaging factors `ms`
 /// (factors with fewer than two differences are left out).
 pub fn overlapping(y: &[f64], tau0_s: f64, ms: &[usize]) -> Vec<AllanPoint> {
-    // The integrated series, relative to the mean to keep its precision.
+    pooled(&[y], tau0_s, ms)
+}
+
+/// The integrated series ("phase") of `y`, relative to its mean to keep its precision.
+fn phase(y: &[f64], tau0_s: f64) -> Vec<f64> {
     let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
     let mut x = Vec::with_capacity(y.len() + 1);
     x.push(0.0);
@@ -46,24 +50,38 @@ pub fn overlapping(y: &[f64], tau0_s: f64, ms: &[usize]) -> Vec<AllanPoint> {
         acc += (v - mean) * tau0_s;
         x.push(acc);
     }
-    let n = x.len();
+    x
+}
+
+/// The overlapping Allan deviation pooled over several series of one sensor at one rate
+/// (e.g. the still intervals of a calibration): the second differences of every series
+/// long enough for a factor are summed, and so are their degrees of freedom. With one
+/// series it is [`overlapping`].
+pub fn pooled(series: &[&[f64]], tau0_s: f64, ms: &[usize]) -> Vec<AllanPoint> {
+    let phases: Vec<Vec<f64>> = series.iter().map(|y| phase(y, tau0_s)).collect();
     ms.iter()
-        .filter(|&&m| m > 0 && n > 2 * m + 1)
-        .map(|&m| {
+        .filter(|&&m| m > 0)
+        .filter_map(|&m| {
             let tau = m as f64 * tau0_s;
-            let terms = n - 2 * m;
-            let sum: f64 = (0..terms)
-                .map(|i| (x[i + 2 * m] - 2.0 * x[i + m] + x[i]).powi(2))
-                .sum();
-            let adev = (sum / (2.0 * tau * tau * terms as f64)).sqrt();
-            let edf = edf_white_frequency(n, m);
-            AllanPoint {
-                tau_s: tau,
-                m,
-                adev,
-                edf,
-                interval: interval(adev, edf),
+            let (mut sum, mut terms, mut edf) = (0.0, 0usize, 0.0);
+            for x in phases.iter().filter(|x| x.len() > 2 * m + 1) {
+                let n = x.len() - 2 * m;
+                sum += (0..n)
+                    .map(|i| (x[i + 2 * m] - 2.0 * x[i + m] + x[i]).powi(2))
+                    .sum::<f64>();
+                terms += n;
+                edf += edf_white_frequency(x.len(), m);
             }
+            (terms > 0).then(|| {
+                let adev = (sum / (2.0 * tau * tau * terms as f64)).sqrt();
+                AllanPoint {
+                    tau_s: tau,
+                    m,
+                    adev,
+                    edf,
+                    interval: interval(adev, edf),
+                }
+            })
         })
         .collect()
 }

@@ -22,8 +22,8 @@ pub mod weights;
 pub mod window;
 
 use ingest::contract::align_ledger::{
-    AlignReport, Counts, DRIFT_T_LIMIT, Disconnected, LEDGER_FILE, LEDGER_FORMAT, STAGE_DIR,
-    reason, sigma_source,
+    AdcNoise, AlignReport, AllanRow, Counts, DRIFT_T_LIMIT, Disconnected, LEDGER_FILE,
+    LEDGER_FORMAT, STAGE_DIR, reason, sigma_source,
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger as ingest_ledger;
@@ -110,6 +110,45 @@ struct Pending {
     start_ns: i64,
     end_ns: i64,
     sums: [WindowSums; 3],
+}
+
+/// Most samples kept per still interval and channel for the Allan deviation (2^16, about 35
+/// min at 31.25 Hz): memory stays bounded on long logs.
+const MAX_STILL_SAMPLES: usize = 1 << 16;
+
+/// The platform at rest at one station: from the window of its first reading to that of its
+/// last, the counts of each channel, for the Allan deviation.
+struct StillInterval {
+    start_ns: i64,
+    end_ns: i64,
+    counts: [Vec<f64>; 3],
+    /// A sample flagged, missing, or a gap in time: the series is not usable.
+    broken: [bool; 3],
+    last_ns: Option<i64>,
+}
+
+/// The still intervals of a session's readings (in time order): one per run of readings at
+/// the same station.
+fn still_intervals(windows: &[Pending]) -> Vec<StillInterval> {
+    let mut out: Vec<StillInterval> = Vec::new();
+    let mut station: Option<&str> = None;
+    for w in windows {
+        if station == Some(w.reading.station.as_str())
+            && let Some(last) = out.last_mut()
+        {
+            last.end_ns = last.end_ns.max(w.end_ns);
+            continue;
+        }
+        station = Some(w.reading.station.as_str());
+        out.push(StillInterval {
+            start_ns: w.start_ns,
+            end_ns: w.end_ns,
+            counts: Default::default(),
+            broken: [false; 3],
+            last_ns: None,
+        });
+    }
+    out
 }
 
 /// sigma_Dz per station of one session, never below the quantisation of the log: the step
@@ -236,8 +275,18 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let setup = Setup::new(&ds);
     let temperatures = read::temperatures(&ingest_dir)?;
     let mut pending = open_windows(&ds, &read::theodolite(&ingest_dir)?, setup.half_ns);
-    fill_windows(&ingest_dir, &mut pending)?;
-    let mut formed = Formed::default();
+    let mut still: Vec<Vec<StillInterval>> = pending.iter().map(|p| still_intervals(p)).collect();
+    let tau0_s = 1.0 / ds.manifest.instrument.sample_rate_hz;
+    fill_windows(
+        &ingest_dir,
+        &mut pending,
+        &mut still,
+        (tau0_s * 1e9).round() as i64,
+    )?;
+    let mut formed = Formed {
+        noise: adc_noise(&ds, &still, tau0_s),
+        ..Formed::default()
+    };
     for (si, s) in ds.sessions.iter().enumerate() {
         let never = ingest_report
             .sessions
@@ -287,14 +336,29 @@ fn open_windows(
         .collect()
 }
 
-/// One pass over the acceleration stream, adding every sample to the windows it falls in.
-fn fill_windows(ingest_dir: &Path, pending: &mut [Vec<Pending>]) -> Result<()> {
+/// One pass over the acceleration stream, adding every sample to the windows it falls in,
+/// and to the still interval it falls in (`interval_ns`: the nominal sample interval).
+fn fill_windows(
+    ingest_dir: &Path,
+    pending: &mut [Vec<Pending>],
+    still: &mut [Vec<StillInterval>],
+    interval_ns: i64,
+) -> Result<()> {
     let mut cursor: Vec<(usize, usize)> = vec![(0, 0); pending.len()]; // (first active, next to open)
+    let mut still_cursor = vec![0usize; still.len()];
     read::acceleration(ingest_dir, |session, time_ns, counts, status| {
         let si = usize::from(session);
         if si >= pending.len() {
             return;
         }
+        add_to_still(
+            &mut still[si],
+            &mut still_cursor[si],
+            time_ns,
+            counts,
+            status,
+            interval_ns,
+        );
         let windows = &mut pending[si];
         let (first, next) = &mut cursor[si];
         while *next < windows.len() && windows[*next].start_ns <= time_ns {
@@ -323,12 +387,94 @@ fn fill_windows(ingest_dir: &Path, pending: &mut [Vec<Pending>]) -> Result<()> {
     })
 }
 
+/// Adds a sample to the still interval it falls in, if any (intervals in time order,
+/// `cursor` the first that has not ended).
+fn add_to_still(
+    intervals: &mut [StillInterval],
+    cursor: &mut usize,
+    time_ns: i64,
+    counts: [Option<i32>; 3],
+    status: u8,
+    interval_ns: i64,
+) {
+    while *cursor < intervals.len() && intervals[*cursor].end_ns <= time_ns {
+        *cursor += 1;
+    }
+    let Some(iv) = intervals.get_mut(*cursor) else {
+        return;
+    };
+    if time_ns < iv.start_ns {
+        return;
+    }
+    // A gap of more than half an interval beyond the nominal one breaks the series.
+    let gap = iv
+        .last_ns
+        .is_some_and(|l| time_ns - l > interval_ns + interval_ns / 2);
+    iv.last_ns = Some(time_ns);
+    for ch in 0..3 {
+        match counts[ch] {
+            Some(c)
+                if !gap
+                    && !status::not_connected(status, ch)
+                    && !status::over_range(status, ch) =>
+            {
+                if iv.counts[ch].len() < MAX_STILL_SAMPLES {
+                    iv.counts[ch].push(f64::from(c));
+                }
+            }
+            _ => iv.broken[ch] = true,
+        }
+    }
+}
+
+/// The ADC noise of every accelerometer: the Allan deviation of its counts pooled over the
+/// unbroken still intervals of all sessions (averaging factors in octaves up to a tenth of
+/// the longest), and the three terms fitted to it.
+fn adc_noise(ds: &Dataset, still: &[Vec<StillInterval>], tau0_s: f64) -> Vec<AdcNoise> {
+    ds.manifest
+        .instrument
+        .accelerometer
+        .iter()
+        .filter_map(|acc| {
+            let ch = usize::from(acc.channel) - 1;
+            let series: Vec<&[f64]> = still
+                .iter()
+                .flatten()
+                .filter(|iv| !iv.broken[ch] && iv.counts[ch].len() >= 64)
+                .map(|iv| iv.counts[ch].as_slice())
+                .collect();
+            let longest = series.iter().map(|s| s.len()).max()?;
+            let points = allan::pooled(&series, tau0_s, &allan::octave_factors(longest));
+            let fit = allan::fit_noise(&points);
+            Some(AdcNoise {
+                accelerometer: acc.id.clone(),
+                still_intervals: series.len(),
+                samples: series.iter().map(|s| s.len()).sum(),
+                allan: points
+                    .iter()
+                    .map(|p| AllanRow {
+                        tau_s: p.tau_s,
+                        adev: p.adev,
+                        lower: p.interval.0,
+                        upper: p.interval.1,
+                        edf: p.edf,
+                    })
+                    .collect(),
+                white_density_counts_per_sqrt_hz: fit.white_density,
+                bias_instability_counts: fit.bias_instability,
+                random_walk_counts_sqrt_hz: fit.random_walk,
+            })
+        })
+        .collect()
+}
+
 /// What the sessions gave: observations and their counts.
 #[derive(Default)]
 struct Formed {
     observations: Vec<Observation>,
     counts: Vec<Counts>,
     disconnected: Vec<Disconnected>,
+    noise: Vec<AdcNoise>,
 }
 
 /// The observations of one session, one per (reading, accelerometer); `never` lists the
@@ -454,6 +600,7 @@ fn write_outputs(ds: &Dataset, out: &Path, setup: Setup, formed: Formed) -> Resu
         software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
         gravity_mgal: setup.g,
         earth_tide_applied: setup.location.is_some(),
+        noise: formed.noise,
         config: setup.cfg,
         counts: formed.counts,
         disconnected: formed.disconnected,

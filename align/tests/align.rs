@@ -315,3 +315,35 @@ fn the_body_tide_goes_into_each_observation() {
     assert!(!report.earth_tide_applied);
     assert!(observations(out.path()).iter().all(|o| o.tide.is_none()));
 }
+
+/// MODEL 6.2: the Allan deviation of each accelerometer's counts over the still intervals
+/// matches the simulator's white noise: at tau0 its square is the mean sample variance of
+/// the readings (within 15 %), and it falls as tau^-1/2 (slope within 0.1 in log-log).
+#[test]
+fn the_allan_deviation_of_the_still_intervals_is_the_simulated_noise() {
+    let dataset = fixtures::dataset_dir("esgt-2005");
+    let truth: Truth = fixtures::read_truth(&dataset).expect("truth");
+    let (_out, report) = pipeline(&dataset);
+    assert_eq!(report.noise.len(), 3);
+    for (a, n) in report.noise.iter().enumerate() {
+        let vars: Vec<f64> = truth
+            .reading
+            .iter()
+            .filter(|r| !(n.accelerometer == "acc2" && r.session == "day2"))
+            .map(|r| r.sigma_sample_bits[a].powi(2))
+            .collect();
+        let expected = vars.iter().sum::<f64>() / vars.len() as f64;
+        let first = &n.allan[0];
+        let last = &n.allan[n.allan.len() - 1];
+        assert!(
+            (first.adev.powi(2) / expected - 1.0).abs() < 0.15,
+            "{}: adev(tau0)^2 {} vs mean sample variance {expected}",
+            n.accelerometer,
+            first.adev.powi(2)
+        );
+        let slope = (last.adev / first.adev).log10() / (last.tau_s / first.tau_s).log10();
+        assert!((slope + 0.5).abs() < 0.1, "{}: slope {slope}", n.accelerometer);
+        assert!(first.lower < first.adev && first.adev < first.upper);
+        assert!(n.still_intervals > 10 && n.samples > 30_000, "{n:?}");
+    }
+}

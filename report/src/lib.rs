@@ -203,6 +203,7 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         snooping_section(&st),
         ledger_section(&st),
         plots_section(&st)?,
+        noise_section(&st)?,
     ])
 }
 
@@ -531,7 +532,7 @@ fn ledger_section(st: &Stages<'_>) -> Section {
     s
 }
 
-/// Residual plots, calibration curves and the sigma of one reading (eq. 4).
+/// Residual plots, calibration curves, the sigma of one reading and the tide.
 fn plots_section(st: &Stages<'_>) -> Result<Section, Error> {
     let mut s = section("Residuals, observation sigmas and calibration curves");
     s.text.push("Condition residuals B·v in mGal of every per-session fit; crosses mark observations removed by data snooping, drawn at their misclosure under the final parameters.".to_owned());
@@ -609,6 +610,7 @@ fn fit_plots(st: &Stages<'_>, r: &CalibrationResult) -> Result<Vec<Plot>, Error>
             removed: &removed,
             line: &[],
             zero_line: true,
+            labels: plots::ADJUSTMENT_LABELS,
         })
         .map_err(|message| Error::Plot {
             name: name.clone(),
@@ -663,12 +665,95 @@ fn calibration_curve(
         removed: &rem,
         line: &line,
         zero_line: false,
+        labels: plots::ADJUSTMENT_LABELS,
     })
     .map_err(|message| Error::Plot {
         name: name.to_owned(),
         message,
     })?;
     Ok(Some((format!("{name}-calibration.svg"), svg)))
+}
+
+/// The ADC noise: the Allan deviation of each accelerometer's counts over the still
+/// intervals, log-log, with the fitted terms; and those terms in SI units (Kalibr's names).
+fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
+    let mut s = section("ADC noise: Allan deviation");
+    s.text.push(
+        "Overlapping Allan deviation of each accelerometer's counts, pooled over the still intervals (the platform at rest at a \
+         station), with the white-noise density N, bias instability B and random walk K fitted to sigma^2(tau) = N^2/tau + \
+         (2 ln 2/pi) B^2 + K^2 tau/3. For white noise the curve falls as tau^-1/2; it flattens with flicker and rises with a \
+         random walk. In SI units by the accelerometer's scale factor k, under Kalibr's imu.yaml names."
+            .to_owned(),
+    );
+    let mut t = Table::new(&[
+        "accelerometer",
+        "still intervals",
+        "samples",
+        "N (counts/sqrt(Hz))",
+        "B (counts)",
+        "K (counts sqrt(Hz))",
+        "accelerometer_noise_density (m/s^2/sqrt(Hz))",
+        "accelerometer_random_walk (m/s^3/sqrt(Hz))",
+        "scale from",
+    ]);
+    for n in &st.align_report.noise {
+        let si = st
+            .cal
+            .adc_noise
+            .iter()
+            .find(|k| k.accelerometer == n.accelerometer);
+        t.rows.push(vec![
+            n.accelerometer.clone(),
+            n.still_intervals.to_string(),
+            n.samples.to_string(),
+            format!("{:.4}", n.white_density_counts_per_sqrt_hz),
+            format!("{:.4}", n.bias_instability_counts),
+            format!("{:.4}", n.random_walk_counts_sqrt_hz),
+            si.map_or("-".into(), |k| {
+                format!("{:.3e}", k.accelerometer_noise_density)
+            }),
+            si.map_or("-".into(), |k| {
+                format!("{:.3e}", k.accelerometer_random_walk)
+            }),
+            si.map_or("-".into(), |k| k.scale_from.clone()),
+        ]);
+        let pts: Vec<(f64, f64)> = n
+            .allan
+            .iter()
+            .map(|r| (r.tau_s.log10(), r.adev.log10()))
+            .collect();
+        let model = |tau: f64| {
+            (n.white_density_counts_per_sqrt_hz.powi(2) / tau
+                + 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI
+                    * n.bias_instability_counts.powi(2)
+                + n.random_walk_counts_sqrt_hz.powi(2) * tau / 3.0)
+                .sqrt()
+        };
+        let line: Vec<(f64, f64)> = n
+            .allan
+            .iter()
+            .map(|r| (r.tau_s.log10(), model(r.tau_s).log10()))
+            .collect();
+        let title = format!("{}: Allan deviation of the counts (log10)", n.accelerometer);
+        let svg = plots::scatter(&plots::Scatter {
+            title: &title,
+            x_label: "log10 tau (s)",
+            y_label: "log10 Allan deviation (counts)",
+            used: &pts,
+            removed: &[],
+            line: &line,
+            zero_line: false,
+            labels: ("Allan deviation", "fitted N, B, K"),
+        })
+        .map_err(|message| Error::Plot {
+            name: format!("allan-{}", n.accelerometer),
+            message,
+        })?;
+        s.plots
+            .push((format!("allan-{}.svg", n.accelerometer), svg));
+    }
+    s.tables.push(("Noise terms".to_owned(), t));
+    Ok(s)
 }
 
 /// The body tide applied at each reading of session `id` against time, when one was.
@@ -703,6 +788,7 @@ fn tide_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
         removed: &[],
         line: &[],
         zero_line: true,
+        labels: ("readings", ""),
     })
     .map_err(|message| Error::Plot {
         name: format!("tide-{id}"),
@@ -711,7 +797,7 @@ fn tide_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
     Ok(Some((format!("tide-{id}.svg"), svg)))
 }
 
-/// The sigma of one reading (eq. 4) against Dz, for session `id`.
+/// The sigma of one reading against Dz, for session `id`.
 fn sigma_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
     let (cal, residuals) = (&st.cal, &st.residuals);
     let g = cal.gravity_mgal;
@@ -730,7 +816,7 @@ fn sigma_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
             )
         })
         .collect();
-    let title = format!("{id}: sigma of one reading (eq. 4), g |sin Dz| sigma_Dz");
+    let title = format!("{id}: sigma of one reading, g |sin Dz| sigma_Dz");
     let svg = plots::scatter(&plots::Scatter {
         title: &title,
         x_label: "Dz (deg)",
@@ -739,6 +825,7 @@ fn sigma_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
         removed: &[],
         line: &[],
         zero_line: false,
+        labels: ("observations", ""),
     })
     .map_err(|message| Error::Plot {
         name: id.to_owned(),

@@ -19,7 +19,12 @@ pub struct Scatter<'a> {
     pub line: &'a [(f64, f64)],
     /// Draw y = 0.
     pub zero_line: bool,
+    /// Legend of the points (their count follows) and of the line.
+    pub labels: (&'a str, &'a str),
 }
+
+/// The legend of a residual or calibration plot: the points used, the calibration function.
+pub const ADJUSTMENT_LABELS: (&str, &str) = ("used", "calibration function");
 
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
@@ -81,7 +86,7 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
                     BLUE.stroke_width(2),
                 ))
                 .map_err(|e| e.to_string())?
-                .label("calibration function")
+                .label(s.labels.1)
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE.stroke_width(2)));
         }
         chart
@@ -91,7 +96,7 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
                     .map(|&p| Circle::new(p, 2, RGBColor(40, 90, 160).filled())),
             )
             .map_err(|e| e.to_string())?
-            .label(format!("used ({})", s.used.len()))
+            .label(format!("{} ({})", s.labels.0, s.used.len()))
             .legend(|(x, y)| Circle::new((x + 8, y), 3, RGBColor(40, 90, 160).filled()));
         if !s.removed.is_empty() {
             let off_scale = s.removed.iter().filter(|p| p.1 < y0 || p.1 > y1).count();

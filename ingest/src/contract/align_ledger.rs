@@ -48,6 +48,42 @@ pub mod sigma_source {
     pub const RESOLUTION: &str = "resolution";
 }
 
+/// One point of an Allan deviation curve, in counts.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct AllanRow {
+    /// Averaging time, s.
+    pub tau_s: f64,
+    /// Overlapping Allan deviation, counts.
+    pub adev: f64,
+    /// 68.3 % confidence interval.
+    pub lower: f64,
+    /// 68.3 % confidence interval.
+    pub upper: f64,
+    /// Equivalent degrees of freedom.
+    pub edf: f64,
+}
+
+/// An accelerometer's ADC noise, from the overlapping Allan deviation of its counts pooled
+/// over the still intervals (the platform at rest at a station, from the first reading's
+/// window to the last's), and the three terms fitted to it.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct AdcNoise {
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// Still intervals used (every sample valid).
+    pub still_intervals: usize,
+    /// Samples in them.
+    pub samples: usize,
+    /// The Allan deviation, counts.
+    pub allan: Vec<AllanRow>,
+    /// White-noise density N, counts / sqrt(Hz).
+    pub white_density_counts_per_sqrt_hz: f64,
+    /// Bias instability B, counts.
+    pub bias_instability_counts: f64,
+    /// Random walk K, counts * sqrt(Hz).
+    pub random_walk_counts_sqrt_hz: f64,
+}
+
 /// Counts for one (session, accelerometer).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Counts {
@@ -97,6 +133,10 @@ pub struct AlignReport {
     pub observations: u64,
     /// Every file align read (the manifest, ingest's ledger and tables) and wrote.
     pub custody: Custody,
+    /// The ADC noise of each accelerometer, from the Allan deviation of its counts over the
+    /// still intervals (MODEL.md 6.2).
+    #[serde(default)]
+    pub noise: Vec<AdcNoise>,
     /// Whether each observation's gravity includes the body tide (the site's location is
     /// given and `earth_tide` is not false).
     #[serde(default)]

@@ -120,6 +120,21 @@ pub struct Skipped {
     pub reason: String,
 }
 
+/// An accelerometer's noise terms in SI units, under the names of Kalibr's `imu.yaml`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct KalibrNoise {
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// The fit whose k converted counts to acceleration: `model session`.
+    pub scale_from: String,
+    /// White-noise density, m/s^2/sqrt(Hz) (velocity random walk).
+    pub accelerometer_noise_density: f64,
+    /// Random walk of the bias, m/s^3/sqrt(Hz).
+    pub accelerometer_random_walk: f64,
+    /// Bias instability (the flicker floor), m/s^2.
+    pub bias_instability: f64,
+}
+
 /// `calibration.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Calibration {
@@ -141,6 +156,10 @@ pub struct Calibration {
     /// wrote (residuals.parquet), with its SHA-256: with `inputs`, exactly what the numbers
     /// came from.
     pub custody: Custody,
+    /// Each accelerometer's ADC noise in SI units under Kalibr's `imu.yaml` names, from
+    /// align's Allan deviation in counts and the scale factor k of one of its fits.
+    #[serde(default)]
+    pub adc_noise: Vec<KalibrNoise>,
     /// Whether the body tide was applied to g per observation, and its range; or why not.
     #[serde(default)]
     pub earth_tide: String,
