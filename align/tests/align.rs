@@ -342,7 +342,11 @@ fn the_allan_deviation_of_the_still_intervals_is_the_simulated_noise() {
             first.adev.powi(2)
         );
         let slope = (last.adev / first.adev).log10() / (last.tau_s / first.tau_s).log10();
-        assert!((slope + 0.5).abs() < 0.1, "{}: slope {slope}", n.accelerometer);
+        assert!(
+            (slope + 0.5).abs() < 0.1,
+            "{}: slope {slope}",
+            n.accelerometer
+        );
         assert!(first.lower < first.adev && first.adev < first.upper);
         assert!(n.still_intervals > 10 && n.samples > 30_000, "{n:?}");
     }
