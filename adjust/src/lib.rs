@@ -484,6 +484,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
             }),
         }
     }
+    let adc_noise = kalibr_noise(&align_report, &results);
     let calibration = Calibration {
         format: CALIBRATION_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
@@ -500,12 +501,8 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         results,
         skipped,
         custody: Custody::default(),
-        adc_noise: Vec::new(),
+        adc_noise,
         earth_tide: earth_tide_note(&used),
-    };
-    let calibration = Calibration {
-        adc_noise: kalibr_noise(&align_report, &calibration.results),
-        ..calibration
     };
     write_outputs(&ds, out, calibration, &residual_rows)
 }

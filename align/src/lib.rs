@@ -31,7 +31,7 @@ use ingest::contract::manifest::{AlignConfig, Dataset, Location, SigmaDzMethod};
 use ingest::contract::{status, tables};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use window::{WindowSums, interpolate, sample_sd};
+use window::{WindowStats, WindowSums, interpolate, sample_sd};
 
 /// What can go wrong in align.
 #[derive(Debug, thiserror::Error)]
@@ -244,10 +244,10 @@ impl Setup {
     fn exclusion(
         &self,
         w: &WindowSums,
+        stats: Option<WindowStats>,
         has_temperatures: bool,
         temperature: Option<f64>,
     ) -> Option<&'static str> {
-        let stats = w.stats();
         if w.not_connected > 0 {
             Some(reason::NOT_CONNECTED)
         } else if w.saturated > 0 {
@@ -515,7 +515,7 @@ fn observe_session<'t>(
             let temperature =
                 temps.and_then(|(t, v)| interpolate(t, v, p.reading.time_gps_ns, setup.max_gap_ns));
             let has_temperatures = temps.is_some_and(|(t, _)| !t.is_empty());
-            let excluded = setup.exclusion(w, has_temperatures, temperature.map(|(v, _)| v));
+            let excluded = setup.exclusion(w, stats, has_temperatures, temperature.map(|(v, _)| v));
             match excluded {
                 Some(r) => *c.excluded.entry(r.to_owned()).or_default() += 1,
                 None => c.used += 1,
