@@ -3,9 +3,9 @@
 //! alpha = 0.001, critical value 3.29), the global test, and the parameters mapped back to
 //! counts. No I/O.
 
+use crate::components::{self, Component, ScaledChi2};
 use crate::gh::{self, GhError, Options};
 use crate::model::{CalibrationConditions, Terms, apply, propagate};
-use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Critical value of the w-test (two-sided, alpha = 0.001).
 pub const W_CRITICAL: f64 = 3.29;
@@ -15,8 +15,14 @@ pub const W_CRITICAL: f64 = 3.29;
 pub struct Obs {
     /// Zenith distance, rad.
     pub dz_rad: f64,
-    /// Sd of Dz, rad.
+    /// Sd of one Dz reading, rad.
     pub sigma_dz_rad: f64,
+    /// Degrees of freedom of that sd when it was estimated from readings (None: known). The
+    /// fit weighs Dz by the predictive variance, sigma^2 d / (d - 2).
+    pub sigma_dz_dof: Option<f64>,
+    /// The station (a platform position) the reading belongs to: observations of one
+    /// station share its index, unique within a fit.
+    pub station: usize,
     /// Mean counts.
     pub ng: f64,
     /// Sd of Ng.
@@ -93,11 +99,13 @@ pub struct Residual {
 pub struct CalibrationSolution {
     /// Parameters in counts: b, k, [k2], [k3], [b_t, k_t], [beta].
     pub values: Vec<f64>,
-    /// Their a-priori covariance (sigma0 = 1), row-major.
+    /// Their covariance from the estimated variance components, row-major.
+    pub covariance: Vec<f64>,
+    /// Their covariance at the a-priori weights (every component 1), row-major.
     pub covariance_apriori: Vec<f64>,
-    /// sqrt(v^T P v / dof).
+    /// sqrt(v^T P v / dof) at the a-priori weights.
     pub sigma0: f64,
-    /// v^T P v.
+    /// v^T P v at the a-priori weights.
     pub vtpv: f64,
     /// Degrees of freedom.
     pub dof: usize,
@@ -107,8 +115,11 @@ pub struct CalibrationSolution {
     pub t_ref_c: f64,
     /// Mean temperature of the observations used, degC.
     pub mean_temperature_c: f64,
-    /// Global test: 2.5 % and 97.5 % quantiles of chi-square(dof).
-    pub chi2_bounds: (f64, f64),
+    /// Global test at the a-priori weights: the between-station part of v^T P v against its
+    /// scaled chi-square ([`components::lack_of_fit`]).
+    pub global_test: ScaledChi2,
+    /// The variance components of the theodolite and the ADC.
+    pub components: Vec<Component>,
     /// Removed by snooping, in order.
     pub removed: Vec<Removal>,
     /// The observations used, with their residuals.
@@ -116,9 +127,10 @@ pub struct CalibrationSolution {
 }
 
 impl CalibrationSolution {
-    /// A-posteriori sd of parameter j.
+    /// Sd of parameter j from the estimated variance components.
     pub fn sigma(&self, j: usize) -> f64 {
-        self.sigma0 * self.sigma_apriori(j)
+        let n = self.values.len();
+        self.covariance[j * n + j].max(0.0).sqrt()
     }
     /// A-priori sd of parameter j.
     pub fn sigma_apriori(&self, j: usize) -> f64 {
@@ -143,9 +155,9 @@ impl CalibrationSolution {
             })
             .collect()
     }
-    /// Whether v^T P v lies within the two-sided 5 % bounds.
+    /// Whether the global test passed (two-sided, 5 %).
     pub fn global_test_passed(&self) -> bool {
-        self.vtpv >= self.chi2_bounds.0 && self.vtpv <= self.chi2_bounds.1
+        self.global_test.passed()
     }
 }
 
@@ -360,6 +372,10 @@ pub fn calibrate_with(
         Snooping::Off => Vec::new(),
     };
     let names = terms.names();
+    // The reference temperature of b and k from all the observations given, so that it does
+    // not move with what snooping removes.
+    let all_t = obs.iter().map(|o| o.temperature_c).sum::<f64>() / obs.len() as f64;
+    let t_ref_c = (all_t * 100.0).round() / 100.0;
     let mut round = 0;
     loop {
         round += 1;
@@ -372,7 +388,6 @@ pub fn calibrate_with(
             .fold(0.0, f64::max)
             .max(1.0);
         let mean_t = used.iter().map(|o| o.temperature_c).sum::<f64>() / n;
-        let t_ref_c = (mean_t * 100.0).round() / 100.0;
         let temps: Vec<f64> = used.iter().map(|o| o.temperature_c).collect();
         let tides: Vec<f64> = used.iter().map(|o| o.tide_mgal).collect();
         let model = CalibrationConditions {
@@ -385,21 +400,16 @@ pub fn calibrate_with(
             tide_mgal: &tides,
         };
         let l: Vec<[f64; 2]> = used.iter().map(|o| [o.dz_rad, o.ng]).collect();
-        let sigma: Vec<[f64; 2]> = used.iter().map(|o| [o.sigma_dz_rad, o.sigma_ng]).collect();
+        let sigma: Vec<[f64; 2]> = used
+            .iter()
+            .map(|o| {
+                let factor = components::predictive_factor(o.sigma_dz_dof);
+                [o.sigma_dz_rad * factor.sqrt(), o.sigma_ng]
+            })
+            .collect();
         let p0 = start_values(&used, &model);
-        let s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(|e| match e {
-            GhError::NotEstimable { index } => CalError::NotEstimable {
-                parameter: names[index].name,
-                why: "its column of the design depends on the others (e.g. beta with tilts on \
-                      one side of the vertical only)"
-                    .to_owned(),
-            },
-            GhError::TooFewObservations { n, m } => CalError::TooFew { n, m },
-            GhError::ZeroVariance { index } => CalError::ZeroVariance {
-                index: active[index],
-            },
-            other => CalError::Adjustment(other.to_string()),
-        })?;
+        let to_cal = |e| cal_error(e, &names, &active);
+        let s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(to_cal)?;
         let worst = s
             .w_test
             .iter()
@@ -420,15 +430,9 @@ pub fn calibrate_with(
             continue;
         }
         let map = model.to_counts();
-        let values = apply(&map, &s.p);
-        let covariance_apriori = propagate(&map, &s.q_pp, m);
-        let chi2_bounds = if s.dof > 0 {
-            let d =
-                ChiSquared::new(s.dof as f64).map_err(|e| CalError::Adjustment(e.to_string()))?;
-            (d.inverse_cdf(0.025), d.inverse_cdf(0.975))
-        } else {
-            (0.0, 0.0)
-        };
+        let groups = Groups::of(&used);
+        let (weighted, components) =
+            estimate_components(&model, &l, &sigma, &s, &groups).map_err(to_cal)?;
         let residuals = active
             .iter()
             .enumerate()
@@ -442,19 +446,107 @@ pub fn calibrate_with(
             })
             .collect();
         return Ok(CalibrationSolution {
-            values,
-            covariance_apriori,
+            values: apply(&map, &weighted.p),
+            covariance: propagate(&map, &weighted.q_pp, m),
+            covariance_apriori: propagate(&map, &s.q_pp, m),
             sigma0: s.sigma0(),
             vtpv: s.vtpv,
             dof: s.dof,
             iterations: s.iterations,
             t_ref_c,
             mean_temperature_c: mean_t,
-            chi2_bounds,
+            global_test: components::lack_of_fit(&s, &groups.station, &groups.dof),
+            components,
             removed,
             residuals,
         });
     }
+}
+
+/// An adjustment's failure as a fit's, naming the parameter or observation.
+fn cal_error(e: GhError, names: &[crate::model::ParamName], active: &[usize]) -> CalError {
+    match e {
+        GhError::NotEstimable { index } => CalError::NotEstimable {
+            parameter: names[index].name,
+            why: "its column of the design depends on the others (e.g. beta with tilts on \
+                  one side of the vertical only)"
+                .to_owned(),
+        },
+        GhError::TooFewObservations { n, m } => CalError::TooFew { n, m },
+        GhError::ZeroVariance { index } => CalError::ZeroVariance {
+            index: active[index],
+        },
+        other => CalError::Adjustment(other.to_string()),
+    }
+}
+
+/// The observations of a fit by station, with what the components need of them.
+struct Groups {
+    /// Station per observation, compacted to 0..stations.
+    station: Vec<usize>,
+    /// Dof of each sigma_Dz.
+    dof: Vec<Option<f64>>,
+    /// Window means and their a-priori sds.
+    ng: Vec<f64>,
+    sigma_ng: Vec<f64>,
+}
+
+impl Groups {
+    fn of(used: &[&Obs]) -> Self {
+        let mut ids: Vec<usize> = used.iter().map(|o| o.station).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        Self {
+            station: used
+                .iter()
+                .map(|o| ids.binary_search(&o.station).unwrap_or(0))
+                .collect(),
+            dof: used.iter().map(|o| o.sigma_dz_dof).collect(),
+            ng: used.iter().map(|o| o.ng).collect(),
+            sigma_ng: used.iter().map(|o| o.sigma_ng).collect(),
+        }
+    }
+}
+
+/// Most re-adjustments of the theodolite component's iteration.
+const MAX_COMPONENT_ITERATIONS: usize = 50;
+
+/// The variance components ([`components`]) and the adjustment at them, from the a-priori
+/// solution `s` of observations `l` with sds `sigma`: the ADC's from the repeated window
+/// means, then the theodolite's iterated on the station means with the ADC's applied.
+fn estimate_components(
+    model: &CalibrationConditions<'_>,
+    l: &[[f64; 2]],
+    sigma: &[[f64; 2]],
+    s: &gh::Solution,
+    groups: &Groups,
+) -> Result<(gh::Solution, Vec<Component>), GhError> {
+    let adc = components::adc_component(&groups.ng, &groups.sigma_ng, &groups.station);
+    let at_one = components::theodolite_step(s, &groups.station, &groups.dof);
+    let refit = |theta: f64, from: &gh::Solution| {
+        let scaled: Vec<[f64; 2]> = sigma
+            .iter()
+            .map(|x| [x[0] * theta.sqrt(), x[1] * adc.estimate.sqrt()])
+            .collect();
+        gh::solve(model, l, &scaled, &from.p, &Options::default())
+    };
+    let mut theta = 1.0;
+    let mut sol = refit(theta, s)?;
+    let mut step = components::theodolite_step(&sol, &groups.station, &groups.dof);
+    if step.mean >= components::MIN_COMPONENT_DOF {
+        for _ in 0..MAX_COMPONENT_ITERATIONS {
+            let next = (theta * step.statistic / step.mean).clamp(1e-3, 1e3);
+            let settled = (next / theta - 1.0).abs() < 1e-5;
+            theta = next;
+            sol = refit(theta, &sol)?;
+            step = components::theodolite_step(&sol, &groups.station, &groups.dof);
+            if settled {
+                break;
+            }
+        }
+    }
+    let theodolite = components::theodolite_component(theta, &step, at_one);
+    Ok((sol, vec![theodolite, adc]))
 }
 
 #[cfg(test)]
@@ -476,6 +568,8 @@ mod tests {
                 Obs {
                     dz_rad,
                     sigma_dz_rad: 2e-6,
+                    sigma_dz_dof: None,
+                    station: i,
                     ng: counts.unwrap_or((-G * dz_rad.cos() - b) / k) + noise,
                     sigma_ng: 0.3,
                     temperature_c: t + 0.001 * i as f64,

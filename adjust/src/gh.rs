@@ -93,6 +93,8 @@ pub struct Solution {
     pub misclosure: Vec<f64>,
     /// Variance of each condition, `B Q_ll B^T`.
     pub q_ww: Vec<f64>,
+    /// The two observations' shares of `q_ww`: `(B_i1 sigma_i1)^2`, `(B_i2 sigma_i2)^2`.
+    pub q_parts: Vec<[f64; 2]>,
     /// Redundancy number of each condition, `1 - h_i`.
     pub redundancy: Vec<f64>,
     /// Normalised residual (Baarda's w, a-priori sigma0 = 1); 0 where the redundancy is 0.
@@ -121,6 +123,9 @@ impl Solution {
         self.q_pp[j * m + j].max(0.0).sqrt()
     }
 }
+
+/// Changes below this many sds that no longer contract are rounding, not iteration.
+const ROUNDING_FLOOR: f64 = 1e-6;
 
 /// Inverse of an upper-triangular m x m matrix (row-major).
 fn invert_upper(r: &[f64], m: usize) -> Vec<f64> {
@@ -161,12 +166,15 @@ pub fn solve(
     let mut w = vec![0.0; n];
     let mut b = vec![[0.0; 2]; n];
     let mut q = vec![0.0; n];
+    let mut q_parts = vec![[0.0; 2]; n];
+    let mut last_change = f64::INFINITY;
     for iteration in 1..=opts.max_iterations {
         for i in 0..n {
             let l0 = [l[i][0] + v[i][0], l[i][1] + v[i][1]];
             let (f, bi) = c.eval(i, &p, l0, &mut a_row);
             let wi = f - bi[0] * v[i][0] - bi[1] * v[i][1];
-            let qi = (bi[0] * sigma[i][0]).powi(2) + (bi[1] * sigma[i][1]).powi(2);
+            let parts = [(bi[0] * sigma[i][0]).powi(2), (bi[1] * sigma[i][1]).powi(2)];
+            let qi = parts[0] + parts[1];
             if qi <= 0.0 || !qi.is_finite() {
                 return Err(GhError::ZeroVariance { index: i });
             }
@@ -178,6 +186,7 @@ pub fn solve(
             w[i] = wi;
             b[i] = bi;
             q[i] = qi;
+            q_parts[i] = parts;
         }
         // Column equilibration, then QR.
         let mut scale = vec![0.0; m];
@@ -229,6 +238,12 @@ pub fn solve(
         let mut settled = dp.iter().enumerate().all(|(j, d)| {
             d.abs() <= opts.tolerance * q_pp[j * m + j].sqrt() + rounding * p[j].abs()
         });
+        // The largest change in units of its sd, to tell a rounding floor from divergence.
+        let mut change = dp
+            .iter()
+            .enumerate()
+            .map(|(j, d)| d.abs() / q_pp[j * m + j].sqrt())
+            .fold(0.0, f64::max);
         let mut vtpv = 0.0;
         let mut misclosure = vec![0.0; n];
         for i in 0..n {
@@ -245,6 +260,7 @@ pub fn solve(
                 let limit = opts.tolerance * sigma[i][t] + rounding * l[i][t].abs();
                 if sigma[i][t] > 0.0 && (nv[t] - v[i][t]).abs() > limit {
                     settled = false;
+                    change = change.max((nv[t] - v[i][t]).abs() / sigma[i][t]);
                 }
             }
             v[i] = nv;
@@ -254,6 +270,11 @@ pub fn solve(
         if !vtpv.is_finite() {
             return Err(GhError::NonFinite { iteration });
         }
+        // At the rounding floor of an ill-conditioned problem the changes stop contracting a
+        // few orders above `tolerance`: settled when they are below ROUNDING_FLOOR sds and
+        // no longer halve.
+        settled |= change <= ROUNDING_FLOOR && change > 0.5 * last_change;
+        last_change = change;
         if settled {
             // Leverage h_i = || R^-T a~_i ||^2 of the equilibrated, weighted design row.
             let mut redundancy = vec![0.0; n];
@@ -282,6 +303,7 @@ pub fn solve(
                 v,
                 misclosure,
                 q_ww: q,
+                q_parts,
                 redundancy,
                 w_test,
                 vtpv,

@@ -29,6 +29,8 @@ pub struct ObservationRow {
     pub dz_rad: f64,
     /// Its sd, rad.
     pub sigma_dz_rad: f64,
+    /// Degrees of freedom of that sd (None: known, or an older table without the column).
+    pub sigma_dz_dof: Option<f64>,
     /// Mean counts (None when align had none).
     pub ng: Option<f64>,
     /// Its sd.
@@ -148,6 +150,10 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
             c.f64s(col::TEMPERATURE_C)?,
         );
         let tide = c.f64s(col::TIDE_MGAL)?;
+        let dof = match b.column_by_name(col::SIGMA_DZ_DOF) {
+            Some(_) => Some(c.f64s(col::SIGMA_DZ_DOF)?),
+            None => None,
+        };
         for i in 0..b.num_rows() {
             out.push(ObservationRow {
                 session: session[i].clone(),
@@ -157,6 +163,7 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
                 time_gps_ns: time.value(i),
                 dz_rad: dz.value(i),
                 sigma_dz_rad: sdz.value(i),
+                sigma_dz_dof: dof.as_ref().and_then(|d| opt(d, i)),
                 ng: opt(&ng, i),
                 sigma_ng: opt(&sng, i),
                 temperature_c: opt(&temp, i),

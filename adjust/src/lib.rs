@@ -11,6 +11,7 @@
 //! polynomial fitting command (FORMATS.md section 7).
 
 pub mod calibrate;
+pub mod components;
 pub mod fit;
 pub mod gh;
 pub mod io;
@@ -20,7 +21,7 @@ use calibrate::{CalError, Obs};
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{
     CALIBRATION_FILE, CALIBRATION_FORMAT, Calibration, CalibrationResult, GlobalTest, Input,
-    KalibrNoise, Parameter, Removed, STAGE_DIR, Skipped,
+    KalibrNoise, Parameter, Removed, STAGE_DIR, Skipped, VarianceComponent,
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
@@ -172,11 +173,14 @@ fn result_of(job: &Job<'_>, f: &calibrate::CalibrationSolution, terms: Terms) ->
         iterations: f.iterations,
         sigma0: f.sigma0,
         global_test: GlobalTest {
-            statistic: f.vtpv,
-            lower: f.chi2_bounds.0,
-            upper: f.chi2_bounds.1,
+            statistic: f.global_test.statistic,
+            expectation: f.global_test.mean,
+            dof: f.global_test.dof,
+            lower: f.global_test.lower,
+            upper: f.global_test.upper,
             passed: f.global_test_passed(),
         },
+        variance_components: f.components.iter().map(component_of).collect(),
         parameters: names
             .iter()
             .enumerate()
@@ -342,6 +346,22 @@ fn plan_jobs<'a>(
     (jobs, skipped)
 }
 
+/// calibration.json's form of a variance component.
+fn component_of(c: &components::Component) -> VarianceComponent {
+    VarianceComponent {
+        group: c.group.to_owned(),
+        estimate: c.estimate,
+        sigma: c.not_estimable.is_none().then_some(c.sigma),
+        dof: c.test.dof,
+        statistic: c.test.statistic,
+        expectation: c.test.mean,
+        lower: c.test.lower,
+        upper: c.test.upper,
+        passed: c.test.passed(),
+        not_estimable: c.not_estimable.clone(),
+    }
+}
+
 /// Calibrates one job.
 fn fit_job(
     job: &Job<'_>,
@@ -352,12 +372,23 @@ fn fit_job(
         temperature: job.model.temperature,
         misalignment: job.model.misalignment,
     };
+    let mut stations: Vec<(&str, &str)> = job
+        .obs
+        .iter()
+        .map(|o| (o.session.as_str(), o.station.as_str()))
+        .collect();
+    stations.sort_unstable();
+    stations.dedup();
     let obs: Vec<Obs> = job
         .obs
         .iter()
         .map(|o| Obs {
             dz_rad: o.dz_rad,
             sigma_dz_rad: o.sigma_dz_rad,
+            sigma_dz_dof: o.sigma_dz_dof,
+            station: stations
+                .binary_search(&(o.session.as_str(), o.station.as_str()))
+                .unwrap_or(0),
             ng: o.ng.unwrap_or_default(),
             sigma_ng: o.sigma_ng.unwrap_or_default(),
             temperature_c: o.temperature_c.unwrap_or_default(),

@@ -51,6 +51,8 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
         obs.push(adjust::calibrate::Obs {
             dz_rad: v[0],
             sigma_dz_rad: v[1],
+            sigma_dz_dof: None,
+            station: n,
             ng: v[2],
             sigma_ng: v[3],
             temperature_c: 20.0,

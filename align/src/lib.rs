@@ -80,8 +80,12 @@ pub struct Observation {
     pub dz_rad: f64,
     /// Sd of one reading at the station, rad.
     pub sigma_dz_rad: f64,
-    /// `station_sd` or `manifest`.
+    /// `moderated`, `station_sd`, `manifest` or `resolution`.
     pub sigma_dz_source: &'static str,
+    /// Degrees of freedom of sigma_dz when estimated from readings: the moderated
+    /// variance's prior dof plus the station's own, or the station's own (eq. 4); None when
+    /// taken as known (manifest, resolution floor).
+    pub sigma_dz_dof: Option<f64>,
     /// g |sin Dz| sigma_Dz, mGal.
     pub sigma_am_mgal: f64,
     /// Mean count.
@@ -151,17 +155,26 @@ fn still_intervals(windows: &[Pending]) -> Vec<StillInterval> {
     out
 }
 
+/// A station's sigma_Dz, where it came from, and its degrees of freedom (None: known).
+#[derive(Clone, Copy, Debug)]
+struct StationSigma {
+    sigma_rad: f64,
+    source: &'static str,
+    dof: Option<f64>,
+}
+
 /// sigma_Dz per station of one session, never below the quantisation of the log: the step
 /// of the finest last decimal the session's readings were logged with, over sqrt(12). By
 /// default each station's variance is moderated toward the session's ([`weights`]; a
-/// station of one reading takes the session's prior); with `sigma_dz = "station"` it is the
-/// station's own sd (eq. 4), and a station of one reading takes the manifest's
-/// `theodolite_sigma_arcsec`.
+/// station of one reading takes the session's prior), on the prior's dof plus its own (the
+/// pooled dof when the stations are alike); with `sigma_dz = "station"` it is the station's
+/// own sd (eq. 4) on n - 1 dof, and a station of one reading takes the manifest's
+/// `theodolite_sigma_arcsec`, taken as known like the resolution floor.
 fn station_sigmas(
     readings: &[Pending],
     fallback_rad: f64,
     method: SigmaDzMethod,
-) -> BTreeMap<String, (f64, &'static str)> {
+) -> BTreeMap<String, StationSigma> {
     let floor_rad = readings
         .iter()
         .map(|p| p.reading.step_rad)
@@ -181,9 +194,15 @@ fn station_sigmas(
             None => (0.0, 0.0),
         })
         .collect();
+    let pooled_dof: f64 = own.iter().map(|&(_, d)| d).sum();
     let moderated = match method {
         SigmaDzMethod::Moderated => weights::moderate(&own),
         SigmaDzMethod::Station => None,
+    };
+    let at = |sigma_rad, source, dof| StationSigma {
+        sigma_rad,
+        source,
+        dof,
     };
     by_station
         .into_iter()
@@ -191,12 +210,19 @@ fn station_sigmas(
         .map(|(i, (station, dz))| {
             let sigma = match (&moderated, sample_sd(&dz)) {
                 (Some(m), _) if m.variances[i].sqrt() >= floor_rad => {
-                    (m.variances[i].sqrt(), sigma_source::MODERATED)
+                    let dof = if m.prior_dof.is_finite() {
+                        m.prior_dof + own[i].1
+                    } else {
+                        pooled_dof
+                    };
+                    at(m.variances[i].sqrt(), sigma_source::MODERATED, Some(dof))
                 }
-                (Some(_), _) => (floor_rad, sigma_source::RESOLUTION),
-                (None, None) => (fallback_rad, sigma_source::MANIFEST),
-                (None, Some(sd)) if sd >= floor_rad => (sd, sigma_source::STATION_SD),
-                (None, Some(_)) => (floor_rad, sigma_source::RESOLUTION),
+                (Some(_), _) => at(floor_rad, sigma_source::RESOLUTION, None),
+                (None, None) => at(fallback_rad, sigma_source::MANIFEST, None),
+                (None, Some(sd)) if sd >= floor_rad => {
+                    at(sd, sigma_source::STATION_SD, Some(own[i].1))
+                }
+                (None, Some(_)) => at(floor_rad, sigma_source::RESOLUTION, None),
             };
             (station.to_owned(), sigma)
         })
@@ -511,7 +537,11 @@ fn observe_session<'t>(
         for p in pending {
             let w = &p.sums[ch];
             let stats = w.stats();
-            let (sigma_dz_rad, source) = sigma[p.reading.station.as_str()];
+            let StationSigma {
+                sigma_rad: sigma_dz_rad,
+                source,
+                dof: sigma_dz_dof,
+            } = sigma[p.reading.station.as_str()];
             let temperature =
                 temps.and_then(|(t, v)| interpolate(t, v, p.reading.time_gps_ns, setup.max_gap_ns));
             let has_temperatures = temps.is_some_and(|(t, _)| !t.is_empty());
@@ -531,6 +561,7 @@ fn observe_session<'t>(
                 dz_rad: p.reading.dz_rad,
                 sigma_dz_rad,
                 sigma_dz_source: source,
+                sigma_dz_dof,
                 sigma_am_mgal: setup.g * p.reading.dz_rad.sin().abs() * sigma_dz_rad,
                 ng: stats.map(|s| s.mean),
                 sigma_ng: stats.map(|s| s.sigma_mean),

@@ -240,6 +240,7 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
         Arc::new(StringArray::from_iter_values(
             obs.iter().map(|o| o.sigma_dz_source),
         )),
+        Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.sigma_dz_dof))),
         Arc::new(Float64Array::from_iter_values(
             obs.iter().map(|o| o.sigma_am_mgal),
         )),

@@ -199,6 +199,7 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         dataset_section(&st),
         function_section(),
         table1_section(&st),
+        components_section(&st),
         extra_terms_section(&st),
         snooping_section(&st),
         ledger_section(&st),
@@ -270,8 +271,10 @@ fn table1_section(st: &Stages<'_>) -> Section {
     // Table 1.
     let mut s = section("Results in the form of the paper's Table 1");
     s.text.push(
-        "Per session and accelerometer, order 1 without temperature terms. Sigmas a posteriori (scaled by sigma0) and a priori \
-         (from the observation sigmas alone). b and k are strongly anti-correlated because the counts are far from zero: \
+        "Per session and accelerometer, order 1 without temperature terms. Sigmas from the estimated variance components \
+         (next section) and a priori (every component 1). sigma0 is sqrt(v^T P v / r) at the a-priori weights; the global \
+         test is of the station means' scatter about the fitted function (the between-station part of v^T P v) against its \
+         scaled chi-square, since the weights were estimated from the readings within the stations. b and k are strongly anti-correlated because the counts are far from zero: \
          use them together, with their correlation."
             .to_owned(),
     );
@@ -327,6 +330,54 @@ fn table1_section(st: &Stages<'_>) -> Section {
         ]);
     }
     s.tables.push(("Table 1".to_owned(), t1));
+    s
+}
+
+/// Variance components per fit: which observation group was mis-weighted, and by how much.
+fn components_section(st: &Stages<'_>) -> Section {
+    let Stages { cal, .. } = st;
+    let mut s = section("Variance components");
+    s.text.push(
+        "The factor the data put on each observation group's a-priori variances, with its sd, its degrees of freedom and a \
+         two-sided 5 % test of whether it is 1. The theodolite's comes from the scatter of the station means about the \
+         fitted function (the scatter within a station set its sigma_Dz), the ADC's from the scatter of a station's window \
+         means about their mean against the sd each window's samples gave. A group whose test fails was mis-weighted by \
+         the factor shown; the parameters' sigmas above use the estimated factors. One the data give fewer than 3 dof \
+         is not estimated."
+            .to_owned(),
+    );
+    let mut t = Table::new(&[
+        "model",
+        "accelerometer",
+        "session",
+        "group",
+        "factor",
+        "sigma",
+        "dof",
+        "test: statistic in [2.5 %, 97.5 %]",
+        "verdict",
+    ]);
+    for r in &cal.results {
+        for c in &r.variance_components {
+            let verdict = match (&c.not_estimable, c.passed) {
+                (Some(why), _) => format!("not estimable: {why}"),
+                (None, true) => "consistent with 1".to_owned(),
+                (None, false) => format!("mis-weighted: variances x {:.2}", c.estimate),
+            };
+            t.rows.push(vec![
+                r.model.clone(),
+                r.accelerometer.clone(),
+                r.session.clone(),
+                c.group.clone(),
+                format!("{:.3}", c.estimate),
+                c.sigma.map_or("-".to_owned(), |x| format!("{x:.3}")),
+                format!("{:.1}", c.dof),
+                format!("{:.1} in [{:.1}, {:.1}]", c.statistic, c.lower, c.upper),
+                verdict,
+            ]);
+        }
+    }
+    s.tables.push(("Variance components".to_owned(), t));
     s
 }
 

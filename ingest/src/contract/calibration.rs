@@ -22,11 +22,21 @@ pub struct Input {
     pub sha256: String,
 }
 
-/// The global test of v^T P v against chi-square(dof), two-sided at 5 %.
+/// The global test, two-sided at 5 %, at the a-priori weights: the between-station part of
+/// v^T P v (the scatter of the station means about the fitted function; the whole v^T P v
+/// when every station has one observation) against the scaled chi-square with its mean and
+/// variance, which with weights estimated from the readings is wider than chi-square(dof)
+/// (MODEL.md 6.1; the README's "Models and choices").
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct GlobalTest {
-    /// v^T P v.
+    /// The between-station part of v^T P v.
     pub statistic: f64,
+    /// Its expectation: the station means' share of the redundancy.
+    #[serde(default)]
+    pub expectation: f64,
+    /// Effective degrees of freedom of the reference, 2 mean^2 / variance.
+    #[serde(default)]
+    pub dof: f64,
     /// 2.5 % quantile.
     pub lower: f64,
     /// 97.5 % quantile.
@@ -44,10 +54,37 @@ pub struct Parameter {
     pub unit: String,
     /// Estimate.
     pub value: f64,
-    /// A-posteriori sd (scaled by sigma0).
+    /// Sd from the estimated variance components: the one to quote.
     pub sigma: f64,
-    /// A-priori sd.
+    /// Sd at the a-priori weights (every component 1).
     pub sigma_apriori: f64,
+}
+
+/// A variance component: the factor the data put on one observation group's a-priori
+/// variances, and the test of whether it is 1.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct VarianceComponent {
+    /// `theodolite` or `ADC`.
+    pub group: String,
+    /// The factor (1 when not estimable).
+    pub estimate: f64,
+    /// Its sd (null when not estimable).
+    pub sigma: Option<f64>,
+    /// Degrees of freedom it was estimated on.
+    pub dof: f64,
+    /// The group's quadratic form at the a-priori weights.
+    pub statistic: f64,
+    /// Its expectation when the component is 1.
+    pub expectation: f64,
+    /// 2.5 % quantile of the statistic's reference.
+    pub lower: f64,
+    /// 97.5 % quantile.
+    pub upper: f64,
+    /// The component is consistent with 1 (two-sided, 5 %).
+    pub passed: bool,
+    /// Why it was not estimated (held at 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub not_estimable: Option<String>,
 }
 
 /// An observation removed by data snooping.
@@ -92,10 +129,13 @@ pub struct CalibrationResult {
     pub dof: usize,
     /// Iterations of the final adjustment.
     pub iterations: usize,
-    /// A-posteriori sigma0.
+    /// sqrt(v^T P v / dof) at the a-priori weights.
     pub sigma0: f64,
     /// The global test.
     pub global_test: GlobalTest,
+    /// The variance components of the theodolite and the ADC.
+    #[serde(default)]
+    pub variance_components: Vec<VarianceComponent>,
     /// Parameters.
     pub parameters: Vec<Parameter>,
     /// Correlation matrix of the parameters.

@@ -1,0 +1,284 @@
+//! What a fit can say about its own weights when the theodolite's were estimated from the
+//! very readings they weigh (MODEL.md section 6.1). No I/O.
+//!
+//! The scatter of a station's readings about their mean has already been spent on that
+//! station's sigma_Dz; what is left to judge the weights is the scatter *between* stations:
+//! each station's weighted mean misclosure against the fitted function. Under the model, a
+//! station mean over its predictive sd is a Student t on the dof of its variance, so the
+//! between-station part of v^T P v is a sum of t^2 terms, not a chi-square; its reference is
+//! the scaled chi-square with the same mean and variance (Satterthwaite). With known sigmas
+//! and one observation a station this is the classical chi-square(r) test of v^T P v.
+//!
+//! Variance components, one per group, each estimated where its redundancy lies:
+//! - theodolite: from the station means (Foerstner's iterated estimate, each station's
+//!   between-station share split by the groups' shares of its variance);
+//! - ADC: from the scatter of a station's window means about their mean, against the sd of
+//!   a window mean that the window's own samples (or the Allan deviation) gave. The station
+//!   means cannot tell it: the ADC is a few per cent of their variance.
+
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// Below this many degrees of freedom a variance component is not estimated (held at 1).
+pub const MIN_COMPONENT_DOF: f64 = 3.0;
+/// The dof of an estimated variance is taken as at least this (a t on 4 or fewer dof has
+/// no variance of its square).
+const MIN_VARIANCE_DOF: f64 = 5.0;
+/// The two groups, in the order of an observation pair.
+pub const GROUPS: [&str; 2] = ["theodolite", "ADC"];
+
+/// Factor from an estimated variance on `dof` degrees of freedom to the predictive variance
+/// of a new reading, E[sigma^2 | data] = s^2 d / (d - 2); 1 for a known variance.
+pub fn predictive_factor(dof: Option<f64>) -> f64 {
+    match dof {
+        Some(d) if d.is_finite() => {
+            let d = d.max(MIN_VARIANCE_DOF);
+            d / (d - 2.0)
+        }
+        _ => 1.0,
+    }
+}
+
+/// Variance of t_d^2 (d - 2)/d, the square of a station mean over its predictive sd: 2 for
+/// a known variance.
+fn t2_variance(dof: Option<f64>) -> f64 {
+    match dof {
+        Some(d) if d.is_finite() => {
+            let d = d.max(MIN_VARIANCE_DOF);
+            2.0 * (d - 1.0) / (d - 4.0)
+        }
+        _ => 2.0,
+    }
+}
+
+/// A quadratic form tested against the scaled chi-square of its mean and variance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScaledChi2 {
+    /// The form's value.
+    pub statistic: f64,
+    /// Its expectation under the model.
+    pub mean: f64,
+    /// Effective degrees of freedom of the reference, 2 mean^2 / variance.
+    pub dof: f64,
+    /// 2.5 % quantile of the reference.
+    pub lower: f64,
+    /// 97.5 % quantile.
+    pub upper: f64,
+}
+
+impl ScaledChi2 {
+    fn new(statistic: f64, mean: f64, variance: f64) -> Self {
+        let (scale, dof) = (variance / (2.0 * mean), 2.0 * mean * mean / variance);
+        let (lower, upper) = match ChiSquared::new(dof) {
+            Ok(d) if mean > 0.0 => (scale * d.inverse_cdf(0.025), scale * d.inverse_cdf(0.975)),
+            _ => (0.0, 0.0),
+        };
+        Self {
+            statistic,
+            mean,
+            dof,
+            lower,
+            upper,
+        }
+    }
+    /// Within the bounds.
+    pub fn passed(&self) -> bool {
+        self.statistic >= self.lower && self.statistic <= self.upper
+    }
+}
+
+/// Per station of a fit: its between-station quadratic form, redundancy, theodolite share
+/// and the t^2 variance of its dof.
+#[derive(Clone, Debug, Default)]
+struct Station {
+    sum_we: f64,
+    sum_w: f64,
+    redundancy: f64,
+    share: f64,
+    n: f64,
+    t2_variance: f64,
+}
+
+/// Station-level sums of a solution: `station[i]` groups observation i, `dof[i]` is the dof
+/// of its sigma_Dz (None: known).
+fn stations(s: &crate::gh::Solution, station: &[usize], dof: &[Option<f64>]) -> Vec<Station> {
+    let count = station.iter().max().map_or(0, |m| m + 1);
+    let mut out = vec![Station::default(); count];
+    for (i, &j) in station.iter().enumerate() {
+        let w = 1.0 / s.q_ww[i];
+        let st = &mut out[j];
+        st.sum_we += w * s.misclosure[i];
+        st.sum_w += w;
+        st.redundancy += s.redundancy[i] - 1.0;
+        st.share += s.q_parts[i][0] / s.q_ww[i];
+        st.n += 1.0;
+        st.t2_variance = st.t2_variance.max(t2_variance(dof[i]));
+    }
+    for st in &mut out {
+        // n_j - 1 of the station's redundancy lies within it.
+        st.redundancy = (st.redundancy + 1.0).max(0.0);
+        st.share /= st.n.max(1.0);
+    }
+    out.retain(|st| st.n > 0.0);
+    out
+}
+
+impl Station {
+    fn between(&self) -> f64 {
+        self.sum_we * self.sum_we / self.sum_w
+    }
+}
+
+/// The global test of a solution: the between-station part of v^T P v against its scaled
+/// chi-square.
+pub fn lack_of_fit(s: &crate::gh::Solution, station: &[usize], dof: &[Option<f64>]) -> ScaledChi2 {
+    let st = stations(s, station, dof);
+    ScaledChi2::new(
+        st.iter().map(Station::between).sum(),
+        st.iter().map(|x| x.redundancy).sum(),
+        st.iter().map(|x| x.redundancy * x.t2_variance).sum(),
+    )
+}
+
+/// A variance component: the factor on a group's a-priori variances.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Component {
+    /// `theodolite` or `ADC`.
+    pub group: &'static str,
+    /// The estimate (1 when not estimable).
+    pub estimate: f64,
+    /// Its sd.
+    pub sigma: f64,
+    /// The test of whether it is 1: the group's quadratic form at the a-priori weights.
+    pub test: ScaledChi2,
+    /// Why it was not estimated, when it was not.
+    pub not_estimable: Option<String>,
+}
+
+impl Component {
+    fn held(group: &'static str, test: ScaledChi2, why: String) -> Self {
+        Self {
+            group,
+            estimate: 1.0,
+            sigma: 0.0,
+            test,
+            not_estimable: Some(why),
+        }
+    }
+}
+
+/// The theodolite's share of the between-station quadratic form, against its expectation
+/// at the current components; the test is meaningful at the a-priori weights.
+pub fn theodolite_step(
+    s: &crate::gh::Solution,
+    station: &[usize],
+    dof: &[Option<f64>],
+) -> ScaledChi2 {
+    let st = stations(s, station, dof);
+    ScaledChi2::new(
+        st.iter().map(|x| x.between() * x.share).sum(),
+        st.iter().map(|x| x.redundancy * x.share).sum(),
+        st.iter()
+            .map(|x| x.redundancy * x.share * x.share * x.t2_variance)
+            .sum(),
+    )
+}
+
+/// The theodolite component from its last step (`form`, at the converged components) and
+/// its test at the a-priori weights (`at_one`).
+pub fn theodolite_component(estimate: f64, form: &ScaledChi2, at_one: ScaledChi2) -> Component {
+    if form.mean < MIN_COMPONENT_DOF {
+        return Component::held(
+            GROUPS[0],
+            at_one,
+            format!(
+                "the station means give it {:.1} degrees of freedom (fewer than {MIN_COMPONENT_DOF})",
+                form.mean
+            ),
+        );
+    }
+    Component {
+        group: GROUPS[0],
+        estimate,
+        sigma: estimate * (2.0 / form.dof).sqrt(),
+        test: at_one,
+        not_estimable: None,
+    }
+}
+
+/// The ADC component from the scatter of each station's window means `ng` about their
+/// weighted mean, in units of their a-priori sds `sigma_ng`.
+pub fn adc_component(ng: &[f64], sigma_ng: &[f64], station: &[usize]) -> Component {
+    let count = station.iter().max().map_or(0, |m| m + 1);
+    let mut sums = vec![(0.0, 0.0, 0.0, 0usize); count];
+    for ((&x, &s), &j) in ng.iter().zip(sigma_ng).zip(station) {
+        let w = 1.0 / (s * s);
+        let e = &mut sums[j];
+        e.0 += w;
+        e.1 += w * x;
+        e.2 += w * x * x;
+        e.3 += 1;
+    }
+    let mut form = 0.0;
+    let mut dof = 0.0;
+    for &(sw, swx, swxx, n) in &sums {
+        if n > 1 && sw > 0.0 {
+            form += (swxx - swx * swx / sw).max(0.0);
+            dof += (n - 1) as f64;
+        }
+    }
+    let test = ScaledChi2::new(form, dof, 2.0 * dof);
+    if dof < MIN_COMPONENT_DOF || !form.is_finite() {
+        return Component::held(
+            GROUPS[1],
+            test,
+            format!(
+                "stations give {dof} degrees of freedom of repeated window means (fewer than {MIN_COMPONENT_DOF})"
+            ),
+        );
+    }
+    let estimate = form / dof;
+    Component {
+        group: GROUPS[1],
+        estimate,
+        sigma: estimate * (2.0 / dof).sqrt(),
+        test,
+        not_estimable: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn known_sigmas_reduce_to_chi_square() {
+        let t = ScaledChi2::new(10.0, 10.0, 20.0);
+        let d = ChiSquared::new(10.0).expect("chi2");
+        assert!((t.dof - 10.0).abs() < 1e-12);
+        assert!((t.lower - d.inverse_cdf(0.025)).abs() < 1e-9);
+        assert!((t.upper - d.inverse_cdf(0.975)).abs() < 1e-9);
+        assert!(t.passed());
+    }
+
+    #[test]
+    fn estimated_variances_widen_the_bounds() {
+        let known = ScaledChi2::new(10.0, 10.0, 10.0 * t2_variance(None));
+        let est = ScaledChi2::new(10.0, 10.0, 10.0 * t2_variance(Some(14.0)));
+        assert!(est.upper > known.upper && est.lower < known.lower);
+        assert!((predictive_factor(Some(14.0)) - 14.0 / 12.0).abs() < 1e-12);
+        assert_eq!(predictive_factor(None), 1.0);
+    }
+
+    #[test]
+    fn window_means_scattering_beyond_their_sd_raise_the_adc_component() {
+        // Two stations, window means +-2 sigma about their station's mean.
+        let ng = [10.0, 14.0, 10.0, 14.0, 100.0, 104.0, 100.0, 104.0];
+        let sigma = [2.0; 8];
+        let station = [0, 0, 0, 0, 1, 1, 1, 1];
+        let c = adc_component(&ng, &sigma, &station);
+        // Each station: 4 x (2/2)^2 = 4 on 3 dof; 8 / 6.
+        assert!((c.estimate - 8.0 / 6.0).abs() < 1e-12, "{c:?}");
+        let one = adc_component(&ng[..2], &sigma[..2], &station[..2]);
+        assert!(one.not_estimable.is_some());
+    }
+}
