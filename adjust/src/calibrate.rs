@@ -4,6 +4,7 @@
 //! counts. No I/O.
 
 use crate::components::{self, Component, ScaledChi2};
+use crate::correlated::{self, ColouredAdc};
 use crate::gh::{self, GhError, Options};
 use crate::model::{CalibrationConditions, Terms, apply, propagate};
 
@@ -23,6 +24,11 @@ pub struct Obs {
     /// The station (a platform position) the reading belongs to: observations of one
     /// station share its index, unique within a fit.
     pub station: usize,
+    /// The session, an index unique within a fit (coloured ADC noise is correlated within
+    /// a session only).
+    pub session: usize,
+    /// Time of the reading, s (any origin).
+    pub time_s: f64,
     /// Mean counts.
     pub ng: f64,
     /// Sd of Ng.
@@ -347,16 +353,36 @@ fn start_values(used: &[&Obs], model: &CalibrationConditions<'_>) -> Vec<f64> {
 /// Fits `terms` to `obs` with gravity `g_mgal` (plus each observation's tide), removing blunders one at a time while a
 /// w-test exceeds [`W_CRITICAL`] (at most a tenth of the observations).
 pub fn calibrate(obs: &[Obs], terms: Terms, g_mgal: f64) -> Result<CalibrationSolution, CalError> {
-    calibrate_with(obs, terms, g_mgal, Snooping::TenthAtMost)
+    calibrate_with(obs, terms, g_mgal, &FitOptions::default())
 }
 
-/// [`calibrate`] with a choice of data snooping.
+/// What a fit does beyond the adjustment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FitOptions {
+    /// Data snooping.
+    pub snooping: Snooping,
+    /// The accelerometer's coloured ADC noise, propagated into the parameters' covariance
+    /// ([`crate::correlated`]); None: white.
+    pub coloured: Option<ColouredAdc>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            snooping: Snooping::TenthAtMost,
+            coloured: None,
+        }
+    }
+}
+
+/// [`calibrate`] with options.
 pub fn calibrate_with(
     obs: &[Obs],
     terms: Terms,
     g_mgal: f64,
-    snooping: Snooping,
+    options: &FitOptions,
 ) -> Result<CalibrationSolution, CalError> {
+    let snooping = options.snooping;
     let m = terms.len();
     if obs.len() <= m {
         return Err(CalError::TooFew { n: obs.len(), m });
@@ -387,7 +413,6 @@ pub fn calibrate_with(
             .map(|o| (o.ng - centre).abs())
             .fold(0.0, f64::max)
             .max(1.0);
-        let mean_t = used.iter().map(|o| o.temperature_c).sum::<f64>() / n;
         let temps: Vec<f64> = used.iter().map(|o| o.temperature_c).collect();
         let tides: Vec<f64> = used.iter().map(|o| o.tide_mgal).collect();
         let model = CalibrationConditions {
@@ -399,14 +424,7 @@ pub fn calibrate_with(
             temperature_c: &temps,
             tide_mgal: &tides,
         };
-        let l: Vec<[f64; 2]> = used.iter().map(|o| [o.dz_rad, o.ng]).collect();
-        let sigma: Vec<[f64; 2]> = used
-            .iter()
-            .map(|o| {
-                let factor = components::predictive_factor(o.sigma_dz_dof);
-                [o.sigma_dz_rad * factor.sqrt(), o.sigma_ng]
-            })
-            .collect();
+        let (l, sigma) = observations(&used);
         let p0 = start_values(&used, &model);
         let to_cal = |e| cal_error(e, &names, &active);
         let s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(to_cal)?;
@@ -429,38 +447,77 @@ pub fn calibrate_with(
             active.remove(k);
             continue;
         }
-        let map = model.to_counts();
-        let groups = Groups::of(&used);
-        let (weighted, components) =
-            estimate_components(&model, &l, &sigma, &s, &groups).map_err(to_cal)?;
-        let residuals = active
-            .iter()
-            .enumerate()
-            .map(|(k, &index)| Residual {
-                index,
-                v_dz_rad: s.v[k][0],
-                v_ng: s.v[k][1],
-                misclosure_mgal: s.misclosure[k],
-                redundancy: s.redundancy[k],
-                w: s.w_test[k],
-            })
-            .collect();
-        return Ok(CalibrationSolution {
-            values: apply(&map, &weighted.p),
-            covariance: propagate(&map, &weighted.q_pp, m),
-            covariance_apriori: propagate(&map, &s.q_pp, m),
-            sigma0: s.sigma0(),
-            vtpv: s.vtpv,
-            dof: s.dof,
-            iterations: s.iterations,
-            t_ref_c,
-            mean_temperature_c: mean_t,
-            global_test: components::lack_of_fit(&s, &groups.station, &groups.dof),
-            components,
-            removed,
-            residuals,
-        });
+        return conclude(&model, &used, &active, &s, options)
+            .map(|fit| CalibrationSolution { removed, ..fit })
+            .map_err(to_cal);
     }
+}
+
+/// Observations and their sds as the adjustment takes them: Dz weighed by its predictive
+/// variance.
+fn observations(used: &[&Obs]) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
+    let l = used.iter().map(|o| [o.dz_rad, o.ng]).collect();
+    let sigma = used
+        .iter()
+        .map(|o| {
+            let factor = components::predictive_factor(o.sigma_dz_dof);
+            [o.sigma_dz_rad * factor.sqrt(), o.sigma_ng]
+        })
+        .collect();
+    (l, sigma)
+}
+
+/// The fit from the final round's adjustment `s` of `used` (indices `active` into the fit's
+/// observations): the variance components and the adjustment at them, the coloured noise's
+/// covariance, the global test; no removals.
+fn conclude(
+    model: &CalibrationConditions<'_>,
+    used: &[&Obs],
+    active: &[usize],
+    s: &gh::Solution,
+    options: &FitOptions,
+) -> Result<CalibrationSolution, GhError> {
+    let m = model.terms.len();
+    let (l, sigma) = observations(used);
+    let map = model.to_counts();
+    let groups = Groups::of(used);
+    let (weighted, components) =
+        estimate_components(model, &l, &sigma, s, &groups, options.coloured.as_ref())?;
+    let residuals = active
+        .iter()
+        .enumerate()
+        .map(|(k, &index)| Residual {
+            index,
+            v_dz_rad: s.v[k][0],
+            v_ng: s.v[k][1],
+            misclosure_mgal: s.misclosure[k],
+            redundancy: s.redundancy[k],
+            w: s.w_test[k],
+        })
+        .collect();
+    let mut q = weighted.q_pp.clone();
+    if let Some(noise) = &options.coloured {
+        let extra = correlated::extra_covariance(&weighted, &groups.time_s, &groups.session, noise);
+        for (x, e) in q.iter_mut().zip(extra) {
+            *x += e;
+        }
+    }
+    let excess = groups.excess(s, options.coloured.as_ref(), false);
+    Ok(CalibrationSolution {
+        values: apply(&map, &weighted.p),
+        covariance: propagate(&map, &q, m),
+        covariance_apriori: propagate(&map, &s.q_pp, m),
+        sigma0: s.sigma0(),
+        vtpv: s.vtpv,
+        dof: s.dof,
+        iterations: s.iterations,
+        t_ref_c: model.t_ref_c,
+        mean_temperature_c: used.iter().map(|o| o.temperature_c).sum::<f64>() / used.len() as f64,
+        global_test: components::lack_of_fit(s, &groups.station, &groups.dof, excess),
+        components,
+        removed: Vec::new(),
+        residuals,
+    })
 }
 
 /// An adjustment's failure as a fit's, naming the parameter or observation.
@@ -489,6 +546,9 @@ struct Groups {
     /// Window means and their a-priori sds.
     ng: Vec<f64>,
     sigma_ng: Vec<f64>,
+    /// Session and time of each observation.
+    session: Vec<usize>,
+    time_s: Vec<f64>,
 }
 
 impl Groups {
@@ -504,7 +564,30 @@ impl Groups {
             dof: used.iter().map(|o| o.sigma_dz_dof).collect(),
             ng: used.iter().map(|o| o.ng).collect(),
             sigma_ng: used.iter().map(|o| o.sigma_ng).collect(),
+            session: used.iter().map(|o| o.session).collect(),
+            time_s: used.iter().map(|o| o.time_s).collect(),
         }
+    }
+
+    /// The expected part of solution `s`'s between-station form due to coloured ADC noise
+    /// (0 when white): weighted by the theodolite's shares for its component, or whole for
+    /// the global test.
+    fn excess(&self, s: &gh::Solution, noise: Option<&ColouredAdc>, shared: bool) -> f64 {
+        noise.map_or(0.0, |noise| {
+            let share = if shared {
+                components::shares(s, &self.station)
+            } else {
+                vec![1.0; self.station.iter().max().map_or(0, |m| m + 1)]
+            };
+            correlated::between_station_excess(
+                s,
+                &self.station,
+                &share,
+                &self.time_s,
+                &self.session,
+                noise,
+            )
+        })
     }
 }
 
@@ -513,16 +596,32 @@ const MAX_COMPONENT_ITERATIONS: usize = 50;
 
 /// The variance components ([`components`]) and the adjustment at them, from the a-priori
 /// solution `s` of observations `l` with sds `sigma`: the ADC's from the repeated window
-/// means, then the theodolite's iterated on the station means with the ADC's applied.
+/// means, then the theodolite's iterated on the station means with the ADC's applied, less
+/// what `coloured` ADC noise explains of them.
 fn estimate_components(
     model: &CalibrationConditions<'_>,
     l: &[[f64; 2]],
     sigma: &[[f64; 2]],
     s: &gh::Solution,
     groups: &Groups,
+    coloured: Option<&ColouredAdc>,
 ) -> Result<(gh::Solution, Vec<Component>), GhError> {
-    let adc = components::adc_component(&groups.ng, &groups.sigma_ng, &groups.station);
-    let at_one = components::theodolite_step(s, &groups.station, &groups.dof);
+    let within = coloured.map_or(0.0, |noise| {
+        correlated::within_station_excess(
+            &groups.station,
+            &groups.sigma_ng,
+            &groups.time_s,
+            &groups.session,
+            noise,
+        )
+    });
+    let adc = components::adc_component(&groups.ng, &groups.sigma_ng, &groups.station, within);
+    let at_one = components::theodolite_step(
+        s,
+        &groups.station,
+        &groups.dof,
+        groups.excess(s, coloured, true),
+    );
     let refit = |theta: f64, from: &gh::Solution| {
         let scaled: Vec<[f64; 2]> = sigma
             .iter()
@@ -532,14 +631,16 @@ fn estimate_components(
     };
     let mut theta = 1.0;
     let mut sol = refit(theta, s)?;
-    let mut step = components::theodolite_step(&sol, &groups.station, &groups.dof);
+    let mut step = components::theodolite_step(&sol, &groups.station, &groups.dof, 0.0);
     if step.mean >= components::MIN_COMPONENT_DOF {
         for _ in 0..MAX_COMPONENT_ITERATIONS {
-            let next = (theta * step.statistic / step.mean).clamp(1e-3, 1e3);
+            // The theodolite's part of the form is what the coloured noise does not explain.
+            let excess = groups.excess(&sol, coloured, true);
+            let next = (theta * (step.statistic - excess) / step.mean).clamp(1e-6, 1e6);
             let settled = (next / theta - 1.0).abs() < 1e-5;
             theta = next;
             sol = refit(theta, &sol)?;
-            step = components::theodolite_step(&sol, &groups.station, &groups.dof);
+            step = components::theodolite_step(&sol, &groups.station, &groups.dof, 0.0);
             if settled {
                 break;
             }
@@ -570,6 +671,8 @@ mod tests {
                     sigma_dz_rad: 2e-6,
                     sigma_dz_dof: None,
                     station: i,
+                    session: 0,
+                    time_s: 10.0 * i as f64,
                     ng: counts.unwrap_or((-G * dz_rad.cos() - b) / k) + noise,
                     sigma_ng: 0.3,
                     temperature_c: t + 0.001 * i as f64,

@@ -66,6 +66,18 @@ pub struct ScaledChi2 {
 }
 
 impl ScaledChi2 {
+    /// The reference moved by `excess`, an expected contribution of noise the weights do
+    /// not carry (coloured ADC noise): its mean grows by it, its sd in proportion.
+    fn with_excess(statistic: f64, mean: f64, variance: f64, excess: f64) -> Self {
+        let grown = mean + excess.max(0.0);
+        let variance = if mean > 0.0 {
+            variance * (grown / mean).powi(2)
+        } else {
+            variance
+        };
+        Self::new(statistic, grown, variance)
+    }
+
     fn new(statistic: f64, mean: f64, variance: f64) -> Self {
         let (scale, dof) = (variance / (2.0 * mean), 2.0 * mean * mean / variance);
         let (lower, upper) = match ChiSquared::new(dof) {
@@ -128,14 +140,32 @@ impl Station {
     }
 }
 
+/// The theodolite's share of each station's variance, by station index.
+pub fn shares(s: &crate::gh::Solution, station: &[usize]) -> Vec<f64> {
+    let count = station.iter().max().map_or(0, |m| m + 1);
+    let mut sum = vec![0.0f64; count];
+    let mut n = vec![0.0f64; count];
+    for (i, &j) in station.iter().enumerate() {
+        sum[j] += s.q_parts[i][0] / s.q_ww[i];
+        n[j] += 1.0;
+    }
+    sum.iter().zip(&n).map(|(a, b)| a / b.max(1.0)).collect()
+}
+
 /// The global test of a solution: the between-station part of v^T P v against its scaled
-/// chi-square.
-pub fn lack_of_fit(s: &crate::gh::Solution, station: &[usize], dof: &[Option<f64>]) -> ScaledChi2 {
+/// chi-square; `excess` is its expected part from noise the weights do not carry.
+pub fn lack_of_fit(
+    s: &crate::gh::Solution,
+    station: &[usize],
+    dof: &[Option<f64>],
+    excess: f64,
+) -> ScaledChi2 {
     let st = stations(s, station, dof);
-    ScaledChi2::new(
+    ScaledChi2::with_excess(
         st.iter().map(Station::between).sum(),
         st.iter().map(|x| x.redundancy).sum(),
         st.iter().map(|x| x.redundancy * x.t2_variance).sum(),
+        excess,
     )
 }
 
@@ -167,19 +197,22 @@ impl Component {
 }
 
 /// The theodolite's share of the between-station quadratic form, against its expectation
-/// at the current components; the test is meaningful at the a-priori weights.
+/// at the current components (`excess`: the share-weighted part of noise the weights do not
+/// carry); the test is meaningful at the a-priori weights.
 pub fn theodolite_step(
     s: &crate::gh::Solution,
     station: &[usize],
     dof: &[Option<f64>],
+    excess: f64,
 ) -> ScaledChi2 {
     let st = stations(s, station, dof);
-    ScaledChi2::new(
+    ScaledChi2::with_excess(
         st.iter().map(|x| x.between() * x.share).sum(),
         st.iter().map(|x| x.redundancy * x.share).sum(),
         st.iter()
             .map(|x| x.redundancy * x.share * x.share * x.t2_variance)
             .sum(),
+        excess,
     )
 }
 
@@ -206,8 +239,9 @@ pub fn theodolite_component(estimate: f64, form: &ScaledChi2, at_one: ScaledChi2
 }
 
 /// The ADC component from the scatter of each station's window means `ng` about their
-/// weighted mean, in units of their a-priori sds `sigma_ng`.
-pub fn adc_component(ng: &[f64], sigma_ng: &[f64], station: &[usize]) -> Component {
+/// weighted mean, in units of their a-priori sds `sigma_ng`, less `excess`, what coloured
+/// noise explains of it.
+pub fn adc_component(ng: &[f64], sigma_ng: &[f64], station: &[usize], excess: f64) -> Component {
     let count = station.iter().max().map_or(0, |m| m + 1);
     let mut sums = vec![(0.0, 0.0, 0.0, 0usize); count];
     for ((&x, &s), &j) in ng.iter().zip(sigma_ng).zip(station) {
@@ -226,7 +260,7 @@ pub fn adc_component(ng: &[f64], sigma_ng: &[f64], station: &[usize]) -> Compone
             dof += (n - 1) as f64;
         }
     }
-    let test = ScaledChi2::new(form, dof, 2.0 * dof);
+    let test = ScaledChi2::with_excess(form, dof, 2.0 * dof, excess);
     if dof < MIN_COMPONENT_DOF || !form.is_finite() {
         return Component::held(
             GROUPS[1],
@@ -236,7 +270,7 @@ pub fn adc_component(ng: &[f64], sigma_ng: &[f64], station: &[usize]) -> Compone
             ),
         );
     }
-    let estimate = form / dof;
+    let estimate = ((form - excess) / dof).max(1e-6);
     Component {
         group: GROUPS[1],
         estimate,
@@ -275,10 +309,10 @@ mod tests {
         let ng = [10.0, 14.0, 10.0, 14.0, 100.0, 104.0, 100.0, 104.0];
         let sigma = [2.0; 8];
         let station = [0, 0, 0, 0, 1, 1, 1, 1];
-        let c = adc_component(&ng, &sigma, &station);
+        let c = adc_component(&ng, &sigma, &station, 0.0);
         // Each station: 4 x (2/2)^2 = 4 on 3 dof; 8 / 6.
         assert!((c.estimate - 8.0 / 6.0).abs() < 1e-12, "{c:?}");
-        let one = adc_component(&ng[..2], &sigma[..2], &station[..2]);
+        let one = adc_component(&ng[..2], &sigma[..2], &station[..2], 0.0);
         assert!(one.not_estimable.is_some());
     }
 }

@@ -105,6 +105,10 @@ pub struct Solution {
     pub dof: usize,
     /// Iterations run.
     pub iterations: usize,
+    /// The design `A = df/dp` at the solution, row-major n x m.
+    pub a: Vec<f64>,
+    /// `B = df/dl` at the solution, per condition.
+    pub b: Vec<[f64; 2]>,
 }
 
 impl Solution {
@@ -297,6 +301,10 @@ pub fn solve(
                     0.0
                 };
             }
+            let a = (0..n)
+                .flat_map(|i| (0..m).map(move |j| (i, j)))
+                .map(|(i, j)| design[(i, j)] * scale[j] * q[i].sqrt())
+                .collect();
             return Ok(Solution {
                 p,
                 q_pp,
@@ -309,6 +317,8 @@ pub fn solve(
                 vtpv,
                 dof: n - m,
                 iterations: iteration,
+                a,
+                b,
             });
         }
     }

@@ -12,12 +12,14 @@
 
 pub mod calibrate;
 pub mod components;
+pub mod correlated;
 pub mod fit;
 pub mod gh;
 pub mod io;
 pub mod model;
 
 use calibrate::{CalError, Obs};
+use correlated::ColouredAdc;
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{
     CALIBRATION_FILE, CALIBRATION_FORMAT, Calibration, CalibrationResult, GlobalTest, Input,
@@ -96,6 +98,8 @@ struct Job<'a> {
     accelerometer: String,
     session: String,
     obs: Vec<&'a io::ObservationRow>,
+    /// The accelerometer's coloured ADC noise from align's Allan deviation (None: white).
+    coloured: Option<ColouredAdc>,
 }
 
 /// A parameter (beyond b and k) whose multiple correlation with the others is above this is
@@ -227,8 +231,10 @@ fn kalibr_noise(align_report: &AlignReport, results: &[CalibrationResult]) -> Ve
                 accelerometer: n.accelerometer.clone(),
                 scale_from: format!("{} {}", r.model, r.session),
                 accelerometer_noise_density: n.white_density_counts_per_sqrt_hz * si,
-                accelerometer_random_walk: n.random_walk_counts_sqrt_hz * si,
-                bias_instability: n.bias_instability_counts * si,
+                accelerometer_random_walk: (n.random_walk_counts_sqrt_hz > 0.0)
+                    .then_some(n.random_walk_counts_sqrt_hz * si),
+                bias_instability: (n.bias_instability_counts > 0.0)
+                    .then_some(n.bias_instability_counts * si),
             })
         })
         .collect()
@@ -339,6 +345,7 @@ fn plan_jobs<'a>(
                     accelerometer: acc.id.clone(),
                     session,
                     obs,
+                    coloured: coloured_of(align_report, &acc.id, ds.manifest.align.window_s),
                 });
             }
         }
@@ -362,6 +369,25 @@ fn component_of(c: &components::Component) -> VarianceComponent {
     }
 }
 
+/// An accelerometer's coloured ADC noise as align fitted it: None when its Allan deviation
+/// shows white noise only.
+fn coloured_of(
+    align_report: &AlignReport,
+    accelerometer: &str,
+    window_s: f64,
+) -> Option<ColouredAdc> {
+    align_report
+        .noise
+        .iter()
+        .find(|n| n.accelerometer == accelerometer)
+        .map(|n| ColouredAdc {
+            bias_instability: n.bias_instability_counts,
+            random_walk: n.random_walk_counts_sqrt_hz,
+            window_s,
+        })
+        .filter(|c| c.bias_instability > 0.0 || c.random_walk > 0.0)
+}
+
 /// Calibrates one job.
 fn fit_job(
     job: &Job<'_>,
@@ -379,6 +405,10 @@ fn fit_job(
         .collect();
     stations.sort_unstable();
     stations.dedup();
+    let mut sessions: Vec<&str> = job.obs.iter().map(|o| o.session.as_str()).collect();
+    sessions.sort_unstable();
+    sessions.dedup();
+    let t0 = job.obs.iter().map(|o| o.time_gps_ns).min().unwrap_or(0);
     let obs: Vec<Obs> = job
         .obs
         .iter()
@@ -389,13 +419,19 @@ fn fit_job(
             station: stations
                 .binary_search(&(o.session.as_str(), o.station.as_str()))
                 .unwrap_or(0),
+            session: sessions.binary_search(&o.session.as_str()).unwrap_or(0),
+            time_s: (o.time_gps_ns - t0) as f64 * 1e-9,
             ng: o.ng.unwrap_or_default(),
             sigma_ng: o.sigma_ng.unwrap_or_default(),
             temperature_c: o.temperature_c.unwrap_or_default(),
             tide_mgal: o.tide_mgal.unwrap_or_default(),
         })
         .collect();
-    calibrate::calibrate(&obs, terms, g).map(|f| (result_of(job, &f, terms), f))
+    let options = calibrate::FitOptions {
+        coloured: job.coloured,
+        ..calibrate::FitOptions::default()
+    };
+    calibrate::calibrate_with(&obs, terms, g, &options).map(|f| (result_of(job, &f, terms), f))
 }
 
 /// residuals.parquet's rows of one calibration: the observations used, then those removed.

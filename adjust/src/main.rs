@@ -53,6 +53,8 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
             sigma_dz_rad: v[1],
             sigma_dz_dof: None,
             station: n,
+            session: 0,
+            time_s: n as f64,
             ng: v[2],
             sigma_ng: v[3],
             temperature_c: 20.0,
@@ -65,9 +67,16 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
         misalignment: false,
     };
     let t0 = std::time::Instant::now();
-    let f =
-        adjust::calibrate::calibrate_with(&obs, terms, g_mgal, adjust::calibrate::Snooping::Off)
-            .map_err(|e| e.to_string())?;
+    let f = adjust::calibrate::calibrate_with(
+        &obs,
+        terms,
+        g_mgal,
+        &adjust::calibrate::FitOptions {
+            snooping: adjust::calibrate::Snooping::Off,
+            coloured: None,
+        },
+    )
+    .map_err(|e| e.to_string())?;
     let flagged = f
         .residuals
         .iter()

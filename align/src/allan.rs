@@ -120,9 +120,23 @@ pub struct NoiseTerms {
     pub random_walk: f64,
 }
 
+impl NoiseTerms {
+    /// The Allan variance of the three terms at averaging time `tau_s`.
+    pub fn allan_variance(&self, tau_s: f64) -> f64 {
+        self.white_density.powi(2) / tau_s
+            + 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI * self.bias_instability.powi(2)
+            + self.random_walk.powi(2) * tau_s / 3.0
+    }
+}
+
+/// Standard errors a fitted bias instability or random walk must exceed to be kept.
+const SIGNIFICANCE: f64 = 2.0;
+
 /// Fits [`NoiseTerms`] to an Allan curve by weighted least squares on the variance (each
 /// point weighted by its degrees of freedom over its variance squared), keeping every term
-/// non-negative: a term that comes out negative is dropped and the rest refitted.
+/// non-negative: a term that comes out negative is dropped and the rest refitted; so is a
+/// bias instability or random walk below [`SIGNIFICANCE`] standard errors (the white term
+/// always stays).
 pub fn fit_noise(points: &[AllanPoint]) -> NoiseTerms {
     let basis = |p: &AllanPoint| {
         [
@@ -151,6 +165,7 @@ pub fn fit_noise(points: &[AllanPoint]) -> NoiseTerms {
                 }
             }
         }
+        let normal = ata.clone();
         let c = solve_small(&mut ata, &mut atb, k);
         let mut coef = [0.0; 3];
         for (a, &j) in idx.iter().enumerate() {
@@ -161,6 +176,26 @@ pub fn fit_noise(points: &[AllanPoint]) -> NoiseTerms {
             if active.iter().any(|&a| a) {
                 continue;
             }
+        }
+        // A term not significantly positive (below SIGNIFICANCE standard errors: the variance
+        // of an Allan variance is 2 sigma^4 / edf) is dropped: a random walk fitted to curves
+        // of a few seconds is the flicker's curvature, not a random walk.
+        let se: Vec<f64> = (0..k)
+            .map(|a| {
+                let mut e = vec![0.0; k];
+                e[a] = 1.0;
+                let mut n = normal.clone();
+                (2.0 * solve_small(&mut n, &mut e, k)[a]).max(0.0).sqrt()
+            })
+            .collect();
+        if let Some((_, &j)) = idx
+            .iter()
+            .enumerate()
+            .filter(|&(a, &j)| j > 0 && coef[j] < SIGNIFICANCE * se[a])
+            .min_by(|x, y| (coef[*x.1] / se[x.0]).total_cmp(&(coef[*y.1] / se[y.0])))
+        {
+            active[j] = false;
+            continue;
         }
         return NoiseTerms {
             white_density: coef[0].max(0.0).sqrt(),

@@ -16,6 +16,7 @@
 //! grow with it.
 
 pub mod allan;
+pub mod colour;
 mod read;
 pub mod tide;
 pub mod weights;
@@ -494,6 +495,24 @@ fn adc_noise(ds: &Dataset, still: &[Vec<StillInterval>], tau0_s: f64) -> Vec<Adc
         .collect()
 }
 
+/// The variance that an accelerometer's flicker and random walk add to a window mean of
+/// `window_s`, counts^2: their terms of the fitted Allan variance at the window's length
+/// (MODEL.md 6.2), 0 when the Allan deviation shows white noise only. The sd of a window
+/// mean is then sqrt(s^2/n + this): s^2/n alone is the sd of a mean only for white noise.
+fn coloured_variance(noise: &[AdcNoise], accelerometer: &str, window_s: f64) -> f64 {
+    noise
+        .iter()
+        .find(|n| n.accelerometer == accelerometer)
+        .map_or(0.0, |n| {
+            allan::NoiseTerms {
+                white_density: 0.0,
+                bias_instability: n.bias_instability_counts,
+                random_walk: n.random_walk_counts_sqrt_hz,
+            }
+            .allan_variance(window_s)
+        })
+}
+
 /// What the sessions gave: observations and their counts.
 #[derive(Default)]
 struct Formed {
@@ -527,6 +546,7 @@ fn observe_session<'t>(
             continue;
         }
         let temps = temps(acc.channel);
+        let coloured = coloured_variance(&formed.noise, &acc.id, setup.cfg.window_s);
         let mut c = Counts {
             session: id.to_owned(),
             accelerometer: acc.id.clone(),
@@ -564,7 +584,7 @@ fn observe_session<'t>(
                 sigma_dz_dof,
                 sigma_am_mgal: setup.g * p.reading.dz_rad.sin().abs() * sigma_dz_rad,
                 ng: stats.map(|s| s.mean),
-                sigma_ng: stats.map(|s| s.sigma_mean),
+                sigma_ng: stats.map(|s| (s.sigma_mean.powi(2) + coloured).sqrt()),
                 n_samples: w.n,
                 expected_samples: setup.expected,
                 temperature_c: temperature.map(|(v, _)| v),

@@ -102,8 +102,17 @@ fn observations(out: &Path) -> Vec<Obs> {
 }
 
 /// Standardised differences of the window means from the noise-free truth, pairing each
-/// observation with the truth reading of the same session and line order.
+/// observation with the truth reading of the same session and line order. With coloured
+/// noise (truth.toml's `adc_noise`) a window mean also carries the flicker's and the random
+/// walk's level at the time, which no window can see: their variance under the simulator's
+/// model (`align::colour`) joins the window's.
 fn ng_z(obs: &[Obs], truth: &Truth) -> Vec<f64> {
+    let level = |r: &fixtures::write::ReadingTruth, start_ns: i64| {
+        truth.adc_noise.as_ref().map_or(0.0, |c| {
+            align::colour::Flicker::new(c.bias_instability_bits).covariance(0.0)
+                + c.random_walk_bits_per_sqrt_s.powi(2) * (r.time_gps_ns - start_ns) as f64 * 1e-9
+        })
+    };
     let mut z = Vec::new();
     for (a, acc) in truth.accelerometer.iter().enumerate() {
         for s in &truth.session {
@@ -119,7 +128,8 @@ fn ng_z(obs: &[Obs], truth: &Truth) -> Vec<f64> {
             assert_eq!(mine.len(), readings.len());
             for (o, r) in mine.iter().zip(&readings) {
                 if o.excluded.is_none() {
-                    z.push((o.ng.expect("ng") - r.ng_true[a]) / o.sigma_ng.expect("sigma"));
+                    let sd = (o.sigma_ng.expect("sigma").powi(2) + level(r, s.start_gps_ns)).sqrt();
+                    z.push((o.ng.expect("ng") - r.ng_true[a]) / sd);
                 }
             }
         }

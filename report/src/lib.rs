@@ -733,9 +733,19 @@ fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
         "Overlapping Allan deviation of each accelerometer's counts, pooled over the still intervals (the platform at rest at a \
          station), with the white-noise density N, bias instability B and random walk K fitted to sigma^2(tau) = N^2/tau + \
          (2 ln 2/pi) B^2 + K^2 tau/3. For white noise the curve falls as tau^-1/2; it flattens with flicker and rises with a \
-         random walk. In SI units by the accelerometer's scale factor k, under Kalibr's imu.yaml names."
+         random walk. In SI units by the accelerometer's scale factor k, under Kalibr's imu.yaml names. A B or K below 2 \
+         standard errors of its fit is not determined by these curves and shows as such. When B or K is found, the sd of each \
+         window mean includes their Allan variance at the window's length, and the adjustment propagates the noise's \
+         correlation between stations and over the session into the parameters' sigmas (flicker modelled up to 5000 s)."
             .to_owned(),
     );
+    let determined = |x: f64| {
+        if x > 0.0 {
+            format!("{x:.4}")
+        } else {
+            "not determined".to_owned()
+        }
+    };
     let mut t = Table::new(&[
         "accelerometer",
         "still intervals",
@@ -758,13 +768,14 @@ fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
             n.still_intervals.to_string(),
             n.samples.to_string(),
             format!("{:.4}", n.white_density_counts_per_sqrt_hz),
-            format!("{:.4}", n.bias_instability_counts),
-            format!("{:.4}", n.random_walk_counts_sqrt_hz),
+            determined(n.bias_instability_counts),
+            determined(n.random_walk_counts_sqrt_hz),
             si.map_or("-".into(), |k| {
                 format!("{:.3e}", k.accelerometer_noise_density)
             }),
             si.map_or("-".into(), |k| {
-                format!("{:.3e}", k.accelerometer_random_walk)
+                k.accelerometer_random_walk
+                    .map_or("not determined".into(), |x| format!("{x:.3e}"))
             }),
             si.map_or("-".into(), |k| k.scale_from.clone()),
         ]);

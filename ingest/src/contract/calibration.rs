@@ -169,10 +169,11 @@ pub struct KalibrNoise {
     pub scale_from: String,
     /// White-noise density, m/s^2/sqrt(Hz) (velocity random walk).
     pub accelerometer_noise_density: f64,
-    /// Random walk of the bias, m/s^3/sqrt(Hz).
-    pub accelerometer_random_walk: f64,
-    /// Bias instability (the flicker floor), m/s^2.
-    pub bias_instability: f64,
+    /// Random walk of the bias, m/s^3/sqrt(Hz); null when the Allan deviation does not
+    /// determine it.
+    pub accelerometer_random_walk: Option<f64>,
+    /// Bias instability (the flicker floor), m/s^2; null when not determined.
+    pub bias_instability: Option<f64>,
 }
 
 /// `calibration.json`.

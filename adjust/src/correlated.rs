@@ -1,0 +1,482 @@
+//! ADC noise the weights cannot carry (MODEL.md 6.2). Flicker and a random walk of the bias
+//! move the window means of a session together: the weights hold their Allan variance at
+//! the window's length, but not that the error of one station's mean is nearly that of the
+//! next, or of the next hour. This propagates the correlated part into the parameters'
+//! covariance (the sandwich M (C - D) M^T, with M the adjustment's gain from the counts to
+//! the parameters, C the covariance of the window means' coloured errors under
+//! `align::colour`'s model and D its diagonal already in the weights), in time linear in
+//! the observations: the model's covariances are sums of exponentials and a minimum, both
+//! separable in time order. Sessions are independent. No I/O.
+
+use crate::gh::Solution;
+use align::colour::{FLICKER_AVAR, Flicker};
+
+/// The coloured ADC noise of one accelerometer, in counts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ColouredAdc {
+    /// Bias instability B, counts.
+    pub bias_instability: f64,
+    /// Random walk K, counts / sqrt(s).
+    pub random_walk: f64,
+    /// The window's length, s.
+    pub window_s: f64,
+}
+
+impl ColouredAdc {
+    /// The variance align added to a window mean's: the coloured terms of the Allan variance
+    /// at the window's length.
+    pub fn window_variance(&self) -> f64 {
+        FLICKER_AVAR * self.bias_instability.powi(2)
+            + self.random_walk.powi(2) * self.window_s / 3.0
+    }
+}
+
+/// Adds `f * (x y^T + y x^T)` to the m x m matrix `acc`.
+fn add_sym(acc: &mut [f64], x: &[f64], y: &[f64], f: f64) {
+    let m = x.len();
+    for i in 0..m {
+        for j in 0..m {
+            acc[i * m + j] += f * (x[i] * y[j] + y[i] * x[j]);
+        }
+    }
+}
+
+/// The covariance the coloured noise adds to the parameters of solution `s` (its internal
+/// parameters, m x m row-major): observation i at `time_s[i]` in session `session[i]`, the
+/// counts its second observed quantity.
+pub fn extra_covariance(
+    s: &Solution,
+    time_s: &[f64],
+    session: &[usize],
+    noise: &ColouredAdc,
+) -> Vec<f64> {
+    let m = s.p.len();
+    let n = s.q_ww.len();
+    // Gain of observation i's counts: dp/dNg_i = -Q_pp a_i B_i2 / q_i.
+    let gain: Vec<Vec<f64>> = (0..n)
+        .map(|i| {
+            let f = -s.b[i][1] / s.q_ww[i];
+            (0..m)
+                .map(|r| {
+                    (0..m)
+                        .map(|c| s.q_pp[r * m + c] * s.a[i * m + c])
+                        .sum::<f64>()
+                        * f
+                })
+                .collect()
+        })
+        .collect();
+    let flicker = Flicker::new(noise.bias_instability);
+    let k2 = noise.random_walk.powi(2);
+    let d = noise.window_variance();
+    let mut acc = vec![0.0; m * m];
+    let sessions = session.iter().max().map_or(0, |x| x + 1);
+    for sess in 0..sessions {
+        let mut order: Vec<usize> = (0..n).filter(|&i| session[i] == sess).collect();
+        order.sort_by(|&x, &y| time_s[x].total_cmp(&time_s[y]));
+        let Some(&first) = order.first() else {
+            continue;
+        };
+        // Flicker: sum over i <= j of g_i g_j^T e^{-(t_j - t_i)/T}, both orders, diagonal once.
+        for &t in &flicker.time_constants_s {
+            let mut run = vec![0.0; m];
+            let mut last = time_s[first];
+            for &i in &order {
+                let decay = (-(time_s[i] - last) / t).exp();
+                for (r, g) in run.iter_mut().zip(&gain[i]) {
+                    *r = *r * decay + g;
+                }
+                last = time_s[i];
+                add_sym(&mut acc, &gain[i], &run, flicker.variance);
+                add_sym(&mut acc, &gain[i], &gain[i], -0.5 * flicker.variance);
+            }
+        }
+        // Random walk from the session's first observation: K^2 min(tau_i, tau_j).
+        let mut earlier = vec![0.0; m];
+        for &i in &order {
+            let tau = time_s[i] - time_s[first];
+            add_sym(&mut acc, &gain[i], &gain[i], 0.5 * k2 * tau);
+            add_sym(&mut acc, &gain[i], &earlier, k2);
+            for (e, g) in earlier.iter_mut().zip(&gain[i]) {
+                *e += g * tau;
+            }
+        }
+        // Less what the weights already hold.
+        for &i in &order {
+            add_sym(&mut acc, &gain[i], &gain[i], -0.5 * d);
+        }
+    }
+    acc
+}
+
+/// `C x` for an n x k matrix `x` (row per observation): the coloured noise's covariance of
+/// the window means less what the weights hold (C - D), within each session, by forward and
+/// backward passes in time order.
+pub fn apply_excess(
+    x: &[Vec<f64>],
+    time_s: &[f64],
+    session: &[usize],
+    noise: &ColouredAdc,
+) -> Vec<Vec<f64>> {
+    let n = x.len();
+    let k = x.first().map_or(0, Vec::len);
+    let flicker = Flicker::new(noise.bias_instability);
+    let k2 = noise.random_walk.powi(2);
+    let d = noise.window_variance();
+    let mut y: Vec<Vec<f64>> = x
+        .iter()
+        .map(|r| r.iter().map(|v| -d * v).collect())
+        .collect();
+    let sessions = session.iter().max().map_or(0, |v| v + 1);
+    for sess in 0..sessions {
+        let mut order: Vec<usize> = (0..n).filter(|&i| session[i] == sess).collect();
+        order.sort_by(|&a, &b| time_s[a].total_cmp(&time_s[b]));
+        let Some(&first) = order.first() else {
+            continue;
+        };
+        for &t in &flicker.time_constants_s {
+            // Forward: sum over j <= i; backward: over j > i.
+            let mut run = vec![0.0; k];
+            let mut last = time_s[first];
+            for &i in &order {
+                let decay = (-(time_s[i] - last) / t).exp();
+                last = time_s[i];
+                for (r, v) in run.iter_mut().zip(&x[i]) {
+                    *r = *r * decay + v;
+                }
+                for (out, r) in y[i].iter_mut().zip(&run) {
+                    *out += flicker.variance * r;
+                }
+            }
+            let mut run = vec![0.0; k];
+            let mut next: Option<usize> = None;
+            for &i in order.iter().rev() {
+                if let Some(j) = next {
+                    let decay = (-(time_s[j] - time_s[i]) / t).exp();
+                    for (r, v) in run.iter_mut().zip(&x[j]) {
+                        *r = (*r + v) * decay;
+                    }
+                }
+                next = Some(i);
+                for (out, r) in y[i].iter_mut().zip(&run) {
+                    *out += flicker.variance * r;
+                }
+            }
+        }
+        // Random walk: K^2 (sum_{j<=i} tau_j x_j + tau_i sum_{j>i} x_j).
+        let tau = |i: usize| time_s[i] - time_s[first];
+        let mut below = vec![0.0; k];
+        for &i in &order {
+            for (b, v) in below.iter_mut().zip(&x[i]) {
+                *b += tau(i) * v;
+            }
+            for (out, b) in y[i].iter_mut().zip(&below) {
+                *out += k2 * b;
+            }
+        }
+        let mut above = vec![0.0; k];
+        for &i in order.iter().rev() {
+            for (out, a) in y[i].iter_mut().zip(&above) {
+                *out += k2 * tau(i) * a;
+            }
+            for (a, v) in above.iter_mut().zip(&x[i]) {
+                *a += v;
+            }
+        }
+    }
+    y
+}
+
+/// The expectation, under the coloured noise, of a solution's between-station quadratic
+/// form sum_j share_j (u_j^T e)^2 / W_j (u_j: the weights of station j's observations, W_j
+/// their sum, e the misclosure residuals), beyond what the weights predict: what the
+/// variance components and the global test must not mistake for the theodolite.
+pub fn between_station_excess(
+    s: &Solution,
+    station: &[usize],
+    share: &[f64],
+    time_s: &[f64],
+    session: &[usize],
+    noise: &ColouredAdc,
+) -> f64 {
+    let n = s.q_ww.len();
+    let m = s.p.len();
+    let w: Vec<f64> = s.q_ww.iter().map(|q| 1.0 / q).collect();
+    let bng: Vec<f64> = s.b.iter().map(|b| b[1]).collect();
+    // e = R eps with R = I - A Q_pp A^T W and eps_i = B_i2 dNg_i: cov(eps) = Bn C Bn.
+    // X = Bn W A (n x m); CX = Bn (C - D) Bn W A.
+    let x: Vec<Vec<f64>> = (0..n)
+        .map(|i| (0..m).map(|c| bng[i] * w[i] * s.a[i * m + c]).collect())
+        .collect();
+    let c_x = apply_excess(&x, time_s, session, noise);
+    // A^T W Bn (C - D) Bn W A = X^T (C - D) X.
+    let mut xcx = vec![0.0; m * m];
+    for i in 0..n {
+        for r in 0..m {
+            for c in 0..m {
+                xcx[r * m + c] += x[i][r] * c_x[i][c];
+            }
+        }
+    }
+    let cx: Vec<Vec<f64>> = c_x
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| r.into_iter().map(|v| v * bng[i]).collect())
+        .collect();
+    let stations = station.iter().max().map_or(0, |v| v + 1);
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); stations];
+    for (i, &j) in station.iter().enumerate() {
+        members[j].push(i);
+    }
+    let flicker = Flicker::new(noise.bias_instability);
+    let k2 = noise.random_walk.powi(2);
+    let d = noise.window_variance();
+    let mut total = 0.0;
+    for (j, obs) in members.iter().enumerate() {
+        if obs.is_empty() {
+            continue;
+        }
+        let sum_w: f64 = obs.iter().map(|&i| w[i]).sum();
+        // h = Q_pp A^T u_j.
+        let atu: Vec<f64> = (0..m)
+            .map(|c| obs.iter().map(|&i| s.a[i * m + c] * w[i]).sum())
+            .collect();
+        let h: Vec<f64> = (0..m)
+            .map(|r| (0..m).map(|c| s.q_pp[r * m + c] * atu[c]).sum())
+            .collect();
+        // u^T Bn (C - D) Bn u within the station (one session, so the pairwise model).
+        let first = time_s_first(time_s, session, session[obs[0]]);
+        let mut local = 0.0;
+        for &a in obs {
+            for &b in obs {
+                let mut c = flicker.covariance(time_s[a] - time_s[b])
+                    + k2 * (time_s[a].min(time_s[b]) - first);
+                if a == b {
+                    c -= d;
+                }
+                local += w[a] * bng[a] * c * bng[b] * w[b];
+            }
+        }
+        // u^T (Bn (C - D) Bn W A) h.
+        let cross: f64 = obs
+            .iter()
+            .map(|&i| w[i] * (0..m).map(|c| cx[i][c] * h[c]).sum::<f64>())
+            .sum();
+        let quad: f64 = (0..m)
+            .map(|r| (0..m).map(|c| h[r] * xcx[r * m + c] * h[c]).sum::<f64>())
+            .sum();
+        total += share[j] * (local - 2.0 * cross + quad) / sum_w;
+    }
+    total
+}
+
+/// The expectation, under the coloured noise, of the window means' scatter about their
+/// station's weighted mean, sum_i (Ng_i - mean_j)^2 / sigma_i^2, beyond what the sigmas
+/// predict: the flicker moves the windows of a station apart, which the ADC's variance
+/// component must not mistake for mis-weighting.
+pub fn within_station_excess(
+    station: &[usize],
+    sigma_ng: &[f64],
+    time_s: &[f64],
+    session: &[usize],
+    noise: &ColouredAdc,
+) -> f64 {
+    let stations = station.iter().max().map_or(0, |v| v + 1);
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); stations];
+    for (i, &j) in station.iter().enumerate() {
+        members[j].push(i);
+    }
+    let flicker = Flicker::new(noise.bias_instability);
+    let k2 = noise.random_walk.powi(2);
+    let d = noise.window_variance();
+    let mut total = 0.0;
+    for obs in members.iter().filter(|o| o.len() > 1) {
+        let first = time_s_first(time_s, session, session[obs[0]]);
+        let cov = |a: usize, b: usize| {
+            let c =
+                flicker.covariance(time_s[a] - time_s[b]) + k2 * (time_s[a].min(time_s[b]) - first);
+            if a == b { c - d } else { c }
+        };
+        let w: Vec<f64> = obs.iter().map(|&i| sigma_ng[i].powi(-2)).collect();
+        let sum_w: f64 = w.iter().sum();
+        let diag: f64 = obs.iter().zip(&w).map(|(&i, wi)| wi * cov(i, i)).sum();
+        let all: f64 = obs
+            .iter()
+            .zip(&w)
+            .map(|(&a, wa)| {
+                obs.iter()
+                    .zip(&w)
+                    .map(|(&b, wb)| wa * wb * cov(a, b))
+                    .sum::<f64>()
+            })
+            .sum();
+        total += diag - all / sum_w;
+    }
+    total
+}
+
+/// The first observation time of a session.
+fn time_s_first(time_s: &[f64], session: &[usize], which: usize) -> f64 {
+    time_s
+        .iter()
+        .zip(session)
+        .filter(|(_, s)| **s == which)
+        .map(|(t, _)| *t)
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The between-station excess equals its dense form: sum_j share_j u_j^T R S R^T u_j / W_j
+    /// with R = I - A Q A^T W and S = Bn (C - D) Bn.
+    #[test]
+    fn between_station_excess_equals_its_dense_form() {
+        let (n, m) = (8, 2);
+        let time: Vec<f64> = vec![0.0, 5.0, 10.0, 130.0, 135.0, 140.0, 400.0, 410.0];
+        let session = vec![0; n];
+        let station = vec![0, 0, 0, 1, 1, 1, 2, 2];
+        let share = vec![0.9, 0.8, 0.95];
+        let a: Vec<f64> = (0..n).flat_map(|i| [1.0, 0.3 * i as f64 - 1.0]).collect();
+        let q_ww: Vec<f64> = (0..n).map(|i| 1.0 + 0.2 * (i % 3) as f64).collect();
+        let mut nm = [0.0; 4];
+        for i in 0..n {
+            for r in 0..m {
+                for c in 0..m {
+                    nm[r * m + c] += a[i * m + r] * a[i * m + c] / q_ww[i];
+                }
+            }
+        }
+        let det = nm[0] * nm[3] - nm[1] * nm[2];
+        let q_pp = vec![nm[3] / det, -nm[1] / det, -nm[2] / det, nm[0] / det];
+        let s = Solution {
+            p: vec![0.0; m],
+            q_pp: q_pp.clone(),
+            v: vec![[0.0; 2]; n],
+            misclosure: vec![0.0; n],
+            q_ww: q_ww.clone(),
+            q_parts: vec![[0.5, 0.5]; n],
+            redundancy: vec![0.5; n],
+            w_test: vec![0.0; n],
+            vtpv: 0.0,
+            dof: n - m,
+            iterations: 1,
+            a: a.clone(),
+            b: (0..n).map(|i| [1.0, 0.25 + 0.01 * i as f64]).collect(),
+        };
+        let noise = ColouredAdc {
+            bias_instability: 0.8,
+            random_walk: 0.02,
+            window_s: 2.56,
+        };
+        let fast = between_station_excess(&s, &station, &share, &time, &session, &noise);
+        let flicker = Flicker::new(noise.bias_instability);
+        let cov = |i: usize, j: usize| {
+            let mut c = flicker.covariance(time[i] - time[j])
+                + noise.random_walk.powi(2) * time[i].min(time[j]);
+            if i == j {
+                c -= noise.window_variance();
+            }
+            c * s.b[i][1] * s.b[j][1]
+        };
+        // R[i][k] = delta_ik - a_i^T Q a_k w_k.
+        let r = |i: usize, k: usize| {
+            let aqa: f64 = (0..m)
+                .map(|p| {
+                    (0..m)
+                        .map(|c| a[i * m + p] * q_pp[p * m + c] * a[k * m + c])
+                        .sum::<f64>()
+                })
+                .sum();
+            f64::from(u8::from(i == k)) - aqa / q_ww[k]
+        };
+        let mut slow = 0.0;
+        for j in 0..3 {
+            let u: Vec<f64> = (0..n)
+                .map(|i| if station[i] == j { 1.0 / q_ww[i] } else { 0.0 })
+                .collect();
+            // z = R^T u.
+            let z: Vec<f64> = (0..n)
+                .map(|k| (0..n).map(|i| r(i, k) * u[i]).sum())
+                .collect();
+            let quad: f64 = (0..n)
+                .map(|i| (0..n).map(|k| z[i] * cov(i, k) * z[k]).sum::<f64>())
+                .sum();
+            slow += share[j] * quad / u.iter().sum::<f64>();
+        }
+        assert!((fast - slow).abs() < 1e-9 * slow.abs(), "{fast} vs {slow}");
+    }
+
+    /// The linear-time sums equal the direct double sum over the model's covariance.
+    #[test]
+    fn recursions_equal_the_double_sum() {
+        let m = 2;
+        let n = 7;
+        let time: Vec<f64> = vec![0.0, 3.0, 3.5, 40.0, 41.0, 900.0, 2000.0];
+        let session = vec![0, 0, 0, 0, 1, 1, 1];
+        let s = Solution {
+            p: vec![0.0; m],
+            q_pp: vec![2.0, 0.3, 0.3, 1.0],
+            v: vec![[0.0; 2]; n],
+            misclosure: vec![0.0; n],
+            q_ww: (0..n).map(|i| 1.0 + 0.1 * i as f64).collect(),
+            q_parts: vec![[0.5, 0.5]; n],
+            redundancy: vec![0.5; n],
+            w_test: vec![0.0; n],
+            vtpv: 0.0,
+            dof: n - m,
+            iterations: 1,
+            a: (0..n * m)
+                .map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.4)
+                .collect(),
+            b: (0..n).map(|i| [1.0, 0.2 + 0.05 * i as f64]).collect(),
+        };
+        let noise = ColouredAdc {
+            bias_instability: 0.8,
+            random_walk: 0.02,
+            window_s: 2.56,
+        };
+        let fast = extra_covariance(&s, &time, &session, &noise);
+        let flicker = Flicker::new(noise.bias_instability);
+        let gain = |i: usize| -> Vec<f64> {
+            let f = -s.b[i][1] / s.q_ww[i];
+            (0..m)
+                .map(|r| {
+                    (0..m)
+                        .map(|c| s.q_pp[r * m + c] * s.a[i * m + c])
+                        .sum::<f64>()
+                        * f
+                })
+                .collect()
+        };
+        let mut slow = vec![0.0; m * m];
+        for i in 0..n {
+            for j in 0..n {
+                if session[i] != session[j] {
+                    continue;
+                }
+                let t0 = time
+                    .iter()
+                    .zip(&session)
+                    .filter(|(_, s)| **s == session[i])
+                    .map(|(t, _)| *t)
+                    .fold(f64::INFINITY, f64::min);
+                let mut c = flicker.covariance(time[i] - time[j])
+                    + noise.random_walk.powi(2) * (time[i].min(time[j]) - t0);
+                if i == j {
+                    c -= noise.window_variance();
+                }
+                let (gi, gj) = (gain(i), gain(j));
+                for r in 0..m {
+                    for q in 0..m {
+                        slow[r * m + q] += gi[r] * gj[q] * c;
+                    }
+                }
+            }
+        }
+        for (a, b) in fast.iter().zip(&slow) {
+            assert!((a - b).abs() <= 1e-9 * b.abs().max(1e-12), "{a} vs {b}");
+        }
+    }
+}
