@@ -364,6 +364,9 @@ pub struct FitOptions {
     /// The accelerometer's coloured ADC noise, propagated into the parameters' covariance
     /// ([`crate::correlated`]); None: white.
     pub coloured: Option<ColouredAdc>,
+    /// Estimate the variance components (and adjust again at them); off, one adjustment and
+    /// no components (for benchmarks of the adjustment itself).
+    pub components: bool,
 }
 
 impl Default for FitOptions {
@@ -371,6 +374,7 @@ impl Default for FitOptions {
         Self {
             snooping: Snooping::TenthAtMost,
             coloured: None,
+            components: true,
         }
     }
 }
@@ -481,8 +485,11 @@ fn conclude(
     let (l, sigma) = observations(used);
     let map = model.to_counts();
     let groups = Groups::of(used);
-    let (weighted, components) =
-        estimate_components(model, &l, &sigma, s, &groups, options.coloured.as_ref())?;
+    let (weighted, components) = if options.components {
+        estimate_components(model, &l, &sigma, s, &groups, options.coloured.as_ref())?
+    } else {
+        (s.clone(), Vec::new())
+    };
     let residuals = active
         .iter()
         .enumerate()

@@ -74,6 +74,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
         &adjust::calibrate::FitOptions {
             snooping: adjust::calibrate::Snooping::Off,
             coloured: None,
+            components: false,
         },
     )
     .map_err(|e| e.to_string())?;
