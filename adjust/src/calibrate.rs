@@ -29,6 +29,8 @@ pub struct Obs {
     pub session: usize,
     /// Time of the reading, s (any origin).
     pub time_s: f64,
+    /// Roll of the block in the reading's session, rad (FORMATS.md 8.2).
+    pub roll_rad: f64,
     /// Mean counts.
     pub ng: f64,
     /// Sd of Ng.
@@ -103,7 +105,7 @@ pub struct Residual {
 /// A fitted calibration.
 #[derive(Clone, Debug)]
 pub struct CalibrationSolution {
-    /// Parameters in counts: b, k, [k2], [k3], [b_t, k_t], [beta].
+    /// Parameters in counts: b, k, [k2], [k3], [b_t, k_t], [beta | theta_x, theta_y].
     pub values: Vec<f64>,
     /// Their covariance from the estimated variance components, row-major.
     pub covariance: Vec<f64>,
@@ -419,6 +421,7 @@ pub fn calibrate_with(
             .max(1.0);
         let temps: Vec<f64> = used.iter().map(|o| o.temperature_c).collect();
         let tides: Vec<f64> = used.iter().map(|o| o.tide_mgal).collect();
+        let rolls: Vec<f64> = used.iter().map(|o| o.roll_rad).collect();
         let model = CalibrationConditions {
             terms,
             g_mgal,
@@ -427,6 +430,7 @@ pub fn calibrate_with(
             t_ref_c,
             temperature_c: &temps,
             tide_mgal: &tides,
+            roll_rad: &rolls,
         };
         let (l, sigma) = observations(&used);
         let p0 = start_values(&used, &model);
@@ -680,6 +684,7 @@ mod tests {
                     station: i,
                     session: 0,
                     time_s: 10.0 * i as f64,
+                    roll_rad: 0.0,
                     ng: counts.unwrap_or((-G * dz_rad.cos() - b) / k) + noise,
                     sigma_ng: 0.3,
                     temperature_c: t + 0.001 * i as f64,
@@ -693,7 +698,7 @@ mod tests {
         Terms {
             order,
             temperature,
-            misalignment: false,
+            misalignment: crate::model::Misalignment::None,
         }
     }
 

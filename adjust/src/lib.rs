@@ -23,12 +23,12 @@ use correlated::ColouredAdc;
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{
     CALIBRATION_FILE, CALIBRATION_FORMAT, Calibration, CalibrationResult, GlobalTest, Input,
-    KalibrNoise, Parameter, Removed, STAGE_DIR, Skipped, VarianceComponent,
+    KalibrNoise, MisalignmentVector, Parameter, Removed, STAGE_DIR, Skipped, VarianceComponent,
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
 use ingest::contract::manifest::{Dataset, ModelDecl, Per};
-use model::Terms;
+use model::{Misalignment, Terms};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -74,7 +74,7 @@ pub fn models(declared: &[ModelDecl], session_mean_temperatures: &[f64]) -> Vec<
         order: 1,
         per: Per::Session,
         temperature: false,
-        misalignment: false,
+        misalignment: Misalignment::None,
     }];
     let (lo, hi) = session_mean_temperatures
         .iter()
@@ -87,7 +87,7 @@ pub fn models(declared: &[ModelDecl], session_mean_temperatures: &[f64]) -> Vec<
             order: 1,
             per: Per::All,
             temperature: true,
-            misalignment: false,
+            misalignment: Misalignment::None,
         });
     }
     v
@@ -100,6 +100,8 @@ struct Job<'a> {
     obs: Vec<&'a io::ObservationRow>,
     /// The accelerometer's coloured ADC noise from align's Allan deviation (None: white).
     coloured: Option<ColouredAdc>,
+    /// Roll of the block at each observation, rad.
+    rolls: Vec<f64>,
 }
 
 /// A parameter (beyond b and k) whose multiple correlation with the others is above this is
@@ -140,14 +142,19 @@ fn multiple_correlation(c: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-fn result_of(job: &Job<'_>, f: &calibrate::CalibrationSolution, terms: Terms) -> CalibrationResult {
+fn result_of(
+    job: &Job<'_>,
+    f: &calibrate::CalibrationSolution,
+    terms: Terms,
+    note: Option<String>,
+) -> CalibrationResult {
     let names = terms.names();
     let correlation = f.correlation();
     // b and k are always strongly correlated (the counts are far from zero): the report says
     // so. Any further parameter whose multiple correlation with all the others exceeds 0.999
     // is noted, with its correlation to each of them.
     let multiple = multiple_correlation(&correlation);
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = note.into_iter().collect();
     for i in 2..names.len() {
         if multiple[i] > NOTE_CORRELATION {
             let pairs: Vec<String> = (0..names.len())
@@ -168,7 +175,7 @@ fn result_of(job: &Job<'_>, f: &calibrate::CalibrationSolution, terms: Terms) ->
         model: job.model.name.clone(),
         order: job.model.order,
         temperature: job.model.temperature,
-        misalignment: job.model.misalignment,
+        misalignment: terms.misalignment.any(),
         t_ref_c: job.model.temperature.then_some(f.t_ref_c),
         mean_temperature_c: f.mean_temperature_c,
         n_observations: f.residuals.len(),
@@ -212,6 +219,8 @@ fn result_of(job: &Job<'_>, f: &calibrate::CalibrationSolution, terms: Terms) ->
             })
             .collect(),
         warnings,
+        misalignment_vector: (terms.misalignment == Misalignment::Vector)
+            .then(|| misalignment_vector(f, terms)),
     }
 }
 
@@ -344,8 +353,18 @@ fn plan_jobs<'a>(
                     model,
                     accelerometer: acc.id.clone(),
                     session,
-                    obs,
                     coloured: coloured_of(align_report, &acc.id, ds.manifest.align.window_s),
+                    rolls: obs
+                        .iter()
+                        .map(|o| {
+                            ds.manifest
+                                .session
+                                .iter()
+                                .find(|s| s.id == o.session)
+                                .map_or(0.0, |s| s.roll_deg.to_radians())
+                        })
+                        .collect(),
+                    obs,
                 });
             }
         }
@@ -367,6 +386,70 @@ fn component_of(c: &components::Component) -> VarianceComponent {
         passed: c.test.passed(),
         not_estimable: c.not_estimable.clone(),
     }
+}
+
+/// theta and psi from theta_x, theta_y and their covariance: propagated; psi only when theta
+/// is more than 3 sigma from 0 (closer, its distribution spreads toward uniform and a
+/// linearised sd would be a fiction).
+fn misalignment_vector(f: &calibrate::CalibrationSolution, terms: Terms) -> MisalignmentVector {
+    let m = terms.len();
+    let (ix, iy) = (m - 2, m - 1);
+    let (tx, ty) = (f.values[ix], f.values[iy]);
+    let c = |i: usize, j: usize| f.covariance[i * m + j];
+    let theta = tx.hypot(ty);
+    // Larger principal variance of (theta_x, theta_y).
+    let (a, b, d) = (c(ix, ix), c(ix, iy), c(iy, iy));
+    let lambda_max = 0.5 * (a + d) + (0.25 * (a - d).powi(2) + b * b).sqrt();
+    let sigma_theta = if theta > 0.0 {
+        let (jx, jy) = (tx / theta, ty / theta);
+        (jx * jx * a + 2.0 * jx * jy * b + jy * jy * d)
+            .max(0.0)
+            .sqrt()
+    } else {
+        lambda_max.sqrt()
+    };
+    let determined = theta > PSI_SIGMAS * lambda_max.sqrt();
+    let sigma_psi = {
+        let (jx, jy) = (-ty / (theta * theta), tx / (theta * theta));
+        (jx * jx * a + 2.0 * jx * jy * b + jy * jy * d)
+            .max(0.0)
+            .sqrt()
+            .to_degrees()
+    };
+    MisalignmentVector {
+        theta_rad: theta,
+        sigma_theta_rad: if determined {
+            sigma_theta
+        } else {
+            lambda_max.sqrt()
+        },
+        psi_deg: determined.then(|| ty.atan2(tx).to_degrees()),
+        sigma_psi_deg: determined.then_some(sigma_psi),
+        psi_not_determined: (!determined).then(|| {
+            format!(
+                "theta = {theta:.3e} rad is within {PSI_SIGMAS} sigma ({:.3e} rad) of 0: its direction is not determined",
+                lambda_max.sqrt()
+            )
+        }),
+    }
+}
+
+/// theta must exceed this many sds for its direction psi to be given.
+const PSI_SIGMAS: f64 = 3.0;
+
+/// The distinct directions (mod 180 deg) of the rolls, in deg.
+fn roll_directions(rolls: &[f64]) -> Vec<f64> {
+    let mut dirs: Vec<f64> = Vec::new();
+    for r in rolls {
+        let d = r.to_degrees().rem_euclid(180.0);
+        if !dirs.iter().any(|x| {
+            let diff = (x - d).rem_euclid(180.0);
+            diff.min(180.0 - diff) < 1.0
+        }) {
+            dirs.push(d);
+        }
+    }
+    dirs
 }
 
 /// An accelerometer's coloured ADC noise as align fitted it: None when its Allan deviation
@@ -393,11 +476,25 @@ fn fit_job(
     job: &Job<'_>,
     g: f64,
 ) -> Result<(CalibrationResult, calibrate::CalibrationSolution), CalError> {
-    let terms = Terms {
+    let mut terms = Terms {
         order: usize::from(job.model.order),
         temperature: job.model.temperature,
         misalignment: job.model.misalignment,
     };
+    // One roll direction sees one component of the vector: fit its plane (beta at that roll)
+    // and name the other.
+    let directions = roll_directions(&job.rolls);
+    let mut note = None;
+    if terms.misalignment == Misalignment::Vector && directions.len() < 2 {
+        let at = directions.first().copied().unwrap_or(0.0);
+        terms.misalignment = Misalignment::Plane;
+        note = Some(format!(
+            "the misalignment's component along the tilt axis at roll {at:.1} deg (theta_y at roll 0) is not estimable: \
+             every session is at roll {at:.1} deg (mod 180); a session at roll {:.1} deg would determine it. \
+             beta is the component in the tilt plane at roll {at:.1} deg",
+            at + 90.0
+        ));
+    }
     let mut stations: Vec<(&str, &str)> = job
         .obs
         .iter()
@@ -412,7 +509,8 @@ fn fit_job(
     let obs: Vec<Obs> = job
         .obs
         .iter()
-        .map(|o| Obs {
+        .enumerate()
+        .map(|(i, o)| Obs {
             dz_rad: o.dz_rad,
             sigma_dz_rad: o.sigma_dz_rad,
             sigma_dz_dof: o.sigma_dz_dof,
@@ -425,13 +523,15 @@ fn fit_job(
             sigma_ng: o.sigma_ng.unwrap_or_default(),
             temperature_c: o.temperature_c.unwrap_or_default(),
             tide_mgal: o.tide_mgal.unwrap_or_default(),
+            roll_rad: job.rolls[i],
         })
         .collect();
     let options = calibrate::FitOptions {
         coloured: job.coloured,
         ..calibrate::FitOptions::default()
     };
-    calibrate::calibrate_with(&obs, terms, g, &options).map(|f| (result_of(job, &f, terms), f))
+    calibrate::calibrate_with(&obs, terms, g, &options)
+        .map(|f| (result_of(job, &f, terms, note), f))
 }
 
 /// residuals.parquet's rows of one calibration: the observations used, then those removed.

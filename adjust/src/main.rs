@@ -55,6 +55,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
             station: n,
             session: 0,
             time_s: n as f64,
+            roll_rad: 0.0,
             ng: v[2],
             sigma_ng: v[3],
             temperature_c: 20.0,
@@ -64,7 +65,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
     let terms = adjust::model::Terms {
         order: 1,
         temperature: false,
-        misalignment: false,
+        misalignment: adjust::model::Misalignment::None,
     };
     let t0 = std::time::Instant::now();
     let f = adjust::calibrate::calibrate_with(

@@ -4,6 +4,7 @@
 //! the parameters in counts (b, k, k2, k3, b_t, k_t) with their covariance.
 
 use crate::gh::Conditions;
+pub use ingest::contract::manifest::Misalignment;
 
 /// Which terms a calibration model has.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -12,8 +13,8 @@ pub struct Terms {
     pub order: usize,
     /// Bias and scale depend linearly on temperature.
     pub temperature: bool,
-    /// The sensitive-axis angle beta.
-    pub misalignment: bool,
+    /// The misalignment: none, beta (the tilt plane), or theta_x, theta_y (the vector).
+    pub misalignment: Misalignment,
 }
 
 /// A parameter's name and unit in the output.
@@ -60,18 +61,38 @@ impl Terms {
                 unit: "mGal/bit/degC",
             });
         }
-        if self.misalignment {
-            v.push(ParamName {
+        match self.misalignment {
+            Misalignment::None => {}
+            Misalignment::Plane => v.push(ParamName {
                 name: "beta",
                 unit: "rad",
-            });
+            }),
+            Misalignment::Vector => {
+                v.push(ParamName {
+                    name: "theta_x",
+                    unit: "rad",
+                });
+                v.push(ParamName {
+                    name: "theta_y",
+                    unit: "rad",
+                });
+            }
         }
         v
     }
 
+    /// Parameters of the misalignment.
+    fn n_misalignment(&self) -> usize {
+        match self.misalignment {
+            Misalignment::None => 0,
+            Misalignment::Plane => 1,
+            Misalignment::Vector => 2,
+        }
+    }
+
     /// Number of parameters.
     pub fn len(&self) -> usize {
-        self.order + 1 + 2 * usize::from(self.temperature) + usize::from(self.misalignment)
+        self.order + 1 + 2 * usize::from(self.temperature) + self.n_misalignment()
     }
 
     /// Whether there are no parameters (never: a model has at least b and k).
@@ -126,7 +147,10 @@ pub fn apply(m: &[f64], p: &[f64]) -> Vec<f64> {
 
 /// The calibration condition `g_i cos(Dz + beta) + c(Ng, T) = 0`, `g_i = g + tide_i`, with
 /// `c = a0 + a1 x + a2 x^2 + a3 x^3 + (at0 + at1 x) (T - t_ref)`, `x = (Ng - centre) / scale`.
-/// Observations are `(Dz, Ng)`.
+/// Observations are `(Dz, Ng)`. With the misalignment as a vector (MODEL.md 6.4) the
+/// reference is `g_i (s_z cos Dz - s_perp sin Dz)`: `s_perp = theta_x cos(roll) +
+/// theta_y sin(roll)` is the sensitive axis's component in the tilt plane at the session's
+/// roll, `s_z = sqrt(1 - theta_x^2 - theta_y^2)`; at roll 0, theta_x is beta (sin beta).
 pub struct CalibrationConditions<'a> {
     /// The terms.
     pub terms: Terms,
@@ -142,6 +166,8 @@ pub struct CalibrationConditions<'a> {
     pub temperature_c: &'a [f64],
     /// Body tide at each observation, mGal (all 0 when none is applied).
     pub tide_mgal: &'a [f64],
+    /// Roll of the block at each observation, rad (the vector misalignment only).
+    pub roll_rad: &'a [f64],
 }
 
 impl CalibrationConditions<'_> {
@@ -165,8 +191,8 @@ impl CalibrationConditions<'_> {
             m[(at + 1) * n + at + 1] = 1.0 / self.scale;
             at += 2;
         }
-        if self.terms.misalignment {
-            m[at * n + at] = 1.0;
+        for j in at..n {
+            m[j * n + j] = 1.0;
         }
         m
     }
@@ -200,14 +226,36 @@ impl Conditions for CalibrationConditions<'_> {
             slope += p[at + 1] * tau;
             at += 2;
         }
-        let beta = if self.terms.misalignment { p[at] } else { 0.0 };
-        let angle = l[0] + beta;
         let g = self.g_mgal + self.tide_mgal[i];
-        let g_sin = g * angle.sin();
-        if self.terms.misalignment {
-            a[at] = -g_sin;
+        let (dz, sl) = (l[0], slope / self.scale);
+        match self.terms.misalignment {
+            Misalignment::Vector => {
+                let (tx, ty) = (p[at], p[at + 1]);
+                let (sin_r, cos_r) = self.roll_rad[i].sin_cos();
+                let s_perp = tx * cos_r + ty * sin_r;
+                let s_z = (1.0 - tx * tx - ty * ty).max(0.0).sqrt();
+                let (sin_d, cos_d) = dz.sin_cos();
+                a[at] = g * (-tx / s_z * cos_d - cos_r * sin_d);
+                a[at + 1] = g * (-ty / s_z * cos_d - sin_r * sin_d);
+                (
+                    g * (s_z * cos_d - s_perp * sin_d) + value,
+                    [-g * (s_z * sin_d + s_perp * cos_d), sl],
+                )
+            }
+            Misalignment::Plane | Misalignment::None => {
+                let beta = if self.terms.misalignment.any() {
+                    p[at]
+                } else {
+                    0.0
+                };
+                let angle = dz + beta;
+                let g_sin = g * angle.sin();
+                if self.terms.misalignment.any() {
+                    a[at] = -g_sin;
+                }
+                (g * angle.cos() + value, [-g_sin, sl])
+            }
         }
-        (g * angle.cos() + value, [-g_sin, slope / self.scale])
     }
 }
 
@@ -278,10 +326,71 @@ mod tests {
         let t = Terms {
             order: 2,
             temperature: true,
-            misalignment: true,
+            misalignment: Misalignment::Plane,
         };
         let names: Vec<&str> = t.names().iter().map(|n| n.name).collect();
         assert_eq!(names, ["b", "k", "k2", "b_t", "k_t", "beta"]);
         assert_eq!(t.len(), 6);
+        let v = Terms {
+            misalignment: Misalignment::Vector,
+            ..t
+        };
+        let names: Vec<&str> = v.names().iter().map(|n| n.name).collect();
+        assert_eq!(names, ["b", "k", "k2", "b_t", "k_t", "theta_x", "theta_y"]);
+        assert_eq!(v.len(), 7);
+    }
+
+    /// The vector condition's derivatives are the numerical ones, and at roll 0 with
+    /// theta_y = 0 it is the plane condition with beta = asin(theta_x).
+    #[test]
+    fn vector_condition_derivatives_and_the_plane() {
+        let temps = [25.0];
+        let tides = [0.0];
+        let rolls = [0.7];
+        let terms = Terms {
+            order: 1,
+            temperature: false,
+            misalignment: Misalignment::Vector,
+        };
+        let c = CalibrationConditions {
+            terms,
+            g_mgal: 980_000.0,
+            centre: 1.4e6,
+            scale: 1e5,
+            t_ref_c: 25.0,
+            temperature_c: &temps,
+            tide_mgal: &tides,
+            roll_rad: &rolls,
+        };
+        let p = [-29_500.0, 24_300.0, 3e-4, -2e-4];
+        let l = [2.1, 1.45e6];
+        let mut a = [0.0; 4];
+        let (f, b) = c.eval(0, &p, l, &mut a);
+        let h = 1e-7;
+        for j in 2..4 {
+            let mut q = p;
+            q[j] += h;
+            let mut dummy = [0.0; 4];
+            let (f2, _) = c.eval(0, &q, l, &mut dummy);
+            assert!(((f2 - f) / h - a[j]).abs() < 1e-3 * a[j].abs(), "{j}");
+        }
+        let (f3, _) = c.eval(0, &p, [l[0] + 1e-7, l[1]], &mut [0.0; 4]);
+        assert!(((f3 - f) / 1e-7 - b[0]).abs() < 1e-3 * b[0].abs());
+        let zero_roll = [0.0];
+        let v = CalibrationConditions {
+            roll_rad: &zero_roll,
+            ..c
+        };
+        let plane = CalibrationConditions {
+            terms: Terms {
+                misalignment: Misalignment::Plane,
+                ..terms
+            },
+            roll_rad: &zero_roll,
+            ..c
+        };
+        let (fv, _) = v.eval(0, &[p[0], p[1], 3e-4, 0.0], l, &mut [0.0; 4]);
+        let (fp, _) = plane.eval(0, &[p[0], p[1], 3e-4f64.asin()], l, &mut [0.0; 3]);
+        assert!((fv - fp).abs() < 1e-6, "{fv} {fp}");
     }
 }

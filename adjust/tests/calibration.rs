@@ -203,13 +203,15 @@ fn two_sided_design_recovers_beta() {
             .find(|a| a.id == r.accelerometer)
             .expect("acc");
         let (beta, sigma) = param(r, "beta");
+        // At roll 0, sin beta = theta_x.
+        let truth_beta = a.theta_x_rad.asin();
         within_3_sigma(
             &format!("{} beta", r.accelerometer),
             (beta, sigma),
-            a.beta_rad,
+            truth_beta,
         );
         assert!(
-            sigma < 0.25 * a.beta_rad.abs(),
+            sigma < 0.25 * truth_beta.abs(),
             "{}: beta {beta} +/- {sigma} is determined",
             r.accelerometer
         );
@@ -221,6 +223,85 @@ fn two_sided_design_recovers_beta() {
         within_3_sigma("b", param(r, "b"), s.b_mgal);
         within_3_sigma("k", param(r, "k"), s.k_mgal_per_bit);
     }
+}
+
+/// Sessions at rolls 0 and 90 deg determine the misalignment vector: theta_x, theta_y within
+/// 3 sigma of the truth, theta and psi given with sigmas, and psi near the truth's direction.
+#[test]
+fn two_rolls_recover_the_misalignment_vector() {
+    let dataset = fixtures::dataset_dir("roll-sessions");
+    let truth = fixtures::read_truth(&dataset).expect("truth");
+    let (_out, c) = pipeline(&dataset);
+    let fits: Vec<&CalibrationResult> = c.results.iter().filter(|r| r.model == "vector").collect();
+    assert_eq!(fits.len(), 3);
+    for (r, (theta, psi)) in fits.iter().zip(fixtures::catalog::ROLL_SESSIONS_THETA) {
+        let a = truth
+            .accelerometer
+            .iter()
+            .find(|a| a.id == r.accelerometer)
+            .expect("acc");
+        let what = &r.accelerometer;
+        within_3_sigma(
+            &format!("{what} theta_x"),
+            param(r, "theta_x"),
+            a.theta_x_rad,
+        );
+        within_3_sigma(
+            &format!("{what} theta_y"),
+            param(r, "theta_y"),
+            a.theta_y_rad,
+        );
+        let v = r.misalignment_vector.as_ref().expect("theta and psi");
+        within_3_sigma(
+            &format!("{what} theta"),
+            (v.theta_rad, v.sigma_theta_rad),
+            theta,
+        );
+        let (p, sp) = (v.psi_deg.expect("psi"), v.sigma_psi_deg.expect("sigma psi"));
+        within_3_sigma(&format!("{what} psi"), (p, sp), psi);
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+    }
+}
+
+/// One roll sees one component: a vector model on the two-sided design (roll 0 only) names
+/// theta_y as not estimable, says which roll would fix it, and still gives beta.
+#[test]
+fn one_roll_names_the_component_it_cannot_see() {
+    let ds = with_models(
+        "two-sided",
+        "\n[[adjust.model]]\nname = \"vector\"\norder = 1\nper = \"all\"\nmisalignment = \"vector\"\n",
+    );
+    let (_out, c) = pipeline(ds.path());
+    let fits: Vec<&CalibrationResult> = c.results.iter().filter(|r| r.model == "vector").collect();
+    assert_eq!(fits.len(), 3);
+    for r in fits {
+        assert!(
+            r.warnings
+                .iter()
+                .any(|w| w.contains("theta_y at roll 0) is not estimable")
+                    && w.contains("a session at roll 90.0 deg would determine it")),
+            "{:?}",
+            r.warnings
+        );
+        assert!(param(r, "beta").1 > 0.0);
+        assert!(r.parameters.iter().all(|p| p.name != "theta_y"));
+        assert!(r.misalignment_vector.is_none());
+    }
+}
+
+/// A vector model fitted per session is a manifest error naming the key.
+#[test]
+fn a_vector_model_per_session_is_refused() {
+    let ds = with_models(
+        "two-sided",
+        "\n[[adjust.model]]\nname = \"vector\"\nper = \"session\"\nmisalignment = \"vector\"\n",
+    );
+    let e = ingest::contract::manifest::Dataset::load(ds.path()).expect_err("refused");
+    let text = e.to_string();
+    assert!(
+        text.contains("adjust.model[2].misalignment") && text.contains("per = \"all\""),
+        "{text}"
+    );
 }
 
 /// On the paper's one-sided design, beta with a second-order term is not (or barely)
@@ -469,7 +550,7 @@ fn monte_carlo(
     let terms = adjust::model::Terms {
         order: 1,
         temperature: true,
-        misalignment: true,
+        misalignment: adjust::model::Misalignment::Plane,
     };
     for _ in 0..replicas {
         let dz: Vec<f64> = design
@@ -489,6 +570,7 @@ fn monte_carlo(
                 station: r.station,
                 session: r.session,
                 time_s: r.time_s - design[0].time_s,
+                roll_rad: 0.0,
                 ng,
                 sigma_ng,
                 temperature_c: r.temperature_c,

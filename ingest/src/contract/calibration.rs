@@ -142,9 +142,31 @@ pub struct CalibrationResult {
     pub correlation: Vec<Vec<f64>>,
     /// Each removed observation with its w-test value.
     pub removed: Vec<Removed>,
-    /// Notes on estimability (a parameter correlated above 0.999 with another).
+    /// Notes on estimability (a parameter correlated above 0.999 with another; a vector
+    /// misalignment that one roll could not determine).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// The misalignment vector as a magnitude and a direction (models with
+    /// `misalignment = "vector"` whose rolls determine it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub misalignment_vector: Option<MisalignmentVector>,
+}
+
+/// The sensitive axis's misalignment as a magnitude and a direction in the block's frame.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct MisalignmentVector {
+    /// theta = sqrt(theta_x^2 + theta_y^2), rad.
+    pub theta_rad: f64,
+    /// Its sd, rad (propagated; near 0, where theta is not normal, the larger principal sd).
+    pub sigma_theta_rad: f64,
+    /// Direction psi = atan2(theta_y, theta_x), deg in (-180, 180]; null when theta is within
+    /// 3 sigma of 0.
+    pub psi_deg: Option<f64>,
+    /// Its sd, deg (propagated); null with psi.
+    pub sigma_psi_deg: Option<f64>,
+    /// Why psi is not given, when it is not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub psi_not_determined: Option<String>,
 }
 
 /// A fit that has no result, with the reason.

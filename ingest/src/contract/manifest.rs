@@ -255,6 +255,10 @@ pub struct Session {
     /// emptiness is then not an error.
     #[serde(default)]
     pub expect_empty: bool,
+    /// Roll of the accelerometer block about its mirror axis for this whole session, deg,
+    /// relative to its reference position (FORMATS.md 8.2).
+    #[serde(default)]
+    pub roll_deg: f64,
 }
 
 fn default_days() -> u32 {
@@ -295,9 +299,52 @@ pub struct ModelDecl {
     /// Bias and scale depend linearly on temperature.
     #[serde(default)]
     pub temperature: bool,
-    /// Estimate the sensitive-axis angle beta.
+    /// The misalignment of the sensitive axis: none, its part in the tilt plane (beta), or
+    /// the vector (theta_x, theta_y) over sessions at different rolls (FORMATS.md 8.2).
     #[serde(default)]
-    pub misalignment: bool,
+    pub misalignment: Misalignment,
+}
+
+/// How a model treats the misalignment of the sensitive axis: `false`, `true` or `"plane"`
+/// (beta, the part in the tilt plane), `"vector"` (theta_x, theta_y in the block's frame).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Misalignment {
+    /// Not estimated.
+    #[default]
+    None,
+    /// beta: the sensitive axis's angle in the tilt plane.
+    Plane,
+    /// theta_x, theta_y: the sensitive axis's components along the block's x (the tilt axis
+    /// at roll 0) and y axes.
+    Vector,
+}
+
+impl Misalignment {
+    /// Whether any misalignment is estimated.
+    pub fn any(self) -> bool {
+        self != Misalignment::None
+    }
+}
+
+impl<'de> Deserialize<'de> for Misalignment {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Flag(bool),
+            Name(String),
+        }
+        match Raw::deserialize(d)? {
+            Raw::Flag(false) => Ok(Misalignment::None),
+            Raw::Flag(true) => Ok(Misalignment::Plane),
+            Raw::Name(n) if n == "plane" => Ok(Misalignment::Plane),
+            Raw::Name(n) if n == "vector" => Ok(Misalignment::Vector),
+            Raw::Name(n) => Err(serde::de::Error::custom(format!(
+                "`{n}` is not false, true, \"plane\" or \"vector\""
+            ))),
+        }
+    }
 }
 
 fn default_order() -> u8 {
@@ -631,6 +678,21 @@ impl Dataset {
                 return Err(err(
                     format!("adjust.model[{i}].order"),
                     format!("{} is out of range [1, 3]", model.order),
+                ));
+            }
+            if model.misalignment == Misalignment::Vector && model.per != Per::All {
+                return Err(err(
+                    format!("adjust.model[{i}].misalignment"),
+                    "\"vector\" combines sessions at different rolls: it needs per = \"all\""
+                        .to_owned(),
+                ));
+            }
+        }
+        for (i, s) in m.session.iter().enumerate() {
+            if !s.roll_deg.is_finite() {
+                return Err(err(
+                    format!("session[{i}].roll_deg"),
+                    format!("{} is not a finite angle", s.roll_deg),
                 ));
             }
         }
