@@ -201,6 +201,7 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         table1_section(&st),
         components_section(&st),
         extra_terms_section(&st),
+        misalignment_section(&st)?,
         snooping_section(&st),
         ledger_section(&st),
         plots_section(&st)?,
@@ -379,6 +380,102 @@ fn components_section(st: &Stages<'_>) -> Section {
     }
     s.tables.push(("Variance components".to_owned(), t));
     s
+}
+
+/// Radius of the 95 % error ellipse of a 2-D normal, in sds: sqrt of chi-square(2)'s 95 %.
+const ELLIPSE_95: f64 = 2.447_746_830_680_816;
+
+/// For each vector misalignment: theta and psi with their sigmas, and a polar plot of
+/// (theta_x, theta_y) with its 95 % error ellipse. Empty when no model has one.
+fn misalignment_section(st: &Stages<'_>) -> Result<Section, Error> {
+    let mut s = section("Misalignment vector");
+    let mut t = Table::new(&[
+        "model",
+        "accelerometer",
+        "theta (mrad)",
+        "sigma theta (mrad)",
+        "psi (deg)",
+        "sigma psi (deg)",
+    ]);
+    for r in &st.cal.results {
+        let Some(v) = &r.misalignment_vector else {
+            continue;
+        };
+        t.rows.push(vec![
+            r.model.clone(),
+            r.accelerometer.clone(),
+            format!("{:.4}", v.theta_rad * 1e3),
+            format!("{:.4}", v.sigma_theta_rad * 1e3),
+            v.psi_deg.map_or_else(
+                || v.psi_not_determined.clone().unwrap_or_default(),
+                |p| format!("{p:.2}"),
+            ),
+            v.sigma_psi_deg
+                .map_or("-".to_owned(), |x| format!("{x:.2}")),
+        ]);
+        let at = |name: &str| r.parameters.iter().position(|p| p.name == name);
+        let (Some(ix), Some(iy)) = (at("theta_x"), at("theta_y")) else {
+            continue;
+        };
+        let (px, py) = (&r.parameters[ix], &r.parameters[iy]);
+        let rho = r.correlation[ix][iy];
+        // An ellipse too small to see beside theta is magnified by a power of ten, and says so.
+        let theta_mrad = v.theta_rad * 1e3;
+        let extent = ELLIPSE_95 * (px.sigma.max(py.sigma)) * 1e3;
+        let magnify = if extent > 0.0 && extent < 0.05 * theta_mrad {
+            10f64.powf((0.1 * theta_mrad / extent).log10().round())
+        } else {
+            1.0
+        };
+        let (sx, sy) = (px.sigma * 1e3 * magnify, py.sigma * 1e3 * magnify);
+        // The ellipse: x = sx c cos u, y = sy c (rho cos u + sqrt(1 - rho^2) sin u).
+        let ellipse: Vec<(f64, f64)> = (0..=72)
+            .map(|i| {
+                let u = f64::from(i) * std::f64::consts::TAU / 72.0;
+                (
+                    px.value * 1e3 + ELLIPSE_95 * sx * u.cos(),
+                    py.value * 1e3
+                        + ELLIPSE_95
+                            * sy
+                            * (rho * u.cos() + (1.0 - rho * rho).max(0.0).sqrt() * u.sin()),
+                )
+            })
+            .collect();
+        let title = format!("{} {}: misalignment", r.model, r.accelerometer);
+        let name = format!("misalignment-{}-{}", r.model, r.accelerometer);
+        let label = if magnify > 1.0 {
+            format!("95 % error ellipse, magnified {magnify:.0} x")
+        } else {
+            "95 % error ellipse".to_owned()
+        };
+        let svg = plots::polar(&plots::Polar {
+            title: &title,
+            point: (px.value * 1e3, py.value * 1e3),
+            ellipse: &ellipse,
+            ellipse_label: &label,
+        })
+        .map_err(|message| Error::Plot {
+            name: name.clone(),
+            message,
+        })?;
+        s.plots.push((format!("{name}.svg"), svg));
+    }
+    if t.rows.is_empty() {
+        s.text.push(
+            "No model estimated the misalignment as a vector (misalignment = \"vector\", sessions at two rolls)."
+                .to_owned(),
+        );
+    } else {
+        s.text.push(
+            "The sensitive axis's misalignment in the block's frame (x: the tilt axis at roll 0, y: at roll 90 deg): \
+             theta = sqrt(theta_x^2 + theta_y^2) and its direction psi = atan2(theta_y, theta_x), with propagated sigmas; \
+             psi is given only when theta is more than 3 sigma from 0. The plots show (theta_x, theta_y) with the 95 % \
+             error ellipse of the two."
+                .to_owned(),
+        );
+        s.tables.push(("Misalignment vector".to_owned(), t));
+    }
+    Ok(s)
 }
 
 /// Temperature, higher orders and misalignment: the significance of the extra terms.

@@ -129,3 +129,91 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
     }
     Ok(svg)
 }
+
+/// A misalignment vector in the block's frame: the estimate (theta_x, theta_y), the line
+/// from the origin to it, and its error ellipse, on equal axes through the origin.
+pub struct Polar<'a> {
+    /// Title.
+    pub title: &'a str,
+    /// The estimate, mrad.
+    pub point: (f64, f64),
+    /// The error ellipse, mrad, as a closed polyline.
+    pub ellipse: &'a [(f64, f64)],
+    /// Legend of the ellipse.
+    pub ellipse_label: &'a str,
+}
+
+/// Draws `p` as an SVG document.
+pub fn polar(p: &Polar<'_>) -> Result<String, String> {
+    let mut svg = String::new();
+    {
+        let reach = p
+            .ellipse
+            .iter()
+            .chain(std::iter::once(&p.point))
+            .map(|q| q.0.abs().max(q.1.abs()))
+            .fold(0.0, f64::max)
+            .max(1e-6)
+            * 1.25;
+        let root = SVGBackend::with_string(&mut svg, (380, 380)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(p.title, ("sans-serif", 14))
+            .margin(10)
+            .x_label_area_size(36)
+            .y_label_area_size(48)
+            .build_cartesian_2d(-reach..reach, -reach..reach)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("theta_x (mrad)")
+            .y_desc("theta_y (mrad)")
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for axis in [[(-reach, 0.0), (reach, 0.0)], [(0.0, -reach), (0.0, reach)]] {
+            chart
+                .draw_series(LineSeries::new(axis, BLACK.mix(0.3)))
+                .map_err(|e| e.to_string())?;
+        }
+        chart
+            .draw_series(LineSeries::new(
+                [(0.0, 0.0), p.point],
+                RGBColor(40, 90, 160).stroke_width(1),
+            ))
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(LineSeries::new(
+                p.ellipse.iter().copied(),
+                RED.stroke_width(2),
+            ))
+            .map_err(|e| e.to_string())?
+            .label(p.ellipse_label)
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED.stroke_width(2)));
+        chart
+            .draw_series(std::iter::once(Circle::new(
+                p.point,
+                3,
+                RGBColor(40, 90, 160).filled(),
+            )))
+            .map_err(|e| e.to_string())?
+            .label("estimate")
+            .legend(|(x, y)| Circle::new((x + 8, y), 3, RGBColor(40, 90, 160).filled()));
+        // The legend in the quadrant opposite the estimate.
+        let corner = match (p.point.0 >= 0.0, p.point.1 >= 0.0) {
+            (true, true) => SeriesLabelPosition::LowerLeft,
+            (true, false) => SeriesLabelPosition::UpperLeft,
+            (false, true) => SeriesLabelPosition::LowerRight,
+            (false, false) => SeriesLabelPosition::UpperRight,
+        };
+        chart
+            .configure_series_labels()
+            .position(corner)
+            .border_style(BLACK.mix(0.3))
+            .background_style(WHITE.mix(0.85))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}

@@ -145,3 +145,26 @@ fn index_html_renders_in_chromium() {
         std::fs::copy(&shot, keep).expect("copy screenshot");
     }
 }
+
+/// A vector misalignment gets its section: theta and psi per accelerometer and a polar plot
+/// of (theta_x, theta_y) with its error ellipse, an SVG file the page links.
+#[test]
+fn the_misalignment_vector_is_shown() {
+    let out = pipeline(&fixtures::dataset_dir("roll-sessions"));
+    let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("report.md");
+    let start = md.find("## Misalignment vector").expect("the section");
+    let section = &md[start..];
+    for acc in ["acc1", "acc2", "acc3"] {
+        assert!(
+            section.contains(&format!("| vector | {acc} |")),
+            "{acc} in the table"
+        );
+        let svg = out
+            .path()
+            .join(format!("report/plots/misalignment-vector-{acc}.svg"));
+        let text = std::fs::read_to_string(&svg).expect("polar plot");
+        assert!(text.contains("95 % error ellipse"), "{}", svg.display());
+    }
+    // psi of acc1 is about 30 deg.
+    assert!(section.contains("| 30.0"), "{section}");
+}
