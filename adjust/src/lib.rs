@@ -17,6 +17,7 @@ pub mod fit;
 pub mod gh;
 pub mod io;
 pub mod model;
+pub mod plan;
 
 use calibrate::{CalError, Obs};
 use correlated::ColouredAdc;
@@ -150,25 +151,8 @@ fn result_of(
 ) -> CalibrationResult {
     let names = terms.names();
     let correlation = f.correlation();
-    // b and k are always strongly correlated (the counts are far from zero): the report says
-    // so. Any further parameter whose multiple correlation with all the others exceeds 0.999
-    // is noted, with its correlation to each of them.
-    let multiple = multiple_correlation(&correlation);
     let mut warnings: Vec<String> = note.into_iter().collect();
-    for i in 2..names.len() {
-        if multiple[i] > NOTE_CORRELATION {
-            let pairs: Vec<String> = (0..names.len())
-                .filter(|&j| j != i)
-                .map(|j| format!("{} {:.6}", names[j].name, correlation[i][j]))
-                .collect();
-            warnings.push(format!(
-                "{} is barely estimable: multiple correlation {:.6} with the other parameters; correlation with {}",
-                names[i].name,
-                multiple[i],
-                pairs.join(", ")
-            ));
-        }
-    }
+    warnings.extend(barely_estimable(&terms, &correlation));
     CalibrationResult {
         accelerometer: job.accelerometer.clone(),
         session: job.session.clone(),
@@ -388,6 +372,46 @@ fn component_of(c: &components::Component) -> VarianceComponent {
     }
 }
 
+/// Notes on the parameters beyond b and k whose multiple correlation with all the others
+/// exceeds [`NOTE_CORRELATION`], with their correlation to each (b and k are always strongly
+/// correlated, the counts being far from zero: the report says so).
+pub fn barely_estimable(terms: &Terms, correlation: &[Vec<f64>]) -> Vec<String> {
+    let names = terms.names();
+    let multiple = multiple_correlation(correlation);
+    (2..names.len())
+        .filter(|&i| multiple[i] > NOTE_CORRELATION)
+        .map(|i| {
+            let pairs: Vec<String> = (0..names.len())
+                .filter(|&j| j != i)
+                .map(|j| format!("{} {:.6}", names[j].name, correlation[i][j]))
+                .collect();
+            format!(
+                "{} is barely estimable: multiple correlation {:.6} with the other parameters; correlation with {}",
+                names[i].name,
+                multiple[i],
+                pairs.join(", ")
+            )
+        })
+        .collect()
+}
+
+/// When `terms` ask for the misalignment vector but the `rolls` (rad, per observation) lie
+/// in one direction (mod 180 deg), the note naming the component they cannot see and the
+/// roll that would: the fit then takes the plane (beta at that roll).
+pub fn vector_note(terms: &Terms, rolls: &[f64]) -> Option<String> {
+    let directions = roll_directions(rolls);
+    if terms.misalignment != Misalignment::Vector || directions.len() >= 2 {
+        return None;
+    }
+    let at = directions.first().copied().unwrap_or(0.0);
+    Some(format!(
+        "the misalignment's component along the tilt axis at roll {at:.1} deg (theta_y at roll 0) is not estimable: \
+         every session is at roll {at:.1} deg (mod 180); a session at roll {:.1} deg would determine it. \
+         beta is the component in the tilt plane at roll {at:.1} deg",
+        at + 90.0
+    ))
+}
+
 /// theta and psi from theta_x, theta_y and their covariance: propagated; psi only when theta
 /// is more than 3 sigma from 0 (closer, its distribution spreads toward uniform and a
 /// linearised sd would be a fiction).
@@ -483,17 +507,9 @@ fn fit_job(
     };
     // One roll direction sees one component of the vector: fit its plane (beta at that roll)
     // and name the other.
-    let directions = roll_directions(&job.rolls);
-    let mut note = None;
-    if terms.misalignment == Misalignment::Vector && directions.len() < 2 {
-        let at = directions.first().copied().unwrap_or(0.0);
+    let note = vector_note(&terms, &job.rolls);
+    if note.is_some() {
         terms.misalignment = Misalignment::Plane;
-        note = Some(format!(
-            "the misalignment's component along the tilt axis at roll {at:.1} deg (theta_y at roll 0) is not estimable: \
-             every session is at roll {at:.1} deg (mod 180); a session at roll {:.1} deg would determine it. \
-             beta is the component in the tilt plane at roll {at:.1} deg",
-            at + 90.0
-        ));
     }
     let mut stations: Vec<(&str, &str)> = job
         .obs

@@ -56,6 +56,14 @@ enum Cmd {
     },
     /// Fits a polynomial to two columns of a CSV table (FORMATS.md section 7); prints JSON.
     Fit(adjust::FitArgs),
+    /// Predicts what a planned experiment will determine, before any data (MODEL.md 6.6).
+    Plan {
+        /// The plan (TOML; the README's "Planning an experiment").
+        plan: PathBuf,
+        /// Print JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
     /// Runs what CI runs: fmt, clippy, the tests, the fixture check and the pipeline on every fixture.
     Ci,
     /// Benchmarks (speed and memory), measured, not asserted.
@@ -288,6 +296,19 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Fit(args) => {
             let out = adjust::fit_csv(&args)?;
             print_stdout(&serde_json::to_string_pretty(&out)?)
+        }
+        Cmd::Plan { plan, json } => {
+            let text = std::fs::read_to_string(&plan)
+                .with_context(|| format!("reading {}", plan.display()))?;
+            let parsed: adjust::plan::Plan =
+                toml::from_str(&text).with_context(|| format!("{}", plan.display()))?;
+            let predictions =
+                adjust::plan::predict(&parsed).with_context(|| format!("{}", plan.display()))?;
+            if json {
+                print_stdout(&serde_json::to_string_pretty(&predictions)?)
+            } else {
+                print_stdout(&adjust::plan::render(&predictions))
+            }
         }
         Cmd::Bench {
             what,

@@ -1,0 +1,398 @@
+//! Pre-analysis (MODEL.md 6.6): what an experiment will determine before it is run. The
+//! a-priori covariance (A^T Q_ww^-1 A)^-1 depends on the design alone, so the planner builds
+//! the plan's noise-free observations and runs the very adjustment a calibration runs
+//! ([`crate::calibrate::calibrate_with`], same conditions, same design check, no snooping,
+//! no variance components): the predicted sigmas are the a-priori sigmas of that
+//! adjustment. Also each parameter's correlations, the minimal detectable bias of a
+//! theodolite reading and of a window mean (Baarda: alpha 0.001, power 0.80), and for a
+//! parameter the plan cannot determine, what would fix it. The plan's format is in the
+//! README ("Planning an experiment"). No I/O.
+
+use crate::calibrate::{self, CalError, FitOptions, Obs, Snooping};
+use crate::model::{Misalignment, Terms};
+use serde::{Deserialize, Serialize};
+
+/// Baarda's non-centrality for alpha 0.001 (two-sided) and power 0.80: 3.29 + 0.84.
+pub const DELTA_0: f64 = 4.13;
+
+/// A planned experiment.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Plan {
+    /// What it is.
+    #[serde(default)]
+    pub description: String,
+    /// The benchmark.
+    pub site: PlanSite,
+    /// The instrument's nominal calibration (to turn accelerations into counts).
+    pub instrument: PlanInstrument,
+    /// Noise levels.
+    pub noise: PlanNoise,
+    /// Sessions.
+    pub session: Vec<PlanSession>,
+    /// Models to fit.
+    pub model: Vec<PlanModel>,
+}
+
+/// Gravity at the proof masses.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanSite {
+    /// Gravity at the proof masses, mGal.
+    pub g_mgal: f64,
+}
+
+/// The nominal calibration and sampling.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanInstrument {
+    /// Nominal bias, mGal.
+    pub b_mgal: f64,
+    /// Nominal scale factor, mGal/count.
+    pub k_mgal_per_bit: f64,
+    /// ADC sampling rate, Hz.
+    pub sample_rate_hz: f64,
+}
+
+/// Noise of one reading.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanNoise {
+    /// Sd of one theodolite reading of Dz, arcsec.
+    pub theodolite_arcsec: f64,
+    /// Sd of one ADC sample, counts (white).
+    pub adc_sample_bits: f64,
+    /// Window averaged per reading, s.
+    pub window_s: f64,
+}
+
+/// A planned session.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanSession {
+    /// Identifier.
+    pub id: String,
+    /// Temperature, degC.
+    pub temperature_c: f64,
+    /// Roll of the block, deg.
+    #[serde(default)]
+    pub roll_deg: f64,
+    /// Readings per station.
+    pub readings_per_station: usize,
+    /// Tilts (zenith distances), deg; or `tilt_range_deg` with `stations`.
+    #[serde(default)]
+    pub tilts_deg: Vec<f64>,
+    /// First and last tilt, deg, spread evenly over `stations`.
+    #[serde(default)]
+    pub tilt_range_deg: Option<[f64; 2]>,
+    /// Stations over `tilt_range_deg`.
+    #[serde(default)]
+    pub stations: Option<usize>,
+}
+
+/// A model to fit to the plan.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanModel {
+    /// Label.
+    pub name: String,
+    /// Polynomial order.
+    #[serde(default = "one")]
+    pub order: u8,
+    /// `session` or `all`.
+    #[serde(default = "session")]
+    pub per: String,
+    /// Temperature terms.
+    #[serde(default)]
+    pub temperature: bool,
+    /// Misalignment: false, true (plane) or "vector".
+    #[serde(default)]
+    pub misalignment: Misalignment,
+}
+
+fn one() -> u8 {
+    1
+}
+fn session() -> String {
+    "session".to_owned()
+}
+
+/// A parameter's predicted sd.
+#[derive(Clone, Debug, Serialize)]
+pub struct Predicted {
+    /// Name.
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// Predicted a-priori sd.
+    pub sigma: f64,
+}
+
+/// Minimal detectable biases over the observations of a fit.
+#[derive(Clone, Debug, Serialize)]
+pub struct Mdb {
+    /// Of one theodolite reading, arcsec: median and largest over the readings.
+    pub dz_arcsec: [f64; 2],
+    /// Of one window mean, counts: median and largest.
+    pub ng_counts: [f64; 2],
+}
+
+/// What the plan gives one fit.
+#[derive(Clone, Debug, Serialize)]
+pub struct FitPrediction {
+    /// Model name.
+    pub model: String,
+    /// Session id or `all`.
+    pub session: String,
+    /// Observations.
+    pub observations: usize,
+    /// Parameters with their predicted sds (empty when not estimable).
+    pub parameters: Vec<Predicted>,
+    /// Correlation matrix, in the order of `parameters`.
+    pub correlation: Vec<Vec<f64>>,
+    /// Minimal detectable biases.
+    pub mdb: Option<Mdb>,
+    /// What the plan cannot determine, and what would fix it.
+    pub not_estimable: Vec<String>,
+}
+
+/// Why a plan cannot be predicted.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    /// A key with a bad value.
+    #[error("{key}: {message}")]
+    Bad {
+        /// The key.
+        key: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+fn bad(key: String, message: impl Into<String>) -> PlanError {
+    PlanError::Bad {
+        key,
+        message: message.into(),
+    }
+}
+
+impl PlanSession {
+    /// The tilts, deg.
+    fn tilts(&self, i: usize) -> Result<Vec<f64>, PlanError> {
+        match (&self.tilts_deg[..], self.tilt_range_deg, self.stations) {
+            (t, None, None) if !t.is_empty() => Ok(t.to_vec()),
+            ([], Some([a, b]), Some(n)) if n >= 2 => Ok((0..n)
+                .map(|j| a + (b - a) * j as f64 / (n - 1) as f64)
+                .collect()),
+            _ => Err(bad(
+                format!("session[{i}]"),
+                "give tilts_deg, or tilt_range_deg with stations >= 2",
+            )),
+        }
+    }
+}
+
+/// The plan's noise-free observations of one accelerometer, with their session ids: per station,
+/// `readings_per_station` readings with counts from the nominal calibration.
+pub fn observations(plan: &Plan) -> Result<Vec<(String, Obs)>, PlanError> {
+    let n_window = (plan.noise.window_s * plan.instrument.sample_rate_hz).max(1.0);
+    let sigma_ng = plan.noise.adc_sample_bits / n_window.sqrt();
+    let sigma_dz = (plan.noise.theodolite_arcsec / 3600.0).to_radians();
+    if !(sigma_ng > 0.0 && sigma_dz > 0.0 && plan.instrument.k_mgal_per_bit != 0.0) {
+        return Err(bad(
+            "noise".to_owned(),
+            "noise levels and the scale factor must be positive",
+        ));
+    }
+    let mut out = Vec::new();
+    let mut station = 0;
+    for (si, s) in plan.session.iter().enumerate() {
+        for (ti, tilt) in s.tilts(si)?.into_iter().enumerate() {
+            let dz = tilt.to_radians();
+            let a = -plan.site.g_mgal * dz.cos();
+            let ng = (a - plan.instrument.b_mgal) / plan.instrument.k_mgal_per_bit;
+            for r in 0..s.readings_per_station {
+                out.push((
+                    s.id.clone(),
+                    Obs {
+                        dz_rad: dz,
+                        sigma_dz_rad: sigma_dz,
+                        sigma_dz_dof: None,
+                        station,
+                        session: si,
+                        time_s: (ti * s.readings_per_station + r) as f64 * 8.0,
+                        roll_rad: s.roll_deg.to_radians(),
+                        ng,
+                        sigma_ng,
+                        temperature_c: s.temperature_c,
+                        tide_mgal: 0.0,
+                    },
+                ));
+            }
+            station += 1;
+        }
+    }
+    Ok(out)
+}
+
+/// Predicts every model of `plan`, per session or over all sessions as each asks.
+pub fn predict(plan: &Plan) -> Result<Vec<FitPrediction>, PlanError> {
+    let all = observations(plan)?;
+    let mut out = Vec::new();
+    for (mi, m) in plan.model.iter().enumerate() {
+        let groups: Vec<String> = match m.per.as_str() {
+            "session" => plan.session.iter().map(|s| s.id.clone()).collect(),
+            "all" => vec!["all".to_owned()],
+            other => {
+                return Err(bad(
+                    format!("model[{mi}].per"),
+                    format!("`{other}` is not \"session\" or \"all\""),
+                ));
+            }
+        };
+        if m.misalignment == Misalignment::Vector && m.per != "all" {
+            return Err(bad(
+                format!("model[{mi}].misalignment"),
+                "\"vector\" combines sessions at different rolls: it needs per = \"all\"",
+            ));
+        }
+        for g in groups {
+            let obs: Vec<Obs> = all
+                .iter()
+                .filter(|(s, _)| g == "all" || *s == g)
+                .map(|(_, o)| o.clone())
+                .collect();
+            out.push(predict_fit(plan, m, &g, &obs));
+        }
+    }
+    Ok(out)
+}
+
+/// One fit's prediction.
+fn predict_fit(plan: &Plan, m: &PlanModel, session: &str, obs: &[Obs]) -> FitPrediction {
+    let mut terms = Terms {
+        order: usize::from(m.order),
+        temperature: m.temperature,
+        misalignment: m.misalignment,
+    };
+    let mut not_estimable = Vec::new();
+    let rolls: Vec<f64> = obs.iter().map(|o| o.roll_rad).collect();
+    if let Some(note) = crate::vector_note(&terms, &rolls) {
+        terms.misalignment = Misalignment::Plane;
+        not_estimable.push(note);
+    }
+    let options = FitOptions {
+        snooping: Snooping::Off,
+        coloured: None,
+        components: false,
+    };
+    let mut prediction = FitPrediction {
+        model: m.name.clone(),
+        session: session.to_owned(),
+        observations: obs.len(),
+        parameters: Vec::new(),
+        correlation: Vec::new(),
+        mdb: None,
+        not_estimable,
+    };
+    match calibrate::calibrate_with(obs, terms, plan.site.g_mgal, &options) {
+        Ok(f) => {
+            let correlation = f.correlation();
+            for (j, n) in terms.names().iter().enumerate() {
+                prediction.parameters.push(Predicted {
+                    name: n.name.to_owned(),
+                    unit: n.unit.to_owned(),
+                    sigma: f.sigma_apriori(j),
+                });
+            }
+            for note in crate::barely_estimable(&terms, &correlation) {
+                let fix = fix_for(note.split(' ').next().unwrap_or_default());
+                prediction.not_estimable.push(format!("{note}; {fix}"));
+            }
+            prediction.correlation = correlation;
+            prediction.mdb = Some(mdb(plan, obs, &f));
+        }
+        Err(CalError::NotEstimable { parameter, why }) => prediction
+            .not_estimable
+            .push(format!("{parameter} is not estimable: {why}")),
+        Err(e) => prediction.not_estimable.push(e.to_string()),
+    }
+    prediction
+}
+
+/// What separates a barely estimable parameter from the others.
+fn fix_for(parameter: &str) -> &'static str {
+    match parameter {
+        "beta" | "theta_x" | "theta_y" => {
+            "tilts on both sides of the vertical would separate it (and a second roll, for the vector)"
+        }
+        "b_t" | "k_t" => "a second temperature further from the first would separate it",
+        _ => "more tilt positions over a wider range would separate it",
+    }
+}
+
+/// Baarda's minimal detectable bias of each reading and window mean: the bias whose w-test
+/// reaches the non-centrality [`DELTA_0`], `DELTA_0 sqrt(q_i / r_i) / |B_ij|`.
+fn mdb(plan: &Plan, obs: &[Obs], f: &calibrate::CalibrationSolution) -> Mdb {
+    let k = plan.instrument.k_mgal_per_bit.abs();
+    let mut dz = Vec::new();
+    let mut ng = Vec::new();
+    for r in &f.residuals {
+        let o = &obs[r.index];
+        let b0 = plan.site.g_mgal * o.dz_rad.sin().abs();
+        let q = (b0 * o.sigma_dz_rad).powi(2) + (k * o.sigma_ng).powi(2);
+        if r.redundancy > 1e-9 {
+            let base = DELTA_0 * (q / r.redundancy).sqrt();
+            dz.push((base / b0).to_degrees() * 3600.0);
+            ng.push(base / k);
+        }
+    }
+    let stats = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        if v.is_empty() {
+            [f64::NAN; 2]
+        } else {
+            [v[v.len() / 2], v[v.len() - 1]]
+        }
+    };
+    Mdb {
+        dz_arcsec: stats(dz),
+        ng_counts: stats(ng),
+    }
+}
+
+/// The predictions as a text table.
+pub fn render(predictions: &[FitPrediction]) -> String {
+    let mut s = String::new();
+    for p in predictions {
+        s += &format!(
+            "{} {} ({} observations)\n",
+            p.model, p.session, p.observations
+        );
+        for (j, q) in p.parameters.iter().enumerate() {
+            let corr: Vec<String> = p.correlation[j]
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| i != j)
+                .map(|(i, c)| format!("{} {c:+.3}", p.parameters[i].name))
+                .collect();
+            s += &format!(
+                "  {:<8} sigma {:>11.4e} {:<14} corr: {}\n",
+                q.name,
+                q.sigma,
+                q.unit,
+                corr.join(", ")
+            );
+        }
+        if let Some(m) = &p.mdb {
+            s += &format!(
+                "  MDB (alpha 0.001, power 0.80): theodolite reading {:.2} arcsec (worst {:.2}), window mean {:.2} counts (worst {:.2})\n",
+                m.dz_arcsec[0], m.dz_arcsec[1], m.ng_counts[0], m.ng_counts[1]
+            );
+        }
+        for n in &p.not_estimable {
+            s += &format!("  NOT DETERMINED: {n}\n");
+        }
+    }
+    s
+}

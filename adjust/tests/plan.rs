@@ -1,0 +1,132 @@
+//! The planner against the adjustment: its predicted sigmas are the a-priori sigmas of the
+//! same adjustment on simulated data of the same plan, and the scatter of that adjustment's
+//! estimates over many replicas.
+
+use adjust::calibrate::{FitOptions, Obs, Snooping};
+use adjust::plan::{Plan, observations, predict};
+
+fn plan(name: &str) -> Plan {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/plans")
+        .join(name);
+    toml::from_str(&std::fs::read_to_string(&path).expect("plan")).expect("parses")
+}
+
+/// The plan's observations with fresh noise of its sds.
+fn replica(obs: &[(String, Obs)], rng: &mut fixtures::rng::Rng) -> Vec<Obs> {
+    obs.iter()
+        .map(|(_, o)| Obs {
+            dz_rad: o.dz_rad + o.sigma_dz_rad * rng.normal(),
+            ng: o.ng + o.sigma_ng * rng.normal(),
+            ..o.clone()
+        })
+        .collect()
+}
+
+fn fit(plan: &Plan, obs: &[Obs]) -> adjust::calibrate::CalibrationSolution {
+    let m = &plan.model[0];
+    let terms = adjust::model::Terms {
+        order: usize::from(m.order),
+        temperature: m.temperature,
+        misalignment: m.misalignment,
+    };
+    let options = FitOptions {
+        snooping: Snooping::Off,
+        coloured: None,
+        components: false,
+    };
+    adjust::calibrate::calibrate_with(obs, terms, plan.site.g_mgal, &options).expect("fits")
+}
+
+/// On one replica of the two-roll plan the adjustment's a-priori sigmas are the planner's
+/// (they differ only by where the model is linearised: the noisy data against the
+/// noise-free plan) and `cargo xtask plan`'s JSON names every parameter.
+#[test]
+fn predicted_sigmas_are_the_adjustments_a_priori_sigmas() {
+    let p = plan("two-rolls.toml");
+    let predicted = predict(&p).expect("predicts");
+    assert_eq!(predicted.len(), 1);
+    assert!(
+        predicted[0].not_estimable.is_empty(),
+        "{:?}",
+        predicted[0].not_estimable
+    );
+    let mut rng = fixtures::rng::Rng::new(7, "plan");
+    let obs = replica(&observations(&p).expect("observations"), &mut rng);
+    let f = fit(&p, &obs);
+    for (j, q) in predicted[0].parameters.iter().enumerate() {
+        let a = f.sigma_apriori(j);
+        assert!(
+            (a / q.sigma - 1.0).abs() < 1e-3,
+            "{}: {a} vs {}",
+            q.name,
+            q.sigma
+        );
+    }
+    let names: Vec<&str> = predicted[0]
+        .parameters
+        .iter()
+        .map(|q| q.name.as_str())
+        .collect();
+    assert_eq!(names, ["b", "k", "b_t", "k_t", "theta_x", "theta_y"]);
+}
+
+/// 500 replicas of the two-roll plan: the empirical sd of every parameter within 10 % of
+/// the prediction (the standard error of an sd ratio is 1/sqrt(1000) = 3.2 %).
+#[test]
+fn predicted_sigmas_match_the_scatter_of_replicas() {
+    let p = plan("two-rolls.toml");
+    let predicted = predict(&p).expect("predicts");
+    let base = observations(&p).expect("observations");
+    let mut rng = fixtures::rng::Rng::new(11, "plan-monte-carlo");
+    let n: usize = 500;
+    let values: Vec<Vec<f64>> = (0..n)
+        .map(|_| fit(&p, &replica(&base, &mut rng)).values)
+        .collect();
+    for (j, q) in predicted[0].parameters.iter().enumerate() {
+        let mean = values.iter().map(|v| v[j]).sum::<f64>() / n as f64;
+        let sd =
+            (values.iter().map(|v| (v[j] - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+        eprintln!(
+            "plan monte carlo: {} sd/predicted {:.3}",
+            q.name,
+            sd / q.sigma
+        );
+        assert!(
+            (sd / q.sigma - 1.0).abs() < 0.1,
+            "{}: sd {sd} vs {}",
+            q.name,
+            q.sigma
+        );
+    }
+}
+
+/// The paper's design names what it cannot determine, and what would fix it.
+#[test]
+fn the_papers_design_names_what_it_cannot_determine() {
+    let predicted = predict(&plan("paper.toml")).expect("predicts");
+    let vector = predicted
+        .iter()
+        .find(|x| x.model == "vector")
+        .expect("vector model");
+    let notes = vector.not_estimable.join("\n");
+    assert!(
+        notes.contains("theta_y at roll 0) is not estimable"),
+        "{notes}"
+    );
+    assert!(
+        notes.contains("a session at roll 90.0 deg would determine it"),
+        "{notes}"
+    );
+    assert!(notes.contains("beta is barely estimable"), "{notes}");
+    assert!(
+        notes.contains("tilts on both sides of the vertical"),
+        "{notes}"
+    );
+    let linear = predicted
+        .iter()
+        .find(|x| x.model == "linear")
+        .expect("linear");
+    assert!(linear.not_estimable.is_empty());
+    assert!(linear.mdb.is_some());
+}
