@@ -415,7 +415,7 @@ pub fn vector_note(terms: &Terms, rolls: &[f64]) -> Option<String> {
 /// theta and psi from theta_x, theta_y and their covariance: propagated; psi only when theta
 /// is more than 3 sigma from 0 (closer, its distribution spreads toward uniform and a
 /// linearised sd would be a fiction).
-fn misalignment_vector(f: &calibrate::CalibrationSolution, terms: Terms) -> MisalignmentVector {
+pub fn misalignment_vector(f: &calibrate::CalibrationSolution, terms: Terms) -> MisalignmentVector {
     let m = terms.len();
     let (ix, iy) = (m - 2, m - 1);
     let (tx, ty) = (f.values[ix], f.values[iy]);

@@ -130,3 +130,75 @@ fn the_papers_design_names_what_it_cannot_determine() {
     assert!(linear.not_estimable.is_empty());
     assert!(linear.mdb.is_some());
 }
+
+/// The two-roll plan's observations with the sensitive axis misaligned by `theta` at `psi`.
+fn misaligned(p: &Plan, theta: f64, psi_deg: f64) -> Vec<(String, Obs)> {
+    let (tx, ty) = (
+        theta * psi_deg.to_radians().cos(),
+        theta * psi_deg.to_radians().sin(),
+    );
+    observations(p)
+        .expect("observations")
+        .into_iter()
+        .map(|(s, o)| {
+            let s_perp = tx * o.roll_rad.cos() + ty * o.roll_rad.sin();
+            let s_z = (1.0 - tx * tx - ty * ty).sqrt();
+            let a = -p.site.g_mgal * (s_z * o.dz_rad.cos() - s_perp * o.dz_rad.sin());
+            let ng = (a - p.instrument.b_mgal) / p.instrument.k_mgal_per_bit;
+            (s, Obs { ng, ..o })
+        })
+        .collect()
+}
+
+/// The direction's sigma is honest where psi is given, and psi is withheld near theta = 0:
+/// 500 replicas of the two-roll plan with theta = 1.0 urad (about 5 sigma) at 30 deg give
+/// sd(psi) within 10 % of the mean reported sigma of psi; with theta = 0, psi is withheld in
+/// at least 95 % of them (theta-hat is then Rayleigh, above 3 sigma with probability 1 %).
+#[test]
+fn the_direction_is_honest_or_withheld() {
+    let p = plan("two-rolls.toml");
+    let terms = adjust::model::Terms {
+        order: 1,
+        temperature: true,
+        misalignment: adjust::model::Misalignment::Vector,
+    };
+    let mut rng = fixtures::rng::Rng::new(13, "plan-psi");
+    let n = 500;
+    let small = misaligned(&p, 1.0e-6, 30.0);
+    let mut psi = Vec::new();
+    let mut sigma = Vec::new();
+    for _ in 0..n {
+        let v = adjust::misalignment_vector(&fit(&p, &replica(&small, &mut rng)), terms);
+        if let (Some(x), Some(s)) = (v.psi_deg, v.sigma_psi_deg) {
+            psi.push(x);
+            sigma.push(s);
+        }
+    }
+    assert!(psi.len() > n * 9 / 10, "psi given in {} of {n}", psi.len());
+    let m = psi.iter().sum::<f64>() / psi.len() as f64;
+    let sd = (psi.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (psi.len() - 1) as f64).sqrt();
+    let mean_sigma = sigma.iter().sum::<f64>() / sigma.len() as f64;
+    eprintln!(
+        "psi at theta 1 urad: sd {sd:.2} deg, mean sigma {mean_sigma:.2} deg, given in {} of {n}",
+        psi.len()
+    );
+    assert!(
+        (sd / mean_sigma - 1.0).abs() < 0.1,
+        "sd {sd} vs sigma {mean_sigma}"
+    );
+    assert!(
+        (m - 30.0).abs() < 3.0 * sd / (psi.len() as f64).sqrt() + 0.5,
+        "mean psi {m}"
+    );
+
+    let zero = misaligned(&p, 0.0, 0.0);
+    let withheld = (0..n)
+        .filter(|_| {
+            adjust::misalignment_vector(&fit(&p, &replica(&zero, &mut rng)), terms)
+                .psi_deg
+                .is_none()
+        })
+        .count();
+    eprintln!("psi at theta 0: withheld in {withheld} of {n}");
+    assert!(withheld >= n * 95 / 100, "withheld in {withheld} of {n}");
+}
