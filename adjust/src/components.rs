@@ -243,23 +243,26 @@ pub fn theodolite_component(estimate: f64, form: &ScaledChi2, at_one: ScaledChi2
 /// noise explains of it.
 pub fn adc_component(ng: &[f64], sigma_ng: &[f64], station: &[usize], excess: f64) -> Component {
     let count = station.iter().max().map_or(0, |m| m + 1);
-    let mut sums = vec![(0.0, 0.0, 0.0, 0usize); count];
+    // Two passes: the weighted mean of each station, then the squares about it (counts of
+    // millions would cancel to nothing in sum w x^2 - (sum w x)^2 / sum w).
+    let mut mean = vec![(0.0, 0.0, 0usize); count];
     for ((&x, &s), &j) in ng.iter().zip(sigma_ng).zip(station) {
         let w = 1.0 / (s * s);
-        let e = &mut sums[j];
-        e.0 += w;
-        e.1 += w * x;
-        e.2 += w * x * x;
-        e.3 += 1;
+        mean[j].0 += w;
+        mean[j].1 += w * x;
+        mean[j].2 += 1;
     }
     let mut form = 0.0;
-    let mut dof = 0.0;
-    for &(sw, swx, swxx, n) in &sums {
-        if n > 1 && sw > 0.0 {
-            form += (swxx - swx * swx / sw).max(0.0);
-            dof += (n - 1) as f64;
+    for ((&x, &s), &j) in ng.iter().zip(sigma_ng).zip(station) {
+        if mean[j].2 > 1 && mean[j].0 > 0.0 {
+            form += ((x - mean[j].1 / mean[j].0) / s).powi(2);
         }
     }
+    let dof: f64 = mean
+        .iter()
+        .filter(|m| m.2 > 1 && m.0 > 0.0)
+        .map(|m| (m.2 - 1) as f64)
+        .sum();
     let test = ScaledChi2::with_excess(form, dof, 2.0 * dof, excess);
     if dof < MIN_COMPONENT_DOF || !form.is_finite() {
         return Component::held(
@@ -305,7 +308,7 @@ mod tests {
 
     #[test]
     fn window_means_scattering_beyond_their_sd_raise_the_adc_component() {
-        // Two stations, window means +-2 sigma about their station's mean.
+        // Two stations, window means 1 sd (2 counts) either side of their station's mean.
         let ng = [10.0, 14.0, 10.0, 14.0, 100.0, 104.0, 100.0, 104.0];
         let sigma = [2.0; 8];
         let station = [0, 0, 0, 0, 1, 1, 1, 1];

@@ -224,6 +224,7 @@ pub fn between_station_excess(
         .map(|(i, r)| r.into_iter().map(|v| v * bng[i]).collect())
         .collect();
     let stations = station.iter().max().map_or(0, |v| v + 1);
+    let firsts = session_starts(time_s, session);
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); stations];
     for (i, &j) in station.iter().enumerate() {
         members[j].push(i);
@@ -245,7 +246,7 @@ pub fn between_station_excess(
             .map(|r| (0..m).map(|c| s.q_pp[r * m + c] * atu[c]).sum())
             .collect();
         // u^T Bn (C - D) Bn u within the station (one session, so the pairwise model).
-        let first = time_s_first(time_s, session, session[obs[0]]);
+        let first = firsts[session[obs[0]]];
         let mut local = 0.0;
         for &a in obs {
             for &b in obs {
@@ -282,6 +283,7 @@ pub fn within_station_excess(
     noise: &ColouredAdc,
 ) -> f64 {
     let stations = station.iter().max().map_or(0, |v| v + 1);
+    let firsts = session_starts(time_s, session);
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); stations];
     for (i, &j) in station.iter().enumerate() {
         members[j].push(i);
@@ -291,7 +293,7 @@ pub fn within_station_excess(
     let d = noise.window_variance();
     let mut total = 0.0;
     for obs in members.iter().filter(|o| o.len() > 1) {
-        let first = time_s_first(time_s, session, session[obs[0]]);
+        let first = firsts[session[obs[0]]];
         let cov = |a: usize, b: usize| {
             let c =
                 flicker.covariance(time_s[a] - time_s[b]) + k2 * (time_s[a].min(time_s[b]) - first);
@@ -315,14 +317,13 @@ pub fn within_station_excess(
     total
 }
 
-/// The first observation time of a session.
-fn time_s_first(time_s: &[f64], session: &[usize], which: usize) -> f64 {
-    time_s
-        .iter()
-        .zip(session)
-        .filter(|(_, s)| **s == which)
-        .map(|(t, _)| *t)
-        .fold(f64::INFINITY, f64::min)
+/// The first observation time of each session, by session index.
+fn session_starts(time_s: &[f64], session: &[usize]) -> Vec<f64> {
+    let mut first = vec![f64::INFINITY; session.iter().max().map_or(0, |v| v + 1)];
+    for (&t, &s) in time_s.iter().zip(session) {
+        first[s] = first[s].min(t);
+    }
+    first
 }
 
 #[cfg(test)]
