@@ -404,8 +404,14 @@ pub fn vector_note(terms: &Terms, rolls: &[f64]) -> Option<String> {
         return None;
     }
     let at = directions.first().copied().unwrap_or(0.0);
+    // The unseen component lies along the block's direction at + 90 deg.
+    let unseen = match at {
+        a if a.abs() < 1e-9 => "theta_y".to_owned(),
+        a if (a - 90.0).abs() < 1e-9 => "theta_x".to_owned(),
+        a => format!("the component at psi = {:.1} deg", a + 90.0),
+    };
     Some(format!(
-        "the misalignment's component along the tilt axis at roll {at:.1} deg (theta_y at roll 0) is not estimable: \
+        "the misalignment's component along the tilt axis at roll {at:.1} deg ({unseen}) is not estimable: \
          every session is at roll {at:.1} deg (mod 180); a session at roll {:.1} deg would determine it. \
          beta is the component in the tilt plane at roll {at:.1} deg",
         at + 90.0

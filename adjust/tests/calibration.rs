@@ -278,7 +278,7 @@ fn one_roll_names_the_component_it_cannot_see() {
         assert!(
             r.warnings
                 .iter()
-                .any(|w| w.contains("theta_y at roll 0) is not estimable")
+                .any(|w| w.contains("(theta_y) is not estimable")
                     && w.contains("a session at roll 90.0 deg would determine it")),
             "{:?}",
             r.warnings
