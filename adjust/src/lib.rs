@@ -10,6 +10,7 @@
 //! equations, [`calibrate`] one calibration fit with data snooping, [`fit`] the general
 //! polynomial fitting command (FORMATS.md section 7).
 
+pub mod apply;
 pub mod calibrate;
 pub mod components;
 pub mod correlated;
@@ -162,6 +163,8 @@ fn result_of(
         misalignment: terms.misalignment.any(),
         t_ref_c: job.model.temperature.then_some(f.t_ref_c),
         mean_temperature_c: f.mean_temperature_c,
+        counts_range: range_of(f.residuals.iter().map(|r| job.obs[r.index].ng)),
+        temperature_range_c: range_of(f.residuals.iter().map(|r| job.obs[r.index].temperature_c)),
         n_observations: f.residuals.len(),
         n_excluded: f.removed.len(),
         dof: f.dof,
@@ -370,6 +373,14 @@ fn component_of(c: &components::Component) -> VarianceComponent {
         passed: c.test.passed(),
         not_estimable: c.not_estimable.clone(),
     }
+}
+
+/// Least and greatest of the values present.
+fn range_of(values: impl Iterator<Item = Option<f64>>) -> Option<[f64; 2]> {
+    values.flatten().fold(None, |acc, v| match acc {
+        None => Some([v, v]),
+        Some([lo, hi]) => Some([lo.min(v), hi.max(v)]),
+    })
 }
 
 /// Notes on the parameters beyond b and k whose multiple correlation with all the others

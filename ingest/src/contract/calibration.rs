@@ -121,6 +121,13 @@ pub struct CalibrationResult {
     pub t_ref_c: Option<f64>,
     /// Mean temperature of the observations used, degC.
     pub mean_temperature_c: f64,
+    /// Least and greatest window mean of counts the fit used: the range it calibrates (an
+    /// application outside it is flagged, MODEL.md 6.7).
+    #[serde(default)]
+    pub counts_range: Option<[f64; 2]>,
+    /// Least and greatest temperature the fit used, degC.
+    #[serde(default)]
+    pub temperature_range_c: Option<[f64; 2]>,
     /// Observations in the final adjustment.
     pub n_observations: usize,
     /// Observations removed by data snooping.
