@@ -31,16 +31,6 @@ impl ColouredAdc {
     }
 }
 
-/// Adds `f * (x y^T + y x^T)` to the m x m matrix `acc`.
-fn add_sym(acc: &mut [f64], x: &[f64], y: &[f64], f: f64) {
-    let m = x.len();
-    for i in 0..m {
-        for j in 0..m {
-            acc[i * m + j] += f * (x[i] * y[j] + y[i] * x[j]);
-        }
-    }
-}
-
 /// The covariance the coloured noise adds to the parameters of solution `s` (its internal
 /// parameters, m x m row-major): observation i at `time_s[i]` in session `session[i]`, the
 /// counts its second observed quantity.
@@ -66,44 +56,22 @@ pub fn extra_covariance(
                 .collect()
         })
         .collect();
-    let flicker = Flicker::new(noise.bias_instability);
-    let k2 = noise.random_walk.powi(2);
-    let d = noise.window_variance();
+    // sum_ij g_i g_j^T (C - D)_ij = G^T ((C - D) G).
+    let cg = apply_excess(&gain, time_s, session, noise);
     let mut acc = vec![0.0; m * m];
-    let sessions = session.iter().max().map_or(0, |x| x + 1);
-    for sess in 0..sessions {
-        let mut order: Vec<usize> = (0..n).filter(|&i| session[i] == sess).collect();
-        order.sort_by(|&x, &y| time_s[x].total_cmp(&time_s[y]));
-        let Some(&first) = order.first() else {
-            continue;
-        };
-        // Flicker: sum over i <= j of g_i g_j^T e^{-(t_j - t_i)/T}, both orders, diagonal once.
-        for &t in &flicker.time_constants_s {
-            let mut run = vec![0.0; m];
-            let mut last = time_s[first];
-            for &i in &order {
-                let decay = (-(time_s[i] - last) / t).exp();
-                for (r, g) in run.iter_mut().zip(&gain[i]) {
-                    *r = *r * decay + g;
-                }
-                last = time_s[i];
-                add_sym(&mut acc, &gain[i], &run, flicker.variance);
-                add_sym(&mut acc, &gain[i], &gain[i], -0.5 * flicker.variance);
+    for (g, c) in gain.iter().zip(&cg) {
+        for r in 0..m {
+            for q in 0..m {
+                acc[r * m + q] += g[r] * c[q];
             }
         }
-        // Random walk from the session's first observation: K^2 min(tau_i, tau_j).
-        let mut earlier = vec![0.0; m];
-        for &i in &order {
-            let tau = time_s[i] - time_s[first];
-            add_sym(&mut acc, &gain[i], &gain[i], 0.5 * k2 * tau);
-            add_sym(&mut acc, &gain[i], &earlier, k2);
-            for (e, g) in earlier.iter_mut().zip(&gain[i]) {
-                *e += g * tau;
-            }
-        }
-        // Less what the weights already hold.
-        for &i in &order {
-            add_sym(&mut acc, &gain[i], &gain[i], -0.5 * d);
+    }
+    // Symmetric up to rounding; make it exactly so.
+    for r in 0..m {
+        for q in 0..r {
+            let v = 0.5 * (acc[r * m + q] + acc[q * m + r]);
+            acc[r * m + q] = v;
+            acc[q * m + r] = v;
         }
     }
     acc
@@ -230,8 +198,6 @@ pub fn between_station_excess(
         members[j].push(i);
     }
     let flicker = Flicker::new(noise.bias_instability);
-    let k2 = noise.random_walk.powi(2);
-    let d = noise.window_variance();
     let mut total = 0.0;
     for (j, obs) in members.iter().enumerate() {
         if obs.is_empty() {
@@ -250,11 +216,7 @@ pub fn between_station_excess(
         let mut local = 0.0;
         for &a in obs {
             for &b in obs {
-                let mut c = flicker.covariance(time_s[a] - time_s[b])
-                    + k2 * (time_s[a].min(time_s[b]) - first);
-                if a == b {
-                    c -= d;
-                }
+                let c = pair_covariance(&flicker, noise, (time_s[a], time_s[b], first), a == b);
                 local += w[a] * bng[a] * c * bng[b] * w[b];
             }
         }
@@ -289,15 +251,11 @@ pub fn within_station_excess(
         members[j].push(i);
     }
     let flicker = Flicker::new(noise.bias_instability);
-    let k2 = noise.random_walk.powi(2);
-    let d = noise.window_variance();
     let mut total = 0.0;
     for obs in members.iter().filter(|o| o.len() > 1) {
         let first = firsts[session[obs[0]]];
         let cov = |a: usize, b: usize| {
-            let c =
-                flicker.covariance(time_s[a] - time_s[b]) + k2 * (time_s[a].min(time_s[b]) - first);
-            if a == b { c - d } else { c }
+            pair_covariance(&flicker, noise, (time_s[a], time_s[b], first), a == b)
         };
         let w: Vec<f64> = obs.iter().map(|&i| sigma_ng[i].powi(-2)).collect();
         let sum_w: f64 = w.iter().sum();
@@ -315,6 +273,18 @@ pub fn within_station_excess(
         total += diag - all / sum_w;
     }
     total
+}
+
+/// The model's covariance (less the diagonal the weights hold) of the window means at
+/// `ta` and `tb` of one session that began at `first`; `same`: one and the same window.
+fn pair_covariance(
+    flicker: &Flicker,
+    noise: &ColouredAdc,
+    (ta, tb, first): (f64, f64, f64),
+    same: bool,
+) -> f64 {
+    let c = flicker.covariance(ta - tb) + noise.random_walk.powi(2) * (ta.min(tb) - first);
+    if same { c - noise.window_variance() } else { c }
 }
 
 /// The first observation time of each session, by session index.
