@@ -110,8 +110,9 @@ struct Station {
     t2_variance: f64,
 }
 
-/// Station-level sums of a solution: `station[i]` groups observation i, `dof[i]` is the dof
-/// of its sigma_Dz (None: known).
+/// Station-level sums of a solution, by station index (a station without observations is
+/// all zeros): `station[i]` groups observation i, `dof[i]` is the dof of its sigma_Dz
+/// (None: known).
 fn stations(s: &crate::gh::Solution, station: &[usize], dof: &[Option<f64>]) -> Vec<Station> {
     let count = station.iter().max().map_or(0, |m| m + 1);
     let mut out = vec![Station::default(); count];
@@ -125,31 +126,30 @@ fn stations(s: &crate::gh::Solution, station: &[usize], dof: &[Option<f64>]) -> 
         st.n += 1.0;
         st.t2_variance = st.t2_variance.max(t2_variance(dof[i]));
     }
-    for st in &mut out {
+    for st in out.iter_mut().filter(|st| st.n > 0.0) {
         // n_j - 1 of the station's redundancy lies within it.
         st.redundancy = (st.redundancy + 1.0).max(0.0);
-        st.share /= st.n.max(1.0);
+        st.share /= st.n;
     }
-    out.retain(|st| st.n > 0.0);
     out
 }
 
 impl Station {
     fn between(&self) -> f64 {
-        self.sum_we * self.sum_we / self.sum_w
+        if self.sum_w > 0.0 {
+            self.sum_we * self.sum_we / self.sum_w
+        } else {
+            0.0
+        }
     }
 }
 
 /// The theodolite's share of each station's variance, by station index.
 pub fn shares(s: &crate::gh::Solution, station: &[usize]) -> Vec<f64> {
-    let count = station.iter().max().map_or(0, |m| m + 1);
-    let mut sum = vec![0.0f64; count];
-    let mut n = vec![0.0f64; count];
-    for (i, &j) in station.iter().enumerate() {
-        sum[j] += s.q_parts[i][0] / s.q_ww[i];
-        n[j] += 1.0;
-    }
-    sum.iter().zip(&n).map(|(a, b)| a / b.max(1.0)).collect()
+    stations(s, station, &vec![None; station.len()])
+        .iter()
+        .map(|x| x.share)
+        .collect()
 }
 
 /// The global test of a solution: the between-station part of v^T P v against its scaled
@@ -160,11 +160,18 @@ pub fn lack_of_fit(
     dof: &[Option<f64>],
     excess: f64,
 ) -> ScaledChi2 {
-    let st = stations(s, station, dof);
+    between_form(&stations(s, station, dof), |_| 1.0, excess)
+}
+
+/// The between-station form with each station's part weighted by `weight`, against its
+/// scaled chi-square.
+fn between_form(st: &[Station], weight: impl Fn(&Station) -> f64, excess: f64) -> ScaledChi2 {
     ScaledChi2::with_excess(
-        st.iter().map(Station::between).sum(),
-        st.iter().map(|x| x.redundancy).sum(),
-        st.iter().map(|x| x.redundancy * x.t2_variance).sum(),
+        st.iter().map(|x| x.between() * weight(x)).sum(),
+        st.iter().map(|x| x.redundancy * weight(x)).sum(),
+        st.iter()
+            .map(|x| x.redundancy * weight(x).powi(2) * x.t2_variance)
+            .sum(),
         excess,
     )
 }
@@ -205,15 +212,7 @@ pub fn theodolite_step(
     dof: &[Option<f64>],
     excess: f64,
 ) -> ScaledChi2 {
-    let st = stations(s, station, dof);
-    ScaledChi2::with_excess(
-        st.iter().map(|x| x.between() * x.share).sum(),
-        st.iter().map(|x| x.redundancy * x.share).sum(),
-        st.iter()
-            .map(|x| x.redundancy * x.share * x.share * x.t2_variance)
-            .sum(),
-        excess,
-    )
+    between_form(&stations(s, station, dof), |x| x.share, excess)
 }
 
 /// The theodolite component from its last step (`form`, at the converged components) and

@@ -9,7 +9,7 @@
 //! separable in time order. Sessions are independent. No I/O.
 
 use crate::gh::Solution;
-use align::colour::{FLICKER_AVAR, Flicker};
+use align::colour::Flicker;
 
 /// The coloured ADC noise of one accelerometer, in counts.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,8 +26,12 @@ impl ColouredAdc {
     /// The variance align added to a window mean's: the coloured terms of the Allan variance
     /// at the window's length.
     pub fn window_variance(&self) -> f64 {
-        FLICKER_AVAR * self.bias_instability.powi(2)
-            + self.random_walk.powi(2) * self.window_s / 3.0
+        align::allan::NoiseTerms {
+            white_density: 0.0,
+            bias_instability: self.bias_instability,
+            random_walk: self.random_walk,
+        }
+        .allan_variance(self.window_s)
     }
 }
 

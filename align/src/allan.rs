@@ -124,7 +124,7 @@ impl NoiseTerms {
     /// The Allan variance of the three terms at averaging time `tau_s`.
     pub fn allan_variance(&self, tau_s: f64) -> f64 {
         self.white_density.powi(2) / tau_s
-            + 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI * self.bias_instability.powi(2)
+            + crate::colour::FLICKER_AVAR * self.bias_instability.powi(2)
             + self.random_walk.powi(2) * tau_s / 3.0
     }
 }
@@ -138,13 +138,7 @@ const SIGNIFICANCE: f64 = 2.0;
 /// bias instability or random walk below [`SIGNIFICANCE`] standard errors (the white term
 /// always stays).
 pub fn fit_noise(points: &[AllanPoint]) -> NoiseTerms {
-    let basis = |p: &AllanPoint| {
-        [
-            1.0 / p.tau_s,
-            2.0 * std::f64::consts::LN_2 / std::f64::consts::PI,
-            p.tau_s / 3.0,
-        ]
-    };
+    let basis = |p: &AllanPoint| [1.0 / p.tau_s, crate::colour::FLICKER_AVAR, p.tau_s / 3.0];
     let mut active = [true; 3];
     loop {
         let idx: Vec<usize> = (0..3).filter(|&j| active[j]).collect();

@@ -881,13 +881,12 @@ fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
             .iter()
             .map(|r| (r.tau_s.log10(), r.adev.log10()))
             .collect();
-        let model = |tau: f64| {
-            (n.white_density_counts_per_sqrt_hz.powi(2) / tau
-                + 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI
-                    * n.bias_instability_counts.powi(2)
-                + n.random_walk_counts_sqrt_hz.powi(2) * tau / 3.0)
-                .sqrt()
+        let terms = align::allan::NoiseTerms {
+            white_density: n.white_density_counts_per_sqrt_hz,
+            bias_instability: n.bias_instability_counts,
+            random_walk: n.random_walk_counts_sqrt_hz,
         };
+        let model = |tau: f64| terms.allan_variance(tau).sqrt();
         let line: Vec<(f64, f64)> = n
             .allan
             .iter()
