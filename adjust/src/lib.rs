@@ -267,13 +267,8 @@ fn skip_reason(ds: &Dataset, job: &Job<'_>, e: &CalError) -> String {
                 .sessions
                 .iter()
                 .find(|s| s.session.id == o.session)
-                .map(|s| {
-                    s.theodolite
-                        .strip_prefix(&ds.dir)
-                        .unwrap_or(&s.theodolite)
-                        .display()
-                        .to_string()
-                })
+                .and_then(|s| s.theodolite.as_deref())
+                .map(|t| t.strip_prefix(&ds.dir).unwrap_or(t).display().to_string())
                 .unwrap_or_default();
             format!(
                 "the reading at {log} line {} (session {}, station {}) has zero variance: its sd of Dz and of the counts are both 0",
@@ -312,7 +307,13 @@ fn plan_jobs<'a>(
     for model in models {
         for acc in &ds.manifest.instrument.accelerometer {
             let groups: Vec<String> = match model.per {
-                Per::Session => ds.sessions.iter().map(|s| s.session.id.clone()).collect(),
+                // Survey sessions have no observations: they are applied, not calibrated.
+                Per::Session => ds
+                    .sessions
+                    .iter()
+                    .filter(|s| !s.is_survey())
+                    .map(|s| s.session.id.clone())
+                    .collect(),
                 Per::All => vec!["all".to_owned()],
             };
             for session in groups {

@@ -315,6 +315,9 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
         ..Formed::default()
     };
     for (si, s) in ds.sessions.iter().enumerate() {
+        if s.is_survey() {
+            continue;
+        }
         let never = ingest_report
             .sessions
             .iter()
@@ -629,7 +632,7 @@ fn write_outputs(ds: &Dataset, out: &Path, setup: Setup, formed: Formed) -> Resu
     let errors = ds
         .sessions
         .iter()
-        .filter(|s| !s.session.expect_empty)
+        .filter(|s| !s.session.expect_empty && !s.is_survey())
         .filter(|s| {
             formed
                 .counts
@@ -657,6 +660,12 @@ fn write_outputs(ds: &Dataset, out: &Path, setup: Setup, formed: Formed) -> Resu
         disconnected: formed.disconnected,
         observations: rows,
         custody: Custody { inputs, outputs },
+        surveys: ds
+            .sessions
+            .iter()
+            .filter(|s| s.is_survey())
+            .map(|s| s.session.id.clone())
+            .collect(),
         errors,
     };
     ingest::write_json_atomically(&ledger_path, &report)?;

@@ -179,10 +179,13 @@ fn session_errors(
             "session {id}: {files} gave no usable acceleration sample {hint}"
         ));
     }
-    if summary.readings == 0 && !s.session.expect_empty {
+    if let Some(theodolite) = &s.theodolite
+        && summary.readings == 0
+        && !s.session.expect_empty
+    {
         errors.push(format!(
             "session {id}: {} gave no usable theodolite reading {hint}",
-            relative(ds, &s.theodolite)
+            relative(ds, theodolite)
         ));
     }
     let declared = ds.manifest.instrument.sample_rate_hz;
@@ -264,8 +267,45 @@ fn read_acquisition(
     }
 }
 
-/// Ingests one session: its acquisition logs and, on a thread of its own meanwhile, its
-/// theodolite log. Returns what it gave, and what makes it unusable as a whole, if anything.
+/// Reads a session's acquisition logs and, on a thread of its own meanwhile, its theodolite
+/// log at `path`: the readings, the acquisition's median interval, and the theodolite's ledger.
+fn read_with_theodolite(
+    ds: &Dataset,
+    s: &manifest::ResolvedSession,
+    path: &Path,
+    opts: &Options,
+    streams: &mut StreamWriter,
+    files: &mut Vec<FileLedger>,
+) -> Result<(Vec<theodolite::Reading>, Option<i64>, FileLedger)> {
+    // The theodolite log is independent of the acquisition log, and the Parquet writer is
+    // idle while the first row group fills.
+    let mut ledger = new_ledger(ds, path, &s.session.id, "theodolite", "lines");
+    let skip_bad_lines = opts.skip_bad_lines;
+    std::thread::scope(|scope| {
+        let theodolite = scope.spawn(move || {
+            theodolite::read_theodolite(
+                s,
+                path,
+                skip_bad_lines,
+                &mut ledger,
+                &indicatif::ProgressBar::hidden(),
+            )
+            .map(|readings| (readings, ledger))
+        });
+        let acquisition = read_acquisition(ds, s, opts, streams, files);
+        let readings = theodolite.join().map_err(|_| {
+            Error::io(
+                path,
+                std::io::Error::other("the theodolite reading thread panicked"),
+            )
+        })?;
+        let interval_ns = acquisition?;
+        readings.map(|(r, ledger)| (r, interval_ns, ledger))
+    })
+}
+
+/// Ingests one session: its acquisition logs and (tilt-table sessions) its theodolite log.
+/// Returns what it gave, and what makes it unusable as a whole, if anything.
 fn ingest_session(
     ds: &Dataset,
     s: &manifest::ResolvedSession,
@@ -277,43 +317,29 @@ fn ingest_session(
 ) -> Result<(SessionSummary, Vec<String>)> {
     let id = s.session.id.as_str();
     streams.start_session(index)?;
-    // The theodolite log is read on its own thread while the acquisition log is: it is
-    // independent of it, and the Parquet writer is idle while the first row group fills.
-    let mut ledger = new_ledger(ds, &s.theodolite, id, "theodolite", "lines");
-    let skip_bad_lines = opts.skip_bad_lines;
-    let ((readings, theodolite_ledger), interval_ns) = std::thread::scope(|scope| {
-        let theodolite = scope.spawn(move || {
-            theodolite::read_theodolite(
-                s,
-                skip_bad_lines,
-                &mut ledger,
-                &indicatif::ProgressBar::hidden(),
-            )
-            .map(|readings| (readings, ledger))
-        });
-        let acquisition = read_acquisition(ds, s, opts, streams, files);
-        let readings = theodolite.join().map_err(|_| {
-            Error::io(
-                &s.theodolite,
-                std::io::Error::other("the theodolite reading thread panicked"),
-            )
-        })?;
-        let interval_ns = acquisition?;
-        readings.map(|r| (r, interval_ns))
-    })?;
-    theo.write(
-        id,
-        s.session.theodolite_unit,
-        s.session.theodolite_time_scale,
-        &readings,
-    )?;
-    files.push(theodolite_ledger);
+    let (readings, interval_ns) = match &s.theodolite {
+        Some(path) => {
+            let (readings, interval_ns, ledger) =
+                read_with_theodolite(ds, s, path, opts, streams, files)?;
+            theo.write(
+                id,
+                s.session.theodolite_unit,
+                s.session.theodolite_time_scale,
+                &readings,
+            )?;
+            files.push(ledger);
+            (readings.len() as u64, interval_ns)
+        }
+        // A survey: acquisition logs only.
+        None => (0, read_acquisition(ds, s, opts, streams, files)?),
+    };
     let st = streams.stats()?;
     let summary = SessionSummary {
         id: id.to_owned(),
         acceleration_samples: st.acceleration,
         temperature_samples: st.temperature,
-        readings: readings.len() as u64,
+        kind: s.session.kind,
+        readings,
         first_gps_ns: st.first_gps_ns,
         last_gps_ns: st.last_gps_ns,
         channels_never_connected: (0..3u8)

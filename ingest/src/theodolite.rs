@@ -42,11 +42,11 @@ fn scale_name(s: TimeScale) -> &'static str {
 /// ([`ResolvedSession::gps_range_ns`]) is rejected as outside the session, counted and listed.
 pub fn read_theodolite(
     session: &ResolvedSession,
+    path: &Path,
     skip_bad_lines: bool,
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
 ) -> Result<Vec<Reading>> {
-    let path: &Path = &session.theodolite;
     let scale = session.session.theodolite_time_scale;
     let unit = session.session.theodolite_unit;
     let range = session.gps_range_ns();

@@ -237,6 +237,19 @@ fn dataset_section(st: &Stages<'_>) -> Section {
         m.site.g_abs_mgal, m.site.gradient_mgal_per_m, m.site.sensor_height_m, cal.gravity_mgal
     ));
     s.text.push(format!("Earth tide: {}.", cal.earth_tide));
+    let surveys: Vec<&str> = ds
+        .sessions
+        .iter()
+        .filter(|x| x.is_survey())
+        .map(|x| x.session.id.as_str())
+        .collect();
+    if !surveys.is_empty() {
+        s.text.push(format!(
+            "Survey sessions, ingested but not calibrated (no theodolite; `cargo xtask apply` \
+             calibrates them): {}.",
+            surveys.join(", ")
+        ));
+    }
     let mut inputs = Table::new(&["file", "SHA-256", "bytes"]);
     for f in &ingest_report.files {
         inputs
@@ -687,7 +700,7 @@ fn plots_section(st: &Stages<'_>) -> Result<Section, Error> {
     for r in st.cal.results.iter().filter(|r| r.session != "all") {
         s.plots.extend(fit_plots(st, r)?);
     }
-    for session in &st.ds.sessions {
+    for session in st.ds.sessions.iter().filter(|x| !x.is_survey()) {
         s.plots.extend(sigma_plot(st, &session.session.id)?);
         s.plots.extend(tide_plot(st, &session.session.id)?);
     }

@@ -141,6 +141,9 @@ pub struct AlignReport {
     /// given and `earth_tide` is not false).
     #[serde(default)]
     pub earth_tide_applied: bool,
+    /// Survey sessions: no theodolite, so nothing to align; left to `apply`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub surveys: Vec<String>,
     /// Sessions that gave no usable observation (and were not declared `expect_empty`):
     /// the run fails, and downstream stages refuse this ledger.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

@@ -156,6 +156,9 @@ pub const LEDGER_FORMAT: &str = "gravcal-ingest/1";
 pub struct SessionSummary {
     /// Session id.
     pub id: String,
+    /// Tilt-table or survey.
+    #[serde(default)]
+    pub kind: crate::contract::manifest::SessionKind,
     /// Acceleration samples accepted.
     pub acceleration_samples: u64,
     /// Temperature samples accepted.

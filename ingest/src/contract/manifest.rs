@@ -222,6 +222,28 @@ impl AngleUnit {
     }
 }
 
+/// What a session is for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SessionKind {
+    /// The block tilted over the benchmark, read by the theodolite: calibrated.
+    #[default]
+    TiltTable,
+    /// Acquisition logs only (a survey): ingested, passed by align, adjust and report, and
+    /// calibrated by `apply`.
+    Survey,
+}
+
+impl SessionKind {
+    /// The kind's name as in the manifest.
+    pub fn name(self) -> &'static str {
+        match self {
+            SessionKind::TiltTable => "tilt-table",
+            SessionKind::Survey => "survey",
+        }
+    }
+}
+
 /// `[[session]]`.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
@@ -239,8 +261,13 @@ pub struct Session {
     /// CSV temperature log.
     #[serde(default)]
     pub temperature_csv: Option<String>,
-    /// Theodolite log.
-    pub theodolite: String,
+    /// What the session is for (FORMATS.md 8.4, 8.5): a tilt-table calibration (default)
+    /// or a survey, which the calibration is applied to.
+    #[serde(default)]
+    pub kind: SessionKind,
+    /// Theodolite log: required for a tilt-table session, absent from a survey.
+    #[serde(default)]
+    pub theodolite: Option<String>,
     /// Time scale of the theodolite log.
     #[serde(default)]
     pub theodolite_time_scale: TimeScale,
@@ -379,8 +406,8 @@ pub struct ResolvedSession {
     pub start_gps_ns: i64,
     /// Acquisition logs.
     pub acquisition: Acquisition,
-    /// Theodolite log.
-    pub theodolite: PathBuf,
+    /// Theodolite log (none for a survey session).
+    pub theodolite: Option<PathBuf>,
 }
 
 /// A validated dataset: the manifest, its folder, and its sessions resolved.
@@ -397,6 +424,11 @@ pub struct Dataset {
 }
 
 impl ResolvedSession {
+    /// A survey session: acquisition logs only, not calibrated.
+    pub fn is_survey(&self) -> bool {
+        self.session.kind == SessionKind::Survey
+    }
+
     /// The session's range of GPS time, `[00:00 UTC of its date, + days)`, ns: every
     /// record of the session must lie inside it.
     pub fn gps_range_ns(&self) -> (i64, i64) {
@@ -643,7 +675,26 @@ impl Dataset {
                     ));
                 }
             };
-            let theodolite = file(format!("session[{i}].theodolite"), &s.theodolite)?;
+            let theodolite = match (s.kind, &s.theodolite) {
+                (SessionKind::TiltTable, Some(t)) => Some(file(format!("session[{i}].theodolite"), t)?),
+                (SessionKind::TiltTable, None) => {
+                    return Err(err(
+                        format!("session[{i}].theodolite"),
+                        "missing: a tilt-table session needs its theodolite log (a session \
+                         without one is `kind = \"survey\"`)"
+                            .to_owned(),
+                    ));
+                }
+                (SessionKind::Survey, Some(_)) => {
+                    return Err(err(
+                        format!("session[{i}].theodolite"),
+                        "a survey session has no theodolite log (it is calibrated, not a \
+                         calibration)"
+                            .to_owned(),
+                    ));
+                }
+                (SessionKind::Survey, None) => None,
+            };
             if !(1..=366).contains(&s.days) {
                 return Err(err(
                     format!("session[{i}].days"),
