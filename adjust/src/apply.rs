@@ -1,18 +1,19 @@
-//! Applying a calibration (MODEL.md 6.7), the arithmetic of `cargo xtask apply` (issue 16;
-//! the survey streams, the Parquet output and the benchmark are still to come): counts and
-//! temperature to the acceleration along the sensitive axis, its sigma from the parameters'
-//! covariance, sigma_a^2 = J C J^T with J = dc/dp at (Ng, T), and flags for counts or
-//! temperatures outside the ranges the calibration saw (flagged, never silently
-//! extrapolated). No I/O.
+//! Applying a calibration (MODEL.md 6.7, FORMATS.md 8.5), `cargo xtask apply`.
+//!
+//! This module is the arithmetic, free of I/O: counts and temperature to the acceleration
+//! along the sensitive axis, its sigma from the parameters' covariance, sigma_a^2 = J C J^T
+//! with J = dc/dp at (Ng, T), and flags for counts or temperatures outside the ranges the
+//! calibration saw (flagged, never silently extrapolated). [`select`] checks a calibration
+//! against a survey's instrument and picks the fits to apply; [`stream`] is the stage: the
+//! survey's ingested samples to `OUT/apply/acceleration.parquet` and `apply.json`.
+
+pub mod select;
+pub mod stream;
 
 use ingest::contract::calibration::CalibrationResult;
-
-/// The sample's counts lie outside the range the calibration used.
-pub const COUNTS_OUT_OF_RANGE: u8 = 1;
-/// Its temperature lies outside the calibration's.
-pub const TEMPERATURE_OUT_OF_RANGE: u8 = 2;
-/// The model has temperature terms and the sample has no temperature: no acceleration.
-pub const NO_TEMPERATURE: u8 = 4;
+pub use ingest::contract::tables::applied::{
+    COUNTS_OUT_OF_RANGE, NO_TEMPERATURE, TEMPERATURE_OUT_OF_RANGE,
+};
 
 /// One sample calibrated.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -60,6 +60,15 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// A calibration cannot be applied as asked (the instrument, the model or the session
+    /// does not match): `path` is the calibration file.
+    #[error("{}: {message}", path.display())]
+    Apply {
+        /// The calibration file.
+        path: PathBuf,
+        /// What does not match, and what to change.
+        message: String,
+    },
     /// The fit command's input is unusable.
     #[error("{0}")]
     Fit(String),
@@ -699,6 +708,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
             })
             .collect(),
         gravity_mgal: g,
+        accelerometers: ds.manifest.instrument.accelerometer.clone(),
         results,
         skipped,
         custody: Custody::default(),

@@ -17,7 +17,7 @@
 
 pub mod allan;
 pub mod colour;
-mod read;
+pub mod read;
 pub mod tide;
 pub mod weights;
 pub mod window;

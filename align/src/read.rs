@@ -13,6 +13,11 @@ use std::path::Path;
 use std::sync::Arc;
 
 fn batches(path: &Path) -> Result<impl Iterator<Item = Result<RecordBatch>>> {
+    batches_of(path, 1 << 16)
+}
+
+/// The record batches of a table, `rows` at a time.
+fn batches_of(path: &Path, rows: usize) -> Result<impl Iterator<Item = Result<RecordBatch>>> {
     let f = std::fs::File::open(path).map_err(|e| ingest::Error::Io {
         path: path.to_path_buf(),
         source: e,
@@ -22,7 +27,7 @@ fn batches(path: &Path) -> Result<impl Iterator<Item = Result<RecordBatch>>> {
             path: path.to_path_buf(),
             source,
         })?
-        .with_batch_size(1 << 16)
+        .with_batch_size(rows)
         .build()
         .map_err(|source| Error::Parquet {
             path: path.to_path_buf(),
@@ -181,10 +186,27 @@ pub fn temperatures(dir: &Path) -> Result<Temperatures> {
     Ok(out)
 }
 
-/// Streams the acceleration table in file order: `f(session index, time_ns, counts, status)`.
-pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8)) -> Result<()> {
+/// One batch of the acceleration table, as stored: per row the session index, GPS time
+/// (ns), the counts of channels 1..3 (null where not connected or over range) and the status.
+pub struct AccelerationBatch<'a> {
+    /// Session index per row.
+    pub session: &'a [u16],
+    /// GPS time per row, ns.
+    pub time_ns: &'a [i64],
+    /// Counts of channels 1..3.
+    pub counts: [&'a arrow::array::Int32Array; 3],
+    /// Status bits per row.
+    pub status: &'a [u8],
+}
+
+/// Streams the acceleration table in file order, a batch of `batch_rows` rows at a time.
+pub fn acceleration_batches(
+    dir: &Path,
+    batch_rows: usize,
+    mut f: impl FnMut(AccelerationBatch<'_>) -> Result<()>,
+) -> Result<()> {
     let path = dir.join(tables::acceleration::FILE);
-    for b in batches(&path)? {
+    for b in batches_of(&path, batch_rows)? {
         let b = b?;
         let session = session_index(&path, &b)?;
         let time = column(&path, &b, tables::TIME_GPS_NS, &DataType::Int64)?
@@ -197,12 +219,25 @@ pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8
             .iter()
             .map(|n| column(&path, &b, n, &DataType::Int32).map(|c| c.as_primitive::<Int32Type>()))
             .collect::<Result<_>>()?;
-        for i in 0..b.num_rows() {
-            let counts = [0, 1, 2].map(|ch| c[ch].is_valid(i).then(|| c[ch].value(i)));
-            f(session[i], time[i], counts, status[i]);
-        }
+        f(AccelerationBatch {
+            session,
+            time_ns: time,
+            counts: [c[0], c[1], c[2]],
+            status,
+        })?;
     }
     Ok(())
+}
+
+/// Streams the acceleration table in file order: `f(session index, time_ns, counts, status)`.
+pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8)) -> Result<()> {
+    acceleration_batches(dir, 1 << 16, |b| {
+        for i in 0..b.time_ns.len() {
+            let counts = b.counts.map(|c| c.is_valid(i).then(|| c.value(i)));
+            f(b.session[i], b.time_ns[i], counts, b.status[i]);
+        }
+        Ok(())
+    })
 }
 
 /// Writes `observations.parquet` into `dir`; returns the rows written.

@@ -92,10 +92,64 @@ pub fn sample_sd(values: &[f64]) -> Option<f64> {
     Some((values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt())
 }
 
+/// [`interpolate`] for times that mostly increase (a stream in time order): it remembers
+/// where the last time fell and steps from there, searching anew only when time goes back.
+/// The same values as [`interpolate`], bit for bit.
+#[derive(Clone, Debug)]
+pub struct Interpolator<'a> {
+    times: &'a [i64],
+    values: &'a [f64],
+    /// `times[..next]` are <= the last time asked.
+    next: usize,
+    last: i64,
+}
+
+impl<'a> Interpolator<'a> {
+    /// Over a time series sorted by time.
+    pub fn new(times: &'a [i64], values: &'a [f64]) -> Self {
+        Interpolator {
+            times,
+            values,
+            next: 0,
+            last: i64::MIN,
+        }
+    }
+
+    /// The value at `t` as [`interpolate`] gives it.
+    pub fn at(&mut self, t: i64, max_gap_ns: i64) -> Option<(f64, i64)> {
+        let times = self.times;
+        if t < self.last {
+            self.next = times.partition_point(|&x| x <= t);
+        } else {
+            while self.next < times.len() && times[self.next] <= t {
+                self.next += 1;
+            }
+        }
+        self.last = t;
+        interpolate_at(times, self.values, self.next, t, max_gap_ns)
+    }
+}
+
 /// Linear interpolation in a time series sorted by time; `None` when the nearest sample is
 /// further than `max_gap_ns` (or there is none). Returns (value, distance to nearest, ns).
 pub fn interpolate(times: &[i64], values: &[f64], t: i64, max_gap_ns: i64) -> Option<(f64, i64)> {
-    let i = times.partition_point(|&x| x <= t);
+    interpolate_at(
+        times,
+        values,
+        times.partition_point(|&x| x <= t),
+        t,
+        max_gap_ns,
+    )
+}
+
+/// [`interpolate`] where `i` is the first index with a time after `t`.
+fn interpolate_at(
+    times: &[i64],
+    values: &[f64],
+    i: usize,
+    t: i64,
+    max_gap_ns: i64,
+) -> Option<(f64, i64)> {
     let left = i.checked_sub(1).map(|j| (times[j], values[j]));
     let right = times.get(i).map(|&x| (x, values[i]));
     let (value, nearest) = match (left, right) {
@@ -113,6 +167,24 @@ pub fn interpolate(times: &[i64], values: &[f64], t: i64, max_gap_ns: i64) -> Op
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_interpolator_gives_interpolate_s_values() {
+        let times: Vec<i64> = vec![10, 20, 20, 35, 60, 61];
+        let values = [1.0, 2.0, 4.0, -3.0, 0.5, 7.0];
+        let mut it = Interpolator::new(&times, &values);
+        // Forward, repeated, then back in time, then forward past the end.
+        for t in [
+            0, 5, 10, 15, 20, 20, 21, 34, 35, 50, 12, 13, 61, 62, 100, 9, 200,
+        ] {
+            for gap in [0, 5, 30] {
+                let mut fresh = Interpolator::new(&times, &values);
+                let want = interpolate(&times, &values, t, gap);
+                assert_eq!(fresh.at(t, gap), want, "t {t} gap {gap} fresh");
+            }
+            assert_eq!(it.at(t, 30), interpolate(&times, &values, t, 30), "t {t}");
+        }
+    }
 
     #[test]
     fn mean_sd_and_precision_far_from_zero() {

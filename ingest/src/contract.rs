@@ -10,12 +10,14 @@
 //! | [`ledger`] | `ingest.json`: per input file, what was read, accepted and rejected |
 //! | [`align_ledger`] | `align.json`: observations used and excluded, by reason |
 //! | [`calibration`] | `calibration.json`: the results (FORMATS.md section 6) |
+//! | [`apply_ledger`] | `apply.json`: the calibration applied to a survey, rows and flags |
 //! | [`custody`] | the SHA-256 of every file each stage read and wrote, and its check |
 //!
 //! Outputs live under `OUT/<stage>/`, the stage folders named by each ledger module's
 //! `STAGE_DIR`.
 
 pub mod align_ledger;
+pub mod apply_ledger;
 pub mod calibration;
 pub mod custody;
 pub mod ledger;

@@ -36,6 +36,8 @@ enum Cmd {
     Adjust(DatasetArgs),
     /// Stage outputs to the report (OUT/report/).
     Report(DatasetArgs),
+    /// A calibration applied to a dataset's (survey's) samples (OUT/apply/; FORMATS.md 8.5).
+    Apply(adjust::apply::stream::ApplyArgs),
     /// Writes the committed fixture datasets, checks them, or writes a large benchmark log.
     Fixtures {
         /// Regenerate into a scratch folder and compare with what is committed; change nothing.
@@ -263,6 +265,19 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Align(a) => run_stages(&a, &["align"]),
         Cmd::Adjust(a) => run_stages(&a, &["adjust"]),
         Cmd::Report(a) => run_stages(&a, &["report"]),
+        Cmd::Apply(mut a) => {
+            a.out = Some(out_dir(&DatasetArgs {
+                dataset: a.dataset.clone(),
+                out: a.out.clone(),
+            })?);
+            let t0 = std::time::Instant::now();
+            let report = a
+                .run(&workspace_root())
+                .with_context(|| format!("apply on {}", a.dataset.display()))?;
+            adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
+            eprintln!("apply: {:.2} s", t0.elapsed().as_secs_f64());
+            Ok(())
+        }
         Cmd::Fixtures {
             check,
             bench,

@@ -218,6 +218,10 @@ pub struct Calibration {
     pub inputs: Vec<Input>,
     /// Gravity at the proof masses, mGal.
     pub gravity_mgal: f64,
+    /// The accelerometers calibrated, as the manifest declares them (id, channel, serial):
+    /// what `apply` checks a survey's instrument against.
+    #[serde(default)]
+    pub accelerometers: Vec<crate::contract::manifest::Accelerometer>,
     /// Fitted calibrations.
     pub results: Vec<CalibrationResult>,
     /// Fits without a result.

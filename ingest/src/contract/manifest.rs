@@ -676,7 +676,9 @@ impl Dataset {
                 }
             };
             let theodolite = match (s.kind, &s.theodolite) {
-                (SessionKind::TiltTable, Some(t)) => Some(file(format!("session[{i}].theodolite"), t)?),
+                (SessionKind::TiltTable, Some(t)) => {
+                    Some(file(format!("session[{i}].theodolite"), t)?)
+                }
                 (SessionKind::TiltTable, None) => {
                     return Err(err(
                         format!("session[{i}].theodolite"),

@@ -1,0 +1,402 @@
+//! The apply stage (FORMATS.md 8.5): a dataset's ingested acceleration stream (its survey
+//! sessions, or any session) calibrated sample by sample into
+//! `OUT/apply/acceleration.parquet`, with `OUT/apply/apply.json`.
+//!
+//! Streaming: ingest's table is read a row group (2^17 rows) at a time, each accelerometer's
+//! columns are computed on its own rayon task, and the row group is handed to ingest's
+//! column writer (columns encoded in parallel, appended in schema order, so the bytes do not
+//! depend on the threads). Memory is a row group's columns and the temperature series
+//! (4.096 s samples, 1/128 of the 31.25 Hz stream's rows), so flat in the log's length up
+//! to the temperatures. Every sample is written: where there is no value the acceleration
+//! is null and the flags say why (never a zero).
+
+use super::CalibrationFunction;
+use super::select::{Choice, Selection, Target, select};
+use crate::Error;
+use align::read::{self, AccelerationBatch, Temperatures};
+use align::window::Interpolator;
+use arrow::array::Array;
+use ingest::contract::apply_ledger::{
+    AppliedAccelerometer, ApplyReport, CalibrationUsed, LEDGER_FILE, LEDGER_FORMAT, STAGE_DIR,
+};
+use ingest::contract::calibration::{CALIBRATION_FORMAT, Calibration};
+use ingest::contract::custody::{Custody, FileHash, Folders, Root, sha256_file};
+use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
+use ingest::contract::manifest::Dataset;
+use ingest::contract::status;
+use ingest::contract::tables::{self, applied};
+use ingest::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP};
+use rayon::prelude::*;
+use std::path::Path;
+
+/// What the sign and meaning of the applied acceleration are, for apply.json.
+pub const QUANTITY: &str = "c(Ng, T): the specific force along each accelerometer's sensitive \
+    axis in mGal, in the calibration's convention (at rest, -g cos of the axis's zenith \
+    distance); sigma from the parameters' covariance only, not the sample's own noise";
+
+/// The apply stage's options.
+#[derive(Clone, Debug)]
+pub struct Options<'a> {
+    /// The calibration.json to apply.
+    pub calibration: &'a Path,
+    /// Which of its models and sessions.
+    pub choice: Choice<'a>,
+}
+
+/// Applies a calibration to `dataset`'s acceleration stream (ingesting it into `out` first
+/// unless `out` already holds its verified ingest); writes OUT/apply/.
+pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport, Error> {
+    let ds = Dataset::load(dataset)?;
+    let _lock = ingest::lock::OutputLock::acquire(out)?;
+    let (cal, cal_sha256) = load_calibration(opts.calibration)?;
+    let selection = select(&cal, &ds, &opts.choice).map_err(|message| Error::Apply {
+        path: opts.calibration.to_path_buf(),
+        message,
+    })?;
+    let ingest_report = match IngestReport::load_verified(&ds, out) {
+        Ok(r) => r,
+        Err(_) => ingest::run(dataset, out)?,
+    };
+    let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
+    let temperatures = read::temperatures(&ingest_dir)?;
+    let dir = out.join(STAGE_DIR);
+    std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
+        path: dir.clone(),
+        source: e,
+    })?;
+    let ledger_path = dir.join(LEDGER_FILE);
+    ingest::remove_stale(&ledger_path)?;
+    let max_gap_ns = (ds.manifest.align.max_temperature_gap_s * 1e9).round() as i64;
+    let (rows, lanes) = write_table(
+        &ds,
+        &ingest_dir,
+        &dir,
+        &selection,
+        &temperatures,
+        max_gap_ns,
+    )?;
+    let report = ApplyReport {
+        format: LEDGER_FORMAT.to_owned(),
+        dataset: ds.manifest.name.clone(),
+        software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
+        calibration: CalibrationUsed {
+            path: opts.calibration.display().to_string(),
+            sha256: cal_sha256,
+            dataset: cal.dataset.clone(),
+            model: selection.model.clone(),
+            session: selection.session.clone(),
+        },
+        quantity: QUANTITY.to_owned(),
+        rows_read: rows,
+        rows_written: rows,
+        accelerometers: selection
+            .targets
+            .iter()
+            .zip(&lanes)
+            .map(|(t, lane)| lane.ledger(t))
+            .collect(),
+        max_temperature_gap_s: ds.manifest.align.max_temperature_gap_s,
+        custody: custody(&ds, out, &ingest_report)?,
+    };
+    ingest::write_json_atomically(&ledger_path, &report)?;
+    Ok(report)
+}
+
+/// Reads and checks calibration.json; returns it and its SHA-256.
+fn load_calibration(path: &Path) -> Result<(Calibration, String), Error> {
+    let cal: Calibration = ingest::read_json(path)?;
+    if cal.format != CALIBRATION_FORMAT {
+        return Err(Error::Apply {
+            path: path.to_path_buf(),
+            message: format!(
+                "format `{}`, expected `{CALIBRATION_FORMAT}`: not a gravcal calibration",
+                cal.format
+            ),
+        });
+    }
+    Ok((cal, sha256_file(path)?))
+}
+
+/// The files read (the manifest; ingest's ledger and the two tables, with the hashes its
+/// ledger recorded and `load_verified` has just checked) and the table written.
+fn custody(ds: &Dataset, out: &Path, ingest_report: &IngestReport) -> Result<Custody, Error> {
+    let folders = Folders {
+        dataset: &ds.dir,
+        out,
+    };
+    let mut inputs = vec![
+        folders.record(Root::Dataset, ingest_ledger::MANIFEST_FILE)?,
+        folders.record(
+            Root::Out,
+            &format!(
+                "{}/{}",
+                ingest_ledger::STAGE_DIR,
+                ingest_ledger::LEDGER_FILE
+            ),
+        )?,
+    ];
+    let tables = [tables::acceleration::FILE, tables::temperature::FILE]
+        .map(|t| format!("{}/{t}", ingest_ledger::STAGE_DIR));
+    inputs.extend(
+        ingest_report
+            .custody
+            .outputs
+            .iter()
+            .filter(|f| tables.contains(&f.path))
+            .cloned(),
+    );
+    let outputs: Vec<FileHash> =
+        vec![folders.record(Root::Out, &format!("{STAGE_DIR}/{}", applied::FILE))?];
+    Ok(Custody { inputs, outputs })
+}
+
+/// Streams ingest's acceleration table through the calibration into the applied table;
+/// returns the rows and each accelerometer's counts.
+fn write_table<'t>(
+    ds: &Dataset,
+    ingest_dir: &Path,
+    dir: &Path,
+    selection: &'t Selection,
+    temperatures: &'t Temperatures,
+    max_gap_ns: i64,
+) -> Result<(u64, Vec<Lane<'t>>), Error> {
+    let sessions: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
+    let ids: Vec<String> = selection
+        .targets
+        .iter()
+        .map(|t| t.accelerometer.id.clone())
+        .collect();
+    let flag_columns: Vec<String> = ids
+        .iter()
+        .map(|id| applied::columns(id)[3].clone())
+        .collect();
+    let mut delta: Vec<&str> = vec![tables::SESSION_INDEX, tables::TIME_GPS_NS];
+    delta.extend(flag_columns.iter().map(String::as_str));
+    let mut writer = ColumnTableWriter::create(
+        dir,
+        applied::FILE,
+        "applied acceleration",
+        applied::schema(&sessions, &ids),
+        Encodings {
+            delta: &delta,
+            ..Encodings::default()
+        },
+    )?;
+    let mut lanes: Vec<Lane<'t>> = selection
+        .targets
+        .iter()
+        .map(|t| Lane::new(t, temperatures, sessions.len()))
+        .collect();
+    let mut rows = 0u64;
+    read::acceleration_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
+        let n = b.time_ns.len();
+        rows += n as u64;
+        let mut columns = vec![
+            ColumnValues::Int32(b.session.iter().map(|&s| i32::from(s)).collect(), None),
+            ColumnValues::Int64(b.time_ns.to_vec(), None),
+        ];
+        let per: Vec<[ColumnValues; 4]> = lanes
+            .par_iter_mut()
+            .map(|lane| lane.calibrate(&b, max_gap_ns))
+            .collect();
+        columns.extend(per.into_iter().flatten());
+        writer.write_row_group(n, &columns)?;
+        Ok(())
+    })?;
+    writer.finish()?;
+    Ok((rows, lanes))
+}
+
+/// One accelerometer's way through the stream: its function, its temperature series per
+/// session, and what it has counted.
+struct Lane<'t> {
+    /// Channel, 0-based.
+    channel: usize,
+    function: Option<&'t CalibrationFunction>,
+    /// Per session index: the interpolator over its temperature series.
+    temperatures: Vec<Option<Interpolator<'t>>>,
+    with_value: u64,
+    /// Per flag of [`applied::FLAG_NAMES`], samples flagged.
+    flagged: [u64; applied::FLAG_NAMES.len()],
+}
+
+impl<'t> Lane<'t> {
+    fn new(target: &'t Target, temperatures: &'t Temperatures, sessions: usize) -> Self {
+        let channel = target.accelerometer.channel;
+        Lane {
+            channel: usize::from(channel).saturating_sub(1),
+            function: target.function.as_ref().ok(),
+            temperatures: (0..sessions)
+                .map(|s| {
+                    let s = u16::try_from(s).ok()?;
+                    let (t, v) = temperatures.get(&(s, channel))?;
+                    Some(Interpolator::new(t, v))
+                })
+                .collect(),
+            with_value: 0,
+            flagged: [0; applied::FLAG_NAMES.len()],
+        }
+    }
+
+    /// The calibration function at one sample: (acceleration, sigma, temperature), flags.
+    fn sample(
+        &mut self,
+        b: &AccelerationBatch<'_>,
+        i: usize,
+        max_gap_ns: i64,
+    ) -> (Option<(f64, f64)>, Option<f64>, u8) {
+        let temperature = self
+            .temperatures
+            .get_mut(usize::from(b.session[i]))
+            .and_then(Option::as_mut)
+            .and_then(|it| it.at(b.time_ns[i], max_gap_ns))
+            .map(|(v, _)| v);
+        let (st, ch) = (b.status[i], self.channel);
+        let counts = b.counts[ch];
+        if status::not_connected(st, ch) || !counts.is_valid(i) && !status::over_range(st, ch) {
+            return (None, temperature, applied::NOT_CONNECTED);
+        }
+        if status::over_range(st, ch) {
+            return (None, temperature, applied::SATURATED);
+        }
+        let Some(f) = self.function else {
+            return (None, temperature, applied::NOT_CALIBRATED);
+        };
+        let a = f.apply(f64::from(counts.value(i)), temperature);
+        (a.acceleration_mgal.zip(a.sigma_mgal), temperature, a.flags)
+    }
+
+    /// Its four columns for one batch: acceleration, sigma, temperature, flags.
+    fn calibrate(&mut self, b: &AccelerationBatch<'_>, max_gap_ns: i64) -> [ColumnValues; 4] {
+        let n = b.time_ns.len();
+        let (mut acc, mut sigma, mut temp) = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
+        let (mut acc_def, mut temp_def) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        let mut flags = Vec::with_capacity(n);
+        for i in 0..n {
+            let (value, temperature, f) = self.sample(b, i, max_gap_ns);
+            if let Some((a, s)) = value {
+                acc.push(a);
+                sigma.push(s);
+                self.with_value += 1;
+            }
+            acc_def.push(i16::from(value.is_some()));
+            if let Some(t) = temperature {
+                temp.push(t);
+            }
+            temp_def.push(i16::from(temperature.is_some()));
+            for (k, (bit, _)) in applied::FLAG_NAMES.iter().enumerate() {
+                self.flagged[k] += u64::from(f & bit != 0);
+            }
+            flags.push(i32::from(f));
+        }
+        let levels = |values: &Vec<f64>, def: Vec<i16>| (values.len() < n).then_some(def);
+        let acc_levels = levels(&acc, acc_def);
+        let temp_levels = levels(&temp, temp_def);
+        [
+            ColumnValues::Double(acc, acc_levels.clone()),
+            ColumnValues::Double(sigma, acc_levels),
+            ColumnValues::Double(temp, temp_levels),
+            ColumnValues::Int32(flags, None),
+        ]
+    }
+
+    /// What apply.json says of this accelerometer.
+    fn ledger(&self, target: &Target) -> AppliedAccelerometer {
+        AppliedAccelerometer {
+            id: target.accelerometer.id.clone(),
+            channel: target.accelerometer.channel,
+            serial: target.accelerometer.serial.clone(),
+            not_calibrated: target.function.as_ref().err().cloned(),
+            counts_range: target.counts_range,
+            temperature_range_c: target.temperature_range_c,
+            with_value: self.with_value,
+            flagged: applied::FLAG_NAMES
+                .iter()
+                .zip(self.flagged)
+                .filter(|(_, n)| *n > 0)
+                .map(|((_, name), n)| ((*name).to_owned(), n))
+                .collect(),
+        }
+    }
+}
+
+/// The command line of `cargo xtask apply` and of `gravcal-apply`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ApplyArgs {
+    /// Dataset folder holding the survey (dataset.toml and its logs).
+    pub dataset: std::path::PathBuf,
+    /// The calibration.json to apply (OUT/adjust/calibration.json of the calibration run).
+    #[arg(long)]
+    pub calibration: std::path::PathBuf,
+    /// The model to apply (needed when the calibration holds several).
+    #[arg(long)]
+    pub model: Option<String>,
+    /// The session whose fits to apply, for a model fitted per session.
+    #[arg(long)]
+    pub session: Option<String>,
+    /// Output folder OUT (default: out/<dataset folder name>); writes OUT/apply/.
+    #[arg(long)]
+    pub out: Option<std::path::PathBuf>,
+}
+
+impl ApplyArgs {
+    /// OUT: `--out`, or out/<dataset folder name> under `root`.
+    pub fn out_dir(&self, root: &Path) -> std::path::PathBuf {
+        self.out.clone().unwrap_or_else(|| {
+            root.join("out")
+                .join(self.dataset.file_name().unwrap_or_default())
+        })
+    }
+
+    /// Runs the stage with these arguments.
+    pub fn run(&self, root: &Path) -> Result<ApplyReport, Error> {
+        run(
+            &self.dataset,
+            &self.out_dir(root),
+            &Options {
+                calibration: &self.calibration,
+                choice: Choice {
+                    model: self.model.as_deref(),
+                    session: self.session.as_deref(),
+                },
+            },
+        )
+    }
+}
+
+/// A few lines: the calibration applied, rows, and per accelerometer values and flags.
+pub fn print_summary(r: &ApplyReport, w: &mut impl std::io::Write) {
+    let c = &r.calibration;
+    let _ = writeln!(
+        w,
+        "apply: model {} ({}) of {} (sha256 {}), {} rows read, {} written",
+        c.model,
+        c.session,
+        c.dataset,
+        &c.sha256[..c.sha256.len().min(12)],
+        r.rows_read,
+        r.rows_written
+    );
+    for a in &r.accelerometers {
+        let flags: Vec<String> = a.flagged.iter().map(|(k, n)| format!("{n} {k}")).collect();
+        let _ = writeln!(
+            w,
+            "apply: {}: {} with a value{}{}",
+            a.id,
+            a.with_value,
+            if flags.is_empty() {
+                String::new()
+            } else {
+                format!("; flagged: {}", flags.join(", "))
+            },
+            a.not_calibrated
+                .as_deref()
+                .map(|why| format!(" (not calibrated: {why})"))
+                .unwrap_or_default()
+        );
+    }
+}

@@ -1,0 +1,40 @@
+//! Command-line entry of the `apply` stage: a calibration applied to a dataset's
+//! acceleration stream (FORMATS.md 8.5).
+
+use clap::Parser;
+use std::process::ExitCode;
+
+/// gravcal apply: a survey's samples to accelerations in mGal with sigmas and flags
+/// (OUT/apply/acceleration.parquet and apply.json), ingesting the survey first if needed.
+#[derive(Parser)]
+#[command(version)]
+struct Args {
+    #[command(flatten)]
+    apply: adjust::apply::stream::ApplyArgs,
+    /// Print `peak_rss_kb N` and `cpu_s S` at the end, for benchmarks.
+    #[arg(long, hide = true)]
+    report_peak_rss: bool,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match args.apply.run(std::path::Path::new(".")) {
+        Ok(report) => {
+            adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
+            if args.report_peak_rss {
+                match ingest::peak_rss_kb() {
+                    Some(kb) => eprintln!("peak_rss_kb {kb}"),
+                    None => eprintln!("peak_rss_kb unavailable"),
+                }
+                if let Some(s) = ingest::cpu_seconds() {
+                    eprintln!("cpu_s {s}");
+                }
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("gravcal-apply: error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
