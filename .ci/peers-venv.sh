@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Creates target/peers-venv with the Python peers the tests compare against: PyGTide (ETERNA,
-# built from source: needs gfortran), tidegravity (Longman) and allantools (Allan deviation).
+# built from source: needs gfortran), tidegravity (Longman), allantools (Allan deviation) and
+# DuckDB (reads apply's Parquet output).
 # numpy is pinned with them: PyGTide's compiled part breaks under a numpy other than the one
 # it was built with, and tidegravity asks for 1.25. Idempotent.
 set -euo pipefail
@@ -15,4 +16,7 @@ venv=target/peers-venv
 if ! "$venv/bin/python" -c 'import pygtide, tidegravity, allantools' 2>/dev/null; then
   "$venv/bin/python" -m pip install -q numpy==1.25.0 pygtide==0.9.7 tidegravity==0.5.0 allantools==2024.6
 fi
-"$venv/bin/python" -c 'import pygtide, tidegravity, allantools; print("peers-venv: pygtide, tidegravity and allantools ready")'
+if ! "$venv/bin/python" -c 'import duckdb' 2>/dev/null; then
+  "$venv/bin/python" -m pip install -q duckdb==1.5.6
+fi
+"$venv/bin/python" -c 'import pygtide, tidegravity, allantools, duckdb; print("peers-venv: pygtide, tidegravity, allantools and duckdb", duckdb.__version__, "ready")'
