@@ -720,6 +720,13 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
 
 /// A few lines per fit: b, k and sigma0; and every skipped fit with its reason.
 pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
+    if c.results.is_empty() && c.skipped.is_empty() {
+        let _ = writeln!(
+            w,
+            "adjust: no observation to calibrate with (a dataset of survey sessions only: \
+             `cargo xtask apply` calibrates them)"
+        );
+    }
     for r in &c.results {
         let p: Vec<String> = r
             .parameters

@@ -101,15 +101,15 @@ fn pyarrow_reads(py: &Path, script: &Path, out: &Path) -> Result<()> {
 }
 
 #[derive(Clone, Copy)]
-struct Run {
-    seconds: f64,
-    peak_rss_mb: f64,
+pub(crate) struct Run {
+    pub(crate) seconds: f64,
+    pub(crate) peak_rss_mb: f64,
     /// CPU time, user plus system, if the program reported it.
-    cpu_seconds: Option<f64>,
+    pub(crate) cpu_seconds: Option<f64>,
 }
 
 /// Runs `f` `n` times; the fastest run, and the median wall time.
-fn best_of(n: usize, mut f: impl FnMut() -> Result<Run>) -> Result<(Run, f64)> {
+pub(crate) fn best_of(n: usize, mut f: impl FnMut() -> Result<Run>) -> Result<(Run, f64)> {
     let mut runs = (0..n).map(|_| f()).collect::<Result<Vec<_>>>()?;
     runs.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
     let median = runs.get(runs.len() / 2).context("no run")?.seconds;
@@ -123,11 +123,22 @@ fn ingest_once(bin: &Path, dataset: &Path, out: &Path) -> Result<Run> {
 
 /// Runs a stage binary once; its peak RSS as it reports it.
 fn stage_once(bin: &Path, dataset: &Path, out: &Path) -> Result<Run> {
+    stage_once_with(bin, dataset, out, &[])
+}
+
+/// Runs a stage binary once with `extra` arguments; its peak RSS as it reports it.
+pub(crate) fn stage_once_with(
+    bin: &Path,
+    dataset: &Path,
+    out: &Path,
+    extra: &[&std::ffi::OsStr],
+) -> Result<Run> {
     let t0 = Instant::now();
     let o = Command::new(bin)
         .arg(dataset)
         .arg("--out")
         .arg(out)
+        .args(extra)
         .arg("--report-peak-rss")
         .output()
         .with_context(|| format!("running {}", bin.display()))?;
@@ -156,7 +167,7 @@ fn stage_once(bin: &Path, dataset: &Path, out: &Path) -> Result<Run> {
     })
 }
 
-fn venv_python(root: &Path) -> Result<PathBuf> {
+pub(crate) fn venv_python(root: &Path) -> Result<PathBuf> {
     let venv = root.join("target/bench-venv");
     let py = venv.join("bin/python");
     if !py.exists() {
@@ -197,7 +208,11 @@ fn peer_once(py: &Path, script: &Path, csv: &Path, out: &Path, method: &str) -> 
     if !o.status.success() {
         bail!("{method} failed: {}", String::from_utf8_lossy(&o.stderr));
     }
-    let s = String::from_utf8_lossy(&o.stdout);
+    parse_peer_run(&String::from_utf8_lossy(&o.stdout))
+}
+
+/// A peer script's last line: seconds, peak RSS in kB, CPU seconds.
+pub(crate) fn parse_peer_run(s: &str) -> Result<Run> {
     let mut it = s.split_whitespace();
     let seconds: f64 = it
         .next()
@@ -264,7 +279,7 @@ fn warm(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-fn release_build(root: &Path, packages: &[&str]) -> Result<()> {
+pub(crate) fn release_build(root: &Path, packages: &[&str]) -> Result<()> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
     let mut args = vec!["build", "--release"];
     for p in packages {

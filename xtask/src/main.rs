@@ -2,6 +2,7 @@
 //! runs what CI runs, and the benchmarks.
 
 mod bench;
+mod bench_apply;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
@@ -70,7 +71,7 @@ enum Cmd {
     Ci,
     /// Benchmarks (speed and memory), measured, not asserted.
     Bench {
-        /// Which stage: ingest, align or adjust.
+        /// Which stage: ingest, align, adjust or apply.
         what: String,
         /// Logging hours of the 250 Hz log (the 31.25 Hz log is twice as long).
         #[arg(long, default_value_t = 24.0)]
@@ -254,7 +255,19 @@ fn ci() -> Result<()> {
         }
         eprintln!("pipeline on {name}: ok");
     }
+    // The README's second command: esgt-2005's calibration applied to the survey.
+    let apply = adjust::apply::stream::ApplyArgs {
+        dataset: fixtures::dataset_dir("survey"),
+        calibration: scratch.join("esgt-2005/adjust/calibration.json"),
+        model: Some("thermal".to_owned()),
+        session: None,
+        out: Some(scratch.join("survey")),
+    };
+    let result = apply.run(&workspace_root());
     let _ = std::fs::remove_dir_all(&scratch);
+    let report = result.context("apply of esgt-2005's calibration to fixture survey")?;
+    adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
+    eprintln!("apply on survey: ok");
     Ok(())
 }
 
@@ -338,7 +351,8 @@ fn run(cli: Cli) -> Result<()> {
             "ingest" => bench::ingest(&workspace_root(), hours, !no_peers, runs.max(1)),
             "align" => bench::align(&workspace_root(), stations, readings),
             "adjust" => bench::adjust(&workspace_root(), observations, !no_peers),
-            other => bail!("no benchmark `{other}`: there are ingest, align and adjust"),
+            "apply" => bench_apply::apply(&workspace_root(), hours, !no_peers, runs.max(1)),
+            other => bail!("no benchmark `{other}`: there are ingest, align, adjust and apply"),
         },
     }
 }
