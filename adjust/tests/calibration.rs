@@ -341,6 +341,10 @@ fn one_sided_design_cannot_separate_beta_from_k2() {
 const MC_PARAMETERS: [&str; 5] = ["b", "k", "b_t", "k_t", "beta"];
 /// True misalignment of the Monte-Carlo, rad.
 const MC_BETA_RAD: f64 = 4.5e-4;
+/// Where the Monte-Carlo checks the applied function's sigma: (fraction of the design's
+/// counts range, temperature degC): inside both ranges; at the hot end beyond the 31 degC
+/// the calibration saw; beyond the counts (as the survey's 150 deg attitude).
+const MC_APPLY_POINTS: [(f64, f64); 3] = [(0.5, 28.0), (0.5, 32.5), (1.3, 31.0)];
 
 /// What a Monte-Carlo measured.
 struct MonteCarlo {
@@ -351,6 +355,12 @@ struct MonteCarlo {
     bias_z: [f64; 3],
     /// Share of replicas whose global test rejected.
     rejection_rate: f64,
+    /// Mean of (p^ - p)^T C^-1 (p^ - p) over the five parameters, over 5: 1 when the
+    /// reported covariance (correlations too) is the estimates' own.
+    mahalanobis_ratio: f64,
+    /// The calibration function's error over its reported sigma (J C J^T, what `apply`
+    /// reports), sd over mean sigma, at each of [`MC_APPLY_POINTS`].
+    applied_sd_over_sigma: [f64; 3],
     /// Mean theodolite variance component.
     mean_theodolite_component: f64,
     /// Mean observations removed by snooping.
@@ -545,6 +555,13 @@ fn monte_carlo(
     let mut rng = fixtures::rng::Rng::new(20_261_123, "monte-carlo");
     let mut est: Vec<[f64; 5]> = Vec::new();
     let mut sig: Vec<[f64; 5]> = Vec::new();
+    let mut mahalanobis = Vec::new();
+    let mut applied: Vec<[(f64, f64); 3]> = Vec::new();
+    let (ng_lo, ng_hi) = design
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {
+            (a.min(r.ng_true), b.max(r.ng_true))
+        });
     let (mut rejected, mut theodolite, mut removed) = (0, 0.0, 0);
     let mut failed = Vec::new();
     let terms = adjust::model::Terms {
@@ -599,6 +616,30 @@ fn monte_carlo(
         let at = |p: &str| names.iter().position(|n| *n == p).expect("parameter");
         est.push(MC_PARAMETERS.map(|p| f.values[at(p)]));
         sig.push(MC_PARAMETERS.map(|p| f.sigma(at(p))));
+        let idx = MC_PARAMETERS.map(at);
+        let n = f.values.len();
+        let cov = |a: usize, b: usize| f.covariance[idx[a] * n + idx[b]];
+        // Truth at the fit's reference temperature.
+        let dt = f.t_ref_c - truth.t_ref_c;
+        let p_true = [
+            acc.b_mgal + acc.b_t_mgal_per_c * dt,
+            acc.k_mgal_per_bit + acc.k_t_mgal_per_bit_per_c * dt,
+            acc.b_t_mgal_per_c,
+            acc.k_t_mgal_per_bit_per_c,
+            MC_BETA_RAD,
+        ];
+        let delta: Vec<f64> = (0..5).map(|j| f.values[idx[j]] - p_true[j]).collect();
+        mahalanobis.push(quadratic_form_of_inverse(&cov, &delta));
+        applied.push(MC_APPLY_POINTS.map(|(x, t_c)| {
+            let ng = ng_lo + x * (ng_hi - ng_lo);
+            let tau = t_c - f.t_ref_c;
+            let j = [1.0, ng, tau, tau * ng];
+            let err: f64 = (0..4).map(|a| j[a] * delta[a]).sum();
+            let var: f64 = (0..4)
+                .map(|a| (0..4).map(|b| j[a] * cov(a, b) * j[b]).sum::<f64>())
+                .sum();
+            (err, var.sqrt())
+        }));
         rejected += usize::from(!f.global_test_passed());
         theodolite += f.components[0].estimate;
     }
@@ -613,10 +654,35 @@ fn monte_carlo(
         sd_over_sigma: [0, 1, 2, 3, 4].map(|j| sd(j) / mean(j, &sig)),
         bias_z: [2, 3, 4].map(|j| (mean(j, &est) - truths[j - 2]) / (sd(j) / n.sqrt())),
         rejection_rate: rejected as f64 / n,
+        mahalanobis_ratio: mahalanobis.iter().sum::<f64>() / n / 5.0,
+        applied_sd_over_sigma: [0, 1, 2].map(|k| {
+            let e: Vec<f64> = applied.iter().map(|a| a[k].0).collect();
+            let m = e.iter().sum::<f64>() / n;
+            let sd = (e.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+            sd / (applied.iter().map(|a| a[k].1).sum::<f64>() / n)
+        }),
         mean_theodolite_component: theodolite / n,
         mean_removed: removed as f64 / n,
         failed,
     }
+}
+
+/// x^T C^-1 x for a symmetric positive definite `c` (Cholesky), of the size of `x`.
+fn quadratic_form_of_inverse(c: &dyn Fn(usize, usize) -> f64, x: &[f64]) -> f64 {
+    let n = x.len();
+    let mut l = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..=i {
+            let s = c(i, j) - (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum::<f64>();
+            l[i * n + j] = if i == j { s.sqrt() } else { s / l[j * n + j] };
+        }
+    }
+    // Solve L y = x; x^T C^-1 x = |y|^2.
+    let mut y = vec![0.0; n];
+    for i in 0..n {
+        y[i] = (x[i] - (0..i).map(|k| l[i * n + k] * y[k]).sum::<f64>()) / l[i * n + i];
+    }
+    y.iter().map(|v| v * v).sum()
 }
 
 fn print_monte_carlo(label: &str, replicas: usize, m: &MonteCarlo) {
@@ -626,10 +692,15 @@ fn print_monte_carlo(label: &str, replicas: usize, m: &MonteCarlo) {
         .map(|(p, r)| format!("{p} {r:.3}"))
         .collect();
     eprintln!(
-        "monte carlo, {label}, {replicas} replicas: sd/sigma {}; global test rejects {:.1} %; \
+        "monte carlo, {label}, {replicas} replicas: sd/sigma {}; Mahalanobis / dof {:.3}; \
+         applied sd/sigma {:.3} {:.3} {:.3}; global test rejects {:.1} %; \
          theodolite component {:.3}; bias/se of b_t, k_t, beta {:.1} {:.1} {:.1}; \
          {:.2} observations removed a replica; {} fits failed{}",
         ratios.join(", "),
+        m.mahalanobis_ratio,
+        m.applied_sd_over_sigma[0],
+        m.applied_sd_over_sigma[1],
+        m.applied_sd_over_sigma[2],
         100.0 * m.rejection_rate,
         m.mean_theodolite_component,
         m.bias_z[0],
@@ -659,6 +730,19 @@ fn accept(replicas: usize, ratio: f64, rate: (f64, f64)) {
     assert!(m.failed.is_empty(), "{:?}", m.failed);
     for (p, r) in MC_PARAMETERS.iter().zip(m.sd_over_sigma) {
         assert!((r - 1.0).abs() <= ratio, "sd({p})/sigma_{p} = {r}");
+    }
+    // The whole covariance, correlations too (mean of chi2(5)/5 has se 0.63/sqrt(n)), and
+    // the applied function's sigma where apply reports it.
+    assert!(
+        (m.mahalanobis_ratio - 1.0).abs() <= ratio,
+        "Mahalanobis / dof = {}",
+        m.mahalanobis_ratio
+    );
+    for (point, r) in MC_APPLY_POINTS.iter().zip(m.applied_sd_over_sigma) {
+        assert!(
+            (r - 1.0).abs() <= ratio,
+            "applied at {point:?}: sd/sigma = {r}"
+        );
     }
     for (p, z) in ["b_t", "k_t", "beta"].iter().zip(m.bias_z) {
         assert!(z.abs() < 4.0, "{p} biased by {z} standard errors");
