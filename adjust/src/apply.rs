@@ -42,17 +42,68 @@ pub enum ApplyError {
 }
 
 /// A fitted calibration function, ready to apply: the coefficients of
-/// `c = b + k Ng + k2 Ng^2 + k3 Ng^3 + (b_t + k_t Ng)(T - t_ref)` and their covariance.
+/// `c = b + k Ng + k2 Ng^2 + k3 Ng^3 + (b_t + k_t Ng)(T - t_ref)` and their covariance,
+/// gathered into polynomials in Ng and tau.
 #[derive(Clone, Debug)]
 pub struct CalibrationFunction {
-    /// b, k, k2, k3, b_t, k_t (0 where the model has none).
-    coef: [f64; 6],
-    /// Their covariance (6 x 6, zero rows for absent terms).
-    cov: [[f64; 6]; 6],
+    /// The value and the variance as polynomials in Ng, one per power of tau = T - t_ref
+    /// (0..=2): `value[q][p]` multiplies Ng^p tau^q (what a sample's evaluation reads).
+    value_poly: Polynomial,
+    variance_poly: Polynomial,
     temperature: bool,
     t_ref_c: f64,
     counts_range: Option<[f64; 2]>,
     temperature_range_c: Option<[f64; 2]>,
+}
+
+/// A polynomial in Ng per power of tau, `c[q][p]` multiplying Ng^p tau^q, with the degrees
+/// it has (the terms beyond are 0 and not evaluated).
+#[derive(Clone, Debug)]
+struct Polynomial {
+    c: [[f64; 7]; 3],
+    /// Per power of tau, the number of coefficients in Ng up to the last non-zero one.
+    len: [usize; 3],
+    /// Powers of tau up to the last non-empty one.
+    rows: usize,
+}
+
+impl Polynomial {
+    fn new(c: [[f64; 7]; 3]) -> Self {
+        let len = c.map(|row| row.iter().rposition(|&x| x != 0.0).map_or(0, |i| i + 1));
+        let rows = len.iter().rposition(|&n| n > 0).map_or(0, |i| i + 1);
+        Polynomial { c, len, rows }
+    }
+
+    /// Horner in Ng for each power of tau, then in tau.
+    #[inline]
+    fn at(&self, ng: f64, tau: f64) -> f64 {
+        let mut acc = 0.0;
+        for q in (0..self.rows).rev() {
+            let row = &self.c[q][..self.len[q]];
+            acc = acc * tau + row.iter().rev().fold(0.0, |h, k| h * ng + k);
+        }
+        acc
+    }
+}
+
+/// Powers of (Ng, tau) of each slot's derivative: J = [1, Ng, Ng^2, Ng^3, tau, tau Ng].
+const POWERS: [(usize, usize); 6] = [(0, 0), (1, 0), (2, 0), (3, 0), (0, 1), (1, 1)];
+
+/// J c and J C J^T as polynomials in Ng per power of tau, so that a sample costs two
+/// Horner evaluations (the same sums, gathered by power; `apply` is checked against the
+/// plain J C J^T in the tests).
+fn polynomials(coef: &[f64; 6], cov: &[[f64; 6]; 6]) -> ([[f64; 7]; 3], [[f64; 7]; 3]) {
+    let mut value = [[0.0; 7]; 3];
+    let mut variance = [[0.0; 7]; 3];
+    for a in 0..6 {
+        let (pa, qa) = POWERS[a];
+        value[qa][pa] += coef[a];
+        for b in 0..6 {
+            let (pb, qb) = POWERS[b];
+            variance[qa + qb][pa + pb] += cov[a][b];
+        }
+    }
+    (value, variance)
 }
 
 /// Where each parameter of the calibration function sits in `coef`.
@@ -95,9 +146,11 @@ impl CalibrationFunction {
             (true, None) => return Err(unusable("temperature terms without t_ref_c".to_owned())),
             (false, _) => 0.0,
         };
+        let (value, variance) = polynomials(&coef, &cov);
+        let (value_poly, variance_poly) = (Polynomial::new(value), Polynomial::new(variance));
         Ok(Self {
-            coef,
-            cov,
+            value_poly,
+            variance_poly,
             temperature: r.temperature,
             t_ref_c,
             counts_range: r.counts_range,
@@ -106,6 +159,7 @@ impl CalibrationFunction {
     }
 
     /// Calibrates counts `ng` at temperature `temperature_c`.
+    #[inline]
     pub fn apply(&self, ng: f64, temperature_c: Option<f64>) -> Applied {
         let mut flags = 0;
         if self
@@ -130,15 +184,63 @@ impl CalibrationFunction {
                 };
             }
         };
-        let j = [1.0, ng, ng * ng, ng * ng * ng, tau, tau * ng];
-        let value: f64 = j.iter().zip(&self.coef).map(|(a, c)| a * c).sum();
-        let var: f64 = (0..6)
-            .map(|a| (0..6).map(|b| j[a] * self.cov[a][b] * j[b]).sum::<f64>())
-            .sum();
+        let (value, var) = (self.value_poly.at(ng, tau), self.variance_poly.at(ng, tau));
         Applied {
             acceleration_mgal: Some(value),
             sigma_mgal: Some(var.max(0.0).sqrt()),
             flags,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The polynomials give J c and J C J^T summed plainly, to rounding.
+    #[test]
+    fn polynomials_are_the_plain_sums() {
+        let coef = [-29_440.4, 0.242_92, 3.1e-9, -2.0e-16, 14.16, -3.2e-5];
+        let sd = [0.42, 1.7e-7, 4.0e-12, 3.0e-19, 0.14, 5.5e-8];
+        let mut cov = [[0.0; 6]; 6];
+        for a in 0..6 {
+            for b in 0..6 {
+                let rho = if a == b {
+                    1.0
+                } else {
+                    0.9 * (-0.5f64).powi((a + b) as i32 % 3)
+                };
+                cov[a][b] = rho * sd[a] * sd[b];
+            }
+        }
+        let (value, variance) = polynomials(&coef, &cov);
+        let f = CalibrationFunction {
+            value_poly: Polynomial::new(value),
+            variance_poly: Polynomial::new(variance),
+            temperature: true,
+            t_ref_c: 28.0,
+            counts_range: None,
+            temperature_range_c: None,
+        };
+        for (ng, t) in [(1.4e6, 24.8), (2.6e6, 31.0), (3.3e6, 33.5), (-1.0e5, 28.0)] {
+            let tau = t - 28.0;
+            let j = [1.0, ng, ng * ng, ng * ng * ng, tau, tau * ng];
+            let want_value: f64 = (0..6).map(|a| j[a] * coef[a]).sum();
+            let want_var: f64 = (0..6)
+                .map(|a| (0..6).map(|b| j[a] * cov[a][b] * j[b]).sum::<f64>())
+                .sum();
+            let got = f.apply(ng, Some(t));
+            let value = got.acceleration_mgal.expect("value");
+            let sigma = got.sigma_mgal.expect("sigma");
+            assert!(
+                (value - want_value).abs() <= 1e-12 * want_value.abs(),
+                "{value} {want_value}"
+            );
+            assert!(
+                (sigma - want_var.sqrt()).abs() <= 1e-9 * want_var.sqrt(),
+                "{sigma} {}",
+                want_var.sqrt()
+            );
         }
     }
 }

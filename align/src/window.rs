@@ -116,6 +116,7 @@ impl<'a> Interpolator<'a> {
     }
 
     /// The value at `t` as [`interpolate`] gives it.
+    #[inline]
     pub fn at(&mut self, t: i64, max_gap_ns: i64) -> Option<(f64, i64)> {
         let times = self.times;
         if t < self.last {
@@ -143,6 +144,7 @@ pub fn interpolate(times: &[i64], values: &[f64], t: i64, max_gap_ns: i64) -> Op
 }
 
 /// [`interpolate`] where `i` is the first index with a time after `t`.
+#[inline]
 fn interpolate_at(
     times: &[i64],
     values: &[f64],

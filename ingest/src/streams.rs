@@ -230,6 +230,7 @@ impl StreamWriter {
             // encoding and zstd on 4 bytes a row; zstd then shrinks them to almost nothing.
             Encodings {
                 dictionary: &[],
+                byte_stream_split: &[],
                 delta: &[
                     tables::SESSION_INDEX,
                     tables::acceleration::COUNTS[0],

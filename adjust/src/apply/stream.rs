@@ -67,7 +67,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
     let max_gap_ns = (ds.manifest.align.max_temperature_gap_s * 1e9).round() as i64;
-    let (rows, lanes) = write_table(
+    let written = write_table(
         &ds,
         &ingest_dir,
         &dir,
@@ -87,16 +87,16 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
             session: selection.session.clone(),
         },
         quantity: QUANTITY.to_owned(),
-        rows_read: rows,
-        rows_written: rows,
+        rows_read: written.rows,
+        rows_written: written.rows,
         accelerometers: selection
             .targets
             .iter()
-            .zip(&lanes)
+            .zip(&written.lanes)
             .map(|(t, lane)| lane.ledger(t))
             .collect(),
         max_temperature_gap_s: ds.manifest.align.max_temperature_gap_s,
-        custody: custody(&ds, out, &ingest_report)?,
+        custody: custody(&ds, out, &ingest_report, written.sha256)?,
     };
     ingest::write_json_atomically(&ledger_path, &report)?;
     Ok(report)
@@ -118,8 +118,14 @@ fn load_calibration(path: &Path) -> Result<(Calibration, String), Error> {
 }
 
 /// The files read (the manifest; ingest's ledger and the two tables, with the hashes its
-/// ledger recorded and `load_verified` has just checked) and the table written.
-fn custody(ds: &Dataset, out: &Path, ingest_report: &IngestReport) -> Result<Custody, Error> {
+/// ledger recorded and `load_verified` has just checked) and the table written, with the
+/// hash its writer took as it wrote.
+fn custody(
+    ds: &Dataset,
+    out: &Path,
+    ingest_report: &IngestReport,
+    table_sha256: String,
+) -> Result<Custody, Error> {
     let folders = Folders {
         dataset: &ds.dir,
         out,
@@ -145,8 +151,11 @@ fn custody(ds: &Dataset, out: &Path, ingest_report: &IngestReport) -> Result<Cus
             .filter(|f| tables.contains(&f.path))
             .cloned(),
     );
-    let outputs: Vec<FileHash> =
-        vec![folders.record(Root::Out, &format!("{STAGE_DIR}/{}", applied::FILE))?];
+    let outputs = vec![FileHash {
+        root: Root::Out,
+        path: format!("{STAGE_DIR}/{}", applied::FILE),
+        sha256: table_sha256,
+    }];
     Ok(Custody { inputs, outputs })
 }
 
@@ -159,19 +168,25 @@ fn write_table<'t>(
     selection: &'t Selection,
     temperatures: &'t Temperatures,
     max_gap_ns: i64,
-) -> Result<(u64, Vec<Lane<'t>>), Error> {
+) -> Result<Written<'t>, Error> {
     let sessions: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let ids: Vec<String> = selection
         .targets
         .iter()
         .map(|t| t.accelerometer.id.clone())
         .collect();
-    let flag_columns: Vec<String> = ids
-        .iter()
-        .map(|id| applied::columns(id)[3].clone())
-        .collect();
+    let names: Vec<[String; 4]> = ids.iter().map(|id| applied::columns(id)).collect();
     let mut delta: Vec<&str> = vec![tables::SESSION_INDEX, tables::TIME_GPS_NS];
-    delta.extend(flag_columns.iter().map(String::as_str));
+    delta.extend(names.iter().map(|c| c[3].as_str()));
+    // Chosen by measurement on the 250 Hz benchmark day (`cargo xtask bench apply`): the
+    // acceleration and its sigma vary in their low bytes only, so split into byte streams
+    // zstd shrinks them where plain it gained a fifth.
+    let split: Vec<&str> = names
+        .iter()
+        .flat_map(|c| [c[0].as_str(), c[1].as_str()])
+        .collect();
+    // Nobody filters on a sigma: its min/max statistics were a twentieth of the time.
+    let sigmas: Vec<&str> = names.iter().map(|c| c[1].as_str()).collect();
     let mut writer = ColumnTableWriter::create(
         dir,
         applied::FILE,
@@ -179,6 +194,8 @@ fn write_table<'t>(
         applied::schema(&sessions, &ids),
         Encodings {
             delta: &delta,
+            byte_stream_split: &split,
+            no_statistics: &sigmas,
             ..Encodings::default()
         },
     )?;
@@ -188,23 +205,60 @@ fn write_table<'t>(
         .map(|t| Lane::new(t, temperatures, sessions.len()))
         .collect();
     let mut rows = 0u64;
-    read::acceleration_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
-        let n = b.time_ns.len();
-        rows += n as u64;
-        let mut columns = vec![
-            ColumnValues::Int32(b.session.iter().map(|&s| i32::from(s)).collect(), None),
-            ColumnValues::Int64(b.time_ns.to_vec(), None),
-        ];
-        let per: Vec<[ColumnValues; 4]> = lanes
-            .par_iter_mut()
-            .map(|lane| lane.calibrate(&b, max_gap_ns))
-            .collect();
-        columns.extend(per.into_iter().flatten());
-        writer.write_row_group(n, &columns)?;
-        Ok(())
-    })?;
-    writer.finish()?;
-    Ok((rows, lanes))
+    // The writer encodes and writes a row group on its own thread while the next one is
+    // read and calibrated.
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Vec<ColumnValues>)>(1);
+    let (reading, writing) = std::thread::scope(|scope| {
+        let writing = scope.spawn(move || -> Result<(u64, String), ingest::Error> {
+            for (n, columns) in rx {
+                writer.write_row_group(n, &columns)?;
+            }
+            writer.finish_hashed()
+        });
+        let reading = read::acceleration_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
+            let n = b.time_ns.len();
+            rows += n as u64;
+            let mut columns = vec![
+                ColumnValues::Int32(b.session.iter().map(|&s| i32::from(s)).collect(), None),
+                ColumnValues::Int64(b.time_ns.to_vec(), None),
+            ];
+            let per: Vec<[ColumnValues; 4]> = lanes
+                .par_iter_mut()
+                .map(|lane| lane.calibrate(&b, max_gap_ns))
+                .collect();
+            columns.extend(per.into_iter().flatten());
+            // A closed channel means the writer failed: reading stops, and the writer's
+            // error is the one reported.
+            tx.send((n, columns)).map_err(|_| align::Error::Table {
+                path: dir.join(applied::FILE),
+                message: "the writer stopped".to_owned(),
+            })
+        });
+        drop(tx);
+        (reading, writing.join())
+    });
+    let (_, sha256) = match writing {
+        Ok(written) => written?,
+        Err(_) => {
+            return Err(Error::Io {
+                path: dir.join(applied::FILE),
+                source: std::io::Error::other("the writer thread panicked"),
+            });
+        }
+    };
+    reading?;
+    Ok(Written {
+        rows,
+        sha256,
+        lanes,
+    })
+}
+
+/// What the table's writing gave: rows, the table's SHA-256, each accelerometer's counts.
+struct Written<'t> {
+    rows: u64,
+    sha256: String,
+    lanes: Vec<Lane<'t>>,
 }
 
 /// One accelerometer's way through the stream: its function, its temperature series per
@@ -216,8 +270,8 @@ struct Lane<'t> {
     /// Per session index: the interpolator over its temperature series.
     temperatures: Vec<Option<Interpolator<'t>>>,
     with_value: u64,
-    /// Per flag of [`applied::FLAG_NAMES`], samples flagged.
-    flagged: [u64; applied::FLAG_NAMES.len()],
+    /// Samples by their flags byte.
+    by_flags: [u64; 256],
 }
 
 impl<'t> Lane<'t> {
@@ -234,7 +288,7 @@ impl<'t> Lane<'t> {
                 })
                 .collect(),
             with_value: 0,
-            flagged: [0; applied::FLAG_NAMES.len()],
+            by_flags: [0; 256],
         }
     }
 
@@ -288,9 +342,7 @@ impl<'t> Lane<'t> {
                 temp.push(t);
             }
             temp_def.push(i16::from(temperature.is_some()));
-            for (k, (bit, _)) in applied::FLAG_NAMES.iter().enumerate() {
-                self.flagged[k] += u64::from(f & bit != 0);
-            }
+            self.by_flags[usize::from(f)] += 1;
             flags.push(i32::from(f));
         }
         let levels = |values: &Vec<f64>, def: Vec<i16>| (values.len() < n).then_some(def);
@@ -316,9 +368,14 @@ impl<'t> Lane<'t> {
             with_value: self.with_value,
             flagged: applied::FLAG_NAMES
                 .iter()
-                .zip(self.flagged)
+                .map(|(bit, name)| {
+                    let n: u64 = (0..256)
+                        .filter(|f| f & usize::from(*bit) != 0)
+                        .map(|f| self.by_flags[f])
+                        .sum();
+                    ((*name).to_owned(), n)
+                })
                 .filter(|(_, n)| *n > 0)
-                .map(|((_, name), n)| ((*name).to_owned(), n))
                 .collect(),
         }
     }
