@@ -1,5 +1,6 @@
 //! A general Gauss-Helmert adjustment (MODEL.md section 2) for conditions that each involve
-//! their own two uncorrelated observations: `f_i(p; l_i) = 0`, `l_i = (l_i1, l_i2)`.
+//! their own `K` uncorrelated observations: `f_i(p; l_i) = 0`, `l_i = (l_i1, .., l_iK)`
+//! (K = 2 for a calibration reading, (Dz, Ng); K = 3 for a triad position's three means).
 //!
 //! Each iteration linearises at the current parameters and the current *adjusted*
 //! observations, `A dp + B v + w = 0` with `w = f(p0; l + v0) - B v0`, and solves the
@@ -9,13 +10,13 @@
 
 use faer::prelude::*;
 
-/// The conditions of a problem.
-pub trait Conditions: Sync {
+/// The conditions of a problem, each on `K` observations of its own.
+pub trait Conditions<const K: usize = 2>: Sync {
     /// Number of parameters.
     fn n_params(&self) -> usize;
     /// Condition `i` at parameters `p` and observations `l`: returns `f` and
-    /// `B = (df/dl_1, df/dl_2)`, and writes `A = df/dp` into `a`.
-    fn eval(&self, i: usize, p: &[f64], l: [f64; 2], a: &mut [f64]) -> (f64, [f64; 2]);
+    /// `B = (df/dl_1, .., df/dl_K)`, and writes `A = df/dp` into `a`.
+    fn eval(&self, i: usize, p: &[f64], l: [f64; K], a: &mut [f64]) -> (f64, [f64; K]);
 }
 
 /// Iteration settings.
@@ -82,19 +83,19 @@ pub enum GhError {
 
 /// The adjusted solution.
 #[derive(Clone, Debug)]
-pub struct Solution {
+pub struct Solution<const K: usize = 2> {
     /// Parameters.
     pub p: Vec<f64>,
     /// Cofactor matrix of the parameters (a-priori covariance, sigma0 = 1), row-major m x m.
     pub q_pp: Vec<f64>,
-    /// Residuals of the two observations of each condition.
-    pub v: Vec<[f64; 2]>,
+    /// Residuals of the observations of each condition.
+    pub v: Vec<[f64; K]>,
     /// Condition residual `B v` (the misclosure taken up), in the condition's unit.
     pub misclosure: Vec<f64>,
     /// Variance of each condition, `B Q_ll B^T`.
     pub q_ww: Vec<f64>,
-    /// The two observations' shares of `q_ww`: `(B_i1 sigma_i1)^2`, `(B_i2 sigma_i2)^2`.
-    pub q_parts: Vec<[f64; 2]>,
+    /// The observations' shares of `q_ww`: `(B_ik sigma_ik)^2`.
+    pub q_parts: Vec<[f64; K]>,
     /// Redundancy number of each condition, `1 - h_i`.
     pub redundancy: Vec<f64>,
     /// Normalised residual (Baarda's w, a-priori sigma0 = 1); 0 where the redundancy is 0.
@@ -108,10 +109,10 @@ pub struct Solution {
     /// The design `A = df/dp` at the solution, row-major n x m.
     pub a: Vec<f64>,
     /// `B = df/dl` at the solution, per condition.
-    pub b: Vec<[f64; 2]>,
+    pub b: Vec<[f64; K]>,
 }
 
-impl Solution {
+impl<const K: usize> Solution<K> {
     /// A-posteriori variance factor: `v^T P v / r` (1 when r = 0).
     pub fn sigma0(&self) -> f64 {
         if self.dof == 0 {
@@ -148,37 +149,41 @@ fn invert_upper(r: &[f64], m: usize) -> Vec<f64> {
 }
 
 /// Adjusts the conditions `c` for observations `l` with sds `sigma`, from parameters `p0`.
-pub fn solve(
-    c: &impl Conditions,
-    l: &[[f64; 2]],
-    sigma: &[[f64; 2]],
+pub fn solve<const K: usize>(
+    c: &impl Conditions<K>,
+    l: &[[f64; K]],
+    sigma: &[[f64; K]],
     p0: &[f64],
     opts: &Options,
-) -> Result<Solution, GhError> {
+) -> Result<Solution<K>, GhError> {
     let n = l.len();
     let m = c.n_params();
-    assert_eq!(sigma.len(), n, "one sigma pair per observation pair");
+    assert_eq!(
+        sigma.len(),
+        n,
+        "one set of sigmas per condition's observations"
+    );
     assert_eq!(p0.len(), m, "one start value per parameter");
     if n < m {
         return Err(GhError::TooFewObservations { n, m });
     }
     let mut p = p0.to_vec();
-    let mut v = vec![[0.0f64; 2]; n];
+    let mut v = vec![[0.0f64; K]; n];
     let mut a_row = vec![0.0; m];
     let mut design = Mat::<f64>::zeros(n, m);
     let mut rhs = Mat::<f64>::zeros(n, 1);
     let mut w = vec![0.0; n];
-    let mut b = vec![[0.0; 2]; n];
+    let mut b = vec![[0.0; K]; n];
     let mut q = vec![0.0; n];
-    let mut q_parts = vec![[0.0; 2]; n];
+    let mut q_parts = vec![[0.0; K]; n];
     let mut last_change = f64::INFINITY;
     for iteration in 1..=opts.max_iterations {
         for i in 0..n {
-            let l0 = [l[i][0] + v[i][0], l[i][1] + v[i][1]];
+            let l0: [f64; K] = std::array::from_fn(|t| l[i][t] + v[i][t]);
             let (f, bi) = c.eval(i, &p, l0, &mut a_row);
-            let wi = f - bi[0] * v[i][0] - bi[1] * v[i][1];
-            let parts = [(bi[0] * sigma[i][0]).powi(2), (bi[1] * sigma[i][1]).powi(2)];
-            let qi = parts[0] + parts[1];
+            let wi = (0..K).fold(f, |acc, t| acc - bi[t] * v[i][t]);
+            let parts: [f64; K] = std::array::from_fn(|t| (bi[t] * sigma[i][t]).powi(2));
+            let qi = parts.iter().skip(1).fold(parts[0], |acc, x| acc + x);
             if qi <= 0.0 || !qi.is_finite() {
                 return Err(GhError::ZeroVariance { index: i });
             }
@@ -256,11 +261,8 @@ pub fn solve(
                 .sum();
             let e = w[i] + adp;
             let k = -e / q[i];
-            let nv = [
-                sigma[i][0].powi(2) * b[i][0] * k,
-                sigma[i][1].powi(2) * b[i][1] * k,
-            ];
-            for t in 0..2 {
+            let nv: [f64; K] = std::array::from_fn(|t| sigma[i][t].powi(2) * b[i][t] * k);
+            for t in 0..K {
                 let limit = opts.tolerance * sigma[i][t] + rounding * l[i][t].abs();
                 if sigma[i][t] > 0.0 && (nv[t] - v[i][t]).abs() > limit {
                     settled = false;

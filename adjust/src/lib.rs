@@ -19,6 +19,7 @@ pub mod gh;
 pub mod io;
 pub mod model;
 pub mod plan;
+pub mod triad;
 
 use calibrate::{CalError, Obs};
 use correlated::ColouredAdc;

@@ -1,0 +1,209 @@
+//! The triad calibration (MODEL.md 6.5) on simulated static positions: the truth recovered
+//! within its sigmas and the knocked position removed; a Monte-Carlo of the sigmas and the
+//! global test; too few positions and positions in one plane named; and a second opinion,
+//! scipy.optimize.least_squares on the same static means, written in Python beside it.
+
+use adjust::triad::{self, NAMES, Position, TriadError};
+use fixtures::rng::Rng;
+use fixtures::triad::{StaticPosition, Triad, positions};
+
+#[path = "../../align/tests/peers/mod.rs"]
+mod peers;
+
+const G: f64 = 980_855.7;
+/// Per-sample noise, counts: the paper's 1-count sd of a 2.56 s window mean at 31.25 Hz.
+const SAMPLE_SD: f64 = 9.0;
+
+fn as_positions(s: &[StaticPosition]) -> Vec<Position> {
+    s.iter()
+        .map(|q| Position {
+            mean: q.mean,
+            sigma: q.sigma,
+            g_mgal: q.g_mgal,
+        })
+        .collect()
+}
+
+#[test]
+fn thirty_positions_recover_the_triad_and_remove_the_knocked_one() {
+    let truth = Triad::esgt();
+    let mut rng = Rng::new(15, "triad/recover");
+    let sim = positions(&truth, 30, G, 31.25, SAMPLE_SD, Some((7, 25.0)), &mut rng);
+    let s = triad::calibrate(&as_positions(&sim)).expect("calibrates");
+    assert_eq!(s.removed.len(), 1, "{:?}", s.removed);
+    assert_eq!(s.removed[0].0, 7);
+    let p = truth.parameters();
+    let mut worst: f64 = 0.0;
+    for j in 0..9 {
+        let z = (s.values[j] - p[j]) / s.sigma(j);
+        eprintln!(
+            "{}: {:.6e} +/- {:.2e} (truth {:.6e}, z {z:.2})",
+            NAMES[j],
+            s.values[j],
+            s.sigma(j),
+            p[j]
+        );
+        worst = worst.max(z.abs());
+    }
+    // Nine z-values: 3.3 is Bonferroni's 1 % family-wise bound.
+    assert!(worst < 3.3, "largest |z| {worst}");
+    assert!(
+        s.global_test.2,
+        "global test {} {:?}",
+        s.vtpv, s.global_test
+    );
+    // The angles are determined to a small fraction of their few mrad.
+    for j in 0..3 {
+        assert!(s.sigma(j) < 2e-5, "{}: {}", NAMES[j], s.sigma(j));
+    }
+}
+
+#[test]
+fn monte_carlo_of_the_triad_sigmas() {
+    let truth = Triad::esgt();
+    let p = truth.parameters();
+    let mut rng = Rng::new(16, "triad/monte-carlo");
+    // One design (directions, durations), new noise each replica.
+    let design = positions(&truth, 24, G, 31.25, SAMPLE_SD, None, &mut rng);
+    let replicas = 400;
+    let mut est = Vec::new();
+    let mut sig = Vec::new();
+    let mut mahalanobis = 0.0;
+    let mut rejected = 0;
+    for _ in 0..replicas {
+        let q: Vec<Position> = design
+            .iter()
+            .map(|d| {
+                let clean = truth.readings(d.direction.map(|x| x * G));
+                Position {
+                    mean: std::array::from_fn(|k| clean[k] + d.sigma[k] * rng.normal()),
+                    sigma: d.sigma,
+                    g_mgal: G,
+                }
+            })
+            .collect();
+        let s = triad::calibrate(&q).expect("calibrates");
+        rejected += usize::from(!s.global_test.2);
+        let delta: Vec<f64> = (0..9).map(|j| s.values[j] - p[j]).collect();
+        mahalanobis += quadratic_form_of_inverse(&s.covariance, &delta) / 9.0;
+        est.push(s.values.clone());
+        sig.push((0..9).map(|j| s.sigma(j)).collect::<Vec<_>>());
+    }
+    let n = est.len() as f64;
+    let mut ratios = Vec::new();
+    for j in 0..9 {
+        let m = est.iter().map(|e| e[j]).sum::<f64>() / n;
+        let sd = (est.iter().map(|e| (e[j] - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let mean_sigma = sig.iter().map(|s| s[j]).sum::<f64>() / n;
+        ratios.push(sd / mean_sigma);
+    }
+    let rate = rejected as f64 / n;
+    eprintln!(
+        "triad monte carlo, {replicas} replicas: sd/sigma {}; Mahalanobis / dof {:.3}; global test rejects {:.1} %",
+        NAMES
+            .iter()
+            .zip(&ratios)
+            .map(|(n, r)| format!("{n} {r:.3}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        mahalanobis / n,
+        100.0 * rate
+    );
+    // se of an sd ratio 1/sqrt(2n) = 0.035, of the Mahalanobis mean sqrt(2/9/n) = 0.024, of
+    // the rate 0.011: bounds at about 3 se.
+    for (name, r) in NAMES.iter().zip(&ratios) {
+        assert!((r - 1.0).abs() < 0.11, "sd({name})/sigma = {r}");
+    }
+    assert!((mahalanobis / n - 1.0).abs() < 0.08, "{}", mahalanobis / n);
+    assert!((0.015..=0.085).contains(&rate), "rejects {rate}");
+}
+
+/// x^T C^-1 x for the 9 x 9 covariance `c` (Cholesky).
+fn quadratic_form_of_inverse(c: &[f64], x: &[f64]) -> f64 {
+    let n = x.len();
+    let mut l = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..=i {
+            let s = c[i * n + j] - (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum::<f64>();
+            l[i * n + j] = if i == j { s.sqrt() } else { s / l[j * n + j] };
+        }
+    }
+    let mut y = vec![0.0; n];
+    for i in 0..n {
+        y[i] = (x[i] - (0..i).map(|k| l[i * n + k] * y[k]).sum::<f64>()) / l[i * n + i];
+    }
+    y.iter().map(|v| v * v).sum()
+}
+
+#[test]
+fn too_few_positions_and_one_plane_are_named() {
+    let truth = Triad::esgt();
+    let mut rng = Rng::new(17, "triad/names");
+    let few = positions(&truth, 11, G, 31.25, SAMPLE_SD, None, &mut rng);
+    let e = triad::calibrate(&as_positions(&few)).expect_err("11 positions");
+    assert_eq!(e, TriadError::TooFewPositions { n: 11 });
+    assert!(e.to_string().contains("at least 12"), "{e}");
+    // Twenty positions turned about the body's z axis only: every direction in the x-y plane.
+    let flat: Vec<Position> = (0..20)
+        .map(|i| {
+            let phi = f64::from(i) * 0.31;
+            let d = [phi.cos(), phi.sin(), 0.0];
+            Position {
+                mean: truth.readings(d.map(|x| x * G)),
+                sigma: [0.5; 3],
+                g_mgal: G,
+            }
+        })
+        .collect();
+    let e = triad::calibrate(&flat).expect_err("one plane");
+    assert!(matches!(e, TriadError::OnePlane { .. }), "{e}");
+    assert!(e.to_string().contains("one plane"), "{e}");
+}
+
+/// The same model solved independently: scipy.optimize.least_squares on the static means,
+/// residual (|T K (X - B)| - g) / sd with the sd propagated from the means' sds at each
+/// evaluation (the weighted least squares imu_tk's problem becomes with weights), started
+/// from T = I and the extremes. The two differ only where Gauss-Helmert's linearisation at
+/// the adjusted observations differs from least squares on the observed ones, far below
+/// the parameters' sigmas (measured: 1e-7 of a sigma): each parameter must agree within
+/// 1e-4 of its sigma, and the sigmas (scipy's from J^T J) within 1e-4.
+#[test]
+fn scipy_least_squares_agrees() {
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    let truth = Triad::esgt();
+    let mut rng = Rng::new(18, "triad/scipy");
+    let sim = positions(&truth, 30, G, 31.25, SAMPLE_SD, None, &mut rng);
+    let s = triad::calibrate(&as_positions(&sim)).expect("calibrates");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let csv = dir.path().join("means.csv");
+    let mut text = String::from("x,y,z,sx,sy,sz,g\n");
+    for q in &sim {
+        text.push_str(&format!(
+            "{:.17e},{:.17e},{:.17e},{:.17e},{:.17e},{:.17e},{:.17e}\n",
+            q.mean[0], q.mean[1], q.mean[2], q.sigma[0], q.sigma[1], q.sigma[2], q.g_mgal
+        ));
+    }
+    std::fs::write(&csv, text).expect("write");
+    let script = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/triad_scipy.py");
+    let o = std::process::Command::new(&py)
+        .arg(&script)
+        .arg(&csv)
+        .output()
+        .expect("python");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    for j in 0..9 {
+        let v = got["values"][j].as_f64().expect("value");
+        let sd = got["sigmas"][j].as_f64().expect("sigma");
+        let dv = (v - s.values[j]) / s.sigma(j);
+        let ds = sd / s.sigma(j) - 1.0;
+        eprintln!(
+            "{}: gravcal {:.9e} scipy {:.9e}: {dv:.2e} sigma apart, sigmas {ds:+.2e}",
+            NAMES[j], s.values[j], v
+        );
+        assert!(dv.abs() < 1e-4, "{}: {dv} sigma apart", NAMES[j]);
+        assert!(ds.abs() < 1e-4, "{}: sigmas differ by {ds}", NAMES[j]);
+    }
+}
