@@ -30,7 +30,7 @@ use ingest::contract::calibration::{
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
-use ingest::contract::manifest::{Dataset, ModelDecl, Per};
+use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
 use model::{Misalignment, Terms};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -83,6 +83,7 @@ pub fn models(declared: &[ModelDecl], session_mean_temperatures: &[f64]) -> Vec<
     }
     let mut v = vec![ModelDecl {
         name: "linear".into(),
+        kind: ModelKind::Axis,
         order: 1,
         per: Per::Session,
         temperature: false,
@@ -96,6 +97,7 @@ pub fn models(declared: &[ModelDecl], session_mean_temperatures: &[f64]) -> Vec<
     if hi - lo > 1.0 {
         v.push(ModelDecl {
             name: "thermal".into(),
+            kind: ModelKind::Axis,
             order: 1,
             per: Per::All,
             temperature: true,
@@ -314,14 +316,14 @@ fn plan_jobs<'a>(
 ) -> (Vec<Job<'a>>, Vec<Skipped>) {
     let mut jobs = Vec::new();
     let mut skipped = Vec::new();
-    for model in models {
+    for model in models.iter().filter(|m| m.kind == ModelKind::Axis) {
         for acc in &ds.manifest.instrument.accelerometer {
             let groups: Vec<String> = match model.per {
-                // Survey sessions have no observations: they are applied, not calibrated.
+                // Only tilt-table sessions have observations for an axis calibration.
                 Per::Session => ds
                     .sessions
                     .iter()
-                    .filter(|s| !s.is_survey())
+                    .filter(|s| s.is_tilt_table())
                     .map(|s| s.session.id.clone())
                     .collect(),
                 Per::All => vec!["all".to_owned()],

@@ -315,7 +315,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
         ..Formed::default()
     };
     for (si, s) in ds.sessions.iter().enumerate() {
-        if s.is_survey() {
+        if !s.is_tilt_table() {
             continue;
         }
         let never = ingest_report
@@ -632,7 +632,7 @@ fn write_outputs(ds: &Dataset, out: &Path, setup: Setup, formed: Formed) -> Resu
     let errors = ds
         .sessions
         .iter()
-        .filter(|s| !s.session.expect_empty && !s.is_survey())
+        .filter(|s| !s.session.expect_empty && s.is_tilt_table())
         .filter(|s| {
             formed
                 .counts

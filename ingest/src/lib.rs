@@ -23,6 +23,7 @@ mod csvlog;
 pub mod encoding;
 mod error;
 pub mod gcb;
+pub mod labstream;
 mod lines;
 pub mod lock;
 mod streams;
@@ -201,6 +202,15 @@ fn session_errors(
     errors
 }
 
+/// The tables a run writes, and the session being read.
+struct Writers {
+    streams: StreamWriter,
+    theo: theodolite::TheodoliteWriter,
+    lab: labstream::LabWriter,
+    /// Index of the session being read.
+    session: u16,
+}
+
 /// Ingests `dataset` into `out/ingest/` with default options.
 pub fn run(dataset: &Path, out: &Path) -> Result<IngestReport> {
     run_with(dataset, out, &Options::default())
@@ -212,9 +222,10 @@ fn read_acquisition(
     ds: &Dataset,
     s: &manifest::ResolvedSession,
     opts: &Options,
-    streams: &mut StreamWriter,
+    out: &mut Writers,
     files: &mut Vec<FileLedger>,
 ) -> Result<Option<i64>> {
+    let streams = &mut out.streams;
     let id = s.session.id.as_str();
     let acceleration_interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
     match &s.acquisition {
@@ -227,6 +238,24 @@ fn read_acquisition(
                 range_ns: s.gps_range_ns(),
             };
             let interval = read_binary(path, config, streams, &mut ledger, &pb)?;
+            pb.finish_and_clear();
+            files.push(ledger);
+            Ok(interval)
+        }
+        Acquisition::Lab {
+            stream,
+            zero_gps_ns,
+        } => {
+            let mut ledger = new_ledger(ds, stream, id, "adc_csv", "lines");
+            let pb = progress_bar(opts, stream);
+            let config = labstream::LabConfig {
+                session: out.session,
+                zero_gps_ns: *zero_gps_ns,
+                interval_ns: acceleration_interval_ns,
+                range_ns: s.gps_range_ns(),
+                skip_bad_lines: opts.skip_bad_lines,
+            };
+            let interval = labstream::read_lab(stream, config, &mut out.lab, &mut ledger, &pb)?;
             pb.finish_and_clear();
             files.push(ledger);
             Ok(interval)
@@ -274,7 +303,7 @@ fn read_with_theodolite(
     s: &manifest::ResolvedSession,
     path: &Path,
     opts: &Options,
-    streams: &mut StreamWriter,
+    out: &mut Writers,
     files: &mut Vec<FileLedger>,
 ) -> Result<(Vec<theodolite::Reading>, Option<i64>, FileLedger)> {
     // The theodolite log is independent of the acquisition log, and the Parquet writer is
@@ -292,7 +321,7 @@ fn read_with_theodolite(
             )
             .map(|readings| (readings, ledger))
         });
-        let acquisition = read_acquisition(ds, s, opts, streams, files);
+        let acquisition = read_acquisition(ds, s, opts, out, files);
         let readings = theodolite.join().map_err(|_| {
             Error::io(
                 path,
@@ -311,17 +340,17 @@ fn ingest_session(
     s: &manifest::ResolvedSession,
     index: u16,
     opts: &Options,
-    streams: &mut StreamWriter,
-    theo: &mut theodolite::TheodoliteWriter,
+    out: &mut Writers,
     files: &mut Vec<FileLedger>,
 ) -> Result<(SessionSummary, Vec<String>)> {
     let id = s.session.id.as_str();
-    streams.start_session(index)?;
+    out.streams.start_session(index)?;
+    out.session = index;
     let (readings, interval_ns) = match &s.theodolite {
         Some(path) => {
             let (readings, interval_ns, ledger) =
-                read_with_theodolite(ds, s, path, opts, streams, files)?;
-            theo.write(
+                read_with_theodolite(ds, s, path, opts, out, files)?;
+            out.theo.write(
                 id,
                 s.session.theodolite_unit,
                 s.session.theodolite_time_scale,
@@ -330,13 +359,22 @@ fn ingest_session(
             files.push(ledger);
             (readings.len() as u64, interval_ns)
         }
-        // A survey: acquisition logs only.
-        None => (0, read_acquisition(ds, s, opts, streams, files)?),
+        // A survey or a multi-position session: acquisition logs only.
+        None => (0, read_acquisition(ds, s, opts, out, files)?),
     };
-    let st = streams.stats()?;
+    let st = out.streams.stats()?;
+    // A lab stream's samples go to lab.parquet: its ledger counts them.
+    let lab_samples: u64 = match s.acquisition {
+        Acquisition::Lab { .. } => files
+            .iter()
+            .filter(|f| f.session == id && f.lab_stream.is_some())
+            .map(|f| f.accepted)
+            .sum(),
+        _ => 0,
+    };
     let summary = SessionSummary {
         id: id.to_owned(),
-        acceleration_samples: st.acceleration,
+        acceleration_samples: st.acceleration + lab_samples,
         temperature_samples: st.temperature,
         kind: s.session.kind,
         readings,
@@ -366,8 +404,12 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
     let ledger_path = dir.join(LEDGER_FILE);
     remove_stale(&ledger_path)?;
     let ids: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
-    let mut streams = StreamWriter::create(&dir, &ids)?;
-    let mut theo = theodolite::TheodoliteWriter::create(&dir)?;
+    let mut out_tables = Writers {
+        streams: StreamWriter::create(&dir, &ids)?,
+        theo: theodolite::TheodoliteWriter::create(&dir)?,
+        lab: labstream::LabWriter::create(&dir, &ids)?,
+        session: 0,
+    };
     let mut files = Vec::new();
     let mut sessions = Vec::new();
     let mut errors = Vec::new();
@@ -377,16 +419,20 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
             key: "session".to_owned(),
             message: "more than 65535 sessions".to_owned(),
         })?;
-        let (summary, problems) =
-            ingest_session(&ds, s, index, opts, &mut streams, &mut theo, &mut files)?;
+        let (summary, problems) = ingest_session(&ds, s, index, opts, &mut out_tables, &mut files)?;
         errors.extend(problems);
         sessions.push(summary);
     }
-    // The theodolite table is finished while the writer thread finishes the stream tables.
+    // The small tables are finished while the writer thread finishes the stream tables.
+    let Writers {
+        streams, theo, lab, ..
+    } = out_tables;
     let closing = streams.close()?;
     let theo_rows = theo.finish();
+    let lab_rows = lab.finish();
     let (acc_rows, temp_rows) = closing.wait()?;
     let theo_rows = theo_rows?;
+    let lab_rows = lab_rows?;
     let folders = custody::Folders {
         dataset: &ds.dir,
         out,
@@ -401,6 +447,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
         tables::acceleration::FILE,
         tables::temperature::FILE,
         tables::theodolite::FILE,
+        tables::lab::FILE,
     ]
     .iter()
     .map(|t| folders.record(custody::Root::Out, &format!("{STAGE_DIR}/{t}")))
@@ -415,6 +462,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
             (tables::acceleration::FILE.to_owned(), acc_rows),
             (tables::temperature::FILE.to_owned(), temp_rows),
             (tables::theodolite::FILE.to_owned(), theo_rows),
+            (tables::lab::FILE.to_owned(), lab_rows),
         ]
         .into_iter()
         .collect(),

@@ -263,7 +263,7 @@ fn outputs_are_deterministic() {
         .map(|e| e.expect("entry").path())
         .collect();
     names.sort();
-    assert_eq!(names.len(), 4, "{names:?}");
+    assert_eq!(names.len(), 5, "{names:?}");
     for p in names {
         let n = p.file_name().expect("name");
         assert_eq!(

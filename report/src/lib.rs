@@ -700,7 +700,7 @@ fn plots_section(st: &Stages<'_>) -> Result<Section, Error> {
     for r in st.cal.results.iter().filter(|r| r.session != "all") {
         s.plots.extend(fit_plots(st, r)?);
     }
-    for session in st.ds.sessions.iter().filter(|x| !x.is_survey()) {
+    for session in st.ds.sessions.iter().filter(|x| x.is_tilt_table()) {
         s.plots.extend(sigma_plot(st, &session.session.id)?);
         s.plots.extend(tide_plot(st, &session.session.id)?);
     }

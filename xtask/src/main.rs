@@ -196,7 +196,7 @@ fn fixtures_check() -> Result<()> {
     if diffs.is_empty() {
         eprintln!(
             "fixtures: all {} committed datasets are exactly what the generator makes",
-            fixtures::catalog::COMMITTED.len()
+            fixtures::catalog::ALL.len()
         );
         Ok(())
     } else {
@@ -243,7 +243,7 @@ fn ci() -> Result<()> {
     cargo(&["test", "--workspace"])?;
     fixtures_check()?;
     let scratch = std::env::temp_dir().join(format!("gravcal-ci-{}", std::process::id()));
-    for name in fixtures::catalog::COMMITTED {
+    for name in fixtures::catalog::ALL {
         let args = DatasetArgs {
             dataset: fixtures::dataset_dir(name),
             out: Some(scratch.join(name)),
@@ -315,7 +315,7 @@ fn run(cli: Cli) -> Result<()> {
                 return Ok(());
             }
             let root = out.unwrap_or_else(fixtures::fixtures_dir);
-            for name in fixtures::catalog::COMMITTED {
+            for name in fixtures::catalog::ALL {
                 fixtures::generate(name, &root)?;
                 eprintln!("fixtures: wrote {}", root.join(name).display());
             }

@@ -107,10 +107,31 @@ pub struct FileLedger {
     /// Binary logs: where every byte went.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub byte_ledger: Option<ByteLedger>,
+    /// Lab streams ("seconds" layout): what the reader found in the file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lab_stream: Option<LabStreamReport>,
     /// Values stored as null in accepted records, by channel and reason (e.g. `ch2 not connected`).
     pub null_values: BTreeMap<String, u64>,
     /// The first [`MAX_LISTED`] rejections.
     pub rejections: Vec<Rejection>,
+}
+
+/// What a lab stream's reader found (FORMATS.md 8.3): its layout and its time stamps.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LabStreamReport {
+    /// Fields were separated by commas (else by white space).
+    pub comma_separated: bool,
+    /// A header line came before the data.
+    pub header: bool,
+    /// Values written in scientific notation.
+    pub scientific_notation_values: u64,
+    /// Samples whose time stamp equals the one before: the stamps are coarser than the
+    /// sample interval. Their times are spread evenly up to the next stamp.
+    pub samples_sharing_a_stamp: u64,
+    /// The most common step between distinct stamps, ns.
+    pub stamp_step_ns: Option<i64>,
+    /// The median interval between samples after spreading, ns (the measured rate's).
+    pub median_interval_ns: Option<i64>,
 }
 
 impl FileLedger {

@@ -104,6 +104,9 @@ pub struct Instrument {
     pub full_scale_g: f64,
     /// The accelerometers, 1..=3.
     pub accelerometer: Vec<Accelerometer>,
+    /// Unit of the readings (FORMATS.md 8.3).
+    #[serde(default)]
+    pub reading_unit: ReadingUnit,
 }
 
 fn default_adc_bits() -> u32 {
@@ -222,6 +225,64 @@ impl AngleUnit {
     }
 }
 
+/// Layout of an ADC text log.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AdcFormat {
+    /// `gps_week,tow_s,c1,c2,c3` (FORMATS.md section 4).
+    #[default]
+    Gps,
+    /// `t x y z`: seconds, then one decimal reading a channel, separated by commas or white
+    /// space (FORMATS.md 8.3; imu_tk's ASCII layout).
+    Seconds,
+}
+
+/// Unit of a "seconds" stream's times.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+pub enum TimeUnit {
+    /// Seconds since the session's `start`.
+    #[default]
+    #[serde(rename = "s")]
+    Seconds,
+    /// Seconds since 1970-01-01 UTC (Unix time).
+    #[serde(rename = "unix_s")]
+    UnixSeconds,
+}
+
+/// The unit of the instrument's readings (FORMATS.md 8.3): k is in mGal per this unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+pub enum ReadingUnit {
+    /// ADC counts.
+    #[default]
+    #[serde(rename = "count")]
+    Count,
+    /// m/s^2.
+    #[serde(rename = "m/s^2")]
+    MetrePerSecond2,
+    /// mGal.
+    #[serde(rename = "mGal")]
+    MilliGal,
+    /// Standard gravity.
+    #[serde(rename = "g")]
+    StandardGravity,
+    /// Volts.
+    #[serde(rename = "V")]
+    Volt,
+}
+
+impl ReadingUnit {
+    /// The unit as the manifest writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ReadingUnit::Count => "count",
+            ReadingUnit::MetrePerSecond2 => "m/s^2",
+            ReadingUnit::MilliGal => "mGal",
+            ReadingUnit::StandardGravity => "g",
+            ReadingUnit::Volt => "V",
+        }
+    }
+}
+
 /// What a session is for.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -232,6 +293,9 @@ pub enum SessionKind {
     /// Acquisition logs only (a survey): ingested, passed by align, adjust and report, and
     /// calibrated by `apply`.
     Survey,
+    /// The block put in many static orientations, no theodolite (FORMATS.md 8.4): the
+    /// triad's static intervals.
+    MultiPosition,
 }
 
 impl SessionKind {
@@ -240,6 +304,7 @@ impl SessionKind {
         match self {
             SessionKind::TiltTable => "tilt-table",
             SessionKind::Survey => "survey",
+            SessionKind::MultiPosition => "multi-position",
         }
     }
 }
@@ -261,6 +326,21 @@ pub struct Session {
     /// CSV temperature log.
     #[serde(default)]
     pub temperature_csv: Option<String>,
+    /// Layout of `adc_csv` (FORMATS.md 8.3): GPS week and time of week (default), or a lab
+    /// logger's seconds.
+    #[serde(default)]
+    pub adc_format: AdcFormat,
+    /// Start of a "seconds" stream whose times are relative, `YYYY-MM-DDTHH:MM:SS[.f]` in
+    /// `theodolite_time_scale`.
+    #[serde(default)]
+    pub start: Option<String>,
+    /// Unit of a "seconds" stream's times.
+    #[serde(default)]
+    pub time_unit: TimeUnit,
+    /// Static intervals of a multi-position session, seconds since its start; without them
+    /// they are found in the stream.
+    #[serde(default)]
+    pub static_s: Option<Vec<[f64; 2]>>,
     /// What the session is for (FORMATS.md 8.4, 8.5): a tilt-table calibration (default)
     /// or a survey, which the calibration is applied to.
     #[serde(default)]
@@ -317,6 +397,9 @@ pub enum Per {
 pub struct ModelDecl {
     /// Label, unique.
     pub name: String,
+    /// One accelerometer at a time (default), or the three as a triad (FORMATS.md 8.4).
+    #[serde(default)]
+    pub kind: ModelKind,
     /// Polynomial order 1..=3.
     #[serde(default = "default_order")]
     pub order: u8,
@@ -330,6 +413,17 @@ pub struct ModelDecl {
     /// the vector (theta_x, theta_y) over sessions at different rolls (FORMATS.md 8.2).
     #[serde(default)]
     pub misalignment: Misalignment,
+}
+
+/// What a model calibrates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ModelKind {
+    /// Each accelerometer's axis from tilt-table sessions.
+    #[default]
+    Axis,
+    /// The three accelerometers together from multi-position sessions (MODEL.md 6.5).
+    Triad,
 }
 
 /// How a model treats the misalignment of the sensitive axis: `false`, `true` or `"plane"`
@@ -386,6 +480,13 @@ fn default_per() -> Per {
 pub enum Acquisition {
     /// A binary `.gcb` log.
     Binary(PathBuf),
+    /// A lab logger's stream in the "seconds" layout (FORMATS.md 8.3), no temperature.
+    Lab {
+        /// The stream.
+        stream: PathBuf,
+        /// GPS time of its time 0, ns: the session's `start`, or the Unix epoch.
+        zero_gps_ns: i64,
+    },
     /// The CSV pair.
     Csv {
         /// ADC counts.
@@ -429,12 +530,103 @@ impl ResolvedSession {
         self.session.kind == SessionKind::Survey
     }
 
+    /// A tilt-table session: theodolite readings, one observation per reading and
+    /// accelerometer (the axis calibration's).
+    pub fn is_tilt_table(&self) -> bool {
+        self.session.kind == SessionKind::TiltTable
+    }
+
     /// The session's range of GPS time, `[00:00 UTC of its date, + days)`, ns: every
     /// record of the session must lie inside it.
     pub fn gps_range_ns(&self) -> (i64, i64) {
         let span = i64::from(self.session.days) * 86_400 * 1_000_000_000;
         (self.start_gps_ns, self.start_gps_ns.saturating_add(span))
     }
+}
+
+/// The acquisition of a session whose `adc_csv` is a lab logger's "seconds" stream: its
+/// path and the GPS time of its time 0: `start` in the session's time scale, or for Unix
+/// times the Unix epoch with the leap seconds of the session's date (a leap second inside
+/// a session would shift the rest of it by a second: none is expected in a lab day).
+/// Temperature logs are not read for such sessions in this version.
+fn lab_acquisition(
+    i: usize,
+    s: &Session,
+    date: (i32, u8, u8),
+    file: &impl Fn(String, &str) -> Result<PathBuf>,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<Acquisition> {
+    if s.acquisition.is_some() {
+        return Err(err(
+            format!("session[{i}].acquisition"),
+            "adc_format = \"seconds\" describes `adc_csv`; give the stream there".to_owned(),
+        ));
+    }
+    if s.temperature_csv.is_some() {
+        return Err(err(
+            format!("session[{i}].temperature_csv"),
+            "a \"seconds\" stream's temperature is not read in this version: leave it out (its \
+             models then cannot have temperature terms)"
+                .to_owned(),
+        ));
+    }
+    let Some(stream) = &s.adc_csv else {
+        return Err(err(
+            format!("session[{i}].adc_csv"),
+            "missing: adc_format = \"seconds\" needs the stream in `adc_csv`".to_owned(),
+        ));
+    };
+    let stream = file(format!("session[{i}].adc_csv"), stream)?;
+    let zero_gps_ns = match (s.time_unit, &s.start) {
+        (TimeUnit::UnixSeconds, None) => {
+            let midnight =
+                crate::time::gps_ns(crate::time::Calendar::midnight(date), TimeScale::Utc)
+                    .ok_or_else(|| {
+                        err(
+                            format!("session[{i}].date"),
+                            format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
+                        )
+                    })?;
+            midnight - days_from_civil(date) * 86_400_000_000_000
+        }
+        (TimeUnit::UnixSeconds, Some(_)) => {
+            return Err(err(
+                format!("session[{i}].start"),
+                "Unix times (time_unit = \"unix_s\") need no start".to_owned(),
+            ));
+        }
+        (TimeUnit::Seconds, None) => {
+            return Err(err(
+                format!("session[{i}].start"),
+                "missing: times in seconds since the start need `start`".to_owned(),
+            ));
+        }
+        (TimeUnit::Seconds, Some(start)) => {
+            let c = crate::time::parse_calendar(start)
+                .map_err(|m| err(format!("session[{i}].start"), m))?;
+            crate::time::gps_ns(c, s.theodolite_time_scale).ok_or_else(|| {
+                err(
+                    format!("session[{i}].start"),
+                    format!("`{start}` is before the GPS epoch (1980-01-06)"),
+                )
+            })?
+        }
+    };
+    Ok(Acquisition::Lab {
+        stream,
+        zero_gps_ns,
+    })
+}
+
+/// Days from 1970-01-01 to `date` (proleptic Gregorian; Hinnant's days_from_civil).
+fn days_from_civil((y, m, d): (i32, u8, u8)) -> i64 {
+    let y = i64::from(y) - i64::from(m <= 2);
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let m = i64::from(m);
+    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(d) - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
 }
 
 /// Parses `YYYY-MM-DD` into a valid calendar date.
@@ -642,37 +834,47 @@ impl Dataset {
                     format!("`{}` is not a date YYYY-MM-DD", s.date),
                 )
             })?;
-            let acquisition = match (&s.acquisition, &s.adc_csv, &s.temperature_csv) {
-                (Some(a), None, None) => {
-                    Acquisition::Binary(file(format!("session[{i}].acquisition"), a)?)
-                }
-                (None, Some(a), Some(t)) => Acquisition::Csv {
-                    adc: file(format!("session[{i}].adc_csv"), a)?,
-                    temperature: file(format!("session[{i}].temperature_csv"), t)?,
-                },
-                (None, Some(_), None) => {
+            let acquisition = if s.adc_format == AdcFormat::Seconds {
+                lab_acquisition(i, s, date, &file, &err)?
+            } else {
+                if s.start.is_some() {
                     return Err(err(
-                        format!("session[{i}].temperature_csv"),
-                        "adc_csv needs temperature_csv".into(),
+                        format!("session[{i}].start"),
+                        "`start` is for adc_format = \"seconds\" streams".to_owned(),
                     ));
                 }
-                (None, None, Some(_)) => {
-                    return Err(err(
-                        format!("session[{i}].adc_csv"),
-                        "temperature_csv needs adc_csv".into(),
-                    ));
-                }
-                (None, None, None) => {
-                    return Err(err(
-                        format!("session[{i}].acquisition"),
-                        "missing: give `acquisition` or `adc_csv` and `temperature_csv`".into(),
-                    ));
-                }
-                (Some(_), _, _) => {
-                    return Err(err(
-                        format!("session[{i}].acquisition"),
-                        "give `acquisition` or the CSV pair, not both".into(),
-                    ));
+                match (&s.acquisition, &s.adc_csv, &s.temperature_csv) {
+                    (Some(a), None, None) => {
+                        Acquisition::Binary(file(format!("session[{i}].acquisition"), a)?)
+                    }
+                    (None, Some(a), Some(t)) => Acquisition::Csv {
+                        adc: file(format!("session[{i}].adc_csv"), a)?,
+                        temperature: file(format!("session[{i}].temperature_csv"), t)?,
+                    },
+                    (None, Some(_), None) => {
+                        return Err(err(
+                            format!("session[{i}].temperature_csv"),
+                            "adc_csv needs temperature_csv".into(),
+                        ));
+                    }
+                    (None, None, Some(_)) => {
+                        return Err(err(
+                            format!("session[{i}].adc_csv"),
+                            "temperature_csv needs adc_csv".into(),
+                        ));
+                    }
+                    (None, None, None) => {
+                        return Err(err(
+                            format!("session[{i}].acquisition"),
+                            "missing: give `acquisition` or `adc_csv` and `temperature_csv`".into(),
+                        ));
+                    }
+                    (Some(_), _, _) => {
+                        return Err(err(
+                            format!("session[{i}].acquisition"),
+                            "give `acquisition` or the CSV pair, not both".into(),
+                        ));
+                    }
                 }
             };
             let theodolite = match (s.kind, &s.theodolite) {
@@ -696,7 +898,30 @@ impl Dataset {
                     ));
                 }
                 (SessionKind::Survey, None) => None,
+                (SessionKind::MultiPosition, Some(_)) => {
+                    return Err(err(
+                        format!("session[{i}].theodolite"),
+                        "a multi-position session has no theodolite log (its positions are \
+                         the block's static intervals)"
+                            .to_owned(),
+                    ));
+                }
+                (SessionKind::MultiPosition, None) => None,
             };
+            if s.static_s.is_some() && s.kind != SessionKind::MultiPosition {
+                return Err(err(
+                    format!("session[{i}].static_s"),
+                    "static intervals are for kind = \"multi-position\" sessions".to_owned(),
+                ));
+            }
+            for (k, [t0, t1]) in s.static_s.iter().flatten().enumerate() {
+                if !(t0.is_finite() && t1.is_finite() && *t0 >= 0.0 && t1 > t0) {
+                    return Err(err(
+                        format!("session[{i}].static_s[{k}]"),
+                        format!("[{t0}, {t1}] is not an interval of seconds from the start"),
+                    ));
+                }
+            }
             if !(1..=366).contains(&s.days) {
                 return Err(err(
                     format!("session[{i}].days"),
@@ -733,6 +958,23 @@ impl Dataset {
                     format!("{} is out of range [1, 3]", model.order),
                 ));
             }
+            if model.kind == ModelKind::Triad {
+                let unsupported = [
+                    (model.order != 1, "order", "orders above 1"),
+                    (model.temperature, "temperature", "temperature terms"),
+                    (
+                        model.misalignment != Misalignment::None,
+                        "misalignment",
+                        "a misalignment (T holds the axes' non-orthogonality)",
+                    ),
+                ];
+                if let Some((_, key, what)) = unsupported.iter().find(|(bad, _, _)| *bad) {
+                    return Err(err(
+                        format!("adjust.model[{i}].{key}"),
+                        format!("a triad model has no {what} in this version"),
+                    ));
+                }
+            }
             if model.misalignment == Misalignment::Vector && model.per != Per::All {
                 return Err(err(
                     format!("adjust.model[{i}].misalignment"),
@@ -764,5 +1006,17 @@ impl Dataset {
             .accelerometer
             .iter()
             .find(|a| a.channel == channel)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn days_from_the_unix_epoch() {
+        assert_eq!(days_from_civil((1970, 1, 1)), 0);
+        assert_eq!(days_from_civil((2000, 3, 1)), 11_017);
+        assert_eq!(days_from_civil((2023, 1, 5)), 19_362);
     }
 }

@@ -100,6 +100,39 @@ pub mod temperature {
     }
 }
 
+/// `lab.parquet`: the samples of lab loggers' "seconds" streams (FORMATS.md 8.3), decimal
+/// readings in the instrument's `reading_unit`.
+///
+/// | column | type | unit / meaning |
+/// |---|---|---|
+/// | session_index | uint16 | as in acceleration.parquet |
+/// | time_gps_ns | int64 | GPS time, ns (samples that shared a time stamp spread to the next) |
+/// | value_ch1..3 | float64, null | the reading; null where the line gave `nan` |
+/// | line | uint64 | the sample's line in its stream |
+pub mod lab {
+    use super::*;
+    /// File name.
+    pub const FILE: &str = "lab.parquet";
+    /// Readings of channels 1..3.
+    pub const VALUES: [&str; 3] = ["value_ch1", "value_ch2", "value_ch3"];
+    /// Line in the stream.
+    pub const LINE: &str = "line";
+    /// The Arrow schema, for the dataset's `sessions`.
+    pub fn schema(sessions: &[String]) -> SchemaRef {
+        with_sessions(
+            vec![
+                Field::new(SESSION_INDEX, DataType::UInt16, false),
+                Field::new(TIME_GPS_NS, DataType::Int64, false),
+                Field::new(VALUES[0], DataType::Float64, true),
+                Field::new(VALUES[1], DataType::Float64, true),
+                Field::new(VALUES[2], DataType::Float64, true),
+                Field::new(LINE, DataType::UInt64, false),
+            ],
+            sessions,
+        )
+    }
+}
+
 /// `theodolite.parquet`.
 pub mod theodolite {
     use super::*;

@@ -1,0 +1,414 @@
+//! Reader of lab loggers' streams in the "seconds" layout (FORMATS.md 8.3), imu_tk's ASCII
+//! layout among them: one sample a line, a time in seconds (since the session's `start`, or
+//! Unix), then one decimal reading a channel, separated by commas or any white space, with
+//! an optional header line and `#` comments.
+//!
+//! What real lab files do, and what is done about it:
+//! - Times printed coarser than the sample interval (10 ms stamps at 200 Hz: consecutive
+//!   samples share a stamp). Every sample is kept: a run of samples sharing a stamp is
+//!   spread evenly up to the next stamp (the last run at the declared interval), and the
+//!   ledger counts them and gives the stamps' step.
+//! - Scientific notation (`9.80665e+00`): read, and counted.
+//! - No header, or one: a first line whose time field is not a number is the header.
+//! - A time going back is rejected alone (`time_backwards`), as is a time outside the
+//!   session; a malformed line is an error naming file, line and field (or, with
+//!   skip-bad-lines, counted). `nan` for a reading is stored as null (counted by channel).
+//!
+//! Times are read exactly from their decimal digits (a Unix time with microseconds has 16
+//! significant digits, more than an f64 holds); only scientific notation goes through f64.
+
+use crate::contract::ledger::{FileLedger, LabStreamReport, reason};
+use crate::contract::tables;
+use crate::error::{Error, Result};
+use crate::lines::{read_lines, strip_comment};
+use crate::table::{Encodings, TableWriter};
+use arrow::array::{ArrayRef, Float64Array, Int64Array, UInt16Array, UInt64Array};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Rows buffered before a batch goes to the table.
+const BATCH_ROWS: usize = 1 << 16;
+
+/// `lab.parquet`, written a batch at a time.
+pub struct LabWriter {
+    table: TableWriter,
+    session: Vec<u16>,
+    time: Vec<i64>,
+    values: [Vec<Option<f64>>; 3],
+    line: Vec<u64>,
+}
+
+impl LabWriter {
+    /// Starts the table in `dir` for the dataset's `sessions`.
+    pub fn create(dir: &Path, sessions: &[String]) -> Result<Self> {
+        Ok(LabWriter {
+            table: TableWriter::create(
+                dir,
+                tables::lab::FILE,
+                "lab",
+                tables::lab::schema(sessions),
+                Encodings {
+                    delta: &[tables::SESSION_INDEX, tables::lab::LINE],
+                    ..Encodings::default()
+                },
+            )?,
+            session: Vec::new(),
+            time: Vec::new(),
+            values: Default::default(),
+            line: Vec::new(),
+        })
+    }
+
+    fn push(
+        &mut self,
+        session: u16,
+        time_ns: i64,
+        values: [Option<f64>; 3],
+        line: u64,
+    ) -> Result<()> {
+        self.session.push(session);
+        self.time.push(time_ns);
+        for (c, v) in self.values.iter_mut().zip(values) {
+            c.push(v);
+        }
+        self.line.push(line);
+        if self.time.len() >= BATCH_ROWS {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<()> {
+        if self.time.is_empty() {
+            return Ok(());
+        }
+        let mut columns: Vec<ArrayRef> = vec![
+            Arc::new(UInt16Array::from(std::mem::take(&mut self.session))),
+            Arc::new(Int64Array::from(std::mem::take(&mut self.time))),
+        ];
+        for c in &mut self.values {
+            columns.push(Arc::new(Float64Array::from(std::mem::take(c))));
+        }
+        columns.push(Arc::new(UInt64Array::from(std::mem::take(&mut self.line))));
+        self.table.write(columns)
+    }
+
+    /// Writes what is buffered and closes the table; returns its rows.
+    pub fn finish(mut self) -> Result<u64> {
+        self.flush()?;
+        self.table.finish()
+    }
+}
+
+/// How to read one stream.
+#[derive(Clone, Copy, Debug)]
+pub struct LabConfig {
+    /// The session's index in the manifest.
+    pub session: u16,
+    /// GPS time of the stream's time 0, ns.
+    pub zero_gps_ns: i64,
+    /// Declared sample interval, ns.
+    pub interval_ns: i64,
+    /// The session's range of GPS time, ns.
+    pub range_ns: (i64, i64),
+    /// Count and list malformed lines instead of failing.
+    pub skip_bad_lines: bool,
+}
+
+/// A field that does not parse: (field name, message).
+type Bad = (&'static str, String);
+
+/// Seconds with up to 9 decimals as ns, exactly; scientific notation through f64.
+fn parse_seconds_ns(field: &[u8]) -> Option<i64> {
+    let s = std::str::from_utf8(field).ok()?;
+    if s.contains(['e', 'E']) {
+        let v: f64 = s.parse().ok()?;
+        return (v.is_finite() && v.abs() < 9.2e9).then(|| (v * 1e9).round() as i64);
+    }
+    let (negative, digits) = match s.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, s.strip_prefix('+').unwrap_or(s)),
+    };
+    let (int, frac) = digits.split_once('.').unwrap_or((digits, ""));
+    if int.is_empty() && frac.is_empty()
+        || !int.bytes().all(|b| b.is_ascii_digit())
+        || !frac.bytes().all(|b| b.is_ascii_digit())
+        || int.len() > 10
+    {
+        return None;
+    }
+    let whole: i64 = if int.is_empty() { 0 } else { int.parse().ok()? };
+    let mut ns: i64 = 0;
+    for (k, b) in frac.bytes().take(9).enumerate() {
+        ns += i64::from(b - b'0') * 10i64.pow(8 - k as u32);
+    }
+    if frac.len() > 9 && frac.as_bytes()[9] >= b'5' {
+        ns += 1;
+    }
+    let total = whole.checked_mul(1_000_000_000)?.checked_add(ns)?;
+    Some(if negative { -total } else { total })
+}
+
+/// One data line: (time since zero ns, readings, values in scientific notation).
+fn parse_line(fields: &[&[u8]]) -> std::result::Result<(i64, [Option<f64>; 3], u64), Bad> {
+    const NAMES: [&str; 4] = ["t", "x", "y", "z"];
+    if fields.len() != 4 {
+        return Err((
+            "line",
+            format!("{} fields, expected 4 (t x y z)", fields.len()),
+        ));
+    }
+    let time = parse_seconds_ns(fields[0]).ok_or_else(|| {
+        (
+            "t",
+            format!("`{}` is not a time in seconds", text(fields[0])),
+        )
+    })?;
+    let mut values = [None; 3];
+    let mut scientific = 0;
+    for k in 0..3 {
+        let f = text(fields[k + 1]);
+        let v: f64 = f
+            .parse()
+            .map_err(|_| (NAMES[k + 1], format!("`{f}` is not a number")))?;
+        if v.is_nan() {
+            continue;
+        }
+        if !v.is_finite() {
+            return Err((NAMES[k + 1], format!("`{f}` is not finite")));
+        }
+        scientific += u64::from(f.contains(['e', 'E']));
+        values[k] = Some(v);
+    }
+    Ok((time, values, scientific))
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// A run of samples sharing one time stamp, waiting for the next stamp to spread them.
+#[derive(Default)]
+struct Run {
+    stamp_ns: i64,
+    samples: Vec<(u64, [Option<f64>; 3])>,
+}
+
+/// What the stream gave besides its rows.
+struct Tally {
+    accepted: u64,
+    null_values: BTreeMap<String, u64>,
+    /// Intervals between consecutive written times, by length.
+    intervals: BTreeMap<i64, u64>,
+    /// Steps between distinct stamps, by length.
+    steps: BTreeMap<i64, u64>,
+    last_written: Option<i64>,
+}
+
+impl Tally {
+    /// Writes a run, its samples spread evenly from its stamp to `next` (or at `interval`).
+    fn write_run(
+        &mut self,
+        run: &mut Run,
+        next: Option<i64>,
+        interval_ns: i64,
+        config: &LabConfig,
+        out: &mut LabWriter,
+    ) -> Result<()> {
+        let n = run.samples.len() as i64;
+        let step = next.map_or(interval_ns, |t| (t - run.stamp_ns) / n.max(1));
+        for (j, (line, values)) in run.samples.drain(..).enumerate() {
+            let t = run.stamp_ns + j as i64 * step;
+            if let Some(prev) = self.last_written {
+                *self.intervals.entry(t - prev).or_default() += 1;
+            }
+            self.last_written = Some(t);
+            for (k, v) in values.iter().enumerate() {
+                if v.is_none() {
+                    *self
+                        .null_values
+                        .entry(format!("ch{} nan", k + 1))
+                        .or_default() += 1;
+                }
+            }
+            out.push(config.session, t, values, line)?;
+            self.accepted += 1;
+        }
+        Ok(())
+    }
+}
+
+/// The most common key of a histogram.
+fn mode(h: &BTreeMap<i64, u64>) -> Option<i64> {
+    h.iter().max_by_key(|(_, n)| **n).map(|(k, _)| *k)
+}
+
+/// The median key of a histogram.
+fn median(h: &BTreeMap<i64, u64>) -> Option<i64> {
+    let total: u64 = h.values().sum();
+    let mut seen = 0;
+    for (k, n) in h {
+        seen += n;
+        if 2 * seen >= total {
+            return Some(*k);
+        }
+    }
+    None
+}
+
+/// Reads one "seconds" stream into `out`, filling in `ledger`; returns the median interval
+/// between samples (ns) after spreading shared stamps, if there were two samples.
+pub fn read_lab(
+    path: &Path,
+    config: LabConfig,
+    out: &mut LabWriter,
+    ledger: &mut FileLedger,
+    progress: &indicatif::ProgressBar,
+) -> Result<Option<i64>> {
+    let mut report = LabStreamReport::default();
+    let mut tally = Tally {
+        accepted: 0,
+        null_values: BTreeMap::new(),
+        intervals: BTreeMap::new(),
+        steps: BTreeMap::new(),
+        last_written: None,
+    };
+    let mut run: Option<Run> = None;
+    let mut data_seen = false;
+    let mut other = 0u64;
+    let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
+        let line = strip_comment(raw);
+        if line.is_empty() {
+            other += 1;
+            return Ok(());
+        }
+        if !data_seen {
+            report.comma_separated = line.contains(&b',');
+        }
+        let fields: Vec<&[u8]> = line
+            .split(|&c| c == b',' || c.is_ascii_whitespace())
+            .filter(|f| !f.is_empty())
+            .collect();
+        if !data_seen
+            && fields
+                .first()
+                .is_some_and(|f| parse_seconds_ns(f).is_none())
+        {
+            report.header = true;
+            other += 1;
+            data_seen = true;
+            return Ok(());
+        }
+        data_seen = true;
+        let (rel, values, scientific) = match parse_line(&fields) {
+            Ok(x) => x,
+            Err((field, message)) if config.skip_bad_lines => {
+                ledger.reject(
+                    format!("line {line_no}"),
+                    reason::MALFORMED,
+                    format!("{field}: {message}"),
+                );
+                return Ok(());
+            }
+            Err((field, message)) => {
+                return Err(Error::Line {
+                    path: path.to_path_buf(),
+                    line: line_no,
+                    field: field.to_owned(),
+                    message,
+                });
+            }
+        };
+        report.scientific_notation_values += scientific;
+        let Some(t) = config.zero_gps_ns.checked_add(rel) else {
+            ledger.reject(
+                format!("line {line_no}"),
+                reason::OUTSIDE_SESSION,
+                "time beyond any GPS time".to_owned(),
+            );
+            return Ok(());
+        };
+        if t < config.range_ns.0 || t >= config.range_ns.1 {
+            ledger.reject(
+                format!("line {line_no}"),
+                reason::OUTSIDE_SESSION,
+                format!("time {} s is outside the session", text(fields[0])),
+            );
+            return Ok(());
+        }
+        match &mut run {
+            Some(r) if t == r.stamp_ns => {
+                r.samples.push((line_no, values));
+                report.samples_sharing_a_stamp += 1;
+            }
+            Some(r) if t < r.stamp_ns => {
+                ledger.reject(
+                    format!("line {line_no}"),
+                    reason::TIME_BACKWARDS,
+                    format!("time {} s is before the line before it", text(fields[0])),
+                );
+            }
+            Some(r) => {
+                *tally.steps.entry(t - r.stamp_ns).or_default() += 1;
+                tally.write_run(r, Some(t), config.interval_ns, &config, out)?;
+                r.stamp_ns = t;
+                r.samples.push((line_no, values));
+            }
+            None => {
+                run = Some(Run {
+                    stamp_ns: t,
+                    samples: vec![(line_no, values)],
+                });
+            }
+        }
+        Ok(())
+    })?;
+    if let Some(r) = &mut run {
+        tally.write_run(r, None, config.interval_ns, &config, out)?;
+    }
+    report.stamp_step_ns = mode(&tally.steps);
+    report.median_interval_ns = median(&tally.intervals);
+    ledger.sha256 = sha;
+    ledger.bytes = bytes;
+    ledger.accept("acceleration", tally.accepted);
+    ledger.comment_blank_or_header_lines = Some(other);
+    ledger.null_values = tally.null_values;
+    ledger.lab_stream = Some(report.clone());
+    Ok(report.median_interval_ns)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seconds_are_read_exactly() {
+        assert_eq!(parse_seconds_ns(b"0"), Some(0));
+        assert_eq!(parse_seconds_ns(b"1.5"), Some(1_500_000_000));
+        assert_eq!(parse_seconds_ns(b"-0.25"), Some(-250_000_000));
+        assert_eq!(
+            parse_seconds_ns(b"1672887159.123456"),
+            Some(1_672_887_159_123_456_000)
+        );
+        assert_eq!(parse_seconds_ns(b".004"), Some(4_000_000));
+        assert_eq!(parse_seconds_ns(b"1.5e-3"), Some(1_500_000));
+        assert_eq!(parse_seconds_ns(b"12x"), None);
+        assert_eq!(parse_seconds_ns(b"time"), None);
+        assert_eq!(parse_seconds_ns(b"."), None);
+    }
+
+    #[test]
+    fn a_line_needs_a_time_and_three_readings() {
+        let ok = parse_line(&[b"0.01", b"9.8e+00", b"-0.1", b"nan"]).expect("parses");
+        assert_eq!(ok, (10_000_000, [Some(9.8), Some(-0.1), None], 1));
+        assert_eq!(
+            parse_line(&[b"0.01", b"1", b"2"]).expect_err("3 fields").0,
+            "line"
+        );
+        assert_eq!(
+            parse_line(&[b"0.01", b"1", b"x", b"2"]).expect_err("x").0,
+            "y"
+        );
+    }
+}

@@ -1,0 +1,193 @@
+//! Lab loggers' "seconds" streams (FORMATS.md 8.3) through ingest: imu_tk's ASCII layout
+//! with the quirks of real lab files (10 ms stamps at 200 Hz, scientific notation, no
+//! header), and a comma-separated file with a header and Unix times; every sample kept and
+//! what was found reported; a line going back in time rejected alone; manifest errors
+//! naming the key.
+
+use arrow::array::{Array, AsArray};
+use arrow::datatypes::{Float64Type, Int64Type};
+use ingest::contract::ledger::{IngestReport, reason};
+use ingest::contract::tables;
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use std::fmt::Write as _;
+use std::path::Path;
+
+fn manifest(session: &str) -> String {
+    format!(
+        r#"name = "lab"
+[site]
+g_abs_mgal = 980855.8
+[instrument]
+sample_rate_hz = 200.0
+reading_unit = "m/s^2"
+[[instrument.accelerometer]]
+id = "x"
+channel = 1
+[[instrument.accelerometer]]
+id = "y"
+channel = 2
+[[instrument.accelerometer]]
+id = "z"
+channel = 3
+[[session]]
+id = "lab1"
+date = "2023-01-05"
+kind = "multi-position"
+adc_format = "seconds"
+adc_csv = "raw/acc.txt"
+{session}
+"#
+    )
+}
+
+fn table(out: &Path) -> (Vec<i64>, Vec<Option<f64>>) {
+    let f = std::fs::File::open(out.join("ingest").join(tables::lab::FILE)).expect("lab table");
+    let mut times = Vec::new();
+    let mut x = Vec::new();
+    for b in ParquetRecordBatchReaderBuilder::try_new(f)
+        .expect("parquet")
+        .build()
+        .expect("reader")
+    {
+        let b = b.expect("batch");
+        times.extend_from_slice(
+            b.column_by_name(tables::TIME_GPS_NS)
+                .expect("time")
+                .as_primitive::<Int64Type>()
+                .values(),
+        );
+        let v = b
+            .column_by_name(tables::lab::VALUES[0])
+            .expect("x")
+            .as_primitive::<Float64Type>();
+        x.extend((0..v.len()).map(|i| v.is_valid(i).then(|| v.value(i))));
+    }
+    (times, x)
+}
+
+/// imu_tk's layout: `t x y z`, white space, no header, m/s^2 in scientific notation, times
+/// printed to 10 ms at 200 Hz (pairs share a stamp), one line going back in time.
+#[test]
+fn imu_tk_ascii_with_coarse_stamps_keeps_every_sample() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::create_dir_all(dir.path().join("raw")).expect("raw");
+    let mut text = String::new();
+    let n = 2000;
+    for i in 0..n {
+        let t = (i / 2) as f64 * 0.01;
+        writeln!(
+            text,
+            "{t:.2}   {:.6e} {:.6e} {:.6e}",
+            9.80665 + 1e-4 * i as f64,
+            0.01,
+            -0.02
+        )
+        .expect("write");
+        if i == 1000 {
+            // A stale line, 3 s back.
+            writeln!(text, "2.00 1.0 1.0 1.0").expect("write");
+        }
+    }
+    std::fs::write(dir.path().join("raw/acc.txt"), text).expect("write");
+    std::fs::write(
+        dir.path().join("dataset.toml"),
+        manifest("start = \"2023-01-05T02:52:39\""),
+    )
+    .expect("manifest");
+    let out = dir.path().join("out");
+    let report = ingest::run(dir.path(), &out).expect("ingest");
+    let f = &report.files[0];
+    assert_eq!(f.accepted, n as u64);
+    assert_eq!(f.rejected.get(reason::TIME_BACKWARDS), Some(&1));
+    let lab = f.lab_stream.as_ref().expect("lab report");
+    assert!(!lab.header && !lab.comma_separated);
+    assert_eq!(lab.samples_sharing_a_stamp, (n / 2) as u64);
+    assert_eq!(lab.stamp_step_ns, Some(10_000_000));
+    assert_eq!(lab.median_interval_ns, Some(5_000_000));
+    assert_eq!(lab.scientific_notation_values, 3 * n as u64);
+    let rate = report.sessions[0].measured_sample_rate_hz.expect("rate");
+    assert!((rate - 200.0).abs() < 1e-9, "{rate}");
+    assert_eq!(report.sessions[0].acceleration_samples, n as u64);
+    let (times, x) = table(&out);
+    assert_eq!(times.len(), n);
+    assert!(
+        times.windows(2).all(|w| w[1] - w[0] == 5_000_000),
+        "spread at 5 ms"
+    );
+    assert!((x[1999].expect("x") - (9.80665 + 0.1999)).abs() < 1e-12);
+    // The start 2023-01-05T02:52:39 UTC is 18 leap seconds behind GPS time.
+    let start = ingest::time::gps_ns(
+        ingest::time::parse_calendar("2023-01-05T02:52:57").expect("calendar"),
+        ingest::contract::manifest::TimeScale::Gpst,
+    )
+    .expect("gps");
+    assert_eq!(times[0], start);
+    let reloaded = IngestReport::load(&out.join("ingest")).expect("ledger");
+    assert_eq!(reloaded.files[0].lab_stream, f.lab_stream);
+}
+
+/// Commas, a header line, Unix times with microseconds, `nan` for a missing reading.
+#[test]
+fn comma_separated_unix_times_with_a_header() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::create_dir_all(dir.path().join("raw")).expect("raw");
+    let mut text = String::from("# lab logger\ntime,ax,ay,az\n");
+    for i in 0..400 {
+        let t = 1_672_887_159.0 + f64::from(i) * 0.005;
+        let z = if i == 7 {
+            "nan".to_owned()
+        } else {
+            "-9.8".to_owned()
+        };
+        writeln!(text, "{t:.6},0.1,0.2,{z}").expect("write");
+    }
+    std::fs::write(dir.path().join("raw/acc.txt"), text).expect("write");
+    std::fs::write(
+        dir.path().join("dataset.toml"),
+        manifest("time_unit = \"unix_s\""),
+    )
+    .expect("manifest");
+    let out = dir.path().join("out");
+    let report = ingest::run(dir.path(), &out).expect("ingest");
+    let f = &report.files[0];
+    let lab = f.lab_stream.as_ref().expect("lab report");
+    assert!(lab.header && lab.comma_separated);
+    assert_eq!(lab.samples_sharing_a_stamp, 0);
+    assert_eq!(f.accepted, 400);
+    assert_eq!(f.null_values.get("ch3 nan"), Some(&1));
+    // 1672887159 s Unix is 2023-01-05T02:52:39 UTC.
+    let (times, _) = table(&out);
+    let want = ingest::time::gps_ns(
+        ingest::time::parse_calendar("2023-01-05T02:52:39").expect("calendar"),
+        ingest::contract::manifest::TimeScale::Utc,
+    )
+    .expect("gps");
+    assert_eq!(times[0], want);
+}
+
+#[test]
+fn lab_manifest_errors_name_the_key() {
+    let cases = [
+        ("", "session[0].start"),
+        (
+            "start = \"2023-01-05T02:52:39\"\ntime_unit = \"unix_s\"",
+            "session[0].start",
+        ),
+        (
+            "start = \"2023-01-05T02:52:39\"\ntemperature_csv = \"raw/acc.txt\"",
+            "session[0].temperature_csv",
+        ),
+        (
+            "start = \"2023-01-05T02:52:39\"\nstatic_s = [[10.0, 5.0]]",
+            "session[0].static_s[0]",
+        ),
+    ];
+    for (session, key) in cases {
+        let dir = tempfile::tempdir().expect("tempdir");
+        std::fs::create_dir_all(dir.path().join("raw")).expect("raw");
+        std::fs::write(dir.path().join("raw/acc.txt"), "0 1 2 3\n").expect("write");
+        std::fs::write(dir.path().join("dataset.toml"), manifest(session)).expect("manifest");
+        let e = ingest::run(dir.path(), &dir.path().join("out")).expect_err(key);
+        assert!(e.to_string().contains(key), "{key}: {e}");
+    }
+}
