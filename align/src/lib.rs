@@ -18,17 +18,18 @@
 pub mod allan;
 pub mod colour;
 pub mod read;
+pub mod statics;
 pub mod tide;
 pub mod weights;
 pub mod window;
 
 use ingest::contract::align_ledger::{
     AdcNoise, AlignReport, AllanRow, Counts, DRIFT_T_LIMIT, Disconnected, LEDGER_FILE,
-    LEDGER_FORMAT, STAGE_DIR, reason, sigma_source,
+    LEDGER_FORMAT, MultiPosition, STAGE_DIR, StaticPosition, reason, sigma_source,
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger as ingest_ledger;
-use ingest::contract::manifest::{AlignConfig, Dataset, Location, SigmaDzMethod};
+use ingest::contract::manifest::{AlignConfig, Dataset, Location, SessionKind, SigmaDzMethod};
 use ingest::contract::{status, tables};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -339,7 +340,90 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
             &mut formed,
         );
     }
+    formed.multi_position = multi_positions(&ds, &setup, &ingest_dir)?;
     write_outputs(&ds, out, setup, formed)
+}
+
+/// The static positions of every multi-position session: listed in the manifest, or found
+/// by [`statics::detect`]; an interval shorter than [`statics::MIN_STATIC_S`] or with an
+/// axis of fewer than two values is counted, not used.
+fn multi_positions(ds: &Dataset, setup: &Setup, ingest_dir: &Path) -> Result<Vec<MultiPosition>> {
+    let wanted: Vec<u16> = ds
+        .sessions
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.session.kind == SessionKind::MultiPosition)
+        .filter_map(|(i, _)| u16::try_from(i).ok())
+        .collect();
+    if wanted.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut series = read::series(ingest_dir, &wanted)?;
+    let rate = ds.manifest.instrument.sample_rate_hz;
+    let mut out = Vec::new();
+    for w in wanted {
+        let s = &ds.sessions[usize::from(w)];
+        let data = series.remove(&w).unwrap_or_default();
+        let mut mp = MultiPosition {
+            session: s.session.id.clone(),
+            method: String::new(),
+            quiet_start_s: None,
+            quiet_sd: None,
+            window_s: statics::WINDOW_S,
+            threshold: None,
+            found: 0,
+            used: 0,
+            rejected: Default::default(),
+            positions: Vec::new(),
+        };
+        let intervals = match &s.session.static_s {
+            Some(listed) => {
+                mp.method = "listed".to_owned();
+                statics::listed(&data, listed)
+            }
+            None => {
+                mp.method = "detected".to_owned();
+                let d = statics::detect(&data, rate).map_err(|e| Error::Table {
+                    path: ingest_dir.join(tables::lab::FILE),
+                    message: format!("session {}: {e}", s.session.id),
+                })?;
+                mp.quiet_start_s = Some(statics::QUIET_S);
+                mp.quiet_sd = Some(d.quiet_sd);
+                mp.threshold = Some(d.threshold);
+                d.intervals
+            }
+        };
+        mp.found = intervals.len() as u64;
+        let min_samples = (statics::MIN_STATIC_S * rate).round() as usize;
+        for (i, j) in intervals {
+            let short = mp.method == "detected" && j - i < min_samples;
+            let stats = if short {
+                None
+            } else {
+                statics::means(&data, (i, j))
+            };
+            match stats {
+                Some((mean, sigma, samples)) => {
+                    let (t0, t1) = (data.time_ns[i], data.time_ns[j - 1]);
+                    mp.positions.push(StaticPosition {
+                        start_gps_ns: t0,
+                        end_gps_ns: t1,
+                        samples,
+                        mean,
+                        sigma,
+                        gravity_mgal: setup.g + setup.tide(t0 / 2 + t1 / 2).unwrap_or(0.0),
+                    });
+                }
+                None => {
+                    let why = if short { "too_short" } else { "no_samples" };
+                    *mp.rejected.entry(why.to_owned()).or_default() += 1;
+                }
+            }
+        }
+        mp.used = mp.positions.len() as u64;
+        out.push(mp);
+    }
+    Ok(out)
 }
 
 /// The windows of every session's readings, in time order.
@@ -523,6 +607,7 @@ struct Formed {
     counts: Vec<Counts>,
     disconnected: Vec<Disconnected>,
     noise: Vec<AdcNoise>,
+    multi_position: Vec<MultiPosition>,
 }
 
 /// The observations of one session, one per (reading, accelerometer); `never` lists the
@@ -622,6 +707,7 @@ fn write_outputs(ds: &Dataset, out: &Path, setup: Setup, formed: Formed) -> Resu
         tables::acceleration::FILE,
         tables::temperature::FILE,
         tables::theodolite::FILE,
+        tables::lab::FILE,
     ] {
         inputs.push(folders.record(Root::Out, &format!("{}/{file}", ingest_ledger::STAGE_DIR))?);
     }
@@ -660,6 +746,7 @@ fn write_outputs(ds: &Dataset, out: &Path, setup: Setup, formed: Formed) -> Resu
         disconnected: formed.disconnected,
         observations: rows,
         custody: Custody { inputs, outputs },
+        multi_position: formed.multi_position,
         surveys: ds
             .sessions
             .iter()

@@ -229,6 +229,42 @@ pub fn acceleration_batches(
     Ok(())
 }
 
+/// The samples of the sessions `wanted` (by index), as series of decimal readings: from
+/// lab.parquet (lab streams) and from the acceleration table (counts; null where not
+/// connected or over range).
+pub fn series(dir: &Path, wanted: &[u16]) -> Result<BTreeMap<u16, crate::statics::Series>> {
+    let mut out: BTreeMap<u16, crate::statics::Series> =
+        wanted.iter().map(|&w| (w, Default::default())).collect();
+    acceleration(dir, |session, time_ns, counts, _| {
+        if let Some(s) = out.get_mut(&session) {
+            s.time_ns.push(time_ns);
+            s.values.push(counts.map(|c| c.map(f64::from)));
+        }
+    })?;
+    let path = dir.join(tables::lab::FILE);
+    for b in batches(&path)? {
+        let b = b?;
+        let session = session_index(&path, &b)?;
+        let time = column(&path, &b, tables::TIME_GPS_NS, &DataType::Int64)?
+            .as_primitive::<Int64Type>()
+            .values();
+        let v: Vec<_> = tables::lab::VALUES
+            .iter()
+            .map(|n| {
+                column(&path, &b, n, &DataType::Float64).map(|c| c.as_primitive::<Float64Type>())
+            })
+            .collect::<Result<_>>()?;
+        for i in 0..b.num_rows() {
+            if let Some(s) = out.get_mut(&session[i]) {
+                s.time_ns.push(time[i]);
+                s.values
+                    .push([0, 1, 2].map(|k| v[k].is_valid(i).then(|| v[k].value(i))));
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// Streams the acceleration table in file order: `f(session index, time_ns, counts, status)`.
 pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8)) -> Result<()> {
     acceleration_batches(dir, 1 << 16, |b| {

@@ -141,6 +141,9 @@ pub struct AlignReport {
     /// given and `earth_tide` is not false).
     #[serde(default)]
     pub earth_tide_applied: bool,
+    /// Multi-position sessions: their static intervals, found or listed (FORMATS.md 8.4).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub multi_position: Vec<MultiPosition>,
     /// Survey sessions: no theodolite, so nothing to align; left to `apply`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub surveys: Vec<String>,
@@ -148,6 +151,49 @@ pub struct AlignReport {
     /// the run fails, and downstream stages refuse this ledger.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub errors: Vec<String>,
+}
+
+/// One multi-position session's static intervals.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct MultiPosition {
+    /// Session id.
+    pub session: String,
+    /// How the intervals were had: `listed` (the manifest's static_s) or `detected`.
+    pub method: String,
+    /// Detection: the quiet start the noise was measured on, s from the first sample.
+    pub quiet_start_s: Option<f64>,
+    /// Detection: each axis's sample sd over the quiet start, in the reading unit.
+    pub quiet_sd: Option<[f64; 3]>,
+    /// Detection: the moving-variance window, s.
+    pub window_s: f64,
+    /// Detection: the threshold of the window statistic (sum over axes of the window's
+    /// variance over the quiet start's), its 99.9 % chi-square quantile for a still block.
+    pub threshold: Option<f64>,
+    /// Intervals found (or listed).
+    pub found: u64,
+    /// Intervals used as positions.
+    pub used: u64,
+    /// Intervals not used, by reason (`too_short`, `saturated`, `no_samples`).
+    pub rejected: BTreeMap<String, u64>,
+    /// The positions: the static intervals used.
+    pub positions: Vec<StaticPosition>,
+}
+
+/// One static position: the three mean readings over its interval.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct StaticPosition {
+    /// First sample's GPS time, ns.
+    pub start_gps_ns: i64,
+    /// Last sample's GPS time, ns.
+    pub end_gps_ns: i64,
+    /// Samples averaged.
+    pub samples: u64,
+    /// Mean reading of channels 1..3.
+    pub mean: [f64; 3],
+    /// Sd of each mean: the samples' sd over sqrt(n) (white noise).
+    pub sigma: [f64; 3],
+    /// Gravity during the position, mGal (with the body tide when the site is located).
+    pub gravity_mgal: f64,
 }
 
 impl AlignReport {

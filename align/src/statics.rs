@@ -1,0 +1,290 @@
+//! Static intervals of a multi-position session (FORMATS.md 8.4), free of I/O: found in the
+//! stream by a moving-variance detector, or taken from the manifest's `static_s`; each
+//! interval's three mean readings with their sigmas.
+//!
+//! The detector, like imu_tk's, takes its threshold from the data's own quiet start; unlike
+//! imu_tk's (a multiple of the quiet variance tried until the calibration looks best) the
+//! threshold is a quantile. Over a window of w samples of a still block with white noise of
+//! the quiet start's sds, each axis's sample variance over its quiet variance is
+//! chi2(w - 1)/(w - 1), so their sum over the three axes is chi2(3(w - 1))/(w - 1): a
+//! window whose sum exceeds that law's 99.9 % quantile is moving. A sample is still when the
+//! window centred on it is; runs of still samples at least `min_static_s` long are the
+//! intervals (the window's half-width keeps them clear of the motion on either side).
+
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// The first this many seconds of a multi-position stream must be still: the noise the
+/// threshold is made from (imu_tk asks for a quiet start of tens of seconds).
+pub const QUIET_S: f64 = 10.0;
+/// The moving-variance window, s.
+pub const WINDOW_S: f64 = 1.0;
+/// The shortest interval used, s.
+pub const MIN_STATIC_S: f64 = 3.0;
+/// The detector's false-alarm rate per window.
+pub const ALPHA: f64 = 0.001;
+
+/// A session's samples in time order.
+#[derive(Clone, Debug, Default)]
+pub struct Series {
+    /// GPS time, ns.
+    pub time_ns: Vec<i64>,
+    /// Readings of channels 1..3 (None: not connected, saturated or `nan`).
+    pub values: Vec<[Option<f64>; 3]>,
+}
+
+/// What the detector found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Detection {
+    /// Each axis's sd over the quiet start.
+    pub quiet_sd: [f64; 3],
+    /// The window, samples.
+    pub window: usize,
+    /// The threshold of the window statistic.
+    pub threshold: f64,
+    /// Runs of still samples: half-open index ranges, in time order.
+    pub intervals: Vec<(usize, usize)>,
+}
+
+/// Why the detector could not run.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum DetectError {
+    /// Fewer samples than the quiet start needs.
+    #[error("the stream is shorter than the {QUIET_S} s quiet start the detector needs")]
+    TooShort,
+    /// An axis has no spread over the quiet start (a constant, or no values).
+    #[error("channel {0} does not vary over the quiet start: no noise to set a threshold from")]
+    NoNoise(usize),
+}
+
+/// Running sums of the three axes, relative to a reference value for precision.
+struct Sums {
+    reference: [f64; 3],
+    /// Per sample index i: sums over samples [0, i) of (x - ref), (x - ref)^2, and count.
+    s1: Vec<[f64; 3]>,
+    s2: Vec<[f64; 3]>,
+    n: Vec<[u32; 3]>,
+}
+
+impl Sums {
+    fn new(series: &Series) -> Self {
+        let reference =
+            std::array::from_fn(|k| series.values.iter().find_map(|v| v[k]).unwrap_or(0.0));
+        let len = series.values.len();
+        let (mut s1, mut s2, mut n) = (
+            Vec::with_capacity(len + 1),
+            Vec::with_capacity(len + 1),
+            Vec::with_capacity(len + 1),
+        );
+        let (mut a, mut b, mut c) = ([0.0; 3], [0.0; 3], [0u32; 3]);
+        s1.push(a);
+        s2.push(b);
+        n.push(c);
+        for v in &series.values {
+            for k in 0..3 {
+                if let Some(x) = v[k] {
+                    let d = x - reference[k];
+                    a[k] += d;
+                    b[k] += d * d;
+                    c[k] += 1;
+                }
+            }
+            s1.push(a);
+            s2.push(b);
+            n.push(c);
+        }
+        Sums {
+            reference,
+            s1,
+            s2,
+            n,
+        }
+    }
+
+    /// Mean and sample variance of each axis over samples [i, j), with its count.
+    fn stats(&self, i: usize, j: usize) -> [(f64, f64, u32); 3] {
+        std::array::from_fn(|k| {
+            let n = self.n[j][k] - self.n[i][k];
+            let s1 = self.s1[j][k] - self.s1[i][k];
+            let s2 = self.s2[j][k] - self.s2[i][k];
+            if n < 2 {
+                return (f64::NAN, f64::NAN, n);
+            }
+            let nf = f64::from(n);
+            let mean = s1 / nf;
+            let var = ((s2 - s1 * mean) / (nf - 1.0)).max(0.0);
+            (self.reference[k] + mean, var, n)
+        })
+    }
+}
+
+/// A gap in stillness up to this many windows long, between two runs whose means agree, is
+/// a false alarm (the test is at 0.1 % a window, and an unlucky stretch of noise raises the
+/// windows across it), not a turn of the block.
+const MERGE_GAP_WINDOWS: usize = 3;
+
+/// Joins neighbouring runs separated by fewer than `max_gap` samples when every axis's
+/// means on the two sides agree within 5 sds of their difference (a real turn moves them
+/// by thousands).
+fn merge_false_alarms(
+    sums: &Sums,
+    runs: Vec<(usize, usize)>,
+    max_gap: usize,
+) -> Vec<(usize, usize)> {
+    let mut out: Vec<(usize, usize)> = Vec::new();
+    for (i, j) in runs {
+        if let Some(last) = out.last_mut()
+            && i - last.1 < max_gap
+        {
+            let a = sums.stats(last.0, last.1);
+            let b = sums.stats(i, j);
+            let agree = (0..3).all(|k| {
+                let se =
+                    (a[k].1 / f64::from(a[k].2.max(1)) + b[k].1 / f64::from(b[k].2.max(1))).sqrt();
+                (a[k].0 - b[k].0).abs() <= 5.0 * se
+            });
+            if agree {
+                last.1 = j;
+                continue;
+            }
+        }
+        out.push((i, j));
+    }
+    out
+}
+
+/// Finds the static intervals of `series` sampled at `rate_hz`.
+pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
+    let len = series.time_ns.len();
+    let quiet = (QUIET_S * rate_hz).round() as usize;
+    if len < quiet.max(3) {
+        return Err(DetectError::TooShort);
+    }
+    let sums = Sums::new(series);
+    let q = sums.stats(0, quiet);
+    let mut quiet_sd = [0.0; 3];
+    for k in 0..3 {
+        if !(q[k].1 > 0.0) {
+            return Err(DetectError::NoNoise(k + 1));
+        }
+        quiet_sd[k] = q[k].1.sqrt();
+    }
+    let window = ((WINDOW_S * rate_hz).round() as usize).max(5);
+    let dof = 3.0 * (window as f64 - 1.0);
+    let threshold = ChiSquared::new(dof)
+        .expect("positive dof")
+        .inverse_cdf(1.0 - ALPHA)
+        / (window as f64 - 1.0);
+    let half = window / 2;
+    let still: Vec<bool> = (0..len)
+        .map(|i| {
+            if i < half || i + window - half > len {
+                return false;
+            }
+            let s = sums.stats(i - half, i - half + window);
+            let stat: f64 = (0..3).map(|k| s[k].1 / q[k].1).sum();
+            stat < threshold
+        })
+        .collect();
+    let mut runs = Vec::new();
+    let mut i = 0;
+    while i < len {
+        if still[i] {
+            let j = (i..len).find(|&j| !still[j]).unwrap_or(len);
+            runs.push((i, j));
+            i = j;
+        } else {
+            i += 1;
+        }
+    }
+    let intervals = merge_false_alarms(&sums, runs, MERGE_GAP_WINDOWS * window);
+    Ok(Detection {
+        quiet_sd,
+        window,
+        threshold,
+        intervals,
+    })
+}
+
+/// The index ranges of the listed intervals, `[t0, t1]` seconds since the first sample.
+pub fn listed(series: &Series, static_s: &[[f64; 2]]) -> Vec<(usize, usize)> {
+    let Some(&t0) = series.time_ns.first() else {
+        return Vec::new();
+    };
+    static_s
+        .iter()
+        .map(|[a, b]| {
+            let from = t0 + (a * 1e9).round() as i64;
+            let to = t0 + (b * 1e9).round() as i64;
+            (
+                series.time_ns.partition_point(|&t| t < from),
+                series.time_ns.partition_point(|&t| t <= to),
+            )
+        })
+        .collect()
+}
+
+/// One interval's means: (mean, sd of the mean, samples) per axis; None when an axis has
+/// fewer than two values.
+pub fn means(series: &Series, (i, j): (usize, usize)) -> Option<([f64; 3], [f64; 3], u64)> {
+    let sums = Sums::new(&Series {
+        time_ns: series.time_ns[i..j].to_vec(),
+        values: series.values[i..j].to_vec(),
+    });
+    let s = sums.stats(0, j - i);
+    if s.iter().any(|x| x.2 < 2) {
+        return None;
+    }
+    Some((
+        s.map(|x| x.0),
+        s.map(|x| (x.1 / f64::from(x.2)).sqrt()),
+        u64::from(s.iter().map(|x| x.2).min().unwrap_or(0)),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Still, moving, still: two intervals, clear of the motion.
+    #[test]
+    fn still_moving_still() {
+        let rate = 50.0;
+        let mut s = Series::default();
+        let mut state = 1u64;
+        let mut noise = || {
+            // A small LCG, uniform in [-0.5, 0.5): sd 0.29.
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for i in 0..3000 {
+            let t = f64::from(i) / rate;
+            let moving = (20.0..26.0).contains(&t);
+            let level = if t < 23.0 { 100.0 } else { 300.0 };
+            let amp = if moving { 50.0 } else { 1.0 };
+            s.time_ns.push((t * 1e9) as i64);
+            s.values.push([
+                Some(level + amp * noise()),
+                Some(-level + amp * noise()),
+                Some(amp * noise()),
+            ]);
+        }
+        let d = detect(&s, rate).expect("detects");
+        let long: Vec<(usize, usize)> = d
+            .intervals
+            .iter()
+            .copied()
+            .filter(|(a, b)| (b - a) as f64 > MIN_STATIC_S * rate)
+            .collect();
+        assert_eq!(long.len(), 2, "{:?}", d.intervals);
+        assert!(long[0].1 <= 1000 && long[0].1 >= 975, "{:?}", long[0]);
+        assert!(long[1].0 >= 1300 && long[1].0 <= 1330, "{:?}", long[1]);
+        let (m, sigma, n) = means(&s, long[1]).expect("means");
+        assert!((m[0] - 300.0).abs() < 0.05 && n > 1000, "{m:?}");
+        assert!(
+            (sigma[0] - 0.29 / (n as f64).sqrt()).abs() < 0.002,
+            "{sigma:?}"
+        );
+    }
+}
