@@ -163,7 +163,7 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
     let q = sums.stats(0, quiet);
     let mut quiet_sd = [0.0; 3];
     for k in 0..3 {
-        if !(q[k].1 > 0.0) {
+        if q[k].1.is_nan() || q[k].1 <= 0.0 {
             return Err(DetectError::NoNoise(k + 1));
         }
         quiet_sd[k] = q[k].1.sqrt();
