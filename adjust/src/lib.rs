@@ -20,6 +20,7 @@ pub mod io;
 pub mod model;
 pub mod plan;
 pub mod triad;
+pub mod triad_fits;
 
 use calibrate::{CalError, Obs};
 use correlated::ColouredAdc;
@@ -645,10 +646,21 @@ fn write_outputs(
     ] {
         inputs.push(folders.record(Root::Out, &file)?);
     }
-    let outputs = vec![folders.record(
+    let mut outputs = vec![folders.record(
         Root::Out,
         &format!("{STAGE_DIR}/{}", ingest::contract::tables::residuals::FILE),
     )?];
+    for t in &calibration.triad {
+        let path = dir.join(&t.calib_file);
+        let tmp = dir.join(format!(".{}.partial", t.calib_file));
+        std::fs::write(&tmp, triad_fits::calib_text(t))
+            .and_then(|()| std::fs::rename(&tmp, &path))
+            .map_err(|e| Error::Io {
+                path: path.clone(),
+                source: e,
+            })?;
+        outputs.push(folders.record(Root::Out, &format!("{STAGE_DIR}/{}", t.calib_file))?);
+    }
     calibration.custody = Custody { inputs, outputs };
     ingest::write_json_atomically(&cal_path, &calibration)?;
     Ok(calibration)
@@ -698,6 +710,8 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         }
     }
     let adc_noise = kalibr_noise(&align_report, &results);
+    let (triad, triad_skipped) = triad_fits::fit_all(&ds, &models, &align_report);
+    skipped.extend(triad_skipped);
     let calibration = Calibration {
         format: CALIBRATION_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
@@ -714,6 +728,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         accelerometers: ds.manifest.instrument.accelerometer.clone(),
         results,
         skipped,
+        triad,
         custody: Custody::default(),
         adc_noise,
         earth_tide: earth_tide_note(&used),

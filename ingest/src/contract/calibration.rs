@@ -189,6 +189,56 @@ pub struct Skipped {
     pub reason: String,
 }
 
+/// A triad calibration in imu_tk's body frame: a = T K (X - B), T upper-triangular with unit
+/// diagonal (angles a_yz, a_zy, a_zx), K = diag(s_x, s_y, s_z), B = (b_x, b_y, b_z).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TriadResult {
+    /// Model name.
+    pub model: String,
+    /// Session id or `all`.
+    pub session: String,
+    /// Unit of the readings X and the biases B.
+    pub reading_unit: String,
+    /// a_yz, a_zy, a_zx (rad), s_x, s_y, s_z (mGal per reading unit), b_x, b_y, b_z.
+    pub parameters: Vec<Parameter>,
+    /// Correlation matrix of the parameters.
+    pub correlation: Vec<Vec<f64>>,
+    /// The sensitive axes' departures from orthogonality, from T: for the pairs xy, xz, yz,
+    /// 90 deg minus the angle between the axes, mrad, with propagated sds.
+    pub non_orthogonality_mrad: Vec<Parameter>,
+    /// sqrt(v^T P v / dof) at the means' sigmas.
+    pub sigma0: f64,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Chi-square test of v^T P v, two-sided 5 %.
+    pub global_test: GlobalTest,
+    /// Positions in the final adjustment.
+    pub positions_used: usize,
+    /// Each position: |a| - g at the adjusted means, its w-test, its gravity direction in
+    /// the body frame; removed positions flagged.
+    pub positions: Vec<TriadPosition>,
+    /// The imu_tk text file written beside calibration.json (T, K, B).
+    pub calib_file: String,
+}
+
+/// One static position of a triad fit.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TriadPosition {
+    /// Session id.
+    pub session: String,
+    /// First sample's GPS time, ns.
+    pub start_gps_ns: i64,
+    /// |a| - g, mGal: the misclosure the adjustment took up (at the last adjustment the
+    /// position took part in).
+    pub residual_mgal: f64,
+    /// Its w-test.
+    pub w: f64,
+    /// Unit vector of the calibrated specific force in the body frame.
+    pub direction: [f64; 3],
+    /// Removed by data snooping.
+    pub removed: bool,
+}
+
 /// An accelerometer's noise terms in SI units, under the names of Kalibr's `imu.yaml`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct KalibrNoise {
@@ -226,6 +276,10 @@ pub struct Calibration {
     pub results: Vec<CalibrationResult>,
     /// Fits without a result.
     pub skipped: Vec<Skipped>,
+    /// Triad calibrations (models of kind "triad", FORMATS.md 8.4); fits without a result
+    /// are in `skipped` with the accelerometer `triad`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub triad: Vec<TriadResult>,
     /// Every file adjust read (the manifest, the upstream ledgers and observations) and
     /// wrote (residuals.parquet), with its SHA-256: with `inputs`, exactly what the numbers
     /// came from.

@@ -1,0 +1,252 @@
+//! The triad models of a dataset (FORMATS.md 8.4): align's static positions of its
+//! multi-position sessions through [`crate::triad::calibrate`], per session or over all,
+//! into calibration.json's `triad` results (or `skipped`, with the reason), and each
+//! result's imu_tk `.calib` text. No I/O.
+
+use crate::triad::{self, NAMES, Position, TriadError, TriadSolution};
+use ingest::contract::align_ledger::{AlignReport, MultiPosition};
+use ingest::contract::calibration::{GlobalTest, Parameter, Skipped, TriadPosition, TriadResult};
+use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
+
+/// The accelerometer a triad fit's entry in `skipped` names.
+pub const TRIAD: &str = "triad";
+
+/// Every triad model of `models` fitted: results and the fits skipped with their reasons.
+pub fn fit_all(
+    ds: &Dataset,
+    models: &[ModelDecl],
+    align: &AlignReport,
+) -> (Vec<TriadResult>, Vec<Skipped>) {
+    let mut results = Vec::new();
+    let mut skipped = Vec::new();
+    for model in models.iter().filter(|m| m.kind == ModelKind::Triad) {
+        let groups: Vec<(String, Vec<&MultiPosition>)> = match model.per {
+            Per::Session => align
+                .multi_position
+                .iter()
+                .map(|m| (m.session.clone(), vec![m]))
+                .collect(),
+            Per::All => vec![("all".to_owned(), align.multi_position.iter().collect())],
+        };
+        if groups.iter().all(|(_, g)| g.is_empty()) || groups.is_empty() {
+            skipped.push(skip(model, "all", "no multi-position session".to_owned()));
+            continue;
+        }
+        for (session, group) in groups {
+            let rows: Vec<(&str, &ingest::contract::align_ledger::StaticPosition)> = group
+                .iter()
+                .flat_map(|m| m.positions.iter().map(|p| (m.session.as_str(), p)))
+                .collect();
+            let positions: Vec<Position> = rows
+                .iter()
+                .map(|(_, p)| Position {
+                    mean: p.mean,
+                    sigma: p.sigma,
+                    g_mgal: p.gravity_mgal,
+                })
+                .collect();
+            match triad::calibrate(&positions) {
+                Ok(s) => results.push(result(ds, model, &session, &rows, &positions, &s)),
+                Err(e) => skipped.push(skip(model, &session, reason(&e))),
+            }
+        }
+    }
+    (results, skipped)
+}
+
+fn reason(e: &TriadError) -> String {
+    e.to_string()
+}
+
+fn skip(model: &ModelDecl, session: &str, reason: String) -> Skipped {
+    Skipped {
+        accelerometer: TRIAD.to_owned(),
+        session: session.to_owned(),
+        model: model.name.clone(),
+        reason,
+    }
+}
+
+fn result(
+    ds: &Dataset,
+    model: &ModelDecl,
+    session: &str,
+    rows: &[(&str, &ingest::contract::align_ledger::StaticPosition)],
+    positions: &[Position],
+    s: &TriadSolution,
+) -> TriadResult {
+    let unit = ds.manifest.instrument.reading_unit.name();
+    let units = [
+        "rad".to_owned(),
+        "rad".to_owned(),
+        "rad".to_owned(),
+        format!("mGal/{unit}"),
+        format!("mGal/{unit}"),
+        format!("mGal/{unit}"),
+        unit.to_owned(),
+        unit.to_owned(),
+        unit.to_owned(),
+    ];
+    let parameters = (0..9)
+        .map(|j| Parameter {
+            name: NAMES[j].to_owned(),
+            unit: units[j].clone(),
+            value: s.values[j],
+            sigma: s.sigma(j),
+            sigma_apriori: s.sigma(j),
+        })
+        .collect();
+    let correlation = (0..9)
+        .map(|i| {
+            (0..9)
+                .map(|j| s.covariance[i * 9 + j] / (s.sigma(i) * s.sigma(j)))
+                .collect()
+        })
+        .collect();
+    let removed: Vec<usize> = s.removed.iter().map(|(i, _)| *i).collect();
+    let positions_out = rows
+        .iter()
+        .enumerate()
+        .map(|(i, (session, p))| {
+            let a = triad::calibrated(&s.values, positions[i].mean);
+            let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            let used = s.residuals.iter().find(|r| r.0 == i);
+            let (residual_mgal, w) = match used {
+                Some(r) => (r.1, r.2),
+                None => {
+                    let w = s.removed.iter().find(|r| r.0 == i).map_or(0.0, |r| r.1);
+                    (n - positions[i].g_mgal, w)
+                }
+            };
+            TriadPosition {
+                session: (*session).to_owned(),
+                start_gps_ns: p.start_gps_ns,
+                residual_mgal,
+                w,
+                direction: a.map(|x| x / n),
+                removed: removed.contains(&i),
+            }
+        })
+        .collect();
+    let (lo, hi, passed) = s.global_test;
+    TriadResult {
+        model: model.name.clone(),
+        session: session.to_owned(),
+        reading_unit: unit.to_owned(),
+        parameters,
+        correlation,
+        non_orthogonality_mrad: non_orthogonality(s),
+        sigma0: s.sigma0,
+        dof: s.dof,
+        global_test: GlobalTest {
+            statistic: s.vtpv,
+            expectation: s.dof as f64,
+            dof: s.dof as f64,
+            lower: lo,
+            upper: hi,
+            passed,
+        },
+        positions_used: s.residuals.len(),
+        positions: positions_out,
+        calib_file: format!("{}-{session}.calib", model.name),
+    }
+}
+
+/// 90 deg minus the angles between the sensitive axes (the rows of T^-1), mrad: xy, xz, yz.
+fn departures(angles: [f64; 3]) -> [f64; 3] {
+    let [a, b, c] = angles;
+    let rows = [[1.0, a, a * c - b], [0.0, 1.0, c], [0.0, 0.0, 1.0]];
+    let dep = |i: usize, j: usize| {
+        let dot: f64 = (0..3).map(|k| rows[i][k] * rows[j][k]).sum();
+        let n = |r: &[f64; 3]| r.iter().map(|x| x * x).sum::<f64>().sqrt();
+        (dot / (n(&rows[i]) * n(&rows[j]))).asin() * 1e3
+    };
+    [dep(0, 1), dep(0, 2), dep(1, 2)]
+}
+
+/// The departures from orthogonality with sds propagated through their numerical Jacobian.
+fn non_orthogonality(s: &TriadSolution) -> Vec<Parameter> {
+    let angles = [s.values[0], s.values[1], s.values[2]];
+    let value = departures(angles);
+    let mut jac = [[0.0; 3]; 3];
+    for k in 0..3 {
+        let h = 1e-7;
+        let mut up = angles;
+        up[k] += h;
+        let mut down = angles;
+        down[k] -= h;
+        let (u, d) = (departures(up), departures(down));
+        for r in 0..3 {
+            jac[r][k] = (u[r] - d[r]) / (2.0 * h);
+        }
+    }
+    ["xy", "xz", "yz"]
+        .iter()
+        .enumerate()
+        .map(|(r, name)| {
+            let var: f64 = (0..3)
+                .map(|a| {
+                    (0..3)
+                        .map(|b| jac[r][a] * s.covariance[a * 9 + b] * jac[r][b])
+                        .sum::<f64>()
+                })
+                .sum();
+            Parameter {
+                name: (*name).to_owned(),
+                unit: "mrad".to_owned(),
+                value: value[r],
+                sigma: var.max(0.0).sqrt(),
+                sigma_apriori: var.max(0.0).sqrt(),
+            }
+        })
+        .collect()
+}
+
+/// imu_tk's `.calib` text: T, K and B whitespace-separated, a blank line after each (what
+/// imu_tk's `CalibratedTriad::load` reads). K here is in mGal per reading unit.
+pub fn calib_text(r: &TriadResult) -> String {
+    let v = |name: &str| {
+        r.parameters
+            .iter()
+            .find(|p| p.name == name)
+            .map_or(f64::NAN, |p| p.value)
+    };
+    let (a_yz, a_zy, a_zx) = (v("a_yz"), v("a_zy"), v("a_zx"));
+    let t = [[1.0, -a_yz, a_zy], [0.0, 1.0, -a_zx], [0.0, 0.0, 1.0]];
+    let k = [v("s_x"), v("s_y"), v("s_z")];
+    let b = [v("b_x"), v("b_y"), v("b_z")];
+    let mut out = String::new();
+    for row in t {
+        out.push_str(&format!(
+            "{:.16e} {:.16e} {:.16e}\n",
+            row[0], row[1], row[2]
+        ));
+    }
+    out.push('\n');
+    for i in 0..3 {
+        let row: Vec<String> = (0..3)
+            .map(|j| format!("{:.16e}", if i == j { k[i] } else { 0.0 }))
+            .collect();
+        out.push_str(&row.join(" "));
+        out.push('\n');
+    }
+    out.push('\n');
+    for x in b {
+        out.push_str(&format!("{x:.16e}\n"));
+    }
+    out.push('\n');
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn departures_are_the_angles_to_first_order() {
+        let d = departures([2e-3, -1.5e-3, 3e-3]);
+        assert!((d[0] - 2.0).abs() < 0.01, "{d:?}");
+        assert!((d[1] - 1.5).abs() < 0.01, "{d:?}");
+        assert!((d[2] - 3.0).abs() < 0.01, "{d:?}");
+    }
+}
