@@ -207,3 +207,89 @@ fn scipy_least_squares_agrees() {
         assert!(ds.abs() < 1e-4, "{}: sigmas differ by {ds}", NAMES[j]);
     }
 }
+
+/// Ingest, align and adjust on a multi-position dataset; its calibration.json.
+fn pipeline(
+    dataset: &std::path::Path,
+    out: &std::path::Path,
+) -> ingest::contract::calibration::Calibration {
+    ingest::run(dataset, out).expect("ingest");
+    align::run(dataset, out).expect("align");
+    adjust::run(dataset, out).expect("adjust")
+}
+
+/// Each parameter within Bonferroni's 1 % family-wise bound (3.3 sigma for nine) of truth.
+fn within_sigmas(r: &ingest::contract::calibration::TriadResult, truth: &[f64]) -> f64 {
+    let mut worst: f64 = 0.0;
+    for (p, t) in r.parameters.iter().zip(truth) {
+        let z = (p.value - t) / p.sigma;
+        eprintln!(
+            "{}: {:.9e} +/- {:.2e} {} (truth {t:.9e}, z {z:.2})",
+            p.name, p.value, p.sigma, p.unit
+        );
+        worst = worst.max(z.abs());
+    }
+    assert!(worst < 3.3, "largest |z| {worst}");
+    worst
+}
+
+#[test]
+fn the_committed_lab_session_calibrates_the_triad() {
+    let dataset = fixtures::dataset_dir(fixtures::triad::MULTIPOS);
+    let text = std::fs::read_to_string(dataset.join("truth.toml")).expect("truth");
+    let truth: fixtures::triad::MultiPosTruth = toml::from_str(&text).expect("parse");
+    let out = tempfile::tempdir().expect("tempdir");
+    let c = pipeline(&dataset, out.path());
+    assert_eq!(c.triad.len(), 1, "{:?}", c.skipped);
+    let r = &c.triad[0];
+    within_sigmas(r, &truth.parameters);
+    // The knocked position (truth's position 12: the quiet start is 0) and no other removed.
+    let removed: Vec<usize> = r
+        .positions
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.removed)
+        .map(|(i, _)| i)
+        .collect();
+    assert_eq!(removed, vec![12]);
+    assert!(truth.position[12].knock_counts > 0.0);
+    assert_eq!(r.positions.len(), truth.position.len());
+    // The .calib file reads back to the parameters.
+    let calib =
+        std::fs::read_to_string(out.path().join("adjust").join(&r.calib_file)).expect("calib");
+    let numbers: Vec<f64> = calib
+        .split_whitespace()
+        .map(|x| x.parse().expect("number"))
+        .collect();
+    assert_eq!(numbers.len(), 21);
+    assert_eq!(numbers[1], -r.parameters[0].value);
+    assert_eq!(numbers[9], r.parameters[3].value);
+    assert_eq!(numbers[18], r.parameters[6].value);
+}
+
+/// imu_tk's ASCII layout at 200 Hz in m/s^2 with 10 ms stamps, no header, 36 positions
+/// after a 30 s quiet start: through the pipeline with a manifest alone.
+#[test]
+fn an_imu_tk_ascii_file_calibrates_with_a_manifest_alone() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("imu-tk");
+    let plan = fixtures::triad::imu_tk_style(36);
+    let truth = fixtures::triad::write_multipos(&plan, &dataset).expect("write");
+    let head = std::fs::read_to_string(dataset.join("raw/lab.txt")).expect("read");
+    assert!(head.starts_with("0.00 "), "{}", &head[..40]);
+    let out = dir.path().join("out");
+    let c = pipeline(&dataset, &out);
+    let report = ingest::contract::ledger::IngestReport::load(&out.join("ingest")).expect("ledger");
+    let lab = report.files[0].lab_stream.as_ref().expect("lab");
+    eprintln!(
+        "{lab:?}; rate {:?}",
+        report.sessions[0].measured_sample_rate_hz
+    );
+    assert!(lab.samples_sharing_a_stamp > truth.samples / 3, "{lab:?}");
+    assert_eq!(report.files[0].accepted, truth.samples);
+    assert_eq!(c.triad.len(), 1, "{:?}", c.skipped);
+    let r = &c.triad[0];
+    assert_eq!(r.reading_unit, "m/s^2");
+    within_sigmas(r, &truth.parameters);
+    assert_eq!(r.positions.len(), truth.position.len());
+}

@@ -9,7 +9,9 @@
 //! chi2(w - 1)/(w - 1), so their sum over the three axes is chi2(3(w - 1))/(w - 1): a
 //! window whose sum exceeds that law's 99.9 % quantile is moving. A sample is still when the
 //! window centred on it is; runs of still samples at least `min_static_s` long are the
-//! intervals (the window's half-width keeps them clear of the motion on either side).
+//! intervals (the window's half-width keeps them clear of the motion on either side). Each
+//! window's variance is summed afresh (time n w, about a second for an hour at 200 Hz):
+//! running sums over the stream cancel catastrophically.
 
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -56,65 +58,33 @@ pub enum DetectError {
     NoNoise(usize),
 }
 
-/// Running sums of the three axes, relative to a reference value for precision.
-struct Sums {
-    reference: [f64; 3],
-    /// Per sample index i: sums over samples [0, i) of (x - ref), (x - ref)^2, and count.
-    s1: Vec<[f64; 3]>,
-    s2: Vec<[f64; 3]>,
-    n: Vec<[u32; 3]>,
-}
-
-impl Sums {
-    fn new(series: &Series) -> Self {
-        let reference =
-            std::array::from_fn(|k| series.values.iter().find_map(|v| v[k]).unwrap_or(0.0));
-        let len = series.values.len();
-        let (mut s1, mut s2, mut n) = (
-            Vec::with_capacity(len + 1),
-            Vec::with_capacity(len + 1),
-            Vec::with_capacity(len + 1),
-        );
-        let (mut a, mut b, mut c) = ([0.0; 3], [0.0; 3], [0u32; 3]);
-        s1.push(a);
-        s2.push(b);
-        n.push(c);
-        for v in &series.values {
-            for k in 0..3 {
-                if let Some(x) = v[k] {
-                    let d = x - reference[k];
-                    a[k] += d;
-                    b[k] += d * d;
-                    c[k] += 1;
-                }
-            }
-            s1.push(a);
-            s2.push(b);
-            n.push(c);
+/// Mean, sample variance and count of each axis over samples [i, j): one pass of sums
+/// relative to the range's first value (a prefix sum over the whole stream would subtract
+/// numbers of 1e7 to find variances of 1e-10: readings in m/s^2 lost every digit).
+fn stats_of(series: &Series, i: usize, j: usize) -> [(f64, f64, u32); 3] {
+    std::array::from_fn(|k| {
+        let values = series.values[i..j].iter().filter_map(|v| v[k]);
+        let Some(reference) = series.values[i..j].iter().find_map(|v| v[k]) else {
+            return (f64::NAN, f64::NAN, 0);
+        };
+        let (mut s1, mut s2, mut n) = (0.0, 0.0, 0u32);
+        for x in values {
+            let d = x - reference;
+            s1 += d;
+            s2 += d * d;
+            n += 1;
         }
-        Sums {
-            reference,
-            s1,
-            s2,
+        if n < 2 {
+            return (f64::NAN, f64::NAN, n);
+        }
+        let nf = f64::from(n);
+        let mean = s1 / nf;
+        (
+            (reference + mean),
+            ((s2 - s1 * mean) / (nf - 1.0)).max(0.0),
             n,
-        }
-    }
-
-    /// Mean and sample variance of each axis over samples [i, j), with its count.
-    fn stats(&self, i: usize, j: usize) -> [(f64, f64, u32); 3] {
-        std::array::from_fn(|k| {
-            let n = self.n[j][k] - self.n[i][k];
-            let s1 = self.s1[j][k] - self.s1[i][k];
-            let s2 = self.s2[j][k] - self.s2[i][k];
-            if n < 2 {
-                return (f64::NAN, f64::NAN, n);
-            }
-            let nf = f64::from(n);
-            let mean = s1 / nf;
-            let var = ((s2 - s1 * mean) / (nf - 1.0)).max(0.0);
-            (self.reference[k] + mean, var, n)
-        })
-    }
+        )
+    })
 }
 
 /// A gap in stillness up to this many windows long, between two runs whose means agree, is
@@ -126,7 +96,7 @@ const MERGE_GAP_WINDOWS: usize = 3;
 /// means on the two sides agree within 5 sds of their difference (a real turn moves them
 /// by thousands).
 fn merge_false_alarms(
-    sums: &Sums,
+    series: &Series,
     runs: Vec<(usize, usize)>,
     max_gap: usize,
 ) -> Vec<(usize, usize)> {
@@ -135,8 +105,8 @@ fn merge_false_alarms(
         if let Some(last) = out.last_mut()
             && i - last.1 < max_gap
         {
-            let a = sums.stats(last.0, last.1);
-            let b = sums.stats(i, j);
+            let a = stats_of(series, last.0, last.1);
+            let b = stats_of(series, i, j);
             let agree = (0..3).all(|k| {
                 let se =
                     (a[k].1 / f64::from(a[k].2.max(1)) + b[k].1 / f64::from(b[k].2.max(1))).sqrt();
@@ -159,8 +129,7 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
     if len < quiet.max(3) {
         return Err(DetectError::TooShort);
     }
-    let sums = Sums::new(series);
-    let q = sums.stats(0, quiet);
+    let q = stats_of(series, 0, quiet);
     let mut quiet_sd = [0.0; 3];
     for k in 0..3 {
         if q[k].1.is_nan() || q[k].1 <= 0.0 {
@@ -180,7 +149,7 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
             if i < half || i + window - half > len {
                 return false;
             }
-            let s = sums.stats(i - half, i - half + window);
+            let s = stats_of(series, i - half, i - half + window);
             let stat: f64 = (0..3).map(|k| s[k].1 / q[k].1).sum();
             stat < threshold
         })
@@ -196,7 +165,9 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
             i += 1;
         }
     }
-    let intervals = merge_false_alarms(&sums, runs, MERGE_GAP_WINDOWS * window);
+    // A run shorter than a window is a lull inside a false alarm or a turn, not an interval.
+    runs.retain(|(i, j)| j - i >= window);
+    let intervals = merge_false_alarms(series, runs, MERGE_GAP_WINDOWS * window);
     Ok(Detection {
         quiet_sd,
         window,
@@ -226,11 +197,7 @@ pub fn listed(series: &Series, static_s: &[[f64; 2]]) -> Vec<(usize, usize)> {
 /// One interval's means: (mean, sd of the mean, samples) per axis; None when an axis has
 /// fewer than two values.
 pub fn means(series: &Series, (i, j): (usize, usize)) -> Option<([f64; 3], [f64; 3], u64)> {
-    let sums = Sums::new(&Series {
-        time_ns: series.time_ns[i..j].to_vec(),
-        values: series.values[i..j].to_vec(),
-    });
-    let s = sums.stats(0, j - i);
+    let s = stats_of(series, i, j);
     if s.iter().any(|x| x.2 < 2) {
         return None;
     }
