@@ -262,9 +262,14 @@ fn the_committed_lab_session_calibrates_the_triad() {
         .map(|x| x.parse().expect("number"))
         .collect();
     assert_eq!(numbers.len(), 21);
-    assert_eq!(numbers[1], -r.parameters[0].value);
-    assert_eq!(numbers[9], r.parameters[3].value);
-    assert_eq!(numbers[18], r.parameters[6].value);
+    // Written with 17 significant digits: read back exactly.
+    for (got, want) in [
+        (numbers[1], -r.parameters[0].value),
+        (numbers[9], r.parameters[3].value),
+        (numbers[18], r.parameters[6].value),
+    ] {
+        assert_eq!(got.to_bits(), want.to_bits(), "{got} vs {want}");
+    }
 }
 
 /// imu_tk's ASCII layout at 200 Hz in m/s^2 with 10 ms stamps, no header, 36 positions
