@@ -738,11 +738,30 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
 
 /// A few lines per fit: b, k and sigma0; and every skipped fit with its reason.
 pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
-    if c.results.is_empty() && c.skipped.is_empty() {
+    if c.results.is_empty() && c.skipped.is_empty() && c.triad.is_empty() {
         let _ = writeln!(
             w,
             "adjust: no observation to calibrate with (a dataset of survey sessions only: \
              `cargo xtask apply` calibrates them)"
+        );
+    }
+    for t in &c.triad {
+        let removed = t.positions.iter().filter(|p| p.removed).count();
+        let p: Vec<String> = t
+            .parameters
+            .iter()
+            .map(|p| format!("{} = {:.6e} +/- {:.1e}", p.name, p.value, p.sigma))
+            .collect();
+        let _ = writeln!(
+            w,
+            "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed, global test {}; wrote {}",
+            t.model,
+            t.session,
+            p.join(", "),
+            t.sigma0,
+            t.positions_used,
+            if t.global_test.passed { "passed" } else { "failed" },
+            t.calib_file
         );
     }
     for r in &c.results {

@@ -202,6 +202,7 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         components_section(&st),
         extra_terms_section(&st),
         misalignment_section(&st)?,
+        triad_section(&st)?,
         snooping_section(&st),
         ledger_section(&st),
         plots_section(&st)?,
@@ -487,6 +488,108 @@ fn misalignment_section(st: &Stages<'_>) -> Result<Section, Error> {
                 .to_owned(),
         );
         s.tables.push(("Misalignment vector".to_owned(), t));
+    }
+    Ok(s)
+}
+
+/// The triad calibrations (FORMATS.md 8.4): parameters, departures from orthogonality, the
+/// fit's statistics, |a| - g per position and the positions' directions in the body frame.
+fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
+    let mut s = section("Triad");
+    if st.cal.triad.is_empty() {
+        s.text.push(
+            "No triad model (kind = \"triad\" over multi-position sessions) was fitted.".to_owned(),
+        );
+        return Ok(s);
+    }
+    s.text.push(
+        "The three accelerometers calibrated together from the block's static positions: a = T K (X - B) in imu_tk's body \
+         frame (T upper-triangular with unit diagonal: the non-orthogonality angles a_yz, a_zy, a_zx; K the scales; B the \
+         biases), under |a| = g at every position, by a Gauss-Helmert adjustment with data snooping on the positions. \
+         Sigmas are a-priori (the means' sigmas from each interval's scatter); sigma0 and the global test say whether \
+         those fit."
+            .to_owned(),
+    );
+    for r in &st.cal.triad {
+        let mut t = Table::new(&["parameter", "value", "sigma", "unit"]);
+        for p in r.parameters.iter().chain(&r.non_orthogonality_mrad) {
+            t.rows.push(vec![
+                p.name.clone(),
+                format!("{:.9e}", p.value),
+                format!("{:.2e}", p.sigma),
+                p.unit.clone(),
+            ]);
+        }
+        let removed = r.positions.iter().filter(|p| p.removed).count();
+        s.text.push(format!(
+            "Model {} ({}): {} positions used, {removed} removed; sigma0 {:.3} on {} dof, global test {} ([{:.1}, {:.1}] for {:.1}); \
+             imu_tk file adjust/{}. The last three rows are 90 deg minus the angle between each pair of sensitive axes.",
+            r.model,
+            r.session,
+            r.positions_used,
+            r.sigma0,
+            r.dof,
+            if r.global_test.passed { "passed" } else { "failed" },
+            r.global_test.lower,
+            r.global_test.upper,
+            r.global_test.statistic,
+            r.calib_file
+        ));
+        s.tables
+            .push((format!("Triad {} ({})", r.model, r.session), t));
+        let points =
+            |removed: bool, f: &dyn Fn(usize, &calibration::TriadPosition) -> (f64, f64)| {
+                r.positions
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| p.removed == removed)
+                    .map(|(i, p)| f(i, p))
+                    .collect::<Vec<_>>()
+            };
+        let residual = |i: usize, p: &calibration::TriadPosition| (i as f64, p.residual_mgal);
+        let sky = |_: usize, p: &calibration::TriadPosition| {
+            let [x, y, z] = p.direction;
+            (
+                y.atan2(x).to_degrees(),
+                z.clamp(-1.0, 1.0).asin().to_degrees(),
+            )
+        };
+        for (name, title, x_label, y_label, f, zero) in [
+            (
+                "residuals",
+                "|a| - g per position",
+                "position",
+                "|a| - g (mGal)",
+                &residual as &dyn Fn(usize, &calibration::TriadPosition) -> (f64, f64),
+                true,
+            ),
+            (
+                "sky",
+                "gravity directions in the body frame",
+                "azimuth atan2(y, x) (deg)",
+                "elevation asin(z) (deg)",
+                &sky,
+                false,
+            ),
+        ] {
+            let plot = format!("triad-{}-{}-{name}", r.model, r.session);
+            let title = format!("{} ({}): {title}", r.model, r.session);
+            let svg = plots::scatter(&plots::Scatter {
+                title: &title,
+                x_label,
+                y_label,
+                used: &points(false, f),
+                removed: &points(true, f),
+                line: &[],
+                zero_line: zero,
+                labels: ("positions", ""),
+            })
+            .map_err(|message| Error::Plot {
+                name: plot.clone(),
+                message,
+            })?;
+            s.plots.push((format!("{plot}.svg"), svg));
+        }
     }
     Ok(s)
 }
