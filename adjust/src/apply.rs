@@ -9,6 +9,7 @@
 
 pub mod select;
 pub mod stream;
+pub mod triad_stream;
 
 use ingest::contract::calibration::CalibrationResult;
 pub use ingest::contract::tables::applied::{

@@ -760,7 +760,11 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
             p.join(", "),
             t.sigma0,
             t.positions_used,
-            if t.global_test.passed { "passed" } else { "failed" },
+            if t.global_test.passed {
+                "passed"
+            } else {
+                "failed"
+            },
             t.calib_file
         );
     }

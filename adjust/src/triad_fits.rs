@@ -129,6 +129,14 @@ fn result(
         })
         .collect();
     let (lo, hi, passed) = s.global_test;
+    let used: Vec<usize> = s.residuals.iter().map(|r| r.0).collect();
+    let readings_range = std::array::from_fn(|k| {
+        used.iter()
+            .map(|&i| positions[i].mean[k])
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], x| {
+                [a.min(x), b.max(x)]
+            })
+    });
     TriadResult {
         model: model.name.clone(),
         session: session.to_owned(),
@@ -149,6 +157,7 @@ fn result(
         positions_used: s.residuals.len(),
         positions: positions_out,
         calib_file: format!("{}-{session}.calib", model.name),
+        readings_range: Some(readings_range),
     }
 }
 

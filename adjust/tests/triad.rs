@@ -298,3 +298,81 @@ fn an_imu_tk_ascii_file_calibrates_with_a_manifest_alone() {
     within_sigmas(r, &truth.parameters);
     assert_eq!(r.positions.len(), truth.position.len());
 }
+
+/// The triad applied (MODEL.md 6.7) to its own lab session: at every good static position
+/// the mean calibrated vector is g along the true direction, within its covariance and the
+/// samples' noise; the knocked position is off by its knock.
+#[test]
+fn the_triad_applied_gives_the_gravity_vector() {
+    use arrow::array::{Array, AsArray};
+    use arrow::datatypes::{Float64Type, Int64Type};
+    use ingest::contract::tables::applied::TRIAD_COLUMNS;
+    let dataset = fixtures::dataset_dir(fixtures::triad::MULTIPOS);
+    let text = std::fs::read_to_string(dataset.join("truth.toml")).expect("truth");
+    let truth: fixtures::triad::MultiPosTruth = toml::from_str(&text).expect("parse");
+    let out = tempfile::tempdir().expect("tempdir");
+    pipeline(&dataset, out.path());
+    let cal = out.path().join("adjust/calibration.json");
+    let report = adjust::apply::stream::run(
+        &dataset,
+        out.path(),
+        &adjust::apply::stream::Options {
+            calibration: &cal,
+            choice: adjust::apply::select::Choice {
+                model: Some("triad"),
+                session: Some("lab"),
+            },
+        },
+    )
+    .expect("apply");
+    assert_eq!(report.rows_written, truth.samples);
+    let f = std::fs::File::open(out.path().join("apply/acceleration.parquet")).expect("table");
+    let mut t = Vec::new();
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); 9];
+    for b in parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(f)
+        .expect("parquet")
+        .build()
+        .expect("reader")
+    {
+        let b = b.expect("batch");
+        t.extend_from_slice(
+            b.column_by_name("time_gps_ns")
+                .expect("t")
+                .as_primitive::<Int64Type>()
+                .values(),
+        );
+        for (k, c) in cols.iter_mut().enumerate() {
+            let a = b.column_by_name(TRIAD_COLUMNS[k]).expect("column");
+            assert_eq!(a.null_count(), 0);
+            c.extend_from_slice(a.as_primitive::<Float64Type>().values());
+        }
+    }
+    let t0 = t[0];
+    let mut worst: f64 = 0.0;
+    for (i, p) in truth.position.iter().enumerate() {
+        let idx: Vec<usize> = (0..t.len())
+            .filter(|&j| {
+                let s = (t[j] - t0) as f64 * 1e-9;
+                s > p.start_s + 1.5 && s < p.end_s - 1.5
+            })
+            .collect();
+        let n = idx.len() as f64;
+        for k in 0..3 {
+            let want = truth.gravity_mgal * p.direction[k];
+            let e: Vec<f64> = idx.iter().map(|&j| cols[k][j] - want).collect();
+            let mean = e.iter().sum::<f64>() / n;
+            let var = e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+            let cov = idx.iter().map(|&j| cols[3 + [0, 3, 5][k]][j]).sum::<f64>() / n;
+            let z = mean / (cov + var / n).sqrt();
+            if p.knock_counts > 0.0 {
+                if k == 0 {
+                    assert!(z.abs() > 20.0, "the knocked position's x: z {z}");
+                }
+                continue;
+            }
+            worst = worst.max(z.abs());
+            assert!(z.abs() < 4.0, "position {i} axis {k}: {mean} mGal, z {z}");
+        }
+    }
+    eprintln!("largest |error| / sigma of a position's mean vector: {worst:.2}");
+}

@@ -265,6 +265,45 @@ pub fn series(dir: &Path, wanted: &[u16]) -> Result<BTreeMap<u16, crate::statics
     Ok(out)
 }
 
+/// One batch of the lab table: per row the session index, GPS time (ns), and the readings
+/// of channels 1..3 (null where the line gave `nan`).
+pub struct LabBatch<'a> {
+    /// Session index per row.
+    pub session: &'a [u16],
+    /// GPS time per row, ns.
+    pub time_ns: &'a [i64],
+    /// Readings of channels 1..3.
+    pub values: [&'a arrow::array::Float64Array; 3],
+}
+
+/// Streams the lab table in file order, a batch of `batch_rows` rows at a time.
+pub fn lab_batches(
+    dir: &Path,
+    batch_rows: usize,
+    mut f: impl FnMut(LabBatch<'_>) -> Result<()>,
+) -> Result<()> {
+    let path = dir.join(tables::lab::FILE);
+    for b in batches_of(&path, batch_rows)? {
+        let b = b?;
+        let session = session_index(&path, &b)?;
+        let time = column(&path, &b, tables::TIME_GPS_NS, &DataType::Int64)?
+            .as_primitive::<Int64Type>()
+            .values();
+        let v: Vec<_> = tables::lab::VALUES
+            .iter()
+            .map(|n| {
+                column(&path, &b, n, &DataType::Float64).map(|c| c.as_primitive::<Float64Type>())
+            })
+            .collect::<Result<_>>()?;
+        f(LabBatch {
+            session,
+            time_ns: time,
+            values: [v[0], v[1], v[2]],
+        })?;
+    }
+    Ok(())
+}
+
 /// Streams the acceleration table in file order: `f(session index, time_ns, counts, status)`.
 pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8)) -> Result<()> {
     acceleration_batches(dir, 1 << 16, |b| {

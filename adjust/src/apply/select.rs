@@ -4,7 +4,7 @@
 //! session named.
 
 use super::CalibrationFunction;
-use ingest::contract::calibration::Calibration;
+use ingest::contract::calibration::{Calibration, TriadResult};
 use ingest::contract::manifest::{Accelerometer, Dataset};
 use std::collections::BTreeSet;
 
@@ -128,6 +128,62 @@ fn fits(cal: &Calibration) -> impl Iterator<Item = (&str, &str)> {
                 .iter()
                 .map(|s| (s.model.as_str(), s.session.as_str())),
         )
+        .chain(
+            cal.triad
+                .iter()
+                .map(|t| (t.model.as_str(), t.session.as_str())),
+        )
+}
+
+/// The triad result of the selection, if its model is a triad model; with the survey's
+/// channels (0-based) of the triad's x, y and z (the calibration's channels 1, 2, 3).
+pub fn triad_of<'c>(
+    cal: &'c Calibration,
+    survey: &Dataset,
+    selection: &Selection,
+) -> Result<Option<(&'c TriadResult, [usize; 3])>, String> {
+    let Some(r) = cal
+        .triad
+        .iter()
+        .find(|t| t.model == selection.model && t.session == selection.session)
+    else {
+        return Ok(None);
+    };
+    let unit = survey.manifest.instrument.reading_unit.name();
+    if unit != r.reading_unit {
+        return Err(format!(
+            "triad {} was calibrated on readings in {}, the survey's are in {unit}",
+            r.model, r.reading_unit
+        ));
+    }
+    let mut channels = [0; 3];
+    for (axis, slot) in channels.iter_mut().enumerate() {
+        let id = cal
+            .accelerometers
+            .iter()
+            .find(|a| usize::from(a.channel) == axis + 1)
+            .map(|a| a.id.as_str())
+            .ok_or_else(|| {
+                format!(
+                    "the calibration has no accelerometer on channel {}",
+                    axis + 1
+                )
+            })?;
+        let on = survey
+            .manifest
+            .instrument
+            .accelerometer
+            .iter()
+            .find(|a| a.id == id)
+            .ok_or_else(|| {
+                format!(
+                    "the triad's axis {} is accelerometer `{id}`, not in the survey",
+                    ["x", "y", "z"][axis]
+                )
+            })?;
+        *slot = usize::from(on.channel).saturating_sub(1);
+    }
+    Ok(Some((r, channels)))
 }
 
 /// Every accelerometer of the survey must be one the calibration calibrated, by id and serial.

@@ -66,6 +66,22 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
     })?;
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
+    let used = CalibrationUsed {
+        path: opts.calibration.display().to_string(),
+        sha256: cal_sha256,
+        dataset: cal.dataset.clone(),
+        model: selection.model.clone(),
+        session: selection.session.clone(),
+    };
+    let triad = super::select::triad_of(&cal, &ds, &selection).map_err(|message| Error::Apply {
+        path: opts.calibration.to_path_buf(),
+        message,
+    })?;
+    if let Some((result, channels)) = triad {
+        let report = apply_triad(&ds, out, &ingest_report, used, result, channels)?;
+        ingest::write_json_atomically(&ledger_path, &report)?;
+        return Ok(report);
+    }
     let max_gap_ns = (ds.manifest.align.max_temperature_gap_s * 1e9).round() as i64;
     let written = write_table(
         &ds,
@@ -79,13 +95,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
         format: LEDGER_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
         software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
-        calibration: CalibrationUsed {
-            path: opts.calibration.display().to_string(),
-            sha256: cal_sha256,
-            dataset: cal.dataset.clone(),
-            model: selection.model.clone(),
-            session: selection.session.clone(),
-        },
+        calibration: used,
         quantity: QUANTITY.to_owned(),
         rows_read: written.rows,
         rows_written: written.rows,
@@ -100,6 +110,69 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
     };
     ingest::write_json_atomically(&ledger_path, &report)?;
     Ok(report)
+}
+
+/// What a triad's vector is, for apply.json.
+pub const TRIAD_QUANTITY: &str = "a = T K (X - B): the calibrated specific-force vector in the \
+    triad's body frame (imu_tk's), mGal, with its 3 x 3 covariance from the parameters' \
+    covariance; flags per sample shared by the three axes";
+
+/// A triad model applied: the vector table and its ledger.
+fn apply_triad(
+    ds: &Dataset,
+    out: &Path,
+    ingest_report: &IngestReport,
+    used: CalibrationUsed,
+    result: &ingest::contract::calibration::TriadResult,
+    channels: [usize; 3],
+) -> Result<ApplyReport, Error> {
+    let f = super::triad_stream::TriadFunction::new(result).map_err(|message| Error::Apply {
+        path: std::path::PathBuf::from(&used.path),
+        message,
+    })?;
+    let sessions: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
+    let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
+    let w = super::triad_stream::write(&sessions, &ingest_dir, &out.join(STAGE_DIR), &f, channels)?;
+    let flagged: std::collections::BTreeMap<String, u64> = applied::FLAG_NAMES
+        .iter()
+        .map(|(bit, name)| {
+            let n: u64 = (0..256)
+                .filter(|f| f & usize::from(*bit) != 0)
+                .map(|f| w.by_flags[f])
+                .sum();
+            ((*name).to_owned(), n)
+        })
+        .filter(|(_, n)| *n > 0)
+        .collect();
+    let accelerometers = channels
+        .iter()
+        .enumerate()
+        .map(|(axis, &ch)| {
+            let acc = ds.accelerometer_on(u8::try_from(ch + 1).unwrap_or(0));
+            AppliedAccelerometer {
+                id: acc.map(|a| a.id.clone()).unwrap_or_default(),
+                channel: u8::try_from(ch + 1).unwrap_or(0),
+                serial: acc.and_then(|a| a.serial.clone()),
+                not_calibrated: None,
+                counts_range: result.readings_range.map(|r| r[axis]),
+                temperature_range_c: None,
+                with_value: w.with_value,
+                flagged: flagged.clone(),
+            }
+        })
+        .collect();
+    Ok(ApplyReport {
+        format: LEDGER_FORMAT.to_owned(),
+        dataset: ds.manifest.name.clone(),
+        software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
+        calibration: used,
+        quantity: TRIAD_QUANTITY.to_owned(),
+        rows_read: w.rows,
+        rows_written: w.rows,
+        accelerometers,
+        max_temperature_gap_s: ds.manifest.align.max_temperature_gap_s,
+        custody: custody(ds, out, ingest_report, w.sha256)?,
+    })
 }
 
 /// Reads and checks calibration.json; returns it and its SHA-256.
@@ -141,8 +214,12 @@ fn custody(
             ),
         )?,
     ];
-    let tables = [tables::acceleration::FILE, tables::temperature::FILE]
-        .map(|t| format!("{}/{t}", ingest_ledger::STAGE_DIR));
+    let tables = [
+        tables::acceleration::FILE,
+        tables::temperature::FILE,
+        tables::lab::FILE,
+    ]
+    .map(|t| format!("{}/{t}", ingest_ledger::STAGE_DIR));
     inputs.extend(
         ingest_report
             .custody

@@ -219,6 +219,10 @@ pub struct TriadResult {
     pub positions: Vec<TriadPosition>,
     /// The imu_tk text file written beside calibration.json (T, K, B).
     pub calib_file: String,
+    /// Least and greatest mean reading of each axis over the positions used: the range it
+    /// calibrates (an application outside it is flagged).
+    #[serde(default)]
+    pub readings_range: Option<[[f64; 2]; 3]>,
 }
 
 /// One static position of a triad fit.

@@ -354,6 +354,9 @@ pub mod residuals {
 /// | `<id>_sigma_mgal` | float64, null | its sd from the calibration's covariance, mGal |
 /// | `<id>_temperature_c` | float64, null | the temperature used (interpolated as align does), degC |
 /// | `<id>_flags` | uint8 | the bits of [`applied`]'s flags, or-ed |
+///
+/// With a triad model the table has instead the vector `triad_x/y/z_mgal` in the body frame,
+/// the six elements of its covariance `triad_cov_xx..zz_mgal2`, and `triad_flags`.
 pub mod applied {
     use super::*;
     /// File name.
@@ -384,6 +387,34 @@ pub mod applied {
         (NOT_CONNECTED, "not_connected"),
         (NOT_CALIBRATED, "not_calibrated"),
     ];
+
+    /// A triad model's columns: the calibrated vector in the body frame (mGal), the six
+    /// elements of its covariance (mGal^2), and the flags.
+    pub const TRIAD_COLUMNS: [&str; 10] = [
+        "triad_x_mgal",
+        "triad_y_mgal",
+        "triad_z_mgal",
+        "triad_cov_xx_mgal2",
+        "triad_cov_xy_mgal2",
+        "triad_cov_xz_mgal2",
+        "triad_cov_yy_mgal2",
+        "triad_cov_yz_mgal2",
+        "triad_cov_zz_mgal2",
+        "triad_flags",
+    ];
+
+    /// The Arrow schema of a triad model's table, for the dataset's `sessions`.
+    pub fn triad_schema(sessions: &[String]) -> SchemaRef {
+        let mut fields = vec![
+            Field::new(SESSION_INDEX, DataType::UInt16, false),
+            Field::new(TIME_GPS_NS, DataType::Int64, false),
+        ];
+        for name in &TRIAD_COLUMNS[..9] {
+            fields.push(Field::new(*name, DataType::Float64, true));
+        }
+        fields.push(Field::new(TRIAD_COLUMNS[9], DataType::UInt8, false));
+        with_sessions(fields, sessions)
+    }
 
     /// The four column names of accelerometer `id`: acceleration, sigma, temperature, flags.
     pub fn columns(id: &str) -> [String; 4] {
