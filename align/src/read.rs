@@ -186,6 +186,16 @@ pub fn temperatures(dir: &Path) -> Result<Temperatures> {
     Ok(out)
 }
 
+/// A stream table's session index and GPS time columns.
+fn session_and_time<'b>(path: &Path, b: &'b RecordBatch) -> Result<(&'b [u16], &'b [i64])> {
+    Ok((
+        session_index(path, b)?,
+        column(path, b, tables::TIME_GPS_NS, &DataType::Int64)?
+            .as_primitive::<Int64Type>()
+            .values(),
+    ))
+}
+
 /// One batch of the acceleration table, as stored: per row the session index, GPS time
 /// (ns), the counts of channels 1..3 (null where not connected or over range) and the status.
 pub struct AccelerationBatch<'a> {
@@ -208,10 +218,7 @@ pub fn acceleration_batches(
     let path = dir.join(tables::acceleration::FILE);
     for b in batches_of(&path, batch_rows)? {
         let b = b?;
-        let session = session_index(&path, &b)?;
-        let time = column(&path, &b, tables::TIME_GPS_NS, &DataType::Int64)?
-            .as_primitive::<Int64Type>()
-            .values();
+        let (session, time) = session_and_time(&path, &b)?;
         let status = column(&path, &b, tables::STATUS, &DataType::UInt8)?
             .as_primitive::<UInt8Type>()
             .values();
@@ -241,27 +248,16 @@ pub fn series(dir: &Path, wanted: &[u16]) -> Result<BTreeMap<u16, crate::statics
             s.values.push(counts.map(|c| c.map(f64::from)));
         }
     })?;
-    let path = dir.join(tables::lab::FILE);
-    for b in batches(&path)? {
-        let b = b?;
-        let session = session_index(&path, &b)?;
-        let time = column(&path, &b, tables::TIME_GPS_NS, &DataType::Int64)?
-            .as_primitive::<Int64Type>()
-            .values();
-        let v: Vec<_> = tables::lab::VALUES
-            .iter()
-            .map(|n| {
-                column(&path, &b, n, &DataType::Float64).map(|c| c.as_primitive::<Float64Type>())
-            })
-            .collect::<Result<_>>()?;
-        for i in 0..b.num_rows() {
-            if let Some(s) = out.get_mut(&session[i]) {
-                s.time_ns.push(time[i]);
+    lab_batches(dir, 1 << 16, |b| {
+        for i in 0..b.time_ns.len() {
+            if let Some(s) = out.get_mut(&b.session[i]) {
+                s.time_ns.push(b.time_ns[i]);
                 s.values
-                    .push([0, 1, 2].map(|k| v[k].is_valid(i).then(|| v[k].value(i))));
+                    .push(b.values.map(|v| v.is_valid(i).then(|| v.value(i))));
             }
         }
-    }
+        Ok(())
+    })?;
     Ok(out)
 }
 
@@ -285,10 +281,7 @@ pub fn lab_batches(
     let path = dir.join(tables::lab::FILE);
     for b in batches_of(&path, batch_rows)? {
         let b = b?;
-        let session = session_index(&path, &b)?;
-        let time = column(&path, &b, tables::TIME_GPS_NS, &DataType::Int64)?
-            .as_primitive::<Int64Type>()
-            .values();
+        let (session, time) = session_and_time(&path, &b)?;
         let v: Vec<_> = tables::lab::VALUES
             .iter()
             .map(|n| {

@@ -533,6 +533,17 @@ pub fn cpu_seconds() -> Option<f64> {
     Some((utime + stime) as f64 / 100.0)
 }
 
+/// Prints `peak_rss_kb N` and `cpu_s S` to stderr, for `cargo xtask bench`.
+pub fn print_usage() {
+    match peak_rss_kb() {
+        Some(kb) => eprintln!("peak_rss_kb {kb}"),
+        None => eprintln!("peak_rss_kb unavailable"),
+    }
+    if let Some(s) = cpu_seconds() {
+        eprintln!("cpu_s {s}");
+    }
+}
+
 /// Peak resident set size of this process in kB, from /proc (Linux only), for benchmarks.
 pub fn peak_rss_kb() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;

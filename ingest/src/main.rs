@@ -36,13 +36,7 @@ fn main() -> ExitCode {
         Ok(report) => {
             ingest::print_summary(&report, &mut std::io::stderr());
             if args.report_peak_rss {
-                match ingest::peak_rss_kb() {
-                    Some(kb) => eprintln!("peak_rss_kb {kb}"),
-                    None => eprintln!("peak_rss_kb unavailable"),
-                }
-                if let Some(s) = ingest::cpu_seconds() {
-                    eprintln!("cpu_s {s}");
-                }
+                ingest::print_usage();
             }
             ExitCode::SUCCESS
         }

@@ -44,21 +44,22 @@ pub struct Options<'a> {
 }
 
 /// Applies a calibration to `dataset`'s acceleration stream (ingesting it into `out` first
-/// unless `out` already holds its verified ingest); writes OUT/apply/.
+/// unless `out` already holds its verified ingest); writes OUT/apply/. Every check of the
+/// calibration against the dataset comes before any work.
 pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport, Error> {
     let ds = Dataset::load(dataset)?;
     let _lock = ingest::lock::OutputLock::acquire(out)?;
     let (cal, cal_sha256) = load_calibration(opts.calibration)?;
-    let selection = select(&cal, &ds, &opts.choice).map_err(|message| Error::Apply {
+    let refused = |message| Error::Apply {
         path: opts.calibration.to_path_buf(),
         message,
-    })?;
+    };
+    let selection = select(&cal, &ds, &opts.choice).map_err(refused)?;
+    let triad = super::select::triad_of(&cal, &ds, &selection).map_err(refused)?;
     let ingest_report = match IngestReport::load_verified(&ds, out) {
         Ok(r) => r,
         Err(_) => ingest::run(dataset, out)?,
     };
-    let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
-    let temperatures = read::temperatures(&ingest_dir)?;
     let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
         path: dir.clone(),
@@ -73,25 +74,34 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
         model: selection.model.clone(),
         session: selection.session.clone(),
     };
-    let triad = super::select::triad_of(&cal, &ds, &selection).map_err(|message| Error::Apply {
-        path: opts.calibration.to_path_buf(),
-        message,
-    })?;
-    if let Some((result, channels)) = triad {
-        let report = apply_triad(&ds, out, &ingest_report, used, result, channels)?;
-        ingest::write_json_atomically(&ledger_path, &report)?;
-        return Ok(report);
-    }
+    let report = match triad {
+        Some((result, channels)) => apply_triad(&ds, out, &ingest_report, used, result, channels)?,
+        None => apply_axes(&ds, out, &ingest_report, used, &selection)?,
+    };
+    ingest::write_json_atomically(&ledger_path, &report)?;
+    Ok(report)
+}
+
+/// Axis models applied: each accelerometer's columns and the ledger.
+fn apply_axes(
+    ds: &Dataset,
+    out: &Path,
+    ingest_report: &IngestReport,
+    used: CalibrationUsed,
+    selection: &Selection,
+) -> Result<ApplyReport, Error> {
+    let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
+    let temperatures = read::temperatures(&ingest_dir)?;
     let max_gap_ns = (ds.manifest.align.max_temperature_gap_s * 1e9).round() as i64;
     let written = write_table(
-        &ds,
+        ds,
         &ingest_dir,
-        &dir,
-        &selection,
+        &out.join(STAGE_DIR),
+        selection,
         &temperatures,
         max_gap_ns,
     )?;
-    let report = ApplyReport {
+    Ok(ApplyReport {
         format: LEDGER_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
         software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
@@ -106,10 +116,24 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
             .map(|(t, lane)| lane.ledger(t))
             .collect(),
         max_temperature_gap_s: ds.manifest.align.max_temperature_gap_s,
-        custody: custody(&ds, out, &ingest_report, written.sha256)?,
-    };
-    ingest::write_json_atomically(&ledger_path, &report)?;
-    Ok(report)
+        custody: custody(ds, out, ingest_report, written.sha256)?,
+    })
+}
+
+/// Samples flagged, by flag name, from the samples counted by their flags byte (a sample
+/// may carry several flags); flags no sample carries are left out.
+fn flag_counts(by_flags: &[u64; 256]) -> std::collections::BTreeMap<String, u64> {
+    applied::FLAG_NAMES
+        .iter()
+        .map(|(bit, name)| {
+            let n: u64 = (0..256)
+                .filter(|f| f & usize::from(*bit) != 0)
+                .map(|f| by_flags[f])
+                .sum();
+            ((*name).to_owned(), n)
+        })
+        .filter(|(_, n)| *n > 0)
+        .collect()
 }
 
 /// What a triad's vector is, for apply.json.
@@ -133,17 +157,7 @@ fn apply_triad(
     let sessions: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
     let w = super::triad_stream::write(&sessions, &ingest_dir, &out.join(STAGE_DIR), &f, channels)?;
-    let flagged: std::collections::BTreeMap<String, u64> = applied::FLAG_NAMES
-        .iter()
-        .map(|(bit, name)| {
-            let n: u64 = (0..256)
-                .filter(|f| f & usize::from(*bit) != 0)
-                .map(|f| w.by_flags[f])
-                .sum();
-            ((*name).to_owned(), n)
-        })
-        .filter(|(_, n)| *n > 0)
-        .collect();
+    let flagged = flag_counts(&w.by_flags);
     let accelerometers = channels
         .iter()
         .enumerate()
@@ -443,17 +457,7 @@ impl<'t> Lane<'t> {
             counts_range: target.counts_range,
             temperature_range_c: target.temperature_range_c,
             with_value: self.with_value,
-            flagged: applied::FLAG_NAMES
-                .iter()
-                .map(|(bit, name)| {
-                    let n: u64 = (0..256)
-                        .filter(|f| f & usize::from(*bit) != 0)
-                        .map(|f| self.by_flags[f])
-                        .sum();
-                    ((*name).to_owned(), n)
-                })
-                .filter(|(_, n)| *n > 0)
-                .collect(),
+            flagged: flag_counts(&self.by_flags),
         }
     }
 }

@@ -552,7 +552,7 @@ impl ResolvedSession {
 fn lab_acquisition(
     i: usize,
     s: &Session,
-    date: (i32, u8, u8),
+    (date, midnight): ((i32, u8, u8), i64),
     file: &impl Fn(String, &str) -> Result<PathBuf>,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<Acquisition> {
@@ -578,17 +578,7 @@ fn lab_acquisition(
     };
     let stream = file(format!("session[{i}].adc_csv"), stream)?;
     let zero_gps_ns = match (s.time_unit, &s.start) {
-        (TimeUnit::UnixSeconds, None) => {
-            let midnight =
-                crate::time::gps_ns(crate::time::Calendar::midnight(date), TimeScale::Utc)
-                    .ok_or_else(|| {
-                        err(
-                            format!("session[{i}].date"),
-                            format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
-                        )
-                    })?;
-            midnight - days_from_civil(date) * 86_400_000_000_000
-        }
+        (TimeUnit::UnixSeconds, None) => midnight - days_from_civil(date) * 86_400_000_000_000,
         (TimeUnit::UnixSeconds, Some(_)) => {
             return Err(err(
                 format!("session[{i}].start"),
@@ -834,8 +824,16 @@ impl Dataset {
                     format!("`{}` is not a date YYYY-MM-DD", s.date),
                 )
             })?;
+            let start_gps_ns =
+                crate::time::gps_ns(crate::time::Calendar::midnight(date), TimeScale::Utc)
+                    .ok_or_else(|| {
+                        err(
+                            format!("session[{i}].date"),
+                            format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
+                        )
+                    })?;
             let acquisition = if s.adc_format == AdcFormat::Seconds {
-                lab_acquisition(i, s, date, &file, &err)?
+                lab_acquisition(i, s, (date, start_gps_ns), &file, &err)?
             } else {
                 if s.start.is_some() {
                     return Err(err(
@@ -928,14 +926,6 @@ impl Dataset {
                     format!("{} is out of range [1, 366]", s.days),
                 ));
             }
-            let start_gps_ns =
-                crate::time::gps_ns(crate::time::Calendar::midnight(date), TimeScale::Utc)
-                    .ok_or_else(|| {
-                        err(
-                            format!("session[{i}].date"),
-                            format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
-                        )
-                    })?;
             sessions.push(ResolvedSession {
                 session: s.clone(),
                 date,
