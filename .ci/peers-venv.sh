@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Creates target/peers-venv with the Python peers the tests compare against: PyGTide (ETERNA,
-# built from source: needs gfortran), tidegravity (Longman), allantools (Allan deviation) and
-# DuckDB (reads apply's Parquet output).
+# built from source: needs gfortran), tidegravity (Longman), allantools (Allan deviation),
+# DuckDB (reads apply's Parquet output) and scipy (the triad's second opinion; allantools
+# brings it, and it is checked here by name).
 # numpy is pinned with them: PyGTide's compiled part breaks under a numpy other than the one
 # it was built with, and tidegravity asks for 1.25. Idempotent.
 set -euo pipefail
@@ -19,4 +20,7 @@ fi
 if ! "$venv/bin/python" -c 'import duckdb' 2>/dev/null; then
   "$venv/bin/python" -m pip install -q duckdb==1.5.6
 fi
-"$venv/bin/python" -c 'import pygtide, tidegravity, allantools, duckdb; print("peers-venv: pygtide, tidegravity, allantools and duckdb", duckdb.__version__, "ready")'
+if ! "$venv/bin/python" -c 'import scipy.optimize' 2>/dev/null; then
+  "$venv/bin/python" -m pip install -q scipy
+fi
+"$venv/bin/python" -c 'import pygtide, tidegravity, allantools, duckdb, scipy; print("peers-venv: pygtide, tidegravity, allantools, scipy", scipy.__version__, "and duckdb", duckdb.__version__, "ready")'
