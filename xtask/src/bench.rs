@@ -261,6 +261,83 @@ fn csv_twin(dataset: &Path) -> Result<PathBuf> {
     Ok(twin)
 }
 
+/// A lab-logger twin of a benchmark dataset's CSV twin: the ADC log rewritten in the
+/// "seconds" layout (`t,x,y,z`, a header, seconds since 00:00 UTC of the session's date,
+/// counts as readings) as a multi-position session, for the lab reader's figure beside
+/// the CSV reader's on the same samples.
+fn lab_twin(csv_twin: &Path) -> Result<PathBuf> {
+    use std::io::{BufRead, Write};
+    let name = csv_twin.file_name().context("name")?.to_string_lossy();
+    let twin = csv_twin.with_file_name(format!("{}-lab", name.trim_end_matches("-csv")));
+    let lab = twin.join("raw/long_lab.txt");
+    let manifest = std::fs::read_to_string(csv_twin.join("dataset.toml"))?;
+    let date = manifest
+        .lines()
+        .find_map(|l| l.strip_prefix("date = \""))
+        .map(|d| d.trim_end_matches('"').to_owned())
+        .context("no session date")?;
+    if !lab.exists() {
+        std::fs::create_dir_all(twin.join("raw"))?;
+        let ymd: Vec<i32> = date
+            .split('-')
+            .map(|x| x.parse())
+            .collect::<Result<_, _>>()?;
+        let midnight = ingest::time::gps_ns(
+            ingest::time::Calendar::midnight((ymd[0], ymd[1] as u8, ymd[2] as u8)),
+            ingest::contract::manifest::TimeScale::Utc,
+        )
+        .context("date")?;
+        let input =
+            std::io::BufReader::new(std::fs::File::open(csv_twin.join("raw/long_adc.csv"))?);
+        let tmp = lab.with_extension("partial");
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        writeln!(out, "t,x,y,z")?;
+        for line in input.lines() {
+            let line = line?;
+            let mut f = line.split(',');
+            let (Some(week), Some(tow)) = (f.next(), f.next()) else {
+                continue;
+            };
+            let (Ok(week), Some((s, ms))) = (week.parse::<i64>(), tow.split_once('.')) else {
+                continue;
+            };
+            let ns = (week * 604_800 + s.parse::<i64>()?) * 1_000_000_000
+                + ms.parse::<i64>()? * 1_000_000
+                - midnight;
+            let rest: Vec<&str> = f.collect();
+            writeln!(
+                out,
+                "{}.{:03},{}",
+                ns / 1_000_000_000,
+                (ns % 1_000_000_000) / 1_000_000,
+                rest.join(",")
+            )?;
+        }
+        out.flush()?;
+        std::fs::rename(&tmp, &lab)?;
+    }
+    let mut text = String::new();
+    for line in manifest.lines() {
+        if line.starts_with("adc_csv") {
+            text.push_str(&format!(
+                "kind = \"multi-position\"\nadc_format = \"seconds\"\nadc_csv = \"raw/long_lab.txt\"\nstart = \"{date}T00:00:00\"\n"
+            ));
+        } else if line.starts_with("temperature_csv") || line.starts_with("theodolite") {
+            continue;
+        } else if let Some(rest) = line.strip_prefix("name = \"") {
+            text.push_str(&format!(
+                "name = \"{}-lab\"\n",
+                rest.trim_end_matches('"').trim_end_matches("-csv")
+            ));
+        } else {
+            text.push_str(line);
+            text.push('\n');
+        }
+    }
+    std::fs::write(twin.join("dataset.toml"), text)?;
+    Ok(twin)
+}
+
 fn dir_bytes(dir: &Path, keep: impl Fn(&str) -> bool) -> Result<u64> {
     let mut total = 0;
     for entry in std::fs::read_dir(dir.join("raw"))? {
@@ -351,6 +428,7 @@ pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
             fixtures::write::write_dataset(&scenario, &dataset)?;
         }
         let twin = csv_twin(&dataset)?;
+        let lab = lab_twin(&twin)?;
         let rate = 1000.0 / f64::from(interval_ms);
         let out = data.join("out");
         for (label, ds, keep) in [
@@ -360,6 +438,11 @@ pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
                 (|p: &str| !p.ends_with(".csv")) as fn(&str) -> bool,
             ),
             ("gravcal ingest, CSV", &twin, |p: &str| !p.ends_with(".gcb")),
+            (
+                "gravcal ingest, lab seconds layout (ADC only)",
+                &lab,
+                |p: &str| p.ends_with("_lab.txt"),
+            ),
         ] {
             warm(ds)?;
             let bytes = dir_bytes(ds, keep)?;
