@@ -154,10 +154,12 @@ fn parse_seconds_ns(field: &[u8]) -> Option<i64> {
 fn parse_line(fields: &[&[u8]]) -> std::result::Result<(i64, [Option<f64>; 3], u64), Bad> {
     const NAMES: [&str; 4] = ["t", "x", "y", "z"];
     if fields.len() != 4 {
-        return Err((
-            "line",
-            format!("{} fields, expected 4 (t x y z)", fields.len()),
-        ));
+        let n = if fields.len() > 4 {
+            "more than 4".to_owned()
+        } else {
+            fields.len().to_string()
+        };
+        return Err(("line", format!("{n} fields, expected 4 (t x y z)")));
     }
     let time = parse_seconds_ns(fields[0]).ok_or_else(|| {
         (
@@ -168,17 +170,19 @@ fn parse_line(fields: &[&[u8]]) -> std::result::Result<(i64, [Option<f64>; 3], u
     let mut values = [None; 3];
     let mut scientific = 0;
     for k in 0..3 {
-        let f = text(fields[k + 1]);
-        let v: f64 = f
-            .parse()
-            .map_err(|_| (NAMES[k + 1], format!("`{f}` is not a number")))?;
+        let raw = fields[k + 1];
+        let bad = |what: &str| (NAMES[k + 1], format!("`{}` is {what}", text(raw)));
+        let v: f64 = std::str::from_utf8(raw)
+            .ok()
+            .and_then(|f| f.parse().ok())
+            .ok_or_else(|| bad("not a number"))?;
         if v.is_nan() {
             continue;
         }
         if !v.is_finite() {
-            return Err((NAMES[k + 1], format!("`{f}` is not finite")));
+            return Err(bad("not finite"));
         }
-        scientific += u64::from(f.contains(['e', 'E']));
+        scientific += u64::from(raw.iter().any(|&b| b == b'e' || b == b'E'));
         values[k] = Some(v);
     }
     Ok((time, values, scientific))
@@ -286,10 +290,19 @@ pub fn read_lab(
         if !data_seen {
             report.comma_separated = line.contains(&b',');
         }
-        let fields: Vec<&[u8]> = line
+        // Up to five fields without allocating (a fifth only to say there are too many).
+        let mut buf: [&[u8]; 5] = [&[]; 5];
+        let mut count = 0;
+        for f in line
             .split(|&c| c == b',' || c.is_ascii_whitespace())
             .filter(|f| !f.is_empty())
-            .collect();
+        {
+            if count < buf.len() {
+                buf[count] = f;
+            }
+            count += 1;
+        }
+        let fields = &buf[..count.min(buf.len())];
         if !data_seen
             && fields
                 .first()
