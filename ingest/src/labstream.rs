@@ -314,7 +314,7 @@ pub fn read_lab(
             return Ok(());
         }
         data_seen = true;
-        let (rel, values, scientific) = match parse_line(&fields) {
+        let (rel, values, scientific) = match parse_line(fields) {
             Ok(x) => x,
             Err((field, message)) if config.skip_bad_lines => {
                 ledger.reject(
