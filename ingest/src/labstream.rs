@@ -30,9 +30,11 @@ use std::sync::Arc;
 /// Rows buffered before a batch goes to the table.
 const BATCH_ROWS: usize = 1 << 16;
 
-/// `lab.parquet`, written a batch at a time.
+/// `lab.parquet`, written a batch at a time on a thread of its own (parquet-rs's encoding
+/// and zstd), while the caller parses the next lines.
 pub struct LabWriter {
-    table: TableWriter,
+    to_writer: Option<std::sync::mpsc::SyncSender<ToWriter>>,
+    writer: Option<std::thread::JoinHandle<Result<u64>>>,
     session: Vec<u16>,
     time: Vec<i64>,
     values: [Vec<Option<f64>>; 3],
@@ -42,17 +44,31 @@ pub struct LabWriter {
 impl LabWriter {
     /// Starts the table in `dir` for the dataset's `sessions`.
     pub fn create(dir: &Path, sessions: &[String]) -> Result<Self> {
+        let mut table = TableWriter::create(
+            dir,
+            tables::lab::FILE,
+            "lab",
+            tables::lab::schema(sessions),
+            Encodings {
+                delta: &[tables::SESSION_INDEX, tables::lab::LINE],
+                ..Encodings::default()
+            },
+        )?;
+        let (to_writer, batches) = std::sync::mpsc::sync_channel::<ToWriter>(2);
+        // The table is renamed into place only when told to finish: a run that fails, or
+        // drops the writer, leaves no lab.parquet behind (the partial file is removed).
+        let writer = std::thread::spawn(move || -> Result<u64> {
+            for message in batches {
+                match message {
+                    ToWriter::Batch(columns) => table.write(columns)?,
+                    ToWriter::Finish => return table.finish(),
+                }
+            }
+            Ok(0)
+        });
         Ok(LabWriter {
-            table: TableWriter::create(
-                dir,
-                tables::lab::FILE,
-                "lab",
-                tables::lab::schema(sessions),
-                Encodings {
-                    delta: &[tables::SESSION_INDEX, tables::lab::LINE],
-                    ..Encodings::default()
-                },
-            )?,
+            to_writer: Some(to_writer),
+            writer: Some(writer),
             session: Vec::new(),
             time: Vec::new(),
             values: Default::default(),
@@ -91,14 +107,50 @@ impl LabWriter {
             columns.push(Arc::new(Float64Array::from(std::mem::take(c))));
         }
         columns.push(Arc::new(UInt64Array::from(std::mem::take(&mut self.line))));
-        self.table.write(columns)
+        let sent = self
+            .to_writer
+            .as_ref()
+            .map(|w| w.send(ToWriter::Batch(columns)));
+        if !matches!(sent, Some(Ok(()))) {
+            // The writer stopped: its error says why.
+            return self.join().map(|_| ());
+        }
+        Ok(())
+    }
+
+    /// Closes the channel and waits for the writer: the rows it wrote, or its error.
+    fn join(&mut self) -> Result<u64> {
+        self.to_writer = None;
+        match self.writer.take().map(std::thread::JoinHandle::join) {
+            Some(Ok(result)) => result,
+            Some(Err(_)) => Err(Error::io(
+                Path::new(tables::lab::FILE),
+                std::io::Error::other("the lab table's writer thread panicked"),
+            )),
+            None => Err(Error::io(
+                Path::new(tables::lab::FILE),
+                std::io::Error::other("the lab table's writer had already stopped"),
+            )),
+        }
     }
 
     /// Writes what is buffered and closes the table; returns its rows.
     pub fn finish(mut self) -> Result<u64> {
         self.flush()?;
-        self.table.finish()
+        if let Some(w) = &self.to_writer {
+            // A failed send means the writer stopped; join says why.
+            let _ = w.send(ToWriter::Finish);
+        }
+        self.join()
     }
+}
+
+/// What the lab table's writer thread is told.
+enum ToWriter {
+    /// A batch of rows, in schema order.
+    Batch(Vec<ArrayRef>),
+    /// Close the table and rename it into place.
+    Finish,
 }
 
 /// How to read one stream.
