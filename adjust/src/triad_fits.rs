@@ -3,7 +3,7 @@
 //! into calibration.json's `triad` results (or `skipped`, with the reason), and each
 //! result's imu_tk `.calib` text. No I/O.
 
-use crate::triad::{self, NAMES, Position, TriadError, TriadSolution};
+use crate::triad::{self, NAMES, Position, TriadSolution};
 use ingest::contract::align_ledger::{AlignReport, MultiPosition};
 use ingest::contract::calibration::{GlobalTest, Parameter, Skipped, TriadPosition, TriadResult};
 use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
@@ -28,7 +28,7 @@ pub fn fit_all(
                 .collect(),
             Per::All => vec![("all".to_owned(), align.multi_position.iter().collect())],
         };
-        if groups.iter().all(|(_, g)| g.is_empty()) || groups.is_empty() {
+        if align.multi_position.is_empty() {
             skipped.push(skip(model, "all", "no multi-position session".to_owned()));
             continue;
         }
@@ -47,15 +47,11 @@ pub fn fit_all(
                 .collect();
             match triad::calibrate(&positions) {
                 Ok(s) => results.push(result(ds, model, &session, &rows, &positions, &s)),
-                Err(e) => skipped.push(skip(model, &session, reason(&e))),
+                Err(e) => skipped.push(skip(model, &session, e.to_string())),
             }
         }
     }
     (results, skipped)
-}
-
-fn reason(e: &TriadError) -> String {
-    e.to_string()
 }
 
 fn skip(model: &ModelDecl, session: &str, reason: String) -> Skipped {

@@ -2,6 +2,8 @@
 //! blunders, disconnected channels, misalignment, and the Monte-Carlo acceptance test that
 //! the reported sigmas and the global test are honest (fast in CI, full when gated).
 
+mod common;
+use common::quadratic_form_of_inverse;
 use fixtures::write::Truth;
 use ingest::contract::calibration::{Calibration, CalibrationResult};
 use std::path::Path;
@@ -665,24 +667,6 @@ fn monte_carlo(
         mean_removed: removed as f64 / n,
         failed,
     }
-}
-
-/// x^T C^-1 x for a symmetric positive definite `c` (Cholesky), of the size of `x`.
-fn quadratic_form_of_inverse(c: &dyn Fn(usize, usize) -> f64, x: &[f64]) -> f64 {
-    let n = x.len();
-    let mut l = vec![0.0; n * n];
-    for i in 0..n {
-        for j in 0..=i {
-            let s = c(i, j) - (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum::<f64>();
-            l[i * n + j] = if i == j { s.sqrt() } else { s / l[j * n + j] };
-        }
-    }
-    // Solve L y = x; x^T C^-1 x = |y|^2.
-    let mut y = vec![0.0; n];
-    for i in 0..n {
-        y[i] = (x[i] - (0..i).map(|k| l[i * n + k] * y[k]).sum::<f64>()) / l[i * n + i];
-    }
-    y.iter().map(|v| v * v).sum()
 }
 
 fn print_monte_carlo(label: &str, replicas: usize, m: &MonteCarlo) {

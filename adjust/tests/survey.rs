@@ -16,6 +16,8 @@ use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+mod common;
+
 #[path = "../../align/tests/peers/mod.rs"]
 mod peers;
 
@@ -295,19 +297,7 @@ fn calibration_error_length(
     let c = |i: usize, j: usize| {
         r.parameters[idx[i]].sigma * r.parameters[idx[j]].sigma * r.correlation[idx[i]][idx[j]]
     };
-    // Cholesky of C, then |L^-1 x|.
-    let mut l = [[0.0; 4]; 4];
-    for i in 0..4 {
-        for j in 0..=i {
-            let s = c(i, j) - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            l[i][j] = if i == j { s.sqrt() } else { s / l[j][j] };
-        }
-    }
-    let mut y = [0.0; 4];
-    for i in 0..4 {
-        y[i] = (x[i] - (0..i).map(|k| l[i][k] * y[k]).sum::<f64>()) / l[i][i];
-    }
-    y.iter().map(|v| v * v).sum::<f64>().sqrt()
+    common::quadratic_form_of_inverse(&c, &x).sqrt()
 }
 
 /// DuckDB's mean acceleration per minute of acc1 equals ours.

@@ -7,6 +7,9 @@ use adjust::triad::{self, NAMES, Position, TriadError};
 use fixtures::rng::Rng;
 use fixtures::triad::{StaticPosition, Triad, positions};
 
+mod common;
+use common::quadratic_form_of_inverse;
+
 #[path = "../../align/tests/peers/mod.rs"]
 mod peers;
 
@@ -85,7 +88,7 @@ fn monte_carlo_of_the_triad_sigmas() {
         let s = triad::calibrate(&q).expect("calibrates");
         rejected += usize::from(!s.global_test.2);
         let delta: Vec<f64> = (0..9).map(|j| s.values[j] - p[j]).collect();
-        mahalanobis += quadratic_form_of_inverse(&s.covariance, &delta) / 9.0;
+        mahalanobis += quadratic_form_of_inverse(&|i, j| s.covariance[i * 9 + j], &delta) / 9.0;
         est.push(s.values.clone());
         sig.push((0..9).map(|j| s.sigma(j)).collect::<Vec<_>>());
     }
@@ -116,23 +119,6 @@ fn monte_carlo_of_the_triad_sigmas() {
     }
     assert!((mahalanobis / n - 1.0).abs() < 0.08, "{}", mahalanobis / n);
     assert!((0.015..=0.085).contains(&rate), "rejects {rate}");
-}
-
-/// x^T C^-1 x for the 9 x 9 covariance `c` (Cholesky).
-fn quadratic_form_of_inverse(c: &[f64], x: &[f64]) -> f64 {
-    let n = x.len();
-    let mut l = vec![0.0; n * n];
-    for i in 0..n {
-        for j in 0..=i {
-            let s = c[i * n + j] - (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum::<f64>();
-            l[i * n + j] = if i == j { s.sqrt() } else { s / l[j * n + j] };
-        }
-    }
-    let mut y = vec![0.0; n];
-    for i in 0..n {
-        y[i] = (x[i] - (0..i).map(|k| l[i * n + k] * y[k]).sum::<f64>()) / l[i * n + i];
-    }
-    y.iter().map(|v| v * v).sum()
 }
 
 #[test]

@@ -9,7 +9,7 @@
 use crate::contract::ledger::{FileLedger, reason};
 use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::error::{Error, Result};
-use crate::lines::{read_lines, strip_comment};
+use crate::lines::{read_lines, strip_comment, text};
 use crate::streams::StreamWriter;
 use crate::time::NS_PER_WEEK;
 use crate::timegate::{Position, Sink, TimeGate};
@@ -52,10 +52,6 @@ fn bad(field: &'static str, message: impl Into<String>) -> Bad {
         field,
         message: message.into(),
     }
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
 }
 
 /// Parses a decimal `seconds[.fraction]` (up to 9 decimals) into exact nanoseconds.

@@ -20,7 +20,7 @@
 use crate::contract::ledger::{FileLedger, LabStreamReport, reason};
 use crate::contract::tables;
 use crate::error::{Error, Result};
-use crate::lines::{read_lines, strip_comment};
+use crate::lines::{read_lines, strip_comment, text};
 use crate::table::{Encodings, TableWriter};
 use arrow::array::{ArrayRef, Float64Array, Int64Array, UInt16Array, UInt64Array};
 use std::collections::BTreeMap;
@@ -238,10 +238,6 @@ fn parse_line(fields: &[&[u8]]) -> std::result::Result<(i64, [Option<f64>; 3], u
         values[k] = Some(v);
     }
     Ok((time, values, scientific))
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
 }
 
 /// A run of samples sharing one time stamp, waiting for the next stamp to spread them.

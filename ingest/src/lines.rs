@@ -170,6 +170,11 @@ pub fn strip_comment(line: &[u8]) -> &[u8] {
     line.trim_ascii()
 }
 
+/// A field of a text log as text for a message (invalid UTF-8 shown as replacement characters).
+pub(crate) fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
