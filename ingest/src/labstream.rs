@@ -145,6 +145,18 @@ impl LabWriter {
     }
 }
 
+impl Drop for LabWriter {
+    fn drop(&mut self) {
+        // Dropped without `finish` (a run that failed): closing the channel makes the writer
+        // discard its partial table, and waiting for it means the file is gone when the
+        // caller returns, not some time later.
+        self.to_writer = None;
+        if let Some(h) = self.writer.take() {
+            let _ = h.join();
+        }
+    }
+}
+
 /// What the lab table's writer thread is told.
 enum ToWriter {
     /// A batch of rows, in schema order.
