@@ -651,15 +651,18 @@ fn write_outputs(
         &format!("{STAGE_DIR}/{}", ingest::contract::tables::residuals::FILE),
     )?];
     for t in &calibration.triad {
-        let path = dir.join(&t.calib_file);
-        let tmp = dir.join(format!(".{}.partial", t.calib_file));
+        let Some(file) = &t.calib_file else {
+            continue;
+        };
+        let path = dir.join(file);
+        let tmp = dir.join(format!(".{file}.partial"));
         std::fs::write(&tmp, triad_fits::calib_text(t))
             .and_then(|()| std::fs::rename(&tmp, &path))
             .map_err(|e| Error::Io {
                 path: path.clone(),
                 source: e,
             })?;
-        outputs.push(folders.record(Root::Out, &format!("{STAGE_DIR}/{}", t.calib_file))?);
+        outputs.push(folders.record(Root::Out, &format!("{STAGE_DIR}/{file}"))?);
     }
     calibration.custody = Custody { inputs, outputs };
     ingest::write_json_atomically(&cal_path, &calibration)?;
@@ -754,7 +757,7 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
             .collect();
         let _ = writeln!(
             w,
-            "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed, global test {}; wrote {}",
+            "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed, global test {}; {}",
             t.model,
             t.session,
             p.join(", "),
@@ -765,7 +768,11 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
             } else {
                 "failed"
             },
-            t.calib_file
+            t.calib_file.as_ref().map_or_else(
+                || "no imu_tk file (its layout has no higher orders or temperature terms)"
+                    .to_owned(),
+                |f| format!("wrote {f}")
+            )
         );
     }
     for r in &c.results {

@@ -1,33 +1,154 @@
 //! The triad model (MODEL.md 6.5): three accelerometers on one block, calibrated together
 //! from static positions. For position p the three mean readings X_p give the calibrated
-//! vector a_p = T K (X_p - B) in imu_tk's body frame:
+//! vector a_p = T u_p in imu_tk's body frame:
 //!
 //! ```text
-//!     [ 1  -a_yz   a_zy ]        K = diag(s_x, s_y, s_z)     (mGal per reading unit)
-//! T = [ 0    1    -a_zx ]        B = (b_x, b_y, b_z)         (reading units)
+//!     [ 1  -a_yz   a_zy ]     u_j = (s_j + st_j tau_j) d_j + s2_j d_j^2 + s3_j d_j^3
+//! T = [ 0    1    -a_zx ]     d_j = x_j - b_j - bt_j tau_j,   tau_j = T_j - t_ref
 //!     [ 0    0      1   ]
 //! ```
 //!
-//! and the condition `|a_p| - g_p = 0` (the length of the calibrated vector is gravity; the
-//! condition is written in mGal, not as |a|^2 - g^2, so that its residual is the report's
-//! |a| - g per position). Each condition has three observations of its own (the means, with
-//! their sigmas): a Gauss-Helmert model on [`crate::gh`] with K = 3, data snooping on the
+//! At order 1 without temperature this is imu_tk's a = T K (X - B) with K = diag(s). The
+//! higher orders are in the reading less its bias (mGal per reading unit squared and cubed),
+//! the temperature terms move each axis's bias (reading units per K) and scale (mGal per
+//! reading unit per K) with its own temperature. The condition is `|a_p| - g_p = 0` (the
+//! length of the calibrated vector is gravity; written in mGal, not as |a|^2 - g^2, so that
+//! its residual is the report's |a| - g per position). Each condition has three observations
+//! of its own (the means, with their sigmas; the temperatures are taken as known, as in the
+//! axis model): a Gauss-Helmert model on [`crate::gh`] with K = 3, data snooping on the
 //! positions (w-test, alpha 0.001), the global test, and the parameters the positions
-//! cannot determine named (fewer than 12 positions; orientations in one plane). No I/O.
+//! cannot determine named (too few positions; orientations in one plane; one temperature
+//! for temperature terms). No I/O.
 
 use crate::calibrate::W_CRITICAL;
 use crate::gh::{self, Conditions, GhError};
 
-/// Parameter names, in order: the three non-orthogonality angles (rad), the scales, the
-/// biases.
+/// The linear model's parameter names, in order: the three non-orthogonality angles (rad),
+/// the scales, the biases. [`TriadModel::names`] appends the others.
 pub const NAMES: [&str; 9] = [
     "a_yz", "a_zy", "a_zx", "s_x", "s_y", "s_z", "b_x", "b_y", "b_z",
 ];
 
-/// Fewest positions for the 9 parameters (MODEL.md 6.5).
+/// Names of the terms after the linear nine, by kind.
+const S2: [&str; 3] = ["s2_x", "s2_y", "s2_z"];
+const S3: [&str; 3] = ["s3_x", "s3_y", "s3_z"];
+const BT: [&str; 3] = ["bt_x", "bt_y", "bt_z"];
+const ST: [&str; 3] = ["st_x", "st_y", "st_z"];
+
+/// Fewest positions for the 9 parameters of the linear model (MODEL.md 6.5); a model with
+/// more parameters needs three more positions than parameters.
 pub const MIN_POSITIONS: usize = 12;
 
-/// One static position: the three mean readings and their sds, and gravity there.
+/// Which terms a triad model has (FORMATS.md 8.4: `order`, `temperature`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TriadModel {
+    /// Polynomial order per axis, 1..=3.
+    pub order: u8,
+    /// Bias and scale move linearly with each axis's temperature.
+    pub temperature: bool,
+}
+
+impl TriadModel {
+    /// imu_tk's model: T, K, B.
+    pub const LINEAR: TriadModel = TriadModel {
+        order: 1,
+        temperature: false,
+    };
+
+    /// Number of parameters.
+    pub fn n_params(&self) -> usize {
+        9 + 3 * usize::from(self.order.clamp(1, 3) - 1) + if self.temperature { 6 } else { 0 }
+    }
+
+    /// Parameter names in order: [`NAMES`], then s2, s3 (by order), then bt, st.
+    pub fn names(&self) -> Vec<&'static str> {
+        let mut n = NAMES.to_vec();
+        if self.order >= 2 {
+            n.extend(S2);
+        }
+        if self.order >= 3 {
+            n.extend(S3);
+        }
+        if self.temperature {
+            n.extend(BT);
+            n.extend(ST);
+        }
+        n
+    }
+
+    /// Fewest positions: [`MIN_POSITIONS`] or three more than the parameters.
+    pub fn min_positions(&self) -> usize {
+        MIN_POSITIONS.max(self.n_params() + 3)
+    }
+
+    /// Index of the first of s2, s3, bt (each a run of three), when the model has them.
+    fn offsets(&self) -> (Option<usize>, Option<usize>, Option<usize>) {
+        let s2 = (self.order >= 2).then_some(9);
+        let s3 = (self.order >= 3).then_some(12);
+        let bt = self
+            .temperature
+            .then_some(9 + 3 * usize::from(self.order.clamp(1, 3) - 1));
+        (s2, s3, bt)
+    }
+
+    /// The calibrated vector at readings `x` and temperature offsets `tau` (ignored without
+    /// temperature terms), the derivative of each u_j by its reading (u'_j: da_r/dx_j =
+    /// T[r][j] u'_j), and, when `jac` is given, da/dp into it (3 rows of n_params).
+    pub fn evaluate(
+        &self,
+        p: &[f64],
+        x: [f64; 3],
+        tau: [f64; 3],
+        jac: Option<&mut [f64]>,
+    ) -> ([f64; 3], [f64; 3]) {
+        let (o2, o3, ot) = self.offsets();
+        let at = |o: Option<usize>, j: usize| o.map_or(0.0, |o| p[o + j]);
+        let tau = if self.temperature { tau } else { [0.0; 3] };
+        let t = [[1.0, -p[0], p[1]], [0.0, 1.0, -p[2]], [0.0, 0.0, 1.0]];
+        let mut u = [0.0; 3];
+        let mut du = [0.0; 3];
+        // Per axis, du_j/dp for: s, b, s2, s3, bt, st.
+        let mut parts = [[0.0; 6]; 3];
+        for j in 0..3 {
+            let (s2, s3) = (at(o2, j), at(o3, j));
+            let (bt, st) = (at(ot, j), at(ot.map(|o| o + 3), j));
+            let d = x[j] - p[6 + j] - bt * tau[j];
+            let scale = p[3 + j] + st * tau[j];
+            u[j] = d * (scale + d * (s2 + d * s3));
+            du[j] = scale + d * (2.0 * s2 + 3.0 * s3 * d);
+            parts[j] = [d, -du[j], d * d, d * d * d, -du[j] * tau[j], tau[j] * d];
+        }
+        let a: [f64; 3] = std::array::from_fn(|r| (0..3).map(|c| t[r][c] * u[c]).sum());
+        if let Some(jac) = jac {
+            let n = self.n_params();
+            jac[..3 * n].fill(0.0);
+            jac[0] = -u[1];
+            jac[1] = u[2];
+            jac[n + 2] = -u[2];
+            for j in 0..3 {
+                let columns = [
+                    Some(3 + j),
+                    Some(6 + j),
+                    o2.map(|o| o + j),
+                    o3.map(|o| o + j),
+                    ot.map(|o| o + j),
+                    ot.map(|o| o + 3 + j),
+                ];
+                for (column, part) in columns.iter().zip(parts[j]) {
+                    if let Some(c) = column {
+                        for r in 0..3 {
+                            jac[r * n + c] = t[r][j] * part;
+                        }
+                    }
+                }
+            }
+        }
+        (a, du)
+    }
+}
+
+/// One static position: the three mean readings and their sds, gravity there, and the
+/// axes' temperatures when logged.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Position {
     /// Mean reading of each axis.
@@ -36,60 +157,61 @@ pub struct Position {
     pub sigma: [f64; 3],
     /// Gravity at the block during the position, mGal (with the tide where known).
     pub g_mgal: f64,
+    /// Each axis's temperature over the position, degC.
+    pub temperature_c: Option<[f64; 3]>,
 }
 
-/// T, K and B from the parameter vector.
-fn parts(p: &[f64]) -> ([[f64; 3]; 3], [f64; 3], [f64; 3]) {
-    let t = [[1.0, -p[0], p[1]], [0.0, 1.0, -p[2]], [0.0, 0.0, 1.0]];
-    ([t[0], t[1], t[2]], [p[3], p[4], p[5]], [p[6], p[7], p[8]])
-}
-
-/// The calibrated vector a = T K (x - B).
+/// The calibrated vector of the linear model a = T K (x - B) (the first 9 parameters).
 pub fn calibrated(p: &[f64], x: [f64; 3]) -> [f64; 3] {
-    let (t, k, b) = parts(p);
-    let u: [f64; 3] = std::array::from_fn(|i| k[i] * (x[i] - b[i]));
-    std::array::from_fn(|r| (0..3).map(|c| t[r][c] * u[c]).sum())
+    TriadModel::LINEAR.evaluate(&p[..9], x, [0.0; 3], None).0
 }
 
 struct TriadConditions<'a> {
+    model: TriadModel,
     positions: &'a [Position],
+    t_ref_c: f64,
+}
+
+impl TriadConditions<'_> {
+    fn tau(&self, i: usize) -> [f64; 3] {
+        self.positions[i]
+            .temperature_c
+            .map_or([0.0; 3], |t| t.map(|t| t - self.t_ref_c))
+    }
 }
 
 impl Conditions<3> for TriadConditions<'_> {
     fn n_params(&self) -> usize {
-        9
+        self.model.n_params()
     }
 
     fn eval(&self, i: usize, p: &[f64], l: [f64; 3], a: &mut [f64]) -> (f64, [f64; 3]) {
-        let (t, k, b) = parts(p);
-        let x: [f64; 3] = std::array::from_fn(|j| l[j] - b[j]);
-        let u: [f64; 3] = std::array::from_fn(|j| k[j] * x[j]);
-        let v = calibrated(p, l);
-        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        let e: [f64; 3] = std::array::from_fn(|j| v[j] / n);
-        // d|a|/da = e; da/d(angles); da/ds_j = T[:, j] x_j; da/db_j = -T[:, j] s_j.
-        a[0] = -e[0] * u[1];
-        a[1] = e[0] * u[2];
-        a[2] = -e[1] * u[2];
-        let column = |j: usize| -> f64 { (0..3).map(|r| e[r] * t[r][j]).sum() };
-        let mut bl = [0.0; 3];
-        for j in 0..3 {
-            let c = column(j);
-            a[3 + j] = c * x[j];
-            a[6 + j] = -c * k[j];
-            bl[j] = c * k[j];
+        let n = self.model.n_params();
+        let mut jac = [0.0; 3 * 21];
+        let (v, du) = self.model.evaluate(p, l, self.tau(i), Some(&mut jac));
+        let norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let e: [f64; 3] = std::array::from_fn(|j| v[j] / norm);
+        // d|a|/dp = e^T da/dp; d|a|/dx_j = e^T T[:, j] u'_j.
+        for (k, out) in a.iter_mut().enumerate().take(n) {
+            *out = (0..3).map(|r| e[r] * jac[r * n + k]).sum();
         }
-        (n - self.positions[i].g_mgal, bl)
+        let t = [[1.0, -p[0], p[1]], [0.0, 1.0, -p[2]], [0.0, 0.0, 1.0]];
+        let bl = std::array::from_fn(|j| (0..3).map(|r| e[r] * t[r][j]).sum::<f64>() * du[j]);
+        (norm - self.positions[i].g_mgal, bl)
     }
 }
 
 /// What a triad calibration found.
 #[derive(Clone, Debug)]
 pub struct TriadSolution {
-    /// The 9 parameters of [`NAMES`].
+    /// The model fitted.
+    pub model: TriadModel,
+    /// The parameters of [`TriadModel::names`].
     pub values: Vec<f64>,
-    /// Their covariance at the a-priori sigmas of the means, row-major 9 x 9.
+    /// Their covariance at the a-priori sigmas of the means, row-major n x n.
     pub covariance: Vec<f64>,
+    /// The temperature tau is counted from, degC (with temperature terms).
+    pub t_ref_c: Option<f64>,
     /// sqrt(v^T P v / dof).
     pub sigma0: f64,
     /// v^T P v.
@@ -110,7 +232,17 @@ pub struct TriadSolution {
 impl TriadSolution {
     /// Sd of parameter `j`.
     pub fn sigma(&self, j: usize) -> f64 {
-        self.covariance[j * 9 + j].max(0.0).sqrt()
+        let n = self.values.len();
+        self.covariance[j * n + j].max(0.0).sqrt()
+    }
+
+    /// The calibrated vector of position `q` (at its readings and temperatures).
+    pub fn calibrated(&self, q: &Position) -> [f64; 3] {
+        let tau = match (q.temperature_c, self.t_ref_c) {
+            (Some(t), Some(r)) => t.map(|t| t - r),
+            _ => [0.0; 3],
+        };
+        self.model.evaluate(&self.values, q.mean, tau, None).0
     }
 }
 
@@ -119,9 +251,24 @@ impl TriadSolution {
 pub enum TriadError {
     /// Too few positions.
     #[error(
-        "{n} static positions for the 9 parameters of the triad: at least {MIN_POSITIONS} well-spread positions are needed"
+        "{n} static positions for the {params} parameters of the triad: at least {needed} well-spread positions are needed"
     )]
     TooFewPositions {
+        /// Positions given.
+        n: usize,
+        /// Parameters of the model.
+        params: usize,
+        /// Positions needed.
+        needed: usize,
+    },
+    /// A model with temperature terms, and a position without temperatures.
+    #[error(
+        "{missing} of {n} static positions have no temperature (the session logged none, or \
+         the log has a gap there): a model with temperature terms cannot be fitted to them"
+    )]
+    NoTemperature {
+        /// Positions without temperature.
+        missing: usize,
         /// Positions given.
         n: usize,
     },
@@ -231,15 +378,48 @@ fn check_spread(positions: &[Position], p0: &[f64]) -> Result<(), TriadError> {
     Ok(())
 }
 
-/// Calibrates the triad from `positions`: the adjustment, then data snooping (the position
-/// with the largest |w| above 3.29 removed and the adjustment repeated, at most a tenth of
-/// the positions), then the global test.
-pub fn calibrate(positions: &[Position]) -> Result<TriadSolution, TriadError> {
-    if positions.len() < MIN_POSITIONS {
-        return Err(TriadError::TooFewPositions { n: positions.len() });
+/// The reference temperature of a model with temperature terms: the mean of every axis's
+/// temperature over the positions, rounded to 0.01 degC (as the axis model's t_ref).
+fn reference_temperature(positions: &[Position]) -> Result<f64, TriadError> {
+    let missing = positions
+        .iter()
+        .filter(|q| q.temperature_c.is_none())
+        .count();
+    if missing > 0 {
+        return Err(TriadError::NoTemperature {
+            missing,
+            n: positions.len(),
+        });
     }
-    let p0 = start_values(positions);
+    let sum: f64 = positions
+        .iter()
+        .filter_map(|q| q.temperature_c)
+        .map(|t| t.iter().sum::<f64>())
+        .sum();
+    Ok((sum / (3 * positions.len()) as f64 * 100.0).round() / 100.0)
+}
+
+/// Calibrates the triad `model` from `positions`: the adjustment, then data snooping (the
+/// position with the largest |w| above 3.29 removed and the adjustment repeated, at most a
+/// tenth of the positions), then the global test.
+pub fn calibrate(model: TriadModel, positions: &[Position]) -> Result<TriadSolution, TriadError> {
+    let needed = model.min_positions();
+    if positions.len() < needed {
+        return Err(TriadError::TooFewPositions {
+            n: positions.len(),
+            params: model.n_params(),
+            needed,
+        });
+    }
+    let t_ref_c = if model.temperature {
+        Some(reference_temperature(positions)?)
+    } else {
+        None
+    };
+    let mut p0 = start_values(positions);
     check_spread(positions, &p0)?;
+    p0.resize(model.n_params(), 0.0);
+    let names = model.names();
     let mut used: Vec<usize> = (0..positions.len()).collect();
     let mut removed = Vec::new();
     let mut start = p0;
@@ -248,14 +428,18 @@ pub fn calibrate(positions: &[Position]) -> Result<TriadSolution, TriadError> {
         let l: Vec<[f64; 3]> = kept.iter().map(|q| q.mean).collect();
         let sigma: Vec<[f64; 3]> = kept.iter().map(|q| q.sigma).collect();
         let s = gh::solve(
-            &TriadConditions { positions: &kept },
+            &TriadConditions {
+                model,
+                positions: &kept,
+                t_ref_c: t_ref_c.unwrap_or(0.0),
+            },
             &l,
             &sigma,
             &start,
             &gh::Options::default(),
         )
         .map_err(|e| match e {
-            GhError::NotEstimable { index } => TriadError::NotEstimable { name: NAMES[index] },
+            GhError::NotEstimable { index } => TriadError::NotEstimable { name: names[index] },
             other => TriadError::Adjustment(other),
         })?;
         let worst = s
@@ -267,7 +451,7 @@ pub fn calibrate(positions: &[Position]) -> Result<TriadSolution, TriadError> {
         if let Some((i, w)) = worst
             && w.abs() > W_CRITICAL
             && removed.len() < positions.len() / 10
-            && used.len() > MIN_POSITIONS
+            && used.len() > needed
         {
             removed.push((used[i], w));
             used.remove(i);
@@ -282,6 +466,8 @@ pub fn calibrate(positions: &[Position]) -> Result<TriadSolution, TriadError> {
             statrs::distribution::ContinuousCDF::inverse_cdf(&chi2, 0.975),
         );
         return Ok(TriadSolution {
+            model,
+            t_ref_c,
             sigma0: s.sigma0(),
             vtpv: s.vtpv,
             dof,
@@ -303,43 +489,68 @@ pub fn calibrate(positions: &[Position]) -> Result<TriadSolution, TriadError> {
 mod tests {
     use super::*;
 
-    /// The condition's derivatives against numerical ones.
+    /// The condition's derivatives against numerical ones, for every order with and
+    /// without temperature terms.
     #[test]
     fn derivatives_match_numerical_ones() {
         let q = [Position {
             mean: [2.1e6, -1.3e6, 3.0e6],
             sigma: [1.0; 3],
             g_mgal: 980_000.0,
+            temperature_c: Some([31.5, 29.0, 30.2]),
         }];
-        let c = TriadConditions { positions: &q };
-        let p = [2e-3, -1e-3, 3e-3, 0.243, 0.242, 0.2435, 1.2e5, 1.4e5, 9.0e4];
-        let mut a = [0.0; 9];
-        let (_, b) = c.eval(0, &p, q[0].mean, &mut a);
-        let mut scratch = [0.0; 9];
-        for j in 0..9 {
-            let h = 1e-6 * p[j].abs().max(1e-6);
-            let mut up = p;
+        for order in 1..=3 {
+            for temperature in [false, true] {
+                let model = TriadModel { order, temperature };
+                let c = TriadConditions {
+                    model,
+                    positions: &q,
+                    t_ref_c: 30.0,
+                };
+                let mut p = vec![2e-3, -1e-3, 3e-3, 0.243, 0.242, 0.2435, 1.2e5, 1.4e5, 9.0e4];
+                let names = model.names();
+                for name in &names[9..] {
+                    p.push(match &name[..2] {
+                        "s2" => 3e-9,
+                        "s3" => -2e-15,
+                        "bt" => 40.0,
+                        _ => 2e-5,
+                    });
+                }
+                check_derivatives(&c, &p, &names, q[0].mean);
+            }
+        }
+    }
+
+    fn check_derivatives(c: &TriadConditions, p: &[f64], names: &[&str], x: [f64; 3]) {
+        let n = p.len();
+        let mut a = vec![0.0; n];
+        let (_, b) = c.eval(0, p, x, &mut a);
+        let mut scratch = vec![0.0; n];
+        for j in 0..n {
+            let h = 1e-4 * p[j].abs();
+            let mut up = p.to_vec();
             up[j] += h;
-            let mut down = p;
+            let mut down = p.to_vec();
             down[j] -= h;
-            let d = (c.eval(0, &up, q[0].mean, &mut scratch).0
-                - c.eval(0, &down, q[0].mean, &mut scratch).0)
+            let d = (c.eval(0, &up, x, &mut scratch).0 - c.eval(0, &down, x, &mut scratch).0)
                 / (2.0 * h);
             assert!(
                 (d - a[j]).abs() <= 1e-6 * d.abs().max(1e-3),
-                "{}: {d} vs {}",
-                NAMES[j],
+                "{:?} {}: {d} vs {}",
+                c.model,
+                names[j],
                 a[j]
             );
         }
         for j in 0..3 {
             let h = 1.0;
-            let mut up = q[0].mean;
+            let mut up = x;
             up[j] += h;
-            let mut down = q[0].mean;
+            let mut down = x;
             down[j] -= h;
-            let d = (c.eval(0, &p, up, &mut scratch).0 - c.eval(0, &p, down, &mut scratch).0)
-                / (2.0 * h);
+            let d =
+                (c.eval(0, p, up, &mut scratch).0 - c.eval(0, p, down, &mut scratch).0) / (2.0 * h);
             assert!((d - b[j]).abs() <= 1e-6 * d.abs(), "x{j}: {d} vs {}", b[j]);
         }
     }

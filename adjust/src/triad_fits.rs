@@ -3,7 +3,7 @@
 //! into calibration.json's `triad` results (or `skipped`, with the reason), and each
 //! result's imu_tk `.calib` text. No I/O.
 
-use crate::triad::{self, NAMES, Position, TriadSolution};
+use crate::triad::{self, Position, TriadModel, TriadSolution};
 use ingest::contract::align_ledger::{AlignReport, MultiPosition};
 use ingest::contract::calibration::{GlobalTest, Parameter, Skipped, TriadPosition, TriadResult};
 use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
@@ -43,9 +43,14 @@ pub fn fit_all(
                     mean: p.mean,
                     sigma: p.sigma,
                     g_mgal: p.gravity_mgal,
+                    temperature_c: p.temperature_c,
                 })
                 .collect();
-            match triad::calibrate(&positions) {
+            let kind = TriadModel {
+                order: model.order,
+                temperature: model.temperature,
+            };
+            match triad::calibrate(kind, &positions) {
                 Ok(s) => results.push(result(ds, model, &session, &rows, &positions, &s)),
                 Err(e) => skipped.push(skip(model, &session, e.to_string())),
             }
@@ -72,30 +77,23 @@ fn result(
     s: &TriadSolution,
 ) -> TriadResult {
     let unit = ds.manifest.instrument.reading_unit.name();
-    let units = [
-        "rad".to_owned(),
-        "rad".to_owned(),
-        "rad".to_owned(),
-        format!("mGal/{unit}"),
-        format!("mGal/{unit}"),
-        format!("mGal/{unit}"),
-        unit.to_owned(),
-        unit.to_owned(),
-        unit.to_owned(),
-    ];
-    let parameters = (0..9)
-        .map(|j| Parameter {
-            name: NAMES[j].to_owned(),
-            unit: units[j].clone(),
+    let names = s.model.names();
+    let n = names.len();
+    let parameters = names
+        .iter()
+        .enumerate()
+        .map(|(j, name)| Parameter {
+            name: (*name).to_owned(),
+            unit: unit_of(name, unit),
             value: s.values[j],
             sigma: s.sigma(j),
             sigma_apriori: s.sigma(j),
         })
         .collect();
-    let correlation = (0..9)
+    let correlation = (0..n)
         .map(|i| {
-            (0..9)
-                .map(|j| s.covariance[i * 9 + j] / (s.sigma(i) * s.sigma(j)))
+            (0..n)
+                .map(|j| s.covariance[i * n + j] / (s.sigma(i) * s.sigma(j)))
                 .collect()
         })
         .collect();
@@ -104,7 +102,7 @@ fn result(
         .iter()
         .enumerate()
         .map(|(i, (session, p))| {
-            let a = triad::calibrated(&s.values, positions[i].mean);
+            let a = s.calibrated(&positions[i]);
             let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
             let used = s.residuals.iter().find(|r| r.0 == i);
             let (residual_mgal, w) = match used {
@@ -120,6 +118,7 @@ fn result(
                 residual_mgal,
                 w,
                 direction: a.map(|x| x / n),
+                temperature_c: positions[i].temperature_c,
                 removed: removed.contains(&i),
             }
         })
@@ -133,10 +132,22 @@ fn result(
                 [a.min(x), b.max(x)]
             })
     });
+    let temperature_range_c = s.t_ref_c.map(|_| {
+        used.iter()
+            .filter_map(|&i| positions[i].temperature_c)
+            .flatten()
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], x| {
+                [a.min(x), b.max(x)]
+            })
+    });
     TriadResult {
         model: model.name.clone(),
         session: session.to_owned(),
         reading_unit: unit.to_owned(),
+        order: s.model.order,
+        temperature: s.model.temperature,
+        t_ref_c: s.t_ref_c,
+        temperature_range_c,
         parameters,
         correlation,
         non_orthogonality_mrad: non_orthogonality(s),
@@ -152,8 +163,22 @@ fn result(
         },
         positions_used: s.residuals.len(),
         positions: positions_out,
-        calib_file: format!("{}-{session}.calib", model.name),
+        calib_file: (s.model == TriadModel::LINEAR)
+            .then(|| format!("{}-{session}.calib", model.name)),
         readings_range: Some(readings_range),
+    }
+}
+
+/// A parameter's unit from its name's prefix, readings in `unit`.
+fn unit_of(name: &str, unit: &str) -> String {
+    match name.split('_').next().unwrap_or("") {
+        "a" => "rad".to_owned(),
+        "s" => format!("mGal/{unit}"),
+        "b" => unit.to_owned(),
+        "s2" => format!("mGal/{unit}^2"),
+        "s3" => format!("mGal/{unit}^3"),
+        "bt" => format!("{unit}/K"),
+        _ => format!("mGal/{unit}/K"),
     }
 }
 
@@ -192,7 +217,7 @@ fn non_orthogonality(s: &TriadSolution) -> Vec<Parameter> {
             let var: f64 = (0..3)
                 .map(|a| {
                     (0..3)
-                        .map(|b| jac[r][a] * s.covariance[a * 9 + b] * jac[r][b])
+                        .map(|b| jac[r][a] * s.covariance[a * s.values.len() + b] * jac[r][b])
                         .sum::<f64>()
                 })
                 .sum();

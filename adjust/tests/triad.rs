@@ -3,7 +3,7 @@
 //! global test; too few positions and positions in one plane named; and a second opinion,
 //! scipy.optimize.least_squares on the same static means, written in Python beside it.
 
-use adjust::triad::{self, NAMES, Position, TriadError};
+use adjust::triad::{self, NAMES, Position, TriadError, TriadModel};
 use fixtures::rng::Rng;
 use fixtures::triad::{StaticPosition, Triad, positions};
 
@@ -23,6 +23,7 @@ fn as_positions(s: &[StaticPosition]) -> Vec<Position> {
             mean: q.mean,
             sigma: q.sigma,
             g_mgal: q.g_mgal,
+            temperature_c: None,
         })
         .collect()
 }
@@ -32,7 +33,7 @@ fn thirty_positions_recover_the_triad_and_remove_the_knocked_one() {
     let truth = Triad::esgt();
     let mut rng = Rng::new(15, "triad/recover");
     let sim = positions(&truth, 30, G, 31.25, SAMPLE_SD, Some((7, 25.0)), &mut rng);
-    let s = triad::calibrate(&as_positions(&sim)).expect("calibrates");
+    let s = triad::calibrate(TriadModel::LINEAR, &as_positions(&sim)).expect("calibrates");
     assert_eq!(s.removed.len(), 1, "{:?}", s.removed);
     assert_eq!(s.removed[0].0, 7);
     let p = truth.parameters();
@@ -82,10 +83,11 @@ fn monte_carlo_of_the_triad_sigmas() {
                     mean: std::array::from_fn(|k| clean[k] + d.sigma[k] * rng.normal()),
                     sigma: d.sigma,
                     g_mgal: G,
+                    temperature_c: None,
                 }
             })
             .collect();
-        let s = triad::calibrate(&q).expect("calibrates");
+        let s = triad::calibrate(TriadModel::LINEAR, &q).expect("calibrates");
         rejected += usize::from(!s.global_test.2);
         let delta: Vec<f64> = (0..9).map(|j| s.values[j] - p[j]).collect();
         mahalanobis += quadratic_form_of_inverse(&|i, j| s.covariance[i * 9 + j], &delta) / 9.0;
@@ -126,8 +128,15 @@ fn too_few_positions_and_one_plane_are_named() {
     let truth = Triad::esgt();
     let mut rng = Rng::new(17, "triad/names");
     let few = positions(&truth, 11, G, 31.25, SAMPLE_SD, None, &mut rng);
-    let e = triad::calibrate(&as_positions(&few)).expect_err("11 positions");
-    assert_eq!(e, TriadError::TooFewPositions { n: 11 });
+    let e = triad::calibrate(TriadModel::LINEAR, &as_positions(&few)).expect_err("11 positions");
+    assert_eq!(
+        e,
+        TriadError::TooFewPositions {
+            n: 11,
+            params: 9,
+            needed: 12
+        }
+    );
     assert!(e.to_string().contains("at least 12"), "{e}");
     // Twenty positions turned about the body's z axis only: every direction in the x-y plane.
     let flat: Vec<Position> = (0..20)
@@ -138,10 +147,11 @@ fn too_few_positions_and_one_plane_are_named() {
                 mean: truth.readings(d.map(|x| x * G)),
                 sigma: [0.5; 3],
                 g_mgal: G,
+                temperature_c: None,
             }
         })
         .collect();
-    let e = triad::calibrate(&flat).expect_err("one plane");
+    let e = triad::calibrate(TriadModel::LINEAR, &flat).expect_err("one plane");
     assert!(matches!(e, TriadError::OnePlane { .. }), "{e}");
     assert!(e.to_string().contains("one plane"), "{e}");
 }
@@ -161,7 +171,7 @@ fn scipy_least_squares_agrees() {
     let truth = Triad::esgt();
     let mut rng = Rng::new(18, "triad/scipy");
     let sim = positions(&truth, 30, G, 31.25, SAMPLE_SD, None, &mut rng);
-    let s = triad::calibrate(&as_positions(&sim)).expect("calibrates");
+    let s = triad::calibrate(TriadModel::LINEAR, &as_positions(&sim)).expect("calibrates");
     let dir = tempfile::tempdir().expect("tempdir");
     let csv = dir.path().join("means.csv");
     let mut text = String::from("x,y,z,sx,sy,sz,g\n");
@@ -241,8 +251,12 @@ fn the_committed_lab_session_calibrates_the_triad() {
     assert!(truth.position[12].knock_counts > 0.0);
     assert_eq!(r.positions.len(), truth.position.len());
     // The .calib file reads back to the parameters.
-    let calib =
-        std::fs::read_to_string(out.path().join("adjust").join(&r.calib_file)).expect("calib");
+    let calib = std::fs::read_to_string(
+        out.path()
+            .join("adjust")
+            .join(r.calib_file.as_ref().expect("a linear model's .calib")),
+    )
+    .expect("calib");
     let numbers: Vec<f64> = calib
         .split_whitespace()
         .map(|x| x.parse().expect("number"))

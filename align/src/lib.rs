@@ -340,14 +340,21 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
             &mut formed,
         );
     }
-    formed.multi_position = multi_positions(&ds, &setup, &ingest_dir)?;
+    formed.multi_position = multi_positions(&ds, &setup, &ingest_dir, &temperatures)?;
     write_outputs(&ds, out, setup, formed)
 }
 
 /// The static positions of every multi-position session: listed in the manifest, or found
 /// by [`statics::detect`]; an interval shorter than [`statics::MIN_STATIC_S`] or with an
-/// axis of fewer than two values is counted, not used.
-fn multi_positions(ds: &Dataset, setup: &Setup, ingest_dir: &Path) -> Result<Vec<MultiPosition>> {
+/// axis of fewer than two values is counted, not used. Each position's temperatures are
+/// those at its middle, interpolated as for a window (none when a channel has no sample
+/// within the gap allowed: a model without temperature terms still uses the position).
+fn multi_positions(
+    ds: &Dataset,
+    setup: &Setup,
+    ingest_dir: &Path,
+    temperatures: &read::Temperatures,
+) -> Result<Vec<MultiPosition>> {
     let wanted: Vec<u16> = ds
         .sessions
         .iter()
@@ -405,13 +412,24 @@ fn multi_positions(ds: &Dataset, setup: &Setup, ingest_dir: &Path) -> Result<Vec
             match stats {
                 Some((mean, sigma, samples)) => {
                     let (t0, t1) = (data.time_ns[i], data.time_ns[j - 1]);
+                    let middle = t0 / 2 + t1 / 2;
+                    let temperature_c = [1u8, 2, 3].map(|ch| {
+                        temperatures
+                            .get(&(w, ch))
+                            .and_then(|(t, v)| interpolate(t, v, middle, setup.max_gap_ns))
+                            .map(|(v, _)| v)
+                    });
                     mp.positions.push(StaticPosition {
                         start_gps_ns: t0,
                         end_gps_ns: t1,
                         samples,
                         mean,
                         sigma,
-                        gravity_mgal: setup.g + setup.tide(t0 / 2 + t1 / 2).unwrap_or(0.0),
+                        gravity_mgal: setup.g + setup.tide(middle).unwrap_or(0.0),
+                        temperature_c: match temperature_c {
+                            [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                            _ => None,
+                        },
                     });
                 }
                 None => {

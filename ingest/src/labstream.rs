@@ -215,19 +215,24 @@ fn parse_seconds_ns(field: &[u8]) -> Option<i64> {
 }
 
 /// One data line: (time since zero ns, readings, values in scientific notation).
-fn parse_line(fields: &[&[u8]]) -> std::result::Result<(i64, [Option<f64>; 3], u64), Bad> {
-    const NAMES: [&str; 4] = ["t", "x", "y", "z"];
+fn parse_line(
+    fields: &[&[u8]],
+    names: [&'static str; 4],
+) -> std::result::Result<(i64, [Option<f64>; 3], u64), Bad> {
     if fields.len() != 4 {
         let n = if fields.len() > 4 {
             "more than 4".to_owned()
         } else {
             fields.len().to_string()
         };
-        return Err(("line", format!("{n} fields, expected 4 (t x y z)")));
+        return Err((
+            "line",
+            format!("{n} fields, expected 4 ({})", names.join(" ")),
+        ));
     }
     let time = parse_seconds_ns(fields[0]).ok_or_else(|| {
         (
-            "t",
+            names[0],
             format!("`{}` is not a time in seconds", text(fields[0])),
         )
     })?;
@@ -235,7 +240,7 @@ fn parse_line(fields: &[&[u8]]) -> std::result::Result<(i64, [Option<f64>; 3], u
     let mut scientific = 0;
     for k in 0..3 {
         let raw = fields[k + 1];
-        let bad = |what: &str| (NAMES[k + 1], format!("`{}` is {what}", text(raw)));
+        let bad = |what: &str| (names[k + 1], format!("`{}` is {what}", text(raw)));
         let v: f64 = std::str::from_utf8(raw)
             .ok()
             .and_then(|f| f.parse().ok())
@@ -262,6 +267,8 @@ struct Run {
 /// What the stream gave besides its rows.
 struct Tally {
     accepted: u64,
+    /// Samples whose stamp the sample before them had.
+    shared: u64,
     null_values: BTreeMap<String, u64>,
     /// Intervals between consecutive written times, by length.
     intervals: BTreeMap<i64, u64>,
@@ -321,34 +328,58 @@ fn median(h: &BTreeMap<i64, u64>) -> Option<i64> {
     None
 }
 
-/// Reads one "seconds" stream into `out`, filling in `ledger`; returns the median interval
-/// between samples (ns) after spreading shared stamps, if there were two samples.
-pub fn read_lab(
-    path: &Path,
-    config: LabConfig,
-    out: &mut LabWriter,
-    ledger: &mut FileLedger,
-    progress: &indicatif::ProgressBar,
-) -> Result<Option<i64>> {
-    let mut report = LabStreamReport::default();
-    let mut tally = Tally {
-        accepted: 0,
-        null_values: BTreeMap::new(),
-        intervals: BTreeMap::new(),
-        steps: BTreeMap::new(),
-        last_written: None,
-    };
-    let mut run: Option<Run> = None;
-    let mut data_seen = false;
-    let mut other = 0u64;
-    let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
+/// A data line: its GPS time (ns), its three values, and its time field as written.
+type DataLine<'l> = (i64, [Option<f64>; 3], &'l [u8]);
+
+/// What a "seconds" file's lines showed before any row is kept: the line classifier both
+/// the acceleration stream and a temperature log are read through.
+struct Lines<'c> {
+    path: &'c Path,
+    /// Field names in error messages: the time, then the three values.
+    names: [&'static str; 4],
+    zero_gps_ns: i64,
+    range_ns: (i64, i64),
+    skip_bad_lines: bool,
+    data_seen: bool,
+    /// Comment, blank and header lines.
+    other: u64,
+    comma_separated: bool,
+    header: bool,
+    scientific: u64,
+}
+
+impl<'c> Lines<'c> {
+    fn new(path: &'c Path, names: [&'static str; 4], config: &LabConfig) -> Self {
+        Lines {
+            path,
+            names,
+            zero_gps_ns: config.zero_gps_ns,
+            range_ns: config.range_ns,
+            skip_bad_lines: config.skip_bad_lines,
+            data_seen: false,
+            other: 0,
+            comma_separated: false,
+            header: false,
+            scientific: 0,
+        }
+    }
+
+    /// A data line's GPS time (ns), values and time field; None for a comment, blank or
+    /// header line, or a line rejected into `ledger` (malformed when skipping, outside the
+    /// session); an error for a malformed line otherwise.
+    fn data<'l>(
+        &mut self,
+        line_no: u64,
+        raw: &'l [u8],
+        ledger: &mut FileLedger,
+    ) -> Result<Option<DataLine<'l>>> {
         let line = strip_comment(raw);
         if line.is_empty() {
-            other += 1;
-            return Ok(());
+            self.other += 1;
+            return Ok(None);
         }
-        if !data_seen {
-            report.comma_separated = line.contains(&b',');
+        if !self.data_seen {
+            self.comma_separated = line.contains(&b',');
         }
         // Up to five fields without allocating (a fifth only to say there are too many).
         let mut buf: [&[u8]; 5] = [&[]; 5];
@@ -363,63 +394,90 @@ pub fn read_lab(
             count += 1;
         }
         let fields = &buf[..count.min(buf.len())];
-        if !data_seen
+        if !self.data_seen
             && fields
                 .first()
                 .is_some_and(|f| parse_seconds_ns(f).is_none())
         {
-            report.header = true;
-            other += 1;
-            data_seen = true;
-            return Ok(());
+            self.header = true;
+            self.other += 1;
+            self.data_seen = true;
+            return Ok(None);
         }
-        data_seen = true;
-        let (rel, values, scientific) = match parse_line(fields) {
+        self.data_seen = true;
+        let (rel, values, scientific) = match parse_line(fields, self.names) {
             Ok(x) => x,
-            Err((field, message)) if config.skip_bad_lines => {
+            Err((field, message)) if self.skip_bad_lines => {
                 ledger.reject(
                     format!("line {line_no}"),
                     reason::MALFORMED,
                     format!("{field}: {message}"),
                 );
-                return Ok(());
+                return Ok(None);
             }
             Err((field, message)) => {
                 return Err(Error::Line {
-                    path: path.to_path_buf(),
+                    path: self.path.to_path_buf(),
                     line: line_no,
                     field: field.to_owned(),
                     message,
                 });
             }
         };
-        report.scientific_notation_values += scientific;
-        let Some(t) = config.zero_gps_ns.checked_add(rel) else {
+        self.scientific += scientific;
+        let Some(t) = self.zero_gps_ns.checked_add(rel) else {
             ledger.reject(
                 format!("line {line_no}"),
                 reason::OUTSIDE_SESSION,
                 "time beyond any GPS time".to_owned(),
             );
-            return Ok(());
+            return Ok(None);
         };
-        if t < config.range_ns.0 || t >= config.range_ns.1 {
+        if t < self.range_ns.0 || t >= self.range_ns.1 {
             ledger.reject(
                 format!("line {line_no}"),
                 reason::OUTSIDE_SESSION,
                 format!("time {} s is outside the session", text(fields[0])),
             );
-            return Ok(());
+            return Ok(None);
         }
+        Ok(Some((t, values, fields[0])))
+    }
+}
+
+/// Reads one "seconds" stream into `out`, filling in `ledger`; returns the median interval
+/// between samples (ns) after spreading shared stamps, if there were two samples.
+pub fn read_lab(
+    path: &Path,
+    config: LabConfig,
+    out: &mut LabWriter,
+    ledger: &mut FileLedger,
+    progress: &indicatif::ProgressBar,
+) -> Result<Option<i64>> {
+    let mut tally = Tally {
+        accepted: 0,
+        shared: 0,
+        null_values: BTreeMap::new(),
+        intervals: BTreeMap::new(),
+        steps: BTreeMap::new(),
+        last_written: None,
+    };
+    let mut run: Option<Run> = None;
+    let mut lines = Lines::new(path, ["t", "x", "y", "z"], &config);
+    let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
+        let Some((t, values, time_field)) = lines.data(line_no, raw, ledger)? else {
+            return Ok(());
+        };
         match &mut run {
             Some(r) if t == r.stamp_ns => {
                 r.samples.push((line_no, values));
-                report.samples_sharing_a_stamp += 1;
+                tally.shared += 1;
             }
             Some(r) if t < r.stamp_ns => {
                 ledger.reject(
                     format!("line {line_no}"),
                     reason::TIME_BACKWARDS,
-                    format!("time {} s is before the line before it", text(fields[0])),
+                    format!("time {} s is before the line before it", text(time_field)),
                 );
             }
             Some(r) => {
@@ -440,15 +498,73 @@ pub fn read_lab(
     if let Some(r) = &mut run {
         tally.write_run(r, None, config.interval_ns, &config, out)?;
     }
-    report.stamp_step_ns = mode(&tally.steps);
-    report.median_interval_ns = median(&tally.intervals);
+    let report = LabStreamReport {
+        comma_separated: lines.comma_separated,
+        header: lines.header,
+        scientific_notation_values: lines.scientific,
+        samples_sharing_a_stamp: tally.shared,
+        stamp_step_ns: mode(&tally.steps),
+        median_interval_ns: median(&tally.intervals),
+    };
     ledger.sha256 = sha;
     ledger.bytes = bytes;
     ledger.accept("acceleration", tally.accepted);
-    ledger.comment_blank_or_header_lines = Some(other);
+    ledger.comment_blank_or_header_lines = Some(lines.other);
     ledger.null_values = tally.null_values;
     ledger.lab_stream = Some(report.clone());
     Ok(report.median_interval_ns)
+}
+
+/// Reads a "seconds" session's temperature log (`t T1 T2 T3`, degC, times as the session's
+/// stream gives them) into the temperature table through `streams`, filling in `ledger`:
+/// a line not after the one before it is rejected (align interpolates in time order), `nan`
+/// stored as null and counted. Returns the median interval between kept samples (ns).
+pub fn read_lab_temperature(
+    path: &Path,
+    config: LabConfig,
+    streams: &mut crate::streams::StreamWriter,
+    ledger: &mut FileLedger,
+    progress: &indicatif::ProgressBar,
+) -> Result<Option<i64>> {
+    let mut lines = Lines::new(path, ["t", "T1", "T2", "T3"], &config);
+    let mut last: Option<i64> = None;
+    let mut accepted = 0u64;
+    let mut intervals: BTreeMap<i64, u64> = BTreeMap::new();
+    let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
+        let Some((t, celsius, time_field)) = lines.data(line_no, raw, ledger)? else {
+            return Ok(());
+        };
+        if let Some(prev) = last {
+            if t <= prev {
+                ledger.reject(
+                    format!("line {line_no}"),
+                    reason::TIME_BACKWARDS,
+                    format!(
+                        "time {} s is not after the line before it",
+                        text(time_field)
+                    ),
+                );
+                return Ok(());
+            }
+            *intervals.entry(t - prev).or_default() += 1;
+        }
+        last = Some(t);
+        // A `nan` is a channel that gave no value: stored as null, counted by the writer.
+        let status = (0..3)
+            .filter(|&ch| celsius[ch].is_none())
+            .fold(0u8, |s, ch| {
+                s | crate::contract::status::not_connected_bit(ch)
+            });
+        streams.temperature(t, celsius, status)?;
+        accepted += 1;
+        Ok(())
+    })?;
+    ledger.sha256 = sha;
+    ledger.bytes = bytes;
+    ledger.accept("temperature", accepted);
+    ledger.comment_blank_or_header_lines = Some(lines.other);
+    ledger.null_values = streams.take_null_counts()?;
+    Ok(median(&intervals))
 }
 
 #[cfg(test)]
@@ -471,16 +587,22 @@ mod tests {
         assert_eq!(parse_seconds_ns(b"."), None);
     }
 
+    const XYZ: [&str; 4] = ["t", "x", "y", "z"];
+
     #[test]
     fn a_line_needs_a_time_and_three_readings() {
-        let ok = parse_line(&[b"0.01", b"9.8e+00", b"-0.1", b"nan"]).expect("parses");
+        let ok = parse_line(&[b"0.01", b"9.8e+00", b"-0.1", b"nan"], XYZ).expect("parses");
         assert_eq!(ok, (10_000_000, [Some(9.8), Some(-0.1), None], 1));
         assert_eq!(
-            parse_line(&[b"0.01", b"1", b"2"]).expect_err("3 fields").0,
+            parse_line(&[b"0.01", b"1", b"2"], XYZ)
+                .expect_err("3 fields")
+                .0,
             "line"
         );
         assert_eq!(
-            parse_line(&[b"0.01", b"1", b"x", b"2"]).expect_err("x").0,
+            parse_line(&[b"0.01", b"1", b"x", b"2"], XYZ)
+                .expect_err("x")
+                .0,
             "y"
         );
     }

@@ -244,6 +244,7 @@ fn read_acquisition(
         }
         Acquisition::Lab {
             stream,
+            temperature,
             zero_gps_ns,
         } => {
             let mut ledger = new_ledger(ds, stream, id, "adc_csv", "lines");
@@ -258,6 +259,13 @@ fn read_acquisition(
             let interval = labstream::read_lab(stream, config, &mut out.lab, &mut ledger, &pb)?;
             pb.finish_and_clear();
             files.push(ledger);
+            if let Some(path) = temperature {
+                let mut ledger = new_ledger(ds, path, id, "temperature_csv", "lines");
+                let pb = progress_bar(opts, path);
+                labstream::read_lab_temperature(path, config, streams, &mut ledger, &pb)?;
+                pb.finish_and_clear();
+                files.push(ledger);
+            }
             Ok(interval)
         }
         Acquisition::Csv { adc, temperature } => {

@@ -2,7 +2,7 @@
 //! with the quirks of real lab files (10 ms stamps at 200 Hz, scientific notation, no
 //! header), and a comma-separated file with a header and Unix times; every sample kept and
 //! what was found reported; a line going back in time rejected alone; manifest errors
-//! naming the key.
+//! naming the key; a temperature log in the same layout.
 
 use arrow::array::{Array, AsArray};
 use arrow::datatypes::{Float64Type, Int64Type};
@@ -165,6 +165,83 @@ fn comma_separated_unix_times_with_a_header() {
     assert_eq!(times[0], want);
 }
 
+/// A "seconds" session's temperature log, in the same layout as its stream: read into the
+/// temperature table at the stream's times; a `nan` stored as null and counted, a line not
+/// after the one before it rejected alone, a malformed one named by file, line and field.
+#[test]
+fn a_lab_temperature_log_in_the_seconds_layout() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::create_dir_all(dir.path().join("raw")).expect("raw");
+    let mut acc = String::new();
+    for i in 0..2000 {
+        writeln!(acc, "{:.3} 0.1 0.2 -9.8", f64::from(i) * 0.005).expect("write");
+    }
+    std::fs::write(dir.path().join("raw/acc.txt"), acc).expect("write");
+    let mut temp = String::from("t,T1,T2,T3\n");
+    for i in 0..10 {
+        let t1 = if i == 4 {
+            "nan".to_owned()
+        } else {
+            format!("{:.2}", 25.0 + 0.1 * f64::from(i))
+        };
+        writeln!(temp, "{},{t1},26.5,27.5", f64::from(i)).expect("write");
+        if i == 6 {
+            // Written twice by the logger: the repeat is rejected.
+            writeln!(temp, "{},{t1},26.5,27.5", f64::from(i)).expect("write");
+        }
+    }
+    std::fs::write(dir.path().join("raw/temp.txt"), &temp).expect("write");
+    let session = "start = \"2023-01-05T02:52:39\"\ntemperature_csv = \"raw/temp.txt\"";
+    std::fs::write(dir.path().join("dataset.toml"), manifest(session)).expect("manifest");
+    let out = dir.path().join("out");
+    let report = ingest::run(dir.path(), &out).expect("ingest");
+    let f = report
+        .files
+        .iter()
+        .find(|f| f.role == "temperature_csv")
+        .expect("temperature ledger");
+    assert_eq!(f.accepted, 10, "{f:?}");
+    assert_eq!(f.rejected.get(reason::TIME_BACKWARDS), Some(&1), "{f:?}");
+    assert_eq!(
+        f.null_values.get("ch1 temperature not connected"),
+        Some(&1),
+        "{f:?}"
+    );
+    assert_eq!(report.sessions[0].temperature_samples, 10);
+    assert_eq!(report.tables.get(tables::temperature::FILE), Some(&10));
+    // The same times as the stream's: its second 3 is the stream's sample 600.
+    let (acc_times, _) = table(&out);
+    let t = std::fs::File::open(out.join("ingest").join(tables::temperature::FILE)).expect("table");
+    let b = ParquetRecordBatchReaderBuilder::try_new(t)
+        .expect("parquet")
+        .build()
+        .expect("reader")
+        .next()
+        .expect("a batch")
+        .expect("batch");
+    let times = b
+        .column_by_name(tables::TIME_GPS_NS)
+        .expect("time")
+        .as_primitive::<Int64Type>();
+    assert_eq!(times.value(3), acc_times[600]);
+    let t1 = b
+        .column_by_name(tables::temperature::TEMPERATURE_C[0])
+        .expect("T1")
+        .as_primitive::<Float64Type>();
+    assert!(t1.is_null(4) && (t1.value(3) - 25.3).abs() < 1e-12);
+
+    // A malformed line names the file, the line and the field.
+    std::fs::write(
+        dir.path().join("raw/temp.txt"),
+        temp.replace("26.5,27.5\n3,", "26.5,27.5\n3x,"),
+    )
+    .expect("write");
+    let e = ingest::run(dir.path(), &out)
+        .expect_err("malformed")
+        .to_string();
+    assert!(e.contains("temp.txt:5: t:"), "{e}");
+}
+
 #[test]
 fn lab_manifest_errors_name_the_key() {
     let cases = [
@@ -174,7 +251,7 @@ fn lab_manifest_errors_name_the_key() {
             "session[0].start",
         ),
         (
-            "start = \"2023-01-05T02:52:39\"\ntemperature_csv = \"raw/acc.txt\"",
+            "start = \"2023-01-05T02:52:39\"\ntemperature_csv = \"raw/missing.txt\"",
             "session[0].temperature_csv",
         ),
         (

@@ -523,7 +523,7 @@ fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
         let removed = r.positions.iter().filter(|p| p.removed).count();
         s.text.push(format!(
             "Model {} ({}): {} positions used, {removed} removed; sigma0 {:.3} on {} dof, global test {} ([{:.1}, {:.1}] for {:.1}); \
-             imu_tk file adjust/{}. The last three rows are 90 deg minus the angle between each pair of sensitive axes.",
+             {}. The last three rows are 90 deg minus the angle between each pair of sensitive axes.",
             r.model,
             r.session,
             r.positions_used,
@@ -533,7 +533,10 @@ fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
             r.global_test.lower,
             r.global_test.upper,
             r.global_test.statistic,
-            r.calib_file
+            r.calib_file.as_ref().map_or_else(
+                || "no imu_tk file: its layout has no place for higher orders or temperature terms".to_owned(),
+                |f| format!("imu_tk file adjust/{f}")
+            )
         ));
         s.tables
             .push((format!("Triad {} ({})", r.model, r.session), t));

@@ -137,8 +137,8 @@ fn flag_counts(by_flags: &[u64; 256]) -> std::collections::BTreeMap<String, u64>
 }
 
 /// What a triad's vector is, for apply.json.
-pub const TRIAD_QUANTITY: &str = "a = T K (X - B): the calibrated specific-force vector in the \
-    triad's body frame (imu_tk's), mGal, with its 3 x 3 covariance from the parameters' \
+pub const TRIAD_QUANTITY: &str = "a = T u(X, T): the calibrated specific-force vector in the \
+    triad's body frame (imu_tk's; u = K (X - B) at order 1 without temperature terms), mGal, with its 3 x 3 covariance from the parameters' \
     covariance; flags per sample shared by the three axes";
 
 /// A triad model applied: the vector table and its ledger.
@@ -156,7 +156,15 @@ fn apply_triad(
     })?;
     let sessions: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
-    let w = super::triad_stream::write(&sessions, &ingest_dir, &out.join(STAGE_DIR), &f, channels)?;
+    let max_gap_ns = (ds.manifest.align.max_temperature_gap_s * 1e9).round() as i64;
+    let w = super::triad_stream::write(
+        &sessions,
+        &ingest_dir,
+        &out.join(STAGE_DIR),
+        &f,
+        channels,
+        max_gap_ns,
+    )?;
     let flagged = flag_counts(&w.by_flags);
     let accelerometers = channels
         .iter()
@@ -169,7 +177,7 @@ fn apply_triad(
                 serial: acc.and_then(|a| a.serial.clone()),
                 not_calibrated: None,
                 counts_range: result.readings_range.map(|r| r[axis]),
-                temperature_range_c: None,
+                temperature_range_c: result.temperature_range_c,
                 with_value: w.with_value,
                 flagged: flagged.clone(),
             }

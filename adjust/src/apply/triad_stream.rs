@@ -1,13 +1,16 @@
 //! A triad calibration applied (MODEL.md 6.7: "for a triad, the vector and its 3x3
-//! covariance"): every sample's three readings to the calibrated vector a = T K (X - B) in
-//! the body frame, its covariance J C J^T from the fit's 9 x 9 parameter covariance, and
-//! flags (a reading outside the range the positions saw; saturated or not connected: no
-//! value). Both sources of samples are streamed a row group at a time: ingest's
-//! acceleration table (counts) and its lab table (a lab logger's readings).
+//! covariance"): every sample's three readings (and, with temperature terms, the axes'
+//! temperatures interpolated as align does) to the calibrated vector in the body frame
+//! ([`crate::triad::TriadModel::evaluate`]), its covariance J C J^T from the fit's
+//! parameter covariance, and flags (a reading or temperature outside the range the
+//! positions saw; saturated, not connected or no temperature: no value). Both sources of
+//! samples are streamed a row group at a time: ingest's acceleration table (counts) and its
+//! lab table (a lab logger's readings).
 
 use crate::Error;
-use crate::triad;
-use align::read;
+use crate::triad::TriadModel;
+use align::read::{self, Temperatures};
+use align::window::Interpolator;
 use arrow::array::Array;
 use ingest::contract::calibration::TriadResult;
 use ingest::contract::status;
@@ -15,76 +18,117 @@ use ingest::contract::tables::{self, applied};
 use ingest::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP};
 use std::path::Path;
 
+/// A calibrated vector and the six elements of its covariance (xx, xy, xz, yy, yz, zz).
+pub type Vector = ([f64; 3], [f64; 6]);
+
 /// The fit's parameters and covariance, ready to evaluate.
 pub struct TriadFunction {
-    p: [f64; 9],
-    cov: [[f64; 9]; 9],
+    model: TriadModel,
+    p: Vec<f64>,
+    /// Row-major n x n.
+    cov: Vec<f64>,
     range: Option<[[f64; 2]; 3]>,
+    t_ref_c: f64,
+    temperature_range_c: Option<[f64; 2]>,
 }
 
 impl TriadFunction {
     /// From calibration.json's triad result.
     pub fn new(r: &TriadResult) -> Result<Self, String> {
-        if r.parameters.len() != 9 || r.correlation.len() != 9 {
-            return Err(format!("triad {} has not 9 parameters", r.model));
+        let model = TriadModel {
+            order: r.order,
+            temperature: r.temperature,
+        };
+        let names = model.names();
+        let n = names.len();
+        let found: Vec<&str> = r.parameters.iter().map(|p| p.name.as_str()).collect();
+        if found != names || r.correlation.len() != n || r.correlation.iter().any(|c| c.len() != n)
+        {
+            return Err(format!(
+                "triad {}: its parameters ({}) are not those of order {} {} temperature terms ({})",
+                r.model,
+                found.join(", "),
+                r.order,
+                if r.temperature { "with" } else { "without" },
+                names.join(", ")
+            ));
         }
-        let p = std::array::from_fn(|j| r.parameters[j].value);
-        let cov = std::array::from_fn(|i| {
-            std::array::from_fn(|j| {
+        let t_ref_c = match (r.temperature, r.t_ref_c) {
+            (true, Some(t)) => t,
+            (true, None) => {
+                return Err(format!(
+                    "triad {}: temperature terms without t_ref_c",
+                    r.model
+                ));
+            }
+            (false, _) => 0.0,
+        };
+        let p = r.parameters.iter().map(|q| q.value).collect();
+        let cov = (0..n * n)
+            .map(|k| {
+                let (i, j) = (k / n, k % n);
                 r.parameters[i].sigma * r.parameters[j].sigma * r.correlation[i][j]
             })
-        });
+            .collect();
         Ok(TriadFunction {
+            model,
             p,
             cov,
             range: r.readings_range,
+            t_ref_c,
+            temperature_range_c: r.temperature_range_c,
         })
     }
 
-    /// The vector and the six covariance elements (xx, xy, xz, yy, yz, zz) at readings `x`,
-    /// and whether a reading lies outside the calibrated range.
-    pub fn apply(&self, x: [f64; 3]) -> ([f64; 3], [f64; 6], bool) {
-        let p = &self.p;
-        let a = triad::calibrated(p, x);
-        let (t, k, b) = (
-            [[1.0, -p[0], p[1]], [0.0, 1.0, -p[2]], [0.0, 0.0, 1.0]],
-            [p[3], p[4], p[5]],
-            [p[6], p[7], p[8]],
-        );
-        let u: [f64; 3] = std::array::from_fn(|j| k[j] * (x[j] - b[j]));
-        // J = da/dp, 3 x 9: the angles, then per axis T[:, j] (x_j - b_j) and -T[:, j] s_j.
-        let mut jac = [[0.0; 9]; 3];
-        jac[0][0] = -u[1];
-        jac[0][1] = u[2];
-        jac[1][2] = -u[2];
-        for j in 0..3 {
-            for r in 0..3 {
-                jac[r][3 + j] = t[r][j] * (x[j] - b[j]);
-                jac[r][6 + j] = -t[r][j] * k[j];
-            }
-        }
-        let mut jc = [[0.0; 9]; 3];
-        for r in 0..3 {
-            for c in 0..9 {
-                jc[r][c] = (0..9).map(|m| jac[r][m] * self.cov[m][c]).sum();
-            }
-        }
-        let cov = |r: usize, s: usize| (0..9).map(|m| jc[r][m] * jac[s][m]).sum::<f64>();
-        let out = self
+    /// Whether the model needs temperatures.
+    pub fn needs_temperature(&self) -> bool {
+        self.model.temperature
+    }
+
+    /// The vector and the six covariance elements (xx, xy, xz, yy, yz, zz) at readings `x`
+    /// and the axes' temperatures, and the flags (out of the calibrated readings or
+    /// temperatures; no temperature where the model needs one: no value).
+    pub fn apply(&self, x: [f64; 3], temperature_c: Option<[f64; 3]>) -> (Option<Vector>, u8) {
+        let mut flags = 0;
+        if self
             .range
-            .is_some_and(|rg| (0..3).any(|j| !(rg[j][0]..=rg[j][1]).contains(&x[j])));
-        (
-            a,
-            [
-                cov(0, 0),
-                cov(0, 1),
-                cov(0, 2),
-                cov(1, 1),
-                cov(1, 2),
-                cov(2, 2),
-            ],
-            out,
-        )
+            .is_some_and(|rg| (0..3).any(|j| !(rg[j][0]..=rg[j][1]).contains(&x[j])))
+        {
+            flags |= applied::COUNTS_OUT_OF_RANGE;
+        }
+        let tau = match (self.model.temperature, temperature_c) {
+            (false, _) => [0.0; 3],
+            (true, None) => return (None, flags | applied::NO_TEMPERATURE),
+            (true, Some(t)) => {
+                if self
+                    .temperature_range_c
+                    .is_some_and(|[lo, hi]| t.iter().any(|v| !(lo..=hi).contains(v)))
+                {
+                    flags |= applied::TEMPERATURE_OUT_OF_RANGE;
+                }
+                t.map(|v| v - self.t_ref_c)
+            }
+        };
+        let n = self.p.len();
+        let mut jac = [0.0; 3 * 21];
+        let (a, _) = self.model.evaluate(&self.p, x, tau, Some(&mut jac));
+        // J C, 3 x n, then (J C) J^T.
+        let mut jc = [[0.0; 21]; 3];
+        for (r, row) in jc.iter_mut().enumerate() {
+            for (c, out) in row.iter_mut().enumerate().take(n) {
+                *out = (0..n).map(|m| jac[r * n + m] * self.cov[m * n + c]).sum();
+            }
+        }
+        let cov = |r: usize, s: usize| (0..n).map(|m| jc[r][m] * jac[s * n + m]).sum::<f64>();
+        let c = [
+            cov(0, 0),
+            cov(0, 1),
+            cov(0, 2),
+            cov(1, 1),
+            cov(1, 2),
+            cov(2, 2),
+        ];
+        (Some((a, c)), flags)
     }
 }
 
@@ -111,7 +155,7 @@ struct Columns {
 }
 
 impl Columns {
-    fn push(&mut self, session: u16, time: i64, sample: Option<([f64; 3], [f64; 6])>, flags: u8) {
+    fn push(&mut self, session: u16, time: i64, sample: Option<Vector>, flags: u8) {
         self.session.push(i32::from(session));
         self.time.push(time);
         if let Some((a, c)) = sample {
@@ -145,9 +189,49 @@ impl Columns {
     }
 }
 
+/// The axes' temperatures per session, interpolated along the stream.
+struct AxisTemperatures<'t> {
+    /// Per session index, per axis.
+    series: Vec<[Option<Interpolator<'t>>; 3]>,
+    max_gap_ns: i64,
+}
+
+impl<'t> AxisTemperatures<'t> {
+    fn new(
+        temperatures: &'t Temperatures,
+        sessions: usize,
+        channels: [usize; 3],
+        max_gap_ns: i64,
+    ) -> Self {
+        let series = (0..sessions)
+            .map(|s| {
+                channels.map(|ch| {
+                    let s = u16::try_from(s).ok()?;
+                    let ch = u8::try_from(ch + 1).ok()?;
+                    let (t, v) = temperatures.get(&(s, ch))?;
+                    Some(Interpolator::new(t, v))
+                })
+            })
+            .collect();
+        AxisTemperatures { series, max_gap_ns }
+    }
+
+    fn at(&mut self, session: u16, time_ns: i64) -> Option<[f64; 3]> {
+        let gap = self.max_gap_ns;
+        let axes = self.series.get_mut(usize::from(session))?;
+        let [a, b, c] = axes.each_mut().map(|it| {
+            it.as_mut()
+                .and_then(|it| it.at(time_ns, gap))
+                .map(|(v, _)| v)
+        });
+        Some([a?, b?, c?])
+    }
+}
+
 /// One sample: its vector and covariance, or why it has none.
 fn one(
     f: &TriadFunction,
+    temperatures: &mut AxisTemperatures<'_>,
     cols: &mut Columns,
     out: &mut TriadWritten,
     (session, time): (u16, i64),
@@ -156,11 +240,12 @@ fn one(
 ) {
     let (sample, flags) = match (flags, x) {
         (0, [Some(a), Some(b), Some(c)]) => {
-            let (v, cov, beyond) = f.apply([a, b, c]);
-            (
-                Some((v, cov)),
-                u8::from(beyond) * applied::COUNTS_OUT_OF_RANGE,
-            )
+            let t = if f.needs_temperature() {
+                temperatures.at(session, time)
+            } else {
+                None
+            };
+            f.apply([a, b, c], t)
         }
         (0, _) => (None, applied::NOT_CONNECTED),
         (f, _) => (None, f),
@@ -172,14 +257,22 @@ fn one(
 }
 
 /// Streams ingest's acceleration and lab tables through `f` into the triad table in `dir`;
-/// `channels` are the survey's channels (0-based) of the triad's x, y and z.
+/// `channels` are the survey's channels (0-based) of the triad's x, y and z; a temperature
+/// farther than `max_gap_ns` from a sample is none.
 pub fn write(
     sessions: &[String],
     ingest_dir: &Path,
     dir: &Path,
     f: &TriadFunction,
     channels: [usize; 3],
+    max_gap_ns: i64,
 ) -> Result<TriadWritten, Error> {
+    let series = if f.needs_temperature() {
+        read::temperatures(ingest_dir)?
+    } else {
+        Temperatures::new()
+    };
+    let mut temperatures = AxisTemperatures::new(&series, sessions.len(), channels, max_gap_ns);
     let names = applied::TRIAD_COLUMNS;
     let mut writer = ColumnTableWriter::create(
         dir,
@@ -216,6 +309,7 @@ pub fn write(
             });
             one(
                 f,
+                &mut temperatures,
                 &mut cols,
                 &mut out,
                 (b.session[i], b.time_ns[i]),
@@ -233,7 +327,15 @@ pub fn write(
                 let v = b.values[ch];
                 v.is_valid(i).then(|| v.value(i))
             });
-            one(f, &mut cols, &mut out, (b.session[i], b.time_ns[i]), x, 0);
+            one(
+                f,
+                &mut temperatures,
+                &mut cols,
+                &mut out,
+                (b.session[i], b.time_ns[i]),
+                x,
+                0,
+            );
         }
         let (n, c) = cols.take();
         writer.write_row_group(n, &c)?;

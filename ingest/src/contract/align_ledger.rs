@@ -194,6 +194,10 @@ pub struct StaticPosition {
     pub sigma: [f64; 3],
     /// Gravity during the position, mGal (with the body tide when the site is located).
     pub gravity_mgal: f64,
+    /// Temperature of channels 1..3 at the interval's middle, degC (interpolated as align
+    /// does for a window); absent when the session logged none or the log has a gap there.
+    #[serde(default)]
+    pub temperature_c: Option<[f64; 3]>,
 }
 
 impl AlignReport {

@@ -199,7 +199,22 @@ pub struct TriadResult {
     pub session: String,
     /// Unit of the readings X and the biases B.
     pub reading_unit: String,
-    /// a_yz, a_zy, a_zx (rad), s_x, s_y, s_z (mGal per reading unit), b_x, b_y, b_z.
+    /// Polynomial order per axis (1: imu_tk's T K (X - B)).
+    #[serde(default = "order_one")]
+    pub order: u8,
+    /// Bias and scale move with each axis's temperature.
+    #[serde(default)]
+    pub temperature: bool,
+    /// The temperature tau = T - t_ref is counted from, degC (with temperature terms).
+    #[serde(default)]
+    pub t_ref_c: Option<f64>,
+    /// Least and greatest temperature over the positions used, degC (with temperature
+    /// terms): an application outside it is flagged.
+    #[serde(default)]
+    pub temperature_range_c: Option<[f64; 2]>,
+    /// a_yz, a_zy, a_zx (rad), s_x, s_y, s_z (mGal per reading unit), b_x, b_y, b_z; then
+    /// by order s2_x.. (mGal per unit^2), s3_x.. (per unit^3); with temperature bt_x..
+    /// (reading units per K) and st_x.. (mGal per unit per K).
     pub parameters: Vec<Parameter>,
     /// Correlation matrix of the parameters.
     pub correlation: Vec<Vec<f64>>,
@@ -217,12 +232,17 @@ pub struct TriadResult {
     /// Each position: |a| - g at the adjusted means, its w-test, its gravity direction in
     /// the body frame; removed positions flagged.
     pub positions: Vec<TriadPosition>,
-    /// The imu_tk text file written beside calibration.json (T, K, B).
-    pub calib_file: String,
+    /// The imu_tk text file written beside calibration.json (T, K, B); none for a model
+    /// with terms that layout has no place for (higher orders, temperature).
+    pub calib_file: Option<String>,
     /// Least and greatest mean reading of each axis over the positions used: the range it
     /// calibrates (an application outside it is flagged).
     #[serde(default)]
     pub readings_range: Option<[[f64; 2]; 3]>,
+}
+
+fn order_one() -> u8 {
+    1
 }
 
 /// One static position of a triad fit.
@@ -239,6 +259,9 @@ pub struct TriadPosition {
     pub w: f64,
     /// Unit vector of the calibrated specific force in the body frame.
     pub direction: [f64; 3],
+    /// Temperature of the three axes, degC, when logged.
+    #[serde(default)]
+    pub temperature_c: Option<[f64; 3]>,
     /// Removed by data snooping.
     pub removed: bool,
 }

@@ -480,10 +480,13 @@ fn default_per() -> Per {
 pub enum Acquisition {
     /// A binary `.gcb` log.
     Binary(PathBuf),
-    /// A lab logger's stream in the "seconds" layout (FORMATS.md 8.3), no temperature.
+    /// A lab logger's stream in the "seconds" layout (FORMATS.md 8.3), and its temperature
+    /// log in the same layout when there is one.
     Lab {
         /// The stream.
         stream: PathBuf,
+        /// `t T1 T2 T3`, degC.
+        temperature: Option<PathBuf>,
         /// GPS time of its time 0, ns: the session's `start`, or the Unix epoch.
         zero_gps_ns: i64,
     },
@@ -548,7 +551,8 @@ impl ResolvedSession {
 /// path and the GPS time of its time 0: `start` in the session's time scale, or for Unix
 /// times the Unix epoch with the leap seconds of the session's date (a leap second inside
 /// a session would shift the rest of it by a second: none is expected in a lab day).
-/// Temperature logs are not read for such sessions in this version.
+/// A `temperature_csv` beside it is read in the same layout (`t T1 T2 T3`, degC, times as
+/// the stream's).
 fn lab_acquisition(
     i: usize,
     s: &Session,
@@ -560,14 +564,6 @@ fn lab_acquisition(
         return Err(err(
             format!("session[{i}].acquisition"),
             "adc_format = \"seconds\" describes `adc_csv`; give the stream there".to_owned(),
-        ));
-    }
-    if s.temperature_csv.is_some() {
-        return Err(err(
-            format!("session[{i}].temperature_csv"),
-            "a \"seconds\" stream's temperature is not read in this version: leave it out (its \
-             models then cannot have temperature terms)"
-                .to_owned(),
         ));
     }
     let Some(stream) = &s.adc_csv else {
@@ -602,8 +598,14 @@ fn lab_acquisition(
             })?
         }
     };
+    let temperature = s
+        .temperature_csv
+        .as_ref()
+        .map(|t| file(format!("session[{i}].temperature_csv"), t))
+        .transpose()?;
     Ok(Acquisition::Lab {
         stream,
+        temperature,
         zero_gps_ns,
     })
 }
@@ -948,22 +950,12 @@ impl Dataset {
                     format!("{} is out of range [1, 3]", model.order),
                 ));
             }
-            if model.kind == ModelKind::Triad {
-                let unsupported = [
-                    (model.order != 1, "order", "orders above 1"),
-                    (model.temperature, "temperature", "temperature terms"),
-                    (
-                        model.misalignment != Misalignment::None,
-                        "misalignment",
-                        "a misalignment (T holds the axes' non-orthogonality)",
-                    ),
-                ];
-                if let Some((_, key, what)) = unsupported.iter().find(|(bad, _, _)| *bad) {
-                    return Err(err(
-                        format!("adjust.model[{i}].{key}"),
-                        format!("a triad model has no {what} in this version"),
-                    ));
-                }
+            if model.kind == ModelKind::Triad && model.misalignment != Misalignment::None {
+                return Err(err(
+                    format!("adjust.model[{i}].misalignment"),
+                    "a triad model has no misalignment: T holds the axes' non-orthogonality"
+                        .to_owned(),
+                ));
             }
             if model.misalignment == Misalignment::Vector && model.per != Per::All {
                 return Err(err(
