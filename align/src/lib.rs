@@ -346,9 +346,10 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
 
 /// The static positions of every multi-position session: listed in the manifest, or found
 /// by [`statics::detect`]; an interval shorter than [`statics::MIN_STATIC_S`] or with an
-/// axis of fewer than two values is counted, not used. Each position's temperatures are
-/// those at its middle, interpolated as for a window (none when a channel has no sample
-/// within the gap allowed: a model without temperature terms still uses the position).
+/// axis of fewer than three values is counted, not used. Each position's temperature per
+/// channel is the mean over its samples' times of the temperature interpolated as for a
+/// window (the average the mean reading sees; none when a channel has no sample within
+/// the gap allowed: a model without temperature terms still uses the position).
 fn multi_positions(
     ds: &Dataset,
     setup: &Setup,
@@ -414,10 +415,8 @@ fn multi_positions(
                     let (t0, t1) = (data.time_ns[i], data.time_ns[j - 1]);
                     let middle = t0 / 2 + t1 / 2;
                     let temperature_c = [1u8, 2, 3].map(|ch| {
-                        temperatures
-                            .get(&(w, ch))
-                            .and_then(|(t, v)| interpolate(t, v, middle, setup.max_gap_ns))
-                            .map(|(v, _)| v)
+                        let (t, v) = temperatures.get(&(w, ch))?;
+                        interval_mean(t, v, &data.time_ns[i..j], setup.max_gap_ns)
                     });
                     mp.positions.push(StaticPosition {
                         start_gps_ns: t0,
@@ -442,6 +441,17 @@ fn multi_positions(
         out.push(mp);
     }
     Ok(out)
+}
+
+/// The mean of a temperature series interpolated at `times` (sorted); none when any of
+/// them is farther than `max_gap_ns` from a temperature sample.
+fn interval_mean(t: &[i64], v: &[f64], times: &[i64], max_gap_ns: i64) -> Option<f64> {
+    let mut it = window::Interpolator::new(t, v);
+    let mut sum = 0.0;
+    for &time in times {
+        sum += it.at(time, max_gap_ns)?.0;
+    }
+    (!times.is_empty()).then(|| sum / times.len() as f64)
 }
 
 /// The windows of every session's readings, in time order.

@@ -195,15 +195,42 @@ pub fn listed(series: &Series, static_s: &[[f64; 2]]) -> Vec<(usize, usize)> {
 }
 
 /// One interval's means: (mean, sd of the mean, samples) per axis; None when an axis has
-/// fewer than two values.
+/// fewer than three values. The sd is the samples' scatter about a straight line in time
+/// over sqrt(n): a block that drifts while still (its temperature moving) keeps the mean
+/// of a line, its value at the samples' mean time, and the sd of its noise, not of the
+/// drift.
 pub fn means(series: &Series, (i, j): (usize, usize)) -> Option<([f64; 3], [f64; 3], u64)> {
     let s = stats_of(series, i, j);
-    if s.iter().any(|x| x.2 < 2) {
+    if s.iter().any(|x| x.2 < 3) {
         return None;
     }
+    let t0 = series.time_ns[i];
+    let sd: [f64; 3] = std::array::from_fn(|k| {
+        let points = || {
+            series.time_ns[i..j]
+                .iter()
+                .zip(&series.values[i..j])
+                .filter_map(move |(&t, v)| v[k].map(|x| ((t - t0) as f64 * 1e-9, x)))
+        };
+        let n = f64::from(s[k].2);
+        let t_mean = points().map(|(t, _)| t).sum::<f64>() / n;
+        let (mut stt, mut stx, mut sxx) = (0.0, 0.0, 0.0);
+        for (t, x) in points() {
+            let (dt, dx) = (t - t_mean, x - s[k].0);
+            stt += dt * dt;
+            stx += dt * dx;
+            sxx += dx * dx;
+        }
+        let residual = if stt > 0.0 {
+            sxx - stx * stx / stt
+        } else {
+            sxx
+        };
+        (residual.max(0.0) / (n - 2.0) / n).sqrt()
+    });
     Some((
         s.map(|x| x.0),
-        s.map(|x| (x.1 / f64::from(x.2)).sqrt()),
+        sd,
         u64::from(s.iter().map(|x| x.2).min().unwrap_or(0)),
     ))
 }

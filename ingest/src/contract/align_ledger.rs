@@ -173,7 +173,8 @@ pub struct MultiPosition {
     pub found: u64,
     /// Intervals used as positions.
     pub used: u64,
-    /// Intervals not used, by reason (`too_short`, `saturated`, `no_samples`).
+    /// Intervals not used, by reason (`too_short`, `saturated`, `no_samples`: an axis with
+    /// fewer than three values).
     pub rejected: BTreeMap<String, u64>,
     /// The positions: the static intervals used.
     pub positions: Vec<StaticPosition>,
@@ -190,12 +191,14 @@ pub struct StaticPosition {
     pub samples: u64,
     /// Mean reading of channels 1..3.
     pub mean: [f64; 3],
-    /// Sd of each mean: the samples' sd over sqrt(n) (white noise).
+    /// Sd of each mean: the samples' scatter about a straight line in time over sqrt(n)
+    /// (white noise; a drift while still is not noise).
     pub sigma: [f64; 3],
     /// Gravity during the position, mGal (with the body tide when the site is located).
     pub gravity_mgal: f64,
-    /// Temperature of channels 1..3 at the interval's middle, degC (interpolated as align
-    /// does for a window); absent when the session logged none or the log has a gap there.
+    /// Temperature of channels 1..3 over the interval, degC: the mean over its samples of the
+    /// temperature interpolated as for a window; absent when the session logged none or the
+    /// log has a gap there.
     #[serde(default)]
     pub temperature_c: Option<[f64; 3]>,
 }
