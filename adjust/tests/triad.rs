@@ -62,65 +62,126 @@ fn thirty_positions_recover_the_triad_and_remove_the_knocked_one() {
     }
 }
 
-#[test]
-fn monte_carlo_of_the_triad_sigmas() {
-    let truth = Triad::esgt();
-    let p = truth.parameters();
-    let mut rng = Rng::new(16, "triad/monte-carlo");
-    // One design (directions, durations), new noise each replica.
-    let design = positions(&truth, 24, G, 31.25, SAMPLE_SD, None, &mut rng);
-    let replicas = 400;
-    let mut est = Vec::new();
-    let mut sig = Vec::new();
-    let mut mahalanobis = 0.0;
-    let mut rejected = 0;
+/// What a Monte-Carlo of a triad model found: sd over mean sigma per parameter, the mean
+/// Mahalanobis distance of the estimates from truth over the parameters, and the global
+/// test's rejection rate.
+struct MonteCarlo {
+    ratios: Vec<f64>,
+    mahalanobis: f64,
+    rate: f64,
+}
+
+/// `replicas` replicas of one design of `n` positions (directions, durations; with
+/// temperature terms each position at one of a chamber's plateaus 20, 27, 34 degC, known
+/// exactly), new noise each replica.
+fn monte_carlo(
+    model: TriadModel,
+    truth: &Triad,
+    n: usize,
+    replicas: usize,
+    seed: u64,
+) -> MonteCarlo {
+    let mut rng = Rng::new(seed, "triad/monte-carlo");
+    let design = positions(truth, n, G, 31.25, SAMPLE_SD, None, &mut rng);
+    let temperature = |i: usize| {
+        let chamber = [20.0, 27.0, 34.0][i % 3];
+        model
+            .temperature
+            .then_some([chamber + 0.4, chamber - 0.3, chamber + 0.1])
+    };
+    let names = model.names();
+    let m = names.len();
+    let (mut est, mut sig) = (Vec::new(), Vec::new());
+    let (mut mahalanobis, mut rejected) = (0.0, 0);
     for _ in 0..replicas {
         let q: Vec<Position> = design
             .iter()
-            .map(|d| {
-                let clean = truth.readings(d.direction.map(|x| x * G));
+            .enumerate()
+            .map(|(i, d)| {
+                let t = temperature(i);
+                let a = d.direction.map(|x| x * G);
+                let clean = truth.readings_at(a, t.unwrap_or([truth.t_ref_c; 3]));
                 Position {
                     mean: std::array::from_fn(|k| clean[k] + d.sigma[k] * rng.normal()),
                     sigma: d.sigma,
                     g_mgal: G,
-                    temperature_c: None,
+                    temperature_c: t,
                 }
             })
             .collect();
-        let s = triad::calibrate(TriadModel::LINEAR, &q).expect("calibrates");
+        let s = triad::calibrate(model, &q).expect("calibrates");
+        // The truth referred to the fit's t_ref: b + bt shift, s + st shift.
+        let mut p = truth.parameters_for(model.order, model.temperature);
+        if let Some(t_ref) = s.t_ref_c {
+            let shift = t_ref - truth.t_ref_c;
+            for j in 0..3 {
+                p[3 + j] += p[m - 3 + j] * shift;
+                p[6 + j] += p[m - 6 + j] * shift;
+            }
+        }
         rejected += usize::from(!s.global_test.2);
-        let delta: Vec<f64> = (0..9).map(|j| s.values[j] - p[j]).collect();
-        mahalanobis += quadratic_form_of_inverse(&|i, j| s.covariance[i * 9 + j], &delta) / 9.0;
-        est.push(s.values.clone());
-        sig.push((0..9).map(|j| s.sigma(j)).collect::<Vec<_>>());
+        let delta: Vec<f64> = (0..m).map(|j| s.values[j] - p[j]).collect();
+        mahalanobis +=
+            quadratic_form_of_inverse(&|i, j| s.covariance[i * m + j], &delta) / m as f64;
+        est.push(delta);
+        sig.push((0..m).map(|j| s.sigma(j)).collect::<Vec<_>>());
     }
-    let n = est.len() as f64;
-    let mut ratios = Vec::new();
-    for j in 0..9 {
-        let m = est.iter().map(|e| e[j]).sum::<f64>() / n;
-        let sd = (est.iter().map(|e| (e[j] - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-        let mean_sigma = sig.iter().map(|s| s[j]).sum::<f64>() / n;
-        ratios.push(sd / mean_sigma);
-    }
-    let rate = rejected as f64 / n;
+    let r = replicas as f64;
+    let ratios: Vec<f64> = (0..m)
+        .map(|j| {
+            let mean = est.iter().map(|e| e[j]).sum::<f64>() / r;
+            let sd = (est.iter().map(|e| (e[j] - mean).powi(2)).sum::<f64>() / (r - 1.0)).sqrt();
+            sd / (sig.iter().map(|s| s[j]).sum::<f64>() / r)
+        })
+        .collect();
+    let mc = MonteCarlo {
+        ratios,
+        mahalanobis: mahalanobis / r,
+        rate: rejected as f64 / r,
+    };
     eprintln!(
-        "triad monte carlo, {replicas} replicas: sd/sigma {}; Mahalanobis / dof {:.3}; global test rejects {:.1} %",
-        NAMES
+        "triad monte carlo, order {} {} temperature terms, {replicas} replicas of {n} positions: sd/sigma {}; Mahalanobis / dof {:.3}; global test rejects {:.1} %",
+        model.order,
+        if model.temperature { "with" } else { "without" },
+        names
             .iter()
-            .zip(&ratios)
+            .zip(&mc.ratios)
             .map(|(n, r)| format!("{n} {r:.3}"))
             .collect::<Vec<_>>()
             .join(", "),
-        mahalanobis / n,
-        100.0 * rate
+        mc.mahalanobis,
+        100.0 * mc.rate
     );
+    mc
+}
+
+#[test]
+fn monte_carlo_of_the_triad_sigmas() {
+    let mc = monte_carlo(TriadModel::LINEAR, &Triad::esgt(), 24, 400, 16);
     // se of an sd ratio 1/sqrt(2n) = 0.035, of the Mahalanobis mean sqrt(2/9/n) = 0.024, of
     // the rate 0.011: bounds at about 3 se.
-    for (name, r) in NAMES.iter().zip(&ratios) {
+    for (name, r) in NAMES.iter().zip(&mc.ratios) {
         assert!((r - 1.0).abs() < 0.11, "sd({name})/sigma = {r}");
     }
-    assert!((mahalanobis / n - 1.0).abs() < 0.08, "{}", mahalanobis / n);
-    assert!((0.015..=0.085).contains(&rate), "rejects {rate}");
+    assert!((mc.mahalanobis - 1.0).abs() < 0.08, "{}", mc.mahalanobis);
+    assert!((0.015..=0.085).contains(&mc.rate), "rejects {}", mc.rate);
+}
+
+/// The sigmas of order 2 with temperature terms (21 parameters, 42 positions over three
+/// plateaus), temperatures known: sd over sigma per parameter within 3.5 se (0.035 for 400
+/// replicas; 21 ratios), the Mahalanobis mean within 4 se (0.015), the rate within 3 se.
+#[test]
+fn monte_carlo_of_the_thermal_triad_sigmas() {
+    let model = TriadModel {
+        order: 2,
+        temperature: true,
+    };
+    let mc = monte_carlo(model, &Triad::esgt_thermal(), 42, 400, 17);
+    for (name, r) in model.names().iter().zip(&mc.ratios) {
+        assert!((r - 1.0).abs() < 0.125, "sd({name})/sigma = {r}");
+    }
+    assert!((mc.mahalanobis - 1.0).abs() < 0.06, "{}", mc.mahalanobis);
+    assert!((0.015..=0.085).contains(&mc.rate), "rejects {}", mc.rate);
 }
 
 #[test]
@@ -470,4 +531,57 @@ fn the_triad_applied_gives_the_gravity_vector() {
         }
     }
     eprintln!("largest |error| / sigma of a position's mean vector: {worst:.2}");
+}
+
+/// The sigmas of order 3 without temperature terms (15 parameters, 36 positions; the truth
+/// with esgt_thermal's second-order terms and a third-order term of about 2 micro-g per
+/// g^3), the same bounds as order 2.
+#[test]
+fn monte_carlo_of_the_cubic_triad_sigmas() {
+    let model = TriadModel {
+        order: 3,
+        temperature: false,
+    };
+    let truth = Triad {
+        s3: [3e-20, -2e-20, 2.5e-20],
+        ..Triad::esgt_thermal()
+    };
+    let mc = monte_carlo(model, &truth, 36, 400, 18);
+    for (name, r) in model.names().iter().zip(&mc.ratios) {
+        assert!((r - 1.0).abs() < 0.125, "sd({name})/sigma = {r}");
+    }
+    assert!((mc.mahalanobis - 1.0).abs() < 0.06, "{}", mc.mahalanobis);
+    assert!((0.015..=0.085).contains(&mc.rate), "rejects {}", mc.rate);
+}
+
+/// Temperature terms from positions all at one temperature are named not estimable;
+/// positions without temperatures are refused, counted; an order 3 model with temperature
+/// terms needs 24 positions.
+#[test]
+fn temperature_terms_need_temperatures_that_vary() {
+    let model = TriadModel {
+        order: 1,
+        temperature: true,
+    };
+    let truth = Triad::esgt_thermal();
+    let mut rng = Rng::new(19, "triad/one-temperature");
+    let sim = positions(&truth, 30, G, 31.25, SAMPLE_SD, None, &mut rng);
+    let mut q = as_positions(&sim);
+    for p in &mut q {
+        p.temperature_c = Some([27.0; 3]);
+    }
+    let e = triad::calibrate(model, &q).expect_err("one temperature");
+    assert!(
+        matches!(&e, TriadError::NotEstimable { name } if name.starts_with("bt_") || name.starts_with("st_")),
+        "{e}"
+    );
+    q[3].temperature_c = None;
+    let e = triad::calibrate(model, &q).expect_err("a position without temperature");
+    assert_eq!(e, TriadError::NoTemperature { missing: 1, n: 30 });
+    let cubic = TriadModel {
+        order: 3,
+        temperature: true,
+    };
+    let e = triad::calibrate(cubic, &q[..20]).expect_err("too few");
+    assert!(e.to_string().contains("at least 24"), "{e}");
 }
