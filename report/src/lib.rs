@@ -533,7 +533,15 @@ fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
             r.global_test.lower,
             r.global_test.upper,
             r.global_test.statistic,
-            r.calib_file.as_ref().map_or_else(
+            match (r.order, r.t_ref_c) {
+                (1, None) => String::new(),
+                (o, t) => format!(
+                    "order {o}{}; ",
+                    t.map_or(String::new(), |t| format!(
+                        ", temperature terms about t_ref = {t:.2} degC"
+                    ))
+                ),
+            } + &r.calib_file.as_ref().map_or_else(
                 || "no imu_tk file: its layout has no place for higher orders or temperature terms".to_owned(),
                 |f| format!("imu_tk file adjust/{f}")
             )
