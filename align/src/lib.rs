@@ -25,7 +25,7 @@ pub mod window;
 
 use ingest::contract::align_ledger::{
     AdcNoise, AlignReport, AllanRow, Counts, DRIFT_T_LIMIT, Disconnected, LEDGER_FILE,
-    LEDGER_FORMAT, MultiPosition, STAGE_DIR, StaticPosition, reason, sigma_source,
+    LEDGER_FORMAT, MultiPosition, STAGE_DIR, StaticNoise, StaticPosition, reason, sigma_source,
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger as ingest_ledger;
@@ -382,6 +382,7 @@ fn multi_positions(
             found: 0,
             used: 0,
             rejected: Default::default(),
+            noise: Vec::new(),
             positions: Vec::new(),
         };
         let intervals = match &s.session.static_s {
@@ -403,44 +404,85 @@ fn multi_positions(
         };
         mp.found = intervals.len() as u64;
         let min_samples = (statics::MIN_STATIC_S * rate).round() as usize;
+        let mut kept = Vec::new();
         for (i, j) in intervals {
             let short = mp.method == "detected" && j - i < min_samples;
-            let stats = if short {
-                None
-            } else {
-                statics::means(&data, (i, j))
-            };
-            match stats {
-                Some((mean, sigma, samples)) => {
-                    let (t0, t1) = (data.time_ns[i], data.time_ns[j - 1]);
-                    let middle = t0 / 2 + t1 / 2;
-                    let temperature_c = [1u8, 2, 3].map(|ch| {
-                        let (t, v) = temperatures.get(&(w, ch))?;
-                        interval_mean(t, v, &data.time_ns[i..j], setup.max_gap_ns)
-                    });
-                    mp.positions.push(StaticPosition {
-                        start_gps_ns: t0,
-                        end_gps_ns: t1,
-                        samples,
-                        mean,
-                        sigma,
-                        gravity_mgal: setup.g + setup.tide(middle).unwrap_or(0.0),
-                        temperature_c: match temperature_c {
-                            [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                            _ => None,
-                        },
-                    });
-                }
+            match (!short).then(|| statics::means(&data, (i, j))).flatten() {
+                Some(stats) => kept.push(((i, j), stats)),
                 None => {
                     let why = if short { "too_short" } else { "no_samples" };
                     *mp.rejected.entry(why.to_owned()).or_default() += 1;
                 }
             }
         }
+        let spans: Vec<(usize, usize)> = kept.iter().map(|(span, _)| *span).collect();
+        let noise = statics::noise(&data, &spans, 1.0 / rate);
+        mp.noise = static_noise(ds, &noise);
+        for ((i, j), (mean, white, samples)) in kept {
+            let (t0, t1) = (data.time_ns[i], data.time_ns[j - 1]);
+            let middle = t0 / 2 + t1 / 2;
+            let duration_s = (j - i) as f64 / rate;
+            let sigma = std::array::from_fn(|k| {
+                let coloured = noise[k]
+                    .as_ref()
+                    .map_or(0.0, |n| n.coloured_variance(duration_s));
+                (white[k] * white[k] + coloured).sqrt()
+            });
+            let temperature_c = [1u8, 2, 3].map(|ch| {
+                let (t, v) = temperatures.get(&(w, ch))?;
+                interval_mean(t, v, &data.time_ns[i..j], setup.max_gap_ns)
+            });
+            mp.positions.push(StaticPosition {
+                start_gps_ns: t0,
+                end_gps_ns: t1,
+                samples,
+                mean,
+                sigma,
+                sigma_white: Some(white),
+                gravity_mgal: setup.g + setup.tide(middle).unwrap_or(0.0),
+                temperature_c: match temperature_c {
+                    [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                    _ => None,
+                },
+            });
+        }
         mp.used = mp.positions.len() as u64;
         out.push(mp);
     }
     Ok(out)
+}
+
+/// One point of an Allan curve for align.json.
+fn allan_row(p: &allan::AllanPoint) -> AllanRow {
+    AllanRow {
+        tau_s: p.tau_s,
+        adev: p.adev,
+        lower: p.interval.0,
+        upper: p.interval.1,
+        edf: p.edf,
+    }
+}
+
+/// A multi-position session's noise per axis for align.json, in the reading unit.
+fn static_noise(ds: &Dataset, noise: &[Option<statics::AxisNoise>; 3]) -> Vec<StaticNoise> {
+    let unit = ds.manifest.instrument.reading_unit.name().to_owned();
+    noise
+        .iter()
+        .enumerate()
+        .filter_map(|(k, n)| {
+            let n = n.as_ref()?;
+            Some(StaticNoise {
+                channel: u8::try_from(k + 1).unwrap_or(0),
+                unit: unit.clone(),
+                intervals: n.intervals,
+                samples: n.samples,
+                allan: n.points.iter().map(allan_row).collect(),
+                white_density_per_sqrt_hz: n.terms.white_density,
+                bias_instability: n.terms.bias_instability,
+                random_walk_sqrt_hz: n.terms.random_walk,
+            })
+        })
+        .collect()
 }
 
 /// The mean of a temperature series interpolated at `times` (sorted); none when any of
@@ -592,16 +634,7 @@ fn adc_noise(ds: &Dataset, still: &[Vec<StillInterval>], tau0_s: f64) -> Vec<Adc
                 accelerometer: acc.id.clone(),
                 still_intervals: series.len(),
                 samples: series.iter().map(|s| s.len()).sum(),
-                allan: points
-                    .iter()
-                    .map(|p| AllanRow {
-                        tau_s: p.tau_s,
-                        adev: p.adev,
-                        lower: p.interval.0,
-                        upper: p.interval.1,
-                        edf: p.edf,
-                    })
-                    .collect(),
+                allan: points.iter().map(allan_row).collect(),
                 white_density_counts_per_sqrt_hz: fit.white_density,
                 bias_instability_counts: fit.bias_instability,
                 random_walk_counts_sqrt_hz: fit.random_walk,

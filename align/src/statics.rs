@@ -235,6 +235,80 @@ pub fn means(series: &Series, (i, j): (usize, usize)) -> Option<([f64; 3], [f64;
     ))
 }
 
+/// Fewest samples of an interval for the noise analysis.
+pub const MIN_NOISE_SAMPLES: usize = 64;
+
+/// One axis's noise over a session's static intervals: the Allan curve pooled over them and
+/// the terms fitted to it ([`crate::allan::fit_noise`]: a bias instability or random walk
+/// only when significant), with the intervals and samples it used.
+#[derive(Clone, Debug)]
+pub struct AxisNoise {
+    /// The Allan curve.
+    pub points: Vec<crate::allan::AllanPoint>,
+    /// Its fitted terms.
+    pub terms: crate::allan::NoiseTerms,
+    /// Intervals used (every sample of the axis valid, at least [`MIN_NOISE_SAMPLES`]).
+    pub intervals: usize,
+    /// Samples in them.
+    pub samples: usize,
+}
+
+impl AxisNoise {
+    /// The variance the coloured terms add to the mean of an interval of `duration_s`:
+    /// their Allan variance there (MODEL.md 6.2), 0 for white noise.
+    pub fn coloured_variance(&self, duration_s: f64) -> f64 {
+        crate::allan::NoiseTerms {
+            white_density: 0.0,
+            ..self.terms
+        }
+        .allan_variance(duration_s)
+    }
+}
+
+/// The noise of each axis over `intervals` of `series` sampled every `tau0_s`: each
+/// interval's readings less their straight line in time (as the positions' sds: a drift
+/// while still, the temperature moving, is not noise; the line also takes some of a random
+/// walk's power at the longest taus), pooled into one Allan curve per axis. None for an
+/// axis without an interval of [`MIN_NOISE_SAMPLES`].
+pub fn noise(series: &Series, intervals: &[(usize, usize)], tau0_s: f64) -> [Option<AxisNoise>; 3] {
+    std::array::from_fn(|k| {
+        let residuals: Vec<Vec<f64>> = intervals
+            .iter()
+            .filter_map(|&(i, j)| {
+                let y: Option<Vec<f64>> = series.values[i..j].iter().map(|v| v[k]).collect();
+                y.filter(|y| y.len() >= MIN_NOISE_SAMPLES).map(detrended)
+            })
+            .collect();
+        let longest = residuals.iter().map(Vec::len).max()?;
+        let slices: Vec<&[f64]> = residuals.iter().map(Vec::as_slice).collect();
+        let points = crate::allan::pooled(&slices, tau0_s, &crate::allan::octave_factors(longest));
+        Some(AxisNoise {
+            terms: crate::allan::fit_noise(&points),
+            points,
+            intervals: slices.len(),
+            samples: slices.iter().map(|s| s.len()).sum(),
+        })
+    })
+}
+
+/// `y` less its least-squares line in the sample index.
+fn detrended(y: Vec<f64>) -> Vec<f64> {
+    let n = y.len() as f64;
+    let i_mean = (n - 1.0) / 2.0;
+    let y_mean = y.iter().sum::<f64>() / n;
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (i, v) in y.iter().enumerate() {
+        let d = i as f64 - i_mean;
+        sxy += d * (v - y_mean);
+        sxx += d * d;
+    }
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    y.iter()
+        .enumerate()
+        .map(|(i, v)| v - y_mean - slope * (i as f64 - i_mean))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

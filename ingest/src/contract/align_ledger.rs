@@ -53,7 +53,7 @@ pub mod sigma_source {
 pub struct AllanRow {
     /// Averaging time, s.
     pub tau_s: f64,
-    /// Overlapping Allan deviation, counts.
+    /// Overlapping Allan deviation, counts (a multi-position session's: its reading unit).
     pub adev: f64,
     /// 68.3 % confidence interval.
     pub lower: f64,
@@ -176,8 +176,36 @@ pub struct MultiPosition {
     /// Intervals not used, by reason (`too_short`, `saturated`, `no_samples`: an axis with
     /// fewer than three values).
     pub rejected: BTreeMap<String, u64>,
+    /// Each axis's noise over the static intervals used (MODEL.md 6.2), when an interval
+    /// had enough samples: a bias instability or random walk found here adds its Allan
+    /// variance at a position's duration to the position's sigma.
+    #[serde(default)]
+    pub noise: Vec<StaticNoise>,
     /// The positions: the static intervals used.
     pub positions: Vec<StaticPosition>,
+}
+
+/// One axis's noise over a multi-position session's static intervals: the overlapping
+/// Allan deviation of each interval's readings less their straight line, pooled, and the
+/// three terms fitted to it, in the session's reading unit.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct StaticNoise {
+    /// Channel 1..3 (the triad's x, y, z).
+    pub channel: u8,
+    /// The reading unit of the deviation and the terms.
+    pub unit: String,
+    /// Intervals used (every sample valid, at least 64).
+    pub intervals: usize,
+    /// Samples in them.
+    pub samples: usize,
+    /// The Allan deviation, in `unit`.
+    pub allan: Vec<AllanRow>,
+    /// White-noise density N, unit / sqrt(Hz).
+    pub white_density_per_sqrt_hz: f64,
+    /// Bias instability B, unit (0 when not significant).
+    pub bias_instability: f64,
+    /// Random walk K, unit * sqrt(Hz) (0 when not significant).
+    pub random_walk_sqrt_hz: f64,
 }
 
 /// One static position: the three mean readings over its interval.
@@ -191,9 +219,13 @@ pub struct StaticPosition {
     pub samples: u64,
     /// Mean reading of channels 1..3.
     pub mean: [f64; 3],
-    /// Sd of each mean: the samples' scatter about a straight line in time over sqrt(n)
-    /// (white noise; a drift while still is not noise).
+    /// Sd of each mean: the white part (see `sigma_white`) and the Allan variance at the
+    /// interval's duration of any bias instability or random walk the session's noise shows.
     pub sigma: [f64; 3],
+    /// The white part: the samples' scatter about a straight line in time over sqrt(n) (a
+    /// drift while still is not noise).
+    #[serde(default)]
+    pub sigma_white: Option<[f64; 3]>,
     /// Gravity during the position, mGal (with the body tide when the site is located).
     pub gravity_mgal: f64,
     /// Temperature of channels 1..3 over the interval, degC: the mean over its samples of the
