@@ -214,6 +214,59 @@ fn parse_seconds_ns(field: &[u8]) -> Option<i64> {
     Some(if negative { -total } else { total })
 }
 
+/// Powers of ten a double holds exactly.
+const EXACT_POWERS: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// A plain decimal (sign, digits, a point, digits, an exponent) whose significant digits
+/// fit in 2^53 and whose power of ten is within 10^22, read as its exact integer times or
+/// over an exact power of ten: one correctly rounded operation, the double `str::parse`
+/// gives (Clinger's fast path). None for anything else (more digits, `nan`, malformed),
+/// which `str::parse` then reads or rejects.
+fn fast_decimal(field: &[u8]) -> Option<f64> {
+    let (negative, mut rest) = match field.first()? {
+        b'-' => (true, &field[1..]),
+        b'+' => (false, &field[1..]),
+        _ => (false, field),
+    };
+    let (mut mantissa, mut digits, mut exponent) = (0u64, 0u32, 0i32);
+    let mut seen_digit = false;
+    let mut in_fraction = false;
+    while let Some((&c, tail)) = rest.split_first() {
+        match c {
+            b'0'..=b'9' => {
+                seen_digit = true;
+                if mantissa != 0 || c != b'0' {
+                    digits += 1;
+                    if digits > 15 {
+                        return None;
+                    }
+                }
+                mantissa = mantissa * 10 + u64::from(c - b'0');
+                exponent -= i32::from(in_fraction);
+            }
+            b'.' if !in_fraction => in_fraction = true,
+            b'e' | b'E' if seen_digit => {
+                let e: i32 = std::str::from_utf8(tail).ok()?.parse().ok()?;
+                exponent = exponent.checked_add(e)?;
+                rest = &[];
+                break;
+            }
+            _ => return None,
+        }
+        rest = tail;
+    }
+    if !seen_digit || !rest.is_empty() {
+        return None;
+    }
+    let m = mantissa as f64;
+    let power = *EXACT_POWERS.get(exponent.unsigned_abs() as usize)?;
+    let v = if exponent >= 0 { m * power } else { m / power };
+    Some(if negative { -v } else { v })
+}
+
 /// One data line: (time since zero ns, readings, values in scientific notation).
 fn parse_line(
     fields: &[&[u8]],
@@ -241,10 +294,13 @@ fn parse_line(
     for k in 0..3 {
         let raw = fields[k + 1];
         let bad = |what: &str| (names[k + 1], format!("`{}` is {what}", text(raw)));
-        let v: f64 = std::str::from_utf8(raw)
-            .ok()
-            .and_then(|f| f.parse().ok())
-            .ok_or_else(|| bad("not a number"))?;
+        let v: f64 = match fast_decimal(raw) {
+            Some(v) => v,
+            None => std::str::from_utf8(raw)
+                .ok()
+                .and_then(|f| f.parse().ok())
+                .ok_or_else(|| bad("not a number"))?,
+        };
         if v.is_nan() {
             continue;
         }
@@ -588,6 +644,74 @@ mod tests {
     }
 
     const XYZ: [&str; 4] = ["t", "x", "y", "z"];
+
+    /// The fast path gives str::parse's double, bit for bit, and leaves the rest to it.
+    #[test]
+    fn fast_decimals_are_str_parse_bit_for_bit() {
+        let mut state = 7u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1442695040888963407);
+            state >> 11
+        };
+        let mut cases: Vec<String> = [
+            "0",
+            "-0",
+            "1449571.5",
+            "-9.8",
+            "9.806650000e+00",
+            "+.5",
+            "5.",
+            "1e22",
+            "1e-22",
+            "123456789012345",
+            "0.000000000000000000001",
+            "-3.2E-5",
+            "007.250",
+        ]
+        .iter()
+        .map(|s| (*s).to_owned())
+        .collect();
+        for _ in 0..20_000 {
+            let m = next() % 10u64.pow(1 + (next() % 15) as u32);
+            let e = (next() % 31) as i32 - 15;
+            let sign = if next() % 2 == 0 { "-" } else { "" };
+            cases.push(format!("{sign}{m}e{e}"));
+            let point = (next() % 16) as usize;
+            let digits = m.to_string();
+            let at = point.min(digits.len());
+            cases.push(format!(
+                "{sign}{}.{}",
+                &digits[..digits.len() - at],
+                &digits[digits.len() - at..]
+            ));
+        }
+        for c in &cases {
+            let want: f64 = c.parse().expect("parses");
+            if let Some(got) = fast_decimal(c.as_bytes()) {
+                assert_eq!(got.to_bits(), want.to_bits(), "{c}");
+            }
+        }
+        let fast = cases
+            .iter()
+            .filter(|c| fast_decimal(c.as_bytes()).is_some())
+            .count();
+        assert!(fast > cases.len() * 9 / 10, "{fast} of {}", cases.len());
+        for c in [
+            "nan",
+            "inf",
+            "1.2.3",
+            "e5",
+            "-",
+            "",
+            "1e",
+            "12x",
+            "1234567890123456789",
+        ] {
+            assert_eq!(fast_decimal(c.as_bytes()), None, "{c}");
+        }
+    }
 
     #[test]
     fn a_line_needs_a_time_and_three_readings() {
