@@ -757,12 +757,16 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
             .collect();
         let _ = writeln!(
             w,
-            "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed, global test {}; {}",
+            "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed{}, global test {}; {}",
             t.model,
             t.session,
             p.join(", "),
             t.sigma0,
             t.positions_used,
+            match t.positions_without_temperature {
+                0 => String::new(),
+                n => format!(", {n} without temperature left out"),
+            },
             if t.global_test.passed {
                 "passed"
             } else {

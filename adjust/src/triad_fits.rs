@@ -4,7 +4,7 @@
 //! result's imu_tk `.calib` text. No I/O.
 
 use crate::triad::{self, Position, TriadModel, TriadSolution};
-use ingest::contract::align_ledger::{AlignReport, MultiPosition};
+use ingest::contract::align_ledger::{AlignReport, MultiPosition, StaticPosition};
 use ingest::contract::calibration::{GlobalTest, Parameter, Skipped, TriadPosition, TriadResult};
 use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
 
@@ -32,11 +32,22 @@ pub fn fit_all(
             skipped.push(skip(model, "all", "no multi-position session".to_owned()));
             continue;
         }
+        let kind = TriadModel {
+            order: model.order,
+            temperature: model.temperature,
+        };
         for (session, group) in groups {
-            let rows: Vec<(&str, &ingest::contract::align_ledger::StaticPosition)> = group
+            let all: Vec<(&str, &StaticPosition)> = group
                 .iter()
                 .flat_map(|m| m.positions.iter().map(|p| (m.session.as_str(), p)))
                 .collect();
+            // A model with temperature terms leaves out, and counts, the positions the
+            // temperature log does not cover; it fails only when none is covered.
+            let covered = |p: &StaticPosition| !kind.temperature || p.temperature_c.is_some();
+            let rows: Vec<(&str, &StaticPosition)> = match all.iter().any(|(_, p)| covered(p)) {
+                true => all.iter().copied().filter(|(_, p)| covered(p)).collect(),
+                false => all.clone(),
+            };
             let positions: Vec<Position> = rows
                 .iter()
                 .map(|(_, p)| Position {
@@ -46,12 +57,12 @@ pub fn fit_all(
                     temperature_c: p.temperature_c,
                 })
                 .collect();
-            let kind = TriadModel {
-                order: model.order,
-                temperature: model.temperature,
-            };
             match triad::calibrate(kind, &positions) {
-                Ok(s) => results.push(result(ds, model, &session, &rows, &positions, &s)),
+                Ok(s) => {
+                    let mut r = result(ds, model, &session, &rows, &positions, &s);
+                    r.positions_without_temperature = all.len() - rows.len();
+                    results.push(r);
+                }
                 Err(e) => skipped.push(skip(model, &session, e.to_string())),
             }
         }
@@ -72,7 +83,7 @@ fn result(
     ds: &Dataset,
     model: &ModelDecl,
     session: &str,
-    rows: &[(&str, &ingest::contract::align_ledger::StaticPosition)],
+    rows: &[(&str, &StaticPosition)],
     positions: &[Position],
     s: &TriadSolution,
 ) -> TriadResult {
@@ -163,6 +174,7 @@ fn result(
         },
         positions_used: s.residuals.len(),
         positions: positions_out,
+        positions_without_temperature: 0,
         calib_file: (s.model == TriadModel::LINEAR)
             .then(|| format!("{}-{session}.calib", model.name)),
         readings_range: Some(readings_range),

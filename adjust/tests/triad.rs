@@ -420,6 +420,36 @@ fn a_thermal_chamber_calibrates_higher_orders_and_temperature_terms() {
     assert!(worst < 4.0, "{z:?}");
     assert_eq!(report.accelerometers[0].with_value, truth.samples);
 
+    // A gap of the temperature log over one position: that position is left out and
+    // counted, the others still fit.
+    let gap = &truth.position[5];
+    let log = std::fs::read_to_string(dataset.join("raw/temperature.txt")).expect("log");
+    let kept: Vec<&str> = log
+        .lines()
+        .filter(|l| {
+            l.split(',')
+                .next()
+                .and_then(|t| t.parse::<f64>().ok())
+                .is_none_or(|t| t < gap.start_s - 30.0 || t > gap.end_s + 30.0)
+        })
+        .collect();
+    std::fs::write(dataset.join("raw/temperature.txt"), kept.join("\n") + "\n").expect("write");
+    let gapped = pipeline(&dataset, &out);
+    let g = &gapped.triad[0];
+    eprintln!(
+        "temperature gap: {} positions used, {} without temperature",
+        g.positions_used, g.positions_without_temperature
+    );
+    assert!(
+        g.positions_without_temperature >= 1,
+        "{}",
+        g.positions_without_temperature
+    );
+    assert_eq!(
+        g.positions.len() + g.positions_without_temperature,
+        r.positions.len()
+    );
+
     // Without temperature terms the same positions do not fit: the global test fails.
     let manifest = std::fs::read_to_string(dataset.join("dataset.toml")).expect("manifest");
     std::fs::write(

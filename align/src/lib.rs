@@ -29,7 +29,9 @@ use ingest::contract::align_ledger::{
 };
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger as ingest_ledger;
-use ingest::contract::manifest::{AlignConfig, Dataset, Location, SessionKind, SigmaDzMethod};
+use ingest::contract::manifest::{
+    self, AlignConfig, Dataset, Location, SessionKind, SigmaDzMethod,
+};
 use ingest::contract::{status, tables};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -367,89 +369,109 @@ fn multi_positions(
         return Ok(Vec::new());
     }
     let mut series = read::series(ingest_dir, &wanted)?;
-    let rate = ds.manifest.instrument.sample_rate_hz;
-    let mut out = Vec::new();
-    for w in wanted {
-        let s = &ds.sessions[usize::from(w)];
-        let data = series.remove(&w).unwrap_or_default();
-        let mut mp = MultiPosition {
-            session: s.session.id.clone(),
-            method: String::new(),
-            quiet_start_s: None,
-            quiet_sd: None,
-            window_s: statics::WINDOW_S,
-            threshold: None,
-            found: 0,
-            used: 0,
-            rejected: Default::default(),
-            noise: Vec::new(),
-            positions: Vec::new(),
-        };
-        let intervals = match &s.session.static_s {
-            Some(listed) => {
-                mp.method = "listed".to_owned();
-                statics::listed(&data, listed)
-            }
-            None => {
-                mp.method = "detected".to_owned();
-                let d = statics::detect(&data, rate).map_err(|e| Error::Table {
-                    path: ingest_dir.join(tables::lab::FILE),
-                    message: format!("session {}: {e}", s.session.id),
-                })?;
-                mp.quiet_start_s = Some(statics::QUIET_S);
-                mp.quiet_sd = Some(d.quiet_sd);
-                mp.threshold = Some(d.threshold);
-                d.intervals
-            }
-        };
-        mp.found = intervals.len() as u64;
-        let min_samples = (statics::MIN_STATIC_S * rate).round() as usize;
-        let mut kept = Vec::new();
-        for (i, j) in intervals {
-            let short = mp.method == "detected" && j - i < min_samples;
-            match (!short).then(|| statics::means(&data, (i, j))).flatten() {
-                Some(stats) => kept.push(((i, j), stats)),
-                None => {
-                    let why = if short { "too_short" } else { "no_samples" };
-                    *mp.rejected.entry(why.to_owned()).or_default() += 1;
-                }
-            }
-        }
-        let spans: Vec<(usize, usize)> = kept.iter().map(|(span, _)| *span).collect();
-        let noise = statics::noise(&data, &spans, 1.0 / rate);
-        mp.noise = static_noise(ds, &noise);
-        for ((i, j), (mean, white, samples)) in kept {
-            let (t0, t1) = (data.time_ns[i], data.time_ns[j - 1]);
-            let middle = t0 / 2 + t1 / 2;
-            let duration_s = (j - i) as f64 / rate;
-            let sigma = std::array::from_fn(|k| {
-                let coloured = noise[k]
-                    .as_ref()
-                    .map_or(0.0, |n| n.coloured_variance(duration_s));
-                (white[k] * white[k] + coloured).sqrt()
-            });
-            let temperature_c = [1u8, 2, 3].map(|ch| {
-                let (t, v) = temperatures.get(&(w, ch))?;
-                interval_mean(t, v, &data.time_ns[i..j], setup.max_gap_ns)
-            });
-            mp.positions.push(StaticPosition {
-                start_gps_ns: t0,
-                end_gps_ns: t1,
-                samples,
-                mean,
-                sigma,
-                sigma_white: Some(white),
-                gravity_mgal: setup.g + setup.tide(middle).unwrap_or(0.0),
-                temperature_c: match temperature_c {
-                    [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                    _ => None,
-                },
-            });
-        }
-        mp.used = mp.positions.len() as u64;
-        out.push(mp);
+    wanted
+        .into_iter()
+        .map(|w| {
+            let data = series.remove(&w).unwrap_or_default();
+            session_positions(ds, setup, ingest_dir, (w, &data), temperatures)
+        })
+        .collect()
+}
+
+/// One multi-position session's static intervals: listed or detected, the method and the
+/// detector's figures recorded in `mp`.
+fn find_intervals(
+    s: &manifest::ResolvedSession,
+    data: &statics::Series,
+    rate: f64,
+    ingest_dir: &Path,
+    mp: &mut MultiPosition,
+) -> Result<Vec<(usize, usize)>> {
+    if let Some(listed) = &s.session.static_s {
+        mp.method = "listed".to_owned();
+        return Ok(statics::listed(data, listed));
     }
-    Ok(out)
+    mp.method = "detected".to_owned();
+    let d = statics::detect(data, rate).map_err(|e| Error::Table {
+        path: ingest_dir.join(tables::lab::FILE),
+        message: format!("session {}: {e}", s.session.id),
+    })?;
+    mp.quiet_start_s = Some(statics::QUIET_S);
+    mp.quiet_sd = Some(d.quiet_sd);
+    mp.threshold = Some(d.threshold);
+    Ok(d.intervals)
+}
+
+/// One multi-position session (index `w`, readings `data`): its intervals, those usable
+/// (the others counted by reason), its noise, and a position per usable interval.
+fn session_positions(
+    ds: &Dataset,
+    setup: &Setup,
+    ingest_dir: &Path,
+    (w, data): (u16, &statics::Series),
+    temperatures: &read::Temperatures,
+) -> Result<MultiPosition> {
+    let s = &ds.sessions[usize::from(w)];
+    let rate = ds.manifest.instrument.sample_rate_hz;
+    let mut mp = MultiPosition {
+        session: s.session.id.clone(),
+        method: String::new(),
+        quiet_start_s: None,
+        quiet_sd: None,
+        window_s: statics::WINDOW_S,
+        threshold: None,
+        found: 0,
+        used: 0,
+        rejected: Default::default(),
+        noise: Vec::new(),
+        positions: Vec::new(),
+    };
+    let intervals = find_intervals(s, data, rate, ingest_dir, &mut mp)?;
+    mp.found = intervals.len() as u64;
+    let min_samples = (statics::MIN_STATIC_S * rate).round() as usize;
+    let mut kept = Vec::new();
+    for (i, j) in intervals {
+        let short = mp.method == "detected" && j - i < min_samples;
+        match (!short).then(|| statics::means(data, (i, j))).flatten() {
+            Some(stats) => kept.push(((i, j), stats)),
+            None => {
+                let why = if short { "too_short" } else { "no_samples" };
+                *mp.rejected.entry(why.to_owned()).or_default() += 1;
+            }
+        }
+    }
+    let spans: Vec<(usize, usize)> = kept.iter().map(|(span, _)| *span).collect();
+    let noise = statics::noise(data, &spans, 1.0 / rate);
+    mp.noise = static_noise(ds, &noise);
+    for ((i, j), (mean, white, samples)) in kept {
+        let (t0, t1) = (data.time_ns[i], data.time_ns[j - 1]);
+        let duration_s = (j - i) as f64 / rate;
+        let sigma = std::array::from_fn(|k| {
+            let coloured = noise[k]
+                .as_ref()
+                .map_or(0.0, |n| n.coloured_variance(duration_s));
+            (white[k] * white[k] + coloured).sqrt()
+        });
+        let temperature_c = [1u8, 2, 3].map(|ch| {
+            let (t, v) = temperatures.get(&(w, ch))?;
+            interval_mean(t, v, &data.time_ns[i..j], setup.max_gap_ns)
+        });
+        mp.positions.push(StaticPosition {
+            start_gps_ns: t0,
+            end_gps_ns: t1,
+            samples,
+            mean,
+            sigma,
+            sigma_white: Some(white),
+            gravity_mgal: setup.g + setup.tide(t0 / 2 + t1 / 2).unwrap_or(0.0),
+            temperature_c: match temperature_c {
+                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                _ => None,
+            },
+        });
+    }
+    mp.used = mp.positions.len() as u64;
+    Ok(mp)
 }
 
 /// One point of an Allan curve for align.json.

@@ -522,11 +522,15 @@ fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
         }
         let removed = r.positions.iter().filter(|p| p.removed).count();
         s.text.push(format!(
-            "Model {} ({}): {} positions used, {removed} removed; sigma0 {:.3} on {} dof, global test {} ([{:.1}, {:.1}] for {:.1}); \
+            "Model {} ({}): {} positions used, {removed} removed{}; sigma0 {:.3} on {} dof, global test {} ([{:.1}, {:.1}] for {:.1}); \
              {}. The last three rows are 90 deg minus the angle between each pair of sensitive axes.",
             r.model,
             r.session,
             r.positions_used,
+            match r.positions_without_temperature {
+                0 => String::new(),
+                n => format!(", {n} left out for want of a temperature"),
+            },
             r.sigma0,
             r.dof,
             if r.global_test.passed { "passed" } else { "failed" },

@@ -138,8 +138,9 @@ fn flag_counts(by_flags: &[u64; 256]) -> std::collections::BTreeMap<String, u64>
 
 /// What a triad's vector is, for apply.json.
 pub const TRIAD_QUANTITY: &str = "a = T u(X, T): the calibrated specific-force vector in the \
-    triad's body frame (imu_tk's; u = K (X - B) at order 1 without temperature terms), mGal, with its 3 x 3 covariance from the parameters' \
-    covariance; flags per sample shared by the three axes";
+    triad's body frame (imu_tk's; u = K (X - B) at order 1 without temperature terms), mGal, \
+    with its 3 x 3 covariance from the parameters' covariance; flags per sample shared by the \
+    three axes";
 
 /// A triad model applied: the vector table and its ledger.
 fn apply_triad(

@@ -229,6 +229,10 @@ pub struct TriadResult {
     pub global_test: GlobalTest,
     /// Positions in the final adjustment.
     pub positions_used: usize,
+    /// Static positions left out of a model with temperature terms because the temperature
+    /// log does not cover them (not in `positions`).
+    #[serde(default)]
+    pub positions_without_temperature: usize,
     /// Each position: |a| - g at the adjusted means, its w-test, its gravity direction in
     /// the body frame; removed positions flagged.
     pub positions: Vec<TriadPosition>,
