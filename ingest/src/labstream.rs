@@ -183,32 +183,45 @@ pub struct LabConfig {
 /// A field that does not parse: (field name, message).
 type Bad = (&'static str, String);
 
-/// Seconds with up to 9 decimals as ns, exactly; scientific notation through f64.
+/// Seconds with up to 9 decimals as ns, exactly (read from the bytes, rounded half up at
+/// the tenth decimal); scientific notation through f64.
 fn parse_seconds_ns(field: &[u8]) -> Option<i64> {
-    let s = std::str::from_utf8(field).ok()?;
-    if s.contains(['e', 'E']) {
-        let v: f64 = s.parse().ok()?;
-        return (v.is_finite() && v.abs() < 9.2e9).then(|| (v * 1e9).round() as i64);
-    }
-    let (negative, digits) = match s.strip_prefix('-') {
-        Some(rest) => (true, rest),
-        None => (false, s.strip_prefix('+').unwrap_or(s)),
+    let (negative, digits) = match field.first()? {
+        b'-' => (true, &field[1..]),
+        b'+' => (false, &field[1..]),
+        _ => (false, field),
     };
-    let (int, frac) = digits.split_once('.').unwrap_or((digits, ""));
-    if int.is_empty() && frac.is_empty()
-        || !int.bytes().all(|b| b.is_ascii_digit())
-        || !frac.bytes().all(|b| b.is_ascii_digit())
-        || int.len() > 10
-    {
+    let (mut whole, mut ns) = (0i64, 0i64);
+    let (mut int_digits, mut frac_digits) = (0usize, 0usize);
+    let mut in_fraction = false;
+    for (k, &c) in digits.iter().enumerate() {
+        match c {
+            b'0'..=b'9' if in_fraction => {
+                frac_digits += 1;
+                let d = i64::from(c - b'0');
+                if frac_digits <= 9 {
+                    ns += d * 10i64.pow(9 - frac_digits as u32);
+                } else if frac_digits == 10 && d >= 5 {
+                    ns += 1;
+                }
+            }
+            b'0'..=b'9' => {
+                int_digits += 1;
+                if int_digits > 10 {
+                    return None;
+                }
+                whole = whole * 10 + i64::from(c - b'0');
+            }
+            b'.' if !in_fraction => in_fraction = true,
+            b'e' | b'E' if int_digits + frac_digits > 0 && k + 1 < digits.len() => {
+                let v: f64 = std::str::from_utf8(field).ok()?.parse().ok()?;
+                return (v.is_finite() && v.abs() < 9.2e9).then(|| (v * 1e9).round() as i64);
+            }
+            _ => return None,
+        }
+    }
+    if int_digits + frac_digits == 0 {
         return None;
-    }
-    let whole: i64 = if int.is_empty() { 0 } else { int.parse().ok()? };
-    let mut ns: i64 = 0;
-    for (k, b) in frac.bytes().take(9).enumerate() {
-        ns += i64::from(b - b'0') * 10i64.pow(8 - k as u32);
-    }
-    if frac.len() > 9 && frac.as_bytes()[9] >= b'5' {
-        ns += 1;
     }
     let total = whole.checked_mul(1_000_000_000)?.checked_add(ns)?;
     Some(if negative { -total } else { total })
