@@ -35,6 +35,9 @@ const S3: [&str; 3] = ["s3_x", "s3_y", "s3_z"];
 const BT: [&str; 3] = ["bt_x", "bt_y", "bt_z"];
 const ST: [&str; 3] = ["st_x", "st_y", "st_z"];
 
+/// Parameters of the largest model (order 3 with temperature terms).
+pub const MAX_PARAMS: usize = 21;
+
 /// Fewest positions for the 9 parameters of the linear model (MODEL.md 6.5); a model with
 /// more parameters needs three more positions than parameters.
 pub const MIN_POSITIONS: usize = 12;
@@ -92,15 +95,15 @@ impl TriadModel {
     }
 
     /// The calibrated vector at readings `x` and temperature offsets `tau` (ignored without
-    /// temperature terms), the derivative of each u_j by its reading (u'_j: da_r/dx_j =
-    /// T[r][j] u'_j), and, when `jac` is given, da/dp into it (3 rows of n_params).
+    /// temperature terms), its derivatives by the readings (da_r/dx_j = T[r][j] u'_j), and,
+    /// when `jac` is given, da/dp into it (3 rows of n_params).
     pub fn evaluate(
         &self,
         p: &[f64],
         x: [f64; 3],
         tau: [f64; 3],
         jac: Option<&mut [f64]>,
-    ) -> ([f64; 3], [f64; 3]) {
+    ) -> ([f64; 3], [[f64; 3]; 3]) {
         let (o2, o3, ot) = self.offsets();
         let at = |o: Option<usize>, j: usize| o.map_or(0.0, |o| p[o + j]);
         let tau = if self.temperature { tau } else { [0.0; 3] };
@@ -143,7 +146,10 @@ impl TriadModel {
                 }
             }
         }
-        (a, du)
+        (
+            a,
+            std::array::from_fn(|r| std::array::from_fn(|j| t[r][j] * du[j])),
+        )
     }
 }
 
@@ -162,7 +168,7 @@ pub struct Position {
 }
 
 /// The calibrated vector of the linear model a = T K (x - B) (the first 9 parameters).
-pub fn calibrated(p: &[f64], x: [f64; 3]) -> [f64; 3] {
+fn calibrated(p: &[f64], x: [f64; 3]) -> [f64; 3] {
     TriadModel::LINEAR.evaluate(&p[..9], x, [0.0; 3], None).0
 }
 
@@ -187,16 +193,15 @@ impl Conditions<3> for TriadConditions<'_> {
 
     fn eval(&self, i: usize, p: &[f64], l: [f64; 3], a: &mut [f64]) -> (f64, [f64; 3]) {
         let n = self.model.n_params();
-        let mut jac = [0.0; 3 * 21];
-        let (v, du) = self.model.evaluate(p, l, self.tau(i), Some(&mut jac));
+        let mut jac = [0.0; 3 * MAX_PARAMS];
+        let (v, dadx) = self.model.evaluate(p, l, self.tau(i), Some(&mut jac));
         let norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         let e: [f64; 3] = std::array::from_fn(|j| v[j] / norm);
-        // d|a|/dp = e^T da/dp; d|a|/dx_j = e^T T[:, j] u'_j.
+        // d|a|/dp = e^T da/dp; d|a|/dx = e^T da/dx.
         for (k, out) in a.iter_mut().enumerate().take(n) {
             *out = (0..3).map(|r| e[r] * jac[r * n + k]).sum();
         }
-        let t = [[1.0, -p[0], p[1]], [0.0, 1.0, -p[2]], [0.0, 0.0, 1.0]];
-        let bl = std::array::from_fn(|j| (0..3).map(|r| e[r] * t[r][j]).sum::<f64>() * du[j]);
+        let bl = std::array::from_fn(|j| (0..3).map(|r| e[r] * dadx[r][j]).sum::<f64>());
         (norm - self.positions[i].g_mgal, bl)
     }
 }

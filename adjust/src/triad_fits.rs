@@ -44,9 +44,11 @@ pub fn fit_all(
             // A model with temperature terms leaves out, and counts, the positions the
             // temperature log does not cover; it fails only when none is covered.
             let covered = |p: &StaticPosition| !kind.temperature || p.temperature_c.is_some();
-            let rows: Vec<(&str, &StaticPosition)> = match all.iter().any(|(_, p)| covered(p)) {
-                true => all.iter().copied().filter(|(_, p)| covered(p)).collect(),
-                false => all.clone(),
+            let total = all.len();
+            let rows: Vec<(&str, &StaticPosition)> = if all.iter().any(|(_, p)| covered(p)) {
+                all.into_iter().filter(|(_, p)| covered(p)).collect()
+            } else {
+                all
             };
             let positions: Vec<Position> = rows
                 .iter()
@@ -60,7 +62,7 @@ pub fn fit_all(
             match triad::calibrate(kind, &positions) {
                 Ok(s) => {
                     let mut r = result(ds, model, &session, &rows, &positions, &s);
-                    r.positions_without_temperature = all.len() - rows.len();
+                    r.positions_without_temperature = total - rows.len();
                     results.push(r);
                 }
                 Err(e) => skipped.push(skip(model, &session, e.to_string())),

@@ -8,7 +8,7 @@
 //! lab table (a lab logger's readings).
 
 use crate::Error;
-use crate::triad::TriadModel;
+use crate::triad::{MAX_PARAMS, TriadModel};
 use align::read::{self, Temperatures};
 use align::window::Interpolator;
 use arrow::array::Array;
@@ -110,10 +110,10 @@ impl TriadFunction {
             }
         };
         let n = self.p.len();
-        let mut jac = [0.0; 3 * 21];
+        let mut jac = [0.0; 3 * MAX_PARAMS];
         let (a, _) = self.model.evaluate(&self.p, x, tau, Some(&mut jac));
         // J C, 3 x n, then (J C) J^T.
-        let mut jc = [[0.0; 21]; 3];
+        let mut jc = [[0.0; MAX_PARAMS]; 3];
         for (r, row) in jc.iter_mut().enumerate() {
             for (c, out) in row.iter_mut().enumerate().take(n) {
                 *out = (0..n).map(|m| jac[r * n + m] * self.cov[m * n + c]).sum();
