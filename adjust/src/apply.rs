@@ -109,6 +109,8 @@ fn polynomials(coef: &[f64; 6], cov: &[[f64; 6]; 6]) -> ([[f64; 7]; 3], [[f64; 7
 
 /// Where each parameter of the calibration function sits in `coef`.
 const SLOTS: [&str; 6] = ["b", "k", "k2", "k3", "b_t", "k_t"];
+/// The misalignment's parameters: they describe the reference, not the function.
+const REFERENCE: [&str; 3] = ["beta", "theta_x", "theta_y"];
 
 impl CalibrationFunction {
     /// From a result of calibration.json: its parameters, sigmas and correlations (the
@@ -119,6 +121,20 @@ impl CalibrationFunction {
             accelerometer: r.accelerometer.clone(),
             what,
         };
+        ingest::contract::calibration::check_parameters(&r.parameters, &r.correlation)
+            .map_err(unusable)?;
+        if let Some(p) = r
+            .parameters
+            .iter()
+            .find(|p| !SLOTS.contains(&p.name.as_str()) && !REFERENCE.contains(&p.name.as_str()))
+        {
+            return Err(unusable(format!(
+                "a term `{}` this version cannot evaluate (it knows {} and the misalignment's {})",
+                p.name,
+                SLOTS.join(", "),
+                REFERENCE.join(", ")
+            )));
+        }
         let mut index = [None; 6];
         for (slot, name) in SLOTS.iter().enumerate() {
             index[slot] = r.parameters.iter().position(|p| p.name == *name);

@@ -55,6 +55,9 @@ pub enum FitError {
     /// The adjustment failed; a not-estimable parameter is named.
     #[error("{0}")]
     Adjustment(String),
+    /// The arithmetic cannot hold the fit (a power of x, or a result, beyond a double).
+    #[error("{0}")]
+    Overflow(String),
 }
 
 /// Fits `y = sum p_j x^j` of `degree`. Without `sigma_x` the x are exact; without `sigma_y`
@@ -96,8 +99,16 @@ pub fn fit(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
             (a.min(v), b.max(v))
         });
-    let centre = 0.5 * (lo + hi);
-    let scale = if hi > lo { 0.5 * (hi - lo) } else { 1.0 };
+    let centre = 0.5 * lo + 0.5 * hi;
+    let scale = if hi > lo { 0.5 * hi - 0.5 * lo } else { 1.0 };
+    let largest = lo.abs().max(hi.abs());
+    if n > 0 && !(largest.powi(i32::try_from(degree).unwrap_or(i32::MAX)).is_finite() && scale.is_finite()) {
+        return Err(FitError::Overflow(format!(
+            "x reaches {largest:e}: x^{degree} is beyond a double (about 1.8e308), so the \
+             coefficients cannot be represented; rescale x (e.g. fit in x / {:e})",
+            10f64.powi(largest.log10().floor() as i32)
+        )));
+    }
     let model = Polynomial {
         degree,
         centre,
@@ -134,6 +145,23 @@ pub fn fit(
             }
         })
         .collect();
+    let parameters: Vec<FitParameter> = parameters;
+    if let Some(p) = parameters
+        .iter()
+        .find(|p| !(p.value.is_finite() && p.sigma.is_finite() && p.sigma_apriori.is_finite()))
+    {
+        return Err(FitError::Overflow(format!(
+            "{} came out as {} +/- {}: the arithmetic overflowed (x or y too large or too \
+             small for their powers); rescale them",
+            p.name, p.value, p.sigma
+        )));
+    }
+    if !(sigma0.is_finite() && residual_sd.is_finite()) {
+        return Err(FitError::Overflow(format!(
+            "sigma0 {sigma0}, residual sd {residual_sd}: the arithmetic overflowed; rescale \
+             x and y"
+        )));
+    }
     Ok(FitOutput {
         parameters,
         sigma0,

@@ -844,10 +844,18 @@ pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
         args.degree,
     );
     let (sigma_x, sigma_y) = (args.sigma_x.as_deref(), args.sigma_y.as_deref());
+    if path.is_dir() {
+        return Err(Error::Fit(format!(
+            "{}: is a folder, not a CSV file",
+            path.display()
+        )));
+    }
     let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
         path: path.to_path_buf(),
         source: e,
     })?;
+    // A byte-order mark (spreadsheets write one) is not part of the first column's name.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     let mut lines = text
         .lines()
         .enumerate()
@@ -872,7 +880,10 @@ pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
         sigma_y.map(index).transpose()?,
     ];
     let mut data: [Vec<f64>; 4] = Default::default();
+    // The file's line of each data row, for messages about a row.
+    let mut line_of_row = Vec::new();
     for (n, line) in lines {
+        line_of_row.push(n + 1);
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         for (k, c) in cols.iter().enumerate() {
             if let Some(c) = c {
@@ -899,5 +910,12 @@ pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
         sigma_y.map(|_| sy.as_slice()),
         degree,
     )
-    .map_err(|e| Error::Fit(format!("{}: {e}", path.display())))
+    .map_err(|e| match e {
+        fit::FitError::BadValue { row, message } => Error::Fit(format!(
+            "{}:{}: {message}",
+            path.display(),
+            line_of_row.get(row - 1).copied().unwrap_or(row)
+        )),
+        e => Error::Fit(format!("{}: {e}", path.display())),
+    })
 }

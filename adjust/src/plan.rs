@@ -90,32 +90,16 @@ pub struct PlanSession {
     pub stations: Option<usize>,
 }
 
-/// A model to fit to the plan.
-#[derive(Clone, Debug, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct PlanModel {
-    /// Label.
-    pub name: String,
-    /// Polynomial order.
-    #[serde(default = "one")]
-    pub order: u8,
-    /// `session` or `all`.
-    #[serde(default = "session")]
-    pub per: String,
-    /// Temperature terms.
-    #[serde(default)]
-    pub temperature: bool,
-    /// Misalignment: false, true (plane) or "vector".
-    #[serde(default)]
-    pub misalignment: Misalignment,
-}
+/// A model to fit to the plan: the manifest's `[[adjust.model]]` (the same keys, defaults
+/// and checks), of kind "axis".
+pub type PlanModel = ingest::contract::manifest::ModelDecl;
 
-fn one() -> u8 {
-    1
-}
-fn session() -> String {
-    "session".to_owned()
-}
+/// The most readings, stations or tilts a planned session may have, and the most
+/// observations a plan may build: far beyond any tilt-table experiment, and within what the
+/// adjustment holds in memory.
+pub const MAX_PER_SESSION: usize = 100_000;
+/// See [`MAX_PER_SESSION`].
+pub const MAX_OBSERVATIONS: usize = 2_000_000;
 
 /// A parameter's predicted sd.
 #[derive(Clone, Debug, Serialize)]
@@ -176,9 +160,111 @@ fn bad(key: String, message: impl Into<String>) -> PlanError {
     }
 }
 
+impl Plan {
+    /// Checks the plan as a manifest is checked (names, orders, ranges, counts), before
+    /// anything is built; the error names the key.
+    pub fn check(&self) -> Result<(), PlanError> {
+        use ingest::contract::manifest::{ModelKind, RESERVED_SESSION_IDS, check_name};
+        let finite = |key: String, v: f64| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(bad(key, format!("{v} is not a finite number")))
+            }
+        };
+        finite("site.g_mgal".into(), self.site.g_mgal)?;
+        if !(900_000.0..=1_000_000.0).contains(&self.site.g_mgal) {
+            return Err(bad(
+                "site.g_mgal".into(),
+                format!("{} is out of range [900000, 1000000]", self.site.g_mgal),
+            ));
+        }
+        finite("instrument.b_mgal".into(), self.instrument.b_mgal)?;
+        finite("instrument.k_mgal_per_bit".into(), self.instrument.k_mgal_per_bit)?;
+        if !(0.01..=10_000.0).contains(&self.instrument.sample_rate_hz) {
+            return Err(bad(
+                "instrument.sample_rate_hz".into(),
+                format!("{} is out of range [0.01, 10000]", self.instrument.sample_rate_hz),
+            ));
+        }
+        for (key, v) in [
+            ("noise.theodolite_arcsec", self.noise.theodolite_arcsec),
+            ("noise.adc_sample_bits", self.noise.adc_sample_bits),
+            ("noise.window_s", self.noise.window_s),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= 1e6) {
+                return Err(bad(key.into(), format!("{v} is not in (0, 1e6]")));
+            }
+        }
+        if self.session.is_empty() {
+            return Err(bad("session".into(), "at least one [[session]] is required"));
+        }
+        let mut ids = std::collections::BTreeSet::new();
+        let mut total = 0usize;
+        for (i, s) in self.session.iter().enumerate() {
+            check_name(&s.id, RESERVED_SESSION_IDS).map_err(|e| bad(format!("session[{i}].id"), e))?;
+            if !ids.insert(s.id.as_str()) {
+                return Err(bad(format!("session[{i}].id"), format!("duplicate id `{}`", s.id)));
+            }
+            finite(format!("session[{i}].temperature_c"), s.temperature_c)?;
+            finite(format!("session[{i}].roll_deg"), s.roll_deg)?;
+            let stations = s.tilts(i)?.len();
+            if !(1..=MAX_PER_SESSION).contains(&s.readings_per_station) {
+                return Err(bad(
+                    format!("session[{i}].readings_per_station"),
+                    format!("{} is out of range [1, {MAX_PER_SESSION}]", s.readings_per_station),
+                ));
+            }
+            total = total.saturating_add(stations.saturating_mul(s.readings_per_station));
+        }
+        if total > MAX_OBSERVATIONS {
+            return Err(bad(
+                "session".into(),
+                format!("{total} observations planned; at most {MAX_OBSERVATIONS} are allowed"),
+            ));
+        }
+        if self.model.is_empty() {
+            return Err(bad("model".into(), "at least one [[model]] is required"));
+        }
+        let mut names = std::collections::BTreeSet::new();
+        for (i, m) in self.model.iter().enumerate() {
+            m.check().map_err(|(k, e)| bad(format!("model[{i}].{k}"), e))?;
+            if m.kind != ModelKind::Axis {
+                return Err(bad(
+                    format!("model[{i}].kind"),
+                    "the planner predicts axis models (tilt-table sessions) only",
+                ));
+            }
+            if !names.insert(m.name.as_str()) {
+                return Err(bad(format!("model[{i}].name"), format!("duplicate name `{}`", m.name)));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl PlanSession {
     /// The tilts, deg.
     fn tilts(&self, i: usize) -> Result<Vec<f64>, PlanError> {
+        if self.tilts_deg.len() > MAX_PER_SESSION
+            || self.stations.is_some_and(|n| n > MAX_PER_SESSION)
+        {
+            return Err(bad(
+                format!("session[{i}]"),
+                format!("more than {MAX_PER_SESSION} stations"),
+            ));
+        }
+        if let Some(t) = self
+            .tilts_deg
+            .iter()
+            .chain(self.tilt_range_deg.iter().flatten())
+            .find(|t| !(t.is_finite() && (0.0..=360.0).contains(*t)))
+        {
+            return Err(bad(
+                format!("session[{i}]"),
+                format!("tilt {t} deg is not in [0, 360]"),
+            ));
+        }
         match (&self.tilts_deg[..], self.tilt_range_deg, self.stations) {
             (t, None, None) if !t.is_empty() => Ok(t.to_vec()),
             ([], Some([a, b]), Some(n)) if n >= 2 => Ok((0..n)
@@ -237,32 +323,22 @@ pub fn observations(plan: &Plan) -> Result<Vec<(String, Obs)>, PlanError> {
 
 /// Predicts every model of `plan`, per session or over all sessions as each asks.
 pub fn predict(plan: &Plan) -> Result<Vec<FitPrediction>, PlanError> {
+    use ingest::contract::manifest::Per;
+    plan.check()?;
     let all = observations(plan)?;
     let mut out = Vec::new();
-    for (mi, m) in plan.model.iter().enumerate() {
-        let groups: Vec<String> = match m.per.as_str() {
-            "session" => plan.session.iter().map(|s| s.id.clone()).collect(),
-            "all" => vec!["all".to_owned()],
-            other => {
-                return Err(bad(
-                    format!("model[{mi}].per"),
-                    format!("`{other}` is not \"session\" or \"all\""),
-                ));
-            }
+    for m in &plan.model {
+        let groups: Vec<Option<&str>> = match m.per {
+            Per::Session => plan.session.iter().map(|s| Some(s.id.as_str())).collect(),
+            Per::All => vec![None],
         };
-        if m.misalignment == Misalignment::Vector && m.per != "all" {
-            return Err(bad(
-                format!("model[{mi}].misalignment"),
-                "\"vector\" combines sessions at different rolls: it needs per = \"all\"",
-            ));
-        }
         for g in groups {
             let obs: Vec<Obs> = all
                 .iter()
-                .filter(|(s, _)| g == "all" || *s == g)
+                .filter(|(s, _)| g.is_none_or(|g| s == g))
                 .map(|(_, o)| o.clone())
                 .collect();
-            out.push(predict_fit(plan, m, &g, &obs));
+            out.push(predict_fit(plan, m, g.unwrap_or("all"), &obs));
         }
     }
     Ok(out)

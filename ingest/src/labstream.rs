@@ -22,6 +22,7 @@ use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{read_lines, strip_comment, text};
 use crate::table::{Encodings, TableWriter};
+use crate::timegate::{Position, Sink, TimeGate};
 use arrow::array::{ArrayRef, Float64Array, Int64Array, UInt16Array, UInt64Array};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -178,6 +179,8 @@ pub struct LabConfig {
     pub range_ns: (i64, i64),
     /// Count and list malformed lines instead of failing.
     pub skip_bad_lines: bool,
+    /// What the instrument, in its declared reading unit, can produce.
+    pub reading_limits: Limits,
 }
 
 /// A field that does not parse: (field name, message).
@@ -326,41 +329,51 @@ fn parse_line(
     Ok((time, values, scientific))
 }
 
-/// A run of samples sharing one time stamp, waiting for the next stamp to spread them.
-#[derive(Default)]
+/// A line's line number and readings.
+type Sample = (u64, [Option<f64>; 3]);
+
+/// A run of samples sharing one time stamp: what the time gate judges as one record (the
+/// stamps are what a lab logger writes; samples sharing one are spread once it is kept).
 struct Run {
     stamp_ns: i64,
-    samples: Vec<(u64, [Option<f64>; 3])>,
+    samples: Vec<Sample>,
 }
 
-/// What the stream gave besides its rows.
-struct Tally {
+/// The stream's side of the time gate: kept runs are spread and written, rejected ones
+/// counted line by line; the runs' buffers are reused.
+struct RunSink<'a> {
+    config: &'a LabConfig,
+    out: &'a mut LabWriter,
+    ledger: &'a mut FileLedger,
+    /// The last run kept, waiting for the next kept stamp to spread its samples to.
+    pending: Option<Run>,
     accepted: u64,
-    /// Samples whose stamp the sample before them had.
+    /// Samples whose stamp a sample before them had.
     shared: u64,
     null_values: BTreeMap<String, u64>,
-    /// Intervals between consecutive written times, by length.
+    /// Intervals between consecutive written times, by length, of runs spread up to the
+    /// next stamp (the last run, spread at the declared interval, measures nothing).
     intervals: BTreeMap<i64, u64>,
-    /// Steps between distinct stamps, by length.
+    /// Steps between distinct kept stamps, by length.
     steps: BTreeMap<i64, u64>,
     last_written: Option<i64>,
+    pool: Vec<Vec<Sample>>,
 }
 
-impl Tally {
-    /// Writes a run, its samples spread evenly from its stamp to `next` (or at `interval`).
-    fn write_run(
-        &mut self,
-        run: &mut Run,
-        next: Option<i64>,
-        interval_ns: i64,
-        config: &LabConfig,
-        out: &mut LabWriter,
-    ) -> Result<()> {
+impl RunSink<'_> {
+    /// Writes the pending run, its samples spread evenly from its stamp to `next` (or at
+    /// the declared interval).
+    fn write_pending(&mut self, next: Option<i64>) -> Result<()> {
+        let Some(mut run) = self.pending.take() else {
+            return Ok(());
+        };
         let n = run.samples.len() as i64;
-        let step = next.map_or(interval_ns, |t| (t - run.stamp_ns) / n.max(1));
+        let step = next.map_or(self.config.interval_ns, |t| (t - run.stamp_ns) / n.max(1));
         for (j, (line, values)) in run.samples.drain(..).enumerate() {
             let t = run.stamp_ns + j as i64 * step;
-            if let Some(prev) = self.last_written {
+            if let Some(prev) = self.last_written
+                && (next.is_some() || j == 0)
+            {
                 *self.intervals.entry(t - prev).or_default() += 1;
             }
             self.last_written = Some(t);
@@ -372,10 +385,50 @@ impl Tally {
                         .or_default() += 1;
                 }
             }
-            out.push(config.session, t, values, line)?;
+            self.out.push(self.config.session, t, values, line)?;
             self.accepted += 1;
         }
+        self.pool.push(run.samples);
         Ok(())
+    }
+
+    /// A buffer for the next run.
+    fn buffer(&mut self) -> Vec<Sample> {
+        self.pool.pop().unwrap_or_default()
+    }
+}
+
+impl Sink<Vec<Sample>> for RunSink<'_> {
+    type Error = Error;
+
+    fn accept(&mut self, time_ns: i64, samples: Vec<Sample>) -> Result<()> {
+        if let Some(p) = &self.pending {
+            *self.steps.entry(time_ns - p.stamp_ns).or_default() += 1;
+        }
+        self.write_pending(Some(time_ns))?;
+        self.pending = Some(Run {
+            stamp_ns: time_ns,
+            samples,
+        });
+        Ok(())
+    }
+
+    fn reject(&mut self, _: Position, why: &'static str, detail: String, mut samples: Vec<Sample>) {
+        // The stamp of the run kept last (a duplicate's time is the last kept one): more
+        // samples sharing it, split from it by a line out of place between them.
+        if why == reason::DUPLICATE
+            && let Some(p) = &mut self.pending
+        {
+            self.shared += samples.len() as u64;
+            p.samples.append(&mut samples);
+            self.pool.push(samples);
+            return;
+        }
+        // Every line of the run is rejected, each under its own line number.
+        for (line, _) in samples.drain(..) {
+            self.ledger.reject(format!("line {line}"), why, detail.clone());
+        }
+        self.pool.push(samples);
     }
 }
 
@@ -415,11 +468,60 @@ struct Lines<'c> {
     comma_separated: bool,
     header: bool,
     scientific: u64,
+    /// The plausible range of a value, and the reason a line outside it is rejected for.
+    limits: Limits,
+}
+
+/// What values a file's lines may hold: outside, the line is rejected for `reason`.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// Least plausible value.
+    pub lo: f64,
+    /// Greatest plausible value.
+    pub hi: f64,
+    /// The rejection reason.
+    pub reason: &'static str,
+    /// The values' unit, for the ledger.
+    pub unit: &'static str,
+}
+
+/// Plausible temperatures, degC (every reader's).
+pub const TEMPERATURE_LIMITS: Limits = Limits {
+    lo: -100.0,
+    hi: 200.0,
+    reason: reason::TEMPERATURE_OUT_OF_RANGE,
+    unit: "degC",
+};
+
+/// What the instrument can produce in its declared reading unit: counts within the ADC's
+/// range; an acceleration (m/s^2, mGal, g) within twice the declared full scale (the
+/// instrument saturates at its full scale: a reading beyond twice it cannot be one of its
+/// own); volts within +/- 100 V (no accelerometer's output is wider).
+pub fn reading_limits(instrument: &crate::contract::manifest::Instrument) -> Limits {
+    use crate::contract::manifest::ReadingUnit;
+    let full_scale_g = 2.0 * instrument.full_scale_g;
+    let (hi, unit) = match instrument.reading_unit {
+        ReadingUnit::Count => (
+            2f64.powi(i32::try_from(instrument.adc_bits).unwrap_or(32) - 1),
+            "counts",
+        ),
+        ReadingUnit::MetrePerSecond2 => (full_scale_g * 9.806_65, "m/s^2"),
+        ReadingUnit::MilliGal => (full_scale_g * 980_665.0, "mGal"),
+        ReadingUnit::StandardGravity => (full_scale_g, "g"),
+        ReadingUnit::Volt => (100.0, "V"),
+    };
+    Limits {
+        lo: -hi,
+        hi,
+        reason: reason::READING_OUT_OF_RANGE,
+        unit,
+    }
 }
 
 impl<'c> Lines<'c> {
-    fn new(path: &'c Path, names: [&'static str; 4], config: &LabConfig) -> Self {
+    fn new(path: &'c Path, names: [&'static str; 4], config: &LabConfig, limits: Limits) -> Self {
         Lines {
+            limits,
             path,
             names,
             zero_gps_ns: config.zero_gps_ns,
@@ -494,6 +596,25 @@ impl<'c> Lines<'c> {
             }
         };
         self.scientific += scientific;
+        let l = self.limits;
+        if let Some((k, v)) = (0..3).find_map(|k| {
+            values[k]
+                .filter(|v| !(l.lo..=l.hi).contains(v))
+                .map(|v| (k, v))
+        }) {
+            ledger.reject(
+                format!("line {line_no}"),
+                l.reason,
+                format!(
+                    "{}: {v} {} is outside [{}, {}]",
+                    self.names[k + 1],
+                    l.unit,
+                    l.lo,
+                    l.hi
+                ),
+            );
+            return Ok(None);
+        }
         let Some(t) = self.zero_gps_ns.checked_add(rel) else {
             ledger.reject(
                 format!("line {line_no}"),
@@ -515,7 +636,11 @@ impl<'c> Lines<'c> {
 }
 
 /// Reads one "seconds" stream into `out`, filling in `ledger`; returns the median interval
-/// between samples (ns) after spreading shared stamps, if there were two samples.
+/// between samples (ns) measured from stamps that move (None when no two do).
+///
+/// Each run of lines sharing a stamp passes the time gate ([`crate::timegate`]) as one
+/// record, so a line stamped far ahead (or behind) of its neighbours is the one rejected,
+/// never the lines after it.
 pub fn read_lab(
     path: &Path,
     config: LabConfig,
@@ -523,116 +648,139 @@ pub fn read_lab(
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
 ) -> Result<Option<i64>> {
-    let mut tally = Tally {
+    let mut gate: TimeGate<Vec<Sample>> = TimeGate::new(config.interval_ns, config.range_ns);
+    let mut lines = Lines::new(path, ["t", "x", "y", "z"], &config, config.reading_limits);
+    let mut sink = RunSink {
+        config: &config,
+        out,
+        ledger,
+        pending: None,
         accepted: 0,
         shared: 0,
         null_values: BTreeMap::new(),
         intervals: BTreeMap::new(),
         steps: BTreeMap::new(),
         last_written: None,
+        pool: Vec::new(),
     };
     let mut run: Option<Run> = None;
-    let mut lines = Lines::new(path, ["t", "x", "y", "z"], &config);
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
-        let Some((t, values, time_field)) = lines.data(line_no, raw, ledger)? else {
+        let Some((t, values, _)) = lines.data(line_no, raw, sink.ledger)? else {
             return Ok(());
         };
         match &mut run {
             Some(r) if t == r.stamp_ns => {
                 r.samples.push((line_no, values));
-                tally.shared += 1;
-            }
-            Some(r) if t < r.stamp_ns => {
-                ledger.reject(
-                    format!("line {line_no}"),
-                    reason::TIME_BACKWARDS,
-                    format!("time {} s is before the line before it", text(time_field)),
-                );
+                sink.shared += 1;
+                return Ok(());
             }
             Some(r) => {
-                *tally.steps.entry(t - r.stamp_ns).or_default() += 1;
-                tally.write_run(r, Some(t), config.interval_ns, &config, out)?;
+                let samples = std::mem::replace(&mut r.samples, sink.buffer());
+                gate.offer(r.stamp_ns, Position::Line(samples[0].0), samples, &mut sink)?;
                 r.stamp_ns = t;
                 r.samples.push((line_no, values));
             }
             None => {
+                let mut samples = sink.buffer();
+                samples.push((line_no, values));
                 run = Some(Run {
                     stamp_ns: t,
-                    samples: vec![(line_no, values)],
+                    samples,
                 });
             }
         }
         Ok(())
     })?;
-    if let Some(r) = &mut run {
-        tally.write_run(r, None, config.interval_ns, &config, out)?;
+    if let Some(r) = run
+        && !r.samples.is_empty()
+    {
+        gate.offer(r.stamp_ns, Position::Line(r.samples[0].0), r.samples, &mut sink)?;
     }
+    gate.finish(&mut sink)?;
+    sink.write_pending(None)?;
     let report = LabStreamReport {
         comma_separated: lines.comma_separated,
         header: lines.header,
         scientific_notation_values: lines.scientific,
-        samples_sharing_a_stamp: tally.shared,
-        stamp_step_ns: mode(&tally.steps),
-        median_interval_ns: median(&tally.intervals),
+        samples_sharing_a_stamp: sink.shared,
+        stamp_step_ns: mode(&sink.steps),
+        median_interval_ns: median(&sink.intervals),
     };
+    let (accepted, null_values) = (sink.accepted, sink.null_values);
     ledger.sha256 = sha;
     ledger.bytes = bytes;
-    ledger.accept("acceleration", tally.accepted);
+    ledger.accept("acceleration", accepted);
     ledger.comment_blank_or_header_lines = Some(lines.other);
-    ledger.null_values = tally.null_values;
+    ledger.null_values = null_values;
     ledger.lab_stream = Some(report.clone());
     Ok(report.median_interval_ns)
 }
 
-/// Reads a "seconds" session's temperature log (`t T1 T2 T3`, degC, times as the session's
-/// stream gives them) into the temperature table through `streams`, filling in `ledger`:
-/// a line not after the one before it is rejected (align interpolates in time order), `nan`
-/// stored as null and counted. Returns the median interval between kept samples (ns).
-pub fn read_lab_temperature(
-    path: &Path,
-    config: LabConfig,
-    streams: &mut crate::streams::StreamWriter,
-    ledger: &mut FileLedger,
-    progress: &indicatif::ProgressBar,
-) -> Result<Option<i64>> {
-    let mut lines = Lines::new(path, ["t", "T1", "T2", "T3"], &config);
-    let mut last: Option<i64> = None;
-    let mut accepted = 0u64;
-    let mut intervals: BTreeMap<i64, u64> = BTreeMap::new();
-    let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
-        let Some((t, celsius, time_field)) = lines.data(line_no, raw, ledger)? else {
-            return Ok(());
-        };
-        if let Some(prev) = last {
-            if t <= prev {
-                ledger.reject(
-                    format!("line {line_no}"),
-                    reason::TIME_BACKWARDS,
-                    format!(
-                        "time {} s is not after the line before it",
-                        text(time_field)
-                    ),
-                );
-                return Ok(());
-            }
-            *intervals.entry(t - prev).or_default() += 1;
+/// The temperature log's side of the time gate: kept lines go to the temperature table.
+struct TemperatureSink<'a> {
+    streams: &'a mut crate::streams::StreamWriter,
+    ledger: &'a mut FileLedger,
+    intervals: BTreeMap<i64, u64>,
+    last: Option<i64>,
+}
+
+impl Sink<[Option<f64>; 3]> for TemperatureSink<'_> {
+    type Error = Error;
+
+    fn accept(&mut self, time_ns: i64, celsius: [Option<f64>; 3]) -> Result<()> {
+        if let Some(prev) = self.last {
+            *self.intervals.entry(time_ns - prev).or_default() += 1;
         }
-        last = Some(t);
+        self.last = Some(time_ns);
         // A `nan` is a channel that gave no value: stored as null, counted by the writer.
         let status = (0..3)
             .filter(|&ch| celsius[ch].is_none())
             .fold(0u8, |s, ch| {
                 s | crate::contract::status::not_connected_bit(ch)
             });
-        streams.temperature(t, celsius, status)?;
-        accepted += 1;
-        Ok(())
+        self.streams.temperature(time_ns, celsius, status)
+    }
+
+    fn reject(&mut self, at: Position, why: &'static str, detail: String, _: [Option<f64>; 3]) {
+        self.ledger.reject(at.to_string(), why, detail);
+    }
+}
+
+/// Reads a "seconds" session's temperature log (`t T1 T2 T3`, degC, times as the session's
+/// stream gives them) into the temperature table through `streams`, filling in `ledger`:
+/// lines pass the time gate (a line out of place is the one rejected), temperatures
+/// outside [-100, 200] degC are rejected, `nan` stored as null and counted. Returns the
+/// median interval between kept samples (ns).
+pub fn read_lab_temperature(
+    path: &Path,
+    config: LabConfig,
+    interval_ns: i64,
+    streams: &mut crate::streams::StreamWriter,
+    ledger: &mut FileLedger,
+    progress: &indicatif::ProgressBar,
+) -> Result<Option<i64>> {
+    let mut lines = Lines::new(path, ["t", "T1", "T2", "T3"], &config, TEMPERATURE_LIMITS);
+    let mut gate = TimeGate::new(interval_ns, config.range_ns);
+    let mut sink = TemperatureSink {
+        streams,
+        ledger,
+        intervals: BTreeMap::new(),
+        last: None,
+    };
+    let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
+        let Some((t, celsius, _)) = lines.data(line_no, raw, sink.ledger)? else {
+            return Ok(());
+        };
+        gate.offer(t, Position::Line(line_no), celsius, &mut sink)
     })?;
+    gate.finish(&mut sink)?;
+    let null_values = sink.streams.take_null_counts()?;
+    let intervals = sink.intervals;
     ledger.sha256 = sha;
     ledger.bytes = bytes;
-    ledger.accept("temperature", accepted);
+    ledger.accept("temperature", gate.accepted());
     ledger.comment_blank_or_header_lines = Some(lines.other);
-    ledger.null_values = streams.take_null_counts()?;
+    ledger.null_values = null_values;
     Ok(median(&intervals))
 }
 

@@ -255,6 +255,7 @@ fn read_acquisition(
                 interval_ns: acceleration_interval_ns,
                 range_ns: s.gps_range_ns(),
                 skip_bad_lines: opts.skip_bad_lines,
+                reading_limits: labstream::reading_limits(&ds.manifest.instrument),
             };
             let interval = labstream::read_lab(stream, config, &mut out.lab, &mut ledger, &pb)?;
             pb.finish_and_clear();
@@ -262,7 +263,14 @@ fn read_acquisition(
             if let Some(path) = temperature {
                 let mut ledger = new_ledger(ds, path, id, "temperature_csv", "lines");
                 let pb = progress_bar(opts, path);
-                labstream::read_lab_temperature(path, config, streams, &mut ledger, &pb)?;
+                labstream::read_lab_temperature(
+                    path,
+                    config,
+                    gcb::TEMPERATURE_INTERVAL_NS,
+                    streams,
+                    &mut ledger,
+                    &pb,
+                )?;
                 pb.finish_and_clear();
                 files.push(ledger);
             }
@@ -399,7 +407,23 @@ fn ingest_session(
         .filter(|f| f.session == id && f.role != "theodolite")
         .map(|f| f.path.clone())
         .collect();
-    let errors = session_errors(ds, s, &summary, &acquisition_files);
+    let mut errors = session_errors(ds, s, &summary, &acquisition_files);
+    // A lab stream whose stamps never move has no measured rate: its samples' times would
+    // be the declared rate's, not the logger's.
+    errors.extend(
+        files
+            .iter()
+            .filter(|f| f.session == id && f.accepted >= 2)
+            .filter(|f| f.lab_stream.as_ref().is_some_and(|l| l.median_interval_ns.is_none()))
+            .map(|f| {
+                format!(
+                    "session {id}: {}: the {} samples kept share one time stamp: the times \
+                     never move, so the sample rate cannot be measured (is the time column \
+                     the first?)",
+                    f.path, f.accepted
+                )
+            }),
+    );
     Ok((summary, errors))
 }
 
@@ -407,6 +431,7 @@ fn ingest_session(
 pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestReport> {
     let ds = Dataset::load(dataset)?;
     let _lock = lock::OutputLock::acquire(out)?;
+    custody::check_out_folder(out, &ds.manifest.name)?;
     let dir: PathBuf = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     let ledger_path = dir.join(LEDGER_FILE);

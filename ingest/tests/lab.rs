@@ -167,7 +167,7 @@ fn comma_separated_unix_times_with_a_header() {
 
 /// A "seconds" session's temperature log, in the same layout as its stream: read into the
 /// temperature table at the stream's times; a `nan` stored as null and counted, a line not
-/// after the one before it rejected alone, a malformed one named by file, line and field.
+/// written twice rejected alone (a duplicate), a malformed one named by file, line and field.
 #[test]
 fn a_lab_temperature_log_in_the_seconds_layout() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -201,7 +201,7 @@ fn a_lab_temperature_log_in_the_seconds_layout() {
         .find(|f| f.role == "temperature_csv")
         .expect("temperature ledger");
     assert_eq!(f.accepted, 10, "{f:?}");
-    assert_eq!(f.rejected.get(reason::TIME_BACKWARDS), Some(&1), "{f:?}");
+    assert_eq!(f.rejected.get(reason::DUPLICATE), Some(&1), "{f:?}");
     assert_eq!(
         f.null_values.get("ch1 temperature not connected"),
         Some(&1),

@@ -1235,6 +1235,16 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Written, Error> {
     let mut plots = 0;
     for sec in &sections {
         for (file, svg) in &sec.plots {
+            // Plot names come from ids and model names: whatever calibration.json says, a
+            // plot is one plain file inside OUT/report/plots.
+            if !ingest::contract::manifest::is_plain_file_name(file) {
+                return Err(Error::Plot {
+                    name: file.clone(),
+                    message: "not a plain file name (its ids or model name are not ones a \
+                              manifest allows)"
+                        .to_owned(),
+                });
+            }
             write_atomically(&plot_dir.join(file), svg)?;
             plots += 1;
         }

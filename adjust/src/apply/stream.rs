@@ -49,6 +49,7 @@ pub struct Options<'a> {
 pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport, Error> {
     let ds = Dataset::load(dataset)?;
     let _lock = ingest::lock::OutputLock::acquire(out)?;
+    ingest::contract::custody::check_out_folder(out, &ds.manifest.name)?;
     let (cal, cal_sha256) = load_calibration(opts.calibration)?;
     let refused = |message| Error::Apply {
         path: opts.calibration.to_path_buf(),

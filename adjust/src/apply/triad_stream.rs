@@ -53,6 +53,8 @@ impl TriadFunction {
                 names.join(", ")
             ));
         }
+        ingest::contract::calibration::check_parameters(&r.parameters, &r.correlation)
+            .map_err(|e| format!("triad {}: {e}", r.model))?;
         let t_ref_c = match (r.temperature, r.t_ref_c) {
             (true, Some(t)) => t,
             (true, None) => {

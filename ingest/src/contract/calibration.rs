@@ -102,6 +102,79 @@ pub struct Removed {
     pub w: f64,
 }
 
+/// Checks what an application of a fit reads of it (a calibration file is not trusted as it
+/// is: it may come from anywhere): every value and sigma finite, sigmas positive, the
+/// correlation matrix n x n, symmetric, with a unit diagonal, entries in [-1, 1], and
+/// positive semi-definite. The message names the parameter or the entry.
+pub fn check_parameters(
+    parameters: &[Parameter],
+    correlation: &[Vec<f64>],
+) -> std::result::Result<(), String> {
+    for p in parameters {
+        if !p.value.is_finite() {
+            return Err(format!("parameter {} is {} (not finite)", p.name, p.value));
+        }
+        if !(p.sigma.is_finite() && p.sigma > 0.0) {
+            return Err(format!(
+                "parameter {}: sigma {} is not a positive finite number",
+                p.name, p.sigma
+            ));
+        }
+    }
+    let n = parameters.len();
+    if correlation.len() != n || correlation.iter().any(|row| row.len() != n) {
+        return Err(format!("the correlation matrix is not {n} x {n}"));
+    }
+    const TOLERANCE: f64 = 1e-9;
+    let name = |i: usize| parameters[i].name.as_str();
+    for i in 0..n {
+        if (correlation[i][i] - 1.0).abs() > TOLERANCE {
+            return Err(format!(
+                "correlation of {} with itself is {}, not 1",
+                name(i),
+                correlation[i][i]
+            ));
+        }
+        for j in 0..n {
+            let r = correlation[i][j];
+            if !(r.is_finite() && r.abs() <= 1.0 + TOLERANCE) {
+                return Err(format!(
+                    "correlation of {} with {} is {r}: not in [-1, 1]",
+                    name(i),
+                    name(j)
+                ));
+            }
+            if (r - correlation[j][i]).abs() > TOLERANCE {
+                return Err(format!(
+                    "the correlation matrix is not symmetric ({} with {}: {r} and {})",
+                    name(i),
+                    name(j),
+                    correlation[j][i]
+                ));
+            }
+        }
+    }
+    // Positive semi-definite: Cholesky (LDL^T) with pivots allowed to be 0 to rounding.
+    let mut l = vec![vec![0.0; n]; n];
+    let mut d = vec![0.0; n];
+    for j in 0..n {
+        d[j] = correlation[j][j] - (0..j).map(|k| l[j][k] * l[j][k] * d[k]).sum::<f64>();
+        if d[j] < -TOLERANCE {
+            return Err(format!(
+                "the correlation matrix is not positive semi-definite (pivot {:.3e} at {}): \
+                 no covariance has these correlations",
+                d[j],
+                name(j)
+            ));
+        }
+        for i in j + 1..n {
+            let s = correlation[i][j] - (0..j).map(|k| l[i][k] * l[j][k] * d[k]).sum::<f64>();
+            l[i][j] = if d[j] > TOLERANCE { s / d[j] } else { 0.0 };
+        }
+    }
+    Ok(())
+}
+
 /// One fitted calibration function (FORMATS.md section 6).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CalibrationResult {

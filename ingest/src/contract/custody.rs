@@ -120,6 +120,32 @@ pub fn sha256_file(path: &Path) -> Result<String> {
         .collect())
 }
 
+/// Checks, before a stage writes anything into `out`, that no ledger already there belongs
+/// to another dataset (a stage run with `--out` at another dataset's folder would write
+/// over its outputs and break its chain). A ledger that cannot be read says nothing and is
+/// left to the stage that reads it.
+pub fn check_out_folder(out: &Path, expected: &str) -> Result<()> {
+    use crate::contract::{align_ledger, apply_ledger, calibration, ledger};
+    for (dir, file) in [
+        (ledger::STAGE_DIR, ledger::LEDGER_FILE),
+        (align_ledger::STAGE_DIR, align_ledger::LEDGER_FILE),
+        (calibration::STAGE_DIR, calibration::CALIBRATION_FILE),
+        (apply_ledger::STAGE_DIR, apply_ledger::LEDGER_FILE),
+    ] {
+        let path = out.join(dir).join(file);
+        let Ok(bytes) = std::fs::read(&path) else {
+            continue;
+        };
+        let recorded = serde_json::from_slice::<serde_json::Value>(&bytes)
+            .ok()
+            .and_then(|v| v.get("dataset").and_then(|d| d.as_str()).map(str::to_owned));
+        if let Some(recorded) = recorded {
+            check_dataset(&path, &recorded, expected)?;
+        }
+    }
+    Ok(())
+}
+
 /// Checks that a ledger `ledger` was written for the dataset named `expected`.
 pub fn check_dataset(ledger: &Path, recorded: &str, expected: &str) -> Result<()> {
     if recorded == expected {

@@ -39,6 +39,9 @@ pub mod reason {
     pub const TIME_OUTLIER: &str = "time_outlier";
     /// A temperature outside [-100, 200] degC on a connected channel.
     pub const TEMPERATURE_OUT_OF_RANGE: &str = "temperature_out_of_range";
+    /// A lab stream's reading outside what the instrument can produce in its declared
+    /// `reading_unit` ([`crate::labstream::reading_limits`]).
+    pub const READING_OUT_OF_RANGE: &str = "reading_out_of_range";
 }
 
 /// How the bytes of a binary log were spent: they add up to the file size.

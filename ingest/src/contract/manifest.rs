@@ -415,6 +415,35 @@ pub struct ModelDecl {
     pub misalignment: Misalignment,
 }
 
+impl ModelDecl {
+    /// Checks the declaration on its own (the manifest and the planner alike): its name, its
+    /// order, and the combinations no fit can take. The error is (the key, what is wrong).
+    pub fn check(&self) -> std::result::Result<(), (&'static str, String)> {
+        check_name(&self.name, &[]).map_err(|e| ("name", e))?;
+        if !(1..=3).contains(&self.order) {
+            return Err((
+                "order",
+                format!("{} is out of range [1, 3]", self.order),
+            ));
+        }
+        if self.kind == ModelKind::Triad && self.misalignment != Misalignment::None {
+            return Err((
+                "misalignment",
+                "a triad model has no misalignment: T holds the axes' non-orthogonality"
+                    .to_owned(),
+            ));
+        }
+        if self.misalignment == Misalignment::Vector && self.per != Per::All {
+            return Err((
+                "misalignment",
+                "\"vector\" combines sessions at different rolls: it needs per = \"all\""
+                    .to_owned(),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// What a model calibrates.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -641,6 +670,61 @@ pub fn parse_date(s: &str) -> Option<(i32, u8, u8)> {
     (1..=days).contains(&d).then_some((y, m, d))
 }
 
+/// The longest id or name: it becomes part of file names (`<model>-<session>.calib`, the
+/// report's plots), which must stay well inside any file system's 255 bytes.
+pub const MAX_NAME_LEN: usize = 64;
+
+/// Words a fit's scope or a triad's identity stands for in the outputs: a session id
+/// `all` would be pooled with every session, an accelerometer id `triad` read as a triad.
+pub const RESERVED_SESSION_IDS: &[&str] = &["all"];
+/// See [`RESERVED_SESSION_IDS`].
+pub const RESERVED_ACCELEROMETER_IDS: &[&str] = &["all", "triad"];
+
+/// A file name made of checked names: at most 200 bytes of `A-Z a-z 0-9 . _ -`, beginning
+/// with a letter or a digit (one plain file in the folder it is joined to).
+pub fn is_plain_file_name(name: &str) -> bool {
+    (1..=200).contains(&name.len())
+        && name.starts_with(|c: char| c.is_ascii_alphanumeric())
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-'))
+}
+
+/// Checks an id or a name a user gives (a session, an accelerometer, a model, a dataset):
+/// 1 to [`MAX_NAME_LEN`] characters of `A-Z a-z 0-9 . _ -`, beginning with a letter or a
+/// digit (so never `.`, `..` or an option), not one of `reserved`. Every output path built
+/// from names is then one plain file name inside the output folder.
+pub fn check_name(name: &str, reserved: &[&str]) -> std::result::Result<(), String> {
+    if name.is_empty() {
+        return Err("is empty".to_owned());
+    }
+    if name.chars().count() > MAX_NAME_LEN {
+        return Err(format!(
+            "`{}...` is {} characters long; at most {MAX_NAME_LEN} are allowed",
+            name.chars().take(16).collect::<String>(),
+            name.chars().count()
+        ));
+    }
+    if let Some(c) = name
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-')))
+    {
+        return Err(format!(
+            "`{name}` holds {c:?}: only letters, digits, `.`, `_` and `-` are allowed"
+        ));
+    }
+    if !name.starts_with(|c: char| c.is_ascii_alphanumeric()) {
+        return Err(format!("`{name}` must begin with a letter or a digit"));
+    }
+    if let Some(r) = reserved.iter().find(|r| r.eq_ignore_ascii_case(name)) {
+        return Err(format!(
+            "`{name}` is reserved (`{r}` names a fit over all sessions or a triad in the \
+             outputs); choose another"
+        ));
+    }
+    Ok(())
+}
+
 impl Dataset {
     /// Reads and validates `<dir>/dataset.toml`.
     pub fn load(dir: &Path) -> Result<Dataset> {
@@ -683,12 +767,8 @@ impl Dataset {
             }
         };
         let m = &manifest;
-        if m.name.is_empty()
-            || !m
-                .name
-                .bytes()
-                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || b"._-".contains(&c))
-        {
+        check_name(&m.name, &[]).map_err(|e| err("name".into(), e))?;
+        if m.name.bytes().any(|c| c.is_ascii_uppercase()) {
             return Err(err(
                 "name".into(),
                 format!("`{}` must match [a-z0-9._-]+", m.name),
@@ -751,10 +831,12 @@ impl Dataset {
         let mut ids = BTreeSet::new();
         let mut channels = BTreeSet::new();
         for (i, a) in accs.iter().enumerate() {
-            if a.id.is_empty() || !ids.insert(a.id.as_str()) {
+            check_name(&a.id, RESERVED_ACCELEROMETER_IDS)
+                .map_err(|e| err(format!("instrument.accelerometer[{i}].id"), e))?;
+            if !ids.insert(a.id.as_str()) {
                 return Err(err(
                     format!("instrument.accelerometer[{i}].id"),
-                    format!("duplicate or empty id `{}`", a.id),
+                    format!("duplicate id `{}`", a.id),
                 ));
             }
             if !(1..=3).contains(&a.channel) {
@@ -806,6 +888,11 @@ impl Dataset {
                 ))
             } else if p.is_file() {
                 Ok(p)
+            } else if p.is_dir() {
+                Err(err(
+                    key,
+                    format!("`{rel}` is a folder in {}, not a file", dir.display()),
+                ))
             } else {
                 Err(err(
                     key,
@@ -814,10 +901,12 @@ impl Dataset {
             }
         };
         for (i, s) in m.session.iter().enumerate() {
-            if s.id.is_empty() || !sids.insert(s.id.as_str()) {
+            check_name(&s.id, RESERVED_SESSION_IDS)
+                .map_err(|e| err(format!("session[{i}].id"), e))?;
+            if !sids.insert(s.id.as_str()) {
                 return Err(err(
                     format!("session[{i}].id"),
-                    format!("duplicate or empty id `{}`", s.id),
+                    format!("duplicate id `{}`", s.id),
                 ));
             }
             let date = parse_date(&s.date).ok_or_else(|| {
@@ -938,30 +1027,12 @@ impl Dataset {
         }
         let mut names = BTreeSet::new();
         for (i, model) in m.adjust.model.iter().enumerate() {
-            if model.name.is_empty() || !names.insert(model.name.as_str()) {
+            let key = format!("adjust.model[{i}]");
+            model.check().map_err(|(k, e)| err(format!("{key}.{k}"), e))?;
+            if !names.insert(model.name.as_str()) {
                 return Err(err(
-                    format!("adjust.model[{i}].name"),
-                    format!("duplicate or empty name `{}`", model.name),
-                ));
-            }
-            if !(1..=3).contains(&model.order) {
-                return Err(err(
-                    format!("adjust.model[{i}].order"),
-                    format!("{} is out of range [1, 3]", model.order),
-                ));
-            }
-            if model.kind == ModelKind::Triad && model.misalignment != Misalignment::None {
-                return Err(err(
-                    format!("adjust.model[{i}].misalignment"),
-                    "a triad model has no misalignment: T holds the axes' non-orthogonality"
-                        .to_owned(),
-                ));
-            }
-            if model.misalignment == Misalignment::Vector && model.per != Per::All {
-                return Err(err(
-                    format!("adjust.model[{i}].misalignment"),
-                    "\"vector\" combines sessions at different rolls: it needs per = \"all\""
-                        .to_owned(),
+                    format!("{key}.name"),
+                    format!("duplicate name `{}`", model.name),
                 ));
             }
         }
