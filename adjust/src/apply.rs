@@ -163,8 +163,34 @@ impl CalibrationFunction {
             (true, None) => return Err(unusable("temperature terms without t_ref_c".to_owned())),
             (false, _) => 0.0,
         };
+        if let Some((a, b)) = (0..6)
+            .flat_map(|a| (0..6).map(move |b| (a, b)))
+            .find(|&(a, b)| !cov[a][b].is_finite())
+        {
+            return Err(unusable(format!(
+                "the covariance of {} and {} overflows",
+                SLOTS[a], SLOTS[b]
+            )));
+        }
         let (value, variance) = polynomials(&coef, &cov);
         let (value_poly, variance_poly) = (Polynomial::new(value), Polynomial::new(variance));
+        // Where the calibration is meant to be used, its value and sigma must be numbers.
+        let counts = r.counts_range.map_or(vec![0.0], |[lo, hi]| vec![lo, hi]);
+        let taus = match (r.temperature, r.temperature_range_c) {
+            (true, Some([lo, hi])) => vec![lo - t_ref_c, hi - t_ref_c],
+            _ => vec![0.0],
+        };
+        for &ng in &counts {
+            for &tau in &taus {
+                let (v, var) = (value_poly.at(ng, tau), variance_poly.at(ng, tau));
+                if !(v.is_finite() && var.is_finite()) {
+                    return Err(unusable(format!(
+                        "at {ng} counts the function gives {v} (variance {var}): its \
+                         parameters overflow the arithmetic"
+                    )));
+                }
+            }
+        }
         Ok(Self {
             value_poly,
             variance_poly,

@@ -102,7 +102,12 @@ pub fn fit(
     let centre = 0.5 * lo + 0.5 * hi;
     let scale = if hi > lo { 0.5 * hi - 0.5 * lo } else { 1.0 };
     let largest = lo.abs().max(hi.abs());
-    if n > 0 && !(largest.powi(i32::try_from(degree).unwrap_or(i32::MAX)).is_finite() && scale.is_finite()) {
+    if n > 0
+        && !(largest
+            .powi(i32::try_from(degree).unwrap_or(i32::MAX))
+            .is_finite()
+            && scale.is_finite())
+    {
         return Err(FitError::Overflow(format!(
             "x reaches {largest:e}: x^{degree} is beyond a double (about 1.8e308), so the \
              coefficients cannot be represented; rescale x (e.g. fit in x / {:e})",
@@ -148,12 +153,13 @@ pub fn fit(
     let parameters: Vec<FitParameter> = parameters;
     if let Some(p) = parameters
         .iter()
-        .find(|p| !(p.value.is_finite() && p.sigma.is_finite() && p.sigma_apriori.is_finite()))
+        .find(|p| !(p.value.is_finite() && p.sigma_apriori.is_finite() && p.sigma_apriori > 0.0))
     {
+        // With finite weights no a-priori sd is 0: one that is has underflowed.
         return Err(FitError::Overflow(format!(
-            "{} came out as {} +/- {}: the arithmetic overflowed (x or y too large or too \
-             small for their powers); rescale them",
-            p.name, p.value, p.sigma
+            "{} came out as {} with an a-priori sd of {}: the arithmetic over- or \
+             underflowed (x or y too large or too small for their powers); rescale them",
+            p.name, p.value, p.sigma_apriori
         )));
     }
     if !(sigma0.is_finite() && residual_sd.is_finite()) {

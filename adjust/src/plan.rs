@@ -180,11 +180,17 @@ impl Plan {
             ));
         }
         finite("instrument.b_mgal".into(), self.instrument.b_mgal)?;
-        finite("instrument.k_mgal_per_bit".into(), self.instrument.k_mgal_per_bit)?;
+        finite(
+            "instrument.k_mgal_per_bit".into(),
+            self.instrument.k_mgal_per_bit,
+        )?;
         if !(0.01..=10_000.0).contains(&self.instrument.sample_rate_hz) {
             return Err(bad(
                 "instrument.sample_rate_hz".into(),
-                format!("{} is out of range [0.01, 10000]", self.instrument.sample_rate_hz),
+                format!(
+                    "{} is out of range [0.01, 10000]",
+                    self.instrument.sample_rate_hz
+                ),
             ));
         }
         for (key, v) in [
@@ -197,14 +203,21 @@ impl Plan {
             }
         }
         if self.session.is_empty() {
-            return Err(bad("session".into(), "at least one [[session]] is required"));
+            return Err(bad(
+                "session".into(),
+                "at least one [[session]] is required",
+            ));
         }
         let mut ids = std::collections::BTreeSet::new();
         let mut total = 0usize;
         for (i, s) in self.session.iter().enumerate() {
-            check_name(&s.id, RESERVED_SESSION_IDS).map_err(|e| bad(format!("session[{i}].id"), e))?;
+            check_name(&s.id, RESERVED_SESSION_IDS)
+                .map_err(|e| bad(format!("session[{i}].id"), e))?;
             if !ids.insert(s.id.as_str()) {
-                return Err(bad(format!("session[{i}].id"), format!("duplicate id `{}`", s.id)));
+                return Err(bad(
+                    format!("session[{i}].id"),
+                    format!("duplicate id `{}`", s.id),
+                ));
             }
             finite(format!("session[{i}].temperature_c"), s.temperature_c)?;
             finite(format!("session[{i}].roll_deg"), s.roll_deg)?;
@@ -212,7 +225,10 @@ impl Plan {
             if !(1..=MAX_PER_SESSION).contains(&s.readings_per_station) {
                 return Err(bad(
                     format!("session[{i}].readings_per_station"),
-                    format!("{} is out of range [1, {MAX_PER_SESSION}]", s.readings_per_station),
+                    format!(
+                        "{} is out of range [1, {MAX_PER_SESSION}]",
+                        s.readings_per_station
+                    ),
                 ));
             }
             total = total.saturating_add(stations.saturating_mul(s.readings_per_station));
@@ -228,7 +244,8 @@ impl Plan {
         }
         let mut names = std::collections::BTreeSet::new();
         for (i, m) in self.model.iter().enumerate() {
-            m.check().map_err(|(k, e)| bad(format!("model[{i}].{k}"), e))?;
+            m.check()
+                .map_err(|(k, e)| bad(format!("model[{i}].{k}"), e))?;
             if m.kind != ModelKind::Axis {
                 return Err(bad(
                     format!("model[{i}].kind"),
@@ -236,7 +253,10 @@ impl Plan {
                 ));
             }
             if !names.insert(m.name.as_str()) {
-                return Err(bad(format!("model[{i}].name"), format!("duplicate name `{}`", m.name)));
+                return Err(bad(
+                    format!("model[{i}].name"),
+                    format!("duplicate name `{}`", m.name),
+                ));
             }
         }
         Ok(())

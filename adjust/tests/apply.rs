@@ -109,3 +109,91 @@ fn applied_values_sigmas_and_flags() {
     assert_eq!(none.flags, NO_TEMPERATURE);
     assert!(none.acceleration_mgal.is_none() && none.sigma_mgal.is_none());
 }
+
+/// A calibration file is not trusted as it is (issue 24): each defect, made by the test in
+/// a real result, is refused with a message naming it (before, a correlation of -5 gave
+/// every sigma 0, a negative sigma was used, a parameter overflowing made every acceleration
+/// inf, and an order-4 term was dropped silently).
+#[test]
+fn a_damaged_calibration_is_refused_naming_the_defect() {
+    let (r, _) = thermal_acc1();
+    CalibrationFunction::new(&r).expect("the real result is usable");
+    let n = r.parameters.len();
+    type Damage = Box<dyn Fn(&mut CalibrationResult)>;
+    let cases: Vec<(&str, Damage, &str)> = vec![
+        (
+            "correlation -5",
+            Box::new(|r| {
+                r.correlation[0][1] = -5.0;
+                r.correlation[1][0] = -5.0;
+            }),
+            "not in [-1, 1]",
+        ),
+        (
+            "asymmetric",
+            Box::new(|r| r.correlation[0][1] = -r.correlation[1][0] * 0.5),
+            "not symmetric",
+        ),
+        (
+            "not positive semi-definite",
+            Box::new(|r| {
+                r.correlation[0][1] = 0.99;
+                r.correlation[1][0] = 0.99;
+                r.correlation[0][2] = 0.99;
+                r.correlation[2][0] = 0.99;
+                r.correlation[1][2] = -0.99;
+                r.correlation[2][1] = -0.99;
+            }),
+            "not positive semi-definite",
+        ),
+        (
+            "negative sigma",
+            Box::new(|r| r.parameters[1].sigma = -r.parameters[1].sigma),
+            "not a positive finite number",
+        ),
+        (
+            "diagonal not 1",
+            Box::new(|r| r.correlation[2][2] = 0.5),
+            "with itself",
+        ),
+        (
+            "value not finite",
+            Box::new(|r| r.parameters[0].value = f64::NAN),
+            "not finite",
+        ),
+        (
+            "overflowing scale factor",
+            Box::new(|r| r.parameters[1].value = 1e305),
+            "overflow",
+        ),
+        (
+            "an order-4 term",
+            Box::new(move |r| {
+                let mut k4 = r.parameters[1].clone();
+                k4.name = "k4".to_owned();
+                r.parameters.push(k4);
+                for (i, row) in r.correlation.iter_mut().enumerate() {
+                    row.push(if i == n { 1.0 } else { 0.0 });
+                }
+                let mut last = vec![0.0; n + 1];
+                last[n] = 1.0;
+                r.correlation.push(last);
+            }),
+            "`k4`",
+        ),
+        (
+            "wrong size",
+            Box::new(|r| {
+                r.correlation.pop();
+            }),
+            "not",
+        ),
+    ];
+    for (what, damage, says) in cases {
+        let mut bad = r.clone();
+        damage(&mut bad);
+        let e = CalibrationFunction::new(&bad).expect_err(what).to_string();
+        assert!(e.contains(says), "{what}: {e}");
+        assert!(e.contains("acc1") && e.contains("thermal"), "{what}: {e}");
+    }
+}

@@ -426,7 +426,8 @@ impl Sink<Vec<Sample>> for RunSink<'_> {
         }
         // Every line of the run is rejected, each under its own line number.
         for (line, _) in samples.drain(..) {
-            self.ledger.reject(format!("line {line}"), why, detail.clone());
+            self.ledger
+                .reject(format!("line {line}"), why, detail.clone());
         }
         self.pool.push(samples);
     }
@@ -694,7 +695,12 @@ pub fn read_lab(
     if let Some(r) = run
         && !r.samples.is_empty()
     {
-        gate.offer(r.stamp_ns, Position::Line(r.samples[0].0), r.samples, &mut sink)?;
+        gate.offer(
+            r.stamp_ns,
+            Position::Line(r.samples[0].0),
+            r.samples,
+            &mut sink,
+        )?;
     }
     gate.finish(&mut sink)?;
     sink.write_pending(None)?;

@@ -414,7 +414,11 @@ fn ingest_session(
         files
             .iter()
             .filter(|f| f.session == id && f.accepted >= 2)
-            .filter(|f| f.lab_stream.as_ref().is_some_and(|l| l.median_interval_ns.is_none()))
+            .filter(|f| {
+                f.lab_stream
+                    .as_ref()
+                    .is_some_and(|l| l.median_interval_ns.is_none())
+            })
             .map(|f| {
                 format!(
                     "session {id}: {}: the {} samples kept share one time stamp: the times \

@@ -110,7 +110,7 @@ pub fn select(
         .accelerometer
         .iter()
         .map(|acc| target(cal, &model, &session, acc))
-        .collect();
+        .collect::<Result<_, _>>()?;
     Ok(Selection {
         model,
         session,
@@ -218,13 +218,20 @@ fn check_instrument(cal: &Calibration, survey: &Dataset) -> Result<(), String> {
     Ok(())
 }
 
-fn target(cal: &Calibration, model: &str, session: &str, acc: &Accelerometer) -> Target {
+/// The accelerometer's fit: its function, or why the calibration has none for it (a skipped
+/// fit); a result that is there but cannot be trusted refuses the calibration.
+fn target(
+    cal: &Calibration,
+    model: &str,
+    session: &str,
+    acc: &Accelerometer,
+) -> Result<Target, String> {
     let result = cal
         .results
         .iter()
         .find(|r| r.model == model && r.session == session && r.accelerometer == acc.id);
     let function = match result {
-        Some(r) => CalibrationFunction::new(r).map_err(|e| e.to_string()),
+        Some(r) => Ok(CalibrationFunction::new(r).map_err(|e| e.to_string())?),
         None => Err(cal
             .skipped
             .iter()
@@ -234,10 +241,10 @@ fn target(cal: &Calibration, model: &str, session: &str, acc: &Accelerometer) ->
                 |s| format!("fit skipped: {}", s.reason),
             )),
     };
-    Target {
+    Ok(Target {
         accelerometer: acc.clone(),
         function,
         counts_range: result.and_then(|r| r.counts_range),
         temperature_range_c: result.and_then(|r| r.temperature_range_c),
-    }
+    })
 }

@@ -56,7 +56,13 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
         message,
     };
     let selection = select(&cal, &ds, &opts.choice).map_err(refused)?;
-    let triad = super::select::triad_of(&cal, &ds, &selection).map_err(refused)?;
+    let triad = match super::select::triad_of(&cal, &ds, &selection).map_err(&refused)? {
+        Some((result, channels)) => {
+            let f = super::triad_stream::TriadFunction::new(result).map_err(&refused)?;
+            Some((result, channels, f))
+        }
+        None => None,
+    };
     let ingest_report = match IngestReport::load_verified(&ds, out) {
         Ok(r) => r,
         Err(_) => ingest::run(dataset, out)?,
@@ -76,7 +82,9 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
         session: selection.session.clone(),
     };
     let report = match triad {
-        Some((result, channels)) => apply_triad(&ds, out, &ingest_report, used, result, channels)?,
+        Some((result, channels, f)) => {
+            apply_triad(&ds, out, &ingest_report, used, result, channels, &f)?
+        }
         None => apply_axes(&ds, out, &ingest_report, used, &selection)?,
     };
     ingest::write_json_atomically(&ledger_path, &report)?;
@@ -151,11 +159,8 @@ fn apply_triad(
     used: CalibrationUsed,
     result: &ingest::contract::calibration::TriadResult,
     channels: [usize; 3],
+    f: &super::triad_stream::TriadFunction,
 ) -> Result<ApplyReport, Error> {
-    let f = super::triad_stream::TriadFunction::new(result).map_err(|message| Error::Apply {
-        path: std::path::PathBuf::from(&used.path),
-        message,
-    })?;
     let sessions: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
     let max_gap_ns = (ds.manifest.align.max_temperature_gap_s * 1e9).round() as i64;
@@ -163,7 +168,7 @@ fn apply_triad(
         &sessions,
         &ingest_dir,
         &out.join(STAGE_DIR),
-        &f,
+        f,
         channels,
         max_gap_ns,
     )?;

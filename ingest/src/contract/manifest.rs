@@ -421,16 +421,12 @@ impl ModelDecl {
     pub fn check(&self) -> std::result::Result<(), (&'static str, String)> {
         check_name(&self.name, &[]).map_err(|e| ("name", e))?;
         if !(1..=3).contains(&self.order) {
-            return Err((
-                "order",
-                format!("{} is out of range [1, 3]", self.order),
-            ));
+            return Err(("order", format!("{} is out of range [1, 3]", self.order)));
         }
         if self.kind == ModelKind::Triad && self.misalignment != Misalignment::None {
             return Err((
                 "misalignment",
-                "a triad model has no misalignment: T holds the axes' non-orthogonality"
-                    .to_owned(),
+                "a triad model has no misalignment: T holds the axes' non-orthogonality".to_owned(),
             ));
         }
         if self.misalignment == Misalignment::Vector && self.per != Per::All {
@@ -1028,7 +1024,9 @@ impl Dataset {
         let mut names = BTreeSet::new();
         for (i, model) in m.adjust.model.iter().enumerate() {
             let key = format!("adjust.model[{i}]");
-            model.check().map_err(|(k, e)| err(format!("{key}.{k}"), e))?;
+            model
+                .check()
+                .map_err(|(k, e)| err(format!("{key}.{k}"), e))?;
             if !names.insert(model.name.as_str()) {
                 return Err(err(
                     format!("{key}.name"),
