@@ -1,4 +1,4 @@
-//! Applying a calibration (MODEL.md 6.7, FORMATS.md 8.5), `cargo xtask apply`.
+//! Applying a calibration (docs/model.md 6.7, docs/formats.md 8.5), `cargo xtask apply`.
 //!
 //! This module is the arithmetic, free of I/O: counts and temperature to the acceleration
 //! along the sensitive axis, its sigma from the parameters' covariance, sigma_a^2 = J C J^T

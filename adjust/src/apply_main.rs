@@ -1,5 +1,5 @@
 //! Command-line entry of the `apply` stage: a calibration applied to a dataset's
-//! acceleration stream (FORMATS.md 8.5).
+//! acceleration stream (docs/formats.md 8.5).
 
 use clap::Parser;
 use std::process::ExitCode;

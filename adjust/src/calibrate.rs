@@ -1,4 +1,4 @@
-//! One calibration fit: the Gauss-Helmert adjustment of MODEL.md section 2 for one
+//! One calibration fit: the Gauss-Helmert adjustment of docs/model.md section 2 for one
 //! accelerometer over a set of observations, with data snooping (Baarda's w-test at
 //! alpha = 0.001, critical value 3.29), the global test, and the parameters mapped back to
 //! counts. No I/O.
@@ -29,7 +29,7 @@ pub struct Obs {
     pub session: usize,
     /// Time of the reading, s (any origin).
     pub time_s: f64,
-    /// Roll of the block in the reading's session, rad (FORMATS.md 8.2).
+    /// Roll of the block in the reading's session, rad (docs/formats.md 8.2).
     pub roll_rad: f64,
     /// Mean counts.
     pub ng: f64,

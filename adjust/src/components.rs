@@ -1,5 +1,5 @@
 //! What a fit can say about its own weights when the theodolite's were estimated from the
-//! very readings they weigh (MODEL.md section 6.1). No I/O.
+//! very readings they weigh (docs/model.md section 6.1). No I/O.
 //!
 //! The scatter of a station's readings about their mean has already been spent on that
 //! station's sigma_Dz; what is left to judge the weights is the scatter *between* stations:

@@ -1,4 +1,4 @@
-//! ADC noise the weights cannot carry (MODEL.md 6.2). Flicker and a random walk of the bias
+//! ADC noise the weights cannot carry (docs/model.md 6.2). Flicker and a random walk of the bias
 //! move the window means of a session together: the weights hold their Allan variance at
 //! the window's length, but not that the error of one station's mean is nearly that of the
 //! next, or of the next hour. This propagates the correlated part into the parameters'

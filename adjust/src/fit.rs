@@ -1,4 +1,4 @@
-//! The general fitting command (FORMATS.md section 7): a polynomial of any degree up to 10
+//! The general fitting command (docs/formats.md section 7): a polynomial of any degree up to 10
 //! through (x, y), with errors in y alone or in both variables (Gauss-Helmert).
 
 use crate::gh::{self, GhError, Options};

@@ -1,4 +1,4 @@
-//! A general Gauss-Helmert adjustment (MODEL.md section 2) for conditions that each involve
+//! A general Gauss-Helmert adjustment (docs/model.md section 2) for conditions that each involve
 //! their own `K` uncorrelated observations: `f_i(p; l_i) = 0`, `l_i = (l_i1, .., l_iK)`
 //! (K = 2 for a calibration reading, (Dz, Ng); K = 3 for a triad position's three means).
 //!

@@ -1,14 +1,14 @@
 //! gravcal's `adjust` stage: the calibration functions by a rigorous errors-in-both-variables
-//! (Gauss-Helmert) adjustment (MODEL.md).
+//! (Gauss-Helmert) adjustment (docs/model.md).
 //!
 //! Reads OUT/align (observations.parquet, align.json) and OUT/ingest/ingest.json, fits every
-//! model the manifest declares (or the defaults of FORMATS.md section 2) per accelerometer
+//! model the manifest declares (or the defaults of docs/formats.md section 2) per accelerometer
 //! and session or over all sessions, in parallel (rayon), and writes
-//! OUT/adjust/calibration.json (FORMATS.md section 6) and OUT/adjust/residuals.parquet.
+//! OUT/adjust/calibration.json (docs/formats.md section 6) and OUT/adjust/residuals.parquet.
 //!
 //! The mathematics does no I/O: [`gh`] is the general engine, [`model`] the condition
 //! equations, [`calibrate`] one calibration fit with data snooping, [`fit`] the general
-//! polynomial fitting command (FORMATS.md section 7).
+//! polynomial fitting command (docs/formats.md section 7).
 
 pub mod apply;
 pub mod calibrate;
@@ -76,7 +76,7 @@ pub enum Error {
     Fit(String),
 }
 
-/// The models to fit: the manifest's, or the defaults (FORMATS.md section 2): `linear`, plus
+/// The models to fit: the manifest's, or the defaults (docs/formats.md section 2): `linear`, plus
 /// `thermal` when the sessions' mean temperatures differ by more than 1 degree C.
 pub fn models(declared: &[ModelDecl], session_mean_temperatures: &[f64]) -> Vec<ModelDecl> {
     if !declared.is_empty() {
@@ -250,7 +250,7 @@ fn kalibr_noise(align_report: &AlignReport, results: &[CalibrationResult]) -> Ve
 }
 
 /// What calibration.json says of the body tide: applied, with its range over the
-/// observations used, or not, with its size (FORMATS.md 8.1).
+/// observations used, or not, with its size (docs/formats.md 8.1).
 fn earth_tide_note(used: &[&io::ObservationRow]) -> String {
     let tides: Vec<f64> = used.iter().filter_map(|o| o.tide_mgal).collect();
     if tides.is_empty() {
@@ -811,7 +811,7 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
     }
 }
 
-/// Arguments of the `fit` command (FORMATS.md section 7), shared by the stage binary and
+/// Arguments of the `fit` command (docs/formats.md section 7), shared by the stage binary and
 /// `cargo xtask fit`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct FitArgs {
@@ -835,7 +835,7 @@ pub struct FitArgs {
     pub degree: usize,
 }
 
-/// Fits a polynomial to the columns of a CSV table (FORMATS.md section 7).
+/// Fits a polynomial to the columns of a CSV table (docs/formats.md section 7).
 pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
     let (path, x, y, degree) = (
         args.input.as_path(),

@@ -1,5 +1,5 @@
 //! Command-line entry of the `adjust` stage: runs the stage alone on OUT/align, or fits a
-//! polynomial to a CSV table (`fit`, FORMATS.md section 7).
+//! polynomial to a CSV table (`fit`, docs/formats.md section 7).
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;

@@ -1,4 +1,4 @@
-//! The condition equations: the calibration function of MODEL.md section 2 and the general
+//! The condition equations: the calibration function of docs/model.md section 2 and the general
 //! polynomial of the `fit` command, both in a centred and scaled variable
 //! `x = (Ng - centre) / scale` so that powers stay near 1, and the exact linear map back to
 //! the parameters in counts (b, k, k2, k3, b_t, k_t) with their covariance.
@@ -147,7 +147,7 @@ pub fn apply(m: &[f64], p: &[f64]) -> Vec<f64> {
 
 /// The calibration condition `g_i cos(Dz + beta) + c(Ng, T) = 0`, `g_i = g + tide_i`, with
 /// `c = a0 + a1 x + a2 x^2 + a3 x^3 + (at0 + at1 x) (T - t_ref)`, `x = (Ng - centre) / scale`.
-/// Observations are `(Dz, Ng)`. With the misalignment as a vector (MODEL.md 6.4) the
+/// Observations are `(Dz, Ng)`. With the misalignment as a vector (docs/model.md 6.4) the
 /// reference is `g_i (s_z cos Dz - s_perp sin Dz)`: `s_perp = theta_x cos(roll) +
 /// theta_y sin(roll)` is the sensitive axis's component in the tilt plane at the session's
 /// roll, `s_z = sqrt(1 - theta_x^2 - theta_y^2)`; at roll 0, theta_x is beta (sin beta).

@@ -1,4 +1,4 @@
-//! Pre-analysis (MODEL.md 6.6): what an experiment will determine before it is run. The
+//! Pre-analysis (docs/model.md 6.6): what an experiment will determine before it is run. The
 //! a-priori covariance (A^T Q_ww^-1 A)^-1 depends on the design alone, so the planner builds
 //! the plan's noise-free observations and runs the very adjustment a calibration runs
 //! ([`crate::calibrate::calibrate_with`], same conditions, same design check, no snooping,

@@ -1,4 +1,4 @@
-//! The triad model (MODEL.md 6.5): three accelerometers on one block, calibrated together
+//! The triad model (docs/model.md 6.5): three accelerometers on one block, calibrated together
 //! from static positions. For position p the three mean readings X_p give the calibrated
 //! vector a_p = T u_p in imu_tk's body frame:
 //!
@@ -38,11 +38,11 @@ const ST: [&str; 3] = ["st_x", "st_y", "st_z"];
 /// Parameters of the largest model (order 3 with temperature terms).
 pub const MAX_PARAMS: usize = 21;
 
-/// Fewest positions for the 9 parameters of the linear model (MODEL.md 6.5); a model with
+/// Fewest positions for the 9 parameters of the linear model (docs/model.md 6.5); a model with
 /// more parameters needs three more positions than parameters.
 pub const MIN_POSITIONS: usize = 12;
 
-/// Which terms a triad model has (FORMATS.md 8.4: `order`, `temperature`).
+/// Which terms a triad model has (docs/formats.md 8.4: `order`, `temperature`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TriadModel {
     /// Polynomial order per axis, 1..=3.

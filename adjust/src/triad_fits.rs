@@ -1,4 +1,4 @@
-//! The triad models of a dataset (FORMATS.md 8.4): align's static positions of its
+//! The triad models of a dataset (docs/formats.md 8.4): align's static positions of its
 //! multi-position sessions through [`crate::triad::calibrate`], per session or over all,
 //! into calibration.json's `triad` results (or `skipped`, with the reason), and each
 //! result's imu_tk `.calib` text. No I/O.

@@ -1,4 +1,4 @@
-//! The calibration applied (MODEL.md 6.7) with the thermal fit of the replica: the value is
+//! The calibration applied (docs/model.md 6.7) with the thermal fit of the replica: the value is
 //! the calibration function, the sigma is what the parameters' covariance gives (checked by
 //! drawing parameters), the truth lies within it, and samples outside the calibrated ranges
 //! are flagged.

@@ -59,7 +59,7 @@ fn z_of((value, sigma): (f64, f64), truth: f64) -> f64 {
     (value - truth) / sigma
 }
 
-/// MODEL.md on the replica of the paper: per-session linear fits and the thermal model over
+/// docs/model.md on the replica of the paper: per-session linear fits and the thermal model over
 /// both days recover the truth (18 parameters, [`all_within_family_bound`]) with sigma0 near
 /// 1; snooping removes exactly
 /// the generator's two blunders; acc2 on day 2 is skipped as disconnected.
@@ -699,7 +699,7 @@ fn print_monte_carlo(label: &str, replicas: usize, m: &MonteCarlo) {
     );
 }
 
-/// The acceptance test of the default configuration (MODEL.md 6.1-6.3): moderated station
+/// The acceptance test of the default configuration (docs/model.md 6.1-6.3): moderated station
 /// variances, variance components, the coloured ADC noise of esgt-2005 propagated, Earth tide.
 /// With n replicas the standard error of an sd ratio is about 1/sqrt(2n) and that of a
 /// rejection rate sqrt(0.05 0.95/n): `ratio` and `rate` give the bounds.

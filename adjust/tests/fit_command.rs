@@ -14,7 +14,7 @@ fn fit(args: &[&str]) -> std::process::Output {
 fn fit_prints_the_certified_norris_line() {
     let csv = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/reference/nist/Norris.csv"
+        "/tests/reference/nist/Norris.csv"
     );
     let o = fit(&["--input", csv, "--x", "x", "--y", "y", "--degree", "1"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -32,7 +32,7 @@ fn fit_prints_the_certified_norris_line() {
 fn fit_names_a_missing_column_and_a_bad_value() {
     let csv = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/reference/york-pearson.csv"
+        "/tests/reference/york-pearson.csv"
     );
     let o = fit(&["--input", csv, "--x", "x", "--y", "yy"]);
     assert!(!o.status.success());

@@ -1,10 +1,10 @@
-//! The adjustment against problems with published answers (../shared/reference/): NIST StRD
+//! The adjustment against problems with published answers (`tests/reference/`, their public data and provenance): NIST StRD
 //! linear regression and York's errors-in-both-variables line on Pearson's data.
 
 use std::path::PathBuf;
 
 fn reference() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/reference")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/reference")
 }
 
 fn read_csv(path: &std::path::Path) -> (Vec<String>, Vec<Vec<f64>>) {

@@ -1,4 +1,4 @@
-//! esgt-2005's calibration applied to the survey fixture (FORMATS.md 8.5): the accelerations
+//! esgt-2005's calibration applied to the survey fixture (docs/formats.md 8.5): the accelerations
 //! at the survey's still attitudes lie within their sigmas of the truth, the stretch whose
 //! temperature is beyond the calibration's is flagged (and only it), the attitude beyond the
 //! calibrated counts is flagged, the knock is null and flagged saturated, an accelerometer

@@ -1,4 +1,4 @@
-//! The triad calibration (MODEL.md 6.5) on simulated static positions: the truth recovered
+//! The triad calibration (docs/model.md 6.5) on simulated static positions: the truth recovered
 //! within its sigmas and the knocked position removed; a Monte-Carlo of the sigmas and the
 //! global test; too few positions and positions in one plane named; and a second opinion,
 //! scipy.optimize.least_squares on the same static means, written in Python beside it.
@@ -550,7 +550,7 @@ fn applied_z(
     (report, z)
 }
 
-/// The triad applied (MODEL.md 6.7) to its own lab session: at every good static position
+/// The triad applied (docs/model.md 6.7) to its own lab session: at every good static position
 /// the mean calibrated vector is g along the true direction, within its covariance and the
 /// samples' noise; the knocked position is off by its knock.
 #[test]

@@ -1,4 +1,4 @@
-//! The overlapping Allan deviation of a static accelerometer series (MODEL.md section 6.2),
+//! The overlapping Allan deviation of a static accelerometer series (docs/model.md section 6.2),
 //! its confidence intervals, and the three noise terms fitted to it: white-noise density,
 //! bias instability and random walk. No I/O.
 //!

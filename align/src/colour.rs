@@ -1,4 +1,4 @@
-//! gravcal's model of ADC noise that is not white (MODEL.md 6.2), shared by the simulator
+//! gravcal's model of ADC noise that is not white (docs/model.md 6.2), shared by the simulator
 //! (which generates it) and adjust (which propagates it into the parameters' covariance).
 //!
 //! Flicker is the sum of first-order Gauss-Markov processes of equal variance with time

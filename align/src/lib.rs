@@ -1,4 +1,4 @@
-//! gravcal's `align` stage: from the raw streams to observations (MODEL.md section 1).
+//! gravcal's `align` stage: from the raw streams to observations (docs/model.md section 1).
 //!
 //! One observation per (theodolite reading, accelerometer): the mean ADC count in a window of
 //! `window_s` centred on the reading's GPS time (half-open, `[t - w/2, t + w/2)`, so a
@@ -667,7 +667,7 @@ fn adc_noise(ds: &Dataset, still: &[Vec<StillInterval>], tau0_s: f64) -> Vec<Adc
 
 /// The variance that an accelerometer's flicker and random walk add to a window mean of
 /// `window_s`, counts^2: their terms of the fitted Allan variance at the window's length
-/// (MODEL.md 6.2), 0 when the Allan deviation shows white noise only. The sd of a window
+/// (docs/model.md 6.2), 0 when the Allan deviation shows white noise only. The sd of a window
 /// mean is then sqrt(s^2/n + this): s^2/n alone is the sd of a mean only for white noise.
 fn coloured_variance(noise: &[AdcNoise], accelerometer: &str, window_s: f64) -> f64 {
     noise

@@ -1,4 +1,4 @@
-//! Static intervals of a multi-position session (FORMATS.md 8.4), free of I/O: found in the
+//! Static intervals of a multi-position session (docs/formats.md 8.4), free of I/O: found in the
 //! stream by a moving-variance detector, or taken from the manifest's `static_s`; each
 //! interval's three mean readings with their sigmas.
 //!
@@ -255,7 +255,7 @@ pub struct AxisNoise {
 
 impl AxisNoise {
     /// The variance the coloured terms add to the mean of an interval of `duration_s`:
-    /// their Allan variance there (MODEL.md 6.2), 0 for white noise.
+    /// their Allan variance there (docs/model.md 6.2), 0 for white noise.
     pub fn coloured_variance(&self, duration_s: f64) -> f64 {
         crate::allan::NoiseTerms {
             white_density: 0.0,

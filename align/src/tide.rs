@@ -1,4 +1,4 @@
-//! The body tide of the solid Earth at the benchmark (MODEL.md section 6.3): the change of
+//! The body tide of the solid Earth at the benchmark (docs/model.md section 6.3): the change of
 //! gravity caused by the Moon and the Sun, by Longman's formulas (Longman 1959, "Formulas
 //! for computing the tidal accelerations due to the Moon and the Sun", J. Geophys. Res.
 //! 64(12), 2351-2355), with the mean elements of Schureman (1958), and the gravimetric

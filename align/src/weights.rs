@@ -1,4 +1,4 @@
-//! Station variances that borrow strength from the whole session (MODEL.md section 6.1):
+//! Station variances that borrow strength from the whole session (docs/model.md section 6.1):
 //! each station's sample variance of Dz is shrunk toward the session's prior variance, with
 //! prior degrees of freedom estimated from how much the station variances spread beyond what
 //! their own sampling explains. This is the moderated variance of empirical Bayes (Smyth

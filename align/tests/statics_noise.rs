@@ -1,4 +1,4 @@
-//! A multi-position session's noise (MODEL.md 6.2 applied to static positions): white
+//! A multi-position session's noise (docs/model.md 6.2 applied to static positions): white
 //! noise leaves the positions' sigmas white; a random walk is found in the static intervals
 //! and the sigma of an interval's mean then says how far apart the means of neighbouring
 //! intervals fall, as the white sd over sqrt(n) does not.

@@ -4,12 +4,12 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`manifest`] | `dataset.toml`: the dataset every stage reads (FORMATS.md section 2) |
+//! | [`manifest`] | `dataset.toml`: the dataset every stage reads (docs/formats.md section 2) |
 //! | [`status`] | the status bits of a sample, as logged and as stored |
 //! | [`tables`] | the Parquet tables: file names, columns, types, units |
 //! | [`ledger`] | `ingest.json`: per input file, what was read, accepted and rejected |
 //! | [`align_ledger`] | `align.json`: observations used and excluded, by reason |
-//! | [`calibration`] | `calibration.json`: the results (FORMATS.md section 6) |
+//! | [`calibration`] | `calibration.json`: the results (docs/formats.md section 6) |
 //! | [`apply_ledger`] | `apply.json`: the calibration applied to a survey, rows and flags |
 //! | [`custody`] | the SHA-256 of every file each stage read and wrote, and its check |
 //!

@@ -1,4 +1,4 @@
-//! Reader of the text acquisition logs (FORMATS.md section 4): the ADC CSV and the
+//! Reader of the text acquisition logs (docs/formats.md section 4): the ADC CSV and the
 //! temperature CSV, GPS time with the full week.
 //!
 //! A malformed line is an error naming the file, line and field, unless the user asked to

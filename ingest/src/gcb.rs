@@ -1,4 +1,4 @@
-//! Reader of the binary acquisition log (`.gcb`, FORMATS.md section 3).
+//! Reader of the binary acquisition log (`.gcb`, docs/formats.md section 3).
 //!
 //! Streaming: bytes arrive in chunks of any size ([`FrameScanner::push`]); a frame split
 //! across chunks is completed from the next one. Damage is resynchronised over, counted and
@@ -155,7 +155,7 @@ pub struct FrameScanner {
     skip_start: Option<u64>,
 }
 
-/// The nominal interval of temperature frames (FORMATS.md section 3), ns.
+/// The nominal interval of temperature frames (docs/formats.md section 3), ns.
 pub const TEMPERATURE_INTERVAL_NS: i64 = 4_096_000_000;
 
 /// What the scanner needs to know of the session.

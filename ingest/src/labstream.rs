@@ -1,4 +1,4 @@
-//! Reader of lab loggers' streams in the "seconds" layout (FORMATS.md 8.3), imu_tk's ASCII
+//! Reader of lab loggers' streams in the "seconds" layout (docs/formats.md 8.3), imu_tk's ASCII
 //! layout among them: one sample a line, a time in seconds (since the session's `start`, or
 //! Unix), then one decimal reading a channel, separated by commas or any white space, with
 //! an optional header line and `#` comments.

@@ -1,6 +1,6 @@
 //! gravcal's `ingest` stage: raw logs to Parquet tables, with every byte accounted for.
 //!
-//! Reads a dataset folder (FORMATS.md sections 2-5): the manifest, validated strictly; per
+//! Reads a dataset folder (docs/formats.md sections 2-5): the manifest, validated strictly; per
 //! session the binary acquisition log or the CSV pair, and the theodolite log. Writes, under
 //! `OUT/ingest/`, the raw streams as zstd Parquet tables in one time scale (GPS time, i64 ns
 //! since 1980-01-06; see [`contract::tables`]) and `ingest.json`, the ledger: per input file its

@@ -1,4 +1,4 @@
-//! Reader of the theodolite log (FORMATS.md section 5): station, time in the session's time
+//! Reader of the theodolite log (docs/formats.md section 5): station, time in the session's time
 //! scale, zenith distance in the session's unit. Times leave as GPS time; angles as radians.
 
 use crate::contract::ledger::{FileLedger, reason};

@@ -1,4 +1,4 @@
-//! Lab loggers' "seconds" streams (FORMATS.md 8.3) through ingest: imu_tk's ASCII layout
+//! Lab loggers' "seconds" streams (docs/formats.md 8.3) through ingest: imu_tk's ASCII layout
 //! with the quirks of real lab files (10 ms stamps at 200 Hz, scientific notation, no
 //! header), and a comma-separated file with a header and Unix times; every sample kept and
 //! what was found reported; a line going back in time rejected alone; manifest errors

@@ -492,7 +492,7 @@ fn misalignment_section(st: &Stages<'_>) -> Result<Section, Error> {
     Ok(s)
 }
 
-/// The triad calibrations (FORMATS.md 8.4): parameters, departures from orthogonality, the
+/// The triad calibrations (docs/formats.md 8.4): parameters, departures from orthogonality, the
 /// fit's statistics, |a| - g per position and the positions' directions in the body frame.
 fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
     let mut s = section("Triad");

@@ -37,7 +37,7 @@ enum Cmd {
     Adjust(DatasetArgs),
     /// Stage outputs to the report (OUT/report/).
     Report(DatasetArgs),
-    /// A calibration applied to a dataset's (survey's) samples (OUT/apply/; FORMATS.md 8.5).
+    /// A calibration applied to a dataset's (survey's) samples (OUT/apply/; docs/formats.md 8.5).
     Apply(adjust::apply::stream::ApplyArgs),
     /// Writes the committed fixture datasets, checks them, or writes a large benchmark log.
     Fixtures {
@@ -57,9 +57,9 @@ enum Cmd {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// Fits a polynomial to two columns of a CSV table (FORMATS.md section 7); prints JSON.
+    /// Fits a polynomial to two columns of a CSV table (docs/formats.md section 7); prints JSON.
     Fit(adjust::FitArgs),
-    /// Predicts what a planned experiment will determine, before any data (MODEL.md 6.6).
+    /// Predicts what a planned experiment will determine, before any data (docs/model.md 6.6).
     Plan {
         /// The plan (TOML; the README's "Planning an experiment").
         plan: PathBuf,

@@ -1,4 +1,4 @@
-//! Which fits of a calibration to apply to a survey, after the checks FORMATS.md 8.5 asks
+//! Which fits of a calibration to apply to a survey, after the checks docs/formats.md 8.5 asks
 //! for before any work: the survey's accelerometers are the calibration's (ids and
 //! serials), the model exists, and a model fitted per session is applied only with the
 //! session named.

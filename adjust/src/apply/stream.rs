@@ -1,4 +1,4 @@
-//! The apply stage (FORMATS.md 8.5): a dataset's ingested acceleration stream (its survey
+//! The apply stage (docs/formats.md 8.5): a dataset's ingested acceleration stream (its survey
 //! sessions, or any session) calibrated sample by sample into
 //! `OUT/apply/acceleration.parquet`, with `OUT/apply/apply.json`.
 //!

@@ -1,4 +1,4 @@
-//! A triad calibration applied (MODEL.md 6.7: "for a triad, the vector and its 3x3
+//! A triad calibration applied (docs/model.md 6.7: "for a triad, the vector and its 3x3
 //! covariance"): every sample's three readings (and, with temperature terms, the axes'
 //! temperatures interpolated as align does) to the calibrated vector in the body frame
 //! ([`crate::triad::TriadModel::evaluate`]), its covariance J C J^T from the fit's

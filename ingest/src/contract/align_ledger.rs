@@ -41,7 +41,7 @@ pub mod sigma_source {
     /// The manifest's `theodolite_sigma_arcsec` (no station of the session has 2 readings,
     /// or, with eq. 4, this one has fewer).
     pub const MANIFEST: &str = "manifest";
-    /// The station's variance moderated toward the session's (MODEL.md 6.1; the default).
+    /// The station's variance moderated toward the session's (docs/model.md 6.1; the default).
     pub const MODERATED: &str = "moderated";
     /// The floor: the quantisation of the readings as logged, step / sqrt(12), because the
     /// station's sd was smaller (readings logged coarsely can all be equal).
@@ -134,14 +134,14 @@ pub struct AlignReport {
     /// Every file align read (the manifest, ingest's ledger and tables) and wrote.
     pub custody: Custody,
     /// The ADC noise of each accelerometer, from the Allan deviation of its counts over the
-    /// still intervals (MODEL.md 6.2).
+    /// still intervals (docs/model.md 6.2).
     #[serde(default)]
     pub noise: Vec<AdcNoise>,
     /// Whether each observation's gravity includes the body tide (the site's location is
     /// given and `earth_tide` is not false).
     #[serde(default)]
     pub earth_tide_applied: bool,
-    /// Multi-position sessions: their static intervals, found or listed (FORMATS.md 8.4).
+    /// Multi-position sessions: their static intervals, found or listed (docs/formats.md 8.4).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub multi_position: Vec<MultiPosition>,
     /// Survey sessions: no theodolite, so nothing to align; left to `apply`.
@@ -176,7 +176,7 @@ pub struct MultiPosition {
     /// Intervals not used, by reason (`too_short`, `saturated`, `no_samples`: an axis with
     /// fewer than three values).
     pub rejected: BTreeMap<String, u64>,
-    /// Each axis's noise over the static intervals used (MODEL.md 6.2), when an interval
+    /// Each axis's noise over the static intervals used (docs/model.md 6.2), when an interval
     /// had enough samples: a bias instability or random walk found here adds its Allan
     /// variance at a position's duration to the position's sigma.
     #[serde(default)]

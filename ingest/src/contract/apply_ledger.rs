@@ -1,4 +1,4 @@
-//! `OUT/apply/apply.json` (FORMATS.md 8.5): which calibration was applied, from which file
+//! `OUT/apply/apply.json` (docs/formats.md 8.5): which calibration was applied, from which file
 //! (its SHA-256), with which model, and what became of every sample: rows read and written,
 //! and per accelerometer the samples flagged, by reason.
 

@@ -1,4 +1,4 @@
-//! `OUT/adjust/calibration.json` (FORMATS.md section 6): the fitted calibration functions,
+//! `OUT/adjust/calibration.json` (docs/formats.md section 6): the fitted calibration functions,
 //! the fits skipped with their reasons, and exactly the files the numbers came from.
 
 use crate::contract::custody::{Custody, Folders, check_dataset};
@@ -26,7 +26,7 @@ pub struct Input {
 /// v^T P v (the scatter of the station means about the fitted function; the whole v^T P v
 /// when every station has one observation) against the scaled chi-square with its mean and
 /// variance, which with weights estimated from the readings is wider than chi-square(dof)
-/// (MODEL.md 6.1; the README's "Models and choices").
+/// (docs/model.md 6.1; the README's "Models and choices").
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct GlobalTest {
     /// The between-station part of v^T P v.
@@ -175,7 +175,7 @@ pub fn check_parameters(
     Ok(())
 }
 
-/// One fitted calibration function (FORMATS.md section 6).
+/// One fitted calibration function (docs/formats.md section 6).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CalibrationResult {
     /// Accelerometer id.
@@ -195,7 +195,7 @@ pub struct CalibrationResult {
     /// Mean temperature of the observations used, degC.
     pub mean_temperature_c: f64,
     /// Least and greatest window mean of counts the fit used: the range it calibrates (an
-    /// application outside it is flagged, MODEL.md 6.7).
+    /// application outside it is flagged, docs/model.md 6.7).
     #[serde(default)]
     pub counts_range: Option<[f64; 2]>,
     /// Least and greatest temperature the fit used, degC.
@@ -380,7 +380,7 @@ pub struct Calibration {
     pub results: Vec<CalibrationResult>,
     /// Fits without a result.
     pub skipped: Vec<Skipped>,
-    /// Triad calibrations (models of kind "triad", FORMATS.md 8.4); fits without a result
+    /// Triad calibrations (models of kind "triad", docs/formats.md 8.4); fits without a result
     /// are in `skipped` with the accelerometer `triad`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub triad: Vec<TriadResult>,

@@ -119,7 +119,7 @@ pub struct FileLedger {
     pub rejections: Vec<Rejection>,
 }
 
-/// What a lab stream's reader found (FORMATS.md 8.3): its layout and its time stamps.
+/// What a lab stream's reader found (docs/formats.md 8.3): its layout and its time stamps.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct LabStreamReport {
     /// Fields were separated by commas (else by white space).

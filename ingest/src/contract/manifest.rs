@@ -1,4 +1,4 @@
-//! The dataset manifest, `dataset.toml` (FORMATS.md section 2): parsed strictly (unknown keys
+//! The dataset manifest, `dataset.toml` (docs/formats.md section 2): parsed strictly (unknown keys
 //! are errors) and validated, with every error naming the key and the file.
 
 use crate::error::{Error, Result};
@@ -41,7 +41,7 @@ pub struct Site {
     /// Proof masses above the benchmark, m.
     #[serde(default)]
     pub sensor_height_m: f64,
-    /// Geodetic latitude of the benchmark, deg, north positive (FORMATS.md 8.1).
+    /// Geodetic latitude of the benchmark, deg, north positive (docs/formats.md 8.1).
     #[serde(default)]
     pub latitude_deg: Option<f64>,
     /// Longitude, deg, east positive.
@@ -104,7 +104,7 @@ pub struct Instrument {
     pub full_scale_g: f64,
     /// The accelerometers, 1..=3.
     pub accelerometer: Vec<Accelerometer>,
-    /// Unit of the readings (FORMATS.md 8.3).
+    /// Unit of the readings (docs/formats.md 8.3).
     #[serde(default)]
     pub reading_unit: ReadingUnit,
 }
@@ -145,7 +145,7 @@ pub struct AlignConfig {
     pub sigma_dz: SigmaDzMethod,
 }
 
-/// How sigma_Dz per station is formed (MODEL.md 6.1).
+/// How sigma_Dz per station is formed (docs/model.md 6.1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SigmaDzMethod {
@@ -229,11 +229,11 @@ impl AngleUnit {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum AdcFormat {
-    /// `gps_week,tow_s,c1,c2,c3` (FORMATS.md section 4).
+    /// `gps_week,tow_s,c1,c2,c3` (docs/formats.md section 4).
     #[default]
     Gps,
     /// `t x y z`: seconds, then one decimal reading a channel, separated by commas or white
-    /// space (FORMATS.md 8.3; imu_tk's ASCII layout).
+    /// space (docs/formats.md 8.3; imu_tk's ASCII layout).
     Seconds,
 }
 
@@ -249,7 +249,7 @@ pub enum TimeUnit {
     UnixSeconds,
 }
 
-/// The unit of the instrument's readings (FORMATS.md 8.3): k is in mGal per this unit.
+/// The unit of the instrument's readings (docs/formats.md 8.3): k is in mGal per this unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 pub enum ReadingUnit {
     /// ADC counts.
@@ -293,7 +293,7 @@ pub enum SessionKind {
     /// Acquisition logs only (a survey): ingested, passed by align, adjust and report, and
     /// calibrated by `apply`.
     Survey,
-    /// The block put in many static orientations, no theodolite (FORMATS.md 8.4): the
+    /// The block put in many static orientations, no theodolite (docs/formats.md 8.4): the
     /// triad's static intervals.
     MultiPosition,
 }
@@ -326,7 +326,7 @@ pub struct Session {
     /// CSV temperature log.
     #[serde(default)]
     pub temperature_csv: Option<String>,
-    /// Layout of `adc_csv` (FORMATS.md 8.3): GPS week and time of week (default), or a lab
+    /// Layout of `adc_csv` (docs/formats.md 8.3): GPS week and time of week (default), or a lab
     /// logger's seconds.
     #[serde(default)]
     pub adc_format: AdcFormat,
@@ -341,7 +341,7 @@ pub struct Session {
     /// they are found in the stream.
     #[serde(default)]
     pub static_s: Option<Vec<[f64; 2]>>,
-    /// What the session is for (FORMATS.md 8.4, 8.5): a tilt-table calibration (default)
+    /// What the session is for (docs/formats.md 8.4, 8.5): a tilt-table calibration (default)
     /// or a survey, which the calibration is applied to.
     #[serde(default)]
     pub kind: SessionKind,
@@ -363,7 +363,7 @@ pub struct Session {
     #[serde(default)]
     pub expect_empty: bool,
     /// Roll of the accelerometer block about its mirror axis for this whole session, deg,
-    /// relative to its reference position (FORMATS.md 8.2).
+    /// relative to its reference position (docs/formats.md 8.2).
     #[serde(default)]
     pub roll_deg: f64,
 }
@@ -376,7 +376,7 @@ fn default_days() -> u32 {
 #[derive(Clone, Debug, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct AdjustConfig {
-    /// Models to fit; empty means the defaults of FORMATS.md section 2.
+    /// Models to fit; empty means the defaults of docs/formats.md section 2.
     #[serde(default)]
     pub model: Vec<ModelDecl>,
 }
@@ -397,7 +397,7 @@ pub enum Per {
 pub struct ModelDecl {
     /// Label, unique.
     pub name: String,
-    /// One accelerometer at a time (default), or the three as a triad (FORMATS.md 8.4).
+    /// One accelerometer at a time (default), or the three as a triad (docs/formats.md 8.4).
     #[serde(default)]
     pub kind: ModelKind,
     /// Polynomial order 1..=3.
@@ -410,7 +410,7 @@ pub struct ModelDecl {
     #[serde(default)]
     pub temperature: bool,
     /// The misalignment of the sensitive axis: none, its part in the tilt plane (beta), or
-    /// the vector (theta_x, theta_y) over sessions at different rolls (FORMATS.md 8.2).
+    /// the vector (theta_x, theta_y) over sessions at different rolls (docs/formats.md 8.2).
     #[serde(default)]
     pub misalignment: Misalignment,
 }
@@ -447,7 +447,7 @@ pub enum ModelKind {
     /// Each accelerometer's axis from tilt-table sessions.
     #[default]
     Axis,
-    /// The three accelerometers together from multi-position sessions (MODEL.md 6.5).
+    /// The three accelerometers together from multi-position sessions (docs/model.md 6.5).
     Triad,
 }
 
@@ -505,7 +505,7 @@ fn default_per() -> Per {
 pub enum Acquisition {
     /// A binary `.gcb` log.
     Binary(PathBuf),
-    /// A lab logger's stream in the "seconds" layout (FORMATS.md 8.3), and its temperature
+    /// A lab logger's stream in the "seconds" layout (docs/formats.md 8.3), and its temperature
     /// log in the same layout when there is one.
     Lab {
         /// The stream.

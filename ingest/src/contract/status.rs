@@ -1,4 +1,4 @@
-//! The status bits of a sample (FORMATS.md section 3), as logged in a binary frame and as
+//! The status bits of a sample (docs/formats.md section 3), as logged in a binary frame and as
 //! stored in the `status` column of the stream tables: bit n-1 (n = 1..3) is channel n over
 //! range, bit n+3 channel n not connected; bits 3 and 7 are reserved.
 

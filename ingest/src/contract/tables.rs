@@ -100,7 +100,7 @@ pub mod temperature {
     }
 }
 
-/// `lab.parquet`: the samples of lab loggers' "seconds" streams (FORMATS.md 8.3), decimal
+/// `lab.parquet`: the samples of lab loggers' "seconds" streams (docs/formats.md 8.3), decimal
 /// readings in the instrument's `reading_unit`.
 ///
 /// | column | type | unit / meaning |
@@ -342,7 +342,7 @@ pub mod residuals {
     }
 }
 
-/// `OUT/apply/acceleration.parquet` (FORMATS.md 8.5): the survey's samples calibrated, one
+/// `OUT/apply/acceleration.parquet` (docs/formats.md 8.5): the survey's samples calibrated, one
 /// row per row of ingest's acceleration table, in its order; per accelerometer four columns
 /// named after its id.
 ///
