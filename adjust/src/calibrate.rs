@@ -188,7 +188,8 @@ pub const MIN_TEMPERATURE_SPREAD_C: f64 = 1.0;
 
 /// Whether the design can determine every parameter of `terms`, by what varies in it: the
 /// polynomial of order n needs n + 1 distinct tilt positions (Dz values further apart than
-/// [`LEVEL_SEPARATION_SIGMAS`] of their sd) and counts that vary by more than noise
+/// [`LEVEL_SEPARATION_SIGMAS`] of their sd, counted along the spread of Dz, so a continuous
+/// design is many positions) and counts that vary by more than noise
 /// ([`COUNT_SPREAD_SIGMAS`] sds of a window mean); temperature terms need temperatures
 /// spread over [`MIN_TEMPERATURE_SPREAD_C`]. These are the columns of the design scaled by
 /// their noise: a column that varies by no more than its noise is numerically of full rank
@@ -203,10 +204,18 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
     let mut dz: Vec<f64> = obs.iter().map(|o| o.dz_rad).collect();
     dz.sort_by(f64::total_cmp);
     let separation = LEVEL_SEPARATION_SIGMAS * median(obs.iter().map(|o| o.sigma_dz_rad).collect());
-    let levels = 1 + dz
-        .windows(2)
-        .filter(|w| w[1] - w[0] > separation.max(1e-9))
-        .count();
+    // Positions as bins of the separation's width from the lowest Dz: a new one begins
+    // where Dz passes the current one's start by more than the separation. Chaining
+    // neighbours instead made a continuous spread of Dz (a motorised table read at many
+    // angles) one "position".
+    let mut levels = 0usize;
+    let mut start = f64::NEG_INFINITY;
+    for &d in &dz {
+        if levels == 0 || d - start > separation.max(1e-9) {
+            levels += 1;
+            start = d;
+        }
+    }
     if levels < terms.order + 1 && !obs.is_empty() {
         return Err(CalError::NotEstimable {
             parameter: names[levels].name,
@@ -725,6 +734,26 @@ mod tests {
                 assert!(why.contains("do not vary with the tilt"), "{why}");
             }
             other => panic!("{other:?}"),
+        }
+    }
+
+    /// A continuous spread of Dz (a motorised table read at every angle, as `cargo xtask
+    /// bench adjust` builds it) is many positions, not one chained together; the same
+    /// number of readings at one Dz is still one.
+    #[test]
+    fn a_continuous_design_is_many_positions() {
+        let spread: Vec<f64> = (0..100_000)
+            .map(|i| 109.0 + 31.0 * f64::from(i) / 99_999.0)
+            .collect();
+        let obs = design(&spread, None, 25.0);
+        design_check(&obs, terms(3, false)).expect("a cubic from a continuous spread");
+        let one: Vec<f64> = (0..2000).map(|i| 120.0 + 1e-7 * f64::from(i % 3)).collect();
+        match design_check(&design(&one, None, 25.0), terms(1, false)) {
+            Err(CalError::NotEstimable { parameter, why }) => {
+                assert_eq!(parameter, "k");
+                assert!(why.contains("1 tilt position(s)"), "{why}");
+            }
+            other => panic!("one position gave {other:?}"),
         }
     }
 

@@ -54,5 +54,9 @@ fn the_walkthrough_manifest_calibrates_within_its_sigmas() {
     }
     // acc2 was disconnected on day 2: its thermal fit has one temperature, and is skipped.
     assert_eq!(checked, 8, "acc1 and acc3's thermal fits");
-    assert!(c.results.iter().any(|r| r.model == "linear" && r.session == "day1"));
+    assert!(
+        c.results
+            .iter()
+            .any(|r| r.model == "linear" && r.session == "day1")
+    );
 }
