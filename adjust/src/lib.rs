@@ -778,6 +778,12 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
                 |f| format!("wrote {f}")
             )
         );
+        if let Some(advice) = t
+            .global_test
+            .advice(&format!("triad {} {}", t.model, t.session), true)
+        {
+            let _ = writeln!(w, "adjust: {advice}");
+        }
     }
     for r in &c.results {
         let p: Vec<String> = r
@@ -801,6 +807,12 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
                 "FAILED"
             }
         );
+        if let Some(advice) = r.global_test.advice(
+            &format!("{} {} {}", r.model, r.accelerometer, r.session),
+            false,
+        ) {
+            let _ = writeln!(w, "adjust: {advice}");
+        }
     }
     for s in &c.skipped {
         let _ = writeln!(

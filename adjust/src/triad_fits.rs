@@ -177,8 +177,16 @@ fn result(
         positions_used: s.residuals.len(),
         positions: positions_out,
         positions_without_temperature: 0,
-        calib_file: (s.model == TriadModel::LINEAR)
-            .then(|| format!("{}-{session}.calib", model.name)),
+        // A model the data reject says so in its file's name: imu_tk's layout has no room
+        // for a comment, and a user who loads it should not take it for a calibration.
+        calib_file: (s.model == TriadModel::LINEAR).then(|| {
+            let rejected = if passed || s.vtpv < lo {
+                ""
+            } else {
+                "-REJECTED"
+            };
+            format!("{}-{session}{rejected}.calib", model.name)
+        }),
         readings_range: Some(readings_range),
     }
 }

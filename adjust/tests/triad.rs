@@ -376,6 +376,54 @@ fn an_imu_tk_ascii_file_calibrates_with_a_manifest_alone() {
     assert_eq!(r.positions.len(), truth.position.len());
 }
 
+/// A 5 s quiet start (the detector measures its reference over the first 10 s, so the
+/// first turn falls inside it and the reference noise came out about 100 times the noise
+/// inside the positions: every sigma inflated, the global test failed, a `.calib` written
+/// without a word). Now align names both figures in a warning and takes the still
+/// stretches' noise as its reference: the triad calibrates within its sigmas. And a model
+/// the data reject says so in its `.calib`'s name and on the console.
+#[test]
+fn a_short_quiet_start_is_named_and_set_aside() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("short-quiet");
+    let mut plan = fixtures::triad::imu_tk_style(36);
+    plan.quiet_s = 5.0;
+    let truth = fixtures::triad::write_multipos(&plan, &dataset).expect("write");
+    let out = dir.path().join("out");
+    let c = pipeline(&dataset, &out);
+    let a = ingest::contract::align_ledger::AlignReport::load(&out.join("align")).expect("align");
+    let mp = &a.multi_position[0];
+    let mut summary = Vec::new();
+    align::print_summary(&a, &mut summary);
+    let summary = String::from_utf8(summary).expect("utf-8");
+    eprintln!("{summary}");
+    assert_eq!(mp.warnings.len(), 1, "{mp:?}");
+    assert!(
+        summary.contains("WARNING") && summary.contains("quiet start"),
+        "{summary}"
+    );
+    let (quiet, still) = (mp.quiet_sd.expect("quiet"), mp.still_sd.expect("still"));
+    assert!(quiet[0] > 4.0 * still[0], "{quiet:?} {still:?}");
+    assert_eq!(c.triad.len(), 1, "{:?}", c.skipped);
+    let r = &c.triad[0];
+    within_sigmas(r, &truth.parameters);
+    assert!(r.global_test.passed, "{:?}", r.global_test);
+    assert_eq!(r.calib_file.as_deref(), Some("triad-lab.calib"));
+
+    // The same result with its global test made to fail high: the .calib's name and the
+    // console say the model was rejected.
+    let mut rejected = c.clone();
+    rejected.triad[0].global_test.statistic = 10.0 * r.global_test.upper;
+    rejected.triad[0].global_test.passed = false;
+    let mut console = Vec::new();
+    adjust::print_summary(&rejected, &mut console);
+    let console = String::from_utf8(console).expect("utf-8");
+    assert!(
+        console.contains("GLOBAL TEST FAILED for triad triad lab"),
+        "{console}"
+    );
+}
+
 /// A thermal chamber (plateaus at 20, 27 and 34 degC, a temperature log in the "seconds"
 /// layout beside the stream): a triad of order 2 with temperature terms recovers all 21
 /// parameters, each within its sigma's Bonferroni bound; the same stream fitted without

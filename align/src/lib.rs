@@ -398,6 +398,8 @@ fn find_intervals(
     })?;
     mp.quiet_start_s = Some(statics::QUIET_S);
     mp.quiet_sd = Some(d.quiet_sd);
+    mp.still_sd = d.still_sd;
+    mp.warnings.extend(d.warning);
     mp.threshold = Some(d.threshold);
     Ok(d.intervals)
 }
@@ -418,6 +420,8 @@ fn session_positions(
         method: String::new(),
         quiet_start_s: None,
         quiet_sd: None,
+        still_sd: None,
+        warnings: Vec::new(),
         window_s: statics::WINDOW_S,
         threshold: None,
         found: 0,
@@ -873,5 +877,50 @@ pub fn print_summary(report: &AlignReport, w: &mut impl std::io::Write) {
             "align: {} {}: no observations: channel {} not connected for the whole session",
             d.session, d.accelerometer, d.channel
         );
+    }
+    for mp in &report.multi_position {
+        print_positions(mp, w);
+    }
+}
+
+/// A multi-position session's line: how its intervals were had, found, used, rejected by
+/// reason, the detector's figures, and its warnings.
+fn print_positions(mp: &MultiPosition, w: &mut impl std::io::Write) {
+    let rejected: Vec<String> = mp
+        .rejected
+        .iter()
+        .map(|(r, n)| format!("{n} {r}"))
+        .collect();
+    let sd = |v: &[f64; 3]| {
+        v.iter()
+            .map(|x| format!("{x:.3e}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let detector = match (mp.quiet_start_s, &mp.quiet_sd, mp.threshold) {
+        (Some(q), Some(quiet), Some(th)) => format!(
+            "; detector: quiet start {q} s (sd {}), noise inside the still stretches (sd {}), \
+             window {} s, threshold {th:.3}",
+            sd(quiet),
+            mp.still_sd.as_ref().map_or_else(|| "-".to_owned(), sd),
+            mp.window_s
+        ),
+        _ => String::new(),
+    };
+    let _ = writeln!(
+        w,
+        "align: {} ({} intervals): {} found, {} used as positions{}{detector}",
+        mp.session,
+        mp.method,
+        mp.found,
+        mp.used,
+        if rejected.is_empty() {
+            String::new()
+        } else {
+            format!(", rejected: {}", rejected.join(", "))
+        }
+    );
+    for warning in &mp.warnings {
+        let _ = writeln!(w, "align: {}: WARNING: {warning}", mp.session);
     }
 }

@@ -34,11 +34,21 @@ pub struct Series {
     pub values: Vec<[Option<f64>; 3]>,
 }
 
+/// A quiet start whose variance is further than this factor from the variance inside the
+/// still stretches (either way, on any axis) is not a noise reference: motion in the quiet
+/// start, or a start quieter than the positions.
+pub const QUIET_START_AGREEMENT: f64 = 4.0;
+
 /// What the detector found.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Detection {
     /// Each axis's sd over the quiet start.
     pub quiet_sd: [f64; 3],
+    /// Each axis's noise sd inside the still stretches (the reference when the quiet start
+    /// is at odds with it), when the stream has enough windows to say.
+    pub still_sd: Option<[f64; 3]>,
+    /// The quiet start was set aside for the still stretches' noise, and why.
+    pub warning: Option<String>,
     /// The window, samples.
     pub window: usize,
     /// The threshold of the window statistic.
@@ -143,6 +153,52 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
         .expect("positive dof")
         .inverse_cdf(1.0 - ALPHA)
         / (window as f64 - 1.0);
+    let quiet_var = q.map(|x| x.1);
+    let mut intervals = intervals_with(series, window, threshold, quiet_var);
+    // The quiet start is checked against what the still stretches themselves say.
+    let mut still_var = pooled_variance(series, &intervals, window);
+    let mut warning = None;
+    if let Some(v) = still_var
+        && (0..3).any(|k| {
+            let r = quiet_var[k] / v[k];
+            !(1.0 / QUIET_START_AGREEMENT..=QUIET_START_AGREEMENT).contains(&r)
+        })
+    {
+        // Found with a wrong reference, the stretches are themselves suspect: the reference
+        // becomes a low quantile of the windows' variances, then the stretches' own noise.
+        let robust = robust_variance(series, window).unwrap_or(v);
+        let first = intervals_with(series, window, threshold, robust);
+        let reference = pooled_variance(series, &first, window).unwrap_or(robust);
+        intervals = intervals_with(series, window, threshold, reference);
+        still_var = Some(reference);
+        let sd = |v: [f64; 3]| v.map(|x| format!("{:.4e}", x.sqrt())).join(", ");
+        warning = Some(format!(
+            "the quiet start's noise (first {QUIET_S} s, sd per axis {}) is at odds with the \
+             noise inside the still stretches (sd {}; more than {QUIET_START_AGREEMENT} times \
+             apart in variance): motion in the quiet start, or none at all; the still \
+             stretches' noise is the detector's reference",
+            sd(quiet_var),
+            sd(reference)
+        ));
+    }
+    Ok(Detection {
+        quiet_sd,
+        still_sd: still_var.map(|v| v.map(f64::sqrt)),
+        warning,
+        window,
+        threshold,
+        intervals,
+    })
+}
+
+/// The still stretches of `series` against the noise variances `reference` per axis.
+fn intervals_with(
+    series: &Series,
+    window: usize,
+    threshold: f64,
+    reference: [f64; 3],
+) -> Vec<(usize, usize)> {
+    let len = series.time_ns.len();
     let half = window / 2;
     let still: Vec<bool> = (0..len)
         .map(|i| {
@@ -150,7 +206,7 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
                 return false;
             }
             let s = stats_of(series, i - half, i - half + window);
-            let stat: f64 = (0..3).map(|k| s[k].1 / q[k].1).sum();
+            let stat: f64 = (0..3).map(|k| s[k].1 / reference[k]).sum();
             stat < threshold
         })
         .collect();
@@ -167,13 +223,62 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
     }
     // A run shorter than a window is a lull inside a false alarm or a turn, not an interval.
     runs.retain(|(i, j)| j - i >= window);
-    let intervals = merge_false_alarms(series, runs, MERGE_GAP_WINDOWS * window);
-    Ok(Detection {
-        quiet_sd,
-        window,
-        threshold,
-        intervals,
-    })
+    merge_false_alarms(series, runs, MERGE_GAP_WINDOWS * window)
+}
+
+/// Each axis's noise variance inside `intervals`: the windows' sample variances pooled
+/// (each window of an interval, its own mean taken out, so a slow drift does not count);
+/// None without a whole window.
+fn pooled_variance(
+    series: &Series,
+    intervals: &[(usize, usize)],
+    window: usize,
+) -> Option<[f64; 3]> {
+    let mut sum = [0.0; 3];
+    let mut dof = [0.0; 3];
+    for &(i, j) in intervals {
+        let mut a = i;
+        while a + window <= j {
+            let s = stats_of(series, a, a + window);
+            for k in 0..3 {
+                if s[k].2 >= 2 && s[k].1.is_finite() {
+                    sum[k] += s[k].1 * f64::from(s[k].2 - 1);
+                    dof[k] += f64::from(s[k].2 - 1);
+                }
+            }
+            a += window;
+        }
+    }
+    (dof.iter().all(|&d| d > 0.0) && sum.iter().all(|&s| s > 0.0))
+        .then(|| std::array::from_fn(|k| sum[k] / dof[k]))
+}
+
+/// Each axis's noise variance from the stream alone: the 10 % quantile of the variances of
+/// non-overlapping windows, over the 10 % quantile of chi2(w - 1)/(w - 1) (what it is for
+/// a still block). Approximate (the still windows' share of the stream shifts the
+/// quantile); the stretches found with it then give the reference. None for fewer than 10
+/// windows.
+fn robust_variance(series: &Series, window: usize) -> Option<[f64; 3]> {
+    let len = series.time_ns.len();
+    let n = len / window;
+    if n < 10 {
+        return None;
+    }
+    let scale =
+        ChiSquared::new(window as f64 - 1.0).ok()?.inverse_cdf(0.10) / (window as f64 - 1.0);
+    let mut out = [0.0; 3];
+    for k in 0..3 {
+        let mut v: Vec<f64> = (0..n)
+            .map(|w| stats_of(series, w * window, (w + 1) * window)[k].1)
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .collect();
+        if v.len() < 10 {
+            return None;
+        }
+        let at = v.len() / 10;
+        out[k] = *v.select_nth_unstable_by(at, f64::total_cmp).1 / scale;
+    }
+    Some(out)
 }
 
 /// The index ranges of the listed intervals, `[t0, t1]` seconds since the first sample.

@@ -550,6 +550,12 @@ fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
                 |f| format!("imu_tk file adjust/{f}")
             )
         ));
+        if let Some(advice) = r
+            .global_test
+            .advice(&format!("triad {} {}", r.model, r.session), true)
+        {
+            s.text.push(advice);
+        }
         s.tables
             .push((format!("Triad {} ({})", r.model, r.session), t));
         let points =

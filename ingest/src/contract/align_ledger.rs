@@ -164,6 +164,14 @@ pub struct MultiPosition {
     pub quiet_start_s: Option<f64>,
     /// Detection: each axis's sample sd over the quiet start, in the reading unit.
     pub quiet_sd: Option<[f64; 3]>,
+    /// Detection: each axis's noise sd inside the still stretches (windows pooled), in the
+    /// reading unit: what the quiet start's is checked against.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub still_sd: Option<[f64; 3]>,
+    /// What the detector had to say: a quiet start at odds with the still stretches' noise
+    /// (then their noise is the reference), naming both figures.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     /// Detection: the moving-variance window, s.
     pub window_s: f64,
     /// Detection: the threshold of the window statistic (sum over axes of the window's

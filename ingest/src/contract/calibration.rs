@@ -45,6 +45,47 @@ pub struct GlobalTest {
     pub passed: bool,
 }
 
+impl GlobalTest {
+    /// The data reject the model: v^T P v above its 97.5 % bound (the model or the weights do
+    /// not explain the scatter). A statistic below the 2.5 % bound fails the test too, but
+    /// says the sigmas are pessimistic, not that the model is wrong.
+    pub fn rejects_the_model(&self) -> bool {
+        !self.passed && self.statistic > self.upper
+    }
+
+    /// What a failed test means and what to try, for the console and the report; None when
+    /// it passed. `subject` names what was fitted ("triad triad lab", "thermal acc1 all").
+    pub fn advice(&self, subject: &str, positions: bool) -> Option<String> {
+        if self.passed {
+            return None;
+        }
+        let causes = if positions {
+            "a noise reference at odds with the noise inside the positions (align.json: the \
+             quiet start's quiet_sd against the positions' sigma_white), motion or drift inside \
+             the positions, or a model too small (a higher order, temperature terms)"
+        } else {
+            "a blunder the w-test did not reach, weights off (see the variance components), \
+             or a model too small (a higher order, temperature terms, a misalignment)"
+        };
+        Some(if self.rejects_the_model() {
+            format!(
+                "GLOBAL TEST FAILED for {subject}: v^T P v {:.4e} is above its 97.5 % bound \
+                 {:.4e}: the model or the weights do not explain the data, and its sigmas are \
+                 not to be trusted. Likely causes: {causes}",
+                self.statistic, self.upper
+            )
+        } else {
+            format!(
+                "global test failed low for {subject}: v^T P v {:.4e} is below its 2.5 % bound \
+                 {:.4e}: the a-priori sigmas are larger than the scatter (pessimistic); the \
+                 estimates stand, their sigmas are on the safe side (1 fit in 40 does this by \
+                 chance)",
+                self.statistic, self.lower
+            )
+        })
+    }
+}
+
 /// One parameter.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Parameter {
