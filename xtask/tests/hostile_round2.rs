@@ -512,3 +512,54 @@ fn apply_refuses_a_damaged_calibration_before_any_work() {
         assert!(!target_out.join("apply").exists(), "{calibrated}: no work");
     }
 }
+
+/// A lab stream where it cannot serve (issue 25's "no silent nothing"): on a tilt-table
+/// session it was ingested and never used (every window `window_underfilled`); under an
+/// axis model, apply read 0 rows and wrote 0 with exit 0. Now the manifest names the
+/// session and what would work, and apply refuses before any work, naming the session.
+#[test]
+fn a_lab_stream_where_it_cannot_serve_is_refused() {
+    let (dir, ds) = copy("esgt-2005-csv", |m| {
+        m.replacen(
+            "adc_csv = \"raw/day1_adc.csv\"",
+            "adc_format = \"seconds\"\nstart = \"2005-02-15T09:00:00\"\nadc_csv = \"raw/day1_adc.csv\"",
+            1,
+        )
+    });
+    let e = ingest::run(&ds, &dir.path().join("out")).expect_err("a tilt-table lab stream");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("session[0].adc_format")
+            && msg.contains("day1")
+            && msg.contains("multi-position"),
+        "{msg}"
+    );
+
+    let (dir, survey) = copy("triad-multipos", |m| {
+        m.replace("kind = \"multi-position\"", "kind = \"survey\"")
+    });
+    let cal_out = dir.path().join("esgt");
+    let esgt = fixtures::dataset_dir("esgt-2005");
+    ingest::run(&esgt, &cal_out).expect("ingest");
+    align::run(&esgt, &cal_out).expect("align");
+    adjust::run(&esgt, &cal_out).expect("adjust");
+    let out = dir.path().join("out");
+    let e = adjust::apply::stream::run(
+        &survey,
+        &out,
+        &adjust::apply::stream::Options {
+            calibration: &cal_out.join("adjust/calibration.json"),
+            choice: adjust::apply::select::Choice {
+                model: Some("thermal"),
+                session: None,
+            },
+        },
+    )
+    .expect_err("an axis model on lab readings");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("lab (a lab stream") && msg.contains("triad model"),
+        "{msg}"
+    );
+    assert!(!out.join("apply").exists(), "refused before any work");
+}

@@ -67,6 +67,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
         Ok(r) => r,
         Err(_) => ingest::run(dataset, out)?,
     };
+    nothing_to_apply(&ds, &ingest_report, triad.is_some()).map_err(refused)?;
     let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
         path: dir.clone(),
@@ -89,6 +90,42 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
     };
     ingest::write_json_atomically(&ledger_path, &report)?;
     Ok(report)
+}
+
+/// Refuses an application that would write no sample, naming the sessions and why: an
+/// axis model calibrates the counts table, and a lab stream's readings are in lab.parquet
+/// (a triad model takes both).
+fn nothing_to_apply(ds: &Dataset, ingest: &IngestReport, triad: bool) -> Result<(), String> {
+    let rows = |file: &str| ingest.tables.get(file).copied().unwrap_or(0);
+    let counts = rows(tables::acceleration::FILE);
+    let lab = rows(tables::lab::FILE);
+    if counts > 0 || (triad && lab > 0) {
+        return Ok(());
+    }
+    let sessions: Vec<String> = ds
+        .sessions
+        .iter()
+        .map(|s| match s.acquisition {
+            ingest::contract::manifest::Acquisition::Lab { .. } => format!(
+                "{} (a lab stream: readings in {}, not counts)",
+                s.session.id,
+                ds.manifest.instrument.reading_unit.name()
+            ),
+            _ => format!("{} (no usable sample)", s.session.id),
+        })
+        .collect();
+    Err(if lab > 0 {
+        format!(
+            "an axis model calibrates ADC counts, and the dataset's samples are all lab \
+             readings: {}; apply a triad model fitted on readings in the same unit",
+            sessions.join(", ")
+        )
+    } else {
+        format!(
+            "the dataset has no sample to apply the calibration to: {}",
+            sessions.join(", ")
+        )
+    })
 }
 
 /// Axis models applied: each accelerometer's columns and the ledger.

@@ -919,6 +919,20 @@ impl Dataset {
                             format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
                         )
                     })?;
+            if s.adc_format == AdcFormat::Seconds && s.kind == SessionKind::TiltTable {
+                // align forms a tilt-table's observations from the counts table; a lab
+                // stream's readings would be ingested and then never used.
+                return Err(err(
+                    format!("session[{i}].adc_format"),
+                    format!(
+                        "session `{}`: a tilt-table session takes its acceleration as counts \
+                         (`acquisition` = a .gcb log, or `adc_csv` + `temperature_csv` in the \
+                         GPS-week layout); a lab stream (adc_format = \"seconds\") serves \
+                         kind = \"multi-position\" and \"survey\" sessions",
+                        s.id
+                    ),
+                ));
+            }
             let acquisition = if s.adc_format == AdcFormat::Seconds {
                 lab_acquisition(i, s, (date, start_gps_ns), &file, &err)?
             } else {
