@@ -3,6 +3,7 @@
 
 mod bench;
 mod bench_apply;
+mod show;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
@@ -66,6 +67,17 @@ enum Cmd {
         /// Print JSON instead of the table.
         #[arg(long)]
         json: bool,
+    },
+    /// Prints a Parquet table the pipeline wrote: its schema and rows, or CSV.
+    Show {
+        /// The table (e.g. out/esgt-2005/align/observations.parquet).
+        file: PathBuf,
+        /// CSV (header and every row, or --head of them) instead of aligned columns.
+        #[arg(long)]
+        csv: bool,
+        /// At most this many rows (default: 20 aligned, all as CSV).
+        #[arg(long)]
+        head: Option<usize>,
     },
     /// Runs what CI runs: fmt, clippy, the tests, the fixture check and the pipeline on every fixture.
     Ci,
@@ -274,6 +286,14 @@ fn ci() -> Result<()> {
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Pipeline(a) => run_stages(&a, &["ingest", "align", "adjust", "report"]),
+        Cmd::Show { file, csv, head } => {
+            let options = show::ShowOptions {
+                csv,
+                head: head.or((!csv).then_some(20)),
+            };
+            let mut out = std::io::stdout().lock();
+            show::show(&file, options, &mut out)
+        }
         Cmd::Ingest(a) => run_stages(&a, &["ingest"]),
         Cmd::Align(a) => run_stages(&a, &["align"]),
         Cmd::Adjust(a) => run_stages(&a, &["adjust"]),
