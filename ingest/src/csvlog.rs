@@ -12,6 +12,7 @@ use crate::error::{Error, Result};
 use crate::lines::{read_lines, strip_comment, text};
 use crate::streams::StreamWriter;
 use crate::time::NS_PER_WEEK;
+use crate::time::{TimeForm, TimeReader};
 use crate::timegate::{Position, Sink, TimeGate};
 use std::path::Path;
 
@@ -260,28 +261,27 @@ fn parse_row_general(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
                 ),
             )
         })?;
-    let time_ns = week * NS_PER_WEEK + tow;
+    row_of(kind, week * NS_PER_WEEK + tow, &fields[2..5])
+}
+
+/// A row at `time_ns` from its three value fields (names as the GPS-week header's).
+fn row_of(kind: CsvKind, time_ns: i64, fields: &[&[u8]]) -> Result<Row, Bad> {
+    let names = &kind.header()[2..];
     let mut status = 0u8;
     match kind {
         CsvKind::Adc => {
             let mut counts = [0i32; 3];
             for ch in 0..3 {
-                let f = fields[2 + ch];
+                let f = fields[ch];
                 if f.is_empty() {
                     status |= not_connected_bit(ch);
                     continue;
                 }
                 let v = parse_int(f).ok_or_else(|| {
-                    bad(
-                        names[2 + ch],
-                        format!("`{}` is not an integer count", text(f)),
-                    )
+                    bad(names[ch], format!("`{}` is not an integer count", text(f)))
                 })?;
                 if !(COUNT_MIN..=COUNT_MAX).contains(&v) {
-                    return Err(bad(
-                        names[2 + ch],
-                        format!("{v} is outside the 24-bit range"),
-                    ));
+                    return Err(bad(names[ch], format!("{v} is outside the 24-bit range")));
                 }
                 if v == COUNT_MIN || v == COUNT_MAX {
                     status |= over_range_bit(ch);
@@ -297,7 +297,7 @@ fn parse_row_general(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
         CsvKind::Temperature => {
             let mut celsius = [None; 3];
             for ch in 0..3 {
-                let f = fields[2 + ch];
+                let f = fields[ch];
                 if f.is_empty() {
                     status |= not_connected_bit(ch);
                     continue;
@@ -308,7 +308,7 @@ fn parse_row_general(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
                     .filter(|v: &f64| v.is_finite())
                     .ok_or_else(|| {
                         bad(
-                            names[2 + ch],
+                            names[ch],
                             format!("`{}` is not a temperature in degC", text(f)),
                         )
                     })?;
@@ -321,6 +321,27 @@ fn parse_row_general(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
             })
         }
     }
+}
+
+/// A row of a log whose time is one field in another form than GPS week + tow
+/// (docs/formats.md 9.1): `time,v1,v2,v3`.
+fn parse_row_timed(kind: CsvKind, line: &[u8], time: &mut TimeReader) -> Result<Row, Bad> {
+    let fields: Vec<&[u8]> = line.split(|&c| c == b',').map(<[u8]>::trim_ascii).collect();
+    if fields.len() != 4 {
+        return Err(bad(
+            "line",
+            format!(
+                "{} fields, expected 4 (a time in the form \"{}\", then {})",
+                fields.len(),
+                time.form.name(),
+                kind.header()[2..].join(",")
+            ),
+        ));
+    }
+    let t = time
+        .read(&fields[..1])
+        .map_err(|(field, message)| bad(field, message))?;
+    row_of(kind, t, &fields[1..])
 }
 
 /// Where the time gate's verdicts on CSV rows go.
@@ -361,6 +382,8 @@ pub struct CsvConfig {
     pub interval_ns: i64,
     /// The session's range of GPS time, ns.
     pub range_ns: (i64, i64),
+    /// How the log writes its times.
+    pub time: TimeReader,
 }
 
 /// Reads one CSV log into `streams`, filling in `ledger`. Returns the median interval
@@ -377,11 +400,13 @@ pub fn read_csv(
     let mut other_lines = 0u64;
     let mut gate = TimeGate::new(config.interval_ns, config.range_ns);
     let names = kind.header();
+    let mut time = config.time;
+    let gps_week_tow = time.form == TimeForm::GpsWeekTow;
     let mut sink = RowSink { streams, ledger };
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
         // A line the fast ADC parser takes whole holds only digits, signs, points and
         // commas: no comment or white space to strip, which saves a search per line.
-        let fast = if header_seen && kind == CsvKind::Adc {
+        let fast = if header_seen && gps_week_tow && kind == CsvKind::Adc {
             parse_adc_fast(raw)
         } else {
             None
@@ -394,6 +419,31 @@ pub fn read_csv(
         if line.is_empty() {
             other_lines += 1;
             return Ok(());
+        }
+        if !header_seen && !gps_week_tow {
+            // Another time form: a header is optional, any names, taken by position.
+            header_seen = true;
+            let first = line
+                .split(|&c| c == b',')
+                .next()
+                .unwrap_or_default()
+                .trim_ascii();
+            if time.read(&[first]).is_err() {
+                let n = line.split(|&c| c == b',').count();
+                if n != 4 {
+                    return Err(Error::Line {
+                        path: path.to_path_buf(),
+                        line: line_no,
+                        field: "header".to_owned(),
+                        message: format!(
+                            "`{}`: {n} names, expected 4 (the time, then one per channel)",
+                            text(line)
+                        ),
+                    });
+                }
+                other_lines += 1;
+                return Ok(());
+            }
         }
         if !header_seen {
             let got: Vec<&[u8]> = line.split(|&c| c == b',').map(<[u8]>::trim_ascii).collect();
@@ -409,7 +459,12 @@ pub fn read_csv(
             other_lines += 1;
             return Ok(());
         }
-        let row = match fast.map_or_else(|| parse_row(kind, line), Ok) {
+        let parsed = if gps_week_tow {
+            fast.map_or_else(|| parse_row(kind, line), Ok)
+        } else {
+            parse_row_timed(kind, line, &mut time)
+        };
+        let row = match parsed {
             Ok(r) => r,
             Err(b) if config.skip_bad_lines => {
                 sink.ledger.reject(

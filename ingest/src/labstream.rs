@@ -22,6 +22,7 @@ use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{read_lines, strip_comment, text};
 use crate::table::{Encodings, TableWriter};
+use crate::time::parse_seconds_ns;
 use crate::timegate::{Position, Sink, TimeGate};
 use arrow::array::{ArrayRef, Float64Array, Int64Array, UInt16Array, UInt64Array};
 use std::collections::BTreeMap;
@@ -185,50 +186,6 @@ pub struct LabConfig {
 
 /// A field that does not parse: (field name, message).
 type Bad = (&'static str, String);
-
-/// Seconds with up to 9 decimals as ns, exactly (read from the bytes, rounded half up at
-/// the tenth decimal); scientific notation through f64.
-fn parse_seconds_ns(field: &[u8]) -> Option<i64> {
-    let (negative, digits) = match field.first()? {
-        b'-' => (true, &field[1..]),
-        b'+' => (false, &field[1..]),
-        _ => (false, field),
-    };
-    let (mut whole, mut ns) = (0i64, 0i64);
-    let (mut int_digits, mut frac_digits) = (0usize, 0usize);
-    let mut in_fraction = false;
-    for (k, &c) in digits.iter().enumerate() {
-        match c {
-            b'0'..=b'9' if in_fraction => {
-                frac_digits += 1;
-                let d = i64::from(c - b'0');
-                if frac_digits <= 9 {
-                    ns += d * 10i64.pow(9 - frac_digits as u32);
-                } else if frac_digits == 10 && d >= 5 {
-                    ns += 1;
-                }
-            }
-            b'0'..=b'9' => {
-                int_digits += 1;
-                if int_digits > 10 {
-                    return None;
-                }
-                whole = whole * 10 + i64::from(c - b'0');
-            }
-            b'.' if !in_fraction => in_fraction = true,
-            b'e' | b'E' if int_digits + frac_digits > 0 && k + 1 < digits.len() => {
-                let v: f64 = std::str::from_utf8(field).ok()?.parse().ok()?;
-                return (v.is_finite() && v.abs() < 9.2e9).then(|| (v * 1e9).round() as i64);
-            }
-            _ => return None,
-        }
-    }
-    if int_digits + frac_digits == 0 {
-        return None;
-    }
-    let total = whole.checked_mul(1_000_000_000)?.checked_add(ns)?;
-    Some(if negative { -total } else { total })
-}
 
 /// Powers of ten a double holds exactly.
 const EXACT_POWERS: [f64; 23] = [

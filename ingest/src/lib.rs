@@ -294,11 +294,16 @@ fn read_acquisition(
             ] {
                 let mut ledger = new_ledger(ds, path, id, role, "lines");
                 let pb = progress_bar(opts, path);
+                let form = match kind {
+                    csvlog::CsvKind::Adc => s.times.adc,
+                    csvlog::CsvKind::Temperature => s.times.temperature,
+                };
                 let config = csvlog::CsvConfig {
                     kind,
                     skip_bad_lines: opts.skip_bad_lines,
                     interval_ns,
                     range_ns: s.gps_range_ns(),
+                    time: s.times.reader(form),
                 };
                 let median = csvlog::read_csv(path, config, streams, &mut ledger, &pb)?;
                 if kind == csvlog::CsvKind::Adc {
@@ -366,12 +371,8 @@ fn ingest_session(
         Some(path) => {
             let (readings, interval_ns, ledger) =
                 read_with_theodolite(ds, s, path, opts, out, files)?;
-            out.theo.write(
-                id,
-                s.session.theodolite_unit,
-                s.session.theodolite_time_scale,
-                &readings,
-            )?;
+            out.theo
+                .write(id, s.session.theodolite_unit, s.times.scale, &readings)?;
             files.push(ledger);
             (readings.len() as u64, interval_ns)
         }

@@ -7,7 +7,6 @@ use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{read_lines, strip_comment};
 use crate::table::{TableWriter, session_column};
-use crate::time::{gps_ns, parse_calendar};
 use arrow::array::{ArrayRef, Float64Array, Int64Array, StringArray, UInt32Array};
 use std::path::Path;
 use std::sync::Arc;
@@ -47,7 +46,8 @@ pub fn read_theodolite(
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
 ) -> Result<Vec<Reading>> {
-    let scale = session.session.theodolite_time_scale;
+    let mut time = session.times.reader(session.times.theodolite);
+    let time_fields = time.form.fields();
     let unit = session.session.theodolite_unit;
     let range = session.gps_range_ns();
     let mut out = Vec::new();
@@ -68,20 +68,29 @@ pub fn read_theodolite(
             let text =
                 std::str::from_utf8(line).map_err(|_| fail("line", "not UTF-8".to_owned()))?;
             let f: Vec<&str> = text.split_whitespace().collect();
-            if f.len() != 3 {
+            if f.len() != 2 + time_fields {
                 return Err(fail(
                     "line",
-                    format!("{} fields, expected 3 (station time dz)", f.len()),
+                    format!(
+                        "{} fields, expected {} (station, the time as \"{}\", dz)",
+                        f.len(),
+                        2 + time_fields,
+                        time.form.name()
+                    ),
                 ));
             }
-            let cal = parse_calendar(f[1]).map_err(|m| fail("time", m))?;
-            let time_gps_ns = gps_ns(cal, scale)
-                .ok_or_else(|| fail("time", format!("`{}` is before the GPS epoch", f[1])))?;
-            let dz_value: f64 = f[2]
+            let time_text = f[1..1 + time_fields].join(" ");
+            let time_bytes: Vec<&[u8]> =
+                f[1..1 + time_fields].iter().map(|x| x.as_bytes()).collect();
+            let time_gps_ns = time
+                .read(&time_bytes)
+                .map_err(|(field, message)| fail(field, message))?;
+            let dz_field = f[1 + time_fields];
+            let dz_value: f64 = dz_field
                 .parse()
                 .ok()
                 .filter(|v: &f64| v.is_finite())
-                .ok_or_else(|| fail("dz", format!("`{}` is not a number", f[2])))?;
+                .ok_or_else(|| fail("dz", format!("`{dz_field}` is not a number")))?;
             if !(0.0..unit.full_turn()).contains(&dz_value) {
                 return Err(fail(
                     "dz",
@@ -99,7 +108,7 @@ pub fn read_theodolite(
                 time_gps_ns,
                 dz_rad: unit.to_rad(dz_value),
                 dz_value,
-                time_as_read: f[1].to_owned(),
+                time_as_read: time_text,
                 line,
             })
         })();

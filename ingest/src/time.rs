@@ -43,6 +43,272 @@ impl Calendar {
     }
 }
 
+/// How a text log writes its times (docs/formats.md 9.1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+pub enum TimeForm {
+    /// Two fields: full GPS week, time of week in seconds.
+    #[serde(rename = "gps_week_tow")]
+    GpsWeekTow,
+    /// One field: ISO 8601 calendar time, with `Z`, an offset, or no zone (then in the
+    /// session's time scale).
+    #[serde(rename = "iso")]
+    Iso,
+    /// One field: seconds since 1970-01-01T00:00:00 UTC.
+    #[serde(rename = "unix_s")]
+    UnixS,
+    /// One field: seconds since the session's `start`.
+    #[serde(rename = "s")]
+    S,
+}
+
+impl TimeForm {
+    /// The form as the manifest writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeForm::GpsWeekTow => "gps_week_tow",
+            TimeForm::Iso => "iso",
+            TimeForm::UnixS => "unix_s",
+            TimeForm::S => "s",
+        }
+    }
+
+    /// The fields a time takes.
+    pub fn fields(self) -> usize {
+        if self == TimeForm::GpsWeekTow { 2 } else { 1 }
+    }
+}
+
+/// Reads times written in one [`TimeForm`] into GPS ns.
+#[derive(Clone, Copy, Debug)]
+pub struct TimeReader {
+    /// The form.
+    pub form: TimeForm,
+    /// The scale of calendar times without a zone.
+    pub scale: TimeScale,
+    /// GPS time of the session's `start` (the zero of "s" times).
+    pub start_gps_ns: Option<i64>,
+    /// GPS minus Unix time over the UTC day last seen: (day since 1970, offset ns).
+    utc_day: Option<(i64, i64)>,
+}
+
+/// Nanoseconds in a day.
+const NS_PER_DAY: i64 = 86_400_000_000_000;
+
+impl TimeReader {
+    /// A reader of `form`, zone-less calendar times in `scale`, "s" times from `start_gps_ns`.
+    pub fn new(form: TimeForm, scale: TimeScale, start_gps_ns: Option<i64>) -> Self {
+        TimeReader {
+            form,
+            scale,
+            start_gps_ns,
+            utc_day: None,
+        }
+    }
+
+    /// The GPS time (ns) of a time written as `fields` (as many as the form takes): Err with
+    /// the field's name and what is wrong.
+    pub fn read(&mut self, fields: &[&[u8]]) -> Result<i64, (&'static str, String)> {
+        let text = |f: &[u8]| String::from_utf8_lossy(f).into_owned();
+        match self.form {
+            TimeForm::GpsWeekTow => {
+                let week = std::str::from_utf8(fields[0])
+                    .ok()
+                    .and_then(|w| w.parse::<i64>().ok())
+                    .filter(|w| (0..=9_999).contains(w))
+                    .ok_or_else(|| {
+                        (
+                            "gps_week",
+                            format!("`{}` is not a GPS week [0, 9999]", text(fields[0])),
+                        )
+                    })?;
+                let tow = parse_seconds_ns(fields[1])
+                    .filter(|t| (0..NS_PER_WEEK).contains(t))
+                    .ok_or_else(|| {
+                        (
+                            "tow_s",
+                            format!(
+                                "`{}` is not a time of week in seconds [0, 604800)",
+                                text(fields[1])
+                            ),
+                        )
+                    })?;
+                Ok(week * NS_PER_WEEK + tow)
+            }
+            TimeForm::Iso => {
+                let s =
+                    std::str::from_utf8(fields[0]).map_err(|_| ("time", "not UTF-8".to_owned()))?;
+                let (c, offset_min) = parse_iso(s).map_err(|m| ("time", m))?;
+                let scale = if offset_min.is_some() {
+                    TimeScale::Utc
+                } else {
+                    self.scale
+                };
+                let t = gps_ns(c, scale).ok_or_else(|| {
+                    (
+                        "time",
+                        format!("`{s}` is before the GPS epoch (1980-01-06)"),
+                    )
+                })?;
+                Ok(t - i64::from(offset_min.unwrap_or(0)) * 60_000_000_000)
+            }
+            TimeForm::UnixS => {
+                let unix = parse_seconds_ns(fields[0]).ok_or_else(|| {
+                    (
+                        "time",
+                        format!("`{}` is not a time in seconds since 1970", text(fields[0])),
+                    )
+                })?;
+                let day = unix.div_euclid(NS_PER_DAY);
+                let offset = match self.utc_day {
+                    Some((d, o)) if d == day => o,
+                    _ => {
+                        let date = civil_from_days(day);
+                        let o =
+                            gps_ns(Calendar::midnight(date), TimeScale::Utc).ok_or_else(|| {
+                                (
+                                    "time",
+                                    format!("`{}` is before the GPS epoch", text(fields[0])),
+                                )
+                            })? - day * NS_PER_DAY;
+                        self.utc_day = Some((day, o));
+                        o
+                    }
+                };
+                Ok(unix + offset)
+            }
+            TimeForm::S => {
+                let s = parse_seconds_ns(fields[0]).ok_or_else(|| {
+                    (
+                        "time",
+                        format!("`{}` is not a time in seconds", text(fields[0])),
+                    )
+                })?;
+                let start = self.start_gps_ns.ok_or_else(|| {
+                    (
+                        "time",
+                        "times in seconds since the start need the session's `start`".to_owned(),
+                    )
+                })?;
+                start.checked_add(s).ok_or_else(|| {
+                    (
+                        "time",
+                        format!("`{}` is beyond any GPS time", text(fields[0])),
+                    )
+                })
+            }
+        }
+    }
+}
+
+/// (year, month, day) of a count of days since 1970-01-01 (Hinnant's civil_from_days).
+pub fn civil_from_days(z: i64) -> (i32, u8, u8) {
+    let z = z + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let y = yoe + era * 400;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = (doy - (153 * mp + 2) / 5 + 1) as u8;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u8;
+    ((y + i64::from(m <= 2)) as i32, m, d)
+}
+
+/// Seconds with up to 9 decimals as ns, exactly (read from the bytes, rounded half up at
+/// the tenth decimal); scientific notation through f64; None for anything else.
+pub fn parse_seconds_ns(field: &[u8]) -> Option<i64> {
+    let (negative, digits) = match field.first()? {
+        b'-' => (true, &field[1..]),
+        b'+' => (false, &field[1..]),
+        _ => (false, field),
+    };
+    let (mut whole, mut ns) = (0i64, 0i64);
+    let (mut int_digits, mut frac_digits) = (0usize, 0usize);
+    let mut in_fraction = false;
+    for (k, &c) in digits.iter().enumerate() {
+        match c {
+            b'0'..=b'9' if in_fraction => {
+                frac_digits += 1;
+                let d = i64::from(c - b'0');
+                if frac_digits <= 9 {
+                    ns += d * 10i64.pow(9 - frac_digits as u32);
+                } else if frac_digits == 10 && d >= 5 {
+                    ns += 1;
+                }
+            }
+            b'0'..=b'9' => {
+                int_digits += 1;
+                if int_digits > 10 {
+                    return None;
+                }
+                whole = whole * 10 + i64::from(c - b'0');
+            }
+            b'.' if !in_fraction => in_fraction = true,
+            b'e' | b'E' if int_digits + frac_digits > 0 && k + 1 < digits.len() => {
+                let v: f64 = std::str::from_utf8(field).ok()?.parse().ok()?;
+                return (v.is_finite() && v.abs() < 9.2e9).then(|| (v * 1e9).round() as i64);
+            }
+            _ => return None,
+        }
+    }
+    if int_digits + frac_digits == 0 {
+        return None;
+    }
+    let total = whole.checked_mul(1_000_000_000)?.checked_add(ns)?;
+    Some(if negative { -total } else { total })
+}
+
+/// Parses ISO 8601 `YYYY-MM-DDTHH:MM:SS[.fraction]` (a space allowed for `T`), then `Z`
+/// (offset 0), `+HH:MM` / `-HH:MM`, or nothing (None: the time is in the session's scale).
+/// Returns the calendar as written and the offset from UTC in minutes.
+pub fn parse_iso(s: &str) -> Result<(Calendar, Option<i32>), String> {
+    let zone_at = s
+        .char_indices()
+        .skip(19)
+        .find(|(_, c)| matches!(c, 'Z' | 'z' | '+' | '-'))
+        .map(|(i, _)| i);
+    let (body, offset) = match zone_at {
+        None => (s, None),
+        Some(i) => {
+            let zone = &s[i..];
+            let offset = match zone.as_bytes() {
+                [b'Z' | b'z'] => 0,
+                [sign @ (b'+' | b'-'), h1, h2, b':', m1, m2]
+                    if [h1, h2, m1, m2].iter().all(|c| c.is_ascii_digit()) =>
+                {
+                    let h = i32::from(h1 - b'0') * 10 + i32::from(h2 - b'0');
+                    let m = i32::from(m1 - b'0') * 10 + i32::from(m2 - b'0');
+                    if h > 23 || m > 59 {
+                        return Err(format!("`{s}`: the offset {zone} is not a time zone"));
+                    }
+                    if *sign == b'-' {
+                        -(h * 60 + m)
+                    } else {
+                        h * 60 + m
+                    }
+                }
+                _ => {
+                    return Err(format!(
+                        "`{s}`: a zone is `Z` or `+HH:MM` / `-HH:MM`, not `{zone}`"
+                    ));
+                }
+            };
+            (&s[..i], Some(offset))
+        }
+    };
+    let normalised;
+    let body = if body.len() > 10 && body.as_bytes()[10] == b' ' {
+        normalised = format!("{}T{}", &body[..10], &body[11..]);
+        normalised.as_str()
+    } else {
+        body
+    };
+    let c = parse_calendar(body).map_err(|e| {
+        format!("{e} (ISO 8601: YYYY-MM-DDTHH:MM:SS[.fraction], then Z, +HH:MM or nothing)")
+    })?;
+    Ok((c, offset))
+}
+
 /// Parses `YYYY-MM-DDTHH:MM:SS[.fraction]` (no zone suffix; up to 9 decimals).
 pub fn parse_calendar(s: &str) -> Result<Calendar, String> {
     let b = s.as_bytes();
@@ -134,6 +400,77 @@ pub fn week_of_date(date: (i32, u8, u8)) -> i64 {
 pub fn resolve_week(week10: u16, reference_week: i64) -> i64 {
     let w = i64::from(week10 % 1024);
     w + 1024 * (reference_week - w + 512).div_euclid(1024)
+}
+
+#[cfg(test)]
+mod time_form_tests {
+    use super::*;
+
+    /// One instant written in every form reads as one GPS time: 2026-03-14T09:12:03.456 UTC
+    /// is GPS week 2409, 18 leap seconds ahead.
+    #[test]
+    fn one_instant_in_every_form() {
+        let gps = gps_ns(
+            parse_calendar("2026-03-14T09:12:21.456").expect("calendar"),
+            TimeScale::Gpst,
+        )
+        .expect("gps");
+        let read = |form, fields: &[&str], start| {
+            let f: Vec<&[u8]> = fields.iter().map(|f| f.as_bytes()).collect();
+            TimeReader::new(form, TimeScale::Utc, start).read(&f)
+        };
+        assert_eq!(
+            read(TimeForm::Iso, &["2026-03-14T09:12:03.456Z"], None),
+            Ok(gps)
+        );
+        assert_eq!(
+            read(TimeForm::Iso, &["2026-03-14T10:12:03.456+01:00"], None),
+            Ok(gps)
+        );
+        assert_eq!(
+            read(TimeForm::Iso, &["2026-03-14T04:12:03.456-05:00"], None),
+            Ok(gps)
+        );
+        assert_eq!(
+            read(TimeForm::Iso, &["2026-03-14T09:12:03.456"], None),
+            Ok(gps)
+        );
+        assert_eq!(
+            read(TimeForm::Iso, &["2026-03-14 09:12:03.456Z"], None),
+            Ok(gps)
+        );
+        assert_eq!(read(TimeForm::UnixS, &["1773479523.456"], None), Ok(gps));
+        let week = gps.div_euclid(NS_PER_WEEK);
+        let tow = format!("{:.3}", gps.rem_euclid(NS_PER_WEEK) as f64 * 1e-9);
+        assert_eq!(
+            read(TimeForm::GpsWeekTow, &[&week.to_string(), &tow], None),
+            Ok(gps)
+        );
+        assert_eq!(
+            read(TimeForm::S, &["3.456"], Some(gps - 3_456_000_000)),
+            Ok(gps)
+        );
+        for bad in [
+            "2026-03-14T09:12:03+0100",
+            "2026-03-14T09:12:03 Z",
+            "2026-03-14T09:12:03+25:00",
+        ] {
+            let e = read(TimeForm::Iso, &[bad], None).expect_err(bad);
+            assert_eq!(e.0, "time");
+        }
+        assert!(read(TimeForm::S, &["1.0"], None).is_err(), "no start");
+    }
+
+    #[test]
+    fn civil_days_round_trip() {
+        for (days, date) in [
+            (0, (1970, 1, 1)),
+            (11_017, (2000, 3, 1)),
+            (19_362, (2023, 1, 5)),
+        ] {
+            assert_eq!(civil_from_days(days), date);
+        }
+    }
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! are errors) and validated, with every error naming the key and the file.
 
 use crate::error::{Error, Result};
+pub use crate::time::TimeForm;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -366,6 +367,42 @@ pub struct Session {
     /// relative to its reference position (docs/formats.md 8.2).
     #[serde(default)]
     pub roll_deg: f64,
+    /// How `adc_csv` writes its times (docs/formats.md 9.1); default: GPS week + tow for the
+    /// counts CSV, `time_unit` for a lab stream.
+    #[serde(default)]
+    pub adc_time: Option<TimeForm>,
+    /// How `temperature_csv` writes its times; default as `adc_time`'s.
+    #[serde(default)]
+    pub temperature_time: Option<TimeForm>,
+    /// How the theodolite log writes its times; default `iso`.
+    #[serde(default)]
+    pub theodolite_time: Option<TimeForm>,
+    /// The scale of calendar times without a zone, in every log of the session (and of
+    /// `start`); `theodolite_time_scale` is its older name.
+    #[serde(default)]
+    pub time_scale: Option<TimeScale>,
+}
+
+/// How each text log of a session writes its times, resolved (docs/formats.md 9.1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SessionTimes {
+    /// The ADC CSV's (or lab stream's).
+    pub adc: TimeForm,
+    /// The temperature CSV's (or log's).
+    pub temperature: TimeForm,
+    /// The theodolite log's.
+    pub theodolite: TimeForm,
+    /// The scale of calendar times without a zone.
+    pub scale: TimeScale,
+    /// GPS time of the session's `start`, when given.
+    pub start_gps_ns: Option<i64>,
+}
+
+impl SessionTimes {
+    /// A reader of times in `form`, as this session gives them.
+    pub fn reader(&self, form: TimeForm) -> crate::time::TimeReader {
+        crate::time::TimeReader::new(form, self.scale, self.start_gps_ns)
+    }
 }
 
 fn default_days() -> u32 {
@@ -537,6 +574,8 @@ pub struct ResolvedSession {
     pub acquisition: Acquisition,
     /// Theodolite log (none for a survey session).
     pub theodolite: Option<PathBuf>,
+    /// How its text logs write their times.
+    pub times: SessionTimes,
 }
 
 /// A validated dataset: the manifest, its folder, and its sessions resolved.
@@ -582,6 +621,7 @@ fn lab_acquisition(
     i: usize,
     s: &Session,
     (date, midnight): ((i32, u8, u8), i64),
+    times: &SessionTimes,
     file: &impl Fn(String, &str) -> Result<PathBuf>,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<Acquisition> {
@@ -598,30 +638,10 @@ fn lab_acquisition(
         ));
     };
     let stream = file(format!("session[{i}].adc_csv"), stream)?;
-    let zero_gps_ns = match (s.time_unit, &s.start) {
-        (TimeUnit::UnixSeconds, None) => midnight - days_from_civil(date) * 86_400_000_000_000,
-        (TimeUnit::UnixSeconds, Some(_)) => {
-            return Err(err(
-                format!("session[{i}].start"),
-                "Unix times (time_unit = \"unix_s\") need no start".to_owned(),
-            ));
-        }
-        (TimeUnit::Seconds, None) => {
-            return Err(err(
-                format!("session[{i}].start"),
-                "missing: times in seconds since the start need `start`".to_owned(),
-            ));
-        }
-        (TimeUnit::Seconds, Some(start)) => {
-            let c = crate::time::parse_calendar(start)
-                .map_err(|m| err(format!("session[{i}].start"), m))?;
-            crate::time::gps_ns(c, s.theodolite_time_scale).ok_or_else(|| {
-                err(
-                    format!("session[{i}].start"),
-                    format!("`{start}` is before the GPS epoch (1980-01-06)"),
-                )
-            })?
-        }
+    let zero_gps_ns = match (times.adc, times.start_gps_ns) {
+        (TimeForm::S, Some(start)) => start,
+        // Unix times: the epoch, with the leap seconds of the session's date.
+        _ => midnight - days_from_civil(date) * 86_400_000_000_000,
     };
     let temperature = s
         .temperature_csv
@@ -632,6 +652,122 @@ fn lab_acquisition(
         stream,
         temperature,
         zero_gps_ns,
+    })
+}
+
+/// How session `i`'s text logs write their times (docs/formats.md 9.1): the 1.2 keys, with
+/// the 1.1 defaults (GPS week + tow for the counts CSV pair, `time_unit` for a lab stream,
+/// ISO calendar times for the theodolite log), the scale of zone-less calendar times, and
+/// `start` when some log counts seconds from it.
+fn session_times(
+    i: usize,
+    s: &Session,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<SessionTimes> {
+    let key = |k: &str| format!("session[{i}].{k}");
+    let scale = match s.time_scale {
+        Some(t) if s.theodolite_time_scale != TimeScale::Utc && s.theodolite_time_scale != t => {
+            return Err(err(
+                key("time_scale"),
+                format!(
+                    "{t:?} but theodolite_time_scale is {:?}: give one (time_scale)",
+                    s.theodolite_time_scale
+                ),
+            ));
+        }
+        Some(t) => t,
+        None => s.theodolite_time_scale,
+    };
+    let lab = s.adc_format == AdcFormat::Seconds;
+    let (adc, temperature) = if lab {
+        let unit = match s.time_unit {
+            TimeUnit::Seconds => TimeForm::S,
+            TimeUnit::UnixSeconds => TimeForm::UnixS,
+        };
+        let adc = s.adc_time.unwrap_or(unit);
+        if !matches!(adc, TimeForm::S | TimeForm::UnixS) {
+            return Err(err(
+                key("adc_time"),
+                format!(
+                    "\"{}\": a lab stream (adc_format = \"seconds\") writes seconds: \"s\" \
+                     (since `start`) or \"unix_s\"",
+                    adc.name()
+                ),
+            ));
+        }
+        if let Some(t) = s.temperature_time.filter(|t| *t != adc) {
+            return Err(err(
+                key("temperature_time"),
+                format!(
+                    "\"{}\": a lab session's temperature log is read in its stream's layout, \
+                     times \"{}\"",
+                    t.name(),
+                    adc.name()
+                ),
+            ));
+        }
+        (adc, adc)
+    } else if s.acquisition.is_some() {
+        if let Some(k) = [
+            ("adc_time", s.adc_time),
+            ("temperature_time", s.temperature_time),
+        ]
+        .iter()
+        .find_map(|(k, v)| v.map(|_| *k))
+        {
+            return Err(err(
+                key(k),
+                "the binary log's times are GPS week and milliseconds (section 3): this key is \
+                 for the CSV logs"
+                    .to_owned(),
+            ));
+        }
+        (TimeForm::GpsWeekTow, TimeForm::GpsWeekTow)
+    } else {
+        (
+            s.adc_time.unwrap_or(TimeForm::GpsWeekTow),
+            s.temperature_time.unwrap_or(TimeForm::GpsWeekTow),
+        )
+    };
+    let theodolite = s.theodolite_time.unwrap_or(TimeForm::Iso);
+    let uses_start = [adc, temperature, theodolite].contains(&TimeForm::S);
+    let start_gps_ns = match (&s.start, uses_start) {
+        (None, true) => {
+            return Err(err(
+                key("start"),
+                "missing: a log of this session counts seconds since `start` (\"s\")".to_owned(),
+            ));
+        }
+        (Some(_), false) => {
+            return Err(err(
+                key("start"),
+                "no log of this session counts seconds since a start (a time form \"s\")"
+                    .to_owned(),
+            ));
+        }
+        (None, false) => None,
+        (Some(start), true) => {
+            let (c, offset) = crate::time::parse_iso(start).map_err(|m| err(key("start"), m))?;
+            let scale = if offset.is_some() {
+                TimeScale::Utc
+            } else {
+                scale
+            };
+            let t = crate::time::gps_ns(c, scale).ok_or_else(|| {
+                err(
+                    key("start"),
+                    format!("`{start}` is before the GPS epoch (1980-01-06)"),
+                )
+            })?;
+            Some(t - i64::from(offset.unwrap_or(0)) * 60_000_000_000)
+        }
+    };
+    Ok(SessionTimes {
+        adc,
+        temperature,
+        theodolite,
+        scale,
+        start_gps_ns,
     })
 }
 
@@ -933,15 +1069,10 @@ impl Dataset {
                     ),
                 ));
             }
+            let times = session_times(i, s, &err)?;
             let acquisition = if s.adc_format == AdcFormat::Seconds {
-                lab_acquisition(i, s, (date, start_gps_ns), &file, &err)?
+                lab_acquisition(i, s, (date, start_gps_ns), &times, &file, &err)?
             } else {
-                if s.start.is_some() {
-                    return Err(err(
-                        format!("session[{i}].start"),
-                        "`start` is for adc_format = \"seconds\" streams".to_owned(),
-                    ));
-                }
                 match (&s.acquisition, &s.adc_csv, &s.temperature_csv) {
                     (Some(a), None, None) => {
                         Acquisition::Binary(file(format!("session[{i}].acquisition"), a)?)
@@ -1028,6 +1159,7 @@ impl Dataset {
                 ));
             }
             sessions.push(ResolvedSession {
+                times,
                 session: s.clone(),
                 date,
                 start_gps_ns,
