@@ -195,30 +195,200 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         residuals: adjust::io::read_residuals(&out.join(calibration::STAGE_DIR))?,
         observations: adjust::io::read_observations(&out.join(align_ledger::STAGE_DIR))?,
     };
-    Ok(vec![
-        dataset_section(&st),
-        function_section(),
-        table1_section(&st),
-        components_section(&st),
-        extra_terms_section(&st),
-        misalignment_section(&st)?,
-        triad_section(&st)?,
-        snooping_section(&st),
-        ledger_section(&st),
-        plots_section(&st)?,
-        noise_section(&st)?,
-    ])
+    // The answer first; then what each kind of model holds, only where the dataset has one;
+    // the ledgers and the chain of custody last.
+    let axis = !st.cal.results.is_empty();
+    let per_session_linear = st
+        .cal
+        .results
+        .iter()
+        .any(|r| r.session != "all" && r.order == 1 && !r.temperature && !r.misalignment);
+    let extra = st
+        .cal
+        .results
+        .iter()
+        .any(|r| r.order > 1 || r.temperature || r.misalignment);
+    let vector = st
+        .cal
+        .results
+        .iter()
+        .any(|r| r.misalignment_vector.is_some());
+    let triad = !st.cal.triad.is_empty();
+    let mut sections = vec![summary_section(&st), dataset_section(&st)];
+    if axis {
+        sections.push(function_section());
+    }
+    if per_session_linear {
+        sections.push(table1_section(&st));
+    }
+    if axis {
+        sections.push(components_section(&st));
+    }
+    if extra {
+        sections.push(extra_terms_section(&st));
+    }
+    if vector {
+        sections.push(misalignment_section(&st)?);
+    }
+    if triad {
+        sections.push(triad_section(&st)?);
+    }
+    if axis {
+        sections.push(snooping_section(&st));
+    }
+    sections.push(ledger_section(&st));
+    if axis {
+        sections.push(plots_section(&st)?);
+        sections.push(noise_section(&st)?);
+    }
+    sections.push(custody_section(&st));
+    Ok(sections)
 }
 
-/// The dataset, the gravity used and the files read.
+/// A fitted parameter as `value +/- sigma unit`.
+fn with_sigma(p: &Parameter) -> String {
+    format!(
+        "{} = {:.6e} +/- {:.2e} {}",
+        p.name, p.value, p.sigma, p.unit
+    )
+}
+
+/// The answer: every accelerometer's calibration of every model, with its sigmas, sigma0,
+/// the global test, the observations used and removed, and a one-line verdict; then what
+/// was not fitted and why.
+fn summary_section(st: &Stages<'_>) -> Section {
+    let cal = &st.cal;
+    let mut s = section("Summary: the calibrations");
+    let models: std::collections::BTreeSet<&str> = cal
+        .results
+        .iter()
+        .map(|r| r.model.as_str())
+        .chain(cal.triad.iter().map(|t| t.model.as_str()))
+        .collect();
+    s.text.push(match models.len() {
+        0 => "No calibration was fitted (see the fits not made below).".to_owned(),
+        1 => format!(
+            "One model, `{}`: `cargo xtask apply` uses it by default.",
+            models.first().copied().unwrap_or_default()
+        ),
+        n => format!(
+            "{n} models ({}): `cargo xtask apply --model M` chooses the one to apply; sigmas are at the estimated variance components.",
+            models.iter().copied().collect::<Vec<_>>().join(", ")
+        ),
+    });
+    let mut t = Table::new(&[
+        "model",
+        "accelerometer",
+        "session",
+        "calibration (value +/- sigma)",
+        "sigma0",
+        "global test",
+        "used / removed",
+        "verdict",
+    ]);
+    for r in &cal.results {
+        let verdict = if r.global_test.rejects_the_model() {
+            "REJECTED by the global test: see below"
+        } else if r.global_test.passed {
+            "consistent with its sigmas"
+        } else {
+            "sigmas pessimistic (global test low)"
+        };
+        t.rows.push(vec![
+            r.model.clone(),
+            r.accelerometer.clone(),
+            r.session.clone(),
+            r.parameters
+                .iter()
+                .map(with_sigma)
+                .collect::<Vec<_>>()
+                .join("; ")
+                + &r.t_ref_c
+                    .map_or(String::new(), |t| format!(" (at t_ref {t:.2} degC)")),
+            format!("{:.3}", r.sigma0),
+            if r.global_test.passed {
+                "passed"
+            } else {
+                "FAILED"
+            }
+            .to_owned(),
+            format!("{} / {}", r.n_observations, r.n_excluded),
+            verdict.to_owned(),
+        ]);
+    }
+    for r in &cal.triad {
+        let removed = r.positions.iter().filter(|p| p.removed).count();
+        t.rows.push(vec![
+            r.model.clone(),
+            "triad (x, y, z)".to_owned(),
+            r.session.clone(),
+            r.parameters
+                .iter()
+                .map(with_sigma)
+                .collect::<Vec<_>>()
+                .join("; "),
+            format!("{:.3}", r.sigma0),
+            if r.global_test.passed {
+                "passed"
+            } else {
+                "FAILED"
+            }
+            .to_owned(),
+            format!("{} positions / {removed}", r.positions_used),
+            if r.global_test.rejects_the_model() {
+                "REJECTED by the global test: see below"
+            } else if r.global_test.passed {
+                "consistent with its sigmas"
+            } else {
+                "sigmas pessimistic (global test low)"
+            }
+            .to_owned(),
+        ]);
+    }
+    s.tables.push(("Calibrations".to_owned(), t));
+    for r in &cal.results {
+        if let Some(a) = r.global_test.advice(
+            &format!("{} {} {}", r.model, r.accelerometer, r.session),
+            false,
+        ) {
+            s.text.push(a);
+        }
+    }
+    if !cal.skipped.is_empty() {
+        let mut k = Table::new(&["model", "accelerometer", "session", "why not"]);
+        for f in &cal.skipped {
+            k.rows.push(vec![
+                f.model.clone(),
+                f.accelerometer.clone(),
+                f.session.clone(),
+                f.reason.clone(),
+            ]);
+        }
+        s.tables.push(("Fits not made".to_owned(), k));
+    }
+    s
+}
+
+/// Appendix: the inputs' hashes and the chain of custody.
+fn custody_section(st: &Stages<'_>) -> Section {
+    let mut s = section("Appendix: inputs and chain of custody");
+    let mut inputs = Table::new(&["file", "SHA-256", "bytes"]);
+    for f in &st.ingest_report.files {
+        inputs
+            .rows
+            .push(vec![f.path.clone(), f.sha256.clone(), f.bytes.to_string()]);
+    }
+    s.tables.push(("Inputs".to_owned(), inputs));
+    s.tables.push((
+        "Chain of custody: every file each stage read and wrote, checked unchanged before this report was built".to_owned(),
+        custody_table(&st.ingest_report, &st.align_report, &st.cal),
+    ));
+    s
+}
+
+/// The dataset and the gravity used (its files are in the appendix).
 fn dataset_section(st: &Stages<'_>) -> Section {
-    let Stages {
-        ds,
-        cal,
-        ingest_report,
-        align_report,
-        ..
-    } = st;
+    let Stages { ds, cal, .. } = st;
     let m = &ds.manifest;
     // Dataset and gravity.
     let mut s = section("Dataset");
@@ -251,17 +421,6 @@ fn dataset_section(st: &Stages<'_>) -> Section {
             surveys.join(", ")
         ));
     }
-    let mut inputs = Table::new(&["file", "SHA-256", "bytes"]);
-    for f in &ingest_report.files {
-        inputs
-            .rows
-            .push(vec![f.path.clone(), f.sha256.clone(), f.bytes.to_string()]);
-    }
-    s.tables.push(("Inputs".to_owned(), inputs));
-    s.tables.push((
-        "Chain of custody: every file each stage read and wrote, checked unchanged before this report was built".to_owned(),
-        custody_table(ingest_report, align_report, cal),
-    ));
     s
 }
 

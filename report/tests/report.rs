@@ -168,3 +168,60 @@ fn the_misalignment_vector_is_shown() {
     // psi of acc1 is about 30 deg.
     assert!(section.contains("| 30.0"), "{section}");
 }
+
+/// The answer first (issue 27): report.md opens with the summary, which holds every fit of
+/// every model (each accelerometer's calibration with its sigmas) and the fits not made;
+/// sections about what the dataset does not have are left out, and the chain of custody
+/// closes the report. The summary of the replica is snapshot-tested.
+#[test]
+fn the_summary_comes_first_and_only_what_applies_follows() {
+    let out = pipeline(&fixtures::dataset_dir("esgt-2005"));
+    let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("report.md");
+    let headings: Vec<&str> = md.lines().filter(|l| l.starts_with("## ")).collect();
+    assert_eq!(
+        headings.first(),
+        Some(&"## Summary: the calibrations"),
+        "{headings:?}"
+    );
+    assert_eq!(
+        headings.last(),
+        Some(&"## Appendix: inputs and chain of custody"),
+        "{headings:?}"
+    );
+    assert!(
+        !headings
+            .iter()
+            .any(|h| h.contains("Triad") || h.contains("Misalignment vector"))
+    );
+    let c = ingest::contract::calibration::Calibration::load(&out.path().join("adjust"))
+        .expect("calibration");
+    let end = md
+        .find("\n## Dataset")
+        .expect("the dataset after the summary");
+    let summary = &md[..end];
+    for r in &c.results {
+        let row = format!("| {} | {} | {} | b = ", r.model, r.accelerometer, r.session);
+        assert!(summary.contains(&row), "{row}");
+    }
+    assert!(summary.contains("| thermal | acc2 | all | parameter b_t is not estimable"));
+    let start = summary.find("**Calibrations**").expect("the table");
+    insta::assert_snapshot!("esgt_2005_summary", summary[start..].trim());
+
+    let out = pipeline(&fixtures::dataset_dir("triad-multipos"));
+    let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("report.md");
+    let headings: Vec<&str> = md.lines().filter(|l| l.starts_with("## ")).collect();
+    assert_eq!(headings.first(), Some(&"## Summary: the calibrations"));
+    assert!(headings.iter().any(|h| h.contains("Triad")), "{headings:?}");
+    for absent in [
+        "Table 1",
+        "Variance components",
+        "The calibration function",
+        "Misalignment",
+    ] {
+        assert!(
+            !headings.iter().any(|h| h.contains(absent)),
+            "{absent}: {headings:?}"
+        );
+    }
+    assert!(md.contains("| triad | triad (x, y, z) | lab | a_yz = "));
+}
