@@ -347,7 +347,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
 }
 
 /// The static positions of every multi-position session: listed in the manifest, or found
-/// by [`statics::detect`]; an interval shorter than [`statics::MIN_STATIC_S`] or with an
+/// by [`statics::detect`]; an interval of fewer than [`statics::MIN_POSITION_SAMPLES`] or with an
 /// axis of fewer than three values is counted, not used. Each position's temperature per
 /// channel is the mean over its samples' times of the temperature interpolated as for a
 /// window (the average the mean reading sees; none when a channel has no sample within
@@ -396,6 +396,7 @@ fn find_intervals(
         path: ingest_dir.join(tables::lab::FILE),
         message: format!("session {}: {e}", s.session.id),
     })?;
+    mp.window_s = d.window as f64 / rate;
     mp.quiet_start_s = Some(statics::QUIET_S);
     mp.quiet_sd = Some(d.quiet_sd);
     mp.still_sd = d.still_sd;
@@ -432,7 +433,9 @@ fn session_positions(
     };
     let intervals = find_intervals(s, data, rate, ingest_dir, &mut mp)?;
     mp.found = intervals.len() as u64;
-    let min_samples = (statics::MIN_STATIC_S * rate).round() as usize;
+    // A detected interval is clear of the motion by half a window each side already; it
+    // needs the samples its sigma needs.
+    let min_samples = statics::MIN_POSITION_SAMPLES;
     let mut kept = Vec::new();
     for (i, j) in intervals {
         let short = mp.method == "detected" && j - i < min_samples;

@@ -18,10 +18,16 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 /// The first this many seconds of a multi-position stream must be still: the noise the
 /// threshold is made from (imu_tk asks for a quiet start of tens of seconds).
 pub const QUIET_S: f64 = 10.0;
-/// The moving-variance window, s.
+/// The moving-variance window, s, up to [`MAX_WINDOW_SAMPLES`].
 pub const WINDOW_S: f64 = 1.0;
-/// The shortest interval used, s.
-pub const MIN_STATIC_S: f64 = 3.0;
+/// The most samples of the moving-variance window (imu_tk's 100): at high rates a window
+/// of a second would swallow a hand-held position of 1-2 s.
+pub const MAX_WINDOW_SAMPLES: usize = 100;
+/// The fewest samples of a position (imu_tk's default too). Not a duration tuned to one
+/// recording but what its sigma needs: a position's sigma is its samples' scatter about a
+/// line over sqrt(n), itself uncertain by 1/sqrt(2(n - 2)), 7 % at 100 samples; fewer
+/// would weight the position by a sigma of unknown worth.
+pub const MIN_POSITION_SAMPLES: usize = 100;
 /// The detector's false-alarm rate per window.
 pub const ALPHA: f64 = 0.001;
 
@@ -38,6 +44,11 @@ pub struct Series {
 /// still stretches (either way, on any axis) is not a noise reference: motion in the quiet
 /// start, or a start quieter than the positions.
 pub const QUIET_START_AGREEMENT: f64 = 4.0;
+
+/// The still stretches' variance beyond this factor of the quiet start's (on any axis)
+/// makes the stretches' noise the detector's reference, raised until it holds (within
+/// [`QUIET_START_AGREEMENT`]).
+pub const STILLER_START: f64 = 1.05;
 
 /// What the detector found.
 #[derive(Clone, Debug, PartialEq)]
@@ -147,7 +158,7 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
         }
         quiet_sd[k] = q[k].1.sqrt();
     }
-    let window = ((WINDOW_S * rate_hz).round() as usize).max(5);
+    let window = ((WINDOW_S * rate_hz).round() as usize).clamp(5, MAX_WINDOW_SAMPLES);
     let dof = 3.0 * (window as f64 - 1.0);
     let threshold = ChiSquared::new(dof)
         .expect("positive dof")
@@ -180,6 +191,25 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
             sd(quiet_var),
             sd(reference)
         ));
+    } else if let Some(v) = still_var
+        && (0..3).any(|k| v[k] > quiet_var[k] * STILLER_START)
+    {
+        // A quiet start stiller than the positions (a block on a table, then held by a
+        // hand that trembles): the positions' noise is what the detector must accept, or
+        // it cuts them short. The stretches found with a reference too small are their
+        // stillest parts, so the reference is raised step by step until it holds.
+        let mut reference: [f64; 3] = std::array::from_fn(|k| v[k].max(quiet_var[k]));
+        for _ in 0..4 {
+            intervals = intervals_with(series, window, threshold, reference);
+            let Some(next) = pooled_variance(series, &intervals, window) else {
+                break;
+            };
+            still_var = Some(next);
+            if (0..3).all(|k| next[k] <= reference[k] * STILLER_START) {
+                break;
+            }
+            reference = std::array::from_fn(|k| next[k].max(reference[k]));
+        }
     }
     Ok(Detection {
         quiet_sd,
@@ -448,7 +478,7 @@ mod tests {
             .intervals
             .iter()
             .copied()
-            .filter(|(a, b)| (b - a) as f64 > MIN_STATIC_S * rate)
+            .filter(|(a, b)| (b - a) as f64 > 3.0 * rate)
             .collect();
         assert_eq!(long.len(), 2, "{:?}", d.intervals);
         assert!(long[0].1 <= 1000 && long[0].1 >= 975, "{:?}", long[0]);
