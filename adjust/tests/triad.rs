@@ -518,6 +518,29 @@ fn a_short_quiet_start_is_named_and_set_aside() {
     assert!(r.global_test.passed, "{:?}", r.global_test);
     assert_eq!(r.calib_file.as_deref(), Some("triad-lab.calib"));
 
+    // Declared, the quiet start is taken as it is: no warning, the same calibration.
+    let manifest = dataset.join("dataset.toml");
+    let m = std::fs::read_to_string(&manifest).expect("manifest");
+    std::fs::write(
+        &manifest,
+        m.replace(
+            "kind = \"multi-position\"",
+            "kind = \"multi-position\"\nquiet_start_s = 4.5",
+        ),
+    )
+    .expect("manifest");
+    let declared = dir.path().join("declared");
+    let d = pipeline(&dataset, &declared);
+    let a =
+        ingest::contract::align_ledger::AlignReport::load(&declared.join("align")).expect("align");
+    assert!(
+        a.multi_position[0].warnings.is_empty(),
+        "{:?}",
+        a.multi_position[0].warnings
+    );
+    assert_eq!(a.multi_position[0].quiet_start_s, Some(4.5));
+    within_sigmas(&d.triad[0], &truth.parameters);
+
     // The same result with its global test made to fail high: the .calib's name and the
     // console say the model was rejected.
     let mut rejected = c.clone();

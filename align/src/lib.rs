@@ -392,12 +392,13 @@ fn find_intervals(
         return Ok(statics::listed(data, listed));
     }
     mp.method = "detected".to_owned();
-    let d = statics::detect(data, rate).map_err(|e| Error::Table {
+    let quiet_s = s.session.quiet_start_s.unwrap_or(statics::QUIET_S);
+    let d = statics::detect(data, rate, quiet_s).map_err(|e| Error::Table {
         path: ingest_dir.join(tables::lab::FILE),
         message: format!("session {}: {e}", s.session.id),
     })?;
     mp.window_s = d.window as f64 / rate;
-    mp.quiet_start_s = Some(statics::QUIET_S);
+    mp.quiet_start_s = Some(quiet_s);
     mp.quiet_sd = Some(d.quiet_sd);
     mp.still_sd = d.still_sd;
     mp.warnings.extend(d.warning);

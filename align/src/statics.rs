@@ -15,8 +15,9 @@
 
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-/// The first this many seconds of a multi-position stream must be still: the noise the
-/// threshold is made from (imu_tk asks for a quiet start of tens of seconds).
+/// The first this many seconds of a multi-position stream must be still (unless the session
+/// declares its `quiet_start_s`): the noise the threshold is made from (imu_tk asks for a
+/// quiet start of tens of seconds), checked against the still stretches' own.
 pub const QUIET_S: f64 = 10.0;
 /// The moving-variance window, s, up to [`MAX_WINDOW_SAMPLES`].
 pub const WINDOW_S: f64 = 1.0;
@@ -72,7 +73,7 @@ pub struct Detection {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum DetectError {
     /// Fewer samples than the quiet start needs.
-    #[error("the stream is shorter than the {QUIET_S} s quiet start the detector needs")]
+    #[error("the stream is shorter than the quiet start the detector needs")]
     TooShort,
     /// An axis has no spread over the quiet start (a constant, or no values).
     #[error("channel {0} does not vary over the quiet start: no noise to set a threshold from")]
@@ -143,10 +144,11 @@ fn merge_false_alarms(
     out
 }
 
-/// Finds the static intervals of `series` sampled at `rate_hz`.
-pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
+/// Finds the static intervals of `series` sampled at `rate_hz`, its first `quiet_s` seconds
+/// taken for still.
+pub fn detect(series: &Series, rate_hz: f64, quiet_s: f64) -> Result<Detection, DetectError> {
     let len = series.time_ns.len();
-    let quiet = (QUIET_S * rate_hz).round() as usize;
+    let quiet = (quiet_s * rate_hz).round() as usize;
     if len < quiet.max(3) {
         return Err(DetectError::TooShort);
     }
@@ -184,7 +186,7 @@ pub fn detect(series: &Series, rate_hz: f64) -> Result<Detection, DetectError> {
         still_var = Some(reference);
         let sd = |v: [f64; 3]| v.map(|x| format!("{:.4e}", x.sqrt())).join(", ");
         warning = Some(format!(
-            "the quiet start's noise (first {QUIET_S} s, sd per axis {}) is at odds with the \
+            "the quiet start's noise (first {quiet_s} s, sd per axis {}) is at odds with the \
              noise inside the still stretches (sd {}; more than {QUIET_START_AGREEMENT} times \
              apart in variance): motion in the quiet start, or none at all; the still \
              stretches' noise is the detector's reference",
@@ -473,7 +475,7 @@ mod tests {
                 Some(amp * noise()),
             ]);
         }
-        let d = detect(&s, rate).expect("detects");
+        let d = detect(&s, rate, QUIET_S).expect("detects");
         let long: Vec<(usize, usize)> = d
             .intervals
             .iter()

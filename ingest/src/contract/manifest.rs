@@ -342,6 +342,10 @@ pub struct Session {
     /// they are found in the stream.
     #[serde(default)]
     pub static_s: Option<Vec<[f64; 2]>>,
+    /// The still stretch at the start of a multi-position session the detector takes its
+    /// noise reference from, s (default 10).
+    #[serde(default)]
+    pub quiet_start_s: Option<f64>,
     /// What the session is for (docs/formats.md 8.4, 8.5): a tilt-table calibration (default)
     /// or a survey, which the calibration is applied to.
     #[serde(default)]
@@ -1143,6 +1147,22 @@ impl Dataset {
                     format!("session[{i}].static_s"),
                     "static intervals are for kind = \"multi-position\" sessions".to_owned(),
                 ));
+            }
+            if let Some(q) = s.quiet_start_s {
+                if s.kind != SessionKind::MultiPosition || s.static_s.is_some() {
+                    return Err(err(
+                        format!("session[{i}].quiet_start_s"),
+                        "the quiet start is the detector's, in a kind = \"multi-position\" \
+                         session without static_s"
+                            .to_owned(),
+                    ));
+                }
+                if !(q.is_finite() && (1.0..=3600.0).contains(&q)) {
+                    return Err(err(
+                        format!("session[{i}].quiet_start_s"),
+                        format!("{q} is out of range [1, 3600] s"),
+                    ));
+                }
             }
             for (k, [t0, t1]) in s.static_s.iter().flatten().enumerate() {
                 if !(t0.is_finite() && t1.is_finite() && *t0 >= 0.0 && t1 > t0) {
