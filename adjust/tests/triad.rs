@@ -445,7 +445,7 @@ fn monte_carlo_of_hand_held_recordings() {
 /// the rms of (estimate - truth) / sigma, the global test's rejection rate, and the fewest
 /// positions a replica used.
 fn hand_held_monte_carlo(replicas: u64, tremor: f64) -> (Vec<f64>, f64, usize) {
-    let mut sum_z2 = vec![0.0; 9];
+    let mut sum_z2 = [0.0; 9];
     let (mut rejected, mut fewest) = (0u64, usize::MAX);
     for k in 0..replicas {
         let dir = tempfile::tempdir().expect("tempdir");
