@@ -245,6 +245,17 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
     Ok(sections)
 }
 
+/// A fit's one-line verdict from its global test.
+fn verdict(test: &calibration::GlobalTest) -> &'static str {
+    if test.rejects_the_model() {
+        "REJECTED by the global test: see below"
+    } else if test.passed {
+        "consistent with its sigmas"
+    } else {
+        "sigmas pessimistic (global test low)"
+    }
+}
+
 /// A fitted parameter as `value +/- sigma unit`.
 fn with_sigma(p: &Parameter) -> String {
     format!(
@@ -287,13 +298,6 @@ fn summary_section(st: &Stages<'_>) -> Section {
         "verdict",
     ]);
     for r in &cal.results {
-        let verdict = if r.global_test.rejects_the_model() {
-            "REJECTED by the global test: see below"
-        } else if r.global_test.passed {
-            "consistent with its sigmas"
-        } else {
-            "sigmas pessimistic (global test low)"
-        };
         t.rows.push(vec![
             r.model.clone(),
             r.accelerometer.clone(),
@@ -313,7 +317,7 @@ fn summary_section(st: &Stages<'_>) -> Section {
             }
             .to_owned(),
             format!("{} / {}", r.n_observations, r.n_excluded),
-            verdict.to_owned(),
+            verdict(&r.global_test).to_owned(),
         ]);
     }
     for r in &cal.triad {
@@ -335,14 +339,7 @@ fn summary_section(st: &Stages<'_>) -> Section {
             }
             .to_owned(),
             format!("{} positions / {removed}", r.positions_used),
-            if r.global_test.rejects_the_model() {
-                "REJECTED by the global test: see below"
-            } else if r.global_test.passed {
-                "consistent with its sigmas"
-            } else {
-                "sigmas pessimistic (global test low)"
-            }
-            .to_owned(),
+            verdict(&r.global_test).to_owned(),
         ]);
     }
     s.tables.push(("Calibrations".to_owned(), t));
@@ -876,16 +873,6 @@ fn snooping_section(st: &Stages<'_>) -> Section {
         }
     }
     s.tables.push(("Removed observations".to_owned(), removed));
-    let mut skipped = Table::new(&["model", "accelerometer", "session", "reason"]);
-    for k in &cal.skipped {
-        skipped.rows.push(vec![
-            k.model.clone(),
-            k.accelerometer.clone(),
-            k.session.clone(),
-            k.reason.clone(),
-        ]);
-    }
-    s.tables.push(("Fits without a result".to_owned(), skipped));
     s
 }
 
