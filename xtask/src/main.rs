@@ -79,11 +79,12 @@ enum Cmd {
         #[arg(long)]
         head: Option<usize>,
     },
-    /// Runs what CI runs: fmt, clippy, the tests, the fixture check and the pipeline on every fixture.
+    /// Runs what CI runs: fmt, clippy, the tests, the fixture check, the pipeline on every
+    /// fixture, apply, and every benchmark once on a small size.
     Ci,
     /// Benchmarks (speed and memory), measured, not asserted.
     Bench {
-        /// Which stage: ingest, align, adjust or apply.
+        /// Which stage: ingest, align, adjust or apply; or smoke (each once, small, as CI).
         what: String,
         /// Logging hours of the 250 Hz log (the 31.25 Hz log is twice as long).
         #[arg(long, default_value_t = 24.0)]
@@ -280,6 +281,19 @@ fn ci() -> Result<()> {
     let report = result.context("apply of esgt-2005's calibration to fixture survey")?;
     adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
     eprintln!("apply on survey: ok");
+    bench_smoke()
+}
+
+/// Every benchmark once on a small size, without the peers, so that none can break unseen
+/// (`bench adjust` stopped on a design check for months); the figures are not judged here:
+/// `cargo xtask bench` measures.
+fn bench_smoke() -> Result<()> {
+    let root = workspace_root();
+    bench::ingest(&root, 0.05, false, 1).context("bench ingest on a small log")?;
+    bench::align(&root, 5, 10).context("bench align on a small dataset")?;
+    bench::adjust(&root, 20_000, false).context("bench adjust on 20 000 observations")?;
+    bench_apply::apply(&root, 0.05, false, 1).context("bench apply on a small log")?;
+    eprintln!("benchmarks on small sizes: ok");
     Ok(())
 }
 
@@ -372,7 +386,11 @@ fn run(cli: Cli) -> Result<()> {
             "align" => bench::align(&workspace_root(), stations, readings),
             "adjust" => bench::adjust(&workspace_root(), observations, !no_peers),
             "apply" => bench_apply::apply(&workspace_root(), hours, !no_peers, runs.max(1)),
-            other => bail!("no benchmark `{other}`: there are ingest, align, adjust and apply"),
+            "smoke" => bench_smoke(),
+            other => bail!(
+                "no benchmark `{other}`: there are ingest, align, adjust, apply (and smoke: \
+                 each once on a small size, as CI runs them)"
+            ),
         },
     }
 }
