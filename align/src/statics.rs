@@ -177,12 +177,8 @@ pub fn detect(series: &Series, rate_hz: f64, quiet_s: f64) -> Result<Detection, 
             !(1.0 / QUIET_START_AGREEMENT..=QUIET_START_AGREEMENT).contains(&r)
         })
     {
-        // Found with a wrong reference, the stretches are themselves suspect: the reference
-        // becomes a low quantile of the windows' variances, then the stretches' own noise.
-        let robust = robust_variance(series, window).unwrap_or(v);
-        let first = intervals_with(series, window, threshold, robust);
-        let reference = pooled_variance(series, &first, window).unwrap_or(robust);
-        intervals = intervals_with(series, window, threshold, reference);
+        let (found, reference) = set_aside(series, window, threshold, v);
+        intervals = found;
         still_var = Some(reference);
         let sd = |v: [f64; 3]| v.map(|x| format!("{:.4e}", x.sqrt())).join(", ");
         warning = Some(format!(
@@ -196,22 +192,9 @@ pub fn detect(series: &Series, rate_hz: f64, quiet_s: f64) -> Result<Detection, 
     } else if let Some(v) = still_var
         && (0..3).any(|k| v[k] > quiet_var[k] * STILLER_START)
     {
-        // A quiet start stiller than the positions (a block on a table, then held by a
-        // hand that trembles): the positions' noise is what the detector must accept, or
-        // it cuts them short. The stretches found with a reference too small are their
-        // stillest parts, so the reference is raised step by step until it holds.
-        let mut reference: [f64; 3] = std::array::from_fn(|k| v[k].max(quiet_var[k]));
-        for _ in 0..4 {
-            intervals = intervals_with(series, window, threshold, reference);
-            let Some(next) = pooled_variance(series, &intervals, window) else {
-                break;
-            };
-            still_var = Some(next);
-            if (0..3).all(|k| next[k] <= reference[k] * STILLER_START) {
-                break;
-            }
-            reference = std::array::from_fn(|k| next[k].max(reference[k]));
-        }
+        let (found, var) = raised(series, window, threshold, quiet_var, v);
+        intervals = found;
+        still_var = var.or(still_var);
     }
     Ok(Detection {
         quiet_sd,
@@ -221,6 +204,53 @@ pub fn detect(series: &Series, rate_hz: f64, quiet_s: f64) -> Result<Detection, 
         threshold,
         intervals,
     })
+}
+
+/// A quiet start at odds with the still stretches' noise `v`: the stretches found with it
+/// are themselves suspect, so the reference becomes a low quantile of the windows'
+/// variances, then the noise of the stretches found with that. Returns the stretches and
+/// the reference.
+fn set_aside(
+    series: &Series,
+    window: usize,
+    threshold: f64,
+    v: [f64; 3],
+) -> (Vec<(usize, usize)>, [f64; 3]) {
+    let robust = robust_variance(series, window).unwrap_or(v);
+    let first = intervals_with(series, window, threshold, robust);
+    let reference = pooled_variance(series, &first, window).unwrap_or(robust);
+    (
+        intervals_with(series, window, threshold, reference),
+        reference,
+    )
+}
+
+/// A quiet start stiller than the positions (a block on a table, then held by a hand that
+/// trembles): the positions' noise `v` is what the detector must accept, or it cuts them
+/// short. The stretches found with a reference too small are their stillest parts, so the
+/// reference is raised step by step until it holds. Returns the stretches and their noise.
+fn raised(
+    series: &Series,
+    window: usize,
+    threshold: f64,
+    quiet_var: [f64; 3],
+    v: [f64; 3],
+) -> (Vec<(usize, usize)>, Option<[f64; 3]>) {
+    let mut reference: [f64; 3] = std::array::from_fn(|k| v[k].max(quiet_var[k]));
+    let mut intervals = Vec::new();
+    let mut still = None;
+    for _ in 0..4 {
+        intervals = intervals_with(series, window, threshold, reference);
+        let Some(next) = pooled_variance(series, &intervals, window) else {
+            break;
+        };
+        still = Some(next);
+        if (0..3).all(|k| next[k] <= reference[k] * STILLER_START) {
+            break;
+        }
+        reference = std::array::from_fn(|k| next[k].max(reference[k]));
+    }
+    (intervals, still)
 }
 
 /// The still stretches of `series` against the noise variances `reference` per axis.
