@@ -22,8 +22,9 @@ const COUNT_MAX: i64 = 8_388_607;
 /// of a real log, and its time in ns would not fit an i64 far beyond it. A week inside
 /// this range but outside the session is rejected by the time gate instead.
 const MAX_WEEK: i64 = 9_999;
-/// Plausible temperatures, degC (the binary reader's range too).
-const CELSIUS_RANGE: std::ops::RangeInclusive<f64> = -100.0..=200.0;
+/// Plausible temperatures, degC: every reader's ([`crate::labstream::TEMPERATURE_LIMITS`]).
+const CELSIUS_RANGE: std::ops::RangeInclusive<f64> =
+    crate::labstream::TEMPERATURE_LIMITS.lo..=crate::labstream::TEMPERATURE_LIMITS.hi;
 
 /// Which of the two CSV logs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -326,13 +327,21 @@ fn row_of(kind: CsvKind, time_ns: i64, fields: &[&[u8]]) -> Result<Row, Bad> {
 /// A row of a log whose time is one field in another form than GPS week + tow
 /// (docs/formats.md 9.1): `time,v1,v2,v3`.
 fn parse_row_timed(kind: CsvKind, line: &[u8], time: &mut TimeReader) -> Result<Row, Bad> {
-    let fields: Vec<&[u8]> = line.split(|&c| c == b',').map(<[u8]>::trim_ascii).collect();
-    if fields.len() != 4 {
+    // Up to five fields without allocating (a fifth only to say there are too many).
+    let mut buf: [&[u8]; 5] = [&[]; 5];
+    let mut count = 0;
+    for f in line.split(|&c| c == b',') {
+        if count < buf.len() {
+            buf[count] = f.trim_ascii();
+        }
+        count += 1;
+    }
+    let fields = &buf[..count.min(buf.len())];
+    if count != 4 {
         return Err(bad(
             "line",
             format!(
-                "{} fields, expected 4 (a time in the form \"{}\", then {})",
-                fields.len(),
+                "{count} fields, expected 4 (a time in the form \"{}\", then {})",
                 time.form.name(),
                 kind.header()[2..].join(",")
             ),

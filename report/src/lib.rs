@@ -297,50 +297,50 @@ fn summary_section(st: &Stages<'_>) -> Section {
         "used / removed",
         "verdict",
     ]);
-    for r in &cal.results {
-        t.rows.push(vec![
-            r.model.clone(),
-            r.accelerometer.clone(),
-            r.session.clone(),
-            r.parameters
-                .iter()
-                .map(with_sigma)
-                .collect::<Vec<_>>()
-                .join("; ")
-                + &r.t_ref_c
-                    .map_or(String::new(), |t| format!(" (at t_ref {t:.2} degC)")),
-            format!("{:.3}", r.sigma0),
-            if r.global_test.passed {
-                "passed"
-            } else {
-                "FAILED"
-            }
-            .to_owned(),
-            format!("{} / {}", r.n_observations, r.n_excluded),
-            verdict(&r.global_test).to_owned(),
+    // One row: what was fitted, its parameters with sigmas, and its statistics.
+    let row = |who: [&str; 3],
+               parameters: &[Parameter],
+               t_ref: Option<f64>,
+               gt: &calibration::GlobalTest,
+               sigma0: f64,
+               used: String| {
+        let calibration = parameters
+            .iter()
+            .map(with_sigma)
+            .collect::<Vec<_>>()
+            .join("; ")
+            + &t_ref.map_or(String::new(), |t| format!(" (at t_ref {t:.2} degC)"));
+        let passed = if gt.passed { "passed" } else { "FAILED" };
+        let mut cells: Vec<String> = who.iter().map(|w| (*w).to_owned()).collect();
+        cells.extend([
+            calibration,
+            format!("{sigma0:.3}"),
+            passed.to_owned(),
+            used,
+            verdict(gt).to_owned(),
         ]);
+        cells
+    };
+    for r in &cal.results {
+        t.rows.push(row(
+            [&r.model, &r.accelerometer, &r.session],
+            &r.parameters,
+            r.t_ref_c,
+            &r.global_test,
+            r.sigma0,
+            format!("{} / {}", r.n_observations, r.n_excluded),
+        ));
     }
     for r in &cal.triad {
         let removed = r.positions.iter().filter(|p| p.removed).count();
-        t.rows.push(vec![
-            r.model.clone(),
-            "triad (x, y, z)".to_owned(),
-            r.session.clone(),
-            r.parameters
-                .iter()
-                .map(with_sigma)
-                .collect::<Vec<_>>()
-                .join("; "),
-            format!("{:.3}", r.sigma0),
-            if r.global_test.passed {
-                "passed"
-            } else {
-                "FAILED"
-            }
-            .to_owned(),
+        t.rows.push(row(
+            [&r.model, "triad (x, y, z)", &r.session],
+            &r.parameters,
+            None,
+            &r.global_test,
+            r.sigma0,
             format!("{} positions / {removed}", r.positions_used),
-            verdict(&r.global_test).to_owned(),
-        ]);
+        ));
     }
     s.tables.push(("Calibrations".to_owned(), t));
     for r in &cal.results {
