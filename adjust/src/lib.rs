@@ -728,6 +728,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
             })
             .collect(),
         gravity_mgal: g,
+        reading_unit: ds.manifest.instrument.reading_unit.name().to_owned(),
         accelerometers: ds.manifest.instrument.accelerometer.clone(),
         results,
         skipped,

@@ -30,7 +30,7 @@ use ingest::contract::align_ledger::{
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ledger as ingest_ledger;
 use ingest::contract::manifest::{
-    self, AlignConfig, Dataset, Location, SessionKind, SigmaDzMethod,
+    self, AlignConfig, Dataset, Location, ReadingUnit, SessionKind, SigmaDzMethod,
 };
 use ingest::contract::{status, tables};
 use std::collections::BTreeMap;
@@ -242,6 +242,8 @@ struct Setup {
     max_gap_ns: i64,
     fallback_sigma_rad: f64,
     location: Option<Location>,
+    /// A sample's variance floor: the rounding to counts, or 0 for another reading unit.
+    floor_variance: f64,
 }
 
 impl Setup {
@@ -254,6 +256,11 @@ impl Setup {
             max_gap_ns: (cfg.max_temperature_gap_s * 1e9).round() as i64,
             fallback_sigma_rad: (cfg.theodolite_sigma_arcsec / 3600.0).to_radians(),
             location: ds.manifest.site.tide_location(),
+            floor_variance: if ds.manifest.instrument.reading_unit == ReadingUnit::Count {
+                window::QUANTISATION_VARIANCE
+            } else {
+                0.0
+            },
             cfg,
         }
     }
@@ -560,7 +567,7 @@ fn fill_windows(
 ) -> Result<()> {
     let mut cursor: Vec<(usize, usize)> = vec![(0, 0); pending.len()]; // (first active, next to open)
     let mut still_cursor = vec![0usize; still.len()];
-    read::acceleration(ingest_dir, |session, time_ns, counts, status| {
+    read::samples(ingest_dir, |session, time_ns, counts, status| {
         let si = usize::from(session);
         if si >= pending.len() {
             return;
@@ -594,7 +601,7 @@ fn fill_windows(
                 } else if status::over_range(status, ch) {
                     s.saturated += 1;
                 } else if let Some(x) = counts[ch] {
-                    s.add(t_s, f64::from(x));
+                    s.add(t_s, x);
                 }
             }
         }
@@ -607,7 +614,7 @@ fn add_to_still(
     intervals: &mut [StillInterval],
     cursor: &mut usize,
     time_ns: i64,
-    counts: [Option<i32>; 3],
+    counts: [Option<f64>; 3],
     status: u8,
     interval_ns: i64,
 ) {
@@ -633,7 +640,7 @@ fn add_to_still(
                     && !status::over_range(status, ch) =>
             {
                 if iv.counts[ch].len() < MAX_STILL_SAMPLES {
-                    iv.counts[ch].push(f64::from(c));
+                    iv.counts[ch].push(c);
                 }
             }
             _ => iv.broken[ch] = true,
@@ -735,7 +742,7 @@ fn observe_session<'t>(
         };
         for p in pending {
             let w = &p.sums[ch];
-            let stats = w.stats();
+            let stats = w.stats(setup.floor_variance);
             let StationSigma {
                 sigma_rad: sigma_dz_rad,
                 source,

@@ -261,6 +261,30 @@ pub fn series(dir: &Path, wanted: &[u16]) -> Result<BTreeMap<u16, crate::statics
     Ok(out)
 }
 
+/// Streams every acceleration sample of the dataset as decimal readings: the acceleration
+/// table (counts; null where not connected or over range, with the status bits), then the
+/// lab table (readings in the instrument's unit; null where the line gave `nan`, status
+/// not connected on that channel). `f(session index, time_ns, readings, status)`;
+/// each session's samples come from one table, in time order.
+pub fn samples(dir: &Path, mut f: impl FnMut(u16, i64, [Option<f64>; 3], u8)) -> Result<()> {
+    acceleration(dir, |session, time_ns, counts, st| {
+        f(session, time_ns, counts.map(|c| c.map(f64::from)), st);
+    })?;
+    lab_batches(dir, 1 << 16, |b| {
+        for i in 0..b.time_ns.len() {
+            let v = b.values.map(|v| v.is_valid(i).then(|| v.value(i)));
+            let mut st = 0u8;
+            for (ch, x) in v.iter().enumerate() {
+                if x.is_none() {
+                    st |= ingest::contract::status::not_connected_bit(ch);
+                }
+            }
+            f(b.session[i], b.time_ns[i], v, st);
+        }
+        Ok(())
+    })
+}
+
 /// One batch of the lab table: per row the session index, GPS time (ns), and the readings
 /// of channels 1..3 (null where the line gave `nan`).
 pub struct LabBatch<'a> {

@@ -2,7 +2,9 @@
 //! window's first value (so the squares keep their precision) and of time, from which the
 //! mean, the sd of the mean, and the t statistic of a linear trend follow.
 
-/// Variance of the rounding of a reading to whole counts, count^2.
+/// Variance of the rounding of a reading to whole counts, count^2: the floor of a sample's
+/// variance when readings are counts. Readings in another unit (a lab stream's volts or
+/// m/s^2) carry no known rounding, and their floor is 0: the samples' own scatter.
 pub const QUANTISATION_VARIANCE: f64 = 1.0 / 12.0;
 
 /// Running sums for one (reading, channel) window.
@@ -29,8 +31,9 @@ pub struct WindowSums {
 pub struct WindowStats {
     /// Mean count.
     pub mean: f64,
-    /// Sd of the mean (sample sd / sqrt(n)), never below the quantisation of the counts
-    /// (an sd of 1/sqrt(12) count per sample): samples all equal do not make a mean exact.
+    /// Sd of the mean (sample sd / sqrt(n)), never below the quantisation of the readings
+    /// (for counts an sd of 1/sqrt(12) count per sample): samples all equal do not make a
+    /// mean exact.
     pub sigma_mean: f64,
     /// t statistic of the slope of a straight line through the samples (0 when n < 4).
     pub drift_t: f64,
@@ -49,8 +52,9 @@ impl WindowSums {
         self.stx += t_s * d;
     }
 
-    /// Mean, sd of the mean and trend statistic; `None` with fewer than 2 samples.
-    pub fn stats(&self) -> Option<WindowStats> {
+    /// Mean, sd of the mean and trend statistic, a sample's variance taken as at least
+    /// `floor_variance` (see [`QUANTISATION_VARIANCE`]); `None` with fewer than 2 samples.
+    pub fn stats(&self, floor_variance: f64) -> Option<WindowStats> {
         let x0 = self.x0?;
         if self.n < 2 {
             return None;
@@ -76,7 +80,7 @@ impl WindowSums {
         };
         Some(WindowStats {
             mean: x0 + mean_d,
-            sigma_mean: (var.max(QUANTISATION_VARIANCE) / n).sqrt(),
+            sigma_mean: (var.max(floor_variance) / n).sqrt(),
             drift_t,
         })
     }
@@ -195,7 +199,7 @@ mod tests {
         for (i, x) in xs.iter().enumerate() {
             w.add(i as f64, *x);
         }
-        let s = w.stats().expect("stats");
+        let s = w.stats(QUANTISATION_VARIANCE).expect("stats");
         assert!((s.mean - 3_000_000.0).abs() < 1e-9);
         let sd = sample_sd(&xs).expect("sd");
         assert!(
@@ -216,8 +220,8 @@ mod tests {
             flat.add(t, 1.0e6 + noise);
             tilt.add(t, 1.0e6 + noise + 30.0 * t);
         }
-        assert!(flat.stats().expect("s").drift_t.abs() < 1.0);
-        assert!(tilt.stats().expect("s").drift_t > 10.0);
+        assert!(flat.stats(QUANTISATION_VARIANCE).expect("s").drift_t.abs() < 1.0);
+        assert!(tilt.stats(QUANTISATION_VARIANCE).expect("s").drift_t > 10.0);
     }
 
     #[test]

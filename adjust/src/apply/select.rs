@@ -54,6 +54,14 @@ pub fn select(
     choice: &Choice<'_>,
 ) -> Result<Selection, String> {
     check_instrument(cal, survey)?;
+    let unit = survey.manifest.instrument.reading_unit.name();
+    if cal.reading_unit != unit {
+        return Err(format!(
+            "the calibration was fitted on readings in {}, the survey's are in {unit} \
+             (the instrument's reading_unit)",
+            cal.reading_unit
+        ));
+    }
     let mut models = BTreeSet::new();
     for (m, _) in fits(cal) {
         models.insert(m);

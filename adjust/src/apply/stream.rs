@@ -67,7 +67,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
         Ok(r) => r,
         Err(_) => ingest::run(dataset, out)?,
     };
-    nothing_to_apply(&ds, &ingest_report, triad.is_some()).map_err(refused)?;
+    nothing_to_apply(&ds, &ingest_report).map_err(refused)?;
     let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
         path: dir.clone(),
@@ -92,40 +92,17 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
     Ok(report)
 }
 
-/// Refuses an application that would write no sample, naming the sessions and why: an
-/// axis model calibrates the counts table, and a lab stream's readings are in lab.parquet
-/// (a triad model takes both).
-fn nothing_to_apply(ds: &Dataset, ingest: &IngestReport, triad: bool) -> Result<(), String> {
+/// Refuses an application that would write no sample, naming the sessions.
+fn nothing_to_apply(ds: &Dataset, ingest: &IngestReport) -> Result<(), String> {
     let rows = |file: &str| ingest.tables.get(file).copied().unwrap_or(0);
-    let counts = rows(tables::acceleration::FILE);
-    let lab = rows(tables::lab::FILE);
-    if counts > 0 || (triad && lab > 0) {
+    if rows(tables::acceleration::FILE) + rows(tables::lab::FILE) > 0 {
         return Ok(());
     }
-    let sessions: Vec<String> = ds
-        .sessions
-        .iter()
-        .map(|s| match s.acquisition {
-            ingest::contract::manifest::Acquisition::Lab { .. } => format!(
-                "{} (a lab stream: readings in {}, not counts)",
-                s.session.id,
-                ds.manifest.instrument.reading_unit.name()
-            ),
-            _ => format!("{} (no usable sample)", s.session.id),
-        })
-        .collect();
-    Err(if lab > 0 {
-        format!(
-            "an axis model calibrates ADC counts, and the dataset's samples are all lab \
-             readings: {}; apply a triad model fitted on readings in the same unit",
-            sessions.join(", ")
-        )
-    } else {
-        format!(
-            "the dataset has no sample to apply the calibration to: {}",
-            sessions.join(", ")
-        )
-    })
+    let sessions: Vec<&str> = ds.sessions.iter().map(|s| s.session.id.as_str()).collect();
+    Err(format!(
+        "the dataset has no sample to apply the calibration to: sessions {} gave none",
+        sessions.join(", ")
+    ))
 }
 
 /// Axis models applied: each accelerometer's columns and the ledger.
@@ -358,25 +335,20 @@ fn write_table<'t>(
             }
             writer.finish_hashed()
         });
-        let reading = read::acceleration_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
-            let n = b.time_ns.len();
-            rows += n as u64;
-            let mut columns = vec![
-                ColumnValues::Int32(b.session.iter().map(|&s| i32::from(s)).collect(), None),
-                ColumnValues::Int64(b.time_ns.to_vec(), None),
-            ];
-            let per: Vec<[ColumnValues; 4]> = lanes
-                .par_iter_mut()
-                .map(|lane| lane.calibrate(&b, max_gap_ns))
-                .collect();
-            columns.extend(per.into_iter().flatten());
-            // A closed channel means the writer failed: reading stops, and the writer's
-            // error is the one reported.
-            tx.send((n, columns)).map_err(|_| align::Error::Table {
-                path: dir.join(applied::FILE),
-                message: "the writer stopped".to_owned(),
-            })
-        });
+        let table = dir.join(applied::FILE);
+        let mut send = Sender {
+            rows: &mut rows,
+            lanes: &mut lanes,
+            tx: &tx,
+            max_gap_ns,
+            table: &table,
+        };
+        // The counts table, then the lab table (a survey logged as a lab stream).
+        let reading =
+            read::acceleration_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| send.batch(&b))
+                .and_then(|()| {
+                    read::lab_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| send.batch(&b))
+                });
         drop(tx);
         (reading, writing.join())
     });
@@ -397,11 +369,94 @@ fn write_table<'t>(
     })
 }
 
+/// Calibrates batches and hands them to the writer thread.
+struct Sender<'a, 't> {
+    rows: &'a mut u64,
+    lanes: &'a mut [Lane<'t>],
+    tx: &'a std::sync::mpsc::SyncSender<(usize, Vec<ColumnValues>)>,
+    max_gap_ns: i64,
+    table: &'a Path,
+}
+
+impl Sender<'_, '_> {
+    /// One batch: its columns calibrated, each accelerometer on its own rayon task.
+    fn batch<B: SampleBatch>(&mut self, b: &B) -> Result<(), align::Error> {
+        let n = b.session().len();
+        *self.rows += n as u64;
+        let mut columns = vec![
+            ColumnValues::Int32(b.session().iter().map(|&s| i32::from(s)).collect(), None),
+            ColumnValues::Int64(b.time_ns().to_vec(), None),
+        ];
+        let max_gap_ns = self.max_gap_ns;
+        let per: Vec<[ColumnValues; 4]> = self
+            .lanes
+            .par_iter_mut()
+            .map(|lane| lane.calibrate(b, max_gap_ns))
+            .collect();
+        columns.extend(per.into_iter().flatten());
+        // A closed channel means the writer failed: reading stops, and the writer's error
+        // is the one reported.
+        self.tx.send((n, columns)).map_err(|_| align::Error::Table {
+            path: self.table.to_path_buf(),
+            message: "the writer stopped".to_owned(),
+        })
+    }
+}
+
 /// What the table's writing gave: rows, the table's SHA-256, each accelerometer's counts.
 struct Written<'t> {
     rows: u64,
     sha256: String,
     lanes: Vec<Lane<'t>>,
+}
+
+/// A batch of samples as apply reads them: the counts table's or the lab table's.
+trait SampleBatch: Sync {
+    /// Session index per row.
+    fn session(&self) -> &[u16];
+    /// GPS time per row, ns.
+    fn time_ns(&self) -> &[i64];
+    /// Channel `ch`'s (0-based) reading at row `i`, or the flag saying why there is none.
+    fn reading(&self, ch: usize, i: usize) -> Result<f64, u8>;
+}
+
+impl SampleBatch for AccelerationBatch<'_> {
+    fn session(&self) -> &[u16] {
+        self.session
+    }
+    fn time_ns(&self) -> &[i64] {
+        self.time_ns
+    }
+    fn reading(&self, ch: usize, i: usize) -> Result<f64, u8> {
+        let (st, counts) = (self.status[i], self.counts[ch]);
+        if status::not_connected(st, ch) {
+            Err(applied::NOT_CONNECTED)
+        } else if status::over_range(st, ch) {
+            Err(applied::SATURATED)
+        } else if !counts.is_valid(i) {
+            Err(applied::NOT_CONNECTED)
+        } else {
+            Ok(f64::from(counts.value(i)))
+        }
+    }
+}
+
+impl SampleBatch for read::LabBatch<'_> {
+    fn session(&self) -> &[u16] {
+        self.session
+    }
+    fn time_ns(&self) -> &[i64] {
+        self.time_ns
+    }
+    /// A lab stream's `nan` is a channel without a reading.
+    fn reading(&self, ch: usize, i: usize) -> Result<f64, u8> {
+        let v = self.values[ch];
+        if v.is_valid(i) {
+            Ok(v.value(i))
+        } else {
+            Err(applied::NOT_CONNECTED)
+        }
+    }
 }
 
 /// One accelerometer's way through the stream: its function, its temperature series per
@@ -436,36 +491,32 @@ impl<'t> Lane<'t> {
     }
 
     /// The calibration function at one sample: (acceleration, sigma, temperature), flags.
-    fn sample(
+    fn sample<B: SampleBatch>(
         &mut self,
-        b: &AccelerationBatch<'_>,
+        b: &B,
         i: usize,
         max_gap_ns: i64,
     ) -> (Option<(f64, f64)>, Option<f64>, u8) {
         let temperature = self
             .temperatures
-            .get_mut(usize::from(b.session[i]))
+            .get_mut(usize::from(b.session()[i]))
             .and_then(Option::as_mut)
-            .and_then(|it| it.at(b.time_ns[i], max_gap_ns))
+            .and_then(|it| it.at(b.time_ns()[i], max_gap_ns))
             .map(|(v, _)| v);
-        let (st, ch) = (b.status[i], self.channel);
-        let counts = b.counts[ch];
-        if status::not_connected(st, ch) || !counts.is_valid(i) && !status::over_range(st, ch) {
-            return (None, temperature, applied::NOT_CONNECTED);
-        }
-        if status::over_range(st, ch) {
-            return (None, temperature, applied::SATURATED);
-        }
+        let reading = match b.reading(self.channel, i) {
+            Ok(x) => x,
+            Err(flag) => return (None, temperature, flag),
+        };
         let Some(f) = self.function else {
             return (None, temperature, applied::NOT_CALIBRATED);
         };
-        let a = f.apply(f64::from(counts.value(i)), temperature);
+        let a = f.apply(reading, temperature);
         (a.acceleration_mgal.zip(a.sigma_mgal), temperature, a.flags)
     }
 
     /// Its four columns for one batch: acceleration, sigma, temperature, flags.
-    fn calibrate(&mut self, b: &AccelerationBatch<'_>, max_gap_ns: i64) -> [ColumnValues; 4] {
-        let n = b.time_ns.len();
+    fn calibrate<B: SampleBatch>(&mut self, b: &B, max_gap_ns: i64) -> [ColumnValues; 4] {
+        let n = b.session().len();
         let (mut acc, mut sigma, mut temp) = (
             Vec::with_capacity(n),
             Vec::with_capacity(n),

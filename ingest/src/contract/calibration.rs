@@ -417,6 +417,11 @@ pub struct Calibration {
     /// what `apply` checks a survey's instrument against.
     #[serde(default)]
     pub accelerometers: Vec<crate::contract::manifest::Accelerometer>,
+    /// The unit of the readings every fit was made on (the manifest's `reading_unit`:
+    /// "count" for ADC counts); k is in mGal per this unit. A calibration written before
+    /// this field was recorded is in counts.
+    #[serde(default = "count_unit")]
+    pub reading_unit: String,
     /// Fitted calibrations.
     pub results: Vec<CalibrationResult>,
     /// Fits without a result.
@@ -440,6 +445,12 @@ pub struct Calibration {
 
 /// The stage's folder in OUT.
 pub const STAGE_DIR: &str = "adjust";
+
+fn count_unit() -> String {
+    crate::contract::manifest::ReadingUnit::Count
+        .name()
+        .to_owned()
+}
 
 impl Calibration {
     /// Reads `dir/calibration.json` (`dir` being OUT/adjust).

@@ -1059,17 +1059,17 @@ impl Dataset {
                             format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
                         )
                     })?;
-            if s.adc_format == AdcFormat::Seconds && s.kind == SessionKind::TiltTable {
-                // align forms a tilt-table's observations from the counts table; a lab
-                // stream's readings would be ingested and then never used.
+            if s.adc_format != AdcFormat::Seconds && m.instrument.reading_unit != ReadingUnit::Count
+            {
+                // One fit takes every session's readings: they must share a unit.
                 return Err(err(
                     format!("session[{i}].adc_format"),
                     format!(
-                        "session `{}`: a tilt-table session takes its acceleration as counts \
-                         (`acquisition` = a .gcb log, or `adc_csv` + `temperature_csv` in the \
-                         GPS-week layout); a lab stream (adc_format = \"seconds\") serves \
-                         kind = \"multi-position\" and \"survey\" sessions",
-                        s.id
+                        "session `{}` is logged in ADC counts, and the instrument's \
+                         reading_unit is \"{}\": log every session as a lab stream \
+                         (adc_format = \"seconds\") in that unit, or set reading_unit = \"count\"",
+                        s.id,
+                        m.instrument.reading_unit.name()
                     ),
                 ));
             }
