@@ -507,30 +507,31 @@ fn apply_refuses_a_damaged_calibration_before_any_work() {
     }
 }
 
-/// A lab stream where it cannot serve (issue 25's "no silent nothing"): on a tilt-table
-/// session it was ingested and never used (every window `window_underfilled`); under an
-/// axis model, apply read 0 rows and wrote 0 with exit 0. Now the manifest names the
-/// session and what would work, and apply refuses before any work, naming the session.
+/// Readings in two units (issue 25's "no silent nothing"): a lab stream now serves every
+/// session kind (docs/formats.md 9.2), but one fit cannot take counts and volts, and a
+/// calibration fitted in counts cannot be applied to readings in m/s^2. The manifest names
+/// the session and what would work; apply refuses before any work, naming both units.
 #[test]
-fn a_lab_stream_where_it_cannot_serve_is_refused() {
+fn readings_in_two_units_are_refused() {
     let (dir, ds) = copy("esgt-2005-csv", |m| {
         m.replacen(
-            "adc_csv = \"raw/day1_adc.csv\"",
-            "adc_format = \"seconds\"\nstart = \"2005-02-15T09:00:00\"\nadc_csv = \"raw/day1_adc.csv\"",
+            "full_scale_g = 2.0",
+            "full_scale_g = 2.0\nreading_unit = \"V\"",
             1,
         )
     });
-    let e = ingest::run(&ds, &dir.path().join("out")).expect_err("a tilt-table lab stream");
+    let e = ingest::run(&ds, &dir.path().join("out")).expect_err("counts read as volts");
     let msg = e.to_string();
     assert!(
         msg.contains("session[0].adc_format")
             && msg.contains("day1")
-            && msg.contains("multi-position"),
+            && msg.contains("adc_format = \"seconds\""),
         "{msg}"
     );
 
     let (dir, survey) = copy("triad-multipos", |m| {
         m.replace("kind = \"multi-position\"", "kind = \"survey\"")
+            .replace("reading_unit = \"count\"", "reading_unit = \"m/s^2\"")
     });
     let cal_out = dir.path().join("esgt");
     let esgt = fixtures::dataset_dir("esgt-2005");
@@ -549,10 +550,10 @@ fn a_lab_stream_where_it_cannot_serve_is_refused() {
             },
         },
     )
-    .expect_err("an axis model on lab readings");
+    .expect_err("a calibration in counts on readings in m/s^2");
     let msg = e.to_string();
     assert!(
-        msg.contains("lab (a lab stream") && msg.contains("triad model"),
+        msg.contains("readings in count") && msg.contains("the survey's are in m/s^2"),
         "{msg}"
     );
     assert!(!out.join("apply").exists(), "refused before any work");
