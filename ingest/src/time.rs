@@ -390,6 +390,17 @@ pub fn gps_ns(c: Calendar, scale: TimeScale) -> Option<i64> {
     i64::try_from(ns).ok()
 }
 
+/// GPS time `gps_ns` as a UTC calendar time `YYYY-MM-DDTHH:MM:SS.mmmZ` (leap seconds from
+/// hifitime's table; milliseconds truncated), for what a person reads.
+pub fn utc_iso(gps_ns: i64) -> String {
+    let e = Epoch::from_gpst_nanoseconds(u64::try_from(gps_ns).unwrap_or(0));
+    let (y, mo, d, h, mi, s, ns) = e.to_gregorian_utc();
+    format!(
+        "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{:03}Z",
+        ns / 1_000_000
+    )
+}
+
 /// GPS week containing 00:00 UTC of `date`.
 pub fn week_of_date(date: (i32, u8, u8)) -> i64 {
     gps_ns(Calendar::midnight(date), TimeScale::Utc).map_or(0, |ns| ns.div_euclid(NS_PER_WEEK))

@@ -3,6 +3,7 @@
 
 mod bench;
 mod bench_apply;
+mod check;
 mod show;
 
 use anyhow::{Context, Result, bail};
@@ -67,6 +68,12 @@ enum Cmd {
         /// Print JSON instead of the table.
         #[arg(long)]
         json: bool,
+    },
+    /// Validates a dataset's manifest and reads the head and tail of every log, printing
+    /// per file what a run will read, or the error naming file, line and field.
+    Check {
+        /// Dataset folder (holding dataset.toml).
+        dataset: PathBuf,
     },
     /// Prints a Parquet table the pipeline wrote: its schema and rows, or CSV.
     Show {
@@ -300,6 +307,14 @@ fn bench_smoke() -> Result<()> {
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Pipeline(a) => run_stages(&a, &["ingest", "align", "adjust", "report"]),
+        Cmd::Check { dataset } => {
+            let mut out = std::io::stdout().lock();
+            if check::run(&dataset, &mut out)? {
+                Ok(())
+            } else {
+                bail!("{} does not check", dataset.display())
+            }
+        }
         Cmd::Show { file, csv, head } => {
             let options = show::ShowOptions {
                 csv,

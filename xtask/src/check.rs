@@ -1,0 +1,338 @@
+//! `cargo xtask check <dataset>`: the manifest validated, and the head and tail of every log
+//! read by ingest's own readers, printing per file what a full ingest will read (layout,
+//! time form, first and last time, rate, channels) or the error naming file, line and field.
+//!
+//! How: a scratch copy of the dataset in which every log keeps its first and last
+//! [`PEEK_BYTES`] and loses its middle (a text log's middle lines become empty lines, so
+//! every line keeps its number; a binary log's middle becomes a hole of zero bytes, so every
+//! byte keeps its offset), ingested by `ingest::run_with` into a scratch OUT. The readers,
+//! the time gate, the plausibility checks and the session checks are the ones a full run
+//! uses; what the copy's middle adds (blank lines, zero bytes skipped) is taken off again.
+
+use anyhow::{Context, Result};
+use ingest::contract::ledger::{FileLedger, IngestReport};
+use ingest::contract::manifest::{Acquisition, Dataset, ResolvedSession};
+use std::io::{Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+/// Bytes read at each end of a log.
+pub const PEEK_BYTES: u64 = 64 * 1024;
+
+/// A log of the dataset: its path relative to the folder and what its middle became.
+struct Peeked {
+    rel: PathBuf,
+    /// Lines (text) or bytes (binary) of the middle left out; 0 when read whole.
+    left_out: u64,
+    binary: bool,
+    /// How the log writes its times.
+    time_form: String,
+}
+
+/// Checks `dataset`; prints per file what will be read. Returns whether all is well.
+pub fn run(dataset: &Path, w: &mut impl Write) -> Result<bool> {
+    let ds = match Dataset::load(dataset) {
+        Ok(ds) => ds,
+        Err(e) => {
+            writeln!(w, "check: {e}")?;
+            return Ok(false);
+        }
+    };
+    writeln!(
+        w,
+        "check: {} is valid: {} session(s), {} accelerometer(s)",
+        ds.manifest_path.display(),
+        ds.sessions.len(),
+        ds.manifest.instrument.accelerometer.len()
+    )?;
+    let scratch = std::env::temp_dir().join(format!("gravcal-check-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&scratch);
+    let copy = scratch.join("dataset");
+    let result = peek_all(&ds, &copy, &scratch.join("out"), w);
+    let _ = std::fs::remove_dir_all(&scratch);
+    result
+}
+
+fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result<bool> {
+    std::fs::create_dir_all(copy).with_context(|| format!("creating {}", copy.display()))?;
+    std::fs::copy(&ds.manifest_path, copy.join("dataset.toml"))
+        .with_context(|| format!("copying {}", ds.manifest_path.display()))?;
+    let mut peeked = Vec::new();
+    for s in &ds.sessions {
+        for (path, binary, time_form) in logs(s) {
+            let rel = path
+                .strip_prefix(&ds.dir)
+                .map(Path::to_path_buf)
+                .unwrap_or_else(|_| path.clone());
+            let left_out = trim(&path, &copy.join(&rel), binary)?;
+            peeked.push(Peeked {
+                rel,
+                left_out,
+                binary,
+                time_form,
+            });
+        }
+    }
+    let opts = ingest::Options {
+        skip_bad_lines: false,
+        progress: false,
+    };
+    let outcome = ingest::run_with(copy, out, &opts);
+    let ledger = IngestReport::load(&out.join("ingest"));
+    let dataset_dir = ds.dir.display().to_string();
+    let scratch_dir = copy.display().to_string();
+    let real = |s: String| s.replace(&scratch_dir, &dataset_dir);
+    if let Ok(report) = &ledger {
+        let spans = Spans::read(&out.join("ingest"), ds).unwrap_or_default();
+        for f in &report.files {
+            let p = peeked.iter().find(|p| p.rel == Path::new(&f.path));
+            print_file(f, p, report, &spans, w)?;
+        }
+    }
+    match outcome {
+        Ok(_) => {
+            writeln!(
+                w,
+                "check: every log reads; a full run reads the parts left out here too"
+            )?;
+            Ok(true)
+        }
+        Err(e) => {
+            writeln!(w, "check: {}", real(e.to_string()))?;
+            Ok(false)
+        }
+    }
+}
+
+/// Every log of a session: its path, whether it is a binary log, how it writes its times.
+fn logs(s: &ResolvedSession) -> Vec<(PathBuf, bool, String)> {
+    let t = &s.times;
+    let text = |p: &PathBuf, form: ingest::time::TimeForm| {
+        let scale = if form == ingest::time::TimeForm::Iso {
+            format!(" (zone-less times in {})", scale_name(t.scale))
+        } else {
+            String::new()
+        };
+        (p.clone(), false, format!("times {}{scale}", form.name()))
+    };
+    let mut out = match &s.acquisition {
+        Acquisition::Binary(p) => vec![(
+            p.clone(),
+            true,
+            "binary frames, GPS time (10-bit week + tow)".to_owned(),
+        )],
+        Acquisition::Csv { adc, temperature } => {
+            vec![text(adc, t.adc), text(temperature, t.temperature)]
+        }
+        Acquisition::Lab {
+            stream,
+            temperature,
+            ..
+        } => {
+            let mut v = vec![text(stream, t.adc)];
+            v.extend(temperature.iter().map(|p| text(p, t.temperature)));
+            v
+        }
+    };
+    out.extend(s.theodolite.iter().map(|p| text(p, t.theodolite)));
+    out
+}
+
+/// Writes `to`: `from` with its middle left out as the module says; returns the lines
+/// (text) or bytes (binary) left out.
+fn trim(from: &Path, to: &Path, binary: bool) -> Result<u64> {
+    if let Some(dir) = to.parent() {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let bytes = std::fs::read(from).with_context(|| format!("reading {}", from.display()))?;
+    let n = bytes.len() as u64;
+    if n <= 2 * PEEK_BYTES {
+        std::fs::write(to, &bytes).with_context(|| format!("writing {}", to.display()))?;
+        return Ok(0);
+    }
+    let mut f = std::fs::File::create(to).with_context(|| format!("writing {}", to.display()))?;
+    let head = PEEK_BYTES as usize;
+    let tail = bytes.len() - PEEK_BYTES as usize;
+    if binary {
+        // Cut at frame boundaries of a log that starts with a frame.
+        let frame = ingest::gcb::FRAME_LEN;
+        let (head, tail) = (head - head % frame, tail - tail % frame);
+        f.write_all(&bytes[..head])?;
+        f.seek(SeekFrom::Start(tail as u64))?;
+        f.write_all(&bytes[tail..])?;
+        return Ok((tail - head) as u64);
+    }
+    // Cut after a line break at each end.
+    let head = bytes[..head]
+        .iter()
+        .rposition(|&b| b == b'\n')
+        .map_or(0, |i| i + 1);
+    let tail = bytes[tail..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(bytes.len(), |i| tail + i + 1);
+    let lines = bytes[head..tail].iter().filter(|&&b| b == b'\n').count();
+    f.write_all(&bytes[..head])?;
+    f.write_all(&vec![b'\n'; lines])?;
+    f.write_all(&bytes[tail..])?;
+    Ok(lines as u64)
+}
+
+/// A few lines about one file: what was read of it, accepted and rejected, and the
+/// session's times and rate.
+fn print_file(
+    f: &FileLedger,
+    p: Option<&Peeked>,
+    report: &IngestReport,
+    spans: &Spans,
+    w: &mut impl Write,
+) -> Result<()> {
+    let left_out = p.map_or(0, |p| p.left_out);
+    let binary = p.is_some_and(|p| p.binary);
+    let what = match (binary, left_out) {
+        (_, 0) => "read whole".to_owned(),
+        (true, n) => format!("first and last {PEEK_BYTES} bytes read ({n} left out)"),
+        (false, n) => format!("head and tail read ({n} lines left out)"),
+    };
+    let rejected: Vec<String> = f.rejected.iter().map(|(k, n)| format!("{n} {k}")).collect();
+    // The binary copy's hole of zero bytes, skipped while resynchronising, is not the log's.
+    let hole = |at: &str| binary && left_out > 0 && at == format!("byte {}", hole_start());
+    writeln!(
+        w,
+        "{} (session {}, {}; {}): {what}; {} {} read, {} accepted{}",
+        f.path,
+        f.session,
+        f.role,
+        p.map_or("", |p| p.time_form.as_str()),
+        f.read,
+        f.unit,
+        f.accepted,
+        if rejected.is_empty() {
+            String::new()
+        } else {
+            format!(", rejected: {}", rejected.join(", "))
+        }
+    )?;
+    if let Some(lab) = &f.lab_stream {
+        writeln!(
+            w,
+            "  lab stream: {}-separated, {}header{}",
+            if lab.comma_separated {
+                "comma"
+            } else {
+                "space"
+            },
+            if lab.header { "" } else { "no " },
+            lab.stamp_step_ns
+                .map(|s| format!(", stamps every {:.6} s", s as f64 * 1e-9))
+                .unwrap_or_default()
+        )?;
+    }
+    for r in f.rejections.iter().filter(|r| !hole(&r.at)).take(3) {
+        writeln!(w, "  {} {}: {}", r.at, r.reason, r.detail)?;
+    }
+    let time = |t: i64| ingest::time::utc_iso(t);
+    for (what, span) in spans.of(&f.session, &f.role) {
+        writeln!(
+            w,
+            "  {what}: {} accepted, first {}, last {} (of what was read)",
+            span.2,
+            time(span.0),
+            time(span.1)
+        )?;
+    }
+    if let Some(s) = report.sessions.iter().find(|s| s.id == f.session)
+        && matches!(f.role.as_str(), "acquisition" | "adc_csv")
+    {
+        writeln!(
+            w,
+            "  rate: {} Hz measured{}",
+            s.measured_sample_rate_hz
+                .map_or("none".to_owned(), |r| format!("{r:.4}")),
+            if s.channels_never_connected.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; channels never connected: {:?}",
+                    s.channels_never_connected
+                )
+            }
+        )?;
+    }
+    Ok(())
+}
+
+/// First and last time (GPS, ns) and count of what each table holds, by session id and
+/// stream.
+#[derive(Default)]
+struct Spans(std::collections::BTreeMap<(String, &'static str), (i64, i64, u64)>);
+
+impl Spans {
+    fn add(&mut self, session: &str, stream: &'static str, t: i64) {
+        let e = self
+            .0
+            .entry((session.to_owned(), stream))
+            .or_insert((t, t, 0));
+        e.0 = e.0.min(t);
+        e.1 = e.1.max(t);
+        e.2 += 1;
+    }
+
+    /// The tables of OUT/ingest (`dir`).
+    fn read(dir: &Path, ds: &Dataset) -> Result<Self> {
+        let ids: Vec<&str> = ds.sessions.iter().map(|s| s.session.id.as_str()).collect();
+        let id = |i: u16| ids.get(usize::from(i)).copied().unwrap_or("?");
+        let mut spans = Spans::default();
+        align::read::acceleration(dir, |s, t, _, _| spans.add(id(s), "acceleration", t))?;
+        align::read::lab_batches(dir, 1 << 16, |b| {
+            for (&s, &t) in b.session.iter().zip(b.time_ns) {
+                spans.add(id(s), "lab readings", t);
+            }
+            Ok(())
+        })?;
+        for ((s, _), (times, _)) in align::read::temperatures(dir)? {
+            // Every channel's series has the same times: count one channel's.
+            if spans.0.contains_key(&(id(s).to_owned(), "temperature")) {
+                continue;
+            }
+            for &t in &times {
+                spans.add(id(s), "temperature", t);
+            }
+        }
+        for (session, rows) in align::read::theodolite(dir)? {
+            for r in rows {
+                spans.add(&session, "readings", r.time_gps_ns);
+            }
+        }
+        Ok(spans)
+    }
+
+    /// What a file of `role` in `session` gave.
+    fn of(&self, session: &str, role: &str) -> Vec<(&'static str, (i64, i64, u64))> {
+        let streams: &[&'static str] = match role {
+            "acquisition" => &["acceleration", "temperature"],
+            "adc_csv" => &["acceleration", "lab readings"],
+            "temperature_csv" => &["temperature"],
+            "theodolite" => &["readings"],
+            _ => &[],
+        };
+        streams
+            .iter()
+            .filter_map(|&k| Some((k, *self.0.get(&(session.to_owned(), k))?)))
+            .collect()
+    }
+}
+
+/// Where the binary copy's hole starts: the head's end, cut at a frame boundary.
+fn hole_start() -> u64 {
+    let frame = ingest::gcb::FRAME_LEN as u64;
+    PEEK_BYTES - PEEK_BYTES % frame
+}
+
+fn scale_name(s: ingest::contract::manifest::TimeScale) -> &'static str {
+    use ingest::contract::manifest::TimeScale;
+    match s {
+        TimeScale::Utc => "UTC",
+        TimeScale::Gpst => "GPST",
+        TimeScale::Tai => "TAI",
+    }
+}
