@@ -209,10 +209,10 @@ fn a_counts_log_with_another_reading_unit_is_refused() {
         )
     })
     .expect("copy");
-    let e = ingest::contract::manifest::Dataset::load(&ds)
-        .err()
-        .expect("refused")
-        .to_string();
+    let e = match ingest::contract::manifest::Dataset::load(&ds) {
+        Ok(_) => panic!("counts read as volts: refused"),
+        Err(e) => e.to_string(),
+    };
     assert!(
         e.contains("session[0].adc_format") && e.contains("day1") && e.contains("reading_unit"),
         "{e}"
