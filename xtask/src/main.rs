@@ -4,6 +4,7 @@
 mod bench;
 mod bench_apply;
 mod check;
+mod init;
 mod show;
 
 use anyhow::{Context, Result, bail};
@@ -68,6 +69,11 @@ enum Cmd {
         /// Print JSON instead of the table.
         #[arg(long)]
         json: bool,
+    },
+    /// Writes a commented draft dataset.toml from the logs in <dataset>/raw/ (never over one).
+    Init {
+        /// Dataset folder (holding raw/).
+        dataset: PathBuf,
     },
     /// Validates a dataset's manifest and reads the head and tail of every log, printing
     /// per file what a run will read, or the error naming file, line and field.
@@ -307,6 +313,15 @@ fn bench_smoke() -> Result<()> {
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Pipeline(a) => run_stages(&a, &["ingest", "align", "adjust", "report"]),
+        Cmd::Init { dataset } => {
+            let path = init::run(&dataset)?;
+            eprintln!(
+                "init: wrote {}: replace every \"FILL IN\", then `cargo xtask check {}`",
+                path.display(),
+                dataset.display()
+            );
+            Ok(())
+        }
         Cmd::Check { dataset } => {
             let mut out = std::io::stdout().lock();
             if check::run(&dataset, &mut out)? {

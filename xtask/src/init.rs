@@ -1,0 +1,605 @@
+//! `cargo xtask init <dataset>`: a commented draft `dataset.toml` from the logs in
+//! `<dataset>/raw/` (docs/formats.md 9.3). Each file's head and tail (64 KiB each) is read:
+//! its layout (binary log, counts CSV, temperature CSV, lab stream, theodolite log), how it
+//! writes its times, its sample rate, channels and first and last time. Files are grouped
+//! into sessions by name (`day1.gcb` with `day1_theodolite.txt`; `day1_adc.csv` with
+//! `day1_temp.csv`): the stem before `_adc`, `_temp` or `_theodolite`. Every value the logs
+//! cannot tell (the benchmark's gravity, a session's kind when no theodolite log says it
+//! is a tilt table, a unit a number cannot show) is written as `"FILL IN"`, which the
+//! manifest's validation refuses by key until a person replaces it. It never overwrites a
+//! manifest.
+
+use anyhow::{Context, Result, bail};
+use ingest::time::{TimeForm, parse_iso};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// What the draft writes where it cannot know the value: refused by validation.
+pub const FILL: &str = "\"FILL IN\"";
+
+/// Bytes read at each end of a log.
+const PEEK: usize = 64 * 1024;
+
+/// A log's layout, as recognised.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Layout {
+    Binary,
+    /// ADC counts, one integer column per channel.
+    CountsCsv,
+    /// Temperatures, degC.
+    TemperatureCsv,
+    /// Decimal readings (docs/formats.md 8.3).
+    LabStream,
+    Theodolite,
+}
+
+impl Layout {
+    fn name(self) -> &'static str {
+        match self {
+            Layout::Binary => "binary log",
+            Layout::CountsCsv => "counts CSV",
+            Layout::TemperatureCsv => "temperature CSV",
+            Layout::LabStream => "lab stream",
+            Layout::Theodolite => "theodolite log",
+        }
+    }
+}
+
+/// One file of raw/, recognised.
+struct Found {
+    rel: String,
+    layout: Layout,
+    time: Option<TimeForm>,
+    /// First and last time, GPS ns (absolute times only).
+    span_ns: Option<(i64, i64)>,
+    /// Sample rate from the median interval, Hz.
+    rate_hz: Option<f64>,
+    /// Value columns.
+    channels: usize,
+    /// Comment lines, lower case: where a logger says its units and time scale.
+    comments: String,
+    /// Decimal readings' largest magnitude (lab streams), for the unit's hint.
+    magnitude: f64,
+}
+
+/// Writes `<dataset>/dataset.toml` from `<dataset>/raw/`; returns its path.
+pub fn run(dataset: &Path) -> Result<PathBuf> {
+    let manifest = dataset.join("dataset.toml");
+    if manifest.exists() {
+        bail!(
+            "{} exists: init never overwrites a manifest (move it away to draft a new one)",
+            manifest.display()
+        );
+    }
+    let raw = dataset.join("raw");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&raw)
+        .with_context(|| format!("listing {} (init reads the logs in raw/)", raw.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .collect();
+    files.sort();
+    let mut found = Vec::new();
+    for f in &files {
+        match recognise(f) {
+            Ok(x) => found.push(x),
+            Err(e) => eprintln!("init: {}: left out: {e}", f.display()),
+        }
+    }
+    if found.is_empty() {
+        bail!("{}: no log init recognises", raw.display());
+    }
+    let name = dataset
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "dataset".to_owned());
+    let text = draft(&name, &found);
+    std::fs::write(&manifest, text).with_context(|| format!("writing {}", manifest.display()))?;
+    Ok(manifest)
+}
+
+/// A file's layout, time form, span, rate and channels from its head and tail.
+fn recognise(path: &Path) -> Result<Found> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let rel = format!(
+        "raw/{}",
+        path.file_name().unwrap_or_default().to_string_lossy()
+    );
+    if bytes.starts_with(&ingest::gcb::SYNC) {
+        return Ok(binary(rel, &bytes));
+    }
+    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(PEEK)]).into_owned();
+    let tail = String::from_utf8_lossy(&bytes[bytes.len().saturating_sub(PEEK)..]).into_owned();
+    text(rel, &head, &tail)
+}
+
+/// The acceleration frames' times (10-bit week, tow) at each end of a binary log.
+fn binary(rel: String, bytes: &[u8]) -> Found {
+    let frames = |b: &[u8]| -> Vec<(u16, u32)> {
+        let n = ingest::gcb::FRAME_LEN;
+        let mut out = Vec::new();
+        let mut i = 0;
+        while i + n <= b.len() {
+            let f = &b[i..i + n];
+            let crc = u16::from_le_bytes([f[n - 2], f[n - 1]]);
+            if f[..2] == ingest::gcb::SYNC
+                && f[2] == 1
+                && ingest::gcb::crc16_ccitt_false(&f[2..n - 2]) == crc
+            {
+                out.push((
+                    u16::from_le_bytes([f[4], f[5]]),
+                    u32::from_le_bytes([f[6], f[7], f[8], f[9]]),
+                ));
+                i += n;
+            } else {
+                i += 1;
+            }
+        }
+        out
+    };
+    let head = frames(&bytes[..bytes.len().min(PEEK)]);
+    let tail = frames(&bytes[bytes.len().saturating_sub(PEEK)..]);
+    let ms: Vec<i64> = head.iter().map(|&(_, t)| i64::from(t)).collect();
+    // Times stay relative to the 10-bit week until the session's date resolves it.
+    let week_ns =
+        |(w, t): (u16, u32)| i64::from(w) * ingest::time::NS_PER_WEEK + i64::from(t) * 1_000_000;
+    Found {
+        rel,
+        layout: Layout::Binary,
+        time: None,
+        span_ns: head
+            .first()
+            .zip(tail.last())
+            .map(|(&a, &b)| (week_ns(a), week_ns(b))),
+        rate_hz: rate(&ms, 1e-3),
+        channels: 3,
+        comments: String::new(),
+        magnitude: 0.0,
+    }
+}
+
+/// The median interval of increasing times (in `unit` s) as a rate, Hz.
+fn rate(times: &[i64], unit: f64) -> Option<f64> {
+    let mut d: Vec<i64> = times
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|&d| d > 0)
+        .collect();
+    d.sort_unstable();
+    let m = *d.get(d.len() / 2)?;
+    Some(1.0 / (m as f64 * unit))
+}
+
+/// The data lines of a text (no comment, no blank), split; and the comments.
+fn data_lines(text: &str) -> (Vec<Vec<&str>>, String) {
+    let mut comments = String::new();
+    let mut out = Vec::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if let Some(c) = line.strip_prefix('#') {
+            comments.push_str(&c.to_lowercase());
+            comments.push('\n');
+        } else if !line.is_empty() {
+            let fields: Vec<&str> = if line.contains(',') {
+                line.split(',').map(str::trim).collect()
+            } else {
+                line.split_whitespace().collect()
+            };
+            out.push(fields);
+        }
+    }
+    (out, comments)
+}
+
+/// A text log: theodolite log, CSV or lab stream.
+fn text(rel: String, head: &str, tail: &str) -> Result<Found> {
+    let (mut lines, comments) = data_lines(head);
+    // A header line: its first field is neither a number nor a calendar time.
+    let header = lines.first().is_some_and(|f| {
+        f[0].parse::<f64>().is_err() && parse_iso(f[0]).is_err() && f.len() < 3
+            || f.len() >= 2 && f[0].parse::<f64>().is_err() && parse_iso(f[1]).is_err()
+    });
+    let names = if header {
+        lines.remove(0).join(",").to_lowercase()
+    } else {
+        String::new()
+    };
+    let (tail_lines, _) = data_lines(tail);
+    // A tail that starts mid-line: drop its first line.
+    let tail_lines: Vec<_> = tail_lines.into_iter().skip(1).collect();
+    let first = lines.first().context("no data line in its first 64 KiB")?;
+    if first.len() >= 3 && parse_iso(first[1]).is_ok() && first[0].parse::<f64>().is_err() {
+        let times: Vec<i64> = lines
+            .iter()
+            .chain(tail_lines.iter())
+            .filter_map(|f| f.get(1).and_then(|t| iso_ns(t)))
+            .collect();
+        return Ok(Found {
+            rel,
+            layout: Layout::Theodolite,
+            time: Some(TimeForm::Iso),
+            span_ns: times.first().zip(times.last()).map(|(&a, &b)| (a, b)),
+            rate_hz: None,
+            channels: 1,
+            comments,
+            magnitude: lines
+                .iter()
+                .filter_map(|f| f.get(2)?.parse::<f64>().ok())
+                .fold(0.0, f64::max),
+        });
+    }
+    let form = if first.len() >= 2
+        && first[0].parse::<u32>().is_ok_and(|w| w < 10_000)
+        && !first[0].contains('.')
+        && first[1].parse::<f64>().is_ok()
+        && names.starts_with("gps_week")
+    {
+        TimeForm::GpsWeekTow
+    } else if parse_iso(first[0]).is_ok() {
+        TimeForm::Iso
+    } else if first[0].parse::<f64>().is_ok_and(|t| t > 1e8) {
+        TimeForm::UnixS
+    } else {
+        TimeForm::S
+    };
+    let time_of = |f: &Vec<&str>| -> Option<i64> {
+        match form {
+            TimeForm::GpsWeekTow => {
+                let w: i64 = f.first()?.parse().ok()?;
+                let tow = ingest::time::parse_seconds_ns(f.get(1)?.as_bytes())?;
+                Some(w * ingest::time::NS_PER_WEEK + tow)
+            }
+            TimeForm::Iso => iso_ns(f.first()?),
+            _ => ingest::time::parse_seconds_ns(f.first()?.as_bytes()),
+        }
+    };
+    let times: Vec<i64> = lines.iter().filter_map(time_of).collect();
+    let last = tail_lines.iter().filter_map(time_of).next_back();
+    let skip = form.fields();
+    let values: Vec<&str> = lines
+        .iter()
+        .flat_map(|f| f.iter().skip(skip).copied())
+        .collect();
+    let integers = values.iter().all(|v| v.parse::<i64>().is_ok());
+    let magnitude = values
+        .iter()
+        .filter_map(|v| v.parse::<f64>().ok())
+        .fold(0.0, |m: f64, v| m.max(v.abs()));
+    let temperature = rel.to_lowercase().contains("temp")
+        || names.contains("t1")
+        || comments.contains("temperature");
+    let layout = if temperature {
+        Layout::TemperatureCsv
+    } else if integers || matches!(form, TimeForm::GpsWeekTow | TimeForm::Iso) {
+        Layout::CountsCsv
+    } else {
+        Layout::LabStream
+    };
+    let absolute = |t: i64| match form {
+        TimeForm::UnixS => unix_to_gps_ns(t),
+        TimeForm::S => None,
+        _ => Some(t),
+    };
+    Ok(Found {
+        rel,
+        layout,
+        time: Some(form),
+        span_ns: times
+            .first()
+            .and_then(|&a| Some((absolute(a)?, absolute(last.unwrap_or(a))?))),
+        rate_hz: rate(&times, 1e-9),
+        channels: first.len().saturating_sub(skip),
+        comments,
+        magnitude,
+    })
+}
+
+/// An ISO 8601 time as GPS ns (zone-less times taken as UTC: only the date is used).
+fn iso_ns(s: &str) -> Option<i64> {
+    let (c, offset_min) = parse_iso(s).ok()?;
+    let ns = ingest::time::gps_ns(c, ingest::contract::manifest::TimeScale::Utc)?;
+    Some(ns - i64::from(offset_min.unwrap_or(0)) * 60_000_000_000)
+}
+
+/// Unix time (ns) as GPS ns, with the leap seconds of hifitime's table.
+fn unix_to_gps_ns(unix_ns: i64) -> Option<i64> {
+    let days = unix_ns.div_euclid(86_400_000_000_000);
+    let date = ingest::time::civil_from_days(days);
+    let midnight = ingest::time::gps_ns(
+        ingest::time::Calendar::midnight(date),
+        ingest::contract::manifest::TimeScale::Utc,
+    )?;
+    Some(midnight + unix_ns.rem_euclid(86_400_000_000_000))
+}
+
+/// The session a file belongs to: its name without extension, with any of `_adc`, `_temp`,
+/// `_theodolite` (and the like) taken off its end.
+fn stem(rel: &str) -> String {
+    let name = rel.trim_start_matches("raw/");
+    let mut base = name.split('.').next().unwrap_or(name).to_owned();
+    let suffixes = [
+        "_theodolite",
+        "_theo",
+        "_temperature",
+        "_temp",
+        "_adc",
+        "_acc",
+        "_lab",
+    ];
+    while let Some(s) = suffixes
+        .iter()
+        .find(|s| base.to_lowercase().ends_with(*s) && base.len() > s.len())
+    {
+        base.truncate(base.len() - s.len());
+    }
+    base
+}
+
+/// The draft manifest's text.
+fn draft(name: &str, found: &[Found]) -> String {
+    let mut groups: BTreeMap<String, Vec<&Found>> = BTreeMap::new();
+    for f in found {
+        groups.entry(stem(&f.rel)).or_default().push(f);
+    }
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "# Draft written by `cargo xtask init` from the logs in raw/ (docs/formats.md 9.3).\n\
+         # Every {FILL} must be replaced before the manifest validates; `cargo xtask check`\n\
+         # then reads every log's head and tail.\n\
+         name = \"{name}\"\n\
+         description = \"{name}: drafted by cargo xtask init\"\n"
+    );
+    site(&mut t);
+    instrument(&mut t, found);
+    let mut triad = false;
+    for (id, files) in &groups {
+        triad |= session(&mut t, id, files);
+    }
+    let _ = writeln!(
+        t,
+        "# [[adjust.model]] tables choose the models fitted (docs/formats.md 2); without one\n\
+         # the default models are fitted to the tilt-table sessions.\n"
+    );
+    if triad {
+        let _ = writeln!(
+            t,
+            "[[adjust.model]]                 # a triad calibration of the multi-position sessions\n\
+             name = \"triad\"\nkind = \"triad\"\n"
+        );
+    }
+    t
+}
+
+fn site(t: &mut String) {
+    let _ = writeln!(
+        t,
+        "[site]\n\
+         g_abs_mgal = {FILL}          # absolute gravity at the benchmark, mGal (e.g. 980855.8)\n\
+         # gradient_mgal_per_m = -0.3086  # vertical gradient, mGal/m (default -0.3086)\n\
+         # sensor_height_m = 0.0          # the proof masses above the benchmark, m\n\
+         # latitude_deg = 0.0             # with longitude and height: the Earth tide\n\
+         # longitude_deg = 0.0\n\
+         # height_m = 0.0\n"
+    );
+}
+
+/// The instrument: the rate measured, a channel per value column.
+fn instrument(t: &mut String, found: &[Found]) {
+    let acc = found.iter().filter(|f| {
+        matches!(
+            f.layout,
+            Layout::Binary | Layout::CountsCsv | Layout::LabStream
+        )
+    });
+    let rates: Vec<f64> = acc.clone().filter_map(|f| f.rate_hz).collect();
+    let rate = rates.first().map_or(FILL.to_owned(), |&r| nice_rate(r));
+    let channels = acc
+        .clone()
+        .map(|f| f.channels)
+        .max()
+        .unwrap_or(3)
+        .clamp(1, 3);
+    let lab: Vec<&Found> = acc.filter(|f| f.layout == Layout::LabStream).collect();
+    let _ = writeln!(
+        t,
+        "[instrument]\n\
+         sample_rate_hz = {rate}        # measured from the logs' time stamps{}",
+        if rates.len() > 1 && rates.iter().any(|r| (r / rates[0] - 1.0).abs() > 0.01) {
+            format!(" (they differ: {rates:?})")
+        } else {
+            String::new()
+        }
+    );
+    if let Some(l) = lab.first() {
+        let (unit, why) = reading_unit(l);
+        let _ = writeln!(t, "reading_unit = {unit}          # {why}");
+    }
+    let _ = writeln!(t);
+    for ch in 1..=channels {
+        let _ = writeln!(
+            t,
+            "[[instrument.accelerometer]]\nid = \"acc{ch}\"\nchannel = {ch}\n\
+             # serial = \"\"                  # checked by apply against the calibration's\n"
+        );
+    }
+}
+
+/// A rate near a usual one is taken as it; else to 4 significant digits.
+fn nice_rate(r: f64) -> String {
+    let usual = [
+        1.0, 2.0, 5.0, 10.0, 20.0, 25.0, 31.25, 50.0, 62.5, 100.0, 125.0, 200.0, 250.0, 400.0,
+        500.0, 1000.0,
+    ];
+    match usual.iter().find(|&&u| (r / u - 1.0).abs() < 0.02) {
+        Some(u) => format!("{u}"),
+        None => format!("{:.4}", r),
+    }
+}
+
+/// A lab stream's unit: what its comments say, or a question with the magnitude's hint.
+fn reading_unit(f: &Found) -> (String, String) {
+    let c = &f.comments;
+    for (word, unit) in [
+        ("count", "count"),
+        ("m/s^2", "m/s^2"),
+        ("m/s2", "m/s^2"),
+        ("mgal", "mGal"),
+        ("volt", "V"),
+    ] {
+        if c.contains(word) {
+            return (
+                format!("\"{unit}\""),
+                format!("as {}'s comments say", f.rel),
+            );
+        }
+    }
+    let hint = match f.magnitude {
+        m if m > 1e5 => "counts?",
+        m if m > 1e3 => "mGal?",
+        m if m > 3.0 => "m/s^2?",
+        _ => "g or V?",
+    };
+    (
+        FILL.to_owned(),
+        format!(
+            "\"count\" | \"m/s^2\" | \"mGal\" | \"g\" | \"V\": readings up to {:.4} ({hint})",
+            f.magnitude
+        ),
+    )
+}
+
+/// One session of files sharing a stem; returns whether it is a multi-position session.
+fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
+    let get = |l: Layout| files.iter().copied().find(|f| f.layout == l);
+    let theodolite = get(Layout::Theodolite);
+    let temperature = get(Layout::TemperatureCsv);
+    let _ = writeln!(t, "[[session]]\nid = \"{id}\"");
+    for f in files {
+        let span = f.span_ns.map_or(String::new(), |(a, b)| match f.layout {
+            Layout::Binary => " (times by the 10-bit week)".to_owned(),
+            _ => format!(
+                ", {} to {}",
+                ingest::time::utc_iso(a),
+                ingest::time::utc_iso(b)
+            ),
+        });
+        let _ = writeln!(
+            t,
+            "# {}: {}{}, {} channel(s){}{span}",
+            f.rel,
+            f.layout.name(),
+            f.time
+                .map_or(String::new(), |x| format!(", times {}", x.name())),
+            f.channels,
+            f.rate_hz.map_or(String::new(), |r| format!(", {r:.4} Hz"))
+        );
+    }
+    let _ = writeln!(t, "date = {}", date(files));
+    let lab = get(Layout::LabStream);
+    let kind = if theodolite.is_some() {
+        "\"tilt-table\"".to_owned()
+    } else {
+        format!(
+            "{FILL}                # no theodolite log: \"multi-position\" (a triad calibrated) or \"survey\" (a calibration applied)"
+        )
+    };
+    let _ = writeln!(t, "kind = {kind}");
+    if let Some(b) = get(Layout::Binary) {
+        let _ = writeln!(t, "acquisition = \"{}\"", b.rel);
+    } else if let Some(l) = lab {
+        let form = l.time.unwrap_or(TimeForm::S);
+        let _ = writeln!(
+            t,
+            "adc_csv = \"{}\"\nadc_format = \"seconds\"\nadc_time = \"{}\"",
+            l.rel,
+            form.name()
+        );
+        if form == TimeForm::S {
+            let _ = writeln!(
+                t,
+                "start = {FILL}                # the time (ISO 8601, e.g. 2026-03-14T09:00:00Z) of the stream's t = 0"
+            );
+        }
+    } else if let Some(c) = get(Layout::CountsCsv) {
+        let _ = writeln!(
+            t,
+            "adc_csv = \"{}\"\nadc_time = \"{}\"",
+            c.rel,
+            c.time.unwrap_or(TimeForm::GpsWeekTow).name()
+        );
+    }
+    if let Some(x) = temperature {
+        let _ = writeln!(
+            t,
+            "temperature_csv = \"{}\"\ntemperature_time = \"{}\"",
+            x.rel,
+            x.time.unwrap_or(TimeForm::GpsWeekTow).name()
+        );
+    }
+    if let Some(th) = theodolite {
+        theodolite_keys(t, th);
+        let _ = writeln!(
+            t,
+            "# roll_deg = 0.0                # the block's roll about the vertical, deg (docs/formats.md 8.2)"
+        );
+    } else {
+        let _ = writeln!(
+            t,
+            "# quiet_start_s = 40.0          # multi-position: the still stretch at the start, s (8.4)\n\
+             # static_s = [[40.0, 52.5]]     # multi-position: the still intervals, s since the start"
+        );
+    }
+    let _ = writeln!(
+        t,
+        "# days = 2                      # UTC days the session spans from its date\n"
+    );
+    theodolite.is_none() && lab.is_some()
+}
+
+/// The session's UTC date from its files' first absolute time, or a line to fill.
+fn date(files: &[&Found]) -> String {
+    let first = files
+        .iter()
+        .filter(|f| f.layout != Layout::Binary)
+        .filter_map(|f| f.span_ns.map(|s| s.0))
+        .min();
+    match first {
+        Some(ns) => format!("\"{}\"", &ingest::time::utc_iso(ns)[..10]),
+        None => format!(
+            "{FILL}                # YYYY-MM-DD (UTC) of the first sample: no log of the session \
+             writes a calendar time (a binary log's 10-bit week repeats every 1024 weeks)"
+        ),
+    }
+}
+
+/// The theodolite log's time scale and unit, from its comments or values.
+fn theodolite_keys(t: &mut String, th: &Found) {
+    let c = &th.comments;
+    let scale = ["utc", "gpst", "tai"]
+        .iter()
+        .find(|s| c.contains(*s))
+        .map(|s| format!("\"{}\"", s.to_uppercase()));
+    let scale = scale.unwrap_or_else(|| {
+        format!(
+            "{FILL}                # \"UTC\" | \"GPST\" | \"TAI\": the scale of its zone-less times"
+        )
+    });
+    let unit = if c.contains("gon") {
+        "\"gon\"".to_owned()
+    } else if c.contains("deg") {
+        "\"deg\"".to_owned()
+    } else if th.magnitude > 360.0 {
+        "\"gon\"                  # readings above 360".to_owned()
+    } else {
+        format!(
+            "{FILL}                # \"deg\" | \"gon\": readings up to {:.4} could be either",
+            th.magnitude
+        )
+    };
+    let _ = writeln!(
+        t,
+        "theodolite = \"{}\"\ntheodolite_time = \"iso\"\ntime_scale = {scale}\ntheodolite_unit = {unit}",
+        th.rel
+    );
+}
