@@ -520,20 +520,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
 /// Writes a few lines per file: what was read, accepted and rejected, and why.
 pub fn print_summary(report: &IngestReport, w: &mut impl std::io::Write) {
     for f in &report.files {
-        let rejected: Vec<String> = f.rejected.iter().map(|(r, n)| format!("{n} {r}")).collect();
-        let _ = writeln!(
-            w,
-            "ingest: {}: {} {} read, {} accepted{}",
-            f.path,
-            f.read,
-            f.unit,
-            f.accepted,
-            if rejected.is_empty() {
-                String::new()
-            } else {
-                format!(", rejected: {}", rejected.join(", "))
-            }
-        );
+        let _ = writeln!(w, "ingest: {}: {}", f.path, f.counts_line());
         if let Some(b) = &f.byte_ledger
             && b.skipped_resynchronising > 0
         {

@@ -193,24 +193,16 @@ fn print_file(
         (true, n) => format!("first and last {PEEK_BYTES} bytes read ({n} left out)"),
         (false, n) => format!("head and tail read ({n} lines left out)"),
     };
-    let rejected: Vec<String> = f.rejected.iter().map(|(k, n)| format!("{n} {k}")).collect();
     // The binary copy's hole of zero bytes, skipped while resynchronising, is not the log's.
     let hole = |at: &str| binary && left_out > 0 && at == format!("byte {}", hole_start());
     writeln!(
         w,
-        "{} (session {}, {}; {}): {what}; {} {} read, {} accepted{}",
+        "{} (session {}, {}; {}): {what}; {}",
         f.path,
         f.session,
         f.role,
         p.map_or("", |p| p.time_form.as_str()),
-        f.read,
-        f.unit,
-        f.accepted,
-        if rejected.is_empty() {
-            String::new()
-        } else {
-            format!(", rejected: {}", rejected.join(", "))
-        }
+        f.counts_line()
     )?;
     if let Some(lab) = &f.lab_stream {
         writeln!(

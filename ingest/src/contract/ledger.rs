@@ -138,6 +138,26 @@ pub struct LabStreamReport {
 }
 
 impl FileLedger {
+    /// `N lines read, M accepted[, rejected: k reason, ...]`: the file's counts in a line.
+    pub fn counts_line(&self) -> String {
+        let rejected: Vec<String> = self
+            .rejected
+            .iter()
+            .map(|(r, n)| format!("{n} {r}"))
+            .collect();
+        format!(
+            "{} {} read, {} accepted{}",
+            self.read,
+            self.unit,
+            self.accepted,
+            if rejected.is_empty() {
+                String::new()
+            } else {
+                format!(", rejected: {}", rejected.join(", "))
+            }
+        )
+    }
+
     /// Counts a rejection and lists it if there is room.
     pub fn reject(&mut self, at: String, reason: &str, detail: String) {
         *self.rejected.entry(reason.to_owned()).or_default() += 1;
