@@ -40,15 +40,29 @@ fn the_lab_logger_calibrates_and_applies_within_its_sigmas() {
         for (name, t) in [("b", c.b_mgal), ("k", c.k_mgal_per_bit)] {
             let p = r.parameters.iter().find(|p| p.name == name).expect("param");
             let z = (p.value - t) / p.sigma;
-            assert!(z.abs() < 4.0, "{} {name}: {} vs {t}, z {z:.2}", c.accelerometer, p.value);
+            assert!(
+                z.abs() < 4.0,
+                "{} {name}: {} vs {t}, z {z:.2}",
+                c.accelerometer,
+                p.value
+            );
         }
     }
 
     // The positions' triad.
     let triad = cal.triad.first().expect("a triad fit");
-    for (p, t) in triad.parameters.iter().zip(&truth.multi_position.parameters) {
+    for (p, t) in triad
+        .parameters
+        .iter()
+        .zip(&truth.multi_position.parameters)
+    {
         let z = (p.value - t) / p.sigma;
-        assert!(z.abs() < 4.0, "triad {}: {} vs {t}, z {z:.2}", p.name, p.value);
+        assert!(
+            z.abs() < 4.0,
+            "triad {}: {} vs {t}, z {z:.2}",
+            p.name,
+            p.value
+        );
     }
 
     // The day's linear model applied to the drive, a lab stream.
@@ -107,7 +121,12 @@ fn the_lab_logger_calibrates_and_applies_within_its_sigmas() {
                         && t[i] < still.end_gps_ns - 2_000_000_000
                 })
                 .collect();
-            assert!(idx.len() > 100, "station {}: {} samples", still.station, idx.len());
+            assert!(
+                idx.len() > 100,
+                "station {}: {} samples",
+                still.station,
+                idx.len()
+            );
             let n = idx.len() as f64;
             let mut err = Vec::new();
             for &i in &idx {
@@ -135,5 +154,8 @@ fn the_lab_logger_calibrates_and_applies_within_its_sigmas() {
             checked += 1;
         }
     }
-    assert!(checked >= 30, "{checked} (accelerometer, attitude) pairs checked");
+    assert!(
+        checked >= 30,
+        "{checked} (accelerometer, attitude) pairs checked"
+    );
 }

@@ -362,6 +362,14 @@ fn draft(name: &str, found: &[Found]) -> String {
          # the default models are fitted to the tilt-table sessions.\n"
     );
     if triad {
+        // Declaring one model drops the defaults: the tilt-table sessions' is declared too.
+        if found.iter().any(|f| f.layout == Layout::Theodolite) {
+            let _ = writeln!(
+                t,
+                "[[adjust.model]]                 # b and k per accelerometer and tilt-table session\n\
+                 name = \"linear\"\n"
+            );
+        }
         let _ = writeln!(
             t,
             "[[adjust.model]]                 # a triad calibration of the multi-position sessions\n\

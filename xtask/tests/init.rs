@@ -181,3 +181,91 @@ fn a_draft_filled_in_calibrates_as_the_committed_manifest() {
         assert!(compared > 0, "{name}: nothing compared");
     }
 }
+
+/// docs/calibrate-your-own.md's last section, followed as written: the lab fixture's logs
+/// drafted, the draft filled with the page's own lines, checked, calibrated and applied.
+#[test]
+fn the_walkthrough_drafts_and_calibrates_the_lab_fixture() {
+    let page = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/calibrate-your-own.md"),
+    )
+    .expect("the page");
+    let block = page
+        .split("<!-- lab-fill -->\n```text\n")
+        .nth(1)
+        .and_then(|b| b.split("```").next())
+        .expect("the page's fills");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("my-lab");
+    fixtures::copy_dataset(fixtures::lab::LAB, &ds, |m| m).expect("copy");
+    std::fs::remove_file(ds.join("dataset.toml")).expect("rm");
+    let o = xtask(&["init", ds.to_str().expect("utf-8")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut draft = std::fs::read_to_string(ds.join("dataset.toml")).expect("draft");
+    for fill in block.lines() {
+        let (table, assignment) = fill.split_once("] ").expect("[table] key = value");
+        let (key, _) = assignment.split_once(" = ").expect("key = value");
+        let start = match table.trim_start_matches('[').split_once(' ') {
+            Some(("session", id)) => draft
+                .find(&format!("id = \"{id}\""))
+                .expect("the session in the draft"),
+            _ => draft
+                .find(&format!("{table}]"))
+                .expect("the table in the draft"),
+        };
+        let at = start
+            + draft[start..]
+                .find(&format!("{key} = \"FILL IN\""))
+                .unwrap_or_else(|| panic!("{fill}: the draft marks {key}\n{draft}"));
+        let end = at + draft[at..].find('\n').expect("line end");
+        draft.replace_range(at..end, assignment);
+    }
+    assert!(
+        !draft.contains("= \"FILL IN\""),
+        "the page fills every mark:\n{draft}"
+    );
+    std::fs::write(ds.join("dataset.toml"), &draft).expect("write");
+    let ds_arg = ds.to_str().expect("utf-8");
+    let check = xtask(&["check", ds_arg]);
+    assert!(
+        check.status.success(),
+        "{}",
+        String::from_utf8_lossy(&check.stdout)
+    );
+    let out = dir.path().join("out");
+    let out_arg = out.to_str().expect("utf-8");
+    let run = xtask(&["pipeline", ds_arg, "--out", out_arg]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let cal_path = out.join("adjust/calibration.json");
+    let cal: ingest::contract::calibration::Calibration =
+        ingest::read_json(&cal_path).expect("calibration.json");
+    let linear = cal
+        .results
+        .iter()
+        .filter(|r| r.model == "linear" && r.session == "table")
+        .count();
+    assert_eq!(linear, 3, "b and k of the three accelerometers");
+    assert_eq!(cal.triad.len(), 1, "the positions' triad");
+    let applied = dir.path().join("applied");
+    let apply = xtask(&[
+        "apply",
+        ds_arg,
+        "--calibration",
+        cal_path.to_str().expect("utf-8"),
+        "--model",
+        "linear",
+        "--session",
+        "table",
+        "--out",
+        applied.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        apply.status.success(),
+        "{}",
+        String::from_utf8_lossy(&apply.stderr)
+    );
+}
