@@ -89,6 +89,8 @@ pub struct TimeReader {
     pub start_gps_ns: Option<i64>,
     /// GPS minus Unix time over the UTC day last seen: (day since 1970, offset ns).
     utc_day: Option<(i64, i64)>,
+    /// The ISO date last seen, whether it was in `Z`, and its midnight in GPS ns.
+    iso_day: Option<([u8; 10], bool, i64)>,
 }
 
 /// Nanoseconds in a day.
@@ -102,7 +104,63 @@ impl TimeReader {
             scale,
             start_gps_ns,
             utc_day: None,
+            iso_day: None,
         }
+    }
+
+    /// An ISO time in the common case, `YYYY-MM-DDTHH:MM:SS[.fraction]` then `Z` or nothing,
+    /// a second below 60: its date's midnight (in GPS ns, worked out once a day) plus the
+    /// time of day. A leap second is inserted at the end of a UTC day, so it never lies
+    /// between a UTC midnight and a time of day below 23:59:60. Anything else (an offset,
+    /// a leap second, a malformed time) is `None`, left to the general parser.
+    #[inline]
+    fn iso_fast(&mut self, b: &[u8]) -> Option<i64> {
+        let (body, zulu) = match b.last()? {
+            b'Z' | b'z' => (&b[..b.len() - 1], true),
+            _ => (b, false),
+        };
+        if body.len() < 19
+            || !matches!(body[10], b'T' | b' ')
+            || body[13] != b':'
+            || body[16] != b':'
+        {
+            return None;
+        }
+        let two = |i: usize| -> Option<i64> {
+            let (a, c) = (body[i].wrapping_sub(b'0'), body[i + 1].wrapping_sub(b'0'));
+            (a < 10 && c < 10).then(|| i64::from(a) * 10 + i64::from(c))
+        };
+        let (h, m, sec) = (two(11)?, two(14)?, two(17)?);
+        if h > 23 || m > 59 || sec > 59 {
+            return None;
+        }
+        let mut nanos = 0i64;
+        if body.len() > 19 {
+            let frac = &body[20..];
+            if body[19] != b'.' || frac.is_empty() || frac.len() > 9 {
+                return None;
+            }
+            for &c in frac {
+                let d = c.wrapping_sub(b'0');
+                if d >= 10 {
+                    return None;
+                }
+                nanos = nanos * 10 + i64::from(d);
+            }
+            nanos *= 10i64.pow(9 - frac.len() as u32);
+        }
+        let date: [u8; 10] = body[..10].try_into().ok()?;
+        let midnight = match self.iso_day {
+            Some((d, z, ns)) if d == date && z == zulu => ns,
+            _ => {
+                let ymd = crate::contract::manifest::parse_date(std::str::from_utf8(&date).ok()?)?;
+                let scale = if zulu { TimeScale::Utc } else { self.scale };
+                let ns = gps_ns(Calendar::midnight(ymd), scale)?;
+                self.iso_day = Some((date, zulu, ns));
+                ns
+            }
+        };
+        Some(midnight + ((h * 60 + m) * 60 + sec) * 1_000_000_000 + nanos)
     }
 
     /// The GPS time (ns) of a time written as `fields` (as many as the form takes): Err with
@@ -135,6 +193,9 @@ impl TimeReader {
                 Ok(week * NS_PER_WEEK + tow)
             }
             TimeForm::Iso => {
+                if let Some(t) = self.iso_fast(fields[0]) {
+                    return Ok(t);
+                }
                 let s =
                     std::str::from_utf8(fields[0]).map_err(|_| ("time", "not UTF-8".to_owned()))?;
                 let (c, offset_min) = parse_iso(s).map_err(|m| ("time", m))?;
@@ -143,7 +204,12 @@ impl TimeReader {
                 } else {
                     self.scale
                 };
-                let t = gps_ns(c, scale).ok_or_else(|| {
+                let t = if c.second == 60 {
+                    leap_second(c, scale).map_err(|m| ("time", format!("`{s}`: {m}")))?
+                } else {
+                    gps_ns(c, scale)
+                }
+                .ok_or_else(|| {
                     (
                         "time",
                         format!("`{s}` is before the GPS epoch (1980-01-06)"),
@@ -198,6 +264,17 @@ impl TimeReader {
             }
         }
     }
+}
+
+/// Days from 1970-01-01 to `date` (proleptic Gregorian; Hinnant's days_from_civil).
+pub fn days_from_civil((y, m, d): (i32, u8, u8)) -> i64 {
+    let y = i64::from(y) - i64::from(m <= 2);
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let m = i64::from(m);
+    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(d) - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
 }
 
 /// (year, month, day) of a count of days since 1970-01-01 (Hinnant's civil_from_days).
@@ -399,6 +476,29 @@ pub fn utc_iso(gps_ns: i64) -> String {
         "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{:03}Z",
         ns / 1_000_000
     )
+}
+
+/// The GPS time of second 60 of a minute, as written (`c.second == 60`): only UTC's
+/// 23:59:60 on a day that ends with an inserted leap second (by hifitime's table) exists;
+/// anything else is an error, never a guess. `Ok(None)` before the GPS epoch.
+fn leap_second(c: Calendar, scale: TimeScale) -> Result<Option<i64>, String> {
+    let date = (c.year, c.month, c.day);
+    let Some(midnight) = gps_ns(Calendar::midnight(date), TimeScale::Utc) else {
+        return Ok(None);
+    };
+    let next = gps_ns(
+        Calendar::midnight(civil_from_days(days_from_civil(date) + 1)),
+        TimeScale::Utc,
+    );
+    let leap_day = next.is_some_and(|n| n - midnight == NS_PER_DAY + 1_000_000_000);
+    if scale != TimeScale::Utc || c.hour != 23 || c.minute != 59 || !leap_day {
+        return Err(format!(
+            "second 60 exists only as UTC's 23:59:60 on a day ending with an inserted leap \
+             second, and {:04}-{:02}-{:02} {:02}:{:02} in {scale:?} is not one",
+            c.year, c.month, c.day, c.hour, c.minute
+        ));
+    }
+    Ok(Some(midnight + NS_PER_DAY + i64::from(c.nanos)))
 }
 
 /// GPS week containing 00:00 UTC of `date`.

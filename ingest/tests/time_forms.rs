@@ -179,3 +179,66 @@ fn time_keys_are_checked() {
         assert!(e.to_string().contains(key), "{extra}: {e}");
     }
 }
+
+mod iso_fast_path {
+    use ingest::contract::manifest::TimeScale;
+    use ingest::time::{TimeForm, TimeReader, gps_ns, parse_iso};
+    use proptest::prelude::*;
+
+    /// The general parser's answer: calendar and zone, then hifitime.
+    fn general(s: &str, scale: TimeScale) -> Option<i64> {
+        let (c, offset) = parse_iso(s).ok()?;
+        let scale = if offset.is_some() {
+            TimeScale::Utc
+        } else {
+            scale
+        };
+        Some(gps_ns(c, scale)? - i64::from(offset.unwrap_or(0)) * 60_000_000_000)
+    }
+
+    proptest! {
+        /// The reader's fast path (a date's midnight once, then the time of day) gives what
+        /// the general parser gives, for `Z` and zone-less times in every scale, whatever
+        /// the order of the days read (the cache is per date and zone).
+        #[test]
+        fn agrees_with_the_general_parser(
+            times in prop::collection::vec(
+                (1981i32..2035, 1u8..13, 1u8..29, 0u8..24, 0u8..60, 0u8..60, 0u32..1_000_000_000, 0usize..4, any::<bool>()),
+                1..40,
+            ),
+            scale in prop::sample::select(vec![TimeScale::Utc, TimeScale::Gpst, TimeScale::Tai]),
+        ) {
+            let mut reader = TimeReader::new(TimeForm::Iso, scale, None);
+            for (y, mo, d, h, mi, s, ns, digits, zulu) in times {
+                let frac = match digits {
+                    0 => String::new(),
+                    k => format!(".{:0width$}", ns / 10u32.pow(9 - 3 * k as u32), width = 3 * k),
+                };
+                let text = format!(
+                    "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}{frac}{}",
+                    if zulu { "Z" } else { "" }
+                );
+                let got = reader.read(&[text.as_bytes()]).ok();
+                prop_assert_eq!(got, general(&text, scale), "{}", text);
+            }
+        }
+    }
+
+    /// Around the leap second at the end of 2016: the day's last second and the next day's
+    /// first are one second apart in GPS time (23:59:60 goes to the general parser).
+    #[test]
+    fn a_leap_second_day_is_read_right() {
+        let mut r = TimeReader::new(TimeForm::Iso, TimeScale::Utc, None);
+        let mut at = |s: &str| r.read(&[s.as_bytes()]).expect("reads");
+        let before = at("2016-12-31T23:59:59.000Z");
+        let leap = at("2016-12-31T23:59:60.000Z");
+        let after = at("2017-01-01T00:00:00.000Z");
+        assert_eq!(leap - before, 1_000_000_000);
+        assert_eq!(after - before, 2_000_000_000, "the inserted second counts");
+        // No leap second ended 2018: its 23:59:60 does not exist, and is said so.
+        let e = r
+            .read(&[b"2018-12-31T23:59:60.000Z".as_slice()])
+            .expect_err("not a leap second");
+        assert!(e.0 == "time" && e.1.contains("leap second"), "{e:?}");
+    }
+}

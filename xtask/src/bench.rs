@@ -338,6 +338,67 @@ fn lab_twin(csv_twin: &Path) -> Result<PathBuf> {
     Ok(twin)
 }
 
+/// An ISO-time twin of a benchmark dataset's CSV twin: the ADC CSV rewritten with ISO 8601
+/// UTC times with `Z` (`adc_time = "iso"`, docs/formats.md 9.1), the temperature CSV and
+/// theodolite log as they were, for the time form's figure beside the counts CSV's.
+fn iso_twin(csv_twin: &Path) -> Result<PathBuf> {
+    use std::io::{BufRead, Write};
+    let name = csv_twin.file_name().context("name")?.to_string_lossy();
+    let twin = csv_twin.with_file_name(format!("{}-iso", name.trim_end_matches("-csv")));
+    let iso = twin.join("raw/long_iso.csv");
+    if !iso.exists() {
+        std::fs::create_dir_all(twin.join("raw"))?;
+        let input =
+            std::io::BufReader::new(std::fs::File::open(csv_twin.join("raw/long_adc.csv"))?);
+        let tmp = iso.with_extension("partial");
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        writeln!(out, "time,c1,c2,c3")?;
+        for line in input.lines() {
+            let line = line?;
+            let mut f = line.split(',');
+            let (Some(week), Some(tow)) = (f.next(), f.next()) else {
+                continue;
+            };
+            let (Ok(week), Some(tow_ns)) = (
+                week.parse::<i64>(),
+                ingest::time::parse_seconds_ns(tow.as_bytes()),
+            ) else {
+                continue;
+            };
+            let gps_ns = week * ingest::time::NS_PER_WEEK + tow_ns;
+            let rest: Vec<&str> = f.collect();
+            writeln!(out, "{},{}", ingest::time::utc_iso(gps_ns), rest.join(","))?;
+        }
+        out.flush()?;
+        std::fs::rename(&tmp, &iso)?;
+    }
+    for entry in std::fs::read_dir(csv_twin.join("raw"))? {
+        let p = entry?.path();
+        let file = p.file_name().context("name")?;
+        let target = twin.join("raw").join(file);
+        if !p.to_string_lossy().ends_with("_adc.csv") && !target.exists() {
+            std::fs::hard_link(&p, target)?;
+        }
+    }
+    let manifest = std::fs::read_to_string(csv_twin.join("dataset.toml"))?;
+    let mut text = String::new();
+    for line in manifest.lines() {
+        if line.starts_with("adc_csv") {
+            text.push_str("adc_csv = \"raw/long_iso.csv\"\nadc_time = \"iso\"\n");
+        } else if let Some(rest) = line.strip_prefix("name = \"") {
+            text.push_str(&format!(
+                "name = \"{}-iso\"\n",
+                rest.trim_end_matches('"').trim_end_matches("-csv")
+            ));
+        } else {
+            text.push_str(line);
+            text.push('\n');
+        }
+    }
+    std::fs::write(twin.join("dataset.toml"), text)?;
+    Ok(twin)
+}
+
 fn dir_bytes(dir: &Path, keep: impl Fn(&str) -> bool) -> Result<u64> {
     let mut total = 0;
     for entry in std::fs::read_dir(dir.join("raw"))? {
@@ -429,6 +490,7 @@ pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
         }
         let twin = csv_twin(&dataset)?;
         let lab = lab_twin(&twin)?;
+        let iso = iso_twin(&twin)?;
         let rate = 1000.0 / f64::from(interval_ms);
         let out = data.join("out");
         for (label, ds, keep) in [
@@ -438,6 +500,11 @@ pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
                 (|p: &str| !p.ends_with(".csv")) as fn(&str) -> bool,
             ),
             ("gravcal ingest, CSV", &twin, |p: &str| !p.ends_with(".gcb")),
+            (
+                "gravcal ingest, CSV with ISO 8601 times (ADC)",
+                &iso,
+                |p: &str| !p.ends_with(".gcb"),
+            ),
             (
                 "gravcal ingest, lab seconds layout (ADC only)",
                 &lab,

@@ -645,7 +645,7 @@ fn lab_acquisition(
     let zero_gps_ns = match (times.adc, times.start_gps_ns) {
         (TimeForm::S, Some(start)) => start,
         // Unix times: the epoch, with the leap seconds of the session's date.
-        _ => midnight - days_from_civil(date) * 86_400_000_000_000,
+        _ => midnight - crate::time::days_from_civil(date) * 86_400_000_000_000,
     };
     let temperature = s
         .temperature_csv
@@ -773,17 +773,6 @@ fn session_times(
         scale,
         start_gps_ns,
     })
-}
-
-/// Days from 1970-01-01 to `date` (proleptic Gregorian; Hinnant's days_from_civil).
-fn days_from_civil((y, m, d): (i32, u8, u8)) -> i64 {
-    let y = i64::from(y) - i64::from(m <= 2);
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let m = i64::from(m);
-    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(d) - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
 }
 
 /// Parses `YYYY-MM-DD` into a valid calendar date.
