@@ -588,6 +588,14 @@ mod time_form_tests {
 mod tests {
     use super::*;
 
+    #[test]
+    fn days_from_the_unix_epoch() {
+        assert_eq!(days_from_civil((1970, 1, 1)), 0);
+        assert_eq!(days_from_civil((2000, 3, 1)), 11_017);
+        assert_eq!(days_from_civil((2023, 1, 5)), 19_362);
+        assert_eq!(civil_from_days(19_362), (2023, 1, 5));
+    }
+
     fn cal(s: &str) -> Calendar {
         parse_calendar(s).expect("valid")
     }

@@ -1215,14 +1215,3 @@ impl Dataset {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn days_from_the_unix_epoch() {
-        assert_eq!(days_from_civil((1970, 1, 1)), 0);
-        assert_eq!(days_from_civil((2000, 3, 1)), 11_017);
-        assert_eq!(days_from_civil((2023, 1, 5)), 19_362);
-    }
-}
