@@ -5,8 +5,8 @@
 //! no variance components): the predicted sigmas are the a-priori sigmas of that
 //! adjustment. Also each parameter's correlations, the minimal detectable bias of a
 //! theodolite reading and of a window mean (Baarda: alpha 0.001, power 0.80), and for a
-//! parameter the plan cannot determine, what would fix it. The plan's format is in the
-//! README ("Planning an experiment"). No I/O.
+//! parameter the plan cannot determine, what would fix it. The plan's format is in
+//! docs/planning.md. No I/O.
 
 use crate::calibrate::{self, CalError, FitOptions, Obs, Snooping};
 use crate::model::{Misalignment, Terms};

@@ -8,7 +8,7 @@
 //! tide-free), so that the gravity at an instant is `g_tide_free + body_tide_mgal(...)`.
 //! It includes the permanent part of the tide, as a tide-free gravity value asks.
 //! `tests/tide_reference.py` checks it against ETERNA (PyGTide) and against an independent
-//! Longman implementation; the README gives the figures.
+//! Longman implementation; docs/choices.md gives the figures.
 
 /// Where the benchmark is.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]

@@ -64,7 +64,7 @@ enum Cmd {
     Fit(adjust::FitArgs),
     /// Predicts what a planned experiment will determine, before any data (docs/model.md 6.6).
     Plan {
-        /// The plan (TOML; the README's "Planning an experiment").
+        /// The plan (TOML; docs/planning.md).
         plan: PathBuf,
         /// Print JSON instead of the table.
         #[arg(long)]

@@ -26,7 +26,7 @@ pub struct Input {
 /// v^T P v (the scatter of the station means about the fitted function; the whole v^T P v
 /// when every station has one observation) against the scaled chi-square with its mean and
 /// variance, which with weights estimated from the readings is wider than chi-square(dof)
-/// (docs/model.md 6.1; the README's "Models and choices").
+/// (docs/model.md 6.1; docs/choices.md).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct GlobalTest {
     /// The between-station part of v^T P v.
