@@ -51,8 +51,12 @@ impl LabWriter {
             tables::lab::FILE,
             "lab",
             tables::lab::schema(sessions),
+            // Chosen by measurement (`cargo xtask bench ingest`, docs/benchmarks.md): zstd
+            // on the readings' plain doubles was a fifth of the reader's CPU time.
             Encodings {
                 delta: &[tables::SESSION_INDEX, tables::lab::LINE],
+                byte_stream_split: &tables::lab::VALUES,
+                no_statistics: &tables::lab::VALUES,
                 ..Encodings::default()
             },
         )?;
@@ -196,9 +200,9 @@ const EXACT_POWERS: [f64; 23] = [
 /// A plain decimal (sign, digits, a point, digits, an exponent) whose significant digits
 /// fit in 2^53 and whose power of ten is within 10^22, read as its exact integer times or
 /// over an exact power of ten: one correctly rounded operation, the double `str::parse`
-/// gives (Clinger's fast path). None for anything else (more digits, `nan`, malformed),
-/// which `str::parse` then reads or rejects.
-fn fast_decimal(field: &[u8]) -> Option<f64> {
+/// gives (Clinger's fast path), and whether it had an exponent. None for anything else
+/// (more digits, `nan`, malformed), which `str::parse` then reads or rejects.
+fn fast_decimal(field: &[u8]) -> Option<(f64, bool)> {
     let (negative, mut rest) = match field.first()? {
         b'-' => (true, &field[1..]),
         b'+' => (false, &field[1..]),
@@ -206,6 +210,7 @@ fn fast_decimal(field: &[u8]) -> Option<f64> {
     };
     let (mut mantissa, mut digits, mut exponent) = (0u64, 0u32, 0i32);
     let mut seen_digit = false;
+    let mut scientific = false;
     let mut in_fraction = false;
     while let Some((&c, tail)) = rest.split_first() {
         match c {
@@ -224,6 +229,7 @@ fn fast_decimal(field: &[u8]) -> Option<f64> {
             b'e' | b'E' if seen_digit => {
                 let e: i32 = std::str::from_utf8(tail).ok()?.parse().ok()?;
                 exponent = exponent.checked_add(e)?;
+                scientific = true;
                 rest = &[];
                 break;
             }
@@ -237,7 +243,7 @@ fn fast_decimal(field: &[u8]) -> Option<f64> {
     let m = mantissa as f64;
     let power = *EXACT_POWERS.get(exponent.unsigned_abs() as usize)?;
     let v = if exponent >= 0 { m * power } else { m / power };
-    Some(if negative { -v } else { v })
+    Some((if negative { -v } else { v }, scientific))
 }
 
 /// One data line: (time since zero ns, readings, values in scientific notation).
@@ -267,12 +273,15 @@ fn parse_line(
     for k in 0..3 {
         let raw = fields[k + 1];
         let bad = |what: &str| (names[k + 1], format!("`{}` is {what}", text(raw)));
-        let v: f64 = match fast_decimal(raw) {
+        let (v, exponent) = match fast_decimal(raw) {
             Some(v) => v,
-            None => std::str::from_utf8(raw)
-                .ok()
-                .and_then(|f| f.parse().ok())
-                .ok_or_else(|| bad("not a number"))?,
+            None => (
+                std::str::from_utf8(raw)
+                    .ok()
+                    .and_then(|f| f.parse::<f64>().ok())
+                    .ok_or_else(|| bad("not a number"))?,
+                raw.iter().any(|&b| b == b'e' || b == b'E'),
+            ),
         };
         if v.is_nan() {
             continue;
@@ -280,7 +289,7 @@ fn parse_line(
         if !v.is_finite() {
             return Err(bad("not finite"));
         }
-        scientific += u64::from(raw.iter().any(|&b| b == b'e' || b == b'E'));
+        scientific += u64::from(exponent);
         values[k] = Some(v);
     }
     Ok((time, values, scientific))
@@ -813,8 +822,9 @@ mod tests {
         }
         for c in &cases {
             let want: f64 = c.parse().expect("parses");
-            if let Some(got) = fast_decimal(c.as_bytes()) {
+            if let Some((got, exponent)) = fast_decimal(c.as_bytes()) {
                 assert_eq!(got.to_bits(), want.to_bits(), "{c}");
+                assert_eq!(exponent, c.contains(['e', 'E']), "{c}");
             }
         }
         let fast = cases

@@ -1214,4 +1214,3 @@ impl Dataset {
             .find(|a| a.channel == channel)
     }
 }
-
