@@ -113,6 +113,9 @@ pub struct Section {
     pub tables: Vec<(String, Table)>,
     /// Plots: file name (without folder) and SVG.
     pub plots: Vec<(String, String)>,
+    /// Tables shown on demand (HTML: a collapsible block; Markdown: in full), each with a
+    /// caption, under the table of [`Section::tables`] whose index it gives.
+    pub details: Vec<(usize, String, Table)>,
 }
 
 fn section(title: &str) -> Section {
@@ -224,6 +227,12 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
     if axis {
         sections.push(components_section(&st));
     }
+    if let Some(c) = comparison_section(&st)? {
+        sections.push(c);
+    }
+    if axis {
+        sections.push(parameters_section(&st));
+    }
     if extra {
         sections.push(extra_terms_section(&st));
     }
@@ -276,8 +285,16 @@ fn summary_section(st: &Stages<'_>) -> Section {
         .map(|r| r.model.as_str())
         .chain(cal.triad.iter().map(|t| t.model.as_str()))
         .collect();
+    let surveys = &st.align_report.surveys;
     s.text.push(match models.len() {
-        0 => "No calibration was fitted (see the fits not made below).".to_owned(),
+        0 if cal.skipped.is_empty() && !surveys.is_empty() => format!(
+            "A survey dataset: nothing here to calibrate (no tilt-table or multi-position \
+             session). Its survey sessions ({}) are calibrated by `cargo xtask apply <dataset> \
+             --calibration C.json` with the calibration of a calibration dataset.",
+            surveys.join(", ")
+        ),
+        0 if cal.skipped.is_empty() => "No session of this dataset is calibrated.".to_owned(),
+        0 => "No calibration was fitted: the fits not made say why.".to_owned(),
         1 => format!(
             "One model, `{}`: `cargo xtask apply` uses it by default.",
             models.first().copied().unwrap_or_default()
@@ -342,7 +359,9 @@ fn summary_section(st: &Stages<'_>) -> Section {
             format!("{} positions / {removed}", r.positions_used),
         ));
     }
-    s.tables.push(("Calibrations".to_owned(), t));
+    if !t.rows.is_empty() {
+        s.tables.push(("Calibrations".to_owned(), t));
+    }
     for r in &cal.results {
         if let Some(a) = r.global_test.advice(
             &format!("{} {} {}", r.model, r.accelerometer, r.session),
@@ -771,6 +790,195 @@ fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
     Ok(s)
 }
 
+/// Every axis fit's parameters in a table of its own (what the model holds, the values,
+/// sigmas at the estimated components and a priori), its correlations on demand.
+fn parameters_section(st: &Stages<'_>) -> Section {
+    let mut s = section("Parameters of every fit");
+    s.text.push(
+        "sigma is at the estimated variance components (the one to quote), sigma a priori at \
+         the weights align gave; the correlations open under each table."
+            .to_owned(),
+    );
+    for r in &st.cal.results {
+        let mut t = Table::new(&["parameter", "value", "sigma", "sigma a priori", "unit"]);
+        for p in &r.parameters {
+            t.rows.push(vec![
+                p.name.clone(),
+                format!("{:.9e}", p.value),
+                format!("{:.3e}", p.sigma),
+                format!("{:.3e}", p.sigma_apriori),
+                p.unit.clone(),
+            ]);
+        }
+        let what = format!(
+            "{} {} {}: order {}{}{}{}",
+            r.model,
+            r.accelerometer,
+            r.session,
+            r.order,
+            if r.temperature {
+                ", temperature terms"
+            } else {
+                ""
+            },
+            if r.misalignment_vector.is_some() {
+                ", misalignment vector"
+            } else if r.misalignment {
+                ", misalignment (beta)"
+            } else {
+                ""
+            },
+            r.t_ref_c
+                .map_or(String::new(), |t| format!(", at t_ref {t:.2} degC")),
+        );
+        let names: Vec<&str> = r.parameters.iter().map(|p| p.name.as_str()).collect();
+        let mut header = vec![""];
+        header.extend(&names);
+        let mut c = Table::new(&header);
+        for (name, row) in names.iter().zip(&r.correlation) {
+            let mut cells = vec![(*name).to_owned()];
+            cells.extend(row.iter().map(|x| format!("{x:+.4}")));
+            c.rows.push(cells);
+        }
+        s.details
+            .push((s.tables.len(), format!("{what}: correlations"), c));
+        s.tables.push((what, t));
+    }
+    s
+}
+
+/// The fits compared: per accelerometer with per-session linear fits and a temperature
+/// model over all sessions, b and k of each session against its mean temperature, with the
+/// temperature model's b(T) and k(T) and their 1-sigma bands (from its covariance).
+fn comparison_section(st: &Stages<'_>) -> Result<Option<Section>, Error> {
+    let mut s = section("The fits compared: b and k against temperature");
+    let results = &st.cal.results;
+    for thermal in results
+        .iter()
+        .filter(|r| r.session == "all" && r.temperature && r.order == 1 && !r.misalignment)
+    {
+        let sessions: Vec<&CalibrationResult> = results
+            .iter()
+            .filter(|r| {
+                r.accelerometer == thermal.accelerometer
+                    && r.session != "all"
+                    && r.order == 1
+                    && !r.temperature
+                    && !r.misalignment
+            })
+            .collect();
+        let Some(t_ref) = thermal.t_ref_c else {
+            continue;
+        };
+        if sessions.is_empty() {
+            continue;
+        }
+        for (name, slope, unit) in [("b", "b_t", "mGal"), ("k", "k_t", "mGal/bit")] {
+            let at: Vec<(f64, f64, f64)> = sessions
+                .iter()
+                .filter_map(|r| {
+                    let p = param(r, name)?;
+                    Some((r.mean_temperature_c, p.value, p.sigma))
+                })
+                .collect();
+            let line = temperature_line(thermal, name, slope, t_ref, &at);
+            let Some(model_at) = temperature_model(thermal, name, slope, t_ref) else {
+                continue;
+            };
+            // Differences from the model's line, which the plot draws at 0 with its band:
+            // b changes by tens of mGal between sessions, their sigmas are below one.
+            let points: Vec<(f64, f64, f64)> = at
+                .iter()
+                .map(|&(t, v, e)| (t, v - model_at(t), e))
+                .collect();
+            let line: Vec<(f64, f64, f64)> = line.iter().map(|&(t, _, e)| (t, 0.0, e)).collect();
+            let title = format!(
+                "{} {name}: per-session {} fits minus the {} model's {name}(T)",
+                thermal.accelerometer, sessions[0].model, thermal.model
+            );
+            let y_label = format!("{name} - {name}(T) ({unit})");
+            let labels = (
+                format!("{} per session", sessions[0].model),
+                format!("{} model {name}(T) (0)", thermal.model),
+            );
+            let svg = plots::trend(&plots::Trend {
+                title: &title,
+                y_label: &y_label,
+                points: &points,
+                line: &line,
+                labels: (&labels.0, &labels.1),
+            })
+            .map_err(|message| Error::Plot {
+                name: title.clone(),
+                message,
+            })?;
+            s.plots.push((
+                format!(
+                    "trend-{}-{}-{name}.svg",
+                    thermal.model, thermal.accelerometer
+                ),
+                svg,
+            ));
+        }
+    }
+    if s.plots.is_empty() {
+        return Ok(None);
+    }
+    s.text.push(
+        "Each session's linear fit holds b and k at its mean temperature; drawn is its \
+         difference from the temperature model's b + b_t (T - t_ref) (and k + k_t (T - t_ref)) \
+         at that temperature, against the model's 1-sigma band (from its parameters' \
+         covariance) about 0. Points off the band by more than their bars say the \
+         temperature model does not carry what changed between the sessions."
+            .to_owned(),
+    );
+    Ok(Some(s))
+}
+
+/// The model's `name` + `slope` (T - t_ref) as a function of T.
+fn temperature_model(
+    r: &CalibrationResult,
+    name: &str,
+    slope: &str,
+    t_ref: f64,
+) -> Option<impl Fn(f64) -> f64> {
+    let (a, b) = (param(r, name)?.value, param(r, slope)?.value);
+    Some(move |t: f64| a + b * (t - t_ref))
+}
+
+/// (T, value, sigma) of `name` + `slope` (T - t_ref) over the points' temperatures (and a
+/// degree beyond), from the fit's parameters and correlations.
+fn temperature_line(
+    r: &CalibrationResult,
+    name: &str,
+    slope: &str,
+    t_ref: f64,
+    points: &[(f64, f64, f64)],
+) -> Vec<(f64, f64, f64)> {
+    let index = |n: &str| r.parameters.iter().position(|p| p.name == n);
+    let (Some(i), Some(j)) = (index(name), index(slope)) else {
+        return Vec::new();
+    };
+    let (a, b) = (&r.parameters[i], &r.parameters[j]);
+    let rho = r
+        .correlation
+        .get(i)
+        .and_then(|row| row.get(j))
+        .copied()
+        .unwrap_or(0.0);
+    let (lo, hi) = points
+        .iter()
+        .fold((t_ref, t_ref), |(l, h), p| (l.min(p.0), h.max(p.0)));
+    (0..=40)
+        .map(|k| {
+            let t = lo - 1.0 + (hi - lo + 2.0) * f64::from(k) / 40.0;
+            let d = t - t_ref;
+            let var = a.sigma.powi(2) + (d * b.sigma).powi(2) + 2.0 * d * rho * a.sigma * b.sigma;
+            (t, a.value + b.value * d, var.max(0.0).sqrt())
+        })
+        .collect()
+}
+
 /// Temperature, higher orders and misalignment: the significance of the extra terms.
 fn extra_terms_section(st: &Stages<'_>) -> Section {
     let Stages { cal, .. } = st;
@@ -945,6 +1153,9 @@ fn ledger_section(st: &Stages<'_>) -> Section {
             "0".into(),
             format!("channel {}: {}", d.channel, d.reason),
         ]);
+    }
+    if al.rows.is_empty() {
+        return s;
     }
     s.tables.push((
         format!(
@@ -1297,8 +1508,11 @@ pub fn markdown(name: &str, sections: &[Section]) -> String {
         for t in &sec.text {
             let _ = write!(s, "{t}\n\n");
         }
-        for (caption, t) in &sec.tables {
+        for (i, (caption, t)) in sec.tables.iter().enumerate() {
             let _ = write!(s, "**{caption}**\n\n{}\n", t.markdown());
+            for (_, caption, t) in sec.details.iter().filter(|d| d.0 == i) {
+                let _ = write!(s, "**{caption}**\n\n{}\n", t.markdown());
+            }
         }
         for (file, _) in &sec.plots {
             let _ = writeln!(s, "![{file}](plots/{file})");
@@ -1310,7 +1524,30 @@ pub fn markdown(name: &str, sections: &[Section]) -> String {
 const CSS: &str = "body{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}\
 table{border-collapse:collapse;margin:0.5em 0 1.5em;font-size:0.85em}th,td{border:1px solid #bbb;padding:3px 6px;text-align:right}\
 th{background:#eef}td:first-child,th:first-child{text-align:left}h1{border-bottom:2px solid #446}\
-.plots{display:flex;flex-wrap:wrap;gap:8px}.plots figure{margin:0}caption,.caption{font-weight:bold;text-align:left}";
+.plots{display:flex;flex-wrap:wrap;gap:8px}.plots figure{margin:0}caption,.caption{font-weight:bold;text-align:left}\
+code{background:#f3f3f6;padding:0 3px;border-radius:3px;font-size:0.95em}details{margin:0 0 1em}summary{cursor:pointer;color:#446}\
+@page{size:A4;margin:14mm}\
+@media print{body{max-width:none;margin:0;padding:0;font-size:9pt}table{font-size:8pt;page-break-inside:auto}\
+tr,figure{page-break-inside:avoid}h2,h3,.caption{page-break-after:avoid}.plots svg{max-width:100%;height:auto}\
+details{display:block}details>*{display:block}code{background:none}}";
+
+/// Markdown's inline code (`...`) as HTML `<code>` in already escaped text; an unpaired
+/// backtick stays as it is.
+fn inline_code(escaped: &str) -> String {
+    let parts: Vec<&str> = escaped.split('`').collect();
+    if parts.len() % 2 == 0 {
+        return escaped.to_owned();
+    }
+    let mut out = String::with_capacity(escaped.len() + 16);
+    for (i, p) in parts.iter().enumerate() {
+        if i % 2 == 1 {
+            let _ = write!(out, "<code>{p}</code>");
+        } else {
+            out.push_str(p);
+        }
+    }
+    out
+}
 
 /// The report as one self-contained HTML page.
 pub fn html(name: &str, sections: &[Section]) -> String {
@@ -1322,15 +1559,23 @@ pub fn html(name: &str, sections: &[Section]) -> String {
     for sec in sections {
         let _ = writeln!(s, "<section><h2>{}</h2>", esc(&sec.title));
         for t in &sec.text {
-            let _ = writeln!(s, "<p>{}</p>", esc(t));
+            let _ = writeln!(s, "<p>{}</p>", inline_code(&esc(t)));
         }
-        for (caption, t) in &sec.tables {
+        for (i, (caption, t)) in sec.tables.iter().enumerate() {
             let _ = writeln!(
                 s,
                 "<div class=\"caption\">{}</div>{}",
                 esc(caption),
                 t.html()
             );
+            for (_, caption, t) in sec.details.iter().filter(|d| d.0 == i) {
+                let _ = writeln!(
+                    s,
+                    "<details><summary>{}</summary>{}</details>",
+                    esc(caption),
+                    t.html()
+                );
+            }
         }
         if !sec.plots.is_empty() {
             s.push_str("<div class=\"plots\">");

@@ -3,6 +3,51 @@
 
 use plotters::prelude::*;
 
+/// Okabe and Ito's colour-blind-safe palette: blue, vermillion, orange, bluish green.
+pub const BLUE_CB: RGBColor = RGBColor(0, 114, 178);
+/// Vermillion.
+pub const VERMILLION: RGBColor = RGBColor(213, 94, 0);
+/// Orange.
+pub const ORANGE: RGBColor = RGBColor(230, 159, 0);
+
+/// A legend entry's mark.
+#[derive(Clone, Copy)]
+enum Mark {
+    Dot(RGBColor),
+    Cross(RGBColor),
+    Line(RGBColor),
+    Band(RGBColor),
+}
+
+/// The legend in its own strip under the plot, never over the data.
+fn legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    entries: &[(Mark, String)],
+) -> Result<(), String> {
+    let mut x = 80i32;
+    for (mark, text) in entries {
+        let y = 10i32;
+        match *mark {
+            Mark::Dot(c) => area.draw(&Circle::new((x + 6, y), 3, c.filled())),
+            Mark::Cross(c) => area.draw(&Cross::new((x + 6, y), 4, c.stroke_width(2))),
+            Mark::Line(c) => area.draw(&PathElement::new([(x, y), (x + 16, y)], c.stroke_width(2))),
+            Mark::Band(c) => area.draw(&Rectangle::new(
+                [(x, y - 5), (x + 16, y + 5)],
+                c.mix(0.25).filled(),
+            )),
+        }
+        .map_err(|e| e.to_string())?;
+        area.draw(&Text::new(
+            text.clone(),
+            (x + 22, y - 7),
+            ("sans-serif", 13),
+        ))
+        .map_err(|e| e.to_string())?;
+        x += 30 + 7 * text.chars().count() as i32;
+    }
+    Ok(())
+}
+
 /// A scatter plot: used points, removed points (marked), optional line.
 pub struct Scatter<'a> {
     /// Title.
@@ -58,9 +103,11 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
             y0 = y0.min(0.0);
             y1 = y1.max(0.0);
         }
-        let root = SVGBackend::with_string(&mut svg, (640, 360)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (640, 384)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
+        let (plot, strip) = root.split_vertically(360);
+        let mut entries = Vec::new();
+        let mut chart = ChartBuilder::on(&plot)
             .caption(s.title, ("sans-serif", 16))
             .margin(12)
             .x_label_area_size(42)
@@ -83,21 +130,18 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
             chart
                 .draw_series(LineSeries::new(
                     s.line.iter().copied(),
-                    BLUE.stroke_width(2),
+                    ORANGE.stroke_width(2),
                 ))
-                .map_err(|e| e.to_string())?
-                .label(s.labels.1)
-                .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE.stroke_width(2)));
+                .map_err(|e| e.to_string())?;
+            entries.push((Mark::Line(ORANGE), s.labels.1.to_owned()));
         }
         chart
-            .draw_series(
-                s.used
-                    .iter()
-                    .map(|&p| Circle::new(p, 2, RGBColor(40, 90, 160).filled())),
-            )
-            .map_err(|e| e.to_string())?
-            .label(format!("{} ({})", s.labels.0, s.used.len()))
-            .legend(|(x, y)| Circle::new((x + 8, y), 3, RGBColor(40, 90, 160).filled()));
+            .draw_series(s.used.iter().map(|&p| Circle::new(p, 2, BLUE_CB.filled())))
+            .map_err(|e| e.to_string())?;
+        entries.push((
+            Mark::Dot(BLUE_CB),
+            format!("{} ({})", s.labels.0, s.used.len()),
+        ));
         if !s.removed.is_empty() {
             let off_scale = s.removed.iter().filter(|p| p.1 < y0 || p.1 > y1).count();
             let label = if off_scale > 0 {
@@ -110,21 +154,109 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
             };
             chart
                 .draw_series(
-                    s.removed
-                        .iter()
-                        .map(|&(x, y)| Cross::new((x, y.clamp(y0, y1)), 5, RED.stroke_width(2))),
+                    s.removed.iter().map(|&(x, y)| {
+                        Cross::new((x, y.clamp(y0, y1)), 5, VERMILLION.stroke_width(2))
+                    }),
                 )
-                .map_err(|e| e.to_string())?
-                .label(label)
-                .legend(|(x, y)| Cross::new((x + 8, y), 4, RED.stroke_width(2)));
+                .map_err(|e| e.to_string())?;
+            entries.push((Mark::Cross(VERMILLION), label));
         }
+        legend(&strip, &entries)?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+/// A parameter of per-session fits against temperature (points with 1-sigma bars) and a
+/// temperature model's line with its 1-sigma band.
+pub struct Trend<'a> {
+    /// Title.
+    pub title: &'a str,
+    /// y axis label with unit.
+    pub y_label: &'a str,
+    /// (temperature degC, value, sigma) per session fit.
+    pub points: &'a [(f64, f64, f64)],
+    /// (temperature, value, sigma) along the model's line.
+    pub line: &'a [(f64, f64, f64)],
+    /// Legends of the points and of the line.
+    pub labels: (&'a str, &'a str),
+}
+
+/// Draws `t` as an SVG document.
+pub fn trend(t: &Trend<'_>) -> Result<String, String> {
+    let mut svg = String::new();
+    {
+        let xs = t.points.iter().chain(t.line).map(|p| p.0);
+        let (x0, x1) = range(xs);
+        let ys = t
+            .points
+            .iter()
+            .chain(t.line)
+            .flat_map(|p| [p.1 - p.2, p.1 + p.2]);
+        let (y0, y1) = range(ys);
+        let root = SVGBackend::with_string(&mut svg, (640, 384)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let (plot, strip) = root.split_vertically(360);
+        let mut chart = ChartBuilder::on(&plot)
+            .caption(t.title, ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(42)
+            .y_label_area_size(90)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        let fine = (y1 - y0).abs() < 0.1;
+        let ticks = move |v: &f64| {
+            if fine {
+                format!("{v:.1e}")
+            } else {
+                format!("{v:.1}")
+            }
+        };
         chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .border_style(BLACK.mix(0.3))
-            .background_style(WHITE.mix(0.85))
+            .configure_mesh()
+            .x_desc("temperature (degC)")
+            .y_desc(t.y_label)
+            .y_label_formatter(&ticks)
+            .light_line_style(WHITE.mix(0.0))
             .draw()
             .map_err(|e| e.to_string())?;
+        let mut entries = Vec::new();
+        if !t.line.is_empty() {
+            let band: Vec<(f64, f64)> = t
+                .line
+                .iter()
+                .map(|p| (p.0, p.1 + p.2))
+                .chain(t.line.iter().rev().map(|p| (p.0, p.1 - p.2)))
+                .collect();
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    band,
+                    ORANGE.mix(0.25).filled(),
+                )))
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series(LineSeries::new(
+                    t.line.iter().map(|p| (p.0, p.1)),
+                    ORANGE.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?;
+            entries.push((Mark::Line(ORANGE), t.labels.1.to_owned()));
+            entries.push((Mark::Band(ORANGE), "its 1-sigma band".to_owned()));
+        }
+        chart
+            .draw_series(t.points.iter().map(|&(x, y, e)| {
+                PathElement::new([(x, y - e), (x, y + e)], BLUE_CB.stroke_width(2))
+            }))
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(
+                t.points
+                    .iter()
+                    .map(|&(x, y, _)| Circle::new((x, y), 3, BLUE_CB.filled())),
+            )
+            .map_err(|e| e.to_string())?;
+        entries.push((Mark::Dot(BLUE_CB), format!("{} (1-sigma bars)", t.labels.0)));
+        legend(&strip, &entries)?;
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
@@ -179,26 +311,22 @@ pub fn polar(p: &Polar<'_>) -> Result<String, String> {
         chart
             .draw_series(LineSeries::new(
                 [(0.0, 0.0), p.point],
-                RGBColor(40, 90, 160).stroke_width(1),
+                BLUE_CB.stroke_width(1),
             ))
             .map_err(|e| e.to_string())?;
         chart
             .draw_series(LineSeries::new(
                 p.ellipse.iter().copied(),
-                RED.stroke_width(2),
+                VERMILLION.stroke_width(2),
             ))
             .map_err(|e| e.to_string())?
             .label(p.ellipse_label)
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED.stroke_width(2)));
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], VERMILLION.stroke_width(2)));
         chart
-            .draw_series(std::iter::once(Circle::new(
-                p.point,
-                3,
-                RGBColor(40, 90, 160).filled(),
-            )))
+            .draw_series(std::iter::once(Circle::new(p.point, 3, BLUE_CB.filled())))
             .map_err(|e| e.to_string())?
             .label("estimate")
-            .legend(|(x, y)| Circle::new((x + 8, y), 3, RGBColor(40, 90, 160).filled()));
+            .legend(|(x, y)| Circle::new((x + 8, y), 3, BLUE_CB.filled()));
         // The legend in the quadrant opposite the estimate.
         let corner = match (p.point.0 >= 0.0, p.point.1 >= 0.0) {
             (true, true) => SeriesLabelPosition::LowerLeft,
