@@ -1535,7 +1535,7 @@ details{display:block}details>*{display:block}code{background:none}}";
 /// backtick stays as it is.
 fn inline_code(escaped: &str) -> String {
     let parts: Vec<&str> = escaped.split('`').collect();
-    if parts.len() % 2 == 0 {
+    if parts.len().is_multiple_of(2) {
         return escaped.to_owned();
     }
     let mut out = String::with_capacity(escaped.len() + 16);
