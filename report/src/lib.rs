@@ -1549,6 +1549,17 @@ fn inline_code(escaped: &str) -> String {
     out
 }
 
+/// A section's id in the page: its title's words in lower case joined by `-`
+/// (`summary-the-calibrations`).
+fn anchor(title: &str) -> String {
+    title
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .filter(|w| !w.is_empty())
+        .map(str::to_ascii_lowercase)
+        .collect::<Vec<_>>()
+        .join("-")
+}
+
 /// The report as one self-contained HTML page.
 pub fn html(name: &str, sections: &[Section]) -> String {
     let mut s = format!(
@@ -1557,7 +1568,12 @@ pub fn html(name: &str, sections: &[Section]) -> String {
         esc(name)
     );
     for sec in sections {
-        let _ = writeln!(s, "<section><h2>{}</h2>", esc(&sec.title));
+        let _ = writeln!(
+            s,
+            "<section id=\"{}\"><h2>{}</h2>",
+            anchor(&sec.title),
+            esc(&sec.title)
+        );
         for t in &sec.text {
             let _ = writeln!(s, "<p>{}</p>", inline_code(&esc(t)));
         }

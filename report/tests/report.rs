@@ -225,3 +225,120 @@ fn the_summary_comes_first_and_only_what_applies_follows() {
     }
     assert!(md.contains("| triad | triad (x, y, z) | lab | a_yz = "));
 }
+
+/// What the first screen (1400 x 900, headless Chromium) holds: the summary table's bottom
+/// edge in CSS pixels, the rows of it that lie on the screen, and whether any text on the
+/// screen says something was not done. Measured by a page of the test's own that loads the
+/// report in a 1400 x 900 frame and writes what it finds into its own DOM (the report
+/// itself carries no script).
+fn first_screen(browser: &Path, index: &Path) -> (f64, Vec<String>, String) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let probe = dir.path().join("probe.html");
+    std::fs::write(
+        &probe,
+        format!(
+            r#"<!DOCTYPE html><html><body style="margin:0">
+<iframe id="f" src="file://{}" style="width:1400px;height:900px;border:0"></iframe>
+<pre id="out">waiting</pre>
+<script>
+document.getElementById('f').addEventListener('load', () => {{
+  const d = document.getElementById('f').contentDocument;
+  const t = d.querySelector('#summary-the-calibrations table');
+  const out = [];
+  if (!t) {{ out.push('bottom none'); }} else {{
+    out.push('bottom ' + t.getBoundingClientRect().bottom);
+    for (const tr of t.querySelectorAll('tbody tr')) {{
+      if (tr.getBoundingClientRect().bottom <= 900) {{
+        out.push('row ' + Array.from(tr.cells).slice(0, 3).map(c => c.textContent).join(' '));
+      }}
+    }}
+  }}
+  const seen = [];
+  for (const p of d.querySelectorAll('p, td, h2, h3, .caption')) {{
+    const r = p.getBoundingClientRect();
+    if (r.top < 900 && r.bottom > 0) seen.push(p.textContent);
+  }}
+  out.push('text ' + seen.join(' | ').replace(/\n/g, ' '));
+  document.getElementById('out').textContent = out.join('\n');
+}});
+</script></body></html>"#,
+            index.display()
+        ),
+    )
+    .expect("probe");
+    let profile = tempfile::tempdir().expect("profile");
+    let o = headless(browser, profile.path())
+        .args([
+            "--allow-file-access-from-files",
+            "--virtual-time-budget=5000",
+            "--dump-dom",
+        ])
+        .arg(format!("file://{}", probe.display()))
+        .output()
+        .expect("chromium runs");
+    let dom = String::from_utf8_lossy(&o.stdout).into_owned();
+    let body = dom
+        .split("<pre id=\"out\">")
+        .nth(1)
+        .and_then(|b| b.split("</pre>").next())
+        .unwrap_or_default()
+        .replace("&amp;", "&");
+    let mut bottom = f64::INFINITY;
+    let mut rows = Vec::new();
+    let mut text = String::new();
+    for line in body.lines() {
+        if let Some(b) = line.strip_prefix("bottom ") {
+            bottom = b.parse().unwrap_or(f64::INFINITY);
+        } else if let Some(r) = line.strip_prefix("row ") {
+            rows.push(r.to_owned());
+        } else if let Some(t) = line.strip_prefix("text ") {
+            text = t.to_owned();
+        }
+    }
+    (bottom, rows, text)
+}
+
+/// The answer on the first screen: on the replica, the two-roll dataset and the triad,
+/// every accelerometer's calibration of every model is in the summary table and the whole
+/// table is on the first screen of 1400 x 900; on the survey, the first screen says what
+/// the dataset is. No text on a first screen says that something was not done.
+#[test]
+fn the_first_screen_holds_every_calibration() {
+    let Some(browser) = chromium() else {
+        if std::env::var("GRAVCAL_SKIP_BROWSER").is_ok() {
+            eprintln!("skipped: no Chromium and GRAVCAL_SKIP_BROWSER is set");
+            return;
+        }
+        panic!("no Chromium found: set GRAVCAL_CHROMIUM, or GRAVCAL_SKIP_BROWSER=1");
+    };
+    for name in ["esgt-2005", "roll-sessions", "triad-multipos", "survey"] {
+        let out = pipeline(&fixtures::dataset_dir(name));
+        let cal = ingest::contract::calibration::Calibration::load(&out.path().join("adjust"))
+            .expect("calibration.json");
+        let (bottom, rows, text) = first_screen(&browser, &out.path().join("report/index.html"));
+        let fits = cal.results.len() + cal.triad.len();
+        if fits == 0 {
+            assert!(text.contains("A survey dataset"), "{name}: {text}");
+        } else {
+            assert!(
+                bottom <= 900.0,
+                "{name}: the summary table ends at {bottom} px"
+            );
+            assert_eq!(
+                rows.len(),
+                fits,
+                "{name}: rows on the first screen {rows:?}"
+            );
+            for r in &cal.results {
+                let row = format!("{} {} {}", r.model, r.accelerometer, r.session);
+                assert!(rows.contains(&row), "{name}: {row} not in {rows:?}");
+            }
+        }
+        for not_done in ["No model", "was not fitted", "No triad", "not applied"] {
+            assert!(
+                !text.contains(not_done),
+                "{name}: the first screen says `{not_done}`: {text}"
+            );
+        }
+    }
+}

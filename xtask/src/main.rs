@@ -81,6 +81,15 @@ enum Cmd {
         /// Dataset folder (holding dataset.toml).
         dataset: PathBuf,
     },
+    /// Runs the pipeline on a dataset and saves the first screen of its report (1400 x 900,
+    /// headless Chromium) as a PNG: the README's picture.
+    Screenshot {
+        /// Dataset folder (holding dataset.toml).
+        dataset: PathBuf,
+        /// The PNG to write.
+        #[arg(long, default_value = "docs/report-first-screen.png")]
+        png: PathBuf,
+    },
     /// Prints a Parquet table the pipeline wrote: its schema and rows, or CSV.
     Show {
         /// The table (e.g. out/esgt-2005/align/observations.parquet).
@@ -194,6 +203,46 @@ fn run_stages(args: &DatasetArgs, which: &[&str]) -> Result<()> {
         eprintln!("{name}: {:.2} s", t0.elapsed().as_secs_f64());
     }
     Ok(())
+}
+
+/// The pipeline on `dataset` into a scratch folder, then its report's first screen.
+fn screenshot(dataset: &Path, png: &Path) -> Result<()> {
+    let scratch = std::env::temp_dir().join(format!("gravcal-shot-{}", std::process::id()));
+    let args = DatasetArgs {
+        dataset: dataset.to_path_buf(),
+        out: Some(scratch.join("out")),
+    };
+    let result = run_stages(&args, &["ingest", "align", "adjust", "report"]).and_then(|()| {
+        let browser = std::env::var("GRAVCAL_CHROMIUM").unwrap_or_else(|_| "chromium".to_owned());
+        let png = std::path::absolute(png)?;
+        let index = std::path::absolute(scratch.join("out/report/index.html"))?;
+        let status = Command::new(&browser)
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--hide-scrollbars",
+                "--no-first-run",
+                "--window-size=1400,900",
+            ])
+            .arg(format!(
+                "--user-data-dir={}",
+                scratch.join("profile").display()
+            ))
+            .arg(format!("--screenshot={}", png.display()))
+            .arg(format!("file://{}", index.display()))
+            .stderr(std::process::Stdio::null())
+            .status()
+            .with_context(|| format!("running {browser} (set GRAVCAL_CHROMIUM)"))?;
+        anyhow::ensure!(
+            status.success() && png.exists(),
+            "{browser} failed ({status})"
+        );
+        eprintln!("screenshot: wrote {}", png.display());
+        Ok(())
+    });
+    let _ = std::fs::remove_dir_all(&scratch);
+    result
 }
 
 fn cargo(args: &[&str]) -> Result<()> {
@@ -330,6 +379,7 @@ fn run(cli: Cli) -> Result<()> {
                 bail!("{} does not check", dataset.display())
             }
         }
+        Cmd::Screenshot { dataset, png } => screenshot(&dataset, &png),
         Cmd::Show { file, csv, head } => {
             let options = show::ShowOptions {
                 csv,
