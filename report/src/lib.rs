@@ -370,6 +370,14 @@ fn summary_section(st: &Stages<'_>) -> Section {
             s.text.push(a);
         }
     }
+    for r in &cal.triad {
+        if let Some(a) = r
+            .global_test
+            .advice(&format!("triad {} {}", r.model, r.session), true)
+        {
+            s.text.push(a);
+        }
+    }
     if !cal.skipped.is_empty() {
         let mut k = Table::new(&["model", "accelerometer", "session", "why not"]);
         for f in &cal.skipped {
@@ -568,7 +576,46 @@ fn components_section(st: &Stages<'_>) -> Section {
         }
     }
     s.tables.push(("Variance components".to_owned(), t));
+    s.text.extend(component_advice(cal));
     s
+}
+
+/// What a failed component test means and what to try, once for the report: how many
+/// failed of how many tested, against the one in twenty a 5 % test fails by chance.
+fn component_advice(cal: &Calibration) -> Option<String> {
+    let tested: Vec<(&CalibrationResult, &calibration::VarianceComponent)> = cal
+        .results
+        .iter()
+        .flat_map(|r| r.variance_components.iter().map(move |c| (r, c)))
+        .filter(|(_, c)| c.not_estimable.is_none())
+        .collect();
+    let failed: Vec<String> = tested
+        .iter()
+        .filter(|(_, c)| !c.passed)
+        .map(|(r, c)| {
+            format!(
+                "{} {} {} {} x {:.2}",
+                r.model, r.accelerometer, r.session, c.group, c.estimate
+            )
+        })
+        .collect();
+    if failed.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "{} of {} component tests failed ({}); a 5 % test fails in about {:.1} of {} by chance. \
+         A factor below 1 means that group's a-priori variances were too large, above 1 too \
+         small; the sigmas above already use the estimated factor, so the calibration stands. \
+         What to try when failures recur across sessions and accelerometers: for the \
+         theodolite, its sd per reading (align's sigma_dz, or [align] sigma_dz = \"station\"); \
+         for the ADC, the window length ([align] window_s) and the noise terms align kept \
+         (the Allan section).",
+        failed.len(),
+        tested.len(),
+        failed.join("; "),
+        0.05 * tested.len() as f64,
+        tested.len()
+    ))
 }
 
 /// Radius of the 95 % error ellipse of a 2-D normal, in sds: sqrt of chi-square(2)'s 95 %.
@@ -779,6 +826,7 @@ fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
                 line: &[],
                 zero_line: zero,
                 labels: ("positions", ""),
+                y_range: None,
             })
             .map_err(|message| Error::Plot {
                 name: plot.clone(),
@@ -1178,8 +1226,18 @@ fn ledger_section(st: &Stages<'_>) -> Section {
 fn plots_section(st: &Stages<'_>) -> Result<Section, Error> {
     let mut s = section("Residuals, observation sigmas and calibration curves");
     s.text.push("Condition residuals B·v in mGal of every per-session fit; crosses mark observations removed by data snooping, drawn at their misclosure under the final parameters.".to_owned());
+    // One residual axis per model, so that its fits' small multiples compare at a glance.
+    let y_range = |model: &str| {
+        let used = st
+            .residuals
+            .iter()
+            .filter(|x| x.model == model && !x.removed)
+            .filter_map(|x| x.residual_mgal);
+        let (lo, hi) = plots::range(used);
+        Some((lo.min(0.0), hi.max(0.0)))
+    };
     for r in st.cal.results.iter().filter(|r| r.session != "all") {
-        s.plots.extend(fit_plots(st, r)?);
+        s.plots.extend(fit_plots(st, r, y_range(&r.model))?);
     }
     for session in st.ds.sessions.iter().filter(|x| x.is_tilt_table()) {
         s.plots.extend(sigma_plot(st, &session.session.id)?);
@@ -1193,7 +1251,11 @@ type Plot = (String, String);
 
 /// One per-session fit's residuals against Dz, time and temperature, and its calibration
 /// curve.
-fn fit_plots(st: &Stages<'_>, r: &CalibrationResult) -> Result<Vec<Plot>, Error> {
+fn fit_plots(
+    st: &Stages<'_>,
+    r: &CalibrationResult,
+    y_range: Option<(f64, f64)>,
+) -> Result<Vec<Plot>, Error> {
     let g = st.cal.gravity_mgal;
     let residuals = &st.residuals;
     let mut plots = Vec::new();
@@ -1253,6 +1315,7 @@ fn fit_plots(st: &Stages<'_>, r: &CalibrationResult) -> Result<Vec<Plot>, Error>
             line: &[],
             zero_line: true,
             labels: plots::ADJUSTMENT_LABELS,
+            y_range,
         })
         .map_err(|message| Error::Plot {
             name: name.clone(),
@@ -1308,6 +1371,7 @@ fn calibration_curve(
         line: &line,
         zero_line: false,
         labels: plots::ADJUSTMENT_LABELS,
+        y_range: None,
     })
     .map_err(|message| Error::Plot {
         name: name.to_owned(),
@@ -1396,6 +1460,7 @@ fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
             line: &line,
             zero_line: false,
             labels: ("Allan deviation", "fitted N, B, K"),
+            y_range: None,
         })
         .map_err(|message| Error::Plot {
             name: format!("allan-{}", n.accelerometer),
@@ -1441,6 +1506,7 @@ fn tide_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
         line: &[],
         zero_line: true,
         labels: ("readings", ""),
+        y_range: None,
     })
     .map_err(|message| Error::Plot {
         name: format!("tide-{id}"),
@@ -1478,6 +1544,7 @@ fn sigma_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error> {
         line: &[],
         zero_line: false,
         labels: ("observations", ""),
+        y_range: None,
     })
     .map_err(|message| Error::Plot {
         name: id.to_owned(),

@@ -66,12 +66,15 @@ pub struct Scatter<'a> {
     pub zero_line: bool,
     /// Legend of the points (their count follows) and of the line.
     pub labels: (&'a str, &'a str),
+    /// The y range to draw, shared by small multiples; None: from the points.
+    pub y_range: Option<(f64, f64)>,
 }
 
 /// The legend of a residual or calibration plot: the points used, the calibration function.
 pub const ADJUSTMENT_LABELS: (&str, &str) = ("used", "calibration function");
 
-fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+/// The range of `values` with a 5 % margin ((-1, 1) when there are none).
+pub fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
         (a.min(v), b.max(v))
     });
@@ -94,7 +97,9 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
         let (x0, x1) = range(all().map(|p| p.0));
         // The y range follows the used points (and the line): a blunder of hundreds of mGal
         // must not squash the residuals. Removed points beyond it sit on the frame's edge.
-        let (mut y0, mut y1) = if s.used.is_empty() {
+        let (mut y0, mut y1) = if let Some(r) = s.y_range {
+            r
+        } else if s.used.is_empty() {
             range(all().map(|p| p.1))
         } else {
             range(s.used.iter().chain(s.line).map(|p| p.1))
@@ -103,9 +108,9 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
             y0 = y0.min(0.0);
             y1 = y1.max(0.0);
         }
-        let root = SVGBackend::with_string(&mut svg, (640, 384)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (560, 360)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let (plot, strip) = root.split_vertically(360);
+        let (plot, strip) = root.split_vertically(336);
         let mut entries = Vec::new();
         let mut chart = ChartBuilder::on(&plot)
             .caption(s.title, ("sans-serif", 16))
@@ -194,9 +199,9 @@ pub fn trend(t: &Trend<'_>) -> Result<String, String> {
             .chain(t.line)
             .flat_map(|p| [p.1 - p.2, p.1 + p.2]);
         let (y0, y1) = range(ys);
-        let root = SVGBackend::with_string(&mut svg, (640, 384)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (560, 360)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let (plot, strip) = root.split_vertically(360);
+        let (plot, strip) = root.split_vertically(336);
         let mut chart = ChartBuilder::on(&plot)
             .caption(t.title, ("sans-serif", 16))
             .margin(12)
