@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Creates target/peers-venv with the Python peers the tests compare against: PyGTide (ETERNA,
 # built from source: needs gfortran), tidegravity (Longman), allantools (Allan deviation),
-# DuckDB (reads apply's Parquet output) and scipy (the triad's second opinion; allantools
-# brings it, and it is checked here by name).
+# DuckDB (reads apply's Parquet output), scipy (the triad's second opinion and the gravity
+# filter's; allantools brings it, and it is checked here by name), boule (GRS80 normal
+# gravity) and shipgrav (the Eotvos term).
 # numpy is pinned with them: PyGTide's compiled part breaks under a numpy other than the one
 # it was built with, and tidegravity asks for 1.25. Idempotent.
 set -euo pipefail
@@ -23,4 +24,7 @@ fi
 if ! "$venv/bin/python" -c 'import scipy.optimize' 2>/dev/null; then
   "$venv/bin/python" -m pip install -q scipy
 fi
-"$venv/bin/python" -c 'import pygtide, tidegravity, allantools, duckdb, scipy; print("peers-venv: pygtide, tidegravity, allantools, scipy", scipy.__version__, "and duckdb", duckdb.__version__, "ready")'
+if ! "$venv/bin/python" -c 'import boule, shipgrav' 2>/dev/null; then
+  "$venv/bin/python" -m pip install -q numpy==1.25.0 boule==0.6.0 shipgrav==1.0.11
+fi
+"$venv/bin/python" -c 'import pygtide, tidegravity, allantools, duckdb, scipy, boule, shipgrav; print("peers-venv: pygtide, tidegravity, allantools, scipy", scipy.__version__, "duckdb", duckdb.__version__, "boule", boule.__version__, "and shipgrav ready")'

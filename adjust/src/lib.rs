@@ -16,6 +16,7 @@ pub mod components;
 pub mod correlated;
 pub mod fit;
 pub mod gh;
+pub mod gravity;
 pub mod io;
 pub mod model;
 pub mod plan;

@@ -1,0 +1,51 @@
+//! The gravity stage (docs/model.md 7, docs/formats.md 10): a survey's calibrated specific
+//! force reduced to the gravity disturbance along the track. It reads apply's output, so it
+//! lives beside apply in the adjust crate, as a module tree of its own with its own error
+//! type. Built so far: the pieces the navigation equation is made of, each checked against
+//! a peer (`tests/gravity_peers.rs`):
+//!
+//! - [`normal`]: GRS80 normal gravity at any point on or above the ellipsoid (closed form,
+//!   no free-air series), against boule;
+//! - [`navigation`]: the ellipsoid's radii of curvature and the Coriolis and transport-rate
+//!   term of the navigation equation (its down component is the Eotvos correction),
+//!   against shipgrav's Harlan (1968);
+//! - [`filter`]: the zero-phase Butterworth low-pass whose response is 0.5 at the cut-off
+//!   period `filter_s`, against scipy.signal's `sosfiltfilt`;
+//! - [`trajectory`]: GNSS positions from RTKLIB's `.pos` or a CSV.
+//!
+//! Not built yet: the stage itself (`cargo xtask gravity`: positions differentiated, the
+//! applied specific force brought onto the epochs, ties and drift, the sigmas, the
+//! outputs, the report's section), the simulator's survey lines and the benchmark.
+
+pub mod filter;
+pub mod navigation;
+pub mod normal;
+pub mod trajectory;
+
+/// What can go wrong in the gravity stage.
+#[derive(Debug, thiserror::Error)]
+pub enum GravityError {
+    /// A trajectory or attitude file that breaks its format.
+    #[error("{path}:{line}: {field}: {message}")]
+    Line {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Its line (1-based).
+        line: u64,
+        /// The field.
+        field: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A file as a whole that cannot serve.
+    #[error("{path}: {message}")]
+    File {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        message: String,
+    },
+    /// A filter that cannot be built.
+    #[error("filter: {0}")]
+    Filter(String),
+}

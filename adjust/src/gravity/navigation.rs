@@ -1,0 +1,70 @@
+//! The navigation equation's geometry in the local north-east-down frame: the ellipsoid's
+//! radii of curvature and the Coriolis and transport-rate term (2 omega_ie + omega_en) x v,
+//! whose down component is the Eotvos correction (docs/model.md 7). No I/O.
+
+use super::normal::Ellipsoid;
+
+/// Meridian and prime-vertical radii of curvature (R_M, R_N) at geodetic latitude, m.
+pub fn radii(e: &Ellipsoid, latitude_deg: f64) -> (f64, f64) {
+    let s = latitude_deg.to_radians().sin();
+    let w2 = 1.0 - e.e2() * s * s;
+    let r_n = e.a / w2.sqrt();
+    (r_n * (1.0 - e.e2()) / w2, r_n)
+}
+
+/// The down component of (2 omega_ie + omega_en) x v^n, m/s^2, for a velocity north and
+/// east (m/s) at latitude and ellipsoidal height: 2 omega cos(phi) v_E plus
+/// v_E^2 / (R_N + h) plus v_N^2 / (R_M + h). Gravity down is the measured down
+/// acceleration plus this: moving east the instrument feels less gravity, moving west more.
+pub fn eotvos_down(e: &Ellipsoid, latitude_deg: f64, height_m: f64, v_n: f64, v_e: f64) -> f64 {
+    let (r_m, r_n) = radii(e, latitude_deg);
+    2.0 * e.omega * latitude_deg.to_radians().cos() * v_e
+        + v_e * v_e / (r_n + height_m)
+        + v_n * v_n / (r_m + height_m)
+}
+
+/// The full Coriolis and transport-rate vector (north, east, down), m/s^2, for a velocity
+/// (v_N, v_E, v_D): (2 omega_ie^n + omega_en^n) x v^n.
+pub fn coriolis_transport(
+    e: &Ellipsoid,
+    latitude_deg: f64,
+    height_m: f64,
+    v: [f64; 3],
+) -> [f64; 3] {
+    let (r_m, r_n) = radii(e, latitude_deg);
+    let (s, c) = latitude_deg.to_radians().sin_cos();
+    let [v_n, v_e, v_d] = v;
+    let w = [
+        2.0 * e.omega * c + v_e / (r_n + height_m),
+        -v_n / (r_m + height_m),
+        -2.0 * e.omega * s - v_e * s / c / (r_n + height_m),
+    ];
+    [
+        w[1] * v_d - w[2] * v_e,
+        w[2] * v_n - w[0] * v_d,
+        w[0] * v_e - w[1] * v_n,
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::normal::GRS80;
+    use super::*;
+
+    /// The down component of the full vector is the Eotvos term, and at rest both vanish.
+    #[test]
+    fn the_down_component_is_the_eotvos_term() {
+        for (lat, h, v) in [
+            (45.0, 0.0, [3.0, 4.0, 0.0]),
+            (-20.0, 3000.0, [-60.0, 10.0, 0.5]),
+        ] {
+            let full = coriolis_transport(&GRS80, lat, h, v);
+            let down = eotvos_down(&GRS80, lat, h, v[0], v[1]);
+            assert!((full[2] - down).abs() < 1e-15, "{full:?} {down}");
+        }
+        assert!(eotvos_down(&GRS80, 30.0, 0.0, 0.0, 0.0).abs() < 1e-300);
+        // A ship going east at 5 m/s at 45 degrees: about 52 mGal.
+        let e = eotvos_down(&GRS80, 45.0, 0.0, 0.0, 5.0) * 1e5;
+        assert!((e - 51.96).abs() < 0.1, "{e}");
+    }
+}

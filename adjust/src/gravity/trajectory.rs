@@ -1,0 +1,269 @@
+//! GNSS trajectories (docs/formats.md 10.1): RTKLIB's solution file (`.pos`, geodetic
+//! latitude, longitude and ellipsoidal height with their sds; times in GPST or UTC as its
+//! header says, as a calendar or as GPS week and seconds) or a CSV (`time,lat_deg,lon_deg,
+//! h_m[,sd_n_m,sd_e_m,sd_u_m]`, the time in any form of docs/formats.md 9.1). A line that
+//! breaks the format is an error naming file, line and field; an XYZ-ECEF or
+//! degrees-minutes-seconds solution is refused as a whole, with what would work. No
+//! resampling here: epochs as written, in time order.
+
+use super::GravityError;
+use ingest::contract::manifest::TimeScale;
+use ingest::time::{TimeForm, TimeReader};
+use std::io::BufRead;
+use std::path::Path;
+
+/// A trajectory's epochs, as columns.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Trajectory {
+    /// GPS time, ns.
+    pub time_gps_ns: Vec<i64>,
+    /// Geodetic latitude, deg.
+    pub latitude_deg: Vec<f64>,
+    /// Longitude, deg.
+    pub longitude_deg: Vec<f64>,
+    /// Ellipsoidal height, m.
+    pub height_m: Vec<f64>,
+    /// Sds north, east, up (m), where the file gives them.
+    pub sd_neu_m: Vec<Option<[f64; 3]>>,
+    /// The file's line of each epoch.
+    pub line: Vec<u64>,
+}
+
+impl Trajectory {
+    fn push(&mut self, t: i64, llh: [f64; 3], sd: Option<[f64; 3]>, line: u64) {
+        self.time_gps_ns.push(t);
+        self.latitude_deg.push(llh[0]);
+        self.longitude_deg.push(llh[1]);
+        self.height_m.push(llh[2]);
+        self.sd_neu_m.push(sd);
+        self.line.push(line);
+    }
+}
+
+fn bad(path: &Path, line: u64, field: &str, message: String) -> GravityError {
+    GravityError::Line {
+        path: path.to_path_buf(),
+        line,
+        field: field.to_owned(),
+        message,
+    }
+}
+
+/// A geodetic position's three numbers, checked: latitude in [-90, 90], longitude in
+/// [-180, 360], height within 100 km of the ellipsoid.
+fn position(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
+    let names = ["latitude", "longitude", "height"];
+    let limits = [(-90.0, 90.0), (-180.0, 360.0), (-1.0e4, 1.0e5)];
+    let mut out = [0.0; 3];
+    for k in 0..3 {
+        let v: f64 = f[k]
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| bad(path, line, names[k], format!("`{}` is not a number", f[k])))?;
+        if !(limits[k].0..=limits[k].1).contains(&v) {
+            return Err(bad(
+                path,
+                line,
+                names[k],
+                format!("{v} is outside [{}, {}]", limits[k].0, limits[k].1),
+            ));
+        }
+        out[k] = v;
+    }
+    Ok(out)
+}
+
+/// Three sds (m), each finite and not negative.
+fn sds(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
+    let mut out = [0.0; 3];
+    for (k, name) in ["sd_n", "sd_e", "sd_u"].iter().enumerate() {
+        out[k] = f[k]
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite() && *v >= 0.0)
+            .ok_or_else(|| bad(path, line, name, format!("`{}` is not an sd in m", f[k])))?;
+    }
+    Ok(out)
+}
+
+/// Reads RTKLIB's `.pos` solution file.
+pub fn read_rtklib(path: &Path) -> Result<Trajectory, GravityError> {
+    let file = std::fs::File::open(path).map_err(|e| GravityError::File {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let mut out = Trajectory::default();
+    let mut scale: Option<TimeScale> = None;
+    for (i, l) in std::io::BufReader::new(file).lines().enumerate() {
+        let line_no = i as u64 + 1;
+        let l = l.map_err(|e| GravityError::File {
+            path: path.to_path_buf(),
+            message: format!("line {line_no}: {e}"),
+        })?;
+        let t = l.trim();
+        if let Some(h) = t.strip_prefix('%') {
+            if h.contains("x-ecef") {
+                return Err(GravityError::File {
+                    path: path.to_path_buf(),
+                    message: "an XYZ-ECEF solution: gravcal reads latitude, longitude and \
+                              ellipsoidal height (RTKLIB's `out-solformat = llh`)"
+                        .to_owned(),
+                });
+            }
+            if h.contains("latitude") {
+                scale = Some(if h.contains("UTC") {
+                    TimeScale::Utc
+                } else {
+                    TimeScale::Gpst
+                });
+            }
+            continue;
+        }
+        if t.is_empty() {
+            continue;
+        }
+        let Some(scale) = scale else {
+            return Err(bad(
+                path,
+                line_no,
+                "header",
+                "a solution line before RTKLIB's column header (`%  GPST  latitude(deg) ...`)"
+                    .to_owned(),
+            ));
+        };
+        let f: Vec<&str> = t.split_whitespace().collect();
+        if f.len() < 10 {
+            return Err(bad(
+                path,
+                line_no,
+                "line",
+                format!(
+                    "{} fields: expected time (2), latitude, longitude, height, Q, ns, sdn, \
+                     sde, sdu (degrees-minutes-seconds solutions are not read: \
+                     `out-solformat = llh` with decimal degrees)",
+                    f.len()
+                ),
+            ));
+        }
+        let time = if f[0].contains('/') {
+            let iso = format!("{}T{}", f[0].replace('/', "-"), f[1]);
+            TimeReader::new(TimeForm::Iso, scale, None).read(&[iso.as_bytes()])
+        } else {
+            TimeReader::new(TimeForm::GpsWeekTow, scale, None)
+                .read(&[f[0].as_bytes(), f[1].as_bytes()])
+        }
+        .map_err(|(field, m)| bad(path, line_no, field, m))?;
+        let llh = position(path, line_no, &f[2..5])?;
+        let sd = sds(path, line_no, &f[7..10])?;
+        out.push(time, llh, Some(sd), line_no);
+    }
+    Ok(out)
+}
+
+/// Reads a CSV trajectory whose times `time` reads.
+pub fn read_csv(path: &Path, mut time: TimeReader) -> Result<Trajectory, GravityError> {
+    let file = std::fs::File::open(path).map_err(|e| GravityError::File {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let mut out = Trajectory::default();
+    let mut header_seen = false;
+    let fields = time.form.fields();
+    for (i, l) in std::io::BufReader::new(file).lines().enumerate() {
+        let line_no = i as u64 + 1;
+        let l = l.map_err(|e| GravityError::File {
+            path: path.to_path_buf(),
+            message: format!("line {line_no}: {e}"),
+        })?;
+        let t = l.split('#').next().unwrap_or("").trim();
+        if t.is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = t.split(',').map(str::trim).collect();
+        if !header_seen {
+            header_seen = true;
+            if f.first().is_some_and(|x| x.starts_with("time")) {
+                continue;
+            }
+        }
+        if f.len() != fields + 3 && f.len() != fields + 6 {
+            return Err(bad(
+                path,
+                line_no,
+                "line",
+                format!(
+                    "{} fields: expected time, lat_deg, lon_deg, h_m and optionally sd_n_m, \
+                     sd_e_m, sd_u_m",
+                    f.len()
+                ),
+            ));
+        }
+        let bytes: Vec<&[u8]> = f[..fields].iter().map(|x| x.as_bytes()).collect();
+        let tns = time
+            .read(&bytes)
+            .map_err(|(field, m)| bad(path, line_no, field, m))?;
+        let llh = position(path, line_no, &f[fields..fields + 3])?;
+        let sd = if f.len() == fields + 6 {
+            Some(sds(path, line_no, &f[fields + 3..])?)
+        } else {
+            None
+        };
+        out.push(tns, llh, sd, line_no);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(text: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+        let d = tempfile::tempdir().expect("tempdir");
+        let p = d.path().join("t.pos");
+        std::fs::write(&p, text).expect("write");
+        (d, p)
+    }
+
+    const HEADER: &str = "% program   : RTKPOST ver.2.4.3\n%  GPST                  latitude(deg) longitude(deg)  height(m)   Q  ns   sdn(m)   sde(m)   sdu(m)  sdne(m)  sdeu(m)  sdun(m) age(s)  ratio\n";
+
+    #[test]
+    fn rtklib_calendar_and_week_times_agree() {
+        let (_d, p) = write(&format!(
+            "{HEADER}2026/03/14 09:12:03.500   48.016600000    0.157600000    60.1230   1   9   0.0040   0.0030   0.0090   0.0010  -0.0010   0.0020   0.00    0.0\n\
+             2409 551523.600   48.016600100    0.157600100    60.1240   1   9   0.0040   0.0030   0.0090   0.0010  -0.0010   0.0020   0.00    0.0\n"
+        ));
+        let t = read_rtklib(&p).expect("reads");
+        assert_eq!(t.time_gps_ns.len(), 2);
+        // 2026-03-14 is a Saturday of GPS week 2409: 09:12:03.5 is 6 d 33123.5 s in.
+        assert_eq!(t.time_gps_ns[1] - t.time_gps_ns[0], 100_000_000);
+        assert_eq!(t.sd_neu_m[0], Some([0.004, 0.003, 0.009]));
+        assert!((t.height_m[0] - 60.123).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_lines_are_named() {
+        let (_d, p) = write(&format!(
+            "{HEADER}2026/03/14 09:12:03.500   98.0    0.1    60.1   1   9   0.004   0.003   0.009   0.001  -0.001   0.002   0.00    0.0\n"
+        ));
+        let e = read_rtklib(&p).expect_err("latitude 98").to_string();
+        assert!(e.contains(":3: latitude: 98 is outside"), "{e}");
+        let (_d, p) = write("%  GPST   x-ecef(m)  y-ecef(m)  z-ecef(m)\n");
+        let e = read_rtklib(&p).expect_err("ecef").to_string();
+        assert!(e.contains("XYZ-ECEF"), "{e}");
+    }
+
+    #[test]
+    fn a_csv_in_unix_seconds() {
+        let d = tempfile::tempdir().expect("tempdir");
+        let p = d.path().join("t.csv");
+        std::fs::write(
+            &p,
+            "time,lat_deg,lon_deg,h_m,sd_n_m,sd_e_m,sd_u_m\n1773479523.5,48.0,0.1,60.0,0.01,0.01,0.02\n1773479523.6,48.0,0.1,nan,0.01,0.01,0.02\n",
+        )
+        .expect("write");
+        let r = TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None);
+        let e = read_csv(&p, r).expect_err("nan height").to_string();
+        assert!(e.contains(":3: height:"), "{e}");
+    }
+}

@@ -1,0 +1,191 @@
+//! The gravity stage's pieces side by side with their peers (docs/model.md 7): GRS80 normal
+//! gravity against boule (to 1 microGal, from the ellipsoid to 10 km), the zero-phase
+//! filter against scipy.signal's `butter` + `sosfiltfilt` (to 1e-9 of the signal), and the
+//! Eotvos term against shipgrav's `eotvos_full` (Harlan 1968) on a steady track and on
+//! shipgrav's own test data. Run from target/peers-venv (`bash .ci/peers-venv.sh`).
+
+use adjust::gravity::{filter, navigation, normal::GRS80};
+use std::path::Path;
+use std::process::Command;
+
+#[path = "../../align/tests/peers/mod.rs"]
+mod peers;
+
+/// The reference script's rows, each split on commas into numbers.
+fn reference(py: &Path, args: &[&str]) -> Vec<Vec<f64>> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/gravity_reference.py");
+    let o = Command::new(py)
+        .arg(script)
+        .args(args)
+        .output()
+        .expect("python runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| {
+            l.split(',')
+                .map(|x| x.trim().parse().expect("a number"))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn normal_gravity_agrees_with_boule() {
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    let rows = reference(&py, &["normal"]);
+    assert!(rows.len() > 100, "{} points", rows.len());
+    let worst = rows
+        .iter()
+        .map(|r| (GRS80.normal_gravity_mgal(r[0], r[1]) - r[2]).abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "normal gravity: worst |gravcal - boule| {:.3e} mGal over {} points",
+        worst,
+        rows.len()
+    );
+    assert!(worst < 1e-3, "{worst} mGal");
+}
+
+/// A deterministic test signal: a drift, three sines and a pseudo-random wobble.
+fn signal(n: usize, fs: f64) -> Vec<f64> {
+    let mut state = 12_345u64;
+    (0..n)
+        .map(|i| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            let noise = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            let t = i as f64 / fs;
+            20.0 + 0.01 * t
+                + 3.0 * (t / 300.0).sin()
+                + (t / 7.0).sin()
+                + 0.5 * (t * 2.1).cos()
+                + noise
+        })
+        .collect()
+}
+
+#[test]
+fn the_filter_agrees_with_scipy() {
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (fs, period, n) in [(10.0, 100.0, 5000), (1.0, 60.0, 1200), (2.0, 30.0, 97)] {
+        let x = signal(n, fs);
+        let input = dir.path().join("x.txt");
+        std::fs::write(
+            &input,
+            x.iter().map(|v| format!("{v:?}\n")).collect::<String>(),
+        )
+        .expect("write");
+        let want: Vec<f64> = reference(
+            &py,
+            &[
+                "filter",
+                input.to_str().expect("utf-8"),
+                &fs.to_string(),
+                &period.to_string(),
+            ],
+        )
+        .into_iter()
+        .map(|r| r[0])
+        .collect();
+        let sections = filter::butterworth(filter::ORDER, 1.0 / period, fs).expect("filter");
+        let got = filter::filtfilt(&sections, &x).expect("filtered");
+        let scale = want.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        let worst = got
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| (a - b).abs() / scale)
+            .fold(0.0, f64::max);
+        eprintln!("filter {fs} Hz, {period} s, {n} samples: worst relative difference {worst:.2e}");
+        assert_eq!(got.len(), want.len());
+        assert!(worst < 1e-9, "{fs} Hz {period} s: {worst}");
+    }
+}
+
+/// Our Eotvos term on positions sampled at `fs`: velocities by central differences of
+/// latitude and longitude (as shipgrav takes them), the ends left out.
+fn ours(lon: &[f64], lat: &[f64], h: &[f64], fs: f64) -> Vec<f64> {
+    (1..lat.len() - 1)
+        .map(|i| {
+            let (r_m, r_n) = navigation::radii(&GRS80, lat[i]);
+            let dphi = (lat[i + 1] - lat[i - 1]).to_radians() * fs / 2.0;
+            let dlam = (lon[i + 1] - lon[i - 1]).to_radians() * fs / 2.0;
+            let v_n = (r_m + h[i]) * dphi;
+            let v_e = (r_n + h[i]) * lat[i].to_radians().cos() * dlam;
+            navigation::eotvos_down(&GRS80, lat[i], h[i], v_n, v_e) * 1e5
+        })
+        .collect()
+}
+
+#[test]
+fn the_eotvos_term_agrees_with_shipgrav() {
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    // A ship steaming at 5 m/s on a steady heading of 60 deg at 1 Hz for 20 minutes.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (mut lat, mut lon) = (vec![43.2], vec![5.3]);
+    for _ in 1..1200 {
+        let (r_m, r_n) = navigation::radii(&GRS80, *lat.last().expect("lat"));
+        let (v_n, v_e) = (
+            5.0 * 60f64.to_radians().cos(),
+            5.0 * 60f64.to_radians().sin(),
+        );
+        let l = *lat.last().expect("lat");
+        lat.push(l + (v_n / r_m).to_degrees());
+        let m = *lon.last().expect("lon");
+        lon.push(m + (v_e / (r_n * l.to_radians().cos())).to_degrees());
+    }
+    let h = vec![0.0; lat.len()];
+    let input = dir.path().join("track.csv");
+    let text: String = (0..lat.len())
+        .map(|i| format!("{:?},{:?},{:?}\n", lon[i], lat[i], h[i]))
+        .collect();
+    std::fs::write(&input, text).expect("write");
+    let want: Vec<f64> = reference(&py, &["eotvos", input.to_str().expect("utf-8"), "1"])
+        .into_iter()
+        .map(|r| r[0])
+        .collect();
+    let got = ours(&lon, &lat, &h, 1.0);
+    let worst = got
+        .iter()
+        .zip(&want[1..want.len() - 1])
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "eotvos, steady 5 m/s track: worst |gravcal - shipgrav| {worst:.4} mGal (term {:.2} mGal)",
+        got[0]
+    );
+    assert!(worst < 0.01, "{worst} mGal");
+
+    // shipgrav's own test data (a DGS marine meter's 1 Hz navigation, 1000 s): Harlan's
+    // formula also holds the track's own accelerations (the second differences of latitude
+    // and longitude), which the navigation equation carries in its kinematic acceleration;
+    // the difference is reported, and bounded by what those terms can reach here.
+    let rows = reference(&py, &["shipgrav-track"]);
+    let (lon, lat): (Vec<f64>, Vec<f64>) = rows.iter().map(|r| (r[0], r[1])).unzip();
+    let e: Vec<f64> = rows.iter().map(|r| r[2]).collect();
+    let h = vec![0.0; lat.len()];
+    let got = ours(&lon, &lat, &h, 1.0);
+    let d: Vec<f64> = got
+        .iter()
+        .zip(&e[1..e.len() - 1])
+        .map(|(a, b)| a - b)
+        .collect();
+    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
+    let worst = d.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    eprintln!(
+        "eotvos on shipgrav's test data ({} epochs): first {:.5} vs shipgrav {:.5} mGal; rms difference {rms:.4}, worst {worst:.4} mGal",
+        e.len(),
+        got[0],
+        e[1]
+    );
+    assert!((e[0] + 56.90367).abs() < 0.001, "shipgrav's own value");
+    assert!(rms < 0.02 && worst < 0.1, "rms {rms}, worst {worst}");
+}

@@ -1,0 +1,48 @@
+"""Reference values for adjust/tests/gravity_peers.rs, from the peers the gravity stage is
+checked against.
+
+usage: python gravity_reference.py normal          prints lat,h,boule_mgal on a grid
+       python gravity_reference.py filter IN FS PERIOD   prints scipy's sosfiltfilt of IN
+       python gravity_reference.py eotvos IN FS    prints shipgrav's eotvos_full (mGal)
+                                                   of IN's lon,lat,ht rows
+       python gravity_reference.py shipgrav-track  prints lon,lat of shipgrav's own test
+                                                   data (1 Hz), and its eotvos_full
+"""
+import glob
+import os
+import sys
+
+import numpy as np
+
+what = sys.argv[1]
+if what == "normal":
+    import boule
+
+    for lat in np.arange(-90.0, 90.01, 7.5):
+        for h in [0.0, 10.0, 100.0, 1000.0, 3000.0, 10000.0]:
+            gamma = boule.GRS80.normal_gravity((None, lat, h))
+            print(f"{lat!r},{h!r},{float(gamma)!r}")
+elif what == "filter":
+    from scipy import signal
+
+    x = np.loadtxt(sys.argv[2])
+    fs, period = float(sys.argv[3]), float(sys.argv[4])
+    sos = signal.butter(4, 1.0 / period, fs=fs, output="sos")
+    for v in signal.sosfiltfilt(sos, x):
+        print(repr(v))
+elif what == "eotvos":
+    import shipgrav.grav as sgg
+
+    d = np.loadtxt(sys.argv[2], delimiter=",")
+    for v in sgg.eotvos_full(d[:, 0], d[:, 1], d[:, 2], float(sys.argv[3])):
+        print(repr(v))
+elif what == "shipgrav-track":
+    import shipgrav.grav as sgg
+    import shipgrav.io as sgi
+
+    files = glob.glob(os.path.dirname(sgg.__file__) + "/tests/ex_files/DGStest*.dat")
+    data = sgi.read_dgs_laptop(files, "DGStest")
+    lon, lat = data["lon"].values, data["lat"].values
+    e = sgg.eotvos_full(lon, lat, np.zeros(len(lat)), 1)
+    for a, b, c in zip(lon, lat, e):
+        print(f"{a!r},{b!r},{c!r}")
