@@ -11,15 +11,21 @@
 //!   against shipgrav's Harlan (1968);
 //! - [`filter`]: the zero-phase Butterworth low-pass whose response is 0.5 at the cut-off
 //!   period `filter_s`, against scipy.signal's `sosfiltfilt`;
-//! - [`trajectory`]: GNSS positions from RTKLIB's `.pos` or a CSV.
+//! - [`trajectory`]: GNSS positions from RTKLIB's `.pos` or a CSV;
+//! - [`reduce`]: the down component along an evenly spaced stretch of track, free of I/O:
+//!   kinematic acceleration and velocities by central differences, the Eotvos term, normal
+//!   gravity, the filter, ties and a drift, the sigmas from the calibration and from the
+//!   positions apart (`tests/gravity_reduce.rs`: a simulated boat survey recovered).
 //!
-//! Not built yet: the stage itself (`cargo xtask gravity`: positions differentiated, the
-//! applied specific force brought onto the epochs, ties and drift, the sigmas, the
-//! outputs, the report's section), the simulator's survey lines and the benchmark.
+//! Not built yet: the stage's run (`cargo xtask gravity`: the manifest's trajectory and
+//! ties, apply's output brought onto the epochs, the track cut at gaps, the outputs and the
+//! report's section), north and east with attitude, the simulator's survey lines over a
+//! known field, and the benchmark.
 
 pub mod filter;
 pub mod navigation;
 pub mod normal;
+pub mod reduce;
 pub mod trajectory;
 
 /// What can go wrong in the gravity stage.
