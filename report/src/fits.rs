@@ -1,0 +1,322 @@
+//! The axis fits: Table 1 as the paper prints it, the variance components with their
+//! advice, every fit's parameters with correlations on demand, the extra terms' significance
+//! and data snooping.
+
+use super::*;
+
+/// Results in the form of the paper's Table 1.
+pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
+    let Stages { cal, .. } = st;
+    // Table 1.
+    let mut s = section("Results in the form of the paper's Table 1");
+    s.text.push(
+        "Per session and accelerometer, order 1 without temperature terms. Sigmas from the estimated variance components \
+         (next section) and a priori (every component 1). sigma0 is sqrt(v^T P v / r) at the a-priori weights; the global \
+         test is of the station means' scatter about the fitted function (the between-station part of v^T P v) against its \
+         scaled chi-square, since the weights were estimated from the readings within the stations. b and k are strongly anti-correlated because the counts are far from zero: \
+         use them together, with their correlation."
+            .to_owned(),
+    );
+    let mut t1 = Table::new(&[
+        "session",
+        "accelerometer",
+        "values",
+        "T (degC)",
+        "b (mGal)",
+        "k (mGal/kbit)",
+        "sigma b (mGal)",
+        "sigma k (mGal/Mbit)",
+        "a priori sigma b",
+        "a priori sigma k",
+        "corr(b,k)",
+        "sigma0",
+        "removed",
+        "global test",
+    ]);
+    for r in cal
+        .results
+        .iter()
+        .filter(|r| r.session != "all" && r.order == 1 && !r.temperature && !r.misalignment)
+    {
+        let (Some(b), Some(k)) = (param(r, "b"), param(r, "k")) else {
+            continue;
+        };
+        t1.rows.push(vec![
+            r.session.clone(),
+            format!("{} ({})", r.accelerometer, r.model),
+            r.n_observations.to_string(),
+            format!("{:.2}", r.mean_temperature_c),
+            format!("{:.2}", b.value),
+            format!("{:.5}", k.value * 1e3),
+            format!("{:.3}", b.sigma),
+            format!("{:.3}", k.sigma * 1e6),
+            format!("{:.3}", b.sigma_apriori),
+            format!("{:.3}", k.sigma_apriori * 1e6),
+            format!("{:.5}", r.correlation[0][1]),
+            format!("{:.3}", r.sigma0),
+            r.n_excluded.to_string(),
+            format!(
+                "{} ({:.1} in [{:.1}, {:.1}])",
+                if r.global_test.passed {
+                    "passed"
+                } else {
+                    "FAILED"
+                },
+                r.global_test.statistic,
+                r.global_test.lower,
+                r.global_test.upper
+            ),
+        ]);
+    }
+    s.tables.push(("Table 1".to_owned(), t1));
+    s
+}
+
+/// Variance components per fit: which observation group was mis-weighted, and by how much.
+pub(crate) fn components_section(st: &Stages<'_>) -> Section {
+    let Stages { cal, .. } = st;
+    let mut s = section("Variance components");
+    s.text.push(
+        "The factor the data put on each observation group's a-priori variances, with its sd, its degrees of freedom and a \
+         two-sided 5 % test of whether it is 1. The theodolite's comes from the scatter of the station means about the \
+         fitted function (the scatter within a station set its sigma_Dz), the ADC's from the scatter of a station's window \
+         means about their mean against the sd each window's samples gave. A group whose test fails was mis-weighted by \
+         the factor shown; the parameters' sigmas above use the estimated factors. One the data give fewer than 3 dof \
+         is not estimated."
+            .to_owned(),
+    );
+    let mut t = Table::new(&[
+        "model",
+        "accelerometer",
+        "session",
+        "group",
+        "factor",
+        "sigma",
+        "dof",
+        "test: statistic in [2.5 %, 97.5 %]",
+        "verdict",
+    ]);
+    for r in &cal.results {
+        for c in &r.variance_components {
+            let verdict = match (&c.not_estimable, c.passed) {
+                (Some(why), _) => format!("not estimable: {why}"),
+                (None, true) => "consistent with 1".to_owned(),
+                (None, false) => format!("mis-weighted: variances x {:.2}", c.estimate),
+            };
+            t.rows.push(vec![
+                r.model.clone(),
+                r.accelerometer.clone(),
+                r.session.clone(),
+                c.group.clone(),
+                format!("{:.3}", c.estimate),
+                c.sigma.map_or("-".to_owned(), |x| format!("{x:.3}")),
+                format!("{:.1}", c.dof),
+                format!("{:.1} in [{:.1}, {:.1}]", c.statistic, c.lower, c.upper),
+                verdict,
+            ]);
+        }
+    }
+    s.tables.push(("Variance components".to_owned(), t));
+    s.text.extend(component_advice(cal));
+    s
+}
+
+/// What a failed component test means and what to try, once for the report: how many
+/// failed of how many tested, against the one in twenty a 5 % test fails by chance.
+pub(crate) fn component_advice(cal: &Calibration) -> Option<String> {
+    let tested: Vec<(&CalibrationResult, &calibration::VarianceComponent)> = cal
+        .results
+        .iter()
+        .flat_map(|r| r.variance_components.iter().map(move |c| (r, c)))
+        .filter(|(_, c)| c.not_estimable.is_none())
+        .collect();
+    let failed: Vec<String> = tested
+        .iter()
+        .filter(|(_, c)| !c.passed)
+        .map(|(r, c)| {
+            format!(
+                "{} {} {} {} x {:.2}",
+                r.model, r.accelerometer, r.session, c.group, c.estimate
+            )
+        })
+        .collect();
+    if failed.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "{} of {} component tests failed ({}); a 5 % test fails in about {:.1} of {} by chance. \
+         A factor below 1 means that group's a-priori variances were too large, above 1 too \
+         small; the sigmas above already use the estimated factor, so the calibration stands. \
+         What to try when failures recur across sessions and accelerometers: for the \
+         theodolite, its sd per reading (align's sigma_dz, or [align] sigma_dz = \"station\"); \
+         for the ADC, the window length ([align] window_s) and the noise terms align kept \
+         (the Allan section).",
+        failed.len(),
+        tested.len(),
+        failed.join("; "),
+        0.05 * tested.len() as f64,
+        tested.len()
+    ))
+}
+
+/// Every axis fit's parameters in a table of its own (what the model holds, the values,
+/// sigmas at the estimated components and a priori), its correlations on demand.
+pub(crate) fn parameters_section(st: &Stages<'_>) -> Section {
+    let mut s = section("Parameters of every fit");
+    s.text.push(
+        "sigma is at the estimated variance components (the one to quote), sigma a priori at \
+         the weights align gave; the correlations open under each table."
+            .to_owned(),
+    );
+    for r in &st.cal.results {
+        let mut t = Table::new(&["parameter", "value", "sigma", "sigma a priori", "unit"]);
+        for p in &r.parameters {
+            t.rows.push(vec![
+                p.name.clone(),
+                format!("{:.9e}", p.value),
+                format!("{:.3e}", p.sigma),
+                format!("{:.3e}", p.sigma_apriori),
+                p.unit.clone(),
+            ]);
+        }
+        let what = format!(
+            "{} {} {}: order {}{}{}{}",
+            r.model,
+            r.accelerometer,
+            r.session,
+            r.order,
+            if r.temperature {
+                ", temperature terms"
+            } else {
+                ""
+            },
+            if r.misalignment_vector.is_some() {
+                ", misalignment vector"
+            } else if r.misalignment {
+                ", misalignment (beta)"
+            } else {
+                ""
+            },
+            r.t_ref_c
+                .map_or(String::new(), |t| format!(", at t_ref {t:.2} degC")),
+        );
+        let names: Vec<&str> = r.parameters.iter().map(|p| p.name.as_str()).collect();
+        let mut header = vec![""];
+        header.extend(&names);
+        let mut c = Table::new(&header);
+        for (name, row) in names.iter().zip(&r.correlation) {
+            let mut cells = vec![(*name).to_owned()];
+            cells.extend(row.iter().map(|x| format!("{x:+.4}")));
+            c.rows.push(cells);
+        }
+        s.details
+            .push((s.tables.len(), format!("{what}: correlations"), c));
+        s.tables.push((what, t));
+    }
+    s
+}
+
+/// Temperature, higher orders and misalignment: the significance of the extra terms.
+pub(crate) fn extra_terms_section(st: &Stages<'_>) -> Section {
+    let Stages { cal, .. } = st;
+    // Temperature, higher orders, misalignment: significance of the extra terms.
+    let mut s = section("Temperature, higher orders and misalignment");
+    s.text.push(
+        "Each term beyond b and k with its t = value/sigma against Student's t at 5 % (two-sided): a term is significant when |t| exceeds the critical value."
+            .to_owned(),
+    );
+    let mut extra = Table::new(&[
+        "model",
+        "accelerometer",
+        "session",
+        "t_ref (degC)",
+        "parameter",
+        "value",
+        "sigma",
+        "unit",
+        "t",
+        "critical",
+        "significant",
+    ]);
+    for r in &cal.results {
+        for p in r
+            .parameters
+            .iter()
+            .filter(|p| p.name != "b" && p.name != "k")
+        {
+            let t = if p.sigma > 0.0 {
+                p.value / p.sigma
+            } else {
+                0.0
+            };
+            let crit = t_critical(r.dof);
+            extra.rows.push(vec![
+                r.model.clone(),
+                r.accelerometer.clone(),
+                r.session.clone(),
+                r.t_ref_c
+                    .map(|t| format!("{t:.2}"))
+                    .unwrap_or_else(|| "-".into()),
+                p.name.clone(),
+                format!("{:.6e}", p.value),
+                format!("{:.3e}", p.sigma),
+                p.unit.clone(),
+                format!("{t:.2}"),
+                format!("{crit:.3}"),
+                if t.abs() > crit { "yes" } else { "no" }.to_owned(),
+            ]);
+        }
+    }
+    if extra.rows.is_empty() {
+        s.text
+            .push("No model with terms beyond b and k was fitted.".to_owned());
+    } else {
+        s.tables.push(("Extra terms".to_owned(), extra));
+    }
+    for r in cal.results.iter().filter(|r| !r.warnings.is_empty()) {
+        for w in &r.warnings {
+            s.text.push(format!(
+                "{} {} {}: {w}",
+                r.model, r.accelerometer, r.session
+            ));
+        }
+    }
+    s
+}
+
+/// The global test, data snooping and the fits skipped.
+pub(crate) fn snooping_section(st: &Stages<'_>) -> Section {
+    let Stages { cal, .. } = st;
+    // Blunders and skipped fits.
+    let mut s = section("Global test and data snooping");
+    s.text.push(format!(
+        "Data snooping removed, one at a time, the observation with the largest normalised residual |w| > {} (alpha = 0.001) and re-adjusted. Every removal:",
+        adjust::calibrate::W_CRITICAL
+    ));
+    let mut removed = Table::new(&[
+        "model",
+        "accelerometer",
+        "fit",
+        "session",
+        "station",
+        "line",
+        "GPS week / tow (s)",
+        "w",
+    ]);
+    for r in &cal.results {
+        for x in &r.removed {
+            removed.rows.push(vec![
+                r.model.clone(),
+                r.accelerometer.clone(),
+                r.session.clone(),
+                x.session.clone(),
+                x.station.clone(),
+                x.line.to_string(),
+                gps(x.time_gps_ns),
+                format!("{:.2}", x.w),
+            ]);
+        }
+    }
+    s.tables.push(("Removed observations".to_owned(), removed));
+    s
+}
