@@ -1,0 +1,112 @@
+//! The general fitting command (docs/formats.md 7): its arguments and the CSV table it reads.
+
+use super::*;
+
+/// Arguments of the `fit` command (docs/formats.md section 7), shared by the stage binary and
+/// `cargo xtask fit`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct FitArgs {
+    /// CSV table with a header line.
+    #[arg(long)]
+    pub input: PathBuf,
+    /// Column of x.
+    #[arg(long)]
+    pub x: String,
+    /// Column of y.
+    #[arg(long)]
+    pub y: String,
+    /// Column of the sd of x (errors in both variables).
+    #[arg(long)]
+    pub sigma_x: Option<String>,
+    /// Column of the sd of y (default: unit weights).
+    #[arg(long)]
+    pub sigma_y: Option<String>,
+    /// Polynomial degree, 0..=10.
+    #[arg(long, default_value_t = 1)]
+    pub degree: usize,
+}
+
+/// Fits a polynomial to the columns of a CSV table (docs/formats.md section 7).
+pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
+    let (path, x, y, degree) = (
+        args.input.as_path(),
+        args.x.as_str(),
+        args.y.as_str(),
+        args.degree,
+    );
+    let (sigma_x, sigma_y) = (args.sigma_x.as_deref(), args.sigma_y.as_deref());
+    if path.is_dir() {
+        return Err(Error::Fit(format!(
+            "{}: is a folder, not a CSV file",
+            path.display()
+        )));
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    // A byte-order mark (spreadsheets write one) is not part of the first column's name.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let (_, header) = lines
+        .next()
+        .ok_or_else(|| Error::Fit(format!("{}: no header line", path.display())))?;
+    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let index = |name: &str| {
+        names.iter().position(|n| *n == name).ok_or_else(|| {
+            Error::Fit(format!(
+                "{}: no column `{name}` (columns: {})",
+                path.display(),
+                names.join(", ")
+            ))
+        })
+    };
+    let cols: Vec<Option<usize>> = vec![
+        Some(index(x)?),
+        Some(index(y)?),
+        sigma_x.map(index).transpose()?,
+        sigma_y.map(index).transpose()?,
+    ];
+    let mut data: [Vec<f64>; 4] = Default::default();
+    // The file's line of each data row, for messages about a row.
+    let mut line_of_row = Vec::new();
+    for (n, line) in lines {
+        line_of_row.push(n + 1);
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        for (k, c) in cols.iter().enumerate() {
+            if let Some(c) = c {
+                let v = fields
+                    .get(*c)
+                    .and_then(|f| f.parse::<f64>().ok())
+                    .ok_or_else(|| {
+                        Error::Fit(format!(
+                            "{}:{}: {}: not a number",
+                            path.display(),
+                            n + 1,
+                            names[*c]
+                        ))
+                    })?;
+                data[k].push(v);
+            }
+        }
+    }
+    let [xs, ys, sx, sy] = data;
+    fit::fit(
+        &xs,
+        &ys,
+        sigma_x.map(|_| sx.as_slice()),
+        sigma_y.map(|_| sy.as_slice()),
+        degree,
+    )
+    .map_err(|e| match e {
+        fit::FitError::BadValue { row, message } => Error::Fit(format!(
+            "{}:{}: {message}",
+            path.display(),
+            line_of_row.get(row - 1).copied().unwrap_or(row)
+        )),
+        e => Error::Fit(format!("{}: {e}", path.display())),
+    })
+}

@@ -1,0 +1,147 @@
+//! calibration.json and residuals.parquet written with their chain of custody, and the
+//! console's summary.
+
+use super::*;
+
+/// Writes residuals.parquet and calibration.json, with the chain of custody: every file
+/// adjust read and the table it wrote.
+pub(crate) fn write_outputs(
+    ds: &Dataset,
+    out: &Path,
+    mut calibration: Calibration,
+    residual_rows: &[io::ResidualRow<'_>],
+) -> Result<Calibration, Error> {
+    let dir = out.join(STAGE_DIR);
+    std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
+        path: dir.clone(),
+        source: e,
+    })?;
+    let cal_path = dir.join(CALIBRATION_FILE);
+    ingest::remove_stale(&cal_path)?;
+    io::write_residuals(&dir, residual_rows)?;
+    let folders = Folders {
+        dataset: &ds.dir,
+        out,
+    };
+    let mut inputs = vec![folders.record(Root::Dataset, ingest_ledger::MANIFEST_FILE)?];
+    for file in [
+        format!(
+            "{}/{}",
+            ingest_ledger::STAGE_DIR,
+            ingest_ledger::LEDGER_FILE
+        ),
+        format!("{}/{}", align_ledger::STAGE_DIR, align_ledger::LEDGER_FILE),
+        format!(
+            "{}/{}",
+            align_ledger::STAGE_DIR,
+            ingest::contract::tables::observations::FILE
+        ),
+    ] {
+        inputs.push(folders.record(Root::Out, &file)?);
+    }
+    let mut outputs = vec![folders.record(
+        Root::Out,
+        &format!("{STAGE_DIR}/{}", ingest::contract::tables::residuals::FILE),
+    )?];
+    for t in &calibration.triad {
+        let Some(file) = &t.calib_file else {
+            continue;
+        };
+        let path = dir.join(file);
+        let tmp = dir.join(format!(".{file}.partial"));
+        std::fs::write(&tmp, triad_fits::calib_text(t))
+            .and_then(|()| std::fs::rename(&tmp, &path))
+            .map_err(|e| Error::Io {
+                path: path.clone(),
+                source: e,
+            })?;
+        outputs.push(folders.record(Root::Out, &format!("{STAGE_DIR}/{file}"))?);
+    }
+    calibration.custody = Custody { inputs, outputs };
+    ingest::write_json_atomically(&cal_path, &calibration)?;
+    Ok(calibration)
+}
+
+/// A few lines per fit: b, k and sigma0; and every skipped fit with its reason.
+pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
+    if c.results.is_empty() && c.skipped.is_empty() && c.triad.is_empty() {
+        let _ = writeln!(
+            w,
+            "adjust: no observation to calibrate with (a dataset of survey sessions only: \
+             `cargo xtask apply` calibrates them)"
+        );
+    }
+    for t in &c.triad {
+        let removed = t.positions.iter().filter(|p| p.removed).count();
+        let p: Vec<String> = t
+            .parameters
+            .iter()
+            .map(|p| format!("{} = {:.6e} +/- {:.1e}", p.name, p.value, p.sigma))
+            .collect();
+        let _ = writeln!(
+            w,
+            "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed{}, global test {}; {}",
+            t.model,
+            t.session,
+            p.join(", "),
+            t.sigma0,
+            t.positions_used,
+            match t.positions_without_temperature {
+                0 => String::new(),
+                n => format!(", {n} without temperature left out"),
+            },
+            if t.global_test.passed {
+                "passed"
+            } else {
+                "failed"
+            },
+            t.calib_file.as_ref().map_or_else(
+                || "no imu_tk file (its layout has no higher orders or temperature terms)"
+                    .to_owned(),
+                |f| format!("wrote {f}")
+            )
+        );
+        if let Some(advice) = t
+            .global_test
+            .advice(&format!("triad {} {}", t.model, t.session), true)
+        {
+            let _ = writeln!(w, "adjust: {advice}");
+        }
+    }
+    for r in &c.results {
+        let p: Vec<String> = r
+            .parameters
+            .iter()
+            .map(|p| format!("{} = {:.6e} +/- {:.2e}", p.name, p.value, p.sigma))
+            .collect();
+        let _ = writeln!(
+            w,
+            "adjust: {} {} {}: {}; sigma0 {:.3}, {} obs, {} removed, global test {}",
+            r.model,
+            r.accelerometer,
+            r.session,
+            p.join(", "),
+            r.sigma0,
+            r.n_observations,
+            r.n_excluded,
+            if r.global_test.passed {
+                "passed"
+            } else {
+                "FAILED"
+            }
+        );
+        if let Some(advice) = r.global_test.advice(
+            &format!("{} {} {}", r.model, r.accelerometer, r.session),
+            false,
+        ) {
+            let _ = writeln!(w, "adjust: {advice}");
+        }
+    }
+    for s in &c.skipped {
+        let _ = writeln!(
+            w,
+            "adjust: {} {} {}: skipped: {}",
+            s.model, s.accelerometer, s.session, s.reason
+        );
+    }
+}
