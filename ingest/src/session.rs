@@ -1,0 +1,352 @@
+//! One session ingested: its acquisition logs (binary, CSV pair or lab stream) and its
+//! theodolite log read into the tables, each file's ledger, and what makes the session
+//! unusable as a whole.
+
+use super::*;
+
+pub(crate) fn relative(ds: &Dataset, p: &Path) -> String {
+    p.strip_prefix(&ds.dir)
+        .unwrap_or(p)
+        .to_string_lossy()
+        .replace('\\', "/")
+}
+
+pub(crate) fn progress_bar(opts: &Options, path: &Path) -> indicatif::ProgressBar {
+    if !opts.progress || !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let len = std::fs::metadata(path).map_or(0, |m| m.len());
+    let pb = indicatif::ProgressBar::new(len);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg} {wide_bar} {bytes}/{total_bytes} {bytes_per_sec}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    pb.set_message(
+        path.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+    );
+    pb
+}
+
+pub(crate) fn new_ledger(
+    ds: &Dataset,
+    path: &Path,
+    session: &str,
+    role: &str,
+    unit: &str,
+) -> FileLedger {
+    FileLedger {
+        path: relative(ds, path),
+        session: session.to_owned(),
+        role: role.to_owned(),
+        unit: unit.to_owned(),
+        ..FileLedger::default()
+    }
+}
+
+pub(crate) fn read_binary(
+    path: &Path,
+    config: gcb::ScanConfig,
+    streams: &mut StreamWriter,
+    ledger: &mut FileLedger,
+    progress: &indicatif::ProgressBar,
+) -> Result<Option<i64>> {
+    let mut scanner = gcb::FrameScanner::new(config);
+    let mut emit = |f: gcb::Frame| -> Result<()> {
+        match f {
+            gcb::Frame::Acceleration {
+                time_ns,
+                counts,
+                status,
+            } => streams.acceleration(time_ns, counts, status),
+            gcb::Frame::Temperature {
+                time_ns,
+                millidegrees,
+                status,
+            } => streams.temperature(
+                time_ns,
+                millidegrees.map(|m| Some(f64::from(m) / 1000.0)),
+                status,
+            ),
+        }
+    };
+    let (sha, bytes) = lines::read_chunks(path, |chunk| {
+        progress.inc(chunk.len() as u64);
+        scanner.push(chunk, ledger, &mut emit)
+    })?;
+    let interval = scanner.finish(ledger, &mut emit)?;
+    ledger.null_values = streams.take_null_counts()?;
+    ledger.sha256 = sha;
+    ledger.bytes = bytes;
+    Ok(interval)
+}
+
+/// A measured rate further than this fraction from the declared one is an error.
+pub const RATE_TOLERANCE: f64 = 0.01;
+
+/// What makes a session unusable as a whole, if anything: no data (unless the manifest
+/// expects none), or a sample rate that is not the declared one.
+pub(crate) fn session_errors(
+    ds: &Dataset,
+    s: &manifest::ResolvedSession,
+    summary: &SessionSummary,
+    acquisition: &[String],
+) -> Vec<String> {
+    let id = &s.session.id;
+    let files = acquisition.join(", ");
+    let mut errors = Vec::new();
+    let hint = "(if this is expected, set `expect_empty = true` in its [[session]])";
+    if summary.acceleration_samples == 0 && !s.session.expect_empty {
+        errors.push(format!(
+            "session {id}: {files} gave no usable acceleration sample {hint}"
+        ));
+    }
+    if let Some(theodolite) = &s.theodolite
+        && summary.readings == 0
+        && !s.session.expect_empty
+    {
+        errors.push(format!(
+            "session {id}: {} gave no usable theodolite reading {hint}",
+            relative(ds, theodolite)
+        ));
+    }
+    let declared = ds.manifest.instrument.sample_rate_hz;
+    if let Some(measured) = summary.measured_sample_rate_hz
+        && (measured / declared - 1.0).abs() > RATE_TOLERANCE
+    {
+        errors.push(format!(
+            "session {id}: {files}: the acceleration samples come at {measured:.4} Hz, but \
+             instrument.sample_rate_hz declares {declared} Hz (more than {:.0} % off)",
+            RATE_TOLERANCE * 100.0
+        ));
+    }
+    errors
+}
+
+/// The tables a run writes, and the session being read.
+pub(crate) struct Writers {
+    pub(crate) streams: StreamWriter,
+    pub(crate) theo: theodolite::TheodoliteWriter,
+    pub(crate) lab: labstream::LabWriter,
+    /// Index of the session being read.
+    pub(crate) session: u16,
+}
+
+/// Reads a session's acquisition logs (the binary log, or the CSV pair) into `streams`,
+/// their ledgers into `files`; returns the median interval between acceleration samples.
+pub(crate) fn read_acquisition(
+    ds: &Dataset,
+    s: &manifest::ResolvedSession,
+    opts: &Options,
+    out: &mut Writers,
+    files: &mut Vec<FileLedger>,
+) -> Result<Option<i64>> {
+    let streams = &mut out.streams;
+    let id = s.session.id.as_str();
+    let acceleration_interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
+    match &s.acquisition {
+        Acquisition::Binary(path) => {
+            let mut ledger = new_ledger(ds, path, id, "acquisition", "frames");
+            let pb = progress_bar(opts, path);
+            let config = gcb::ScanConfig {
+                reference_week: time::week_of_date(s.date),
+                acceleration_interval_ns,
+                range_ns: s.gps_range_ns(),
+            };
+            let interval = read_binary(path, config, streams, &mut ledger, &pb)?;
+            pb.finish_and_clear();
+            files.push(ledger);
+            Ok(interval)
+        }
+        Acquisition::Lab {
+            stream,
+            temperature,
+            zero_gps_ns,
+        } => {
+            let mut ledger = new_ledger(ds, stream, id, "adc_csv", "lines");
+            let pb = progress_bar(opts, stream);
+            let config = labstream::LabConfig {
+                session: out.session,
+                zero_gps_ns: *zero_gps_ns,
+                interval_ns: acceleration_interval_ns,
+                range_ns: s.gps_range_ns(),
+                skip_bad_lines: opts.skip_bad_lines,
+                reading_limits: labstream::reading_limits(&ds.manifest.instrument),
+            };
+            let interval = labstream::read_lab(stream, config, &mut out.lab, &mut ledger, &pb)?;
+            pb.finish_and_clear();
+            files.push(ledger);
+            if let Some(path) = temperature {
+                let mut ledger = new_ledger(ds, path, id, "temperature_csv", "lines");
+                let pb = progress_bar(opts, path);
+                labstream::read_lab_temperature(
+                    path,
+                    config,
+                    gcb::TEMPERATURE_INTERVAL_NS,
+                    streams,
+                    &mut ledger,
+                    &pb,
+                )?;
+                pb.finish_and_clear();
+                files.push(ledger);
+            }
+            Ok(interval)
+        }
+        Acquisition::Csv { adc, temperature } => {
+            let mut interval = None;
+            for (path, kind, role, interval_ns) in [
+                (
+                    adc,
+                    csvlog::CsvKind::Adc,
+                    "adc_csv",
+                    acceleration_interval_ns,
+                ),
+                (
+                    temperature,
+                    csvlog::CsvKind::Temperature,
+                    "temperature_csv",
+                    gcb::TEMPERATURE_INTERVAL_NS,
+                ),
+            ] {
+                let mut ledger = new_ledger(ds, path, id, role, "lines");
+                let pb = progress_bar(opts, path);
+                let form = match kind {
+                    csvlog::CsvKind::Adc => s.times.adc,
+                    csvlog::CsvKind::Temperature => s.times.temperature,
+                };
+                let config = csvlog::CsvConfig {
+                    kind,
+                    skip_bad_lines: opts.skip_bad_lines,
+                    interval_ns,
+                    range_ns: s.gps_range_ns(),
+                    time: s.times.reader(form),
+                };
+                let median = csvlog::read_csv(path, config, streams, &mut ledger, &pb)?;
+                if kind == csvlog::CsvKind::Adc {
+                    interval = median;
+                }
+                pb.finish_and_clear();
+                files.push(ledger);
+            }
+            Ok(interval)
+        }
+    }
+}
+
+/// Reads a session's acquisition logs and, on a thread of its own meanwhile, its theodolite
+/// log at `path`: the readings, the acquisition's median interval, and the theodolite's ledger.
+pub(crate) fn read_with_theodolite(
+    ds: &Dataset,
+    s: &manifest::ResolvedSession,
+    path: &Path,
+    opts: &Options,
+    out: &mut Writers,
+    files: &mut Vec<FileLedger>,
+) -> Result<(Vec<theodolite::Reading>, Option<i64>, FileLedger)> {
+    // The theodolite log is independent of the acquisition log, and the Parquet writer is
+    // idle while the first row group fills.
+    let mut ledger = new_ledger(ds, path, &s.session.id, "theodolite", "lines");
+    let skip_bad_lines = opts.skip_bad_lines;
+    std::thread::scope(|scope| {
+        let theodolite = scope.spawn(move || {
+            theodolite::read_theodolite(
+                s,
+                path,
+                skip_bad_lines,
+                &mut ledger,
+                &indicatif::ProgressBar::hidden(),
+            )
+            .map(|readings| (readings, ledger))
+        });
+        let acquisition = read_acquisition(ds, s, opts, out, files);
+        let readings = theodolite.join().map_err(|_| {
+            Error::io(
+                path,
+                std::io::Error::other("the theodolite reading thread panicked"),
+            )
+        })?;
+        let interval_ns = acquisition?;
+        readings.map(|(r, ledger)| (r, interval_ns, ledger))
+    })
+}
+
+/// Ingests one session: its acquisition logs and (tilt-table sessions) its theodolite log.
+/// Returns what it gave, and what makes it unusable as a whole, if anything.
+pub(crate) fn ingest_session(
+    ds: &Dataset,
+    s: &manifest::ResolvedSession,
+    index: u16,
+    opts: &Options,
+    out: &mut Writers,
+    files: &mut Vec<FileLedger>,
+) -> Result<(SessionSummary, Vec<String>)> {
+    let id = s.session.id.as_str();
+    out.streams.start_session(index)?;
+    out.session = index;
+    let (readings, interval_ns) = match &s.theodolite {
+        Some(path) => {
+            let (readings, interval_ns, ledger) =
+                read_with_theodolite(ds, s, path, opts, out, files)?;
+            out.theo
+                .write(id, s.session.theodolite_unit, s.times.scale, &readings)?;
+            files.push(ledger);
+            (readings.len() as u64, interval_ns)
+        }
+        // A survey or a multi-position session: acquisition logs only.
+        None => (0, read_acquisition(ds, s, opts, out, files)?),
+    };
+    let st = out.streams.stats()?;
+    // A lab stream's samples go to lab.parquet: its ledger counts them.
+    let lab_samples: u64 = match s.acquisition {
+        Acquisition::Lab { .. } => files
+            .iter()
+            .filter(|f| f.session == id && f.lab_stream.is_some())
+            .map(|f| f.accepted)
+            .sum(),
+        _ => 0,
+    };
+    let summary = SessionSummary {
+        id: id.to_owned(),
+        acceleration_samples: st.acceleration + lab_samples,
+        temperature_samples: st.temperature,
+        kind: s.session.kind,
+        readings,
+        first_gps_ns: st.first_gps_ns,
+        last_gps_ns: st.last_gps_ns,
+        channels_never_connected: (0..3u8)
+            .filter(|&ch| st.acceleration > 0 && !st.connected_seen[usize::from(ch)])
+            .map(|ch| ch + 1)
+            .collect(),
+        measured_sample_rate_hz: interval_ns.filter(|&i| i > 0).map(|i| 1e9 / i as f64),
+    };
+    let acquisition_files: Vec<String> = files
+        .iter()
+        .filter(|f| f.session == id && f.role != "theodolite")
+        .map(|f| f.path.clone())
+        .collect();
+    let mut errors = session_errors(ds, s, &summary, &acquisition_files);
+    // A lab stream whose stamps never move has no measured rate: its samples' times would
+    // be the declared rate's, not the logger's.
+    errors.extend(
+        files
+            .iter()
+            .filter(|f| f.session == id && f.accepted >= 2)
+            .filter(|f| {
+                f.lab_stream
+                    .as_ref()
+                    .is_some_and(|l| l.median_interval_ns.is_none())
+            })
+            .map(|f| {
+                format!(
+                    "session {id}: {}: the {} samples kept share one time stamp: the times \
+                     never move, so the sample rate cannot be measured (is the time column \
+                     the first?)",
+                    f.path, f.accepted
+                )
+            }),
+    );
+    Ok((summary, errors))
+}
