@@ -775,6 +775,361 @@ fn session_times(
     })
 }
 
+/// Reads and parses `dataset.toml` (UTF-8, a byte-order mark allowed): TOML's error names
+/// the line.
+fn parse(manifest_path: &Path) -> Result<Manifest> {
+    let bytes = std::fs::read(manifest_path).map_err(|e| Error::io(manifest_path, e))?;
+    let bytes = bytes.strip_prefix(crate::lines::BOM).unwrap_or(&bytes);
+    let text = std::str::from_utf8(bytes).map_err(|e| Error::Manifest {
+        path: manifest_path.to_path_buf(),
+        key: format!("byte {}", e.valid_up_to()),
+        message: "not UTF-8 text (a manifest is UTF-8 TOML)".to_owned(),
+    })?;
+    toml::from_str(text).map_err(|e| {
+        // toml names the key (unknown field `x`, missing field `y`) and the line.
+        let key = e
+            .span()
+            .map(|s| {
+                let line = text[..s.start].matches('\n').count() + 1;
+                format!("line {line}")
+            })
+            .unwrap_or_else(|| "document".to_owned());
+        Error::Manifest {
+            path: manifest_path.to_path_buf(),
+            key,
+            message: e.message().trim().to_owned(),
+        }
+    })
+}
+
+/// The manifest's name, site, instrument and align settings checked, and that it has
+/// sessions.
+fn check_globals(m: &Manifest, err: &impl Fn(String, String) -> Error) -> Result<()> {
+    let range = |key: &str, v: f64, lo: f64, hi: f64| -> Result<()> {
+        if v.is_finite() && v >= lo && v <= hi {
+            Ok(())
+        } else {
+            Err(err(
+                key.to_owned(),
+                format!("{v} is out of range [{lo}, {hi}]"),
+            ))
+        }
+    };
+    check_name(&m.name, &[]).map_err(|e| err("name".into(), e))?;
+    if m.name.bytes().any(|c| c.is_ascii_uppercase()) {
+        return Err(err(
+            "name".into(),
+            format!("`{}` must match [a-z0-9._-]+", m.name),
+        ));
+    }
+    range("site.g_abs_mgal", m.site.g_abs_mgal, 900_000.0, 1_000_000.0)?;
+    range(
+        "site.gradient_mgal_per_m",
+        m.site.gradient_mgal_per_m,
+        -5.0,
+        5.0,
+    )?;
+    range("site.sensor_height_m", m.site.sensor_height_m, -10.0, 10.0)?;
+    for (key, value, lo, hi) in [
+        ("site.latitude_deg", m.site.latitude_deg, -90.0, 90.0),
+        ("site.longitude_deg", m.site.longitude_deg, -180.0, 360.0),
+        ("site.height_m", m.site.height_m, -500.0, 9000.0),
+    ] {
+        if let Some(v) = value {
+            range(key, v, lo, hi)?;
+        }
+    }
+    if m.site.latitude_deg.is_some() != m.site.longitude_deg.is_some() {
+        return Err(err(
+            "site.latitude_deg".into(),
+            "give latitude_deg and longitude_deg together".into(),
+        ));
+    }
+    if m.site.earth_tide == Some(true) && m.site.latitude_deg.is_none() {
+        return Err(err(
+            "site.earth_tide".into(),
+            "the body tide needs the site's latitude_deg and longitude_deg".into(),
+        ));
+    }
+    range(
+        "instrument.sample_rate_hz",
+        m.instrument.sample_rate_hz,
+        0.01,
+        10_000.0,
+    )?;
+    if !(8..=32).contains(&m.instrument.adc_bits) {
+        return Err(err(
+            "instrument.adc_bits".into(),
+            format!("{} is out of range [8, 32]", m.instrument.adc_bits),
+        ));
+    }
+    range(
+        "instrument.full_scale_g",
+        m.instrument.full_scale_g,
+        0.001,
+        100.0,
+    )?;
+    let accs = &m.instrument.accelerometer;
+    if accs.is_empty() || accs.len() > 3 {
+        return Err(err(
+            "instrument.accelerometer".into(),
+            format!("{} accelerometers declared; 1 to 3 are allowed", accs.len()),
+        ));
+    }
+    let mut ids = BTreeSet::new();
+    let mut channels = BTreeSet::new();
+    for (i, a) in accs.iter().enumerate() {
+        check_name(&a.id, RESERVED_ACCELEROMETER_IDS)
+            .map_err(|e| err(format!("instrument.accelerometer[{i}].id"), e))?;
+        if !ids.insert(a.id.as_str()) {
+            return Err(err(
+                format!("instrument.accelerometer[{i}].id"),
+                format!("duplicate id `{}`", a.id),
+            ));
+        }
+        if !(1..=3).contains(&a.channel) {
+            return Err(err(
+                format!("instrument.accelerometer[{i}].channel"),
+                format!("{} is out of range [1, 3]", a.channel),
+            ));
+        }
+        if !channels.insert(a.channel) {
+            return Err(err(
+                format!("instrument.accelerometer[{i}].channel"),
+                format!("channel {} is used twice", a.channel),
+            ));
+        }
+    }
+    range("align.window_s", m.align.window_s, 1e-3, 600.0)?;
+    range("align.min_window_fill", m.align.min_window_fill, 1e-6, 1.0)?;
+    range(
+        "align.max_temperature_gap_s",
+        m.align.max_temperature_gap_s,
+        1e-3,
+        3600.0,
+    )?;
+    range(
+        "align.theodolite_sigma_arcsec",
+        m.align.theodolite_sigma_arcsec,
+        1e-6,
+        3600.0,
+    )?;
+    if m.session.is_empty() {
+        return Err(err(
+            "session".into(),
+            "at least one [[session]] is required".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// `rel` resolved in the dataset folder `dir` (canonical `root`): a file that stays inside it
+/// (no absolute path, no `..` out of it, no symbolic link that leads out).
+fn dataset_file(
+    dir: &Path,
+    root: &Path,
+    key: String,
+    rel: &str,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<PathBuf> {
+    let p = dir.join(rel);
+    // A path must stay inside the dataset folder: no absolute path, no `..` out of it,
+    // no symbolic link that leads out.
+    let inside =
+        Path::new(rel).is_relative() && p.canonicalize().is_ok_and(|c| c.starts_with(root));
+    if p.is_file() && !inside {
+        Err(err(
+            key,
+            format!("`{rel}` is outside the dataset folder {}", dir.display()),
+        ))
+    } else if p.is_file() {
+        Ok(p)
+    } else if p.is_dir() {
+        Err(err(
+            key,
+            format!("`{rel}` is a folder in {}, not a file", dir.display()),
+        ))
+    } else {
+        Err(err(
+            key,
+            format!("file `{rel}` not found in {}", dir.display()),
+        ))
+    }
+}
+
+/// Session `i` validated and resolved: its date, times, acquisition and theodolite logs.
+fn resolve_session(
+    i: usize,
+    s: &Session,
+    m: &Manifest,
+    file: &impl Fn(String, &str) -> Result<PathBuf>,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<ResolvedSession> {
+    let date = parse_date(&s.date).ok_or_else(|| {
+        err(
+            format!("session[{i}].date"),
+            format!("`{}` is not a date YYYY-MM-DD", s.date),
+        )
+    })?;
+    let start_gps_ns = crate::time::gps_ns(crate::time::Calendar::midnight(date), TimeScale::Utc)
+        .ok_or_else(|| {
+        err(
+            format!("session[{i}].date"),
+            format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
+        )
+    })?;
+    if s.adc_format != AdcFormat::Seconds && m.instrument.reading_unit != ReadingUnit::Count {
+        // One fit takes every session's readings: they must share a unit.
+        return Err(err(
+            format!("session[{i}].adc_format"),
+            format!(
+                "session `{}` is logged in ADC counts, and the instrument's \
+                 reading_unit is \"{}\": log every session as a lab stream \
+                 (adc_format = \"seconds\") in that unit, or set reading_unit = \"count\"",
+                s.id,
+                m.instrument.reading_unit.name()
+            ),
+        ));
+    }
+    let times = session_times(i, s, &err)?;
+    let acquisition = if s.adc_format == AdcFormat::Seconds {
+        lab_acquisition(i, s, (date, start_gps_ns), &times, &file, &err)?
+    } else {
+        match (&s.acquisition, &s.adc_csv, &s.temperature_csv) {
+            (Some(a), None, None) => {
+                Acquisition::Binary(file(format!("session[{i}].acquisition"), a)?)
+            }
+            (None, Some(a), Some(t)) => Acquisition::Csv {
+                adc: file(format!("session[{i}].adc_csv"), a)?,
+                temperature: file(format!("session[{i}].temperature_csv"), t)?,
+            },
+            (None, Some(_), None) => {
+                return Err(err(
+                    format!("session[{i}].temperature_csv"),
+                    "adc_csv needs temperature_csv".into(),
+                ));
+            }
+            (None, None, Some(_)) => {
+                return Err(err(
+                    format!("session[{i}].adc_csv"),
+                    "temperature_csv needs adc_csv".into(),
+                ));
+            }
+            (None, None, None) => {
+                return Err(err(
+                    format!("session[{i}].acquisition"),
+                    "missing: give `acquisition` or `adc_csv` and `temperature_csv`".into(),
+                ));
+            }
+            (Some(_), _, _) => {
+                return Err(err(
+                    format!("session[{i}].acquisition"),
+                    "give `acquisition` or the CSV pair, not both".into(),
+                ));
+            }
+        }
+    };
+    let theodolite = match (s.kind, &s.theodolite) {
+        (SessionKind::TiltTable, Some(t)) => Some(file(format!("session[{i}].theodolite"), t)?),
+        (SessionKind::TiltTable, None) => {
+            return Err(err(
+                format!("session[{i}].theodolite"),
+                "missing: a tilt-table session needs its theodolite log (a session \
+                 without one is `kind = \"survey\"`)"
+                    .to_owned(),
+            ));
+        }
+        (SessionKind::Survey, Some(_)) => {
+            return Err(err(
+                format!("session[{i}].theodolite"),
+                "a survey session has no theodolite log (it is calibrated, not a \
+                 calibration)"
+                    .to_owned(),
+            ));
+        }
+        (SessionKind::Survey, None) => None,
+        (SessionKind::MultiPosition, Some(_)) => {
+            return Err(err(
+                format!("session[{i}].theodolite"),
+                "a multi-position session has no theodolite log (its positions are \
+                 the block's static intervals)"
+                    .to_owned(),
+            ));
+        }
+        (SessionKind::MultiPosition, None) => None,
+    };
+    if s.static_s.is_some() && s.kind != SessionKind::MultiPosition {
+        return Err(err(
+            format!("session[{i}].static_s"),
+            "static intervals are for kind = \"multi-position\" sessions".to_owned(),
+        ));
+    }
+    if let Some(q) = s.quiet_start_s {
+        if s.kind != SessionKind::MultiPosition || s.static_s.is_some() {
+            return Err(err(
+                format!("session[{i}].quiet_start_s"),
+                "the quiet start is the detector's, in a kind = \"multi-position\" \
+                 session without static_s"
+                    .to_owned(),
+            ));
+        }
+        if !(q.is_finite() && (1.0..=3600.0).contains(&q)) {
+            return Err(err(
+                format!("session[{i}].quiet_start_s"),
+                format!("{q} is out of range [1, 3600] s"),
+            ));
+        }
+    }
+    for (k, [t0, t1]) in s.static_s.iter().flatten().enumerate() {
+        if !(t0.is_finite() && t1.is_finite() && *t0 >= 0.0 && t1 > t0) {
+            return Err(err(
+                format!("session[{i}].static_s[{k}]"),
+                format!("[{t0}, {t1}] is not an interval of seconds from the start"),
+            ));
+        }
+    }
+    if !(1..=366).contains(&s.days) {
+        return Err(err(
+            format!("session[{i}].days"),
+            format!("{} is out of range [1, 366]", s.days),
+        ));
+    }
+    Ok(ResolvedSession {
+        times,
+        session: s.clone(),
+        date,
+        start_gps_ns,
+        acquisition,
+        theodolite,
+    })
+}
+
+/// The models' declarations and the sessions' rolls checked.
+fn check_models(m: &Manifest, err: &impl Fn(String, String) -> Error) -> Result<()> {
+    let mut names = BTreeSet::new();
+    for (i, model) in m.adjust.model.iter().enumerate() {
+        let key = format!("adjust.model[{i}]");
+        model
+            .check()
+            .map_err(|(k, e)| err(format!("{key}.{k}"), e))?;
+        if !names.insert(model.name.as_str()) {
+            return Err(err(
+                format!("{key}.name"),
+                format!("duplicate name `{}`", model.name),
+            ));
+        }
+    }
+    for (i, s) in m.session.iter().enumerate() {
+        if !s.roll_deg.is_finite() {
+            return Err(err(
+                format!("session[{i}].roll_deg"),
+                format!("{} is not a finite angle", s.roll_deg),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Parses `YYYY-MM-DD` into a valid calendar date.
 pub fn parse_date(s: &str) -> Option<(i32, u8, u8)> {
     let b = s.as_bytes();
@@ -854,177 +1209,18 @@ impl Dataset {
     /// Reads and validates `<dir>/dataset.toml`.
     pub fn load(dir: &Path) -> Result<Dataset> {
         let manifest_path = dir.join(crate::contract::ledger::MANIFEST_FILE);
-        let bytes = std::fs::read(&manifest_path).map_err(|e| Error::io(&manifest_path, e))?;
-        let bytes = bytes.strip_prefix(crate::lines::BOM).unwrap_or(&bytes);
-        let text = std::str::from_utf8(bytes).map_err(|e| Error::Manifest {
-            path: manifest_path.clone(),
-            key: format!("byte {}", e.valid_up_to()),
-            message: "not UTF-8 text (a manifest is UTF-8 TOML)".to_owned(),
-        })?;
-        let manifest: Manifest = toml::from_str(text).map_err(|e| {
-            // toml names the key (unknown field `x`, missing field `y`) and the line.
-            let key = e
-                .span()
-                .map(|s| {
-                    let line = text[..s.start].matches('\n').count() + 1;
-                    format!("line {line}")
-                })
-                .unwrap_or_else(|| "document".to_owned());
-            Error::Manifest {
-                path: manifest_path.clone(),
-                key,
-                message: e.message().trim().to_owned(),
-            }
-        })?;
+        let manifest = parse(&manifest_path)?;
         let err = |key: String, message: String| Error::Manifest {
             path: manifest_path.clone(),
             key,
             message,
         };
-        let range = |key: &str, v: f64, lo: f64, hi: f64| -> Result<()> {
-            if v.is_finite() && v >= lo && v <= hi {
-                Ok(())
-            } else {
-                Err(err(
-                    key.to_owned(),
-                    format!("{v} is out of range [{lo}, {hi}]"),
-                ))
-            }
-        };
         let m = &manifest;
-        check_name(&m.name, &[]).map_err(|e| err("name".into(), e))?;
-        if m.name.bytes().any(|c| c.is_ascii_uppercase()) {
-            return Err(err(
-                "name".into(),
-                format!("`{}` must match [a-z0-9._-]+", m.name),
-            ));
-        }
-        range("site.g_abs_mgal", m.site.g_abs_mgal, 900_000.0, 1_000_000.0)?;
-        range(
-            "site.gradient_mgal_per_m",
-            m.site.gradient_mgal_per_m,
-            -5.0,
-            5.0,
-        )?;
-        range("site.sensor_height_m", m.site.sensor_height_m, -10.0, 10.0)?;
-        for (key, value, lo, hi) in [
-            ("site.latitude_deg", m.site.latitude_deg, -90.0, 90.0),
-            ("site.longitude_deg", m.site.longitude_deg, -180.0, 360.0),
-            ("site.height_m", m.site.height_m, -500.0, 9000.0),
-        ] {
-            if let Some(v) = value {
-                range(key, v, lo, hi)?;
-            }
-        }
-        if m.site.latitude_deg.is_some() != m.site.longitude_deg.is_some() {
-            return Err(err(
-                "site.latitude_deg".into(),
-                "give latitude_deg and longitude_deg together".into(),
-            ));
-        }
-        if m.site.earth_tide == Some(true) && m.site.latitude_deg.is_none() {
-            return Err(err(
-                "site.earth_tide".into(),
-                "the body tide needs the site's latitude_deg and longitude_deg".into(),
-            ));
-        }
-        range(
-            "instrument.sample_rate_hz",
-            m.instrument.sample_rate_hz,
-            0.01,
-            10_000.0,
-        )?;
-        if !(8..=32).contains(&m.instrument.adc_bits) {
-            return Err(err(
-                "instrument.adc_bits".into(),
-                format!("{} is out of range [8, 32]", m.instrument.adc_bits),
-            ));
-        }
-        range(
-            "instrument.full_scale_g",
-            m.instrument.full_scale_g,
-            0.001,
-            100.0,
-        )?;
-        let accs = &m.instrument.accelerometer;
-        if accs.is_empty() || accs.len() > 3 {
-            return Err(err(
-                "instrument.accelerometer".into(),
-                format!("{} accelerometers declared; 1 to 3 are allowed", accs.len()),
-            ));
-        }
-        let mut ids = BTreeSet::new();
-        let mut channels = BTreeSet::new();
-        for (i, a) in accs.iter().enumerate() {
-            check_name(&a.id, RESERVED_ACCELEROMETER_IDS)
-                .map_err(|e| err(format!("instrument.accelerometer[{i}].id"), e))?;
-            if !ids.insert(a.id.as_str()) {
-                return Err(err(
-                    format!("instrument.accelerometer[{i}].id"),
-                    format!("duplicate id `{}`", a.id),
-                ));
-            }
-            if !(1..=3).contains(&a.channel) {
-                return Err(err(
-                    format!("instrument.accelerometer[{i}].channel"),
-                    format!("{} is out of range [1, 3]", a.channel),
-                ));
-            }
-            if !channels.insert(a.channel) {
-                return Err(err(
-                    format!("instrument.accelerometer[{i}].channel"),
-                    format!("channel {} is used twice", a.channel),
-                ));
-            }
-        }
-        range("align.window_s", m.align.window_s, 1e-3, 600.0)?;
-        range("align.min_window_fill", m.align.min_window_fill, 1e-6, 1.0)?;
-        range(
-            "align.max_temperature_gap_s",
-            m.align.max_temperature_gap_s,
-            1e-3,
-            3600.0,
-        )?;
-        range(
-            "align.theodolite_sigma_arcsec",
-            m.align.theodolite_sigma_arcsec,
-            1e-6,
-            3600.0,
-        )?;
-        if m.session.is_empty() {
-            return Err(err(
-                "session".into(),
-                "at least one [[session]] is required".into(),
-            ));
-        }
+        check_globals(m, &err)?;
         let mut sids = BTreeSet::new();
         let mut sessions = Vec::new();
         let root = dir.canonicalize().map_err(|e| Error::io(dir, e))?;
-        let file = |key: String, rel: &str| -> Result<PathBuf> {
-            let p = dir.join(rel);
-            // A path must stay inside the dataset folder: no absolute path, no `..` out of it,
-            // no symbolic link that leads out.
-            let inside = Path::new(rel).is_relative()
-                && p.canonicalize().is_ok_and(|c| c.starts_with(&root));
-            if p.is_file() && !inside {
-                Err(err(
-                    key,
-                    format!("`{rel}` is outside the dataset folder {}", dir.display()),
-                ))
-            } else if p.is_file() {
-                Ok(p)
-            } else if p.is_dir() {
-                Err(err(
-                    key,
-                    format!("`{rel}` is a folder in {}, not a file", dir.display()),
-                ))
-            } else {
-                Err(err(
-                    key,
-                    format!("file `{rel}` not found in {}", dir.display()),
-                ))
-            }
-        };
+        let file = |key: String, rel: &str| dataset_file(dir, &root, key, rel, &err);
         for (i, s) in m.session.iter().enumerate() {
             check_name(&s.id, RESERVED_SESSION_IDS)
                 .map_err(|e| err(format!("session[{i}].id"), e))?;
@@ -1034,169 +1230,9 @@ impl Dataset {
                     format!("duplicate id `{}`", s.id),
                 ));
             }
-            let date = parse_date(&s.date).ok_or_else(|| {
-                err(
-                    format!("session[{i}].date"),
-                    format!("`{}` is not a date YYYY-MM-DD", s.date),
-                )
-            })?;
-            let start_gps_ns =
-                crate::time::gps_ns(crate::time::Calendar::midnight(date), TimeScale::Utc)
-                    .ok_or_else(|| {
-                        err(
-                            format!("session[{i}].date"),
-                            format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
-                        )
-                    })?;
-            if s.adc_format != AdcFormat::Seconds && m.instrument.reading_unit != ReadingUnit::Count
-            {
-                // One fit takes every session's readings: they must share a unit.
-                return Err(err(
-                    format!("session[{i}].adc_format"),
-                    format!(
-                        "session `{}` is logged in ADC counts, and the instrument's \
-                         reading_unit is \"{}\": log every session as a lab stream \
-                         (adc_format = \"seconds\") in that unit, or set reading_unit = \"count\"",
-                        s.id,
-                        m.instrument.reading_unit.name()
-                    ),
-                ));
-            }
-            let times = session_times(i, s, &err)?;
-            let acquisition = if s.adc_format == AdcFormat::Seconds {
-                lab_acquisition(i, s, (date, start_gps_ns), &times, &file, &err)?
-            } else {
-                match (&s.acquisition, &s.adc_csv, &s.temperature_csv) {
-                    (Some(a), None, None) => {
-                        Acquisition::Binary(file(format!("session[{i}].acquisition"), a)?)
-                    }
-                    (None, Some(a), Some(t)) => Acquisition::Csv {
-                        adc: file(format!("session[{i}].adc_csv"), a)?,
-                        temperature: file(format!("session[{i}].temperature_csv"), t)?,
-                    },
-                    (None, Some(_), None) => {
-                        return Err(err(
-                            format!("session[{i}].temperature_csv"),
-                            "adc_csv needs temperature_csv".into(),
-                        ));
-                    }
-                    (None, None, Some(_)) => {
-                        return Err(err(
-                            format!("session[{i}].adc_csv"),
-                            "temperature_csv needs adc_csv".into(),
-                        ));
-                    }
-                    (None, None, None) => {
-                        return Err(err(
-                            format!("session[{i}].acquisition"),
-                            "missing: give `acquisition` or `adc_csv` and `temperature_csv`".into(),
-                        ));
-                    }
-                    (Some(_), _, _) => {
-                        return Err(err(
-                            format!("session[{i}].acquisition"),
-                            "give `acquisition` or the CSV pair, not both".into(),
-                        ));
-                    }
-                }
-            };
-            let theodolite = match (s.kind, &s.theodolite) {
-                (SessionKind::TiltTable, Some(t)) => {
-                    Some(file(format!("session[{i}].theodolite"), t)?)
-                }
-                (SessionKind::TiltTable, None) => {
-                    return Err(err(
-                        format!("session[{i}].theodolite"),
-                        "missing: a tilt-table session needs its theodolite log (a session \
-                         without one is `kind = \"survey\"`)"
-                            .to_owned(),
-                    ));
-                }
-                (SessionKind::Survey, Some(_)) => {
-                    return Err(err(
-                        format!("session[{i}].theodolite"),
-                        "a survey session has no theodolite log (it is calibrated, not a \
-                         calibration)"
-                            .to_owned(),
-                    ));
-                }
-                (SessionKind::Survey, None) => None,
-                (SessionKind::MultiPosition, Some(_)) => {
-                    return Err(err(
-                        format!("session[{i}].theodolite"),
-                        "a multi-position session has no theodolite log (its positions are \
-                         the block's static intervals)"
-                            .to_owned(),
-                    ));
-                }
-                (SessionKind::MultiPosition, None) => None,
-            };
-            if s.static_s.is_some() && s.kind != SessionKind::MultiPosition {
-                return Err(err(
-                    format!("session[{i}].static_s"),
-                    "static intervals are for kind = \"multi-position\" sessions".to_owned(),
-                ));
-            }
-            if let Some(q) = s.quiet_start_s {
-                if s.kind != SessionKind::MultiPosition || s.static_s.is_some() {
-                    return Err(err(
-                        format!("session[{i}].quiet_start_s"),
-                        "the quiet start is the detector's, in a kind = \"multi-position\" \
-                         session without static_s"
-                            .to_owned(),
-                    ));
-                }
-                if !(q.is_finite() && (1.0..=3600.0).contains(&q)) {
-                    return Err(err(
-                        format!("session[{i}].quiet_start_s"),
-                        format!("{q} is out of range [1, 3600] s"),
-                    ));
-                }
-            }
-            for (k, [t0, t1]) in s.static_s.iter().flatten().enumerate() {
-                if !(t0.is_finite() && t1.is_finite() && *t0 >= 0.0 && t1 > t0) {
-                    return Err(err(
-                        format!("session[{i}].static_s[{k}]"),
-                        format!("[{t0}, {t1}] is not an interval of seconds from the start"),
-                    ));
-                }
-            }
-            if !(1..=366).contains(&s.days) {
-                return Err(err(
-                    format!("session[{i}].days"),
-                    format!("{} is out of range [1, 366]", s.days),
-                ));
-            }
-            sessions.push(ResolvedSession {
-                times,
-                session: s.clone(),
-                date,
-                start_gps_ns,
-                acquisition,
-                theodolite,
-            });
+            sessions.push(resolve_session(i, s, m, &file, &err)?);
         }
-        let mut names = BTreeSet::new();
-        for (i, model) in m.adjust.model.iter().enumerate() {
-            let key = format!("adjust.model[{i}]");
-            model
-                .check()
-                .map_err(|(k, e)| err(format!("{key}.{k}"), e))?;
-            if !names.insert(model.name.as_str()) {
-                return Err(err(
-                    format!("{key}.name"),
-                    format!("duplicate name `{}`", model.name),
-                ));
-            }
-        }
-        for (i, s) in m.session.iter().enumerate() {
-            if !s.roll_deg.is_finite() {
-                return Err(err(
-                    format!("session[{i}].roll_deg"),
-                    format!("{} is not a finite angle", s.roll_deg),
-                ));
-            }
-        }
+        check_models(m, &err)?;
         Ok(Dataset {
             dir: dir.to_path_buf(),
             manifest_path: manifest_path.clone(),
