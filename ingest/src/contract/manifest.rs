@@ -802,19 +802,26 @@ fn parse(manifest_path: &Path) -> Result<Manifest> {
     })
 }
 
+/// A number of the manifest within [lo, hi], or the error naming its key.
+fn in_range(
+    err: &impl Fn(String, String) -> Error,
+    key: &str,
+    v: f64,
+    (lo, hi): (f64, f64),
+) -> Result<()> {
+    if v.is_finite() && v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(err(
+            key.to_owned(),
+            format!("{v} is out of range [{lo}, {hi}]"),
+        ))
+    }
+}
+
 /// The manifest's name, site, instrument and align settings checked, and that it has
 /// sessions.
 fn check_globals(m: &Manifest, err: &impl Fn(String, String) -> Error) -> Result<()> {
-    let range = |key: &str, v: f64, lo: f64, hi: f64| -> Result<()> {
-        if v.is_finite() && v >= lo && v <= hi {
-            Ok(())
-        } else {
-            Err(err(
-                key.to_owned(),
-                format!("{v} is out of range [{lo}, {hi}]"),
-            ))
-        }
-    };
     check_name(&m.name, &[]).map_err(|e| err("name".into(), e))?;
     if m.name.bytes().any(|c| c.is_ascii_uppercase()) {
         return Err(err(
@@ -822,54 +829,97 @@ fn check_globals(m: &Manifest, err: &impl Fn(String, String) -> Error) -> Result
             format!("`{}` must match [a-z0-9._-]+", m.name),
         ));
     }
-    range("site.g_abs_mgal", m.site.g_abs_mgal, 900_000.0, 1_000_000.0)?;
-    range(
-        "site.gradient_mgal_per_m",
-        m.site.gradient_mgal_per_m,
-        -5.0,
-        5.0,
+    check_site(&m.site, err)?;
+    check_instrument(&m.instrument, err)?;
+    let a = &m.align;
+    in_range(err, "align.window_s", a.window_s, (1e-3, 600.0))?;
+    in_range(err, "align.min_window_fill", a.min_window_fill, (1e-6, 1.0))?;
+    in_range(
+        err,
+        "align.max_temperature_gap_s",
+        a.max_temperature_gap_s,
+        (1e-3, 3600.0),
     )?;
-    range("site.sensor_height_m", m.site.sensor_height_m, -10.0, 10.0)?;
-    for (key, value, lo, hi) in [
-        ("site.latitude_deg", m.site.latitude_deg, -90.0, 90.0),
-        ("site.longitude_deg", m.site.longitude_deg, -180.0, 360.0),
-        ("site.height_m", m.site.height_m, -500.0, 9000.0),
+    in_range(
+        err,
+        "align.theodolite_sigma_arcsec",
+        a.theodolite_sigma_arcsec,
+        (1e-6, 3600.0),
+    )?;
+    if m.session.is_empty() {
+        return Err(err(
+            "session".into(),
+            "at least one [[session]] is required".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// `[site]`: gravity, gradient, height, and a location given whole.
+fn check_site(site: &Site, err: &impl Fn(String, String) -> Error) -> Result<()> {
+    in_range(
+        err,
+        "site.g_abs_mgal",
+        site.g_abs_mgal,
+        (900_000.0, 1_000_000.0),
+    )?;
+    in_range(
+        err,
+        "site.gradient_mgal_per_m",
+        site.gradient_mgal_per_m,
+        (-5.0, 5.0),
+    )?;
+    in_range(
+        err,
+        "site.sensor_height_m",
+        site.sensor_height_m,
+        (-10.0, 10.0),
+    )?;
+    for (key, value, limits) in [
+        ("site.latitude_deg", site.latitude_deg, (-90.0, 90.0)),
+        ("site.longitude_deg", site.longitude_deg, (-180.0, 360.0)),
+        ("site.height_m", site.height_m, (-500.0, 9000.0)),
     ] {
         if let Some(v) = value {
-            range(key, v, lo, hi)?;
+            in_range(err, key, v, limits)?;
         }
     }
-    if m.site.latitude_deg.is_some() != m.site.longitude_deg.is_some() {
+    if site.latitude_deg.is_some() != site.longitude_deg.is_some() {
         return Err(err(
             "site.latitude_deg".into(),
             "give latitude_deg and longitude_deg together".into(),
         ));
     }
-    if m.site.earth_tide == Some(true) && m.site.latitude_deg.is_none() {
+    if site.earth_tide == Some(true) && site.latitude_deg.is_none() {
         return Err(err(
             "site.earth_tide".into(),
             "the body tide needs the site's latitude_deg and longitude_deg".into(),
         ));
     }
-    range(
+    Ok(())
+}
+
+/// `[instrument]`: rate, converter, and 1 to 3 accelerometers with distinct ids and channels.
+fn check_instrument(ins: &Instrument, err: &impl Fn(String, String) -> Error) -> Result<()> {
+    in_range(
+        err,
         "instrument.sample_rate_hz",
-        m.instrument.sample_rate_hz,
-        0.01,
-        10_000.0,
+        ins.sample_rate_hz,
+        (0.01, 10_000.0),
     )?;
-    if !(8..=32).contains(&m.instrument.adc_bits) {
+    if !(8..=32).contains(&ins.adc_bits) {
         return Err(err(
             "instrument.adc_bits".into(),
-            format!("{} is out of range [8, 32]", m.instrument.adc_bits),
+            format!("{} is out of range [8, 32]", ins.adc_bits),
         ));
     }
-    range(
+    in_range(
+        err,
         "instrument.full_scale_g",
-        m.instrument.full_scale_g,
-        0.001,
-        100.0,
+        ins.full_scale_g,
+        (0.001, 100.0),
     )?;
-    let accs = &m.instrument.accelerometer;
+    let accs = &ins.accelerometer;
     if accs.is_empty() || accs.len() > 3 {
         return Err(err(
             "instrument.accelerometer".into(),
@@ -879,46 +929,23 @@ fn check_globals(m: &Manifest, err: &impl Fn(String, String) -> Error) -> Result
     let mut ids = BTreeSet::new();
     let mut channels = BTreeSet::new();
     for (i, a) in accs.iter().enumerate() {
-        check_name(&a.id, RESERVED_ACCELEROMETER_IDS)
-            .map_err(|e| err(format!("instrument.accelerometer[{i}].id"), e))?;
+        let key = |k: &str| format!("instrument.accelerometer[{i}].{k}");
+        check_name(&a.id, RESERVED_ACCELEROMETER_IDS).map_err(|e| err(key("id"), e))?;
         if !ids.insert(a.id.as_str()) {
-            return Err(err(
-                format!("instrument.accelerometer[{i}].id"),
-                format!("duplicate id `{}`", a.id),
-            ));
+            return Err(err(key("id"), format!("duplicate id `{}`", a.id)));
         }
         if !(1..=3).contains(&a.channel) {
             return Err(err(
-                format!("instrument.accelerometer[{i}].channel"),
+                key("channel"),
                 format!("{} is out of range [1, 3]", a.channel),
             ));
         }
         if !channels.insert(a.channel) {
             return Err(err(
-                format!("instrument.accelerometer[{i}].channel"),
+                key("channel"),
                 format!("channel {} is used twice", a.channel),
             ));
         }
-    }
-    range("align.window_s", m.align.window_s, 1e-3, 600.0)?;
-    range("align.min_window_fill", m.align.min_window_fill, 1e-6, 1.0)?;
-    range(
-        "align.max_temperature_gap_s",
-        m.align.max_temperature_gap_s,
-        1e-3,
-        3600.0,
-    )?;
-    range(
-        "align.theodolite_sigma_arcsec",
-        m.align.theodolite_sigma_arcsec,
-        1e-6,
-        3600.0,
-    )?;
-    if m.session.is_empty() {
-        return Err(err(
-            "session".into(),
-            "at least one [[session]] is required".into(),
-        ));
     }
     Ok(())
 }
@@ -995,47 +1022,74 @@ fn resolve_session(
     let acquisition = if s.adc_format == AdcFormat::Seconds {
         lab_acquisition(i, s, (date, start_gps_ns), &times, &file, &err)?
     } else {
-        match (&s.acquisition, &s.adc_csv, &s.temperature_csv) {
-            (Some(a), None, None) => {
-                Acquisition::Binary(file(format!("session[{i}].acquisition"), a)?)
-            }
-            (None, Some(a), Some(t)) => Acquisition::Csv {
-                adc: file(format!("session[{i}].adc_csv"), a)?,
-                temperature: file(format!("session[{i}].temperature_csv"), t)?,
-            },
-            (None, Some(_), None) => {
-                return Err(err(
-                    format!("session[{i}].temperature_csv"),
-                    "adc_csv needs temperature_csv".into(),
-                ));
-            }
-            (None, None, Some(_)) => {
-                return Err(err(
-                    format!("session[{i}].adc_csv"),
-                    "temperature_csv needs adc_csv".into(),
-                ));
-            }
-            (None, None, None) => {
-                return Err(err(
-                    format!("session[{i}].acquisition"),
-                    "missing: give `acquisition` or `adc_csv` and `temperature_csv`".into(),
-                ));
-            }
-            (Some(_), _, _) => {
-                return Err(err(
-                    format!("session[{i}].acquisition"),
-                    "give `acquisition` or the CSV pair, not both".into(),
-                ));
-            }
-        }
+        counts_acquisition(i, s, file, err)?
     };
-    let theodolite = match (s.kind, &s.theodolite) {
+    let theodolite = theodolite_log(i, s, file, err)?;
+    check_session_keys(i, s, err)?;
+    Ok(ResolvedSession {
+        times,
+        session: s.clone(),
+        date,
+        start_gps_ns,
+        acquisition,
+        theodolite,
+    })
+}
+
+/// Session `i`'s acquisition in counts: the binary log, or the CSV pair.
+fn counts_acquisition(
+    i: usize,
+    s: &Session,
+    file: &impl Fn(String, &str) -> Result<PathBuf>,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<Acquisition> {
+    Ok(match (&s.acquisition, &s.adc_csv, &s.temperature_csv) {
+        (Some(a), None, None) => Acquisition::Binary(file(format!("session[{i}].acquisition"), a)?),
+        (None, Some(a), Some(t)) => Acquisition::Csv {
+            adc: file(format!("session[{i}].adc_csv"), a)?,
+            temperature: file(format!("session[{i}].temperature_csv"), t)?,
+        },
+        (None, Some(_), None) => {
+            return Err(err(
+                format!("session[{i}].temperature_csv"),
+                "adc_csv needs temperature_csv".into(),
+            ));
+        }
+        (None, None, Some(_)) => {
+            return Err(err(
+                format!("session[{i}].adc_csv"),
+                "temperature_csv needs adc_csv".into(),
+            ));
+        }
+        (None, None, None) => {
+            return Err(err(
+                format!("session[{i}].acquisition"),
+                "missing: give `acquisition` or `adc_csv` and `temperature_csv`".into(),
+            ));
+        }
+        (Some(_), _, _) => {
+            return Err(err(
+                format!("session[{i}].acquisition"),
+                "give `acquisition` or the CSV pair, not both".into(),
+            ));
+        }
+    })
+}
+
+/// Session `i`'s theodolite log: required for a tilt table, refused elsewhere.
+fn theodolite_log(
+    i: usize,
+    s: &Session,
+    file: &impl Fn(String, &str) -> Result<PathBuf>,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<Option<PathBuf>> {
+    Ok(match (s.kind, &s.theodolite) {
         (SessionKind::TiltTable, Some(t)) => Some(file(format!("session[{i}].theodolite"), t)?),
         (SessionKind::TiltTable, None) => {
             return Err(err(
                 format!("session[{i}].theodolite"),
                 "missing: a tilt-table session needs its theodolite log (a session \
-                 without one is `kind = \"survey\"`)"
+             without one is `kind = \"survey\"`)"
                     .to_owned(),
             ));
         }
@@ -1043,7 +1097,7 @@ fn resolve_session(
             return Err(err(
                 format!("session[{i}].theodolite"),
                 "a survey session has no theodolite log (it is calibrated, not a \
-                 calibration)"
+             calibration)"
                     .to_owned(),
             ));
         }
@@ -1052,12 +1106,17 @@ fn resolve_session(
             return Err(err(
                 format!("session[{i}].theodolite"),
                 "a multi-position session has no theodolite log (its positions are \
-                 the block's static intervals)"
+             the block's static intervals)"
                     .to_owned(),
             ));
         }
         (SessionKind::MultiPosition, None) => None,
-    };
+    })
+}
+
+/// Session `i`'s keys that belong to one kind (static intervals, the quiet start) and its
+/// span in days.
+fn check_session_keys(i: usize, s: &Session, err: &impl Fn(String, String) -> Error) -> Result<()> {
     if s.static_s.is_some() && s.kind != SessionKind::MultiPosition {
         return Err(err(
             format!("session[{i}].static_s"),
@@ -1094,14 +1153,7 @@ fn resolve_session(
             format!("{} is out of range [1, 366]", s.days),
         ));
     }
-    Ok(ResolvedSession {
-        times,
-        session: s.clone(),
-        date,
-        start_gps_ns,
-        acquisition,
-        theodolite,
-    })
+    Ok(())
 }
 
 /// The models' declarations and the sessions' rolls checked.
