@@ -316,17 +316,26 @@ fn lab_twin(csv_twin: &Path) -> Result<PathBuf> {
         out.flush()?;
         std::fs::rename(&tmp, &lab)?;
     }
+    let adc = format!(
+        "kind = \"multi-position\"\nadc_format = \"seconds\"\nadc_csv = \"raw/long_lab.txt\"\nstart = \"{date}T00:00:00\"\n"
+    );
+    let text = twin_manifest(&manifest, "lab", &adc, &["temperature_csv", "theodolite"]);
+    std::fs::write(twin.join("dataset.toml"), text)?;
+    Ok(twin)
+}
+
+/// A twin's manifest: the CSV twin's with its name's suffix `-csv` replaced by `-{suffix}`,
+/// its `adc_csv` line by `adc`, and the lines starting with `drop` left out.
+fn twin_manifest(manifest: &str, suffix: &str, adc: &str, drop: &[&str]) -> String {
     let mut text = String::new();
     for line in manifest.lines() {
         if line.starts_with("adc_csv") {
-            text.push_str(&format!(
-                "kind = \"multi-position\"\nadc_format = \"seconds\"\nadc_csv = \"raw/long_lab.txt\"\nstart = \"{date}T00:00:00\"\n"
-            ));
-        } else if line.starts_with("temperature_csv") || line.starts_with("theodolite") {
+            text.push_str(adc);
+        } else if drop.iter().any(|d| line.starts_with(d)) {
             continue;
         } else if let Some(rest) = line.strip_prefix("name = \"") {
             text.push_str(&format!(
-                "name = \"{}-lab\"\n",
+                "name = \"{}-{suffix}\"\n",
                 rest.trim_end_matches('"').trim_end_matches("-csv")
             ));
         } else {
@@ -334,8 +343,7 @@ fn lab_twin(csv_twin: &Path) -> Result<PathBuf> {
             text.push('\n');
         }
     }
-    std::fs::write(twin.join("dataset.toml"), text)?;
-    Ok(twin)
+    text
 }
 
 /// An ISO-time twin of a benchmark dataset's CSV twin: the ADC CSV rewritten with ISO 8601
@@ -381,20 +389,8 @@ fn iso_twin(csv_twin: &Path) -> Result<PathBuf> {
         }
     }
     let manifest = std::fs::read_to_string(csv_twin.join("dataset.toml"))?;
-    let mut text = String::new();
-    for line in manifest.lines() {
-        if line.starts_with("adc_csv") {
-            text.push_str("adc_csv = \"raw/long_iso.csv\"\nadc_time = \"iso\"\n");
-        } else if let Some(rest) = line.strip_prefix("name = \"") {
-            text.push_str(&format!(
-                "name = \"{}-iso\"\n",
-                rest.trim_end_matches('"').trim_end_matches("-csv")
-            ));
-        } else {
-            text.push_str(line);
-            text.push('\n');
-        }
-    }
+    let adc = "adc_csv = \"raw/long_iso.csv\"\nadc_time = \"iso\"\n";
+    let text = twin_manifest(&manifest, "iso", adc, &[]);
     std::fs::write(twin.join("dataset.toml"), text)?;
     Ok(twin)
 }

@@ -87,20 +87,35 @@ fn sds(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
     Ok(out)
 }
 
-/// Reads RTKLIB's `.pos` solution file.
-pub fn read_rtklib(path: &Path) -> Result<Trajectory, GravityError> {
+/// The file's lines with their numbers (from 1); a line that cannot be read is an error
+/// naming it.
+fn numbered_lines(
+    path: &Path,
+) -> Result<impl Iterator<Item = (u64, Result<String, GravityError>)>, GravityError> {
     let file = std::fs::File::open(path).map_err(|e| GravityError::File {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
+    let path = path.to_path_buf();
+    Ok(std::io::BufReader::new(file)
+        .lines()
+        .enumerate()
+        .map(move |(i, l)| {
+            let line_no = i as u64 + 1;
+            let l = l.map_err(|e| GravityError::File {
+                path: path.clone(),
+                message: format!("line {line_no}: {e}"),
+            });
+            (line_no, l)
+        }))
+}
+
+/// Reads RTKLIB's `.pos` solution file.
+pub fn read_rtklib(path: &Path) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
     let mut scale: Option<TimeScale> = None;
-    for (i, l) in std::io::BufReader::new(file).lines().enumerate() {
-        let line_no = i as u64 + 1;
-        let l = l.map_err(|e| GravityError::File {
-            path: path.to_path_buf(),
-            message: format!("line {line_no}: {e}"),
-        })?;
+    for (line_no, l) in numbered_lines(path)? {
+        let l = l?;
         let t = l.trim();
         if let Some(h) = t.strip_prefix('%') {
             if h.contains("x-ecef") {
@@ -163,19 +178,11 @@ pub fn read_rtklib(path: &Path) -> Result<Trajectory, GravityError> {
 
 /// Reads a CSV trajectory whose times `time` reads.
 pub fn read_csv(path: &Path, mut time: TimeReader) -> Result<Trajectory, GravityError> {
-    let file = std::fs::File::open(path).map_err(|e| GravityError::File {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
     let mut out = Trajectory::default();
     let mut header_seen = false;
     let fields = time.form.fields();
-    for (i, l) in std::io::BufReader::new(file).lines().enumerate() {
-        let line_no = i as u64 + 1;
-        let l = l.map_err(|e| GravityError::File {
-            path: path.to_path_buf(),
-            message: format!("line {line_no}: {e}"),
-        })?;
+    for (line_no, l) in numbered_lines(path)? {
+        let l = l?;
         let t = l.split('#').next().unwrap_or("").trim();
         if t.is_empty() {
             continue;
