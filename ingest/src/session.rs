@@ -144,30 +144,27 @@ pub(crate) fn read_acquisition(
     out: &mut Writers,
     files: &mut Vec<FileLedger>,
 ) -> Result<Option<i64>> {
-    let streams = &mut out.streams;
-    let id = s.session.id.as_str();
     let acceleration_interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
+    let mut file = Reading {
+        ds,
+        id: s.session.id.as_str(),
+        opts,
+        files,
+    };
     match &s.acquisition {
-        Acquisition::Binary(path) => {
-            let mut ledger = new_ledger(ds, path, id, "acquisition", "frames");
-            let pb = progress_bar(opts, path);
+        Acquisition::Binary(path) => file.read(path, "acquisition", "frames", |ledger, pb| {
             let config = gcb::ScanConfig {
                 reference_week: time::week_of_date(s.date),
                 acceleration_interval_ns,
                 range_ns: s.gps_range_ns(),
             };
-            let interval = read_binary(path, config, streams, &mut ledger, &pb)?;
-            pb.finish_and_clear();
-            files.push(ledger);
-            Ok(interval)
-        }
+            read_binary(path, config, &mut out.streams, ledger, pb)
+        }),
         Acquisition::Lab {
             stream,
             temperature,
             zero_gps_ns,
         } => {
-            let mut ledger = new_ledger(ds, stream, id, "adc_csv", "lines");
-            let pb = progress_bar(opts, stream);
             let config = labstream::LabConfig {
                 session: out.session,
                 zero_gps_ns: *zero_gps_ns,
@@ -176,63 +173,66 @@ pub(crate) fn read_acquisition(
                 skip_bad_lines: opts.skip_bad_lines,
                 reading_limits: labstream::reading_limits(&ds.manifest.instrument),
             };
-            let interval = labstream::read_lab(stream, config, &mut out.lab, &mut ledger, &pb)?;
-            pb.finish_and_clear();
-            files.push(ledger);
+            let interval = file.read(stream, "adc_csv", "lines", |ledger, pb| {
+                labstream::read_lab(stream, config, &mut out.lab, ledger, pb)
+            })?;
             if let Some(path) = temperature {
-                let mut ledger = new_ledger(ds, path, id, "temperature_csv", "lines");
-                let pb = progress_bar(opts, path);
-                labstream::read_lab_temperature(
-                    path,
-                    config,
-                    gcb::TEMPERATURE_INTERVAL_NS,
-                    streams,
-                    &mut ledger,
-                    &pb,
-                )?;
-                pb.finish_and_clear();
-                files.push(ledger);
+                file.read(path, "temperature_csv", "lines", |ledger, pb| {
+                    let t = gcb::TEMPERATURE_INTERVAL_NS;
+                    labstream::read_lab_temperature(path, config, t, &mut out.streams, ledger, pb)
+                })?;
             }
             Ok(interval)
         }
         Acquisition::Csv { adc, temperature } => {
-            let mut interval = None;
-            for (path, kind, role, interval_ns) in [
-                (
-                    adc,
-                    csvlog::CsvKind::Adc,
-                    "adc_csv",
-                    acceleration_interval_ns,
-                ),
-                (
-                    temperature,
+            let csv = |kind, form, interval_ns| csvlog::CsvConfig {
+                kind,
+                skip_bad_lines: opts.skip_bad_lines,
+                interval_ns,
+                range_ns: s.gps_range_ns(),
+                time: s.times.reader(form),
+            };
+            let interval = file.read(adc, "adc_csv", "lines", |ledger, pb| {
+                let config = csv(csvlog::CsvKind::Adc, s.times.adc, acceleration_interval_ns);
+                csvlog::read_csv(adc, config, &mut out.streams, ledger, pb)
+            })?;
+            file.read(temperature, "temperature_csv", "lines", |ledger, pb| {
+                let config = csv(
                     csvlog::CsvKind::Temperature,
-                    "temperature_csv",
+                    s.times.temperature,
                     gcb::TEMPERATURE_INTERVAL_NS,
-                ),
-            ] {
-                let mut ledger = new_ledger(ds, path, id, role, "lines");
-                let pb = progress_bar(opts, path);
-                let form = match kind {
-                    csvlog::CsvKind::Adc => s.times.adc,
-                    csvlog::CsvKind::Temperature => s.times.temperature,
-                };
-                let config = csvlog::CsvConfig {
-                    kind,
-                    skip_bad_lines: opts.skip_bad_lines,
-                    interval_ns,
-                    range_ns: s.gps_range_ns(),
-                    time: s.times.reader(form),
-                };
-                let median = csvlog::read_csv(path, config, streams, &mut ledger, &pb)?;
-                if kind == csvlog::CsvKind::Adc {
-                    interval = median;
-                }
-                pb.finish_and_clear();
-                files.push(ledger);
-            }
+                );
+                csvlog::read_csv(temperature, config, &mut out.streams, ledger, pb)
+            })?;
             Ok(interval)
         }
+    }
+}
+
+/// Reads a session's files one at a time, each with its ledger and progress bar.
+struct Reading<'a> {
+    ds: &'a Dataset,
+    id: &'a str,
+    opts: &'a Options,
+    files: &'a mut Vec<FileLedger>,
+}
+
+impl Reading<'_> {
+    /// Reads `path` (its `role` in the session, counted in `unit`) with `f`, and keeps its
+    /// ledger.
+    fn read<T>(
+        &mut self,
+        path: &Path,
+        role: &str,
+        unit: &str,
+        f: impl FnOnce(&mut FileLedger, &indicatif::ProgressBar) -> Result<T>,
+    ) -> Result<T> {
+        let mut ledger = new_ledger(self.ds, path, self.id, role, unit);
+        let pb = progress_bar(self.opts, path);
+        let out = f(&mut ledger, &pb)?;
+        pb.finish_and_clear();
+        self.files.push(ledger);
+        Ok(out)
     }
 }
 
