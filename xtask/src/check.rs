@@ -140,41 +140,59 @@ fn logs(s: &ResolvedSession) -> Vec<(PathBuf, bool, String)> {
 /// Writes `to`: `from` with its middle left out as the module says; returns the lines
 /// (text) or bytes (binary) left out.
 fn trim(from: &Path, to: &Path, binary: bool) -> Result<u64> {
+    use std::io::Read;
     if let Some(dir) = to.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let bytes = std::fs::read(from).with_context(|| format!("reading {}", from.display()))?;
-    let n = bytes.len() as u64;
+    let mut src =
+        std::fs::File::open(from).with_context(|| format!("reading {}", from.display()))?;
+    let n = src.metadata()?.len();
     if n <= 2 * PEEK_BYTES {
-        std::fs::write(to, &bytes).with_context(|| format!("writing {}", to.display()))?;
+        std::fs::copy(from, to).with_context(|| format!("writing {}", to.display()))?;
         return Ok(0);
     }
+    // The ends only, and the middle streamed when its lines must be counted: memory stays
+    // at the two ends and a buffer, whatever the log's size.
+    let read_at = |src: &mut std::fs::File, at: u64, len: u64| -> std::io::Result<Vec<u8>> {
+        src.seek(SeekFrom::Start(at))?;
+        let mut v = Vec::new();
+        src.take(len).read_to_end(&mut v)?;
+        Ok(v)
+    };
     let mut f = std::fs::File::create(to).with_context(|| format!("writing {}", to.display()))?;
-    let head = PEEK_BYTES as usize;
-    let tail = bytes.len() - PEEK_BYTES as usize;
     if binary {
         // Cut at frame boundaries of a log that starts with a frame.
-        let frame = ingest::gcb::FRAME_LEN;
-        let (head, tail) = (head - head % frame, tail - tail % frame);
-        f.write_all(&bytes[..head])?;
-        f.seek(SeekFrom::Start(tail as u64))?;
-        f.write_all(&bytes[tail..])?;
-        return Ok((tail - head) as u64);
+        let frame = ingest::gcb::FRAME_LEN as u64;
+        let head = PEEK_BYTES - PEEK_BYTES % frame;
+        let tail = n - PEEK_BYTES - (n - PEEK_BYTES) % frame;
+        f.write_all(&read_at(&mut src, 0, head)?)?;
+        f.seek(SeekFrom::Start(tail))?;
+        f.write_all(&read_at(&mut src, tail, n - tail)?)?;
+        return Ok(tail - head);
     }
-    // Cut after a line break at each end.
-    let head = bytes[..head]
-        .iter()
-        .rposition(|&b| b == b'\n')
-        .map_or(0, |i| i + 1);
-    let tail = bytes[tail..]
+    // Cut after a line break at each end; the middle's lines become empty lines.
+    let head = read_at(&mut src, 0, PEEK_BYTES)?;
+    let head_end = head.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1) as u64;
+    let tail = read_at(&mut src, n - PEEK_BYTES, PEEK_BYTES)?;
+    let tail_start = tail
         .iter()
         .position(|&b| b == b'\n')
-        .map_or(bytes.len(), |i| tail + i + 1);
-    let lines = bytes[head..tail].iter().filter(|&&b| b == b'\n').count();
-    f.write_all(&bytes[..head])?;
-    f.write_all(&vec![b'\n'; lines])?;
-    f.write_all(&bytes[tail..])?;
-    Ok(lines as u64)
+        .map_or(n, |i| n - PEEK_BYTES + i as u64 + 1);
+    let mut lines = 0u64;
+    src.seek(SeekFrom::Start(head_end))?;
+    let mut middle = (&mut src).take(tail_start - head_end);
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let k = middle.read(&mut buf)?;
+        if k == 0 {
+            break;
+        }
+        lines += buf[..k].iter().filter(|&&b| b == b'\n').count() as u64;
+    }
+    f.write_all(&head[..head_end as usize])?;
+    f.write_all(&vec![b'\n'; lines as usize])?;
+    f.write_all(&tail[(tail_start - (n - PEEK_BYTES)) as usize..])?;
+    Ok(lines)
 }
 
 /// A few lines about one file: what was read of it, accepted and rejected, and the

@@ -100,21 +100,35 @@ pub fn run(dataset: &Path) -> Result<PathBuf> {
 
 /// A file's layout, time form, span, rate and channels from its head and tail.
 fn recognise(path: &Path) -> Result<Found> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let (head, tail) = ends(path).with_context(|| format!("reading {}", path.display()))?;
     let rel = format!(
         "raw/{}",
         path.file_name().unwrap_or_default().to_string_lossy()
     );
-    if bytes.starts_with(&ingest::gcb::SYNC) {
-        return Ok(binary(rel, &bytes));
+    if head.starts_with(&ingest::gcb::SYNC) {
+        return Ok(binary(rel, &head, &tail));
     }
-    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(PEEK)]).into_owned();
-    let tail = String::from_utf8_lossy(&bytes[bytes.len().saturating_sub(PEEK)..]).into_owned();
+    let head = String::from_utf8_lossy(&head).into_owned();
+    let tail = String::from_utf8_lossy(&tail).into_owned();
     text(rel, &head, &tail)
 }
 
+/// The first and last [`PEEK`] bytes of a file (the whole file twice when it is shorter),
+/// without reading its middle.
+fn ends(path: &Path) -> std::io::Result<(Vec<u8>, Vec<u8>)> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = std::fs::File::open(path)?;
+    let len = f.metadata()?.len();
+    let mut head = Vec::new();
+    (&mut f).take(PEEK as u64).read_to_end(&mut head)?;
+    f.seek(SeekFrom::Start(len.saturating_sub(PEEK as u64)))?;
+    let mut tail = Vec::new();
+    f.read_to_end(&mut tail)?;
+    Ok((head, tail))
+}
+
 /// The acceleration frames' times (10-bit week, tow) at each end of a binary log.
-fn binary(rel: String, bytes: &[u8]) -> Found {
+fn binary(rel: String, head: &[u8], tail: &[u8]) -> Found {
     let frames = |b: &[u8]| -> Vec<(u16, u32)> {
         let n = ingest::gcb::FRAME_LEN;
         let mut out = Vec::new();
@@ -137,8 +151,8 @@ fn binary(rel: String, bytes: &[u8]) -> Found {
         }
         out
     };
-    let head = frames(&bytes[..bytes.len().min(PEEK)]);
-    let tail = frames(&bytes[bytes.len().saturating_sub(PEEK)..]);
+    let head = frames(head);
+    let tail = frames(tail);
     let ms: Vec<i64> = head.iter().map(|&(_, t)| i64::from(t)).collect();
     // Times stay relative to the 10-bit week until the session's date resolves it.
     let week_ns =
