@@ -208,10 +208,11 @@ fn data_lines(text: &str) -> (Vec<Vec<&str>>, String) {
 /// A text log: theodolite log, CSV or lab stream.
 fn text(rel: String, head: &str, tail: &str) -> Result<Found> {
     let (mut lines, comments) = data_lines(head);
-    // A header line: its first field is neither a number nor a calendar time.
+    // A header line: its first field is neither a number nor a calendar time, and it is not
+    // a theodolite reading (a station's name, then a calendar time).
     let header = lines.first().is_some_and(|f| {
-        f[0].parse::<f64>().is_err() && parse_iso(f[0]).is_err() && f.len() < 3
-            || f.len() >= 2 && f[0].parse::<f64>().is_err() && parse_iso(f[1]).is_err()
+        let reading = f.len() >= 3 && parse_iso(f[1]).is_ok();
+        f[0].parse::<f64>().is_err() && parse_iso(f[0]).is_err() && !reading
     });
     let names = if header {
         lines.remove(0).join(",").to_lowercase()
