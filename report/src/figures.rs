@@ -171,6 +171,47 @@ pub(crate) fn calibration_curve(
     Ok(Some((format!("{name}-calibration.svg"), svg)))
 }
 
+/// One accelerometer's Allan deviation (log-log) with the curve of its fitted terms.
+fn allan_plot(n: &align_ledger::AdcNoise) -> Result<Plot, Error> {
+    let pts: Vec<(f64, f64)> = n
+        .allan
+        .iter()
+        .map(|r| (r.tau_s.log10(), r.adev.log10()))
+        .collect();
+    let terms = align::allan::NoiseTerms {
+        white_density: n.white_density_counts_per_sqrt_hz,
+        bias_instability: n.bias_instability_counts,
+        random_walk: n.random_walk_counts_sqrt_hz,
+    };
+    let line: Vec<(f64, f64)> = n
+        .allan
+        .iter()
+        .map(|r| {
+            (
+                r.tau_s.log10(),
+                terms.allan_variance(r.tau_s).sqrt().log10(),
+            )
+        })
+        .collect();
+    let title = format!("{}: Allan deviation of the counts (log10)", n.accelerometer);
+    let svg = plots::scatter(&plots::Scatter {
+        title: &title,
+        x_label: "log10 tau (s)",
+        y_label: "log10 Allan deviation (counts)",
+        used: &pts,
+        removed: &[],
+        line: &line,
+        zero_line: false,
+        labels: ("Allan deviation", "fitted N, B, K"),
+        y_range: None,
+    })
+    .map_err(|message| Error::Plot {
+        name: format!("allan-{}", n.accelerometer),
+        message,
+    })?;
+    Ok((format!("allan-{}.svg", n.accelerometer), svg))
+}
+
 /// The ADC noise: the Allan deviation of each accelerometer's counts over the still
 /// intervals, log-log, with the fitted terms; and those terms in SI units (Kalibr's names).
 pub(crate) fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
@@ -225,40 +266,7 @@ pub(crate) fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
             }),
             si.map_or("-".into(), |k| k.scale_from.clone()),
         ]);
-        let pts: Vec<(f64, f64)> = n
-            .allan
-            .iter()
-            .map(|r| (r.tau_s.log10(), r.adev.log10()))
-            .collect();
-        let terms = align::allan::NoiseTerms {
-            white_density: n.white_density_counts_per_sqrt_hz,
-            bias_instability: n.bias_instability_counts,
-            random_walk: n.random_walk_counts_sqrt_hz,
-        };
-        let model = |tau: f64| terms.allan_variance(tau).sqrt();
-        let line: Vec<(f64, f64)> = n
-            .allan
-            .iter()
-            .map(|r| (r.tau_s.log10(), model(r.tau_s).log10()))
-            .collect();
-        let title = format!("{}: Allan deviation of the counts (log10)", n.accelerometer);
-        let svg = plots::scatter(&plots::Scatter {
-            title: &title,
-            x_label: "log10 tau (s)",
-            y_label: "log10 Allan deviation (counts)",
-            used: &pts,
-            removed: &[],
-            line: &line,
-            zero_line: false,
-            labels: ("Allan deviation", "fitted N, B, K"),
-            y_range: None,
-        })
-        .map_err(|message| Error::Plot {
-            name: format!("allan-{}", n.accelerometer),
-            message,
-        })?;
-        s.plots
-            .push((format!("allan-{}.svg", n.accelerometer), svg));
+        s.plots.push(allan_plot(n)?);
     }
     s.tables.push(("Noise terms".to_owned(), t));
     Ok(s)

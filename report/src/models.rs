@@ -103,12 +103,6 @@ pub(crate) fn misalignment_section(st: &Stages<'_>) -> Result<Section, Error> {
 /// fit's statistics, |a| - g per position and the positions' directions in the body frame.
 pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
     let mut s = section("Triad");
-    if st.cal.triad.is_empty() {
-        s.text.push(
-            "No triad model (kind = \"triad\" over multi-position sessions) was fitted.".to_owned(),
-        );
-        return Ok(s);
-    }
     s.text.push(
         "The three accelerometers calibrated together from the block's static positions: a = T K (X - B) in imu_tk's body \
          frame (T upper-triangular with unit diagonal: the non-orthogonality angles a_yz, a_zy, a_zx; K the scales; B the \
@@ -127,36 +121,7 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
                 p.unit.clone(),
             ]);
         }
-        let removed = r.positions.iter().filter(|p| p.removed).count();
-        s.text.push(format!(
-            "Model {} ({}): {} positions used, {removed} removed{}; sigma0 {:.3} on {} dof, global test {} ([{:.1}, {:.1}] for {:.1}); \
-             {}. The last three rows are 90 deg minus the angle between each pair of sensitive axes.",
-            r.model,
-            r.session,
-            r.positions_used,
-            match r.positions_without_temperature {
-                0 => String::new(),
-                n => format!(", {n} left out for want of a temperature"),
-            },
-            r.sigma0,
-            r.dof,
-            if r.global_test.passed { "passed" } else { "failed" },
-            r.global_test.lower,
-            r.global_test.upper,
-            r.global_test.statistic,
-            match (r.order, r.t_ref_c) {
-                (1, None) => String::new(),
-                (o, t) => format!(
-                    "order {o}{}; ",
-                    t.map_or(String::new(), |t| format!(
-                        ", temperature terms about t_ref = {t:.2} degC"
-                    ))
-                ),
-            } + &r.calib_file.as_ref().map_or_else(
-                || "no imu_tk file: its layout has no place for higher orders or temperature terms".to_owned(),
-                |f| format!("imu_tk file adjust/{f}")
-            )
-        ));
+        s.text.push(triad_summary(r));
         if let Some(advice) = r
             .global_test
             .advice(&format!("triad {} {}", r.model, r.session), true)
@@ -165,62 +130,108 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
         }
         s.tables
             .push((format!("Triad {} ({})", r.model, r.session), t));
-        let points =
-            |removed: bool, f: &dyn Fn(usize, &calibration::TriadPosition) -> (f64, f64)| {
-                r.positions
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, p)| p.removed == removed)
-                    .map(|(i, p)| f(i, p))
-                    .collect::<Vec<_>>()
-            };
-        let residual = |i: usize, p: &calibration::TriadPosition| (i as f64, p.residual_mgal);
-        let sky = |_: usize, p: &calibration::TriadPosition| {
-            let [x, y, z] = p.direction;
-            (
-                y.atan2(x).to_degrees(),
-                z.clamp(-1.0, 1.0).asin().to_degrees(),
-            )
-        };
-        for (name, title, x_label, y_label, f, zero) in [
-            (
-                "residuals",
-                "|a| - g per position",
-                "position",
-                "|a| - g (mGal)",
-                &residual as &dyn Fn(usize, &calibration::TriadPosition) -> (f64, f64),
-                true,
-            ),
-            (
-                "sky",
-                "gravity directions in the body frame",
-                "azimuth atan2(y, x) (deg)",
-                "elevation asin(z) (deg)",
-                &sky,
-                false,
-            ),
-        ] {
-            let plot = format!("triad-{}-{}-{name}", r.model, r.session);
-            let title = format!("{} ({}): {title}", r.model, r.session);
-            let svg = plots::scatter(&plots::Scatter {
-                title: &title,
-                x_label,
-                y_label,
-                used: &points(false, f),
-                removed: &points(true, f),
-                line: &[],
-                zero_line: zero,
-                labels: ("positions", ""),
-                y_range: None,
-            })
-            .map_err(|message| Error::Plot {
-                name: plot.clone(),
-                message,
-            })?;
-            s.plots.push((format!("{plot}.svg"), svg));
-        }
+        s.plots.extend(triad_plots(r)?);
     }
     Ok(s)
+}
+
+/// A triad fit in a sentence: positions used and removed, sigma0, the global test, the
+/// model's order and temperature terms, and its imu_tk file.
+fn triad_summary(r: &calibration::TriadResult) -> String {
+    let removed = r.positions.iter().filter(|p| p.removed).count();
+    format!(
+        "Model {} ({}): {} positions used, {removed} removed{}; sigma0 {:.3} on {} dof, global test {} ([{:.1}, {:.1}] for {:.1}); \
+         {}. The last three rows are 90 deg minus the angle between each pair of sensitive axes.",
+        r.model,
+        r.session,
+        r.positions_used,
+        match r.positions_without_temperature {
+            0 => String::new(),
+            n => format!(", {n} left out for want of a temperature"),
+        },
+        r.sigma0,
+        r.dof,
+        if r.global_test.passed {
+            "passed"
+        } else {
+            "failed"
+        },
+        r.global_test.lower,
+        r.global_test.upper,
+        r.global_test.statistic,
+        match (r.order, r.t_ref_c) {
+            (1, None) => String::new(),
+            (o, t) => format!(
+                "order {o}{}; ",
+                t.map_or(String::new(), |t| format!(
+                    ", temperature terms about t_ref = {t:.2} degC"
+                ))
+            ),
+        } + &r.calib_file.as_ref().map_or_else(
+            || "no imu_tk file: its layout has no place for higher orders or temperature terms"
+                .to_owned(),
+            |f| format!("imu_tk file adjust/{f}")
+        )
+    )
+}
+
+/// A triad fit's plots: |a| - g per position, and the gravity directions in the body frame.
+fn triad_plots(r: &calibration::TriadResult) -> Result<Vec<Plot>, Error> {
+    let mut out = Vec::new();
+    let points = |removed: bool, f: &dyn Fn(usize, &calibration::TriadPosition) -> (f64, f64)| {
+        r.positions
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.removed == removed)
+            .map(|(i, p)| f(i, p))
+            .collect::<Vec<_>>()
+    };
+    let residual = |i: usize, p: &calibration::TriadPosition| (i as f64, p.residual_mgal);
+    let sky = |_: usize, p: &calibration::TriadPosition| {
+        let [x, y, z] = p.direction;
+        (
+            y.atan2(x).to_degrees(),
+            z.clamp(-1.0, 1.0).asin().to_degrees(),
+        )
+    };
+    for (name, title, x_label, y_label, f, zero) in [
+        (
+            "residuals",
+            "|a| - g per position",
+            "position",
+            "|a| - g (mGal)",
+            &residual as &dyn Fn(usize, &calibration::TriadPosition) -> (f64, f64),
+            true,
+        ),
+        (
+            "sky",
+            "gravity directions in the body frame",
+            "azimuth atan2(y, x) (deg)",
+            "elevation asin(z) (deg)",
+            &sky,
+            false,
+        ),
+    ] {
+        let plot = format!("triad-{}-{}-{name}", r.model, r.session);
+        let title = format!("{} ({}): {title}", r.model, r.session);
+        let svg = plots::scatter(&plots::Scatter {
+            title: &title,
+            x_label,
+            y_label,
+            used: &points(false, f),
+            removed: &points(true, f),
+            line: &[],
+            zero_line: zero,
+            labels: ("positions", ""),
+            y_range: None,
+        })
+        .map_err(|message| Error::Plot {
+            name: plot.clone(),
+            message,
+        })?;
+        out.push((format!("{plot}.svg"), svg));
+    }
+    Ok(out)
 }
 
 /// The fits compared: per accelerometer with per-session linear fits and a temperature
