@@ -295,30 +295,7 @@ fn write_table<'t>(
         .iter()
         .map(|t| t.accelerometer.id.clone())
         .collect();
-    let names: Vec<[String; 4]> = ids.iter().map(|id| applied::columns(id)).collect();
-    let mut delta: Vec<&str> = vec![tables::SESSION_INDEX, tables::TIME_GPS_NS];
-    delta.extend(names.iter().map(|c| c[3].as_str()));
-    // Chosen by measurement on the 250 Hz benchmark day (`cargo xtask bench apply`): the
-    // acceleration and its sigma vary in their low bytes only, so split into byte streams
-    // zstd shrinks them where plain it gained a fifth.
-    let split: Vec<&str> = names
-        .iter()
-        .flat_map(|c| [c[0].as_str(), c[1].as_str()])
-        .collect();
-    // Nobody filters on a sigma: its min/max statistics were a twentieth of the time.
-    let sigmas: Vec<&str> = names.iter().map(|c| c[1].as_str()).collect();
-    let mut writer = ColumnTableWriter::create(
-        dir,
-        applied::FILE,
-        "applied acceleration",
-        applied::schema(&sessions, &ids),
-        Encodings {
-            delta: &delta,
-            byte_stream_split: &split,
-            no_statistics: &sigmas,
-            ..Encodings::default()
-        },
-    )?;
+    let mut writer = applied_writer(dir, &sessions, &ids)?;
     let mut lanes: Vec<Lane<'t>> = selection
         .targets
         .iter()
@@ -367,6 +344,38 @@ fn write_table<'t>(
         sha256,
         lanes,
     })
+}
+
+/// The applied table's writer: its schema for `sessions` and accelerometers `ids`, and the
+/// encodings chosen by measurement on the 250 Hz benchmark day (`cargo xtask bench apply`).
+fn applied_writer(
+    dir: &Path,
+    sessions: &[String],
+    ids: &[String],
+) -> Result<ColumnTableWriter, Error> {
+    let names: Vec<[String; 4]> = ids.iter().map(|id| applied::columns(id)).collect();
+    let mut delta: Vec<&str> = vec![tables::SESSION_INDEX, tables::TIME_GPS_NS];
+    delta.extend(names.iter().map(|c| c[3].as_str()));
+    // The acceleration and its sigma vary in their low bytes only, so split into byte
+    // streams zstd shrinks them where plain it gained a fifth.
+    let split: Vec<&str> = names
+        .iter()
+        .flat_map(|c| [c[0].as_str(), c[1].as_str()])
+        .collect();
+    // Nobody filters on a sigma: its min/max statistics were a twentieth of the time.
+    let sigmas: Vec<&str> = names.iter().map(|c| c[1].as_str()).collect();
+    Ok(ColumnTableWriter::create(
+        dir,
+        applied::FILE,
+        "applied acceleration",
+        applied::schema(sessions, ids),
+        Encodings {
+            delta: &delta,
+            byte_stream_split: &split,
+            no_statistics: &sigmas,
+            ..Encodings::default()
+        },
+    )?)
 }
 
 /// Calibrates batches and hands them to the writer thread.
