@@ -14,7 +14,22 @@ if ! command -v gfortran >/dev/null; then
   apt-get install -y -qq gfortran >/dev/null
 fi
 venv=target/peers-venv
-[ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+# A venv whose pip bootstrap failed (a clean CI machine once refused `ensurepip` with no reason
+# given) is made again without pip, its bootstrap's own words printed, then pip put in by the
+# interpreter's own pip.
+make_venv() {
+  local log
+  log=$(mktemp)
+  if python3 -m venv "$venv" >"$log" 2>&1; then rm -f "$log"; return; fi
+  echo "peers-venv: python3 -m venv failed:"; cat "$log"; rm -f "$log"
+  rm -rf "$venv"
+  python3 -m venv --without-pip "$venv"
+  if ! "$venv/bin/python" -m ensurepip --default-pip; then
+    echo "peers-venv: ensurepip failed again; installing pip with $(python3 -m pip --version)"
+    python3 -m pip --python "$venv/bin/python" install -q pip
+  fi
+}
+[ -x "$venv/bin/python" ] && "$venv/bin/python" -m pip --version >/dev/null 2>&1 || { rm -rf "$venv"; make_venv; }
 if ! "$venv/bin/python" -c 'import pygtide, tidegravity, allantools' 2>/dev/null; then
   "$venv/bin/python" -m pip install -q numpy==1.25.0 pygtide==0.9.7 tidegravity==0.5.0 allantools==2024.6
 fi

@@ -90,6 +90,9 @@ enum Cmd {
         #[arg(long, default_value = "docs/report-first-screen.png")]
         png: PathBuf,
     },
+    /// Runs the pipeline on every committed fixture and prints the SHA-256 of each output:
+    /// run before and after a refactor, the two lists must be equal (`diff`).
+    Digest,
     /// Prints a Parquet table the pipeline wrote: its schema and rows, or CSV.
     Show {
         /// The table (e.g. out/esgt-2005/align/observations.parquet).
@@ -203,6 +206,39 @@ fn run_stages(args: &DatasetArgs, which: &[&str]) -> Result<()> {
         eprintln!("{name}: {:.2} s", t0.elapsed().as_secs_f64());
     }
     Ok(())
+}
+
+/// Every fixture through the pipeline into a scratch folder; each output's SHA-256 printed
+/// as `fixture/stage/file hash`, in a fixed order.
+fn digest() -> Result<()> {
+    let scratch = std::env::temp_dir().join(format!("gravcal-digest-{}", std::process::id()));
+    let result = (|| -> Result<()> {
+        for name in fixtures::catalog::ALL {
+            let out = scratch.join(name);
+            let args = DatasetArgs {
+                dataset: fixtures::dataset_dir(name),
+                out: Some(out.clone()),
+            };
+            run_stages(&args, &["ingest", "align", "adjust", "report"])?;
+            let mut files = Vec::new();
+            for stage in ["ingest", "align", "adjust", "report"] {
+                for entry in std::fs::read_dir(out.join(stage))? {
+                    let p = entry?.path();
+                    if p.is_file() {
+                        files.push(p);
+                    }
+                }
+            }
+            files.sort();
+            for p in files {
+                let rel = p.strip_prefix(&scratch).unwrap_or(&p).display().to_string();
+                println!("{rel} {}", ingest::contract::custody::sha256_file(&p)?);
+            }
+        }
+        Ok(())
+    })();
+    let _ = std::fs::remove_dir_all(&scratch);
+    result
 }
 
 /// The pipeline on `dataset` into a scratch folder, then its report's first screen.
@@ -371,6 +407,7 @@ fn run(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
+        Cmd::Digest => digest(),
         Cmd::Check { dataset } => {
             let mut out = std::io::stdout().lock();
             if check::run(&dataset, &mut out)? {
