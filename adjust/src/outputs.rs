@@ -137,6 +137,9 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
             let _ = writeln!(w, "adjust: {advice}");
         }
     }
+    if let Some(advice) = c.component_advice() {
+        let _ = writeln!(w, "adjust: {advice}");
+    }
     for s in &c.skipped {
         let _ = writeln!(
             w,

@@ -453,6 +453,44 @@ fn count_unit() -> String {
 }
 
 impl Calibration {
+    /// What a failed component test means and what to try, once for the console and the report: how many
+    /// failed of how many tested, against the one in twenty a 5 % test fails by chance.
+    pub fn component_advice(&self) -> Option<String> {
+        let tested: Vec<(&CalibrationResult, &VarianceComponent)> = self
+            .results
+            .iter()
+            .flat_map(|r| r.variance_components.iter().map(move |c| (r, c)))
+            .filter(|(_, c)| c.not_estimable.is_none())
+            .collect();
+        let failed: Vec<String> = tested
+            .iter()
+            .filter(|(_, c)| !c.passed)
+            .map(|(r, c)| {
+                format!(
+                    "{} {} {} {} x {:.2}",
+                    r.model, r.accelerometer, r.session, c.group, c.estimate
+                )
+            })
+            .collect();
+        if failed.is_empty() {
+            return None;
+        }
+        Some(format!(
+            "{} of {} component tests failed ({}); a 5 % test fails in about {:.1} of {} by chance. \
+             A factor below 1 means that group's a-priori variances were too large, above 1 too \
+             small; the sigmas above already use the estimated factor, so the calibration stands. \
+             What to try when failures recur across sessions and accelerometers: for the \
+             theodolite, its sd per reading (align's sigma_dz, or [align] sigma_dz = \"station\"); \
+             for the ADC, the window length ([align] window_s) and the noise terms align kept \
+             (the Allan section).",
+            failed.len(),
+            tested.len(),
+            failed.join("; "),
+            0.05 * tested.len() as f64,
+            tested.len()
+        ))
+    }
+
     /// Reads `dir/calibration.json` (`dir` being OUT/adjust).
     pub fn load(dir: &Path) -> Result<Self> {
         crate::read_json(&dir.join(CALIBRATION_FILE))
