@@ -11,6 +11,16 @@ use crate::model::{CalibrationConditions, Terms, apply, propagate};
 /// Critical value of the w-test (two-sided, alpha = 0.001).
 pub const W_CRITICAL: f64 = 3.29;
 
+/// A reading's sigma_Dz formed without it (align's leave-one-out estimate): a blunder
+/// inflates its own station's variance, so its w-test is referred to the others'.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LeftOut {
+    /// sd of one reading, rad.
+    pub sigma_rad: f64,
+    /// Its degrees of freedom (None: known).
+    pub dof: Option<f64>,
+}
+
 /// One observation as the fit sees it.
 #[derive(Clone, Debug)]
 pub struct Obs {
@@ -21,6 +31,9 @@ pub struct Obs {
     /// Degrees of freedom of that sd when it was estimated from readings (None: known). The
     /// fit weighs Dz by the predictive variance, sigma^2 d / (d - 2).
     pub sigma_dz_dof: Option<f64>,
+    /// The station's sigma_Dz formed without this reading, the reference of its w-test
+    /// (None: sigma_dz_rad and its dof, as for a sigma taken as known).
+    pub sigma_dz_left_out: Option<LeftOut>,
     /// The station (a platform position) the reading belongs to: observations of one
     /// station share its index, unique within a fit.
     pub station: usize,
@@ -444,7 +457,8 @@ pub fn calibrate_with(
         let (l, sigma) = observations(&used);
         let p0 = start_values(&used, &model);
         let to_cal = |e| cal_error(e, &names, &active);
-        let s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(to_cal)?;
+        let mut s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(to_cal)?;
+        s.w_test = left_out_w_tests(&s, &used);
         let worst = s
             .w_test
             .iter()
@@ -468,6 +482,64 @@ pub fn calibrate_with(
             .map(|fit| CalibrationSolution { removed, ..fit })
             .map_err(to_cal);
     }
+}
+
+/// The non-centrality a reading's bias must reach, in sds of its misclosure over sqrt(r),
+/// to be found by the w-test with power 0.80: Baarda's 4.13 when the variances are known;
+/// with the test on `dof` degrees of freedom (a Student t), the t's critical value c plus
+/// 0.8416 sqrt(1 + c^2 / (2 dof)), the normal approximation to the non-central t's power
+/// (Johnson and Welch 1940), which is larger: estimated weights detect less.
+pub fn mdb_noncentrality(dof: Option<f64>) -> f64 {
+    use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
+    const ALPHA: f64 = 0.001;
+    const POWER_Z: f64 = 0.841_621_233_572_914_3;
+    match dof.filter(|d| d.is_finite() && *d > 0.0) {
+        None => Normal::standard().inverse_cdf(1.0 - ALPHA / 2.0) + POWER_Z,
+        Some(d) => {
+            let c = StudentsT::new(0.0, 1.0, d)
+                .expect("positive dof")
+                .inverse_cdf(1.0 - ALPHA / 2.0);
+            c + POWER_Z * (1.0 + c * c / (2.0 * d)).sqrt()
+        }
+    }
+}
+
+/// Baarda's w of each condition with its reading's Dz referred to the left-out sigma_Dz
+/// ([`Obs::sigma_dz_left_out`]; docs/model.md 6.1): the misclosure over
+/// sqrt(r (q_Dz,left-out + q_Ng)), a Student t whose degrees of freedom are the left-out
+/// variance's carried by its share of the condition's variance (Welch-Satterthwaite; the
+/// window means' variance is taken as known), returned as the standard normal quantile of
+/// the same tail probability, so that one critical value ([`W_CRITICAL`]) holds alpha
+/// whatever the dof. With sigma_Dz known the t is the normal and w is Baarda's own.
+fn left_out_w_tests(s: &gh::Solution, used: &[&Obs]) -> Vec<f64> {
+    use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
+    let normal = Normal::standard();
+    used.iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let r = s.redundancy[i];
+            if r <= 1e-9 {
+                return 0.0;
+            }
+            let fitted = o.sigma_dz_rad.powi(2) * components::predictive_factor(o.sigma_dz_dof);
+            let (sigma, dof) = o
+                .sigma_dz_left_out
+                .map_or((o.sigma_dz_rad, o.sigma_dz_dof), |l| (l.sigma_rad, l.dof));
+            let q_dz = s.q_parts[i][0] * sigma.powi(2) / fitted;
+            let q = q_dz + s.q_parts[i][1];
+            let w = s.misclosure[i] / (q * r).sqrt();
+            let Some(d) = dof.filter(|d| d.is_finite() && *d > 0.0) else {
+                return w;
+            };
+            let nu = q * q / (q_dz * q_dz / d);
+            let tail = StudentsT::new(0.0, 1.0, nu).map_or(f64::NAN, |t| t.cdf(-w.abs()));
+            if tail.is_finite() && tail > 0.0 {
+                -normal.inverse_cdf(tail) * w.signum()
+            } else {
+                w
+            }
+        })
+        .collect()
 }
 
 /// Observations and their sds as the adjustment takes them: Dz weighed by its predictive
@@ -690,6 +762,7 @@ mod tests {
                     dz_rad,
                     sigma_dz_rad: 2e-6,
                     sigma_dz_dof: None,
+                    sigma_dz_left_out: None,
                     station: i,
                     session: 0,
                     time_s: 10.0 * i as f64,

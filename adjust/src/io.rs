@@ -31,6 +31,10 @@ pub struct ObservationRow {
     pub sigma_dz_rad: f64,
     /// Degrees of freedom of that sd (None: known, or an older table without the column).
     pub sigma_dz_dof: Option<f64>,
+    /// sigma_Dz without this reading, rad (None: an older table without the column).
+    pub sigma_dz_loo_rad: Option<f64>,
+    /// Its degrees of freedom (None: known).
+    pub sigma_dz_loo_dof: Option<f64>,
     /// Mean counts (None when align had none).
     pub ng: Option<f64>,
     /// Its sd.
@@ -154,6 +158,13 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
             Some(_) => Some(c.f64s(col::SIGMA_DZ_DOF)?),
             None => None,
         };
+        let loo = match b.column_by_name(col::SIGMA_DZ_LOO_RAD) {
+            Some(_) => Some((
+                c.f64s(col::SIGMA_DZ_LOO_RAD)?,
+                c.f64s(col::SIGMA_DZ_LOO_DOF)?,
+            )),
+            None => None,
+        };
         for i in 0..b.num_rows() {
             out.push(ObservationRow {
                 session: session[i].clone(),
@@ -164,6 +175,8 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
                 dz_rad: dz.value(i),
                 sigma_dz_rad: sdz.value(i),
                 sigma_dz_dof: dof.as_ref().and_then(|d| opt(d, i)),
+                sigma_dz_loo_rad: loo.as_ref().and_then(|(s, _)| opt(s, i)),
+                sigma_dz_loo_dof: loo.as_ref().and_then(|(_, d)| opt(d, i)),
                 ng: opt(&ng, i),
                 sigma_ng: opt(&sng, i),
                 temperature_c: opt(&temp, i),

@@ -243,6 +243,10 @@ pub(crate) fn fit_job(
             dz_rad: o.dz_rad,
             sigma_dz_rad: o.sigma_dz_rad,
             sigma_dz_dof: o.sigma_dz_dof,
+            sigma_dz_left_out: o.sigma_dz_loo_rad.map(|sigma_rad| LeftOut {
+                sigma_rad,
+                dof: o.sigma_dz_loo_dof,
+            }),
             station: stations
                 .binary_search(&(o.session.as_str(), o.station.as_str()))
                 .unwrap_or(0),

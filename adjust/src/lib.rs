@@ -36,7 +36,7 @@ use outputs::*;
 use results::*;
 pub use results::{barely_estimable, misalignment_vector, vector_note};
 
-use calibrate::{CalError, Obs};
+use calibrate::{CalError, LeftOut, Obs};
 use correlated::ColouredAdc;
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{

@@ -52,6 +52,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
             dz_rad: v[0],
             sigma_dz_rad: v[1],
             sigma_dz_dof: None,
+            sigma_dz_left_out: None,
             station: n,
             session: 0,
             time_s: n as f64,

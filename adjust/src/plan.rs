@@ -324,6 +324,7 @@ pub fn observations(plan: &Plan) -> Result<Vec<(String, Obs)>, PlanError> {
                         dz_rad: dz,
                         sigma_dz_rad: sigma_dz,
                         sigma_dz_dof: None,
+                        sigma_dz_left_out: None,
                         station,
                         session: si,
                         time_s: (ti * s.readings_per_station + r) as f64 * 8.0,

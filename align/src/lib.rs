@@ -99,6 +99,10 @@ pub struct Observation {
     /// variance's prior dof plus the station's own, or the station's own (eq. 4); None when
     /// taken as known (manifest, resolution floor).
     pub sigma_dz_dof: Option<f64>,
+    /// sigma_Dz of the station formed without this reading (the w-test's reference), rad.
+    pub sigma_dz_loo_rad: f64,
+    /// Its degrees of freedom; None when taken as known.
+    pub sigma_dz_loo_dof: Option<f64>,
     /// g |sin Dz| sigma_Dz, mGal.
     pub sigma_am_mgal: f64,
     /// Mean count.

@@ -116,14 +116,15 @@ pub(crate) fn observe_session<'t>(
             used: 0,
             excluded: BTreeMap::new(),
         };
-        for p in pending {
+        for (k, p) in pending.iter().enumerate() {
             let w = &p.sums[ch];
             let stats = w.stats(setup.floor_variance);
             let StationSigma {
                 sigma_rad: sigma_dz_rad,
                 source,
                 dof: sigma_dz_dof,
-            } = sigma[p.reading.station.as_str()];
+            } = sigma.station[p.reading.station.as_str()];
+            let left_out = sigma.left_out[k];
             let temperature =
                 temps.and_then(|(t, v)| interpolate(t, v, p.reading.time_gps_ns, setup.max_gap_ns));
             let has_temperatures = temps.is_some_and(|(t, _)| !t.is_empty());
@@ -144,6 +145,8 @@ pub(crate) fn observe_session<'t>(
                 sigma_dz_rad,
                 sigma_dz_source: source,
                 sigma_dz_dof,
+                sigma_dz_loo_rad: left_out.sigma_rad,
+                sigma_dz_loo_dof: left_out.dof,
                 sigma_am_mgal: setup.g * p.reading.dz_rad.sin().abs() * sigma_dz_rad,
                 ng: stats.map(|s| s.mean),
                 sigma_ng: stats.map(|s| (s.sigma_mean.powi(2) + coloured).sqrt()),

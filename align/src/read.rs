@@ -369,6 +369,12 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
         )),
         Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.sigma_dz_dof))),
         Arc::new(Float64Array::from_iter_values(
+            obs.iter().map(|o| o.sigma_dz_loo_rad),
+        )),
+        Arc::new(Float64Array::from_iter(
+            obs.iter().map(|o| o.sigma_dz_loo_dof),
+        )),
+        Arc::new(Float64Array::from_iter_values(
             obs.iter().map(|o| o.sigma_am_mgal),
         )),
         Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.ng))),

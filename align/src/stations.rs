@@ -59,6 +59,16 @@ pub(crate) struct StationSigma {
     pub(crate) dof: Option<f64>,
 }
 
+/// A session's sigma_Dz: per station, and per reading the same estimate formed without
+/// that reading (what its w-test is referred to, so that a blunder does not hide behind
+/// the variance it inflates).
+pub(crate) struct SessionSigmas {
+    /// Per station id.
+    pub(crate) station: BTreeMap<String, StationSigma>,
+    /// Per reading, in the order given: its station's sigma without it.
+    pub(crate) left_out: Vec<StationSigma>,
+}
+
 /// sigma_Dz per station of one session, never below the quantisation of the log: the step
 /// of the finest last decimal the session's readings were logged with, over sqrt(12). By
 /// default each station's variance is moderated toward the session's ([`weights`]; a
@@ -66,27 +76,34 @@ pub(crate) struct StationSigma {
 /// pooled dof when the stations are alike); with `sigma_dz = "station"` it is the station's
 /// own sd (eq. 4) on n - 1 dof, and a station of one reading takes the manifest's
 /// `theodolite_sigma_arcsec`, taken as known like the resolution floor.
+///
+/// Each reading's left-out sigma is formed the same way from its station's other readings
+/// (n - 2 dof) under the same prior (the prior, estimated from every station, is not formed
+/// again: one reading among a session's hundreds moves it little); a sigma taken as known,
+/// or a station too small to leave a reading out of, keeps the station's own.
 pub(crate) fn station_sigmas(
     readings: &[Pending],
     fallback_rad: f64,
     method: SigmaDzMethod,
-) -> BTreeMap<String, StationSigma> {
+) -> SessionSigmas {
     let floor_rad = readings
         .iter()
         .map(|p| p.reading.step_rad)
         .fold(f64::INFINITY, f64::min)
         / 12f64.sqrt();
-    let mut by_station: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
-    for p in readings {
+    let mut by_station: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
+    for (k, p) in readings.iter().enumerate() {
         by_station
             .entry(p.reading.station.as_str())
             .or_default()
-            .push(p.reading.dz_rad);
+            .push(k);
     }
+    let dz_of =
+        |ks: &[usize]| -> Vec<f64> { ks.iter().map(|&k| readings[k].reading.dz_rad).collect() };
     let own: Vec<(f64, f64)> = by_station
         .values()
-        .map(|dz| match sample_sd(dz) {
-            Some(sd) => (sd.max(floor_rad).powi(2), (dz.len() - 1) as f64),
+        .map(|ks| match sample_sd(&dz_of(ks)) {
+            Some(sd) => (sd.max(floor_rad).powi(2), (ks.len() - 1) as f64),
             None => (0.0, 0.0),
         })
         .collect();
@@ -95,34 +112,72 @@ pub(crate) fn station_sigmas(
         SigmaDzMethod::Moderated => weights::moderate(&own),
         SigmaDzMethod::Station => None,
     };
-    let at = |sigma_rad, source, dof| StationSigma {
-        sigma_rad,
-        source,
-        dof,
+    // One station's sigma from its readings `dz`.
+    let sigma_of = |dz: &[f64]| -> StationSigma {
+        let at = |sigma_rad, source, dof| StationSigma {
+            sigma_rad,
+            source,
+            dof,
+        };
+        let sd = sample_sd(dz);
+        match &moderated {
+            Some(m) => {
+                let (v, d) = sd.map_or((0.0, 0.0), |sd| {
+                    (sd.max(floor_rad).powi(2), (dz.len() - 1) as f64)
+                });
+                let (variance, dof) = if m.prior_dof.is_finite() && d > 0.0 {
+                    (
+                        (m.prior_dof * m.prior_variance + d * v) / (m.prior_dof + d),
+                        m.prior_dof + d,
+                    )
+                } else if m.prior_dof.is_finite() {
+                    (m.prior_variance, m.prior_dof)
+                } else {
+                    (m.prior_variance, pooled_dof)
+                };
+                if variance.sqrt() >= floor_rad {
+                    at(variance.sqrt(), sigma_source::MODERATED, Some(dof))
+                } else {
+                    at(floor_rad, sigma_source::RESOLUTION, None)
+                }
+            }
+            None => match sd {
+                None => at(fallback_rad, sigma_source::MANIFEST, None),
+                Some(sd) if sd >= floor_rad => {
+                    at(sd, sigma_source::STATION_SD, Some((dz.len() - 1) as f64))
+                }
+                Some(_) => at(floor_rad, sigma_source::RESOLUTION, None),
+            },
+        }
     };
-    by_station
-        .into_iter()
-        .enumerate()
-        .map(|(i, (station, dz))| {
-            let sigma = match (&moderated, sample_sd(&dz)) {
-                (Some(m), _) if m.variances[i].sqrt() >= floor_rad => {
-                    let dof = if m.prior_dof.is_finite() {
-                        m.prior_dof + own[i].1
-                    } else {
-                        pooled_dof
-                    };
-                    at(m.variances[i].sqrt(), sigma_source::MODERATED, Some(dof))
-                }
-                (Some(_), _) => at(floor_rad, sigma_source::RESOLUTION, None),
-                (None, None) => at(fallback_rad, sigma_source::MANIFEST, None),
-                (None, Some(sd)) if sd >= floor_rad => {
-                    at(sd, sigma_source::STATION_SD, Some(own[i].1))
-                }
-                (None, Some(_)) => at(floor_rad, sigma_source::RESOLUTION, None),
-            };
-            (station.to_owned(), sigma)
-        })
-        .collect()
+    let mut left_out: Vec<Option<StationSigma>> = vec![None; readings.len()];
+    let mut station = BTreeMap::new();
+    for (id, ks) in by_station {
+        let dz = dz_of(&ks);
+        let whole = sigma_of(&dz);
+        for (j, &k) in ks.iter().enumerate() {
+            let others: Vec<f64> = dz
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| i != j)
+                .map(|(_, &x)| x)
+                .collect();
+            let without = sigma_of(&others);
+            left_out[k] = Some(if whole.dof.is_none() || without.dof.is_none() {
+                whole
+            } else {
+                without
+            });
+        }
+        station.insert(id.to_owned(), whole);
+    }
+    SessionSigmas {
+        station,
+        left_out: left_out
+            .into_iter()
+            .map(|s| s.expect("every reading has a station"))
+            .collect(),
+    }
 }
 
 /// The windows of every session's readings, in time order.

@@ -183,6 +183,8 @@ pub mod theodolite {
 /// | sigma_dz_rad | float64 | sd of one reading at this station, rad (eq. 4) |
 /// | sigma_dz_source | utf8 | `moderated`, `station_sd`, `manifest` or `resolution` ([`super::align_ledger::sigma_source`]) |
 /// | sigma_dz_dof | float64, null | degrees of freedom of sigma_dz when estimated from readings (moderated: prior + own); null when taken as known |
+/// | sigma_dz_loo_rad | float64 | sigma_dz of the station formed as above without this reading, rad: the reference of its w-test |
+/// | sigma_dz_loo_dof | float64, null | its degrees of freedom; null when taken as known |
 /// | sigma_am_mgal | float64 | g sin(Dz) sigma_Dz, mGal |
 /// | ng | float64, null | mean counts in the window |
 /// | sigma_ng | float64, null | sd of that mean, counts |
@@ -213,6 +215,10 @@ pub mod observations {
     pub const SIGMA_DZ_SOURCE: &str = "sigma_dz_source";
     /// Degrees of freedom of sigma_dz (null: known).
     pub const SIGMA_DZ_DOF: &str = "sigma_dz_dof";
+    /// sigma_dz without the reading, rad.
+    pub const SIGMA_DZ_LOO_RAD: &str = "sigma_dz_loo_rad";
+    /// Its degrees of freedom (null: known).
+    pub const SIGMA_DZ_LOO_DOF: &str = "sigma_dz_loo_dof";
     /// Acceleration sd implied by sigma_dz, mGal.
     pub const SIGMA_AM_MGAL: &str = "sigma_am_mgal";
     /// Mean counts.
@@ -246,6 +252,8 @@ pub mod observations {
             Field::new(SIGMA_DZ_RAD, DataType::Float64, false),
             Field::new(SIGMA_DZ_SOURCE, DataType::Utf8, false),
             Field::new(SIGMA_DZ_DOF, DataType::Float64, true),
+            Field::new(SIGMA_DZ_LOO_RAD, DataType::Float64, false),
+            Field::new(SIGMA_DZ_LOO_DOF, DataType::Float64, true),
             Field::new(SIGMA_AM_MGAL, DataType::Float64, false),
             Field::new(NG, DataType::Float64, true),
             Field::new(SIGMA_NG, DataType::Float64, true),
