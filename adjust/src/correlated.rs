@@ -83,7 +83,8 @@ pub fn extra_covariance(
 
 /// `C x` for an n x k matrix `x` (row per observation): the coloured noise's covariance of
 /// the window means less what the weights hold (C - D), within each session, by forward and
-/// backward passes in time order.
+/// backward passes in time order. Windows are taken not to overlap (a pair that does is
+/// counted as if its windows touched): a session's readings are seconds apart.
 pub fn apply_excess(
     x: &[Vec<f64>],
     time_s: &[f64],
@@ -93,8 +94,16 @@ pub fn apply_excess(
     let n = x.len();
     let k = x.first().map_or(0, Vec::len);
     let flicker = Flicker::new(noise.bias_instability);
+    let factors = flicker.window_factors(noise.window_s);
     let k2 = noise.random_walk.powi(2);
-    let d = noise.window_variance();
+    // The diagonal: less what the weights hold, and what a window's mean takes off the
+    // points' variance (the flicker's g - f per process, the random walk's K^2 w / 6).
+    let d = noise.window_variance()
+        + k2 * noise.window_s / 6.0
+        + factors
+            .iter()
+            .map(|(f, g)| flicker.variance * (f - g))
+            .sum::<f64>();
     let mut y: Vec<Vec<f64>> = x
         .iter()
         .map(|r| r.iter().map(|v| -d * v).collect())
@@ -106,7 +115,8 @@ pub fn apply_excess(
         let Some(&first) = order.first() else {
             continue;
         };
-        for &t in &flicker.time_constants_s {
+        for (&t, &(f, _)) in flicker.time_constants_s.iter().zip(&factors) {
+            let variance = flicker.variance * f;
             // Forward: sum over j <= i; backward: over j > i.
             let mut run = vec![0.0; k];
             let mut last = time_s[first];
@@ -117,7 +127,7 @@ pub fn apply_excess(
                     *r = *r * decay + v;
                 }
                 for (out, r) in y[i].iter_mut().zip(&run) {
-                    *out += flicker.variance * r;
+                    *out += variance * r;
                 }
             }
             let mut run = vec![0.0; k];
@@ -131,7 +141,7 @@ pub fn apply_excess(
                 }
                 next = Some(i);
                 for (out, r) in y[i].iter_mut().zip(&run) {
-                    *out += flicker.variance * r;
+                    *out += variance * r;
                 }
             }
         }
@@ -279,16 +289,26 @@ pub fn within_station_excess(
     total
 }
 
-/// The model's covariance (less the diagonal the weights hold) of the window means at
-/// `ta` and `tb` of one session that began at `first`; `same`: one and the same window.
+/// The model's covariance (less the diagonal the weights hold) of the window means centred
+/// at `ta` and `tb` of one session that began at `first`; `same`: one and the same window.
+/// The means' covariance, not the points': a window of 2.56 s averages away most of the
+/// variance of the flicker's fastest processes, which the points' covariance would count as
+/// scatter between a station's windows.
 fn pair_covariance(
     flicker: &Flicker,
     noise: &ColouredAdc,
     (ta, tb, first): (f64, f64, f64),
     same: bool,
 ) -> f64 {
-    let c = flicker.covariance(ta - tb) + noise.random_walk.powi(2) * (ta.min(tb) - first);
-    if same { c - noise.window_variance() } else { c }
+    let k2 = noise.random_walk.powi(2);
+    let c = flicker.window_covariance(ta - tb, noise.window_s) + k2 * (ta.min(tb) - first);
+    // A window's mean of the random walk has K^2 (t - first - w / 6) of variance (t its
+    // centre); two windows apart covary by K^2 (the earlier centre - first).
+    if same {
+        c - k2 * noise.window_s / 6.0 - noise.window_variance()
+    } else {
+        c
+    }
 }
 
 /// The first observation time of each session, by session index.
@@ -348,11 +368,7 @@ mod tests {
         let fast = between_station_excess(&s, &station, &share, &time, &session, &noise);
         let flicker = Flicker::new(noise.bias_instability);
         let cov = |i: usize, j: usize| {
-            let mut c = flicker.covariance(time[i] - time[j])
-                + noise.random_walk.powi(2) * time[i].min(time[j]);
-            if i == j {
-                c -= noise.window_variance();
-            }
+            let c = pair_covariance(&flicker, &noise, (time[i], time[j], 0.0), i == j);
             c * s.b[i][1] * s.b[j][1]
         };
         // R[i][k] = delta_ik - a_i^T Q a_k w_k.
@@ -383,12 +399,13 @@ mod tests {
         assert!((fast - slow).abs() < 1e-9 * slow.abs(), "{fast} vs {slow}");
     }
 
-    /// The linear-time sums equal the direct double sum over the model's covariance.
+    /// The linear-time sums equal the direct double sum over the model's covariance (windows
+    /// that do not overlap, as a session's readings' do not).
     #[test]
     fn recursions_equal_the_double_sum() {
         let m = 2;
         let n = 7;
-        let time: Vec<f64> = vec![0.0, 3.0, 3.5, 40.0, 41.0, 900.0, 2000.0];
+        let time: Vec<f64> = vec![0.0, 3.0, 5.6, 40.0, 42.6, 900.0, 2000.0];
         let session = vec![0, 0, 0, 0, 1, 1, 1];
         let s = Solution {
             p: vec![0.0; m],
@@ -437,11 +454,7 @@ mod tests {
                     .filter(|(_, s)| **s == session[i])
                     .map(|(t, _)| *t)
                     .fold(f64::INFINITY, f64::min);
-                let mut c = flicker.covariance(time[i] - time[j])
-                    + noise.random_walk.powi(2) * (time[i].min(time[j]) - t0);
-                if i == j {
-                    c -= noise.window_variance();
-                }
+                let c = pair_covariance(&flicker, &noise, (time[i], time[j], t0), i == j);
                 let (gi, gj) = (gain(i), gain(j));
                 for r in 0..m {
                     for q in 0..m {

@@ -396,6 +396,10 @@ struct MonteCarlo {
     applied_sd_over_sigma: [f64; 3],
     /// Mean theodolite variance component.
     mean_theodolite_component: f64,
+    /// Mean ADC variance component.
+    mean_adc_component: f64,
+    /// Share of replicas whose two-sided 5 % test rejected, theodolite and ADC component.
+    component_rejection: [f64; 2],
     /// Mean observations removed by snooping.
     mean_removed: f64,
     /// Replicas whose fit failed, with the error.
@@ -654,6 +658,7 @@ fn monte_carlo(
             (a.min(r.ng_true), b.max(r.ng_true))
         });
     let (mut rejected, mut theodolite, mut removed) = (0, 0.0, 0);
+    let (mut adc, mut component_rejected) = (0.0, [0usize; 2]);
     let mut failed = Vec::new();
     let terms = adjust::model::Terms {
         order: 1,
@@ -715,6 +720,10 @@ fn monte_carlo(
         }));
         rejected += usize::from(!f.global_test_passed());
         theodolite += f.components[0].estimate;
+        adc += f.components[1].estimate;
+        for (k, c) in f.components.iter().take(2).enumerate() {
+            component_rejected[k] += usize::from(c.not_estimable.is_none() && !c.test.passed());
+        }
     }
     let n = est.len() as f64;
     let mean = |j: usize, v: &[[f64; 5]]| v.iter().map(|x| x[j]).sum::<f64>() / n;
@@ -735,6 +744,8 @@ fn monte_carlo(
             sd / (applied.iter().map(|a| a[k].1).sum::<f64>() / n)
         }),
         mean_theodolite_component: theodolite / n,
+        mean_adc_component: adc / n,
+        component_rejection: component_rejected.map(|k| k as f64 / n),
         mean_removed: removed as f64 / n,
         failed,
     }
@@ -749,7 +760,7 @@ fn print_monte_carlo(label: &str, replicas: usize, m: &MonteCarlo) {
     eprintln!(
         "monte carlo, {label}, {replicas} replicas: sd/sigma {}; Mahalanobis / dof {:.3}; \
          applied sd/sigma {:.3} {:.3} {:.3}; global test rejects {:.1} %; \
-         theodolite component {:.3}; bias/se of b_t, k_t, beta {:.1} {:.1} {:.1}; \
+         components: theodolite {:.3} (its test rejects {:.1} %), ADC {:.3} ({:.1} %); bias/se of b_t, k_t, beta {:.1} {:.1} {:.1}; \
          {:.2} observations removed a replica; {} fits failed{}",
         ratios.join(", "),
         m.mahalanobis_ratio,
@@ -758,6 +769,9 @@ fn print_monte_carlo(label: &str, replicas: usize, m: &MonteCarlo) {
         m.applied_sd_over_sigma[2],
         100.0 * m.rejection_rate,
         m.mean_theodolite_component,
+        100.0 * m.component_rejection[0],
+        m.mean_adc_component,
+        100.0 * m.component_rejection[1],
         m.bias_z[0],
         m.bias_z[1],
         m.bias_z[2],
@@ -807,6 +821,15 @@ fn accept(replicas: usize, ratio: f64, rate: (f64, f64)) {
         "global test rejects {}",
         m.rejection_rate
     );
+    // The variance components average 1 when the weights are right (the ADC's averaged
+    // 0.77 and failed its test in 73 % of replicas while the within-station excess took
+    // the points' covariance for the window means').
+    for (group, c) in [
+        ("theodolite", m.mean_theodolite_component),
+        ("ADC", m.mean_adc_component),
+    ] {
+        assert!((c - 1.0).abs() <= 0.05, "mean {group} component {c}");
+    }
 }
 
 /// The fast acceptance test, in CI: 1000 replicas; sd/sigma within 1 +/- 0.07 and rejection

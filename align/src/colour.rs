@@ -56,6 +56,57 @@ impl Flicker {
         }
     }
 
+    /// Per time constant, the factors a mean over a window of `window_s` puts on its process's
+    /// variance: (f, g), f for two such means whose windows do not overlap (their covariance
+    /// is f variance exp(-|dt| / T), the exponential kept), g for one and the same window
+    /// (its variance g variance, below the point's for T short beside the window).
+    pub fn window_factors(&self, window_s: f64) -> Vec<(f64, f64)> {
+        self.time_constants_s
+            .iter()
+            .map(|&t| {
+                let x = window_s / t;
+                let f = (2.0 * x.cosh() - 2.0) / (x * x);
+                let g = 2.0 * (x - 1.0 + (-x).exp()) / (x * x);
+                (f, g)
+            })
+            .collect()
+    }
+
+    /// Covariance of two means over windows of `window_s` whose centres are `dt_s` apart:
+    /// the point covariance averaged over both windows, in closed form when they do not
+    /// overlap or are one, by Simpson's rule over the lag when they overlap.
+    pub fn window_covariance(&self, dt_s: f64, window_s: f64) -> f64 {
+        let dt = dt_s.abs();
+        if window_s <= 0.0 {
+            return self.covariance(dt);
+        }
+        if dt == 0.0 || dt >= window_s {
+            return self
+                .time_constants_s
+                .iter()
+                .zip(self.window_factors(window_s))
+                .map(|(&t, (f, g))| self.variance * if dt == 0.0 { g } else { f * (-dt / t).exp() })
+                .sum();
+        }
+        // (1 / w^2) integral over r in [-w, w] of (w - |r|) C(dt + r).
+        let n = 400;
+        let h = 2.0 * window_s / f64::from(n);
+        let sum: f64 = (0..=n)
+            .map(|i| {
+                let r = -window_s + h * f64::from(i);
+                let weight = if i == 0 || i == n {
+                    1.0
+                } else if i % 2 == 1 {
+                    4.0
+                } else {
+                    2.0
+                };
+                weight * (window_s - r.abs()) * self.covariance(dt + r)
+            })
+            .sum();
+        sum * h / 3.0 / (window_s * window_s)
+    }
+
     /// Covariance of two values `dt_s` apart.
     pub fn covariance(&self, dt_s: f64) -> f64 {
         self.time_constants_s
@@ -68,6 +119,41 @@ impl Flicker {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The closed forms against Simpson's rule over the lag, and a window long beside T
+    /// averaging the process's variance away.
+    #[test]
+    fn window_means_covary_as_their_averages() {
+        let f = Flicker::new(1.0);
+        let w = 2.56;
+        let numeric = |dt: f64| {
+            let n = 2000;
+            let h = 2.0 * w / f64::from(n);
+            (0..=n)
+                .map(|i| {
+                    let r = -w + h * f64::from(i);
+                    let k = if i == 0 || i == n {
+                        1.0
+                    } else if i % 2 == 1 {
+                        4.0
+                    } else {
+                        2.0
+                    };
+                    k * (w - r.abs()) * f.covariance(dt + r)
+                })
+                .sum::<f64>()
+                * h
+                / 3.0
+                / (w * w)
+        };
+        for dt in [0.0, 2.56, 8.0, 60.0] {
+            let (closed, num) = (f.window_covariance(dt, w), numeric(dt));
+            assert!((closed / num - 1.0).abs() < 1e-4, "{dt}: {closed} vs {num}");
+        }
+        assert!(f.window_covariance(0.0, w) < f.covariance(0.0));
+        let (_, g) = f.window_factors(1000.0)[0];
+        assert!(g < 0.002, "{g}");
+    }
 
     #[test]
     fn the_floor_is_flat_and_scaled() {
