@@ -224,6 +224,23 @@ fn the_summary_comes_first_and_only_what_applies_follows() {
         );
     }
     assert!(md.contains("| triad | triad (x, y, z) | lab | a_yz = "));
+    insta::assert_snapshot!("triad_multipos_summary", summary_of(&md));
+    for name in ["roll-sessions", "survey"] {
+        let out = pipeline(&fixtures::dataset_dir(name));
+        let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("report.md");
+        insta::assert_snapshot!(format!("{name}_summary"), summary_of(&md));
+    }
+}
+
+/// report.md's summary section: from its heading to the next section's.
+fn summary_of(md: &str) -> &str {
+    let start = md
+        .find("## Summary: the calibrations")
+        .expect("the summary");
+    let end = md[start + 3..]
+        .find("\n## ")
+        .map_or(md.len(), |e| start + 3 + e);
+    md[start..end].trim()
 }
 
 /// What the first screen (1400 x 900, headless Chromium) holds: the summary table's bottom
