@@ -69,6 +69,50 @@ pub(crate) struct SessionSigmas {
     pub(crate) left_out: Vec<StationSigma>,
 }
 
+/// How a session forms one station's sigma_Dz from its readings.
+struct SigmaRule {
+    floor_rad: f64,
+    fallback_rad: f64,
+    pooled_dof: f64,
+    moderated: Option<weights::Moderated>,
+}
+
+impl SigmaRule {
+    /// The sigma of a station whose readings are `dz` (see [`station_sigmas`]).
+    fn sigma(&self, dz: &[f64]) -> StationSigma {
+        let at = |sigma_rad, source, dof| StationSigma {
+            sigma_rad,
+            source,
+            dof,
+        };
+        let sd = sample_sd(dz);
+        let own_dof = dz.len().saturating_sub(1) as f64;
+        let Some(m) = &self.moderated else {
+            return match sd {
+                None => at(self.fallback_rad, sigma_source::MANIFEST, None),
+                Some(sd) if sd >= self.floor_rad => at(sd, sigma_source::STATION_SD, Some(own_dof)),
+                Some(_) => at(self.floor_rad, sigma_source::RESOLUTION, None),
+            };
+        };
+        let (v, d) = sd.map_or((0.0, 0.0), |sd| (sd.max(self.floor_rad).powi(2), own_dof));
+        let (variance, dof) = if m.prior_dof.is_finite() && d > 0.0 {
+            (
+                (m.prior_dof * m.prior_variance + d * v) / (m.prior_dof + d),
+                m.prior_dof + d,
+            )
+        } else if m.prior_dof.is_finite() {
+            (m.prior_variance, m.prior_dof)
+        } else {
+            (m.prior_variance, self.pooled_dof)
+        };
+        if variance.sqrt() >= self.floor_rad {
+            at(variance.sqrt(), sigma_source::MODERATED, Some(dof))
+        } else {
+            at(self.floor_rad, sigma_source::RESOLUTION, None)
+        }
+    }
+}
+
 /// sigma_Dz per station of one session, never below the quantisation of the log: the step
 /// of the finest last decimal the session's readings were logged with, over sqrt(12). By
 /// default each station's variance is moderated toward the session's ([`weights`]; a
@@ -112,44 +156,13 @@ pub(crate) fn station_sigmas(
         SigmaDzMethod::Moderated => weights::moderate(&own),
         SigmaDzMethod::Station => None,
     };
-    // One station's sigma from its readings `dz`.
-    let sigma_of = |dz: &[f64]| -> StationSigma {
-        let at = |sigma_rad, source, dof| StationSigma {
-            sigma_rad,
-            source,
-            dof,
-        };
-        let sd = sample_sd(dz);
-        match &moderated {
-            Some(m) => {
-                let (v, d) = sd.map_or((0.0, 0.0), |sd| {
-                    (sd.max(floor_rad).powi(2), (dz.len() - 1) as f64)
-                });
-                let (variance, dof) = if m.prior_dof.is_finite() && d > 0.0 {
-                    (
-                        (m.prior_dof * m.prior_variance + d * v) / (m.prior_dof + d),
-                        m.prior_dof + d,
-                    )
-                } else if m.prior_dof.is_finite() {
-                    (m.prior_variance, m.prior_dof)
-                } else {
-                    (m.prior_variance, pooled_dof)
-                };
-                if variance.sqrt() >= floor_rad {
-                    at(variance.sqrt(), sigma_source::MODERATED, Some(dof))
-                } else {
-                    at(floor_rad, sigma_source::RESOLUTION, None)
-                }
-            }
-            None => match sd {
-                None => at(fallback_rad, sigma_source::MANIFEST, None),
-                Some(sd) if sd >= floor_rad => {
-                    at(sd, sigma_source::STATION_SD, Some((dz.len() - 1) as f64))
-                }
-                Some(_) => at(floor_rad, sigma_source::RESOLUTION, None),
-            },
-        }
+    let rule = SigmaRule {
+        floor_rad,
+        fallback_rad,
+        pooled_dof,
+        moderated,
     };
+    let sigma_of = |dz: &[f64]| rule.sigma(dz);
     let mut left_out: Vec<Option<StationSigma>> = vec![None; readings.len()];
     let mut station = BTreeMap::new();
     for (id, ks) in by_station {
