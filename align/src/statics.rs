@@ -450,7 +450,10 @@ pub fn noise(series: &Series, intervals: &[(usize, usize)], tau0_s: f64) -> [Opt
         let slices: Vec<&[f64]> = residuals.iter().map(Vec::as_slice).collect();
         let points = crate::allan::pooled(&slices, tau0_s, &crate::allan::octave_factors(longest));
         Some(AxisNoise {
-            terms: crate::allan::fit_noise(&points),
+            terms: crate::allan::fit_noise(
+                &points,
+                &slices.iter().map(|s| s.len()).collect::<Vec<_>>(),
+            ),
             points,
             intervals: slices.len(),
             samples: slices.iter().map(|s| s.len()).sum(),

@@ -326,7 +326,8 @@ pub(crate) fn adc_noise(ds: &Dataset, still: &[Vec<StillInterval>], tau0_s: f64)
                 .collect();
             let longest = series.iter().map(|s| s.len()).max()?;
             let points = allan::pooled(&series, tau0_s, &allan::octave_factors(longest));
-            let fit = allan::fit_noise(&points);
+            let fit =
+                allan::fit_noise(&points, &series.iter().map(|s| s.len()).collect::<Vec<_>>());
             Some(AdcNoise {
                 accelerometer: acc.id.clone(),
                 still_intervals: series.len(),
