@@ -139,7 +139,8 @@ pub struct Removed {
     pub line: u32,
     /// GPS time, ns.
     pub time_gps_ns: i64,
-    /// w-test value when removed.
+    /// w-test value when removed (the normal quantile of its tail, its Dz referred to the
+    /// station's sigma_Dz without it).
     pub w: f64,
 }
 

@@ -286,7 +286,7 @@ pub mod observations {
 /// | v_ng | float64, null | residual of Ng, counts |
 /// | residual_mgal | float64, null | condition residual B v, mGal |
 /// | redundancy | float64, null | redundancy number |
-/// | w | float64 | normalised residual (at removal, for a removed observation) |
+/// | w | float64 | normalised residual, its Dz referred to the station's sigma_dz without it, as the normal quantile of its tail (at removal, for a removed observation) |
 /// | removed | boolean | removed by data snooping |
 pub mod residuals {
     use super::*;
