@@ -164,11 +164,15 @@ pub fn white_covariance(points: &[AllanPoint], lengths: &[usize]) -> Vec<f64> {
             let tau0 = points[a].tau_s / points[a].m as f64;
             // Terms of each series at each factor (a series of n samples has n + 1 - 2m).
             let terms = |m: i64, n: usize| (n as i64 + 1 - 2 * m).max(0);
-            let (ta, tb): (i64, i64) = lengths
-                .iter()
-                .filter(|&&n| n as i64 > 2 * ma && n as i64 > 2 * mb)
-                .map(|&n| (terms(ma, n), terms(mb, n)))
-                .fold((0, 0), |x, y| (x.0 + y.0, x.1 + y.1));
+            // Each factor's total over the series long enough for it, as `pooled` sums them.
+            let total = |m: i64| -> i64 {
+                lengths
+                    .iter()
+                    .filter(|&&n| n as i64 > 2 * m)
+                    .map(|&n| terms(m, n))
+                    .sum()
+            };
+            let (ta, tb) = (total(ma), total(mb));
             if ta == 0 || tb == 0 {
                 continue;
             }
@@ -473,6 +477,32 @@ mod tests {
                 2.0 / q.edf
             );
         }
+    }
+
+    /// A series too short for a factor counts in the other factor's total (as `pooled`
+    /// sums it) and in no pair with it.
+    #[test]
+    fn short_series_count_where_pooled_counts_them() {
+        let pts: Vec<AllanPoint> = [1usize, 16]
+            .iter()
+            .map(|&m| AllanPoint {
+                tau_s: m as f64,
+                m,
+                adev: 1.0,
+                edf: 1.0,
+                interval: (0.0, 0.0),
+            })
+            .collect();
+        let long = white_covariance(&pts, &[2000]);
+        let both = white_covariance(&pts, &[2000, 20]);
+        assert!((both[3] / long[3] - 1.0).abs() < 1e-12);
+        let (t_long, t_all) = (2000.0 + 1.0 - 2.0, 2000.0 + 1.0 - 2.0 + 20.0 + 1.0 - 2.0);
+        assert!(
+            (both[1] / long[1] - t_long / t_all).abs() < 1e-12,
+            "{} {}",
+            both[1],
+            long[1]
+        );
     }
 
     /// The white covariance's correlation of neighbouring octaves against the one white
