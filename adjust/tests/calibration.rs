@@ -372,6 +372,12 @@ fn one_sided_design_cannot_separate_beta_from_k2() {
 /// Parameters of the acceptance design, in calibrate's order for order 1 with temperature
 /// and misalignment.
 const MC_PARAMETERS: [&str; 5] = ["b", "k", "b_t", "k_t", "beta"];
+/// The Monte-Carlos' model: order 1 with temperature terms and misalignment.
+const MC_TERMS: adjust::model::Terms = adjust::model::Terms {
+    order: 1,
+    temperature: true,
+    misalignment: adjust::model::Misalignment::Plane,
+};
 /// True misalignment of the Monte-Carlo, rad.
 const MC_BETA_RAD: f64 = 4.5e-4;
 /// Where the Monte-Carlo checks the applied function's sigma: (fraction of the design's
@@ -660,11 +666,7 @@ fn monte_carlo(
     let (mut rejected, mut theodolite, mut removed) = (0, 0.0, 0);
     let (mut adc, mut component_rejected) = (0.0, [0usize; 2]);
     let mut failed = Vec::new();
-    let terms = adjust::model::Terms {
-        order: 1,
-        temperature: true,
-        misalignment: adjust::model::Misalignment::Plane,
-    };
+    let terms = MC_TERMS;
     for _ in 0..replicas {
         let dz: Vec<f64> = design
             .iter()
@@ -900,11 +902,7 @@ fn snooping_monte_carlo(
     let design = acceptance_design(&truth);
     let acc = &truth.accelerometer[0];
     let mut rng = fixtures::rng::Rng::new(20_261_124, "snooping");
-    let terms = adjust::model::Terms {
-        order: 1,
-        temperature: true,
-        misalignment: adjust::model::Misalignment::Plane,
-    };
+    let terms = MC_TERMS;
     let g = truth.gravity_mgal;
     let mut out = Snooping {
         good: 0,

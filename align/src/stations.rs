@@ -69,6 +69,14 @@ pub(crate) struct SessionSigmas {
     pub(crate) left_out: Vec<StationSigma>,
 }
 
+/// A station's own variance of Dz (never below the floor's square) and its dof; (0, 0)
+/// with fewer than two readings.
+fn own_variance(dz: &[f64], floor_rad: f64) -> (f64, f64) {
+    sample_sd(dz).map_or((0.0, 0.0), |sd| {
+        (sd.max(floor_rad).powi(2), (dz.len() - 1) as f64)
+    })
+}
+
 /// How a session forms one station's sigma_Dz from its readings.
 struct SigmaRule {
     floor_rad: f64,
@@ -94,7 +102,7 @@ impl SigmaRule {
                 Some(_) => at(self.floor_rad, sigma_source::RESOLUTION, None),
             };
         };
-        let (v, d) = sd.map_or((0.0, 0.0), |sd| (sd.max(self.floor_rad).powi(2), own_dof));
+        let (v, d) = own_variance(dz, self.floor_rad);
         let (variance, dof) = if m.prior_dof.is_finite() && d > 0.0 {
             (
                 (m.prior_dof * m.prior_variance + d * v) / (m.prior_dof + d),
@@ -146,10 +154,7 @@ pub(crate) fn station_sigmas(
         |ks: &[usize]| -> Vec<f64> { ks.iter().map(|&k| readings[k].reading.dz_rad).collect() };
     let own: Vec<(f64, f64)> = by_station
         .values()
-        .map(|ks| match sample_sd(&dz_of(ks)) {
-            Some(sd) => (sd.max(floor_rad).powi(2), (ks.len() - 1) as f64),
-            None => (0.0, 0.0),
-        })
+        .map(|ks| own_variance(&dz_of(ks), floor_rad))
         .collect();
     let pooled_dof: f64 = own.iter().map(|&(_, d)| d).sum();
     let moderated = match method {
@@ -162,12 +167,11 @@ pub(crate) fn station_sigmas(
         pooled_dof,
         moderated,
     };
-    let sigma_of = |dz: &[f64]| rule.sigma(dz);
     let mut left_out: Vec<Option<StationSigma>> = vec![None; readings.len()];
     let mut station = BTreeMap::new();
     for (id, ks) in by_station {
         let dz = dz_of(&ks);
-        let whole = sigma_of(&dz);
+        let whole = rule.sigma(&dz);
         for (j, &k) in ks.iter().enumerate() {
             let others: Vec<f64> = dz
                 .iter()
@@ -175,7 +179,7 @@ pub(crate) fn station_sigmas(
                 .filter(|&(i, _)| i != j)
                 .map(|(_, &x)| x)
                 .collect();
-            let without = sigma_of(&others);
+            let without = rule.sigma(&others);
             left_out[k] = Some(if whole.dof.is_none() || without.dof.is_none() {
                 whole
             } else {
