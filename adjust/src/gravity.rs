@@ -22,10 +22,12 @@
 //! report's section), north and east with attitude, the simulator's survey lines over a
 //! known field, and the benchmark.
 
+pub mod epochs;
 pub mod filter;
 pub mod navigation;
 pub mod normal;
 pub mod reduce;
+pub mod stage;
 pub mod trajectory;
 
 /// What can go wrong in the gravity stage.
@@ -54,4 +56,26 @@ pub enum GravityError {
     /// A filter that cannot be built.
     #[error("filter: {0}")]
     Filter(String),
+    /// A stretch of track too short for the filter.
+    #[error("a stretch of {epochs} epochs ({seconds:.0} s) is too short for a {filter_s} s filter")]
+    TooShort {
+        /// Its epochs.
+        epochs: usize,
+        /// Its length, s.
+        seconds: f64,
+        /// The filter's cut-off period, s.
+        filter_s: f64,
+    },
+    /// The stage cannot run as asked (what is missing or contradictory, and what would work).
+    #[error("gravity: {message}")]
+    Refused {
+        /// Why.
+        message: String,
+    },
+    /// A stage it runs first (ingest, apply) or a table it reads failed.
+    #[error(transparent)]
+    Stage(#[from] crate::Error),
+    /// The manifest, a lock, a file written.
+    #[error(transparent)]
+    Ingest(#[from] ingest::Error),
 }

@@ -74,6 +74,7 @@ fn survey(bias: f64, sd_up: f64) -> (Stretch, Vec<f64>) {
         s.sd_up_m.push(sd_up);
         s.f_down_mgal.push(f_down);
         s.sigma_f_mgal.push(0.5);
+        s.noise_f_mgal.push(0.0);
         truth.push(disturbance(x));
         // Advance by the speed at the middle of the step.
         let vm = speed(t + DT / 2.0);

@@ -321,6 +321,51 @@ pub fn lab_batches(
     Ok(())
 }
 
+/// One batch of a table with per row a session index, a GPS time, some nullable Float64
+/// columns and a UInt8 flags column: apply's `acceleration.parquet`, read by the gravity
+/// stage.
+pub struct FloatBatch<'a> {
+    /// Session index per row.
+    pub session: &'a [u16],
+    /// GPS time per row, ns.
+    pub time_ns: &'a [i64],
+    /// The columns asked for, in the order asked.
+    pub values: Vec<&'a arrow::array::Float64Array>,
+    /// The flags column.
+    pub flags: &'a [u8],
+}
+
+/// Streams the table at `path` in file order, `batch_rows` at a time, reading the Float64
+/// columns `names` and the UInt8 column `flags`.
+pub fn float_batches(
+    path: &Path,
+    names: &[&str],
+    flags: &str,
+    batch_rows: usize,
+    mut f: impl FnMut(FloatBatch<'_>) -> Result<()>,
+) -> Result<()> {
+    for b in batches_of(path, batch_rows)? {
+        let b = b?;
+        let (session, time) = session_and_time(path, &b)?;
+        let values: Vec<_> = names
+            .iter()
+            .map(|n| {
+                column(path, &b, n, &DataType::Float64).map(|c| c.as_primitive::<Float64Type>())
+            })
+            .collect::<Result<_>>()?;
+        let flags = column(path, &b, flags, &DataType::UInt8)?
+            .as_primitive::<UInt8Type>()
+            .values();
+        f(FloatBatch {
+            session,
+            time_ns: time,
+            values,
+            flags,
+        })?;
+    }
+    Ok(())
+}
+
 /// Streams the acceleration table in file order: `f(session index, time_ns, counts, status)`.
 pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8)) -> Result<()> {
     acceleration_batches(dir, 1 << 16, |b| {

@@ -6,11 +6,13 @@
 //! |---|---|
 //! | [`manifest`] | `dataset.toml`: the dataset every stage reads (docs/formats.md section 2) |
 //! | [`status`] | the status bits of a sample, as logged and as stored |
+//! | [`survey`] | `dataset.toml`'s moving-gravimetry keys: trajectories, `[survey]` (docs/formats.md 10) |
 //! | [`tables`] | the Parquet tables: file names, columns, types, units |
 //! | [`ledger`] | `ingest.json`: per input file, what was read, accepted and rejected |
 //! | [`align_ledger`] | `align.json`: observations used and excluded, by reason |
 //! | [`calibration`] | `calibration.json`: the results (docs/formats.md section 6) |
 //! | [`apply_ledger`] | `apply.json`: the calibration applied to a survey, rows and flags |
+//! | [`gravity_ledger`] | `gravity.json`: the survey reduced to gravity, epochs used and dropped |
 //! | [`custody`] | the SHA-256 of every file each stage read and wrote, and its check |
 //!
 //! Outputs live under `OUT/<stage>/`, the stage folders named by each ledger module's
@@ -20,7 +22,9 @@ pub mod align_ledger;
 pub mod apply_ledger;
 pub mod calibration;
 pub mod custody;
+pub mod gravity_ledger;
 pub mod ledger;
 pub mod manifest;
 pub mod status;
+pub mod survey;
 pub mod tables;

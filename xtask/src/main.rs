@@ -42,6 +42,8 @@ enum Cmd {
     Report(DatasetArgs),
     /// A calibration applied to a dataset's (survey's) samples (OUT/apply/; docs/formats.md 8.5).
     Apply(adjust::apply::stream::ApplyArgs),
+    /// A survey reduced to gravity along the track (OUT/gravity/; docs/formats.md 10).
+    Gravity(adjust::gravity::stage::GravityArgs),
     /// Writes the committed fixture datasets, checks them, or writes a large benchmark log.
     Fixtures {
         /// Regenerate into a scratch folder and compare with what is committed; change nothing.
@@ -440,6 +442,19 @@ fn run(cli: Cli) -> Result<()> {
                 .with_context(|| format!("apply on {}", a.dataset.display()))?;
             adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
             eprintln!("apply: {:.2} s", t0.elapsed().as_secs_f64());
+            Ok(())
+        }
+        Cmd::Gravity(a) => {
+            let out = out_dir(&DatasetArgs {
+                dataset: a.dataset.clone(),
+                out: a.out.clone(),
+            })?;
+            let t0 = std::time::Instant::now();
+            let report = a
+                .run(&out)
+                .with_context(|| format!("gravity on {}", a.dataset.display()))?;
+            adjust::gravity::stage::print_summary(&report, &mut std::io::stderr());
+            eprintln!("gravity: {:.2} s", t0.elapsed().as_secs_f64());
             Ok(())
         }
         Cmd::Fixtures {

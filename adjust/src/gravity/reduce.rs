@@ -33,6 +33,9 @@ pub struct Stretch {
     pub f_down_mgal: Vec<f64>,
     /// Its sigma from the calibration's covariance, mGal.
     pub sigma_f_mgal: Vec<f64>,
+    /// The sd of the epoch's value from the samples' own noise (their scatter in the epoch
+    /// over the square root of their number), mGal; 0 where unknown.
+    pub noise_f_mgal: Vec<f64>,
 }
 
 /// A static tie: the still window's centre and length, and gravity there.
@@ -57,6 +60,12 @@ pub struct Reduced {
     pub sigma_calibration_mgal: Vec<f64>,
     /// Sigma of the filtered value from the positions, mGal.
     pub sigma_positions_mgal: Vec<f64>,
+    /// Sigma of the filtered value from the accelerometers' own noise, mGal.
+    pub sigma_noise_mgal: Vec<f64>,
+    /// Sigma of the tie's offset and drift at the epoch, mGal (0 untied).
+    pub sigma_tie_mgal: Vec<f64>,
+    /// The filtered value's sigma: the four above in quadrature, mGal.
+    pub sigma_mgal: Vec<f64>,
     /// Speed over ground, m/s.
     pub speed_m_s: Vec<f64>,
     /// The Eotvos term, mGal.
@@ -80,6 +89,25 @@ pub struct Drift {
     pub sigma_rate_mgal_per_h: Option<f64>,
     /// The reference time (the first tie's centre), GPS ns.
     pub reference_gps_ns: i64,
+    /// Covariance of offset and rate, mGal^2/h (0 with one tie).
+    pub covariance_mgal2_per_h: f64,
+    /// The ties used (inside the stretch, with a window of at least two epochs).
+    pub ties_used: usize,
+}
+
+impl Drift {
+    /// The correction at `t_gps_ns`, mGal, and its sigma.
+    pub fn at(&self, t_gps_ns: i64) -> (f64, f64) {
+        let h = (t_gps_ns - self.reference_gps_ns) as f64 / 3.6e12;
+        let sr = self.sigma_rate_mgal_per_h.unwrap_or(0.0);
+        let var = self.sigma_offset_mgal.powi(2)
+            + 2.0 * h * self.covariance_mgal2_per_h
+            + (h * sr).powi(2);
+        (
+            self.offset_mgal + self.rate_mgal_per_h * h,
+            var.max(0.0).sqrt(),
+        )
+    }
 }
 
 /// The epochs' interval, s, checked even (within 1 % of the median).
@@ -114,19 +142,10 @@ fn position_noise_gain(sections: &[filter::Section], n: usize, at: usize, dt: f6
         .unwrap_or(f64::NAN)
 }
 
-/// The down gravity disturbance along `s`, filtered with cut-off period `filter_s`, tied
-/// to `ties` (those inside the stretch).
-pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, GravityError> {
+/// The unfiltered disturbance at each epoch (before ties), with the speed, the Eotvos term
+/// and normal gravity pushed into `out`.
+fn unfiltered(s: &Stretch, dt: f64, out: &mut Reduced) -> Vec<f64> {
     let n = s.time_gps_ns.len();
-    let dt = interval_s(&s.time_gps_ns)?;
-    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt)?;
-    if n <= filter::pad_length(&sections) + 2 {
-        return Err(GravityError::Filter(format!(
-            "a stretch of {n} epochs ({:.0} s) is too short for a {filter_s} s filter",
-            n as f64 * dt
-        )));
-    }
-    let mut out = Reduced::default();
     let mut raw = vec![0.0; n];
     for k in 0..n {
         let (lo, hi) = (k.saturating_sub(1), (k + 1).min(n - 1));
@@ -148,31 +167,122 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
         out.eotvos_mgal.push(e);
         out.normal_mgal.push(gamma);
     }
-    let mut filtered = filter::filtfilt(&sections, &raw)?;
-    let drift = tie(&s.time_gps_ns, &raw, &out.normal_mgal, ties);
+    raw
+}
+
+/// The filtered disturbance, term by term: the filter applied to the heights before they
+/// are differentiated (in the interior the same as filtering the differentiated heights,
+/// the operators commuting; at the stretch's ends the padding's pivot is then a height
+/// with cm noise, not an acceleration with hundreds of Gal of it), and to the rest
+/// (specific force, Eotvos, normal gravity) as it is.
+fn filtered(
+    s: &Stretch,
+    sections: &[filter::Section],
+    out: &Reduced,
+    dt: f64,
+) -> Result<Vec<f64>, GravityError> {
+    let n = s.time_gps_ns.len();
+    let rest: Vec<f64> = (0..n)
+        .map(|k| -s.f_down_mgal[k] + out.eotvos_mgal[k] - out.normal_mgal[k])
+        .collect();
+    let mut f = filter::filtfilt(sections, &rest)?;
+    let h = filter::filtfilt(sections, &s.height_m)?;
+    for (k, v) in f.iter_mut().enumerate() {
+        let c = k.clamp(1, n - 2);
+        *v -= (h[c + 1] - 2.0 * h[c] + h[c - 1]) / (dt * dt) * 1e5;
+    }
+    Ok(f)
+}
+
+/// The white-noise gain of the filter: the sd of the filtered series per unit sd of
+/// independent values, at the middle of `n` epochs.
+fn white_noise_gain(sections: &[filter::Section], n: usize) -> f64 {
+    let mut x = vec![0.0; n];
+    x[n / 2] = 1.0;
+    filter::filtfilt(sections, &x)
+        .map(|y| y.iter().map(|v| v * v).sum::<f64>().sqrt())
+        .unwrap_or(f64::NAN)
+}
+
+/// The down gravity disturbance along `s`, filtered with cut-off period `filter_s`, tied
+/// to `ties` (those inside the stretch).
+///
+/// Sigmas, each of the filtered value, kept apart: the positions' (their white noise
+/// through the differentiator and the filter), the accelerometers' own noise (the epochs'
+/// sds through the filter), the calibration's (common to neighbouring samples, so the
+/// filter keeps it; once tied, only what differs from its value at the first tie, the
+/// error being one of the calibration's parameters carried through the same function) and
+/// the tie's (the drift line's sigma at the epoch).
+pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, GravityError> {
+    let n = s.time_gps_ns.len();
+    let dt = interval_s(&s.time_gps_ns)?;
+    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt)?;
+    if n <= filter::pad_length(&sections) + 2 {
+        return Err(GravityError::TooShort {
+            epochs: n,
+            seconds: n as f64 * dt,
+            filter_s,
+        });
+    }
+    let mut out = Reduced::default();
+    let mut raw = unfiltered(s, dt, &mut out);
+    let mut filtered = filtered(s, &sections, &out, dt)?;
+    let position_gain = position_noise_gain(&sections, n, n / 2, dt) * 1e5;
+    out.sigma_positions_mgal = s.sd_up_m.iter().map(|sd| sd * position_gain).collect();
+    let noise_gain = white_noise_gain(&sections, n);
+    out.sigma_noise_mgal = s.noise_f_mgal.iter().map(|sd| sd * noise_gain).collect();
+    let random: Vec<f64> = (0..n)
+        .map(|k| out.sigma_positions_mgal[k].hypot(out.sigma_noise_mgal[k]))
+        .collect();
+    let (gamma, t) = (&out.normal_mgal, &s.time_gps_ns);
+    let drift = tie(t, &filtered, gamma, &random, (ties, filter_s));
+    let mut calibration = filter::filtfilt(&sections, &s.sigma_f_mgal)?;
+    out.sigma_tie_mgal = vec![0.0; n];
     if let Some(d) = &drift {
-        for (k, t) in s.time_gps_ns.iter().enumerate() {
-            let hours = (t - d.reference_gps_ns) as f64 / 3.6e12;
-            let c = d.offset_mgal + d.rate_mgal_per_h * hours;
+        let at_tie = nearest(t, d.reference_gps_ns).map_or(0.0, |k| calibration[k]);
+        for k in 0..n {
+            let (c, sigma) = d.at(t[k]);
             raw[k] -= c;
             filtered[k] -= c;
+            out.sigma_tie_mgal[k] = sigma;
+            calibration[k] = (calibration[k] - at_tie).abs();
         }
     }
-    // The calibration's error is common to neighbouring samples: the filter keeps it.
-    out.sigma_calibration_mgal = filter::filtfilt(&sections, &s.sigma_f_mgal)?;
-    let mid_gain = position_noise_gain(&sections, n, n / 2, dt) * 1e5;
-    out.sigma_positions_mgal = s.sd_up_m.iter().map(|sd| sd * mid_gain).collect();
+    out.sigma_calibration_mgal = calibration;
+    out.sigma_mgal = (0..n)
+        .map(|k| {
+            let parts = [
+                random[k],
+                out.sigma_calibration_mgal[k],
+                out.sigma_tie_mgal[k],
+            ];
+            parts.iter().map(|v| v * v).sum::<f64>().sqrt()
+        })
+        .collect();
     out.disturbance_mgal = raw;
     out.filtered_mgal = filtered;
     out.drift = drift;
     Ok(out)
 }
 
-/// The drift fitted to the ties inside the stretch: at each, the unfiltered disturbance's
+/// The epoch nearest `t0`, if any.
+fn nearest(t: &[i64], t0: i64) -> Option<usize> {
+    (0..t.len()).min_by_key(|&k| (t[k] - t0).abs())
+}
+
+/// The drift fitted to the ties inside the stretch: at each, the filtered disturbance's
 /// mean over its still window against the tie's g - gamma (the filter passes a constant
-/// unchanged, and the unfiltered values' scatter gives the mean's sigma); a constant with
-/// one tie, a line in time with more.
-fn tie(t: &[i64], raw: &[f64], gamma: &[f64], ties: &[Tie]) -> Option<Drift> {
+/// unchanged and removes the positions' noise, which the unfiltered values are dominated
+/// by), its sigma the filtered values' random sigma at the centre over the square root of
+/// the filter periods in the window (filtered values about a filter period apart are
+/// nearly independent); a constant with one tie, a weighted line in time with more.
+fn tie(
+    t: &[i64],
+    filtered: &[f64],
+    gamma: &[f64],
+    random: &[f64],
+    (ties, filter_s): (&[Tie], f64),
+) -> Option<Drift> {
     let mut points = Vec::new();
     for tie in ties {
         let half = (tie.duration_s * 0.5e9) as i64;
@@ -183,14 +293,20 @@ fn tie(t: &[i64], raw: &[f64], gamma: &[f64], ties: &[Tie]) -> Option<Drift> {
             continue;
         }
         let n = idx.len() as f64;
-        let misfit: Vec<f64> = idx
+        let mean = idx
             .iter()
-            .map(|&k| raw[k] - (tie.g_mgal - gamma[k]))
-            .collect();
-        let mean = misfit.iter().sum::<f64>() / n;
-        let var = misfit.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (n - 1.0);
-        points.push((tie.time_gps_ns, mean, (var / n).sqrt()));
+            .map(|&k| filtered[k] - (tie.g_mgal - gamma[k]))
+            .sum::<f64>()
+            / n;
+        let centre = idx[idx.len() / 2];
+        let sigma = random[centre] / (tie.duration_s / filter_s).max(1.0).sqrt();
+        points.push((tie.time_gps_ns, mean, sigma));
     }
+    line(&points)
+}
+
+/// A weighted straight line through (time, misfit, sigma): a constant for one point.
+fn line(points: &[(i64, f64, f64)]) -> Option<Drift> {
     let (t0, _, _) = *points.first()?;
     if points.len() == 1 {
         let (_, m, s) = points[0];
@@ -200,11 +316,12 @@ fn tie(t: &[i64], raw: &[f64], gamma: &[f64], ties: &[Tie]) -> Option<Drift> {
             rate_mgal_per_h: 0.0,
             sigma_rate_mgal_per_h: None,
             reference_gps_ns: t0,
+            covariance_mgal2_per_h: 0.0,
+            ties_used: 1,
         });
     }
-    // Weighted straight line through (hours, misfit).
     let (mut sw, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for &(ti, m, s) in &points {
+    for &(ti, m, s) in points {
         let w = 1.0 / s.max(1e-6).powi(2);
         let x = (ti - t0) as f64 / 3.6e12;
         sw += w;
@@ -223,5 +340,7 @@ fn tie(t: &[i64], raw: &[f64], gamma: &[f64], ties: &[Tie]) -> Option<Drift> {
         rate_mgal_per_h: (sw * sxy - sx * sy) / det,
         sigma_rate_mgal_per_h: Some((sw / det).sqrt()),
         reference_gps_ns: t0,
+        covariance_mgal2_per_h: -sx / det,
+        ties_used: points.len(),
     })
 }

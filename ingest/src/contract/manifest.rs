@@ -28,6 +28,10 @@ pub struct Manifest {
     /// What to adjust.
     #[serde(default)]
     pub adjust: AdjustConfig,
+    /// What turns survey sessions into gravity (docs/formats.md 10); absent: no reduction
+    /// asked for beyond the trajectories' defaults.
+    #[serde(default)]
+    pub survey: Option<crate::contract::survey::SurveyConfig>,
 }
 
 /// `[site]`.
@@ -385,6 +389,21 @@ pub struct Session {
     /// `start`); `theodolite_time_scale` is its older name.
     #[serde(default)]
     pub time_scale: Option<TimeScale>,
+    /// A survey session's GNSS trajectory (docs/formats.md 10.1).
+    #[serde(default)]
+    pub trajectory: Option<String>,
+    /// Its layout: "rtklib" or "csv".
+    #[serde(default)]
+    pub trajectory_format: Option<crate::contract::survey::TrajectoryFormat>,
+    /// How a CSV trajectory writes its times.
+    #[serde(default)]
+    pub trajectory_time: Option<TimeForm>,
+    /// Attitude (docs/formats.md 10.2): not read yet, refused with a message.
+    #[serde(default)]
+    pub attitude: Option<String>,
+    /// How the attitude file writes its times.
+    #[serde(default)]
+    pub attitude_time: Option<TimeForm>,
 }
 
 /// How each text log of a session writes its times, resolved (docs/formats.md 9.1).
@@ -580,6 +599,8 @@ pub struct ResolvedSession {
     pub theodolite: Option<PathBuf>,
     /// How its text logs write their times.
     pub times: SessionTimes,
+    /// A survey session's trajectory.
+    pub trajectory: Option<crate::contract::survey::TrajectorySource>,
 }
 
 /// A validated dataset: the manifest, its folder, and its sessions resolved.
@@ -593,6 +614,8 @@ pub struct Dataset {
     pub manifest: Manifest,
     /// Sessions, in manifest order.
     pub sessions: Vec<ResolvedSession>,
+    /// `[survey]`'s ties, their times resolved (empty without the table).
+    pub ties: Vec<crate::contract::survey::ResolvedTie>,
 }
 
 impl ResolvedSession {
@@ -1026,7 +1049,9 @@ fn resolve_session(
     };
     let theodolite = theodolite_log(i, s, file, err)?;
     check_session_keys(i, s, err)?;
+    let trajectory = crate::contract::survey::trajectory(i, s, &times, file, err)?;
     Ok(ResolvedSession {
+        trajectory,
         times,
         session: s.clone(),
         date,
@@ -1285,11 +1310,19 @@ impl Dataset {
             sessions.push(resolve_session(i, s, m, &file, &err)?);
         }
         check_models(m, &err)?;
+        let ties = match &m.survey {
+            Some(survey) => {
+                let any = sessions.iter().any(|s| s.trajectory.is_some());
+                crate::contract::survey::check(survey, any, &err)?
+            }
+            None => Vec::new(),
+        };
         Ok(Dataset {
             dir: dir.to_path_buf(),
             manifest_path: manifest_path.clone(),
             manifest,
             sessions,
+            ties,
         })
     }
 

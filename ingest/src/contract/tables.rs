@@ -456,3 +456,76 @@ pub mod applied {
         Arc::new(Schema::new_with_metadata(schema.fields().clone(), metadata))
     }
 }
+
+/// `OUT/gravity/gravity.parquet` (docs/formats.md 10.3): one row per trajectory epoch used,
+/// in time order per session.
+///
+/// | column | type | unit / meaning |
+/// |---|---|---|
+/// | session_index | uint16 | as in ingest's tables (ids in `gravcal.sessions`) |
+/// | time_gps_ns | int64 | GPS time of the epoch, ns |
+/// | stretch | uint32 | the stretch of track (cut at gaps) the epoch belongs to, from 0 per session |
+/// | latitude_deg, longitude_deg | float64 | the accelerometers' position, deg |
+/// | height_m | float64 | their ellipsoidal height (the antenna's with the lever arm), m |
+/// | speed_m_s | float64 | speed over ground, m/s |
+/// | eotvos_mgal, normal_mgal | float64 | the Eotvos term and normal gravity, mGal |
+/// | down_mgal | float64 | the gravity disturbance down, unfiltered (ties applied), mGal |
+/// | down_filtered_mgal | float64 | the same after the low-pass filter, mGal |
+/// | sigma_down_mgal | float64 | the filtered value's sigma: the four below in quadrature, mGal |
+/// | sigma_calibration_mgal, sigma_positions_mgal, sigma_noise_mgal, sigma_tie_mgal | float64 | its parts, mGal |
+/// | height_antenna_m | float64 | the antenna's height as the trajectory gives it, m |
+/// | flags | uint8 | the bits of this module's flags, or-ed |
+pub mod gravity {
+    use super::*;
+    /// File name.
+    pub const FILE: &str = "gravity.parquet";
+    /// The epoch's specific force was extrapolated beyond the calibration's range.
+    pub const OUTSIDE_CALIBRATION: u8 = 1;
+    /// The vehicle was turning (course changing faster than [`TURN_DEG_PER_S`]).
+    pub const TURN: u8 = 2;
+    /// Within one filter period of its stretch's ends, where the filter sees only one side.
+    pub const EDGE: u8 = 4;
+    /// The course rate above which an epoch is flagged [`TURN`], deg/s.
+    pub const TURN_DEG_PER_S: f64 = 0.5;
+    /// Every flag with its name in gravity.json, in bit order.
+    pub const FLAG_NAMES: [(u8, &str); 3] = [
+        (OUTSIDE_CALIBRATION, "outside_calibration"),
+        (TURN, "turn"),
+        (EDGE, "edge"),
+    ];
+    /// The Float64 columns after session_index, time_gps_ns and stretch, in order.
+    pub const FLOATS: [&str; 14] = [
+        "latitude_deg",
+        "longitude_deg",
+        "height_m",
+        "speed_m_s",
+        "eotvos_mgal",
+        "normal_mgal",
+        "down_mgal",
+        "down_filtered_mgal",
+        "sigma_down_mgal",
+        "sigma_calibration_mgal",
+        "sigma_positions_mgal",
+        "sigma_noise_mgal",
+        "sigma_tie_mgal",
+        "height_antenna_m",
+    ];
+    /// The stretch column.
+    pub const STRETCH: &str = "stretch";
+    /// The flags column.
+    pub const FLAGS: &str = "flags";
+
+    /// The Arrow schema for the dataset's `sessions`.
+    pub fn schema(sessions: &[String]) -> SchemaRef {
+        let mut fields = vec![
+            Field::new(SESSION_INDEX, DataType::UInt16, false),
+            Field::new(TIME_GPS_NS, DataType::Int64, false),
+            Field::new(STRETCH, DataType::UInt32, false),
+        ];
+        for name in FLOATS {
+            fields.push(Field::new(name, DataType::Float64, false));
+        }
+        fields.push(Field::new(FLAGS, DataType::UInt8, false));
+        with_sessions(fields, sessions)
+    }
+}

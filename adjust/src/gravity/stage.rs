@@ -1,0 +1,655 @@
+//! The gravity stage's run, `cargo xtask gravity` (docs/formats.md 10.3): the calibration
+//! applied to the survey (apply's stage, which ingests first if needed), each survey
+//! session's trajectory read, the calibrated samples brought onto its epochs
+//! ([`super::epochs`]), the track cut at gaps into stretches, each stretch reduced
+//! ([`super::reduce`]) and tied, and `OUT/gravity/gravity.parquet` and `gravity.json`
+//! written. Every epoch of every trajectory is accounted for: written, or dropped by reason.
+
+use super::GravityError;
+use super::epochs::{self, Bin, DownForce, Target};
+use super::reduce::{self, Reduced, Stretch, Tie};
+use super::trajectory::{self, Trajectory};
+use ingest::contract::apply_ledger::{self, ApplyReport};
+use ingest::contract::gravity_ledger::{
+    DriftFitted, FilterUsed, GravityReport, Input, LEDGER_FILE, LEDGER_FORMAT, STAGE_DIR,
+    SessionGravity, StretchSummary, TieUsed, dropped,
+};
+use ingest::contract::manifest::{Dataset, ResolvedSession};
+use ingest::contract::survey::{ResolvedTie, SurveyConfig, TrajectoryFormat};
+use ingest::contract::tables::{applied, gravity};
+use ingest::time::utc_iso;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The gravity stage's options: apply's, and for an axis model the accelerometer to use.
+#[derive(Clone, Debug)]
+pub struct Options<'a> {
+    /// What to apply.
+    pub apply: crate::apply::stream::Options<'a>,
+    /// With an axis model: the accelerometer taken as the vertical axis.
+    pub accelerometer: Option<&'a str>,
+}
+
+/// A survey session's trajectory, read and made ready: the accelerometers' heights (the
+/// lever arm applied), epochs whose time does not increase dropped.
+struct Track<'a> {
+    index: u16,
+    session: &'a ResolvedSession,
+    trajectory: Trajectory,
+    /// The epochs kept, indices into `trajectory`.
+    times: Vec<i64>,
+    kept: Vec<usize>,
+    dropped: BTreeMap<String, u64>,
+    /// The lever arm's down component, m (the antenna is this much above the accelerometers).
+    lever_down_m: f64,
+}
+
+/// Runs the stage on `dataset` into `out`.
+pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityReport, GravityError> {
+    let applied = crate::apply::stream::run(dataset, out, &opts.apply)?;
+    let ds = Dataset::load(dataset)?;
+    let _lock = ingest::lock::OutputLock::acquire(out)?;
+    let survey = ds.manifest.survey.clone().unwrap_or_default();
+    let table = out.join(apply_ledger::STAGE_DIR).join(applied::FILE);
+    let force = down_force(&applied, &survey, opts.accelerometer)?;
+    let tracks = read_tracks(&ds, survey.lever_arm_m[2])?;
+    let targets: Vec<Target<'_>> = tracks
+        .iter()
+        .map(|t| Target {
+            session: t.index,
+            times: &t.times,
+            half_ns: median_interval_ns(&t.times) / 2,
+        })
+        .collect();
+    let interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
+    let filled = epochs::fill(&table, &force, &targets, interval_ns)?;
+    let dir = out.join(STAGE_DIR);
+    std::fs::create_dir_all(&dir).map_err(|e| crate::Error::Io {
+        path: dir.clone(),
+        source: e,
+    })?;
+    let ledger_path = dir.join(LEDGER_FILE);
+    ingest::remove_stale(&ledger_path)?;
+    let per_epoch = ds.manifest.instrument.sample_rate_hz;
+    let mut rows = Rows::default();
+    let mut sessions = Vec::new();
+    let mut ties: Vec<TieUsed> = ds.ties.iter().map(tie_entry).collect();
+    for (k, (track, bins)) in tracks.iter().zip(&filled.bins).enumerate() {
+        let ctx = Context {
+            survey: &survey,
+            ties: &ds.ties,
+            samples_per_s: per_epoch,
+            sample_sd_mgal: filled.sample_sd_mgal[k],
+        };
+        sessions.push(reduce_track(track, bins, &ctx, &mut rows, &mut ties)?);
+    }
+    let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
+    let filter = filter_used(&rows, survey.filter_s);
+    let (rows_written, sha256) = rows.write(&dir, &names)?;
+    let mut inputs = vec![Input {
+        role: "calibrated samples".to_owned(),
+        path: table.display().to_string(),
+        sha256: ingest::contract::custody::sha256_file(&table)?,
+    }];
+    for t in &tracks {
+        if let Some(src) = &t.session.trajectory {
+            inputs.push(Input {
+                role: format!("trajectory of {}", t.session.session.id),
+                path: src.path.display().to_string(),
+                sha256: ingest::contract::custody::sha256_file(&src.path)?,
+            });
+        }
+    }
+    let report = GravityReport {
+        format: LEDGER_FORMAT.to_owned(),
+        dataset: ds.manifest.name.clone(),
+        calibration: applied.calibration.clone(),
+        specific_force: describe(&force, &survey),
+        inputs,
+        lever_arm_m: survey.lever_arm_m,
+        mounting_deg: survey.mounting_deg,
+        filter,
+        sessions,
+        ties,
+        rows_written,
+        sha256,
+    };
+    ingest::write_json_atomically(&ledger_path, &report)?;
+    Ok(report)
+}
+
+/// How f_D is read from apply's table: a triad's vector through the mounting, or the one
+/// axis asked for (or the only one) taken as vertical, which a tilted mounting forbids.
+fn down_force(
+    applied: &ApplyReport,
+    survey: &SurveyConfig,
+    accelerometer: Option<&str>,
+) -> Result<DownForce, GravityError> {
+    let refused = |message: String| GravityError::Refused { message };
+    let ids: Vec<&str> = applied
+        .accelerometers
+        .iter()
+        .filter(|a| a.not_calibrated.is_none())
+        .map(|a| a.id.as_str())
+        .collect();
+    if applied.quantity == crate::apply::stream::TRIAD_QUANTITY {
+        if accelerometer.is_some() {
+            return Err(refused(
+                "--accelerometer chooses one axis of an axis model; a triad model gives the \
+                 whole vector"
+                    .to_owned(),
+            ));
+        }
+        return Ok(DownForce::Triad {
+            row: epochs::mounting_down_row(survey.mounting_deg),
+        });
+    }
+    let [roll, pitch, _] = survey.mounting_deg;
+    if roll.abs() > 1e-9 || pitch.abs() > 1e-9 {
+        return Err(refused(format!(
+            "an axis model gives one axis, taken as vertical: survey.mounting_deg rolls or \
+             pitches it ({roll}, {pitch}); a tilted mounting needs a triad model"
+        )));
+    }
+    let id = match (accelerometer, ids.as_slice()) {
+        (Some(a), _) if ids.contains(&a) => a,
+        (Some(a), _) => {
+            return Err(refused(format!(
+                "--accelerometer {a}: the calibration applied has {} calibrated",
+                ids.join(", ")
+            )));
+        }
+        (None, [one]) => one,
+        (None, _) => {
+            return Err(refused(format!(
+                "the axis model calibrates {}: name the vertical one with --accelerometer",
+                ids.join(", ")
+            )));
+        }
+    };
+    Ok(DownForce::Axis { id: id.to_owned() })
+}
+
+/// For gravity.json: how f_D was formed.
+fn describe(force: &DownForce, survey: &SurveyConfig) -> String {
+    match force {
+        DownForce::Triad { row } => format!(
+            "triad vector through the mounting (roll, pitch, yaw {:?} deg): f_D = \
+             {:.6} f_x + {:.6} f_y + {:.6} f_z, the platform levelled",
+            survey.mounting_deg, row[0], row[1], row[2]
+        ),
+        DownForce::Axis { id } => format!("{id} taken as the vertical axis pointing up: f_D = F"),
+    }
+}
+
+/// Each survey session's trajectory read, in manifest order; none is an error.
+fn read_tracks(ds: &Dataset, lever_down_m: f64) -> Result<Vec<Track<'_>>, GravityError> {
+    let mut tracks = Vec::new();
+    for (index, s) in ds.sessions.iter().enumerate() {
+        let Some(src) = &s.trajectory else { continue };
+        let mut trajectory = match src.format {
+            TrajectoryFormat::Rtklib => trajectory::read_rtklib(&src.path)?,
+            TrajectoryFormat::Csv => {
+                let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
+                trajectory::read_csv(&src.path, s.times.reader(form))?
+            }
+        };
+        // r_acc = r_ant + C_v^n l; levelled, its down component is l_z.
+        for h in &mut trajectory.height_m {
+            *h -= lever_down_m;
+        }
+        let mut dropped = BTreeMap::new();
+        let mut kept = Vec::with_capacity(trajectory.time_gps_ns.len());
+        let mut times = Vec::with_capacity(kept.capacity());
+        for (k, &t) in trajectory.time_gps_ns.iter().enumerate() {
+            if times.last().is_some_and(|&last| t <= last) {
+                *dropped
+                    .entry(dropped::NOT_INCREASING.to_owned())
+                    .or_insert(0) += 1;
+                continue;
+            }
+            kept.push(k);
+            times.push(t);
+        }
+        tracks.push(Track {
+            index: u16::try_from(index).unwrap_or(u16::MAX),
+            session: s,
+            trajectory,
+            times,
+            kept,
+            dropped,
+            lever_down_m,
+        });
+    }
+    if tracks.is_empty() {
+        return Err(GravityError::Refused {
+            message: format!(
+                "no survey session of {} has a `trajectory` (docs/formats.md 10): nothing to \
+                 reduce",
+                ds.manifest_path.display()
+            ),
+        });
+    }
+    Ok(tracks)
+}
+
+/// The median interval between `times`, ns (1 s for fewer than two).
+fn median_interval_ns(times: &[i64]) -> i64 {
+    let mut d: Vec<i64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_unstable();
+    d.get(d.len() / 2).copied().unwrap_or(1_000_000_000)
+}
+
+/// What every track's reduction shares.
+struct Context<'a> {
+    survey: &'a SurveyConfig,
+    ties: &'a [ResolvedTie],
+    samples_per_s: f64,
+    sample_sd_mgal: f64,
+}
+
+/// One session reduced: its epochs checked, cut into stretches, each reduced and its rows
+/// pushed; the session's summary.
+fn reduce_track(
+    track: &Track<'_>,
+    bins: &[Bin],
+    ctx: &Context<'_>,
+    rows: &mut Rows,
+    ties: &mut [TieUsed],
+) -> Result<SessionGravity, GravityError> {
+    let interval = median_interval_ns(&track.times);
+    let expected = ctx.samples_per_s * interval as f64 * 1e-9;
+    let mut summary = SessionGravity {
+        id: track.session.session.id.clone(),
+        epochs_read: track.trajectory.time_gps_ns.len() as u64,
+        epochs_used: 0,
+        dropped: track.dropped.clone(),
+        flagged: BTreeMap::new(),
+        gaps: 0,
+        stretches: Vec::new(),
+    };
+    let (spans, gaps) = stretches(&track.times, bins, interval, expected, &mut summary.dropped);
+    summary.gaps = gaps;
+    for span in spans {
+        let s = stretch(track, bins, span.clone(), ctx.sample_sd_mgal);
+        let inside: Vec<(usize, Tie)> = ctx
+            .ties
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| {
+                (s.time_gps_ns[0]..=s.time_gps_ns[s.time_gps_ns.len() - 1]).contains(&t.time_gps_ns)
+            })
+            .map(|(k, t)| {
+                (
+                    k,
+                    Tie {
+                        time_gps_ns: t.time_gps_ns,
+                        duration_s: t.duration_s,
+                        g_mgal: t.g_mgal,
+                    },
+                )
+            })
+            .collect();
+        let only: Vec<Tie> = inside.iter().map(|(_, t)| *t).collect();
+        let r = match reduce::reduce(&s, ctx.survey.filter_s, &only) {
+            Ok(r) => r,
+            Err(GravityError::TooShort { .. }) => {
+                *summary
+                    .dropped
+                    .entry(dropped::STRETCH_TOO_SHORT.to_owned())
+                    .or_insert(0) += span.len() as u64;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        let number = summary.stretches.len() as u32;
+        if r.drift.is_some() {
+            for (k, _) in &inside {
+                ties[*k].used_in = Some((summary.id.clone(), number));
+            }
+        }
+        summary.stretches.push(stretch_summary(&s, &r));
+        let flags = flags_of(&s, bins, span, ctx.survey.filter_s, &r);
+        for (name, n) in count_flags(&flags) {
+            *summary.flagged.entry(name).or_insert(0) += n;
+        }
+        summary.epochs_used += s.time_gps_ns.len() as u64;
+        rows.push(track, number, &s, &r, &flags);
+    }
+    Ok(summary)
+}
+
+/// The stretches of valid, evenly spaced epochs (index ranges into the track's kept
+/// epochs), with the epochs dropped counted by reason, and the gaps that cut them.
+fn stretches(
+    times: &[i64],
+    bins: &[Bin],
+    interval: i64,
+    expected: f64,
+    dropped: &mut BTreeMap<String, u64>,
+) -> (Vec<std::ops::Range<usize>>, u64) {
+    let need = (0.5 * expected).ceil().max(1.0) as u32;
+    let mut out = Vec::new();
+    let mut gaps = 0;
+    let mut start: Option<usize> = None;
+    for k in 0..=times.len() {
+        let valid = k < times.len() && bins[k].with_value >= need;
+        if k < times.len() && !valid {
+            let reason = if bins[k].samples >= need {
+                dropped::NO_CALIBRATED_VALUE
+            } else {
+                dropped::NO_SPECIFIC_FORCE
+            };
+            *dropped.entry(reason.to_owned()).or_insert(0) += 1;
+        }
+        let uneven =
+            k > 0 && k < times.len() && (times[k] - times[k - 1] - interval).abs() * 100 > interval;
+        if let Some(s) = start
+            && (!valid || uneven)
+        {
+            out.push(s..k);
+            start = None;
+            gaps += u64::from(valid && uneven);
+        }
+        if valid && start.is_none() {
+            start = Some(k);
+        }
+    }
+    (out, gaps)
+}
+
+/// The reduction's input for the epochs `span` of `track`.
+fn stretch(
+    track: &Track<'_>,
+    bins: &[Bin],
+    span: std::ops::Range<usize>,
+    sample_sd: f64,
+) -> Stretch {
+    let mut s = Stretch::default();
+    let t = &track.trajectory;
+    for k in span {
+        let j = track.kept[k];
+        s.time_gps_ns.push(t.time_gps_ns[j]);
+        s.latitude_deg.push(t.latitude_deg[j]);
+        s.longitude_deg.push(t.longitude_deg[j]);
+        s.height_m.push(t.height_m[j]);
+        s.sd_up_m.push(t.sd_neu_m[j].map_or(0.0, |sd| sd[2]));
+        s.f_down_mgal.push(bins[k].mean());
+        s.sigma_f_mgal.push(bins[k].sigma_calibration());
+        s.noise_f_mgal.push(bins[k].noise(sample_sd));
+    }
+    s
+}
+
+fn stretch_summary(s: &Stretch, r: &Reduced) -> StretchSummary {
+    StretchSummary {
+        first: utc_iso(s.time_gps_ns[0]),
+        last: utc_iso(s.time_gps_ns[s.time_gps_ns.len() - 1]),
+        epochs: s.time_gps_ns.len() as u64,
+        drift: r.drift.map(|d| DriftFitted {
+            offset_mgal: d.offset_mgal,
+            sigma_offset_mgal: d.sigma_offset_mgal,
+            rate_mgal_per_h: d.rate_mgal_per_h,
+            sigma_rate_mgal_per_h: d.sigma_rate_mgal_per_h,
+            ties: d.ties_used,
+        }),
+    }
+}
+
+/// Each epoch's flags: extrapolated calibration, turning, near the stretch's ends.
+fn flags_of(
+    s: &Stretch,
+    bins: &[Bin],
+    span: std::ops::Range<usize>,
+    filter_s: f64,
+    r: &Reduced,
+) -> Vec<u8> {
+    let n = s.time_gps_ns.len();
+    let turning = turning(s, &r.speed_m_s);
+    let edge_ns = (filter_s * 1e9) as i64;
+    let (t0, t1) = (s.time_gps_ns[0], s.time_gps_ns[n - 1]);
+    span.enumerate()
+        .map(|(i, k)| {
+            let mut f = 0;
+            if bins[k].flags & (applied::COUNTS_OUT_OF_RANGE | applied::TEMPERATURE_OUT_OF_RANGE)
+                != 0
+            {
+                f |= gravity::OUTSIDE_CALIBRATION;
+            }
+            if turning[i] {
+                f |= gravity::TURN;
+            }
+            let t = s.time_gps_ns[i];
+            if t - t0 < edge_ns || t1 - t < edge_ns {
+                f |= gravity::EDGE;
+            }
+            f
+        })
+        .collect()
+}
+
+/// Epochs where the course over ground changes faster than [`gravity::TURN_DEG_PER_S`]:
+/// the course from positions 5 s either side (so that cm noise does not turn it), its rate
+/// over 10 s, where the vehicle moves at over 1 m/s.
+fn turning(s: &Stretch, speed: &[f64]) -> Vec<bool> {
+    let n = s.time_gps_ns.len();
+    let dt = (s.time_gps_ns[n - 1] - s.time_gps_ns[0]) as f64 * 1e-9 / (n - 1) as f64;
+    let w = ((5.0 / dt).round() as usize).max(1);
+    let course = |k: usize| {
+        let (a, b) = (k.saturating_sub(w), (k + w).min(n - 1));
+        let north = s.latitude_deg[b] - s.latitude_deg[a];
+        let east = (s.longitude_deg[b] - s.longitude_deg[a]) * s.latitude_deg[k].to_radians().cos();
+        east.atan2(north)
+    };
+    (0..n)
+        .map(|k| {
+            if speed[k] < 1.0 || k < w || k + w >= n {
+                return false;
+            }
+            let mut d = course(k + w) - course(k - w);
+            d = (d + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+                - std::f64::consts::PI;
+            d.abs().to_degrees() / (2.0 * w as f64 * dt) > gravity::TURN_DEG_PER_S
+        })
+        .collect()
+}
+
+fn count_flags(flags: &[u8]) -> Vec<(String, u64)> {
+    gravity::FLAG_NAMES
+        .iter()
+        .map(|(bit, name)| {
+            (
+                (*name).to_owned(),
+                flags.iter().filter(|f| *f & bit != 0).count() as u64,
+            )
+        })
+        .filter(|(_, n)| *n > 0)
+        .collect()
+}
+
+fn tie_entry(t: &ResolvedTie) -> TieUsed {
+    TieUsed {
+        time: utc_iso(t.time_gps_ns),
+        g_mgal: t.g_mgal,
+        used_in: None,
+    }
+}
+
+/// The filter and the resolution at the median speed of the epochs moving faster than
+/// 0.5 m/s.
+fn filter_used(rows: &Rows, filter_s: f64) -> FilterUsed {
+    let mut moving: Vec<f64> = rows.floats[3]
+        .iter()
+        .copied()
+        .filter(|v| *v > 0.5)
+        .collect();
+    moving.sort_by(f64::total_cmp);
+    let median = moving.get(moving.len() / 2).copied().unwrap_or(0.0);
+    FilterUsed {
+        kind: format!(
+            "Butterworth, order {} each way (zero phase, forward and backward)",
+            super::filter::ORDER
+        ),
+        filter_s,
+        median_speed_m_s: median,
+        resolution_m: median * filter_s / 2.0,
+    }
+}
+
+/// gravity.parquet's columns, gathered.
+#[derive(Default)]
+struct Rows {
+    session: Vec<u16>,
+    time: Vec<i64>,
+    stretch: Vec<u32>,
+    floats: [Vec<f64>; 14],
+    flags: Vec<u8>,
+}
+
+impl Rows {
+    fn push(&mut self, track: &Track<'_>, number: u32, s: &Stretch, r: &Reduced, flags: &[u8]) {
+        let n = s.time_gps_ns.len();
+        self.session.extend(std::iter::repeat_n(track.index, n));
+        self.time.extend(&s.time_gps_ns);
+        self.stretch.extend(std::iter::repeat_n(number, n));
+        let antenna: Vec<f64> = s.height_m.iter().map(|h| h + track.lever_down_m).collect();
+        let columns: [&[f64]; 14] = [
+            &s.latitude_deg,
+            &s.longitude_deg,
+            &s.height_m,
+            &r.speed_m_s,
+            &r.eotvos_mgal,
+            &r.normal_mgal,
+            &r.disturbance_mgal,
+            &r.filtered_mgal,
+            &r.sigma_mgal,
+            &r.sigma_calibration_mgal,
+            &r.sigma_positions_mgal,
+            &r.sigma_noise_mgal,
+            &r.sigma_tie_mgal,
+            &antenna,
+        ];
+        for (dst, src) in self.floats.iter_mut().zip(columns) {
+            dst.extend_from_slice(src);
+        }
+        self.flags.extend_from_slice(flags);
+    }
+
+    /// Writes gravity.parquet into `dir`; returns the rows and the file's SHA-256.
+    fn write(self, dir: &Path, sessions: &[String]) -> Result<(u64, String), GravityError> {
+        use arrow::array::{
+            ArrayRef, Float64Array, Int64Array, UInt8Array, UInt16Array, UInt32Array,
+        };
+        use std::sync::Arc;
+        let mut writer = ingest::table::TableWriter::create(
+            dir,
+            gravity::FILE,
+            "gravity",
+            gravity::schema(sessions),
+            ingest::table::Encodings::default(),
+        )?;
+        let mut columns: Vec<ArrayRef> = vec![
+            Arc::new(UInt16Array::from(self.session)),
+            Arc::new(Int64Array::from(self.time)),
+            Arc::new(UInt32Array::from(self.stretch)),
+        ];
+        for f in self.floats {
+            columns.push(Arc::new(Float64Array::from(f)));
+        }
+        columns.push(Arc::new(UInt8Array::from(self.flags)));
+        writer.write(columns)?;
+        let rows = writer.finish()?;
+        let sha = ingest::contract::custody::sha256_file(&dir.join(gravity::FILE))?;
+        Ok((rows, sha))
+    }
+}
+
+/// The command line of `cargo xtask gravity`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct GravityArgs {
+    /// Dataset folder holding the survey (dataset.toml with trajectories and `[survey]`).
+    pub dataset: std::path::PathBuf,
+    /// The calibration.json to apply (OUT/adjust/calibration.json of the calibration run).
+    #[arg(long)]
+    pub calibration: std::path::PathBuf,
+    /// The model to apply (needed when the calibration holds several).
+    #[arg(long)]
+    pub model: Option<String>,
+    /// The session whose fits to apply, for a model fitted per session.
+    #[arg(long)]
+    pub session: Option<String>,
+    /// With an axis model of several accelerometers: the one taken as vertical.
+    #[arg(long)]
+    pub accelerometer: Option<String>,
+    /// Output folder OUT (default: out/<dataset folder name>); writes OUT/apply/ and
+    /// OUT/gravity/.
+    #[arg(long)]
+    pub out: Option<std::path::PathBuf>,
+}
+
+impl GravityArgs {
+    /// Runs the stage into `out`.
+    pub fn run(&self, out: &Path) -> Result<GravityReport, GravityError> {
+        run(
+            &self.dataset,
+            out,
+            &Options {
+                apply: crate::apply::stream::Options {
+                    calibration: &self.calibration,
+                    choice: crate::apply::select::Choice {
+                        model: self.model.as_deref(),
+                        session: self.session.as_deref(),
+                    },
+                },
+                accelerometer: self.accelerometer.as_deref(),
+            },
+        )
+    }
+}
+
+/// A few lines: per session the epochs used and dropped, the stretches and their ties, the
+/// filter's resolution.
+pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
+    let f = &r.filter;
+    let _ = writeln!(
+        w,
+        "gravity: {} rows; filter {} s, resolution {:.0} m at {:.1} m/s",
+        r.rows_written, f.filter_s, f.resolution_m, f.median_speed_m_s
+    );
+    for s in &r.sessions {
+        let dropped: Vec<String> = s.dropped.iter().map(|(k, n)| format!("{n} {k}")).collect();
+        let _ = writeln!(
+            w,
+            "gravity: {}: {} of {} epochs used, {} stretch(es), {} gap(s){}",
+            s.id,
+            s.epochs_used,
+            s.epochs_read,
+            s.stretches.len(),
+            s.gaps,
+            if dropped.is_empty() {
+                String::new()
+            } else {
+                format!("; dropped: {}", dropped.join(", "))
+            }
+        );
+        for st in &s.stretches {
+            let drift = st.drift.as_ref().map_or_else(
+                || "untied (the calibration's level)".to_owned(),
+                |d| {
+                    format!(
+                        "{} tie(s): offset {:.3} +/- {:.3} mGal, drift {:.3} mGal/h",
+                        d.ties, d.offset_mgal, d.sigma_offset_mgal, d.rate_mgal_per_h
+                    )
+                },
+            );
+            let _ = writeln!(w, "gravity:   {} to {}: {}", st.first, st.last, drift);
+        }
+    }
+    let unused = r.ties.iter().filter(|t| t.used_in.is_none()).count();
+    if unused > 0 {
+        let _ = writeln!(
+            w,
+            "gravity: {unused} tie(s) not used: no stretch holds their still window"
+        );
+    }
+}

@@ -1,0 +1,140 @@
+//! `OUT/gravity/gravity.json` (docs/formats.md 10.3): what the gravity stage read (each
+//! input's SHA-256), the calibration and model it used, the filter and the resolution it
+//! gives, per session the stretches of track with the ties and drift fitted on each, and
+//! every epoch of the trajectories accounted for: used, or dropped by reason.
+
+use crate::contract::apply_ledger::CalibrationUsed;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// The stage's folder in OUT.
+pub const STAGE_DIR: &str = "gravity";
+/// The ledger's file name.
+pub const LEDGER_FILE: &str = "gravity.json";
+/// The ledger's format tag.
+pub const LEDGER_FORMAT: &str = "gravcal-gravity/1";
+
+/// Why an epoch of a trajectory was not used.
+pub mod dropped {
+    /// No calibrated sample (or under half the expected number) within the epoch's interval.
+    pub const NO_SPECIFIC_FORCE: &str = "no_specific_force";
+    /// The epoch's samples carry no value (saturated, not connected, no temperature).
+    pub const NO_CALIBRATED_VALUE: &str = "no_calibrated_value";
+    /// A stretch between gaps too short for the filter.
+    pub const STRETCH_TOO_SHORT: &str = "stretch_too_short";
+    /// Its time repeats or goes back from the epoch before.
+    pub const NOT_INCREASING: &str = "time_not_increasing";
+}
+
+/// A file read, with its hash.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Input {
+    /// What it is (`trajectory of <session>`, `calibrated samples`).
+    pub role: String,
+    /// Its path.
+    pub path: String,
+    /// SHA-256, hex.
+    pub sha256: String,
+}
+
+/// The zero-phase low-pass filter and what it resolves.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FilterUsed {
+    /// Kind and order, e.g. `butterworth, order 4 each way (zero phase)`.
+    pub kind: String,
+    /// Cut-off period (amplitude response 0.5), s.
+    pub filter_s: f64,
+    /// Median speed over the epochs used, m/s.
+    pub median_speed_m_s: f64,
+    /// Half the wavelength at the cut-off at the median speed, m: the spatial resolution.
+    pub resolution_m: f64,
+}
+
+/// The drift fitted to a stretch's ties and removed.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct DriftFitted {
+    /// The misfit (measured minus known) at the first tie, mGal.
+    pub offset_mgal: f64,
+    /// Its sigma.
+    pub sigma_offset_mgal: f64,
+    /// Rate, mGal/h (0 with one tie).
+    pub rate_mgal_per_h: f64,
+    /// Its sigma, none with one tie.
+    pub sigma_rate_mgal_per_h: Option<f64>,
+    /// Ties used.
+    pub ties: usize,
+}
+
+/// A stretch of track between gaps.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct StretchSummary {
+    /// First and last epoch, UTC ISO 8601.
+    pub first: String,
+    /// Last epoch.
+    pub last: String,
+    /// Epochs.
+    pub epochs: u64,
+    /// The drift removed, none when no tie lies inside it (the level is then the
+    /// calibration's, its sigma counted in full).
+    pub drift: Option<DriftFitted>,
+}
+
+/// One survey session reduced.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SessionGravity {
+    /// Session id.
+    pub id: String,
+    /// Epochs in the trajectory file.
+    pub epochs_read: u64,
+    /// Epochs written.
+    pub epochs_used: u64,
+    /// Epochs not used, by reason ([`dropped`]).
+    pub dropped: BTreeMap<String, u64>,
+    /// Epochs written with a flag, by flag name (an epoch may carry several).
+    pub flagged: BTreeMap<String, u64>,
+    /// Gaps that cut the track (intervals over 1.5 times the median).
+    pub gaps: u64,
+    /// The stretches.
+    pub stretches: Vec<StretchSummary>,
+}
+
+/// A tie and where it was used.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TieUsed {
+    /// The window's centre, UTC ISO 8601.
+    pub time: String,
+    /// Gravity there, mGal.
+    pub g_mgal: f64,
+    /// The session and stretch whose drift it fixes, or none.
+    pub used_in: Option<(String, u32)>,
+}
+
+/// `gravity.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct GravityReport {
+    /// [`LEDGER_FORMAT`].
+    pub format: String,
+    /// The survey dataset's name.
+    pub dataset: String,
+    /// The calibration applied.
+    pub calibration: CalibrationUsed,
+    /// How the specific force down was formed (the triad's vector through the mounting, or
+    /// one axis taken as vertical).
+    pub specific_force: String,
+    /// The files read.
+    pub inputs: Vec<Input>,
+    /// The lever arm (antenna to accelerometers, vehicle frame, m) and mounting (deg) used.
+    pub lever_arm_m: [f64; 3],
+    /// Roll, pitch, yaw.
+    pub mounting_deg: [f64; 3],
+    /// The filter.
+    pub filter: FilterUsed,
+    /// Per session.
+    pub sessions: Vec<SessionGravity>,
+    /// The ties.
+    pub ties: Vec<TieUsed>,
+    /// Rows of gravity.parquet.
+    pub rows_written: u64,
+    /// Its SHA-256.
+    pub sha256: String,
+}

@@ -1,0 +1,240 @@
+//! The manifest's moving-gravimetry keys (docs/formats.md 10): a survey session's trajectory
+//! and the `[survey]` table (lever arm, mounting, filter, static ties), parsed with the
+//! manifest and validated here, every error naming the key.
+
+use super::manifest::{Session, SessionKind, SessionTimes, TimeScale};
+use crate::error::{Error, Result};
+use crate::time::TimeForm;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// How a trajectory file is written (docs/formats.md 10.1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+pub enum TrajectoryFormat {
+    /// RTKLIB's solution file (`.pos`): its header says its times.
+    #[serde(rename = "rtklib")]
+    Rtklib,
+    /// `time,lat_deg,lon_deg,h_m[,sd_n_m,sd_e_m,sd_u_m]`, the time in `trajectory_time`.
+    #[serde(rename = "csv")]
+    Csv,
+}
+
+/// `[survey]`: what turns a survey's calibrated accelerations into gravity (docs/formats.md 10).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SurveyConfig {
+    /// From the GNSS antenna's reference point to the accelerometers, vehicle frame (x forward,
+    /// y right, z down), m.
+    pub lever_arm_m: [f64; 3],
+    /// Roll, pitch, yaw of the accelerometers' body frame in the vehicle frame, deg:
+    /// C_b^v = Rz(yaw) Ry(pitch) Rx(roll).
+    pub mounting_deg: [f64; 3],
+    /// The low-pass filter's cut-off period, s: its zero-phase amplitude response is 0.5 at
+    /// 1 / filter_s.
+    pub filter_s: f64,
+    /// Static ties at known gravity.
+    pub tie: Vec<TieDecl>,
+}
+
+impl Default for SurveyConfig {
+    fn default() -> Self {
+        SurveyConfig {
+            lever_arm_m: [0.0; 3],
+            mounting_deg: [0.0; 3],
+            filter_s: 100.0,
+            tie: Vec::new(),
+        }
+    }
+}
+
+/// `[[survey.tie]]`: a still window at a point of known gravity.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TieDecl {
+    /// The centre of the still window: ISO 8601, with `Z` or an offset, or zone-less in UTC.
+    pub time: String,
+    /// The window's length, s.
+    pub duration_s: f64,
+    /// Absolute gravity at the accelerometers there, mGal.
+    pub g_mgal: f64,
+}
+
+/// A tie resolved: its centre in GPS time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ResolvedTie {
+    /// The still window's centre, GPS ns.
+    pub time_gps_ns: i64,
+    /// The window's length, s.
+    pub duration_s: f64,
+    /// Absolute gravity at the accelerometers, mGal.
+    pub g_mgal: f64,
+}
+
+/// A survey session's trajectory, resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrajectorySource {
+    /// The file.
+    pub path: PathBuf,
+    /// Its layout.
+    pub format: TrajectoryFormat,
+    /// For a CSV, how it writes its times.
+    pub time: Option<TimeForm>,
+}
+
+/// Session `i`'s trajectory keys checked and its file resolved: only on a survey session;
+/// `trajectory_format` required with `trajectory`; `trajectory_time` for a CSV only, and
+/// its form readable with the session's `start`; attitude not read yet (refused, so that
+/// nothing is silently ignored).
+pub fn trajectory(
+    i: usize,
+    s: &Session,
+    times: &SessionTimes,
+    file: &impl Fn(String, &str) -> Result<PathBuf>,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<Option<TrajectorySource>> {
+    let key = |k: &str| format!("session[{i}].{k}");
+    if s.attitude.is_some() || s.attitude_time.is_some() {
+        return Err(err(
+            key("attitude"),
+            "attitude files (docs/formats.md 10.2) are not read yet: the gravity stage takes \
+             the platform as levelled and gives the down component; remove the key"
+                .to_owned(),
+        ));
+    }
+    let Some(rel) = &s.trajectory else {
+        if let Some(k) = [
+            ("trajectory_format", s.trajectory_format.is_some()),
+            ("trajectory_time", s.trajectory_time.is_some()),
+        ]
+        .iter()
+        .find_map(|(k, given)| given.then_some(*k))
+        {
+            return Err(err(
+                key(k),
+                "describes `trajectory`, which is not given".to_owned(),
+            ));
+        }
+        return Ok(None);
+    };
+    if s.kind != SessionKind::Survey {
+        return Err(err(
+            key("trajectory"),
+            format!(
+                "a {} session has no trajectory: the gravity stage reduces kind = \"survey\" \
+                 sessions",
+                s.kind.name()
+            ),
+        ));
+    }
+    let path = file(key("trajectory"), rel)?;
+    let format = s.trajectory_format.ok_or_else(|| {
+        err(
+            key("trajectory_format"),
+            "missing: \"rtklib\" (a .pos solution file) or \"csv\"".to_owned(),
+        )
+    })?;
+    let time = match (format, s.trajectory_time) {
+        (TrajectoryFormat::Rtklib, Some(_)) => {
+            return Err(err(
+                key("trajectory_time"),
+                "an RTKLIB solution file says its own times in its header: remove the key"
+                    .to_owned(),
+            ));
+        }
+        (TrajectoryFormat::Rtklib, None) => None,
+        (TrajectoryFormat::Csv, None) => {
+            return Err(err(
+                key("trajectory_time"),
+                "missing: how the CSV writes its times (\"gps_week_tow\", \"iso\", \"unix_s\" \
+                 or \"s\")"
+                    .to_owned(),
+            ));
+        }
+        (TrajectoryFormat::Csv, Some(TimeForm::S)) if times.start_gps_ns.is_none() => {
+            return Err(err(
+                key("trajectory_time"),
+                "\"s\" counts from the session's `start`, which this session does not give"
+                    .to_owned(),
+            ));
+        }
+        (TrajectoryFormat::Csv, Some(t)) => Some(t),
+    };
+    Ok(Some(TrajectorySource { path, format, time }))
+}
+
+/// `[survey]` checked against the sessions: it describes trajectories, so some session must
+/// have one; every number in range; every tie's time parsed.
+pub fn check(
+    survey: &SurveyConfig,
+    any_trajectory: bool,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<Vec<ResolvedTie>> {
+    if !any_trajectory {
+        return Err(err(
+            "survey".to_owned(),
+            "[survey] reduces survey sessions to gravity, and no session has a `trajectory`"
+                .to_owned(),
+        ));
+    }
+    for (k, v) in survey.lever_arm_m.iter().enumerate() {
+        if !(v.is_finite() && v.abs() <= 100.0) {
+            return Err(err(
+                format!("survey.lever_arm_m[{k}]"),
+                format!("{v} is not a lever arm in m within [-100, 100]"),
+            ));
+        }
+    }
+    for (k, v) in survey.mounting_deg.iter().enumerate() {
+        if !(v.is_finite() && v.abs() <= 360.0) {
+            return Err(err(
+                format!("survey.mounting_deg[{k}]"),
+                format!("{v} is not an angle in deg within [-360, 360]"),
+            ));
+        }
+    }
+    let f = survey.filter_s;
+    if !(f.is_finite() && (1.0..=100_000.0).contains(&f)) {
+        return Err(err(
+            "survey.filter_s".to_owned(),
+            format!("{f} is out of range [1, 100000] s"),
+        ));
+    }
+    survey
+        .tie
+        .iter()
+        .enumerate()
+        .map(|(k, t)| tie(k, t, err))
+        .collect()
+}
+
+/// Tie `k` resolved.
+fn tie(k: usize, t: &TieDecl, err: &impl Fn(String, String) -> Error) -> Result<ResolvedTie> {
+    let key = |f: &str| format!("survey.tie[{k}].{f}");
+    let (c, offset) = crate::time::parse_iso(&t.time).map_err(|m| err(key("time"), m))?;
+    let gps = crate::time::gps_ns(c, TimeScale::Utc).ok_or_else(|| {
+        err(
+            key("time"),
+            format!("`{}` is before the GPS epoch (1980-01-06)", t.time),
+        )
+    })?;
+    if !(t.duration_s.is_finite() && (1.0..=86_400.0).contains(&t.duration_s)) {
+        return Err(err(
+            key("duration_s"),
+            format!("{} is out of range [1, 86400] s", t.duration_s),
+        ));
+    }
+    if !(t.g_mgal.is_finite() && (976_000.0..=984_000.0).contains(&t.g_mgal)) {
+        return Err(err(
+            key("g_mgal"),
+            format!(
+                "{} is not gravity on the Earth in mGal (976000 to 984000)",
+                t.g_mgal
+            ),
+        ));
+    }
+    Ok(ResolvedTie {
+        time_gps_ns: gps - i64::from(offset.unwrap_or(0)) * 60_000_000_000,
+        duration_s: t.duration_s,
+        g_mgal: t.g_mgal,
+    })
+}
