@@ -129,6 +129,49 @@ pub fn filtfilt(sections: &[Section], x: &[f64]) -> Result<Vec<f64>, GravityErro
     Ok(ext[pad..pad + n].to_vec())
 }
 
+/// A Hann-weighted mean of `x` (the window zero at both ends of `x`): a level whose noise,
+/// for second differences of white positions, does not telescope into the end values as a
+/// plain mean's does.
+fn hann_mean(x: &[f64]) -> f64 {
+    let n = x.len();
+    if n < 3 {
+        return x.iter().sum::<f64>() / n.max(1) as f64;
+    }
+    let w = |k: usize| 1.0 - (2.0 * std::f64::consts::PI * k as f64 / (n - 1) as f64).cos();
+    let total: f64 = (0..n).map(w).sum();
+    (0..n).map(|k| w(k) * x[k]).sum::<f64>() / total
+}
+
+/// `x` filtered forward and backward through `sections`, for series dominated by noise at
+/// their ends (a gravity stretch's unfiltered values: second differences of positions with
+/// cm noise, hundreds of Gal an epoch). scipy's odd extension reflects the series through
+/// its end VALUE and starts the filter in the steady state of one noisy sample, leaving a
+/// transient of hundreds of mGal for several filter periods. Here each end's pivot is the
+/// Hann-weighted mean of its first `pivot` samples, `pad` samples are reflected through it
+/// (an odd extension about a smooth level, so that a disturbance changing at the end
+/// continues), and each pass starts in the steady state of that level: the forward pass at
+/// the head's pivot, the backward at the forward pass's last output. `pad` is at most
+/// `x.len() - 1`.
+pub fn filtfilt_pivoted(sections: &[Section], x: &[f64], pad: usize, pivot: usize) -> Vec<f64> {
+    let n = x.len();
+    let pad = pad.min(n.saturating_sub(1));
+    let pivot = pivot.clamp(1, n);
+    let (p0, p1) = (hann_mean(&x[..pivot]), hann_mean(&x[n - pivot..]));
+    let mut ext = Vec::with_capacity(n + 2 * pad);
+    ext.extend((1..=pad).rev().map(|i| 2.0 * p0 - x[i]));
+    ext.extend_from_slice(x);
+    ext.extend((1..=pad).map(|i| 2.0 * p1 - x[n - 1 - i]));
+    let zi = steady_state(sections);
+    let start = |v: f64| zi.iter().map(|z| [z[0] * v, z[1] * v]).collect::<Vec<_>>();
+    let mut z = start(p0);
+    run(sections, &mut z, &mut ext);
+    ext.reverse();
+    let mut z = start(ext[0]);
+    run(sections, &mut z, &mut ext);
+    ext.reverse();
+    ext[pad..pad + n].to_vec()
+}
+
 /// The zero-phase response |H(f)|^2 of `sections` at `f_hz` for samples at `rate_hz`.
 pub fn response(sections: &[Section], f_hz: f64, rate_hz: f64) -> f64 {
     let w = 2.0 * std::f64::consts::PI * f_hz / rate_hz;

@@ -137,9 +137,8 @@ fn position_noise_gain(sections: &[filter::Section], n: usize, at: usize, dt: f6
     for j in 1..n - 1 {
         second[j] = (x[j + 1] - 2.0 * x[j] + x[j - 1]) / (dt * dt);
     }
-    filter::filtfilt(sections, &second)
-        .map(|y| y.iter().map(|v| v * v).sum::<f64>().sqrt())
-        .unwrap_or(f64::NAN)
+    let y = filter::filtfilt_pivoted(sections, &second, 0, 1);
+    y.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
 
 /// The unfiltered disturbance at each epoch (before ties), with the speed, the Eotvos term
@@ -170,28 +169,38 @@ fn unfiltered(s: &Stretch, dt: f64, out: &mut Reduced) -> Vec<f64> {
     raw
 }
 
-/// The filtered disturbance, term by term: the filter applied to the heights before they
-/// are differentiated (in the interior the same as filtering the differentiated heights,
-/// the operators commuting; at the stretch's ends the padding's pivot is then a height
-/// with cm noise, not an acceleration with hundreds of Gal of it), and to the rest
-/// (specific force, Eotvos, normal gravity) as it is.
+/// The filtered disturbance, term by term, the ends extended consistently. The heights
+/// are filtered before they are differentiated (in the interior the same as filtering the
+/// differentiated heights, the operators commuting), extended oddly through their end
+/// values (value and slope continue, the curvature turns over); the rest (specific force,
+/// Eotvos, normal gravity) is extended oddly about its smooth level at each end (the
+/// Hann-weighted mean over a filter period), so that its swell turns over with the
+/// heights' and the two cancel in the padding as in the series. Filtering the unfiltered
+/// disturbance itself would put a second difference of cm position noise (hundreds of Gal)
+/// at each end as a step of velocity: a transient of hundreds of mGal for a filter period.
 fn filtered(
     s: &Stretch,
     sections: &[filter::Section],
     out: &Reduced,
+    (pad, pivot): (usize, usize),
     dt: f64,
-) -> Result<Vec<f64>, GravityError> {
+) -> Vec<f64> {
     let n = s.time_gps_ns.len();
     let rest: Vec<f64> = (0..n)
         .map(|k| -s.f_down_mgal[k] + out.eotvos_mgal[k] - out.normal_mgal[k])
         .collect();
-    let mut f = filter::filtfilt(sections, &rest)?;
-    let h = filter::filtfilt(sections, &s.height_m)?;
+    let mut f = filter::filtfilt_pivoted(sections, &rest, pad, pivot);
+    let h = filter::filtfilt_pivoted(sections, &s.height_m, pad, 1);
     for (k, v) in f.iter_mut().enumerate() {
         let c = k.clamp(1, n - 2);
         *v -= (h[c + 1] - 2.0 * h[c] + h[c - 1]) / (dt * dt) * 1e5;
     }
-    Ok(f)
+    f
+}
+
+/// The padding at each end of a stretch: three filter periods, or the stretch.
+fn padding(filter_s: f64, dt: f64) -> usize {
+    (3.0 * filter_s / dt).ceil() as usize
 }
 
 /// The white-noise gain of the filter: the sd of the filtered series per unit sd of
@@ -199,9 +208,8 @@ fn filtered(
 fn white_noise_gain(sections: &[filter::Section], n: usize) -> f64 {
     let mut x = vec![0.0; n];
     x[n / 2] = 1.0;
-    filter::filtfilt(sections, &x)
-        .map(|y| y.iter().map(|v| v * v).sum::<f64>().sqrt())
-        .unwrap_or(f64::NAN)
+    let y = filter::filtfilt_pivoted(sections, &x, 0, 1);
+    y.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
 
 /// The down gravity disturbance along `s`, filtered with cut-off period `filter_s`, tied
@@ -217,7 +225,7 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
     let n = s.time_gps_ns.len();
     let dt = interval_s(&s.time_gps_ns)?;
     let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt)?;
-    if n <= filter::pad_length(&sections) + 2 {
+    if (n as f64) * dt < filter_s {
         return Err(GravityError::TooShort {
             epochs: n,
             seconds: n as f64 * dt,
@@ -226,7 +234,9 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
     }
     let mut out = Reduced::default();
     let mut raw = unfiltered(s, dt, &mut out);
-    let mut filtered = filtered(s, &sections, &out, dt)?;
+    let pad = padding(filter_s, dt);
+    let pivot = ((filter_s / dt).round() as usize).min(n);
+    let mut filtered = filtered(s, &sections, &out, (pad, pivot), dt);
     let position_gain = position_noise_gain(&sections, n, n / 2, dt) * 1e5;
     out.sigma_positions_mgal = s.sd_up_m.iter().map(|sd| sd * position_gain).collect();
     let noise_gain = white_noise_gain(&sections, n);
@@ -236,7 +246,7 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
         .collect();
     let (gamma, t) = (&out.normal_mgal, &s.time_gps_ns);
     let drift = tie(t, &filtered, gamma, &random, (ties, filter_s));
-    let mut calibration = filter::filtfilt(&sections, &s.sigma_f_mgal)?;
+    let mut calibration = filter::filtfilt_pivoted(&sections, &s.sigma_f_mgal, pad, pivot);
     out.sigma_tie_mgal = vec![0.0; n];
     if let Some(d) = &drift {
         let at_tie = nearest(t, d.reference_gps_ns).map_or(0.0, |k| calibration[k]);

@@ -1,0 +1,273 @@
+//! The gravity stage end to end (docs/formats.md 10, docs/model.md 7): triad-multipos
+//! calibrates the triad, survey-lines is reduced with that calibration, and the filtered
+//! disturbance down is compared with the simulator's truth through the same filter. Each
+//! convention FORMATS.md 10 fixes is checked by breaking it (the result must then fail);
+//! the manifest's new keys are refused where they cannot work; a gap cuts the track and
+//! every epoch is accounted for.
+
+use adjust::gravity::filter;
+use adjust::gravity::stage::{GravityArgs, print_summary};
+use ingest::contract::gravity_ledger::GravityReport;
+use ingest::contract::tables::gravity;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// triad-multipos's calibration.json, computed once for all the tests here.
+fn calibration() -> &'static Path {
+    static CAL: OnceLock<PathBuf> = OnceLock::new();
+    CAL.get_or_init(|| {
+        let out = tempfile::tempdir().expect("tempdir").keep();
+        let dataset = fixtures::dataset_dir(fixtures::triad::MULTIPOS);
+        ingest::run(&dataset, &out).expect("ingest");
+        align::run(&dataset, &out).expect("align");
+        adjust::run(&dataset, &out).expect("adjust");
+        out.join("adjust").join("calibration.json")
+    })
+}
+
+fn args(dataset: &Path) -> GravityArgs {
+    GravityArgs {
+        dataset: dataset.to_path_buf(),
+        calibration: calibration().to_path_buf(),
+        model: None,
+        session: Some("lab".to_owned()),
+        accelerometer: None,
+        out: None,
+    }
+}
+
+/// One epoch of gravity.parquet.
+struct Row {
+    time_s: f64,
+    filtered: f64,
+    sigma: f64,
+    flags: u8,
+}
+
+fn rows(out: &Path) -> Vec<Row> {
+    let path = out.join("gravity").join(gravity::FILE);
+    let names = ["down_filtered_mgal", "sigma_down_mgal"];
+    let mut rows = Vec::new();
+    align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+        for i in 0..b.time_ns.len() {
+            rows.push(Row {
+                time_s: b.time_ns[i] as f64 * 1e-9,
+                filtered: b.values[0].value(i),
+                sigma: b.values[1].value(i),
+                flags: b.flags[i],
+            });
+        }
+        Ok(())
+    })
+    .expect("gravity.parquet");
+    rows
+}
+
+/// The true disturbance down at `t` (GPS s), from truth.csv at 1 Hz, linearly interpolated.
+fn truth_at(dataset: &Path) -> impl Fn(f64) -> f64 {
+    let text = std::fs::read_to_string(dataset.join("truth.csv")).expect("truth.csv");
+    let table: Vec<(f64, f64)> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|x| x.parse().expect("number")).collect();
+            (f[0], f[4])
+        })
+        .collect();
+    move |t| {
+        let k = table
+            .partition_point(|(s, _)| *s <= t)
+            .clamp(1, table.len() - 1);
+        let ((t0, v0), (t1, v1)) = (table[k - 1], table[k]);
+        v0 + (v1 - v0) * (t - t0) / (t1 - t0)
+    }
+}
+
+/// rms of (estimate - filtered truth) in mGal and of its ratio to the sigma, over the epochs
+/// not flagged as edges; the filtered truth is the truth at the epochs through the stage's
+/// filter (checked against scipy in gravity_peers.rs).
+fn scores(dataset: &Path, out: &Path, filter_s: f64) -> (f64, f64) {
+    let rows = rows(out);
+    let truth = truth_at(dataset);
+    let dt = (rows[1].time_s - rows[0].time_s).abs();
+    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt).expect("filter");
+    // The truth filtered stretch by stretch, as the stage filters.
+    let mut want = Vec::with_capacity(rows.len());
+    let mut start = 0;
+    for k in 1..=rows.len() {
+        if k == rows.len() || rows[k].time_s - rows[k - 1].time_s > 1.5 * dt {
+            let raw: Vec<f64> = rows[start..k].iter().map(|r| truth(r.time_s)).collect();
+            want.extend(filter::filtfilt(&sections, &raw).expect("filtered truth"));
+            start = k;
+        }
+    }
+    let inner: Vec<usize> = (0..rows.len())
+        .filter(|&k| rows[k].flags & gravity::EDGE == 0)
+        .collect();
+    assert!(
+        inner.len() > rows.len() / 2,
+        "{} of {}",
+        inner.len(),
+        rows.len()
+    );
+    let n = inner.len() as f64;
+    let err = |k: usize| rows[k].filtered - want[k];
+    let rms = (inner.iter().map(|&k| err(k).powi(2)).sum::<f64>() / n).sqrt();
+    let z = (inner
+        .iter()
+        .map(|&k| (err(k) / rows[k].sigma).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    (rms, z)
+}
+
+fn reduce(dataset: &Path, out: &Path) -> GravityReport {
+    let report = args(dataset).run(out).expect("gravity");
+    print_summary(&report, &mut std::io::stderr());
+    report
+}
+
+#[test]
+fn the_survey_lines_are_recovered_within_their_sigmas() {
+    let dataset = fixtures::dataset_dir(fixtures::survey_lines::SURVEY_LINES);
+    let out = tempfile::tempdir().expect("tempdir");
+    let r = reduce(&dataset, out.path());
+    let (rms, z) = scores(&dataset, out.path(), r.filter.filter_s);
+    eprintln!(
+        "survey-lines: rms error {rms:.3} mGal at {:.0} m resolution; rms of error / sigma {z:.3}",
+        r.filter.resolution_m
+    );
+    assert!((0.8..1.2).contains(&z), "rms z {z}");
+    assert!(rms < 0.3, "rms {rms} mGal");
+    // Every epoch accounted for, both ties used on the one stretch.
+    let s = &r.sessions[0];
+    assert_eq!(
+        s.epochs_used + s.dropped.values().sum::<u64>(),
+        s.epochs_read
+    );
+    assert_eq!(s.stretches.len(), 1);
+    assert!(r.ties.iter().all(|t| t.used_in.is_some()) && r.ties.len() == 2);
+    // The U-turn (pi 150 m at 5 m/s, 94 s) is flagged as a turn, and little else.
+    let turning = s.flagged.get("turn").copied().unwrap_or(0);
+    assert!((800..1200).contains(&turning), "{turning} turning epochs");
+}
+
+/// survey-lines with its manifest edited, reduced.
+fn edited(edit: impl FnOnce(String) -> String) -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("survey-lines");
+    fixtures::copy_dataset(fixtures::survey_lines::SURVEY_LINES, &dataset, edit).expect("copy");
+    std::fs::copy(
+        fixtures::dataset_dir(fixtures::survey_lines::SURVEY_LINES).join("truth.csv"),
+        dataset.join("truth.csv"),
+    )
+    .expect("truth.csv");
+    let out = dir.path().join("out");
+    (dir, dataset, out)
+}
+
+#[test]
+fn a_convention_broken_fails_the_truth() {
+    let cases: [(&str, &str, &str); 3] = [
+        (
+            "the lever arm reversed",
+            "lever_arm_m = [0.4, -0.2, 1.6]",
+            "lever_arm_m = [-0.4, 0.2, -1.6]",
+        ),
+        (
+            "the mounting ignored",
+            "mounting_deg = [45.0, -35.264389682754654, 20.0]",
+            "mounting_deg = [0.0, 0.0, 0.0]",
+        ),
+        (
+            "the mounting's rotations taken in the other order (Rx Ry Rz)",
+            "mounting_deg = [45.0, -35.264389682754654, 20.0]",
+            // The angles whose Rz Ry Rx has the third row of Rx(45) Ry(-35.26) Rz(20)
+            // (numpy: roll atan2(r1, r2), pitch -asin(r0) of that row).
+            "mounting_deg = [42.27205917036782, -38.71688848984887, 20.0]",
+        ),
+    ];
+    for (what, from, to) in cases {
+        let (_dir, dataset, out) = edited(|m| {
+            assert!(m.contains(from), "{from}");
+            m.replace(from, to)
+        });
+        let r = reduce(&dataset, &out);
+        let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+        eprintln!("{what}: rms error {rms:.3} mGal, rms z {z:.2}");
+        assert!(z > 2.0, "{what}: rms z {z} (rms {rms} mGal) should fail");
+    }
+}
+
+#[test]
+fn a_gap_cuts_the_track_and_every_epoch_is_accounted_for() {
+    let (_dir, dataset, out) = edited(|m| m);
+    // Two minutes of positions lost in the middle of the first line.
+    let pos = dataset.join("raw/lines.pos");
+    let text = std::fs::read_to_string(&pos).expect("pos");
+    let kept: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(k, _)| !(8000..9200).contains(k))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(&pos, kept.join("\n") + "\n").expect("write");
+    let r = reduce(&dataset, &out);
+    let s = &r.sessions[0];
+    assert_eq!(s.gaps, 1);
+    assert_eq!(s.stretches.len(), 2);
+    assert_eq!(
+        s.epochs_used + s.dropped.values().sum::<u64>(),
+        s.epochs_read
+    );
+    // One tie on each side: each stretch fixes its own level.
+    assert!(
+        s.stretches
+            .iter()
+            .all(|st| st.drift.as_ref().is_some_and(|d| d.ties == 1))
+    );
+    let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+    eprintln!("with a gap: rms error {rms:.3} mGal, rms z {z:.2}");
+    assert!(z < 1.5, "rms z {z}");
+}
+
+#[test]
+fn the_new_keys_are_refused_where_they_cannot_work() {
+    let cases: [(&str, &str, &str); 5] = [
+        (
+            "trajectory_format = \"rtklib\"\n",
+            "trajectory_format = \"rtklib\"\ntrajectory_time = \"iso\"\n",
+            "session[0].trajectory_time",
+        ),
+        (
+            "trajectory_format = \"rtklib\"\n",
+            "trajectory_format = \"rtklib\"\nattitude = \"raw/lines.pos\"\n",
+            "session[0].attitude",
+        ),
+        (
+            "trajectory = \"raw/lines.pos\"\ntrajectory_format = \"rtklib\"\n",
+            "",
+            "survey",
+        ),
+        ("filter_s = 100.0", "filter_s = 0.0", "survey.filter_s"),
+        (
+            "duration_s = 300",
+            "duration_s = -3",
+            "survey.tie[0].duration_s",
+        ),
+    ];
+    for (from, to, key) in cases {
+        let (_dir, dataset, _out) = edited(|m| {
+            assert!(m.contains(from), "{from}");
+            m.replacen(from, to, 1)
+        });
+        let e = ingest::contract::manifest::Dataset::load(&dataset)
+            .expect_err(key)
+            .to_string();
+        assert!(
+            e.contains(&format!("{key}: ")) || e.contains(&format!("{key} ")),
+            "{key}: {e}"
+        );
+    }
+}
