@@ -377,10 +377,25 @@ fn ci() -> Result<()> {
         out: Some(scratch.join("survey")),
     };
     let result = apply.run(&workspace_root());
+    let report = result.context("apply of esgt-2005's calibration to fixture survey");
+    // The third: triad-multipos's calibration reducing survey-lines to gravity.
+    let lines = fixtures::survey_lines::SURVEY_LINES;
+    let gravity = adjust::gravity::stage::GravityArgs {
+        dataset: fixtures::dataset_dir(lines),
+        calibration: scratch.join("triad-multipos/adjust/calibration.json"),
+        model: None,
+        session: Some("lab".to_owned()),
+        accelerometer: None,
+        out: None,
+    }
+    .run(&scratch.join(format!("{lines}-gravity")));
     let _ = std::fs::remove_dir_all(&scratch);
-    let report = result.context("apply of esgt-2005's calibration to fixture survey")?;
+    let report = report?;
     adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
     eprintln!("apply on survey: ok");
+    let gravity = gravity.context("gravity of survey-lines with triad-multipos's calibration")?;
+    adjust::gravity::stage::print_summary(&gravity, &mut std::io::stderr());
+    eprintln!("gravity on {lines}: ok");
     bench_smoke()
 }
 
