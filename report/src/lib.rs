@@ -6,6 +6,7 @@
 
 mod figures;
 mod fits;
+mod gravity;
 mod models;
 mod plots;
 mod render;
@@ -142,6 +143,9 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         .any(|r| r.misalignment_vector.is_some());
     let triad = !st.cal.triad.is_empty();
     let mut sections = vec![summary_section(&st), dataset_section(&st)];
+    if let Some(g) = gravity::gravity_section(ds, out)? {
+        sections.push(g);
+    }
     if axis {
         sections.push(function_section());
     }

@@ -350,3 +350,151 @@ pub fn polar(p: &Polar<'_>) -> Result<String, String> {
     }
     Ok(svg)
 }
+
+/// A survey's track on a local map (east, north in km from its first point), each epoch
+/// coloured by a value on a diverging scale symmetric about zero.
+pub struct TrackMap<'a> {
+    /// Title.
+    pub title: &'a str,
+    /// (east km, north km, value) per point drawn.
+    pub points: &'a [(f64, f64, f64)],
+    /// What the colour is, with its unit.
+    pub value_label: &'a str,
+}
+
+/// Blue (negative) through white to vermillion (positive), `v` in [-1, 1].
+fn diverging(v: f64) -> RGBColor {
+    let v = v.clamp(-1.0, 1.0);
+    let mix = |a: u8, b: u8, t: f64| (f64::from(a) + (f64::from(b) - f64::from(a)) * t) as u8;
+    let (end, t) = if v < 0.0 {
+        (BLUE_CB, -v)
+    } else {
+        (VERMILLION, v)
+    };
+    RGBColor(mix(235, end.0, t), mix(235, end.1, t), mix(235, end.2, t))
+}
+
+/// Draws `m` as an SVG document, on equal axes.
+pub fn track_map(m: &TrackMap<'_>) -> Result<String, String> {
+    let mut svg = String::new();
+    {
+        let (mut x0, mut x1) = range(m.points.iter().map(|p| p.0));
+        let (mut y0, mut y1) = range(m.points.iter().map(|p| p.1));
+        // Equal scales: widen the narrower range about its centre (the plot is 520 x 300).
+        let (w, h) = (x1 - x0, y1 - y0);
+        if w / 520.0 > h / 300.0 {
+            let c = 0.5 * (y0 + y1);
+            (y0, y1) = (c - w * 300.0 / 1040.0, c + w * 300.0 / 1040.0);
+        } else {
+            let c = 0.5 * (x0 + x1);
+            (x0, x1) = (c - h * 520.0 / 600.0, c + h * 520.0 / 600.0);
+        }
+        let scale = m
+            .points
+            .iter()
+            .fold(0.0_f64, |a, p| a.max(p.2.abs()))
+            .max(1e-9);
+        let root = SVGBackend::with_string(&mut svg, (600, 400)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let (plot, strip) = root.split_vertically(376);
+        let mut chart = ChartBuilder::on(&plot)
+            .caption(m.title, ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(42)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("east (km)")
+            .y_desc("north (km)")
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(
+                m.points
+                    .iter()
+                    .map(|&(x, y, v)| Circle::new((x, y), 3, diverging(v / scale).filled())),
+            )
+            .map_err(|e| e.to_string())?;
+        let entries = [
+            (
+                Mark::Dot(diverging(-1.0)),
+                format!("{:.2} {}", -scale, m.value_label),
+            ),
+            (Mark::Dot(diverging(0.0)), "0".to_owned()),
+            (
+                Mark::Dot(diverging(1.0)),
+                format!("+{scale:.2} {}", m.value_label),
+            ),
+        ];
+        legend(&strip, &entries)?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+/// A value along a track (distance, value, sigma) drawn as a line with its 1-sigma band,
+/// one piece per stretch (no line across a gap).
+pub struct Profile<'a> {
+    /// Title.
+    pub title: &'a str,
+    /// y axis label with unit.
+    pub y_label: &'a str,
+    /// Per stretch, (distance km, value, sigma).
+    pub stretches: &'a [Vec<(f64, f64, f64)>],
+}
+
+/// Draws `p` as an SVG document.
+pub fn profile(p: &Profile<'_>) -> Result<String, String> {
+    let mut svg = String::new();
+    {
+        let all = || p.stretches.iter().flatten();
+        let (x0, x1) = range(all().map(|q| q.0));
+        let (y0, y1) = range(all().flat_map(|q| [q.1 - q.2, q.1 + q.2]));
+        let root = SVGBackend::with_string(&mut svg, (600, 360)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let (plot, strip) = root.split_vertically(336);
+        let mut chart = ChartBuilder::on(&plot)
+            .caption(p.title, ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(42)
+            .y_label_area_size(72)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("distance along the track (km)")
+            .y_desc(p.y_label)
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for s in p.stretches.iter().filter(|s| !s.is_empty()) {
+            let band: Vec<(f64, f64)> = s
+                .iter()
+                .map(|q| (q.0, q.1 + q.2))
+                .chain(s.iter().rev().map(|q| (q.0, q.1 - q.2)))
+                .collect();
+            chart
+                .draw_series(std::iter::once(Polygon::new(
+                    band,
+                    BLUE_CB.mix(0.25).filled(),
+                )))
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series(LineSeries::new(
+                    s.iter().map(|q| (q.0, q.1)),
+                    BLUE_CB.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?;
+        }
+        let entries = [
+            (Mark::Line(BLUE_CB), "filtered".to_owned()),
+            (Mark::Band(BLUE_CB), "its 1-sigma band".to_owned()),
+        ];
+        legend(&strip, &entries)?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}

@@ -71,6 +71,12 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
                 time_form,
             });
         }
+        // The trajectory is not ingest's: copied whole, for the manifest to validate.
+        if let Some(src) = &s.trajectory {
+            let rel = src.path.strip_prefix(&ds.dir).unwrap_or(&src.path);
+            std::fs::copy(&src.path, copy.join(rel))
+                .with_context(|| format!("copying {}", src.path.display()))?;
+        }
     }
     let opts = ingest::Options {
         skip_bad_lines: false,
@@ -88,7 +94,12 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
             print_file(f, p, report, &spans, w)?;
         }
     }
+    let mut tracks_read = true;
+    for s in &ds.sessions {
+        tracks_read &= print_trajectory(ds, s, w)?;
+    }
     match outcome {
+        Ok(_) if !tracks_read => Ok(false),
         Ok(_) => {
             writeln!(
                 w,
@@ -101,6 +112,61 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
             Ok(false)
         }
     }
+}
+
+/// A survey session's trajectory read whole with the gravity stage's reader: its epochs,
+/// first and last time and rate, or the error naming file, line and field. Returns whether
+/// it reads.
+fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Result<bool> {
+    use adjust::gravity::trajectory::{read_csv, read_rtklib};
+    use ingest::contract::survey::TrajectoryFormat;
+    let Some(src) = &s.trajectory else {
+        return Ok(true);
+    };
+    let rel = src
+        .path
+        .strip_prefix(&ds.dir)
+        .unwrap_or(&src.path)
+        .display()
+        .to_string();
+    let (layout, read) = match src.format {
+        TrajectoryFormat::Rtklib => ("RTKLIB solution", read_rtklib(&src.path)),
+        TrajectoryFormat::Csv => {
+            let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
+            ("CSV", read_csv(&src.path, s.times.reader(form)))
+        }
+    };
+    let t = match read {
+        Ok(t) => t,
+        Err(e) => {
+            writeln!(w, "{rel} (session {}, trajectory): {e}", s.session.id)?;
+            return Ok(false);
+        }
+    };
+    let n = t.time_gps_ns.len();
+    let mut d: Vec<i64> = t.time_gps_ns.windows(2).map(|x| x[1] - x[0]).collect();
+    d.sort_unstable();
+    let rate = d
+        .get(d.len() / 2)
+        .filter(|&&m| m > 0)
+        .map_or("-".to_owned(), |&m| format!("{:.4} Hz", 1e9 / m as f64));
+    let span = t
+        .time_gps_ns
+        .first()
+        .zip(t.time_gps_ns.last())
+        .map_or(String::new(), |(a, b)| {
+            format!(
+                ", first {} last {}",
+                ingest::time::utc_iso(*a),
+                ingest::time::utc_iso(*b)
+            )
+        });
+    writeln!(
+        w,
+        "{rel} (session {}, trajectory; {layout}): read whole; {n} epochs{span}, {rate}",
+        s.session.id
+    )?;
+    Ok(true)
 }
 
 /// Every log of a session: its path, whether it is a binary log, how it writes its times.

@@ -10,7 +10,9 @@
 //! manifest.
 
 use anyhow::{Context, Result, bail};
-use ingest::time::{TimeForm, parse_iso};
+use ingest::contract::manifest::TimeScale;
+use ingest::contract::survey::TrajectoryFormat;
+use ingest::time::{TimeForm, TimeReader, parse_iso};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -32,6 +34,8 @@ enum Layout {
     /// Decimal readings (docs/formats.md 8.3).
     LabStream,
     Theodolite,
+    /// A survey's GNSS positions (docs/formats.md 10.1).
+    Trajectory(TrajectoryFormat),
 }
 
 impl Layout {
@@ -42,6 +46,8 @@ impl Layout {
             Layout::TemperatureCsv => "temperature CSV",
             Layout::LabStream => "lab stream",
             Layout::Theodolite => "theodolite log",
+            Layout::Trajectory(TrajectoryFormat::Rtklib) => "RTKLIB trajectory",
+            Layout::Trajectory(TrajectoryFormat::Csv) => "CSV trajectory",
         }
     }
 }
@@ -110,7 +116,87 @@ fn recognise(path: &Path) -> Result<Found> {
     }
     let head = String::from_utf8_lossy(&head).into_owned();
     let tail = String::from_utf8_lossy(&tail).into_owned();
+    if let Some(found) = trajectory(&rel, &head, &tail) {
+        return Ok(found);
+    }
     text(rel, &head, &tail)
+}
+
+/// A survey's trajectory (docs/formats.md 10.1): an RTKLIB solution file (a `%` column
+/// header naming the latitude, and its time scale) or a CSV whose header begins
+/// `time,lat_deg`; its span and rate from its ends.
+fn trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
+    let found = |layout, time, times: Vec<i64>, last: Option<i64>| Found {
+        rel: rel.to_owned(),
+        layout,
+        time,
+        span_ns: times.first().map(|&a| (a, last.unwrap_or(a))),
+        rate_hz: rate(&times, 1e-9),
+        channels: 3,
+        comments: String::new(),
+        magnitude: 0.0,
+    };
+    if let Some(h) = head
+        .lines()
+        .find(|l| l.starts_with('%') && l.contains("latitude"))
+    {
+        let scale = if h.contains("UTC") {
+            TimeScale::Utc
+        } else {
+            TimeScale::Gpst
+        };
+        let time = |l: &str| -> Option<i64> {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            if l.starts_with('%') || f.len() < 10 {
+                return None;
+            }
+            if f[0].contains('/') {
+                let iso = format!("{}T{}", f[0].replace('/', "-"), f[1]);
+                TimeReader::new(TimeForm::Iso, scale, None)
+                    .read(&[iso.as_bytes()])
+                    .ok()
+            } else {
+                TimeReader::new(TimeForm::GpsWeekTow, scale, None)
+                    .read(&[f[0].as_bytes(), f[1].as_bytes()])
+                    .ok()
+            }
+        };
+        let times: Vec<i64> = head.lines().filter_map(time).collect();
+        let last = tail.lines().skip(1).filter_map(time).last();
+        return Some(found(
+            Layout::Trajectory(TrajectoryFormat::Rtklib),
+            None,
+            times,
+            last,
+        ));
+    }
+    let (lines, _) = data_lines(head);
+    let header = lines.first()?;
+    if !(header.len() >= 4 && header[0] == "time" && header[1] == "lat_deg") {
+        return None;
+    }
+    let first = lines.get(1)?.first()?;
+    let form = if parse_iso(first).is_ok() {
+        TimeForm::Iso
+    } else if first.parse::<f64>().is_ok_and(|t| t > 1e8) {
+        TimeForm::UnixS
+    } else {
+        TimeForm::S
+    };
+    let time = |f: &Vec<&str>| match form {
+        TimeForm::Iso => iso_ns(f.first()?),
+        TimeForm::UnixS => unix_to_gps_ns(ingest::time::parse_seconds_ns(f.first()?.as_bytes())?),
+        _ => None,
+    };
+    let times: Vec<i64> = lines.iter().skip(1).filter_map(time).collect();
+    let (tail_lines, _) = data_lines(tail);
+    let last = tail_lines.iter().skip(1).filter_map(time).next_back();
+    Some(found(
+        Layout::Trajectory(TrajectoryFormat::Csv),
+        Some(form),
+        times,
+        last,
+    ))
 }
 
 /// The first and last [`PEEK`] bytes of a file (the whole file twice when it is shorter),
@@ -312,7 +398,7 @@ fn text(rel: String, head: &str, tail: &str) -> Result<Found> {
 /// An ISO 8601 time as GPS ns (zone-less times taken as UTC: only the date is used).
 fn iso_ns(s: &str) -> Option<i64> {
     let (c, offset_min) = parse_iso(s).ok()?;
-    let ns = ingest::time::gps_ns(c, ingest::contract::manifest::TimeScale::Utc)?;
+    let ns = ingest::time::gps_ns(c, TimeScale::Utc)?;
     Some(ns - i64::from(offset_min.unwrap_or(0)) * 60_000_000_000)
 }
 
@@ -320,10 +406,7 @@ fn iso_ns(s: &str) -> Option<i64> {
 fn unix_to_gps_ns(unix_ns: i64) -> Option<i64> {
     let days = unix_ns.div_euclid(86_400_000_000_000);
     let date = ingest::time::civil_from_days(days);
-    let midnight = ingest::time::gps_ns(
-        ingest::time::Calendar::midnight(date),
-        ingest::contract::manifest::TimeScale::Utc,
-    )?;
+    let midnight = ingest::time::gps_ns(ingest::time::Calendar::midnight(date), TimeScale::Utc)?;
     Some(midnight + unix_ns.rem_euclid(86_400_000_000_000))
 }
 
@@ -520,8 +603,14 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
     }
     let _ = writeln!(t, "date = {}", date(files));
     let lab = get(Layout::LabStream);
+    let track = files
+        .iter()
+        .copied()
+        .find(|f| matches!(f.layout, Layout::Trajectory(_)));
     let kind = if theodolite.is_some() {
         "\"tilt-table\"".to_owned()
+    } else if track.is_some() {
+        "\"survey\"                # a trajectory: a survey reduced to gravity".to_owned()
     } else {
         format!(
             "{FILL}                # no theodolite log: \"multi-position\" (a triad calibrated) or \"survey\" (a calibration applied)"
@@ -560,6 +649,9 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
             x.time.unwrap_or(TimeForm::GpsWeekTow).name()
         );
     }
+    if let Some(tr) = track {
+        trajectory_keys(t, tr);
+    }
     if let Some(th) = theodolite {
         theodolite_keys(t, th);
         let _ = writeln!(
@@ -577,7 +669,36 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
         t,
         "# days = 2                      # UTC days the session spans from its date\n"
     );
-    theodolite.is_none() && lab.is_some()
+    theodolite.is_none() && lab.is_some() && track.is_none()
+}
+
+/// A survey session's trajectory keys, and the `[survey]` table's, commented: how the
+/// accelerometers sit in the vehicle and the ties are the experimenter's, in no log.
+fn trajectory_keys(t: &mut String, tr: &Found) {
+    let format = match tr.layout {
+        Layout::Trajectory(TrajectoryFormat::Csv) => "csv",
+        _ => "rtklib",
+    };
+    let _ = writeln!(
+        t,
+        "trajectory = \"{}\"\ntrajectory_format = \"{format}\"",
+        tr.rel
+    );
+    if let Some(form) = tr.time {
+        let _ = writeln!(t, "trajectory_time = \"{}\"", form.name());
+    }
+    let _ = writeln!(
+        t,
+        "# Then, once for the dataset (docs/formats.md 10):\n\
+         # [survey]\n\
+         # lever_arm_m = [0.0, 0.0, 0.0]  # from the GNSS antenna to the accelerometers, m (x forward, y right, z down)\n\
+         # mounting_deg = [0.0, 0.0, 0.0] # roll, pitch, yaw of the accelerometers' body frame in the vehicle\n\
+         # filter_s = 100.0               # the low-pass filter's cut-off period, s\n\
+         # [[survey.tie]]                 # a still window at known gravity (one or more)\n\
+         # time = \"2026-03-14T08:55:00Z\" # its centre\n\
+         # duration_s = 300.0\n\
+         # g_mgal = 980000.0              # absolute gravity at the accelerometers"
+    );
 }
 
 /// The session's UTC date from its files' first absolute time, or a line to fill.

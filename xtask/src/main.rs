@@ -3,6 +3,7 @@
 
 mod bench;
 mod bench_apply;
+mod bench_gravity;
 mod check;
 mod init;
 mod show;
@@ -61,6 +62,9 @@ enum Cmd {
         /// Where to write (default: the fixtures/ folder; for --bench, target/bench-data).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Only this committed dataset (default: all of them).
+        #[arg(long)]
+        only: Option<String>,
     },
     /// Fits a polynomial to two columns of a CSV table (docs/formats.md section 7); prints JSON.
     Fit(adjust::FitArgs),
@@ -111,7 +115,7 @@ enum Cmd {
     Ci,
     /// Benchmarks (speed and memory), measured, not asserted.
     Bench {
-        /// Which stage: ingest, align, adjust or apply; or smoke (each once, small, as CI).
+        /// Which stage: ingest, align, adjust, apply or gravity; or smoke (each once, small, as CI).
         what: String,
         /// Logging hours of the 250 Hz log (the 31.25 Hz log is twice as long).
         #[arg(long, default_value_t = 24.0)]
@@ -388,12 +392,21 @@ fn ci() -> Result<()> {
         accelerometer: None,
         out: None,
     }
-    .run(&scratch.join(format!("{lines}-gravity")));
+    .run(&scratch.join(lines))
+    .context("gravity of survey-lines with triad-multipos's calibration")
+    .and_then(|g| {
+        let args = DatasetArgs {
+            dataset: fixtures::dataset_dir(lines),
+            out: Some(scratch.join(lines)),
+        };
+        run_stages(&args, &["report"]).context("survey-lines' report with its gravity")?;
+        Ok(g)
+    });
     let _ = std::fs::remove_dir_all(&scratch);
     let report = report?;
     adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
     eprintln!("apply on survey: ok");
-    let gravity = gravity.context("gravity of survey-lines with triad-multipos's calibration")?;
+    let gravity = gravity?;
     adjust::gravity::stage::print_summary(&gravity, &mut std::io::stderr());
     eprintln!("gravity on {lines}: ok");
     bench_smoke()
@@ -408,6 +421,7 @@ fn bench_smoke() -> Result<()> {
     bench::align(&root, 5, 10).context("bench align on a small dataset")?;
     bench::adjust(&root, 20_000, false).context("bench adjust on 20 000 observations")?;
     bench_apply::apply(&root, 0.05, false, 1).context("bench apply on a small log")?;
+    bench_gravity::gravity(&root, 0.4, 1).context("bench gravity on a short survey")?;
     eprintln!("benchmarks on small sizes: ok");
     Ok(())
 }
@@ -460,17 +474,21 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Cmd::Gravity(a) => {
-            let out = out_dir(&DatasetArgs {
+            // The survey dataset's own pipeline first (its report gains the gravity
+            // section), then apply and gravity, then the report again.
+            let args = DatasetArgs {
                 dataset: a.dataset.clone(),
                 out: a.out.clone(),
-            })?;
+            };
+            let out = out_dir(&args)?;
+            run_stages(&args, &["ingest", "align", "adjust"])?;
             let t0 = std::time::Instant::now();
             let report = a
                 .run(&out)
                 .with_context(|| format!("gravity on {}", a.dataset.display()))?;
             adjust::gravity::stage::print_summary(&report, &mut std::io::stderr());
             eprintln!("gravity: {:.2} s", t0.elapsed().as_secs_f64());
-            Ok(())
+            run_stages(&args, &["report"])
         }
         Cmd::Fixtures {
             check,
@@ -478,6 +496,7 @@ fn run(cli: Cli) -> Result<()> {
             rate,
             hours,
             out,
+            only,
         } => {
             if check {
                 return fixtures_check();
@@ -496,7 +515,19 @@ fn run(cli: Cli) -> Result<()> {
                 return Ok(());
             }
             let root = out.unwrap_or_else(fixtures::fixtures_dir);
-            for name in fixtures::catalog::ALL {
+            if let Some(name) = only
+                .as_deref()
+                .filter(|n| !fixtures::catalog::ALL.contains(n))
+            {
+                bail!(
+                    "--only {name}: the datasets are {}",
+                    fixtures::catalog::ALL.join(", ")
+                );
+            }
+            for name in fixtures::catalog::ALL
+                .iter()
+                .filter(|n| only.as_deref().is_none_or(|o| o == **n))
+            {
                 fixtures::generate(name, &root)?;
                 eprintln!("fixtures: wrote {}", root.join(name).display());
             }
@@ -533,10 +564,11 @@ fn run(cli: Cli) -> Result<()> {
             "align" => bench::align(&workspace_root(), stations, readings),
             "adjust" => bench::adjust(&workspace_root(), observations, !no_peers),
             "apply" => bench_apply::apply(&workspace_root(), hours, !no_peers, runs.max(1)),
+            "gravity" => bench_gravity::gravity(&workspace_root(), hours, runs.max(1)),
             "smoke" => bench_smoke(),
             other => bail!(
-                "no benchmark `{other}`: there are ingest, align, adjust, apply (and smoke: \
-                 each once on a small size, as CI runs them)"
+                "no benchmark `{other}`: there are ingest, align, adjust, apply, gravity (and \
+                 smoke: each once on a small size, as CI runs them)"
             ),
         },
     }

@@ -1,8 +1,8 @@
 //! `cargo xtask init` on each committed fixture's raw/ (docs/formats.md 9.3): the draft is
 //! refused until its "FILL IN" lines are filled; filled from the committed manifest (each
 //! marked line, and each commented optional line whose key the committed manifest sets,
-//! with the committed value; the committed `[[adjust.model]]` and `[align]` tables, which
-//! are the experimenter's choices and not in any log), it calibrates to the committed
+//! with the committed value; the committed `[[adjust.model]]`, `[align]` and `[survey]`
+//! tables, which are the experimenter's choices and not in any log), it calibrates to the committed
 //! manifest's numbers. It never overwrites a manifest.
 
 use std::path::Path;
@@ -80,7 +80,7 @@ fn fill(draft: &str, committed: &Value) -> String {
         out.push('\n');
     }
     let mut rest = toml::map::Map::new();
-    for k in ["adjust", "align"] {
+    for k in ["adjust", "align", "survey"] {
         if let Some(v) = committed.get(k) {
             rest.insert(k.to_owned(), v.clone());
         }
@@ -126,8 +126,22 @@ fn a_draft_filled_in_calibrates_as_the_committed_manifest() {
         let committed: Value = toml::from_str(&text).expect("committed toml");
         let filled = fill(&draft, &committed);
         std::fs::write(ds.join("dataset.toml"), &filled).expect("write");
-        if name == "survey" {
+        if name == "survey" || name == fixtures::survey_lines::SURVEY_LINES {
             ingest::run(&ds, &dir.path().join("out")).expect("the survey's draft ingests");
+            // What the gravity stage reads is the committed manifest's: the trajectory, its
+            // layout and times, the ties.
+            let load = ingest::contract::manifest::Dataset::load;
+            let (a, b) = (load(&committed_dir).expect("m"), load(&ds).expect("draft"));
+            assert_eq!(a.ties, b.ties, "{name}");
+            for (x, y) in a.sessions.iter().zip(&b.sessions) {
+                let rel = |s: &ingest::contract::manifest::ResolvedSession| {
+                    s.trajectory
+                        .as_ref()
+                        .map(|t| (t.path.file_name().map(ToOwned::to_owned), t.format, t.time))
+                };
+                assert_eq!(rel(x), rel(y), "{name}");
+                assert_eq!(x.times, y.times, "{name}");
+            }
             continue;
         }
         let x = calibrate(&committed_dir, &dir.path().join("committed"));

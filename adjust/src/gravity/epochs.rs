@@ -125,11 +125,12 @@ pub struct Target<'a> {
     pub half_ns: i64,
 }
 
-/// The index of the epoch within `half_ns` of `t`, if any.
+/// The index of the epoch k whose interval [t_k - half_ns, t_k + half_ns) holds `t`, if
+/// any (the nearer when intervals overlap).
 fn epoch_of(times: &[i64], half_ns: i64, t: i64) -> Option<usize> {
     let k = times.partition_point(|&e| e <= t);
-    let before = k.checked_sub(1).filter(|&j| t - times[j] <= half_ns);
-    let after = (k < times.len() && times[k] - t < half_ns).then_some(k);
+    let before = k.checked_sub(1).filter(|&j| t - times[j] < half_ns);
+    let after = (k < times.len() && times[k] - t <= half_ns).then_some(k);
     match (before, after) {
         (Some(b), Some(a)) if times[a] - t < t - times[b] => Some(a),
         (Some(b), _) => Some(b),
@@ -250,6 +251,7 @@ mod tests {
         assert_eq!(epoch_of(&t, 50, -50), Some(0));
         assert_eq!(epoch_of(&t, 50, -51), None);
         assert_eq!(epoch_of(&t, 50, 49), Some(0));
+        assert_eq!(epoch_of(&t, 50, 50), Some(1));
         assert_eq!(epoch_of(&t, 50, 51), Some(1));
         assert_eq!(epoch_of(&t, 50, 300), None);
         assert_eq!(epoch_of(&t, 50, 449), Some(3));

@@ -86,20 +86,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let filter = filter_used(&rows, survey.filter_s);
     let (rows_written, sha256) = rows.write(&dir, &names)?;
-    let mut inputs = vec![Input {
-        role: "calibrated samples".to_owned(),
-        path: table.display().to_string(),
-        sha256: ingest::contract::custody::sha256_file(&table)?,
-    }];
-    for t in &tracks {
-        if let Some(src) = &t.session.trajectory {
-            inputs.push(Input {
-                role: format!("trajectory of {}", t.session.session.id),
-                path: src.path.display().to_string(),
-                sha256: ingest::contract::custody::sha256_file(&src.path)?,
-            });
-        }
-    }
+    let inputs = inputs(&table, &tracks)?;
     let report = GravityReport {
         format: LEDGER_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
@@ -116,6 +103,25 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     };
     ingest::write_json_atomically(&ledger_path, &report)?;
     Ok(report)
+}
+
+/// The files read, with their hashes: apply's table and each trajectory.
+fn inputs(table: &Path, tracks: &[Track<'_>]) -> Result<Vec<Input>, GravityError> {
+    let mut inputs = vec![Input {
+        role: "calibrated samples".to_owned(),
+        path: table.display().to_string(),
+        sha256: ingest::contract::custody::sha256_file(table)?,
+    }];
+    for t in tracks {
+        if let Some(src) = &t.session.trajectory {
+            inputs.push(Input {
+                role: format!("trajectory of {}", t.session.session.id),
+                path: src.path.display().to_string(),
+                sha256: ingest::contract::custody::sha256_file(&src.path)?,
+            });
+        }
+    }
+    Ok(inputs)
 }
 
 /// How f_D is read from apply's table: a triad's vector through the mounting, or the one
@@ -272,24 +278,7 @@ fn reduce_track(
     summary.gaps = gaps;
     for span in spans {
         let s = stretch(track, bins, span.clone(), ctx.sample_sd_mgal);
-        let inside: Vec<(usize, Tie)> = ctx
-            .ties
-            .iter()
-            .enumerate()
-            .filter(|(_, t)| {
-                (s.time_gps_ns[0]..=s.time_gps_ns[s.time_gps_ns.len() - 1]).contains(&t.time_gps_ns)
-            })
-            .map(|(k, t)| {
-                (
-                    k,
-                    Tie {
-                        time_gps_ns: t.time_gps_ns,
-                        duration_s: t.duration_s,
-                        g_mgal: t.g_mgal,
-                    },
-                )
-            })
-            .collect();
+        let inside = ties_inside(ctx.ties, &s);
         let only: Vec<Tie> = inside.iter().map(|(_, t)| *t).collect();
         let r = match reduce::reduce(&s, ctx.survey.filter_s, &only) {
             Ok(r) => r,
@@ -317,6 +306,23 @@ fn reduce_track(
         rows.push(track, number, &s, &r, &flags);
     }
     Ok(summary)
+}
+
+/// The ties whose window's centre lies inside the stretch, with their index.
+fn ties_inside(ties: &[ResolvedTie], s: &Stretch) -> Vec<(usize, Tie)> {
+    let span = s.time_gps_ns[0]..=s.time_gps_ns[s.time_gps_ns.len() - 1];
+    ties.iter()
+        .enumerate()
+        .filter(|(_, t)| span.contains(&t.time_gps_ns))
+        .map(|(k, t)| {
+            let tie = Tie {
+                time_gps_ns: t.time_gps_ns,
+                duration_s: t.duration_s,
+                g_mgal: t.g_mgal,
+            };
+            (k, tie)
+        })
+        .collect()
 }
 
 /// The stretches of valid, evenly spaced epochs (index ranges into the track's kept

@@ -757,7 +757,8 @@ fn session_times(
         )
     };
     let theodolite = s.theodolite_time.unwrap_or(TimeForm::Iso);
-    let uses_start = [adc, temperature, theodolite].contains(&TimeForm::S);
+    let uses_start = [adc, temperature, theodolite].contains(&TimeForm::S)
+        || s.trajectory_time == Some(TimeForm::S);
     let start_gps_ns = match (&s.start, uses_start) {
         (None, true) => {
             return Err(err(

@@ -133,7 +133,19 @@ pub fn trajectory(
             "missing: \"rtklib\" (a .pos solution file) or \"csv\"".to_owned(),
         )
     })?;
-    let time = match (format, s.trajectory_time) {
+    let time = trajectory_time(format, s.trajectory_time, times, &key, err)?;
+    Ok(Some(TrajectorySource { path, format, time }))
+}
+
+/// A trajectory's time form checked against its format and the session's `start`.
+fn trajectory_time(
+    format: TrajectoryFormat,
+    time: Option<TimeForm>,
+    times: &SessionTimes,
+    key: &impl Fn(&str) -> String,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<Option<TimeForm>> {
+    Ok(match (format, time) {
         (TrajectoryFormat::Rtklib, Some(_)) => {
             return Err(err(
                 key("trajectory_time"),
@@ -158,8 +170,7 @@ pub fn trajectory(
             ));
         }
         (TrajectoryFormat::Csv, Some(t)) => Some(t),
-    };
-    Ok(Some(TrajectorySource { path, format, time }))
+    })
 }
 
 /// `[survey]` checked against the sessions: it describes trajectories, so some session must

@@ -1,0 +1,321 @@
+//! The report's section on a survey reduced to gravity (docs/formats.md 10), when OUT holds
+//! the gravity stage's outputs for this dataset: what was reduced and dropped, the ties and
+//! drift of each stretch, the disturbance's range and sigma with its parts, the track on a
+//! map coloured by the filtered disturbance and the profile along the track with its
+//! 1-sigma band.
+
+use crate::Error;
+use crate::plots;
+use crate::render::{Section, Table, section};
+use ingest::contract::gravity_ledger::{GravityReport, LEDGER_FILE, STAGE_DIR};
+use ingest::contract::manifest::Dataset;
+use ingest::contract::tables::gravity;
+use std::path::Path;
+
+/// The epochs as the section draws them.
+struct Epoch {
+    session: u16,
+    time_ns: i64,
+    lat: f64,
+    lon: f64,
+    filtered: f64,
+    sigma: f64,
+    parts: [f64; 4],
+}
+
+/// Most points a plot draws (every k-th epoch beyond).
+const MAX_POINTS: usize = 1500;
+
+/// The section, or None when OUT holds no gravity stage output.
+pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section>, Error> {
+    let dir = out.join(STAGE_DIR);
+    let ledger = dir.join(LEDGER_FILE);
+    if !ledger.exists() {
+        return Ok(None);
+    }
+    let r: GravityReport = ingest::read_json(&ledger)?;
+    ingest::contract::custody::check_dataset(&ledger, &r.dataset, &ds.manifest.name)?;
+    let table = dir.join(gravity::FILE);
+    if ingest::contract::custody::sha256_file(&table)? != r.sha256 {
+        return Err(ingest::Error::Stale {
+            path: table,
+            message: "is not the table gravity.json recorded: re-run `cargo xtask gravity`"
+                .to_owned(),
+        }
+        .into());
+    }
+    let epochs = read(&table)?;
+    let mut s = section("Gravity along the track");
+    s.text.push(summary(&r));
+    s.tables.push(("What was reduced".to_owned(), reduced(&r)));
+    s.tables
+        .push(("Ties and drift, per stretch".to_owned(), ties(&r)));
+    s.tables.push((
+        "The filtered disturbance down and its sigma (mGal; the sigma's parts are medians)"
+            .to_owned(),
+        disturbance(ds, &epochs),
+    ));
+    s.plots.extend(plots(&epochs)?);
+    Ok(Some(s))
+}
+
+fn summary(r: &GravityReport) -> String {
+    let c = &r.calibration;
+    format!(
+        "The survey reduced to the gravity disturbance down (docs/formats.md 10): the \
+         calibration of {} (model {}, {}; sha256 {}) applied, the specific force down formed \
+         as follows: {}. Zero-phase {} with a cut-off period of {} s: a resolution (half \
+         wavelength) of {:.0} m at the median speed of {:.1} m/s. Epochs within one filter \
+         period of a stretch's ends are flagged edge, and the filtered values there lean on \
+         the padding.",
+        c.dataset,
+        c.model,
+        c.session,
+        &c.sha256[..c.sha256.len().min(12)],
+        r.specific_force,
+        r.filter.kind,
+        r.filter.filter_s,
+        r.filter.resolution_m,
+        r.filter.median_speed_m_s
+    )
+}
+
+fn counts(m: &std::collections::BTreeMap<String, u64>) -> String {
+    if m.is_empty() {
+        return "none".to_owned();
+    }
+    m.iter()
+        .map(|(k, n)| format!("{n} {k}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn reduced(r: &GravityReport) -> Table {
+    let mut t = Table::new(&[
+        "session",
+        "epochs read",
+        "used",
+        "dropped",
+        "flagged",
+        "stretches",
+        "gaps",
+    ]);
+    for s in &r.sessions {
+        t.rows.push(vec![
+            s.id.clone(),
+            s.epochs_read.to_string(),
+            s.epochs_used.to_string(),
+            counts(&s.dropped),
+            counts(&s.flagged),
+            s.stretches.len().to_string(),
+            s.gaps.to_string(),
+        ]);
+    }
+    t
+}
+
+fn ties(r: &GravityReport) -> Table {
+    let mut t = Table::new(&[
+        "session",
+        "from",
+        "to",
+        "epochs",
+        "ties",
+        "offset (mGal)",
+        "drift (mGal/h)",
+    ]);
+    for s in &r.sessions {
+        for st in &s.stretches {
+            let (n, offset, drift) = match &st.drift {
+                Some(d) => (
+                    d.ties.to_string(),
+                    format!("{:.3} ± {:.3}", d.offset_mgal, d.sigma_offset_mgal),
+                    d.sigma_rate_mgal_per_h.map_or_else(
+                        || "none (one tie)".to_owned(),
+                        |sr| format!("{:.3} ± {sr:.3}", d.rate_mgal_per_h),
+                    ),
+                ),
+                None => (
+                    "0".to_owned(),
+                    "untied: the calibration's level".to_owned(),
+                    "none".to_owned(),
+                ),
+            };
+            t.rows.push(vec![
+                s.id.clone(),
+                st.first.clone(),
+                st.last.clone(),
+                st.epochs.to_string(),
+                n,
+                offset,
+                drift,
+            ]);
+        }
+    }
+    let unused = r.ties.iter().filter(|x| x.used_in.is_none()).count();
+    if unused > 0 {
+        t.rows.push(vec![
+            format!("{unused} tie(s) unused"),
+            "no stretch holds their still window".to_owned(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+            String::new(),
+        ]);
+    }
+    t
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn disturbance(ds: &Dataset, epochs: &[Epoch]) -> Table {
+    let mut t = Table::new(&[
+        "session",
+        "min",
+        "max",
+        "median sigma",
+        "calibration",
+        "positions",
+        "noise",
+        "tie",
+    ]);
+    for (index, s) in ds.sessions.iter().enumerate() {
+        let e: Vec<&Epoch> = epochs
+            .iter()
+            .filter(|e| usize::from(e.session) == index)
+            .collect();
+        if e.is_empty() {
+            continue;
+        }
+        let (lo, hi) = e
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                (a.min(x.filtered), b.max(x.filtered))
+            });
+        let mut row = vec![
+            s.session.id.clone(),
+            format!("{lo:.3}"),
+            format!("{hi:.3}"),
+            format!("{:.3}", median(e.iter().map(|x| x.sigma).collect())),
+        ];
+        for k in 0..4 {
+            row.push(format!(
+                "{:.3}",
+                median(e.iter().map(|x| x.parts[k]).collect())
+            ));
+        }
+        t.rows.push(row);
+    }
+    t
+}
+
+fn read(path: &Path) -> Result<Vec<Epoch>, Error> {
+    let names = [
+        "latitude_deg",
+        "longitude_deg",
+        "down_filtered_mgal",
+        "sigma_down_mgal",
+        "sigma_calibration_mgal",
+        "sigma_positions_mgal",
+        "sigma_noise_mgal",
+        "sigma_tie_mgal",
+    ];
+    let mut out = Vec::new();
+    align::read::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {
+        for i in 0..b.time_ns.len() {
+            let v = |k: usize| b.values[k].value(i);
+            out.push(Epoch {
+                session: b.session[i],
+                time_ns: b.time_ns[i],
+                lat: v(0),
+                lon: v(1),
+                filtered: v(2),
+                sigma: v(3),
+                parts: [v(4), v(5), v(6), v(7)],
+            });
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// The profile's points, every `step`-th epoch: (distance km, filtered, sigma), a new
+/// stretch where the epochs' interval jumps.
+fn profile(
+    e: &[&Epoch],
+    step: usize,
+    xy: &impl Fn(&Epoch) -> (f64, f64),
+) -> Vec<Vec<(f64, f64, f64)>> {
+    let interval = median(
+        e.windows(2)
+            .map(|w| (w[1].time_ns - w[0].time_ns) as f64)
+            .collect(),
+    );
+    let mut stretches: Vec<Vec<(f64, f64, f64)>> = vec![Vec::new()];
+    let mut distance = 0.0;
+    for (k, x) in e.iter().enumerate() {
+        if k > 0 {
+            let (a, b) = (xy(e[k - 1]), xy(x));
+            distance += (b.0 - a.0).hypot(b.1 - a.1);
+            if (x.time_ns - e[k - 1].time_ns) as f64 > 1.5 * interval {
+                stretches.push(Vec::new());
+            }
+        }
+        if k % step == 0 {
+            if let Some(last) = stretches.last_mut() {
+                last.push((distance, x.filtered, x.sigma));
+            }
+        }
+    }
+    stretches
+}
+
+/// The map and the profile, per session: east/north and distance from the session's first
+/// epoch (a local flat frame: a survey of tens of km), a new stretch of the profile where
+/// the epochs' interval jumps.
+fn plots(epochs: &[Epoch]) -> Result<Vec<(String, String)>, Error> {
+    let mut out = Vec::new();
+    let sessions: std::collections::BTreeSet<u16> = epochs.iter().map(|e| e.session).collect();
+    for index in sessions {
+        let e: Vec<&Epoch> = epochs.iter().filter(|x| x.session == index).collect();
+        let step = e.len().div_ceil(MAX_POINTS).max(1);
+        let (lat0, lon0) = (e[0].lat, e[0].lon);
+        let k_lat = 111.2;
+        let k_lon = 111.2 * lat0.to_radians().cos();
+        let xy = |x: &Epoch| ((x.lon - lon0) * k_lon, (x.lat - lat0) * k_lat);
+        let map: Vec<(f64, f64, f64)> = e
+            .iter()
+            .step_by(step)
+            .map(|x| {
+                let (east, north) = xy(x);
+                (east, north, x.filtered)
+            })
+            .collect();
+        let stretches = profile(&e, step, &xy);
+        let plot_err = |name: &str| {
+            let name = name.to_owned();
+            move |message| Error::Plot { name, message }
+        };
+        let map_name = format!("gravity_map_{index}.svg");
+        let svg = plots::track_map(&plots::TrackMap {
+            title: "Filtered gravity disturbance down along the track",
+            points: &map,
+            value_label: "mGal",
+        })
+        .map_err(plot_err(&map_name))?;
+        out.push((map_name, svg));
+        let profile_name = format!("gravity_profile_{index}.svg");
+        let svg = plots::profile(&plots::Profile {
+            title: "Filtered gravity disturbance down with its 1-sigma band",
+            y_label: "disturbance down (mGal)",
+            stretches: &stretches,
+        })
+        .map_err(plot_err(&profile_name))?;
+        out.push((profile_name, svg));
+    }
+    Ok(out)
+}
