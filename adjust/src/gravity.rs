@@ -20,8 +20,7 @@
 //! - [`stage`]: the run, `cargo xtask gravity` (`tests/gravity_stage.rs`: the fixture
 //!   survey-lines recovered within its sigmas, each convention broken failing).
 //!
-//! Not built yet: north and east with attitude, crossovers, the report's section, the
-//! aircraft survey and the benchmark.
+//! Not built yet: north and east with attitude, crossovers.
 
 pub mod epochs;
 pub mod filter;

@@ -153,6 +153,23 @@ fn the_survey_lines_are_recovered_within_their_sigmas() {
     assert!((800..1200).contains(&turning), "{turning} turning epochs");
 }
 
+#[test]
+fn an_aircraft_survey_is_recovered_within_its_sigmas() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("aircraft");
+    let plan = fixtures::survey_lines::aircraft_plan();
+    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("aircraft survey");
+    let out = dir.path().join("out");
+    let r = reduce(&dataset, &out);
+    let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+    eprintln!(
+        "aircraft at {} m/s, {} m up: rms error {rms:.3} mGal at {:.0} m resolution; rms of \
+         error / sigma {z:.3}",
+        plan.speed_m_s, plan.climb_m, r.filter.resolution_m
+    );
+    assert!((0.8..1.2).contains(&z), "rms z {z}");
+}
+
 /// survey-lines with its manifest edited, reduced.
 fn edited(edit: impl FnOnce(String) -> String) -> (tempfile::TempDir, PathBuf, PathBuf) {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -270,4 +287,30 @@ fn the_new_keys_are_refused_where_they_cannot_work() {
             "{key}: {e}"
         );
     }
+}
+
+/// The sigma over replicas: the boat survey with other noise (8 seeds: the positions' and the
+/// triad's), reduced; the pooled rms of error / sigma over the epochs not at an edge.
+#[test]
+fn monte_carlo_of_the_boat_sigmas() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (mut sum_z2, mut sum_e2, mut n) = (0.0, 0.0, 0.0);
+    for seed in 1..=8u64 {
+        let plan = fixtures::survey_lines::LinesPlan {
+            seed,
+            ..fixtures::survey_lines::plan()
+        };
+        let dataset = dir.path().join(format!("boat-{seed}"));
+        fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+        let out = dir.path().join(format!("out-{seed}"));
+        let r = args(&dataset).run(&out).expect("gravity");
+        let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+        eprintln!("seed {seed}: rms error {rms:.3} mGal, rms z {z:.3}");
+        sum_z2 += z * z;
+        sum_e2 += rms * rms;
+        n += 1.0;
+    }
+    let (z, rms) = ((sum_z2 / n).sqrt(), (sum_e2 / n).sqrt());
+    eprintln!("8 boat replicas: rms error {rms:.3} mGal, pooled rms of error / sigma {z:.3}");
+    assert!((0.85..1.15).contains(&z), "pooled rms z {z}");
 }

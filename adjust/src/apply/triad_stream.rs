@@ -82,6 +82,54 @@ impl TriadFunction {
         })
     }
 
+    /// The readings the function maps to the vector `a` (Newton's method on the model, from
+    /// the biases; models without temperature terms only): what an epoch's mean specific
+    /// force was read as. None where it does not converge or the model has temperature
+    /// terms.
+    pub fn readings_for(&self, a: [f64; 3]) -> Option<[f64; 3]> {
+        if self.model.temperature {
+            return None;
+        }
+        let mut x: [f64; 3] = std::array::from_fn(|j| self.p[6 + j] + a[j] / self.p[3 + j]);
+        for _ in 0..20 {
+            let (got, d) = self.model.evaluate(&self.p, x, [0.0; 3], None);
+            let r: [f64; 3] = std::array::from_fn(|j| got[j] - a[j]);
+            // d is upper triangular (T times the axes' derivatives): back-substitution.
+            let mut step = [0.0; 3];
+            for i in (0..3).rev() {
+                let rest: f64 = (i + 1..3).map(|j| d[i][j] * step[j]).sum();
+                step[i] = (r[i] - rest) / d[i][i];
+            }
+            for j in 0..3 {
+                x[j] -= step[j];
+            }
+            if step.iter().all(|v| v.abs() < 1e-9) {
+                return x.iter().all(|v| v.is_finite()).then_some(x);
+            }
+        }
+        None
+    }
+
+    /// The gradient by the parameters of m . (c(x) - c(x_ref)): how the calibration's
+    /// error along `m` that a tie read at `x_ref` does not take away depends on the
+    /// parameters' errors (a bias cancels; scales and angles act on the difference of the
+    /// vectors). Models without temperature terms.
+    pub fn difference_gradient(&self, x: [f64; 3], x_ref: [f64; 3], m: [f64; 3]) -> Vec<f64> {
+        let n = self.p.len();
+        let mut j1 = [0.0; 3 * MAX_PARAMS];
+        let mut j0 = [0.0; 3 * MAX_PARAMS];
+        self.model.evaluate(&self.p, x, [0.0; 3], Some(&mut j1));
+        self.model.evaluate(&self.p, x_ref, [0.0; 3], Some(&mut j0));
+        (0..n)
+            .map(|c| (0..3).map(|r| m[r] * (j1[r * n + c] - j0[r * n + c])).sum())
+            .collect()
+    }
+
+    /// The parameters' covariance, row-major n x n.
+    pub fn covariance(&self) -> &[f64] {
+        &self.cov
+    }
+
     /// Whether the model needs temperatures.
     pub fn needs_temperature(&self) -> bool {
         self.model.temperature

@@ -33,9 +33,47 @@ pub struct Stretch {
     pub f_down_mgal: Vec<f64>,
     /// Its sigma from the calibration's covariance, mGal.
     pub sigma_f_mgal: Vec<f64>,
+    /// Where a tie will fix the level: how the calibration's error at each epoch less its
+    /// error at the first tie (what the tie does not take away) depends on the parameters;
+    /// None: taken as the difference of the sigmas (exact when one parameter dominates).
+    pub calibration_tied: Option<TiedCalibration>,
     /// The sd of the epoch's value from the samples' own noise (their scatter in the epoch
     /// over the square root of their number), mGal; 0 where unknown.
     pub noise_f_mgal: Vec<f64>,
+}
+
+/// The calibration's error left after a tie, as a linear function of the parameters' errors.
+#[derive(Clone, Debug, Default)]
+pub struct TiedCalibration {
+    /// Per parameter, per epoch: d(error at the epoch - error at the tie) / d(parameter), mGal.
+    pub gradient: Vec<Vec<f64>>,
+    /// The parameters' covariance, row-major n x n.
+    pub covariance: Vec<f64>,
+}
+
+impl TiedCalibration {
+    /// The sd at each epoch of the filtered error: the gradients filtered (the filter is
+    /// linear and the parameters common to all epochs), then g C g^T.
+    fn filtered_sigma(&self, sections: &[filter::Section], pad: usize, pivot: usize) -> Vec<f64> {
+        let g: Vec<Vec<f64>> = self
+            .gradient
+            .iter()
+            .map(|x| filter::filtfilt_pivoted(sections, x, pad, pivot))
+            .collect();
+        let n = g.len();
+        let epochs = g.first().map_or(0, Vec::len);
+        (0..epochs)
+            .map(|k| {
+                let mut var = 0.0;
+                for a in 0..n {
+                    for b in 0..n {
+                        var += g[a][k] * self.covariance[a * n + b] * g[b][k];
+                    }
+                }
+                var.max(0.0).sqrt()
+            })
+            .collect()
+    }
 }
 
 /// A static tie: the still window's centre and length, and gravity there.
@@ -250,12 +288,19 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
     out.sigma_tie_mgal = vec![0.0; n];
     if let Some(d) = &drift {
         let at_tie = nearest(t, d.reference_gps_ns).map_or(0.0, |k| calibration[k]);
+        let tied = s
+            .calibration_tied
+            .as_ref()
+            .map(|c| c.filtered_sigma(&sections, pad, pivot));
         for k in 0..n {
             let (c, sigma) = d.at(t[k]);
             raw[k] -= c;
             filtered[k] -= c;
             out.sigma_tie_mgal[k] = sigma;
-            calibration[k] = (calibration[k] - at_tie).abs();
+            calibration[k] = match &tied {
+                Some(v) => v[k],
+                None => (calibration[k] - at_tie).abs(),
+            };
         }
     }
     out.sigma_calibration_mgal = calibration;

@@ -7,8 +7,9 @@
 
 use super::GravityError;
 use super::epochs::{self, Bin, DownForce, Target};
-use super::reduce::{self, Reduced, Stretch, Tie};
+use super::reduce::{self, Reduced, Stretch, Tie, TiedCalibration};
 use super::trajectory::{self, Trajectory};
+use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
     DriftFitted, FilterUsed, GravityReport, Input, LEDGER_FILE, LEDGER_FORMAT, STAGE_DIR,
@@ -52,13 +53,14 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     let survey = ds.manifest.survey.clone().unwrap_or_default();
     let table = out.join(apply_ledger::STAGE_DIR).join(applied::FILE);
     let force = down_force(&applied, &survey, opts.accelerometer)?;
+    let triad = triad_function(&applied, opts.apply.calibration)?;
     let tracks = read_tracks(&ds, survey.lever_arm_m[2])?;
     let targets: Vec<Target<'_>> = tracks
         .iter()
         .map(|t| Target {
             session: t.index,
             times: &t.times,
-            half_ns: median_interval_ns(&t.times) / 2,
+            interval_ns: median_interval_ns(&t.times),
         })
         .collect();
     let interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
@@ -80,6 +82,10 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
             ties: &ds.ties,
             samples_per_s: per_epoch,
             sample_sd_mgal: filled.sample_sd_mgal[k],
+            triad: match (&triad, &force) {
+                (Some(f), DownForce::Triad { row }) => Some((f, *row)),
+                _ => None,
+            },
         };
         sessions.push(reduce_track(track, bins, &ctx, &mut rows, &mut ties)?);
     }
@@ -176,6 +182,72 @@ fn down_force(
     Ok(DownForce::Axis { id: id.to_owned() })
 }
 
+/// The triad function of the calibration applied, when it has no temperature terms (the
+/// stage then carries the calibration's error left after a tie from the parameters).
+fn triad_function(
+    applied: &ApplyReport,
+    calibration: &Path,
+) -> Result<Option<TriadFunction>, GravityError> {
+    if applied.quantity != crate::apply::stream::TRIAD_QUANTITY {
+        return Ok(None);
+    }
+    let cal: ingest::contract::calibration::Calibration = ingest::read_json(calibration)?;
+    let used = &applied.calibration;
+    let Some(r) = cal
+        .triad
+        .iter()
+        .find(|t| t.model == used.model && t.session == used.session)
+    else {
+        return Ok(None);
+    };
+    let f = TriadFunction::new(r).map_err(|message| GravityError::Refused { message })?;
+    Ok((!f.needs_temperature()).then_some(f))
+}
+
+/// The calibration's error at each epoch of the stretch less its error at the first tie
+/// with a window of two epochs or more (the drift's reference), as gradients by the
+/// parameters: each epoch's mean vector and the tie window's read back into readings.
+/// None without such a tie or where a vector cannot be read back.
+fn tied_calibration(
+    f: &TriadFunction,
+    row: [f64; 3],
+    bins: &[Bin],
+    span: std::ops::Range<usize>,
+    s: &Stretch,
+    inside: &[(usize, Tie)],
+) -> Option<TiedCalibration> {
+    let window = inside.iter().find_map(|(_, tie)| {
+        let half = (tie.duration_s * 0.5e9) as i64;
+        let idx: Vec<usize> = (0..s.time_gps_ns.len())
+            .filter(|&i| (s.time_gps_ns[i] - tie.time_gps_ns).abs() <= half)
+            .collect();
+        (idx.len() >= 2).then_some(idx)
+    })?;
+    let mut reference = [0.0; 3];
+    for &i in &window {
+        let v = bins[span.start + i].mean_vector();
+        for k in 0..3 {
+            reference[k] += v[k] / window.len() as f64;
+        }
+    }
+    let x_ref = f.readings_for(reference)?;
+    let n = f.covariance().len().isqrt();
+    let mut gradient = vec![Vec::with_capacity(span.len()); n];
+    for k in span {
+        let x = f.readings_for(bins[k].mean_vector())?;
+        for (series, g) in gradient
+            .iter_mut()
+            .zip(f.difference_gradient(x, x_ref, row))
+        {
+            series.push(g);
+        }
+    }
+    Some(TiedCalibration {
+        gradient,
+        covariance: f.covariance().to_vec(),
+    })
+}
+
 /// For gravity.json: how f_D was formed.
 fn describe(force: &DownForce, survey: &SurveyConfig) -> String {
     match force {
@@ -252,6 +324,9 @@ struct Context<'a> {
     ties: &'a [ResolvedTie],
     samples_per_s: f64,
     sample_sd_mgal: f64,
+    /// A triad model without temperature terms, and the mounting's down row: the
+    /// calibration's error left after a tie, from the parameters.
+    triad: Option<(&'a TriadFunction, [f64; 3])>,
 }
 
 /// One session reduced: its epochs checked, cut into stretches, each reduced and its rows
@@ -279,6 +354,10 @@ fn reduce_track(
     for span in spans {
         let s = stretch(track, bins, span.clone(), ctx.sample_sd_mgal);
         let inside = ties_inside(ctx.ties, &s);
+        let mut s = s;
+        s.calibration_tied = ctx
+            .triad
+            .and_then(|(f, row)| tied_calibration(f, row, bins, span.clone(), &s, &inside));
         let only: Vec<Tie> = inside.iter().map(|(_, t)| *t).collect();
         let r = match reduce::reduce(&s, ctx.survey.filter_s, &only) {
             Ok(r) => r,
@@ -334,14 +413,14 @@ fn stretches(
     expected: f64,
     dropped: &mut BTreeMap<String, u64>,
 ) -> (Vec<std::ops::Range<usize>>, u64) {
-    let need = (0.5 * expected).ceil().max(1.0) as u32;
+    let need = (0.5 * expected).max(1.0);
     let mut out = Vec::new();
     let mut gaps = 0;
     let mut start: Option<usize> = None;
     for k in 0..=times.len() {
-        let valid = k < times.len() && bins[k].with_value >= need;
+        let valid = k < times.len() && bins[k].value_weight >= need;
         if k < times.len() && !valid {
-            let reason = if bins[k].samples >= need {
+            let reason = if bins[k].weight >= need {
                 dropped::NO_CALIBRATED_VALUE
             } else {
                 dropped::NO_SPECIFIC_FORCE
