@@ -265,10 +265,10 @@ fn profile(
                 stretches.push(Vec::new());
             }
         }
-        if k % step == 0 {
-            if let Some(last) = stretches.last_mut() {
-                last.push((distance, x.filtered, x.sigma));
-            }
+        if k % step == 0
+            && let Some(last) = stretches.last_mut()
+        {
+            last.push((distance, x.filtered, x.sigma));
         }
     }
     stretches

@@ -359,3 +359,85 @@ fn the_first_screen_holds_every_calibration() {
         }
     }
 }
+
+/// A survey reduced to gravity gets its section: what was reduced, the ties and drift, the
+/// disturbance and its sigma's parts, the map and the profile; Chromium renders both plots
+/// inline.
+#[test]
+fn the_gravity_section_shows_the_track() {
+    let cal_out = tempfile::tempdir().expect("tempdir");
+    let multipos = fixtures::dataset_dir(fixtures::triad::MULTIPOS);
+    ingest::run(&multipos, cal_out.path()).expect("ingest");
+    align::run(&multipos, cal_out.path()).expect("align");
+    adjust::run(&multipos, cal_out.path()).expect("adjust");
+    let dataset = fixtures::dataset_dir(fixtures::survey_lines::SURVEY_LINES);
+    let out = pipeline(&dataset);
+    let g = adjust::gravity::stage::GravityArgs {
+        dataset: dataset.clone(),
+        calibration: cal_out.path().join("adjust/calibration.json"),
+        model: None,
+        session: Some("lab".to_owned()),
+        accelerometer: None,
+        out: None,
+    }
+    .run(out.path())
+    .expect("gravity");
+    report::run(&dataset, out.path()).expect("report");
+    let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("md");
+    assert!(md.contains("## Gravity along the track"), "{md}");
+    assert!(
+        md.contains(&format!("{:.0} m", g.filter.resolution_m)),
+        "{md}"
+    );
+    assert!(md.contains("Ties and drift, per stretch"), "{md}");
+    for plot in ["gravity_map_0.svg", "gravity_profile_0.svg"] {
+        let svg = std::fs::read_to_string(out.path().join("report/plots").join(plot))
+            .unwrap_or_else(|e| panic!("{plot}: {e}"));
+        assert!(svg.matches("<circle").count() + svg.matches("<polyline").count() > 10);
+    }
+    // The report's section stays with its table: a gravity.parquet changed is named.
+    let table = out.path().join("gravity/gravity.parquet");
+    let mut bytes = std::fs::read(&table).expect("table");
+    let last = bytes.len() - 100;
+    bytes[last] ^= 1;
+    std::fs::write(&table, bytes).expect("write");
+    let e = report::run(&dataset, out.path())
+        .expect_err("stale")
+        .to_string();
+    assert!(e.contains("gravity.parquet") && e.contains("re-run"), "{e}");
+    let Some(browser) = chromium() else {
+        assert!(std::env::var("GRAVCAL_SKIP_BROWSER").is_ok(), "no Chromium");
+        eprintln!("skipped the browser: GRAVCAL_SKIP_BROWSER is set");
+        return;
+    };
+    // Rebuilt whole, then opened.
+    let _ = std::fs::remove_dir_all(out.path().join("gravity"));
+    adjust::gravity::stage::GravityArgs {
+        dataset: dataset.clone(),
+        calibration: cal_out.path().join("adjust/calibration.json"),
+        model: None,
+        session: Some("lab".to_owned()),
+        accelerometer: None,
+        out: None,
+    }
+    .run(out.path())
+    .expect("gravity");
+    report::run(&dataset, out.path()).expect("report");
+    let profile = tempfile::tempdir().expect("profile");
+    let url = format!("file://{}", out.path().join("report/index.html").display());
+    let dom = headless(&browser, profile.path())
+        .arg("--dump-dom")
+        .arg(&url)
+        .output()
+        .expect("chromium runs");
+    let dom = String::from_utf8_lossy(&dom.stdout);
+    assert!(
+        dom.contains("Gravity along the track"),
+        "no gravity section"
+    );
+    assert!(
+        dom.contains("Filtered gravity disturbance down along the track")
+            && dom.contains("with its 1-sigma band"),
+        "the map and the profile are not in the DOM"
+    );
+}

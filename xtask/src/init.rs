@@ -126,7 +126,18 @@ fn recognise(path: &Path) -> Result<Found> {
 /// header naming the latitude, and its time scale) or a CSV whose header begins
 /// `time,lat_deg`; its span and rate from its ends.
 fn trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
-    let found = |layout, time, times: Vec<i64>, last: Option<i64>| Found {
+    rtklib_trajectory(rel, head, tail).or_else(|| csv_trajectory(rel, head, tail))
+}
+
+/// A trajectory's entry: its layout, time form, and span and rate from its ends' times.
+fn trajectory_found(
+    rel: &str,
+    layout: Layout,
+    time: Option<TimeForm>,
+    times: Vec<i64>,
+    last: Option<i64>,
+) -> Found {
+    Found {
         rel: rel.to_owned(),
         layout,
         time,
@@ -135,41 +146,48 @@ fn trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
         channels: 3,
         comments: String::new(),
         magnitude: 0.0,
-    };
-    if let Some(h) = head
-        .lines()
-        .find(|l| l.starts_with('%') && l.contains("latitude"))
-    {
-        let scale = if h.contains("UTC") {
-            TimeScale::Utc
-        } else {
-            TimeScale::Gpst
-        };
-        let time = |l: &str| -> Option<i64> {
-            let f: Vec<&str> = l.split_whitespace().collect();
-            if l.starts_with('%') || f.len() < 10 {
-                return None;
-            }
-            if f[0].contains('/') {
-                let iso = format!("{}T{}", f[0].replace('/', "-"), f[1]);
-                TimeReader::new(TimeForm::Iso, scale, None)
-                    .read(&[iso.as_bytes()])
-                    .ok()
-            } else {
-                TimeReader::new(TimeForm::GpsWeekTow, scale, None)
-                    .read(&[f[0].as_bytes(), f[1].as_bytes()])
-                    .ok()
-            }
-        };
-        let times: Vec<i64> = head.lines().filter_map(time).collect();
-        let last = tail.lines().skip(1).filter_map(time).last();
-        return Some(found(
-            Layout::Trajectory(TrajectoryFormat::Rtklib),
-            None,
-            times,
-            last,
-        ));
     }
+}
+
+/// An RTKLIB solution file: a `%` column header naming the latitude and the time scale.
+fn rtklib_trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
+    let h = head
+        .lines()
+        .find(|l| l.starts_with('%') && l.contains("latitude"))?;
+    let scale = if h.contains("UTC") {
+        TimeScale::Utc
+    } else {
+        TimeScale::Gpst
+    };
+    let time = |l: &str| -> Option<i64> {
+        let f: Vec<&str> = l.split_whitespace().collect();
+        if l.starts_with('%') || f.len() < 10 {
+            return None;
+        }
+        if f[0].contains('/') {
+            let iso = format!("{}T{}", f[0].replace('/', "-"), f[1]);
+            TimeReader::new(TimeForm::Iso, scale, None)
+                .read(&[iso.as_bytes()])
+                .ok()
+        } else {
+            TimeReader::new(TimeForm::GpsWeekTow, scale, None)
+                .read(&[f[0].as_bytes(), f[1].as_bytes()])
+                .ok()
+        }
+    };
+    let times: Vec<i64> = head.lines().filter_map(time).collect();
+    let last = tail.lines().skip(1).filter_map(time).last();
+    Some(trajectory_found(
+        rel,
+        Layout::Trajectory(TrajectoryFormat::Rtklib),
+        None,
+        times,
+        last,
+    ))
+}
+
+/// A CSV trajectory: a header beginning `time,lat_deg`; its time form from the first line.
+fn csv_trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
     let (lines, _) = data_lines(head);
     let header = lines.first()?;
     if !(header.len() >= 4 && header[0] == "time" && header[1] == "lat_deg") {
@@ -191,7 +209,8 @@ fn trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
     let times: Vec<i64> = lines.iter().skip(1).filter_map(time).collect();
     let (tail_lines, _) = data_lines(tail);
     let last = tail_lines.iter().skip(1).filter_map(time).next_back();
-    Some(found(
+    Some(trajectory_found(
+        rel,
         Layout::Trajectory(TrajectoryFormat::Csv),
         Some(form),
         times,
@@ -607,16 +626,7 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
         .iter()
         .copied()
         .find(|f| matches!(f.layout, Layout::Trajectory(_)));
-    let kind = if theodolite.is_some() {
-        "\"tilt-table\"".to_owned()
-    } else if track.is_some() {
-        "\"survey\"                # a trajectory: a survey reduced to gravity".to_owned()
-    } else {
-        format!(
-            "{FILL}                # no theodolite log: \"multi-position\" (a triad calibrated) or \"survey\" (a calibration applied)"
-        )
-    };
-    let _ = writeln!(t, "kind = {kind}");
+    let _ = writeln!(t, "kind = {}", kind(theodolite.is_some(), track.is_some()));
     if let Some(b) = get(Layout::Binary) {
         let _ = writeln!(t, "acquisition = \"{}\"", b.rel);
     } else if let Some(l) = lab {
@@ -670,6 +680,20 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
         "# days = 2                      # UTC days the session spans from its date\n"
     );
     theodolite.is_none() && lab.is_some() && track.is_none()
+}
+
+/// A session's kind: a theodolite log makes it a tilt table, a trajectory a survey; else
+/// the user says which.
+fn kind(theodolite: bool, trajectory: bool) -> String {
+    if theodolite {
+        "\"tilt-table\"".to_owned()
+    } else if trajectory {
+        "\"survey\"                # a trajectory: a survey reduced to gravity".to_owned()
+    } else {
+        format!(
+            "{FILL}                # no theodolite log: \"multi-position\" (a triad calibrated) or \"survey\" (a calibration applied)"
+        )
+    }
 }
 
 /// A survey session's trajectory keys, and the `[survey]` table's, commented: how the
