@@ -250,6 +250,39 @@ fn a_gap_cuts_the_track_and_every_epoch_is_accounted_for() {
 }
 
 #[test]
+fn a_stage_that_would_reduce_nothing_or_the_wrong_thing_is_refused() {
+    // A trajectory from another day: no epoch has specific force.
+    let (_dir, dataset, out) = edited(|m| m);
+    let pos = dataset.join("raw/lines.pos");
+    let text = std::fs::read_to_string(&pos).expect("pos");
+    std::fs::write(&pos, text.replace("2026/06/10", "2026/06/11")).expect("write");
+    let e = args(&dataset)
+        .run(&out)
+        .expect_err("nothing reduced")
+        .to_string();
+    assert!(
+        e.contains("session lines: none of its") && e.contains("no_specific_force"),
+        "{e}"
+    );
+    // A trajectory a year off: outside the session's days, each epoch counted so.
+    let (_dir, dataset, out) = edited(|m| m);
+    let pos = dataset.join("raw/lines.pos");
+    let text = std::fs::read_to_string(&pos).expect("pos");
+    std::fs::write(&pos, text.replace("2026/06/10", "2027/06/10")).expect("write");
+    let e = args(&dataset).run(&out).expect_err("outside").to_string();
+    assert!(e.contains("outside_session"), "{e}");
+    // --accelerometer with a triad model.
+    let (_dir, dataset, out) = edited(|m| m);
+    let mut a = args(&dataset);
+    a.accelerometer = Some("acc1".to_owned());
+    let e = a
+        .run(&out)
+        .expect_err("a triad has no axis to choose")
+        .to_string();
+    assert!(e.contains("--accelerometer") && e.contains("triad"), "{e}");
+}
+
+#[test]
 fn the_new_keys_are_refused_where_they_cannot_work() {
     let cases: [(&str, &str, &str); 5] = [
         (

@@ -32,7 +32,8 @@ pub struct Options<'a> {
 }
 
 /// A survey session's trajectory, read and made ready: the accelerometers' heights (the
-/// lever arm applied), epochs whose time does not increase dropped.
+/// lever arm applied), epochs outside the session's days or whose time does not increase
+/// dropped.
 struct Track<'a> {
     index: u16,
     session: &'a ResolvedSession,
@@ -87,7 +88,23 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
                 _ => None,
             },
         };
-        sessions.push(reduce_track(track, bins, &ctx, &mut rows, &mut ties)?);
+        let summary = reduce_track(track, bins, &ctx, &mut rows, &mut ties)?;
+        if summary.epochs_used == 0 {
+            let why: Vec<String> = summary
+                .dropped
+                .iter()
+                .map(|(k, n)| format!("{n} {k}"))
+                .collect();
+            return Err(GravityError::Refused {
+                message: format!(
+                    "session {}: none of its {} trajectory epochs could be reduced ({})",
+                    summary.id,
+                    summary.epochs_read,
+                    why.join(", ")
+                ),
+            });
+        }
+        sessions.push(summary);
     }
     let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let filter = filter_used(&rows, survey.filter_s);
@@ -279,7 +296,14 @@ fn read_tracks(ds: &Dataset, lever_down_m: f64) -> Result<Vec<Track<'_>>, Gravit
         let mut dropped = BTreeMap::new();
         let mut kept = Vec::with_capacity(trajectory.time_gps_ns.len());
         let mut times = Vec::with_capacity(kept.capacity());
+        let (from, to) = s.gps_range_ns();
         for (k, &t) in trajectory.time_gps_ns.iter().enumerate() {
+            if !(from..to).contains(&t) {
+                *dropped
+                    .entry(dropped::OUTSIDE_SESSION.to_owned())
+                    .or_insert(0) += 1;
+                continue;
+            }
             if times.last().is_some_and(|&last| t <= last) {
                 *dropped
                     .entry(dropped::NOT_INCREASING.to_owned())

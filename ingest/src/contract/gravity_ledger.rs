@@ -24,6 +24,8 @@ pub mod dropped {
     pub const STRETCH_TOO_SHORT: &str = "stretch_too_short";
     /// Its time repeats or goes back from the epoch before.
     pub const NOT_INCREASING: &str = "time_not_increasing";
+    /// Its time lies outside the session's days (the time gate of every log).
+    pub const OUTSIDE_SESSION: &str = "outside_session";
 }
 
 /// A file read, with its hash.
