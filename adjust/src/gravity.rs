@@ -17,13 +17,19 @@
 //!   gravity, the filter with the stretch's ends extended consistently, ties and a drift,
 //!   the sigmas apart (`tests/gravity_reduce.rs`);
 //! - [`epochs`]: apply's calibrated samples brought onto the trajectory's epochs;
+//! - [`crossover`]: where the track crosses itself, the two passes' difference and its
+//!   sigma;
 //! - [`stage`]: the run, `cargo xtask gravity` (`tests/gravity_stage.rs`: the fixture
-//!   survey-lines recovered within its sigmas, each convention broken failing).
+//!   survey-lines recovered within its sigmas, its crossover within its sigma, each
+//!   convention broken failing).
 //!
-//! Not built yet: north and east with attitude, crossovers.
+//! Not built yet: north and east with attitude.
 
+pub mod attitude;
+pub mod crossover;
 pub mod epochs;
 pub mod filter;
+pub mod horizontal;
 pub mod navigation;
 pub mod normal;
 pub mod reduce;

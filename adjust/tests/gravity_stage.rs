@@ -87,20 +87,7 @@ fn truth_at(dataset: &Path) -> impl Fn(f64) -> f64 {
 /// not flagged as edges; the filtered truth is the truth at the epochs through the stage's
 /// filter (checked against scipy in gravity_peers.rs).
 fn scores(dataset: &Path, out: &Path, filter_s: f64) -> (f64, f64) {
-    let rows = rows(out);
-    let truth = truth_at(dataset);
-    let dt = (rows[1].time_s - rows[0].time_s).abs();
-    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt).expect("filter");
-    // The truth filtered stretch by stretch, as the stage filters.
-    let mut want = Vec::with_capacity(rows.len());
-    let mut start = 0;
-    for k in 1..=rows.len() {
-        if k == rows.len() || rows[k].time_s - rows[k - 1].time_s > 1.5 * dt {
-            let raw: Vec<f64> = rows[start..k].iter().map(|r| truth(r.time_s)).collect();
-            want.extend(filter::filtfilt(&sections, &raw).expect("filtered truth"));
-            start = k;
-        }
-    }
+    let (rows, want) = filtered_truth(dataset, out, filter_s);
     let inner: Vec<usize> = (0..rows.len())
         .filter(|&k| rows[k].flags & gravity::EDGE == 0)
         .collect();
@@ -120,6 +107,58 @@ fn scores(dataset: &Path, out: &Path, filter_s: f64) -> (f64, f64) {
         / n)
         .sqrt();
     (rms, z)
+}
+
+/// The rows of gravity.parquet and the truth at each through the stage's filter, stretch by
+/// stretch.
+fn filtered_truth(dataset: &Path, out: &Path, filter_s: f64) -> (Vec<Row>, Vec<f64>) {
+    let rows = rows(out);
+    let truth = truth_at(dataset);
+    let dt = (rows[1].time_s - rows[0].time_s).abs();
+    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt).expect("filter");
+    // The truth filtered stretch by stretch, as the stage filters.
+    let mut want = Vec::with_capacity(rows.len());
+    let mut start = 0;
+    for k in 1..=rows.len() {
+        if k == rows.len() || rows[k].time_s - rows[k - 1].time_s > 1.5 * dt {
+            let raw: Vec<f64> = rows[start..k].iter().map(|r| truth(r.time_s)).collect();
+            want.extend(filter::filtfilt(&sections, &raw).expect("filtered truth"));
+            start = k;
+        }
+    }
+    (rows, want)
+}
+
+/// The one crossover of a survey-lines track, checked for where it is, and its error against
+/// the filtered truth's difference over its sigma.
+fn crossover_z(
+    plan: &fixtures::survey_lines::LinesPlan,
+    dataset: &Path,
+    out: &Path,
+    r: &GravityReport,
+) -> f64 {
+    assert_eq!(r.crossovers.len(), 1, "{:?}", r.crossovers);
+    let c = &r.crossovers[0];
+    let east_m = (c.longitude_deg - plan.origin[1]).to_radians()
+        * 6_378_137.0
+        * plan.origin[0].to_radians().cos();
+    let want_east = plan.crossing_east_m().expect("the lines cross");
+    assert!((east_m - want_east).abs() < 0.01 * plan.line_m, "{c:?} at {east_m} m");
+    assert!((c.angle_deg - plan.return_deg).abs() < 1.0, "{c:?}");
+    let (rows, want) = filtered_truth(dataset, out, r.filter.filter_s);
+    let truth = |ns: i64| {
+        let t = ns as f64 * 1e-9;
+        let k = rows.partition_point(|x| x.time_s <= t).clamp(1, rows.len() - 1);
+        let f = (t - rows[k - 1].time_s) / (rows[k].time_s - rows[k - 1].time_s);
+        want[k - 1] + f * (want[k] - want[k - 1])
+    };
+    let true_difference = truth(c.second.time_gps_ns) - truth(c.first.time_gps_ns);
+    let z = (c.difference_mgal - true_difference) / c.sigma_mgal;
+    eprintln!(
+        "crossover: {:+.3} +/- {:.3} mGal, the truth's {true_difference:+.3}: z {z:+.2}",
+        c.difference_mgal, c.sigma_mgal
+    );
+    z
 }
 
 fn reduce(dataset: &Path, out: &Path) -> GravityReport {
@@ -148,9 +187,11 @@ fn the_survey_lines_are_recovered_within_their_sigmas() {
     );
     assert_eq!(s.stretches.len(), 1);
     assert!(r.ties.iter().all(|t| t.used_in.is_some()) && r.ties.len() == 2);
-    // The U-turn (pi 150 m at 5 m/s, 94 s) is flagged as a turn, and little else.
+    // The turn (pi + 8.5 deg at 150 m and 5 m/s, 99 s) is flagged as a turn, little else.
     let turning = s.flagged.get("turn").copied().unwrap_or(0);
     assert!((800..1200).contains(&turning), "{turning} turning epochs");
+    let z = crossover_z(&fixtures::survey_lines::plan(), &dataset, out.path(), &r);
+    assert!(z.abs() < 3.5, "crossover z {z}");
 }
 
 #[test]
@@ -168,6 +209,8 @@ fn an_aircraft_survey_is_recovered_within_its_sigmas() {
         plan.speed_m_s, plan.climb_m, r.filter.resolution_m
     );
     assert!((0.8..1.2).contains(&z), "rms z {z}");
+    let z = crossover_z(&plan, &dataset, &out, &r);
+    assert!(z.abs() < 3.5, "crossover z {z}");
 }
 
 /// survey-lines with its manifest edited, reduced.
@@ -214,6 +257,107 @@ fn a_convention_broken_fails_the_truth() {
         let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
         eprintln!("{what}: rms error {rms:.3} mGal, rms z {z:.2}");
         assert!(z > 2.0, "{what}: rms z {z} (rms {rms} mGal) should fail");
+    }
+}
+
+/// The true disturbance north and east at `t` (GPS s), from truth.csv, linearly
+/// interpolated.
+fn truth_horizontal(dataset: &Path) -> impl Fn(f64) -> [f64; 2] {
+    let text = std::fs::read_to_string(dataset.join("truth.csv")).expect("truth.csv");
+    let table: Vec<(f64, [f64; 2])> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|x| x.parse().expect("number")).collect();
+            (f[0], [f[5], f[6]])
+        })
+        .collect();
+    move |t| {
+        let k = table
+            .partition_point(|(s, _)| *s <= t)
+            .clamp(1, table.len() - 1);
+        let ((t0, v0), (t1, v1)) = (table[k - 1], table[k]);
+        std::array::from_fn(|c| v0[c] + (v1[c] - v0[c]) * (t - t0) / (t1 - t0))
+    }
+}
+
+/// North and east against the truth through the stage's filter, over the epochs not at an
+/// edge: per component the rms error (mGal), the rms of error / sigma, and the median sigma
+/// and its attitude part.
+fn horizontal_scores(dataset: &Path, out: &Path, filter_s: f64) -> [[f64; 4]; 2] {
+    let path = out.join("gravity").join(gravity::FILE);
+    let names = [
+        "north_filtered_mgal",
+        "sigma_north_mgal",
+        "sigma_north_attitude_mgal",
+        "east_filtered_mgal",
+        "sigma_east_mgal",
+        "sigma_east_attitude_mgal",
+    ];
+    let (mut time, mut values, mut flags) = (Vec::new(), vec![Vec::new(); 6], Vec::new());
+    align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+        use arrow::array::Array;
+        for i in 0..b.time_ns.len() {
+            time.push(b.time_ns[i] as f64 * 1e-9);
+            for (c, v) in values.iter_mut().enumerate() {
+                assert!(b.values[c].is_valid(i), "{} null with attitude", names[c]);
+                v.push(b.values[c].value(i));
+            }
+            flags.push(b.flags[i]);
+        }
+        Ok(())
+    })
+    .expect("gravity.parquet");
+    let truth = truth_horizontal(dataset);
+    let dt = time[1] - time[0];
+    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt).expect("filter");
+    let inner: Vec<usize> = (0..time.len())
+        .filter(|&k| flags[k] & gravity::EDGE == 0)
+        .collect();
+    let n = inner.len() as f64;
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    std::array::from_fn(|c| {
+        let raw: Vec<f64> = time.iter().map(|&t| truth(t)[c]).collect();
+        let want = filter::filtfilt(&sections, &raw).expect("filtered truth");
+        let (est, sigma, att) = (&values[3 * c], &values[3 * c + 1], &values[3 * c + 2]);
+        let err = |k: usize| est[k] - want[k];
+        let rms = (inner.iter().map(|&k| err(k).powi(2)).sum::<f64>() / n).sqrt();
+        let z = (inner.iter().map(|&k| (err(k) / sigma[k]).powi(2)).sum::<f64>() / n).sqrt();
+        let sig = median(inner.iter().map(|&k| sigma[k]).collect());
+        let a = median(inner.iter().map(|&k| att[k]).collect());
+        [rms, z, sig, a]
+    })
+}
+
+/// A boat that rolls 3 deg and pitches 1 deg, with an attitude file 0.1 mrad wrong in roll
+/// and pitch (1 mrad in heading), errors wandering over 10 minutes: down as without
+/// attitude, north and east within their sigmas, which say how large the attitude makes
+/// them (g times 0.1 mrad, about 100 mGal).
+#[test]
+fn with_attitude_north_and_east_are_within_their_sigmas() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("attitude");
+    let plan = fixtures::survey_lines::attitude_plan();
+    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+    let out = dir.path().join("out");
+    let r = reduce(&dataset, &out);
+    assert!(r.specific_force.contains("attitude"), "{}", r.specific_force);
+    let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+    eprintln!("with attitude, down: rms error {rms:.3} mGal, rms z {z:.3}");
+    assert!((0.8..1.2).contains(&z), "down rms z {z}");
+    for (name, [rms, z, sigma, att]) in ["north", "east"]
+        .into_iter()
+        .zip(horizontal_scores(&dataset, &out, r.filter.filter_s))
+    {
+        eprintln!(
+            "with attitude, {name}: rms error {rms:.2} mGal, rms z {z:.3}; median sigma \
+             {sigma:.1} mGal, of it the attitude's {att:.1}"
+        );
+        assert!(z < 1.3, "{name} rms z {z}");
+        assert!((60.0..150.0).contains(&att), "{name}: attitude's part {att} mGal");
     }
 }
 
@@ -284,7 +428,7 @@ fn a_stage_that_would_reduce_nothing_or_the_wrong_thing_is_refused() {
 
 #[test]
 fn the_new_keys_are_refused_where_they_cannot_work() {
-    let cases: [(&str, &str, &str); 5] = [
+    let cases: [(&str, &str, &str); 7] = [
         (
             "trajectory_format = \"rtklib\"\n",
             "trajectory_format = \"rtklib\"\ntrajectory_time = \"iso\"\n",
@@ -293,6 +437,16 @@ fn the_new_keys_are_refused_where_they_cannot_work() {
         (
             "trajectory_format = \"rtklib\"\n",
             "trajectory_format = \"rtklib\"\nattitude = \"raw/lines.pos\"\n",
+            "session[0].attitude_time",
+        ),
+        (
+            "trajectory_format = \"rtklib\"\n",
+            "trajectory_format = \"rtklib\"\nattitude_time = \"iso\"\n",
+            "session[0].attitude_time",
+        ),
+        (
+            "trajectory_format = \"rtklib\"\n",
+            "trajectory_format = \"rtklib\"\nattitude = \"raw/none.csv\"\nattitude_time = \"iso\"\n",
             "session[0].attitude",
         ),
         (
@@ -327,7 +481,7 @@ fn the_new_keys_are_refused_where_they_cannot_work() {
 #[test]
 fn monte_carlo_of_the_boat_sigmas() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let (mut sum_z2, mut sum_e2, mut n) = (0.0, 0.0, 0.0);
+    let (mut sum_z2, mut sum_e2, mut n, mut crossing_z2) = (0.0, 0.0, 0.0, 0.0);
     for seed in 1..=8u64 {
         let plan = fixtures::survey_lines::LinesPlan {
             seed,
@@ -342,8 +496,16 @@ fn monte_carlo_of_the_boat_sigmas() {
         sum_z2 += z * z;
         sum_e2 += rms * rms;
         n += 1.0;
+        crossing_z2 += crossover_z(&plan, &dataset, &out, &r).powi(2);
     }
     let (z, rms) = ((sum_z2 / n).sqrt(), (sum_e2 / n).sqrt());
-    eprintln!("8 boat replicas: rms error {rms:.3} mGal, pooled rms of error / sigma {z:.3}");
+    let crossing_z = (crossing_z2 / n).sqrt();
+    eprintln!(
+        "8 boat replicas: rms error {rms:.3} mGal, pooled rms of error / sigma {z:.3}; \
+         crossovers' rms of error / sigma {crossing_z:.3}"
+    );
     assert!((0.85..1.15).contains(&z), "pooled rms z {z}");
+    // The sum of eight z^2 is chi-square with 8 degrees of freedom when the sigmas are
+    // honest: 0.6 % below the lower bound, 0.5 % above the upper.
+    assert!((0.42..1.65).contains(&crossing_z), "crossovers' rms z {crossing_z}");
 }

@@ -1,7 +1,8 @@
 //! The report's section on a survey reduced to gravity (docs/formats.md 10), when OUT holds
 //! the gravity stage's outputs for this dataset: what was reduced and dropped, the ties and
-//! drift of each stretch, the disturbance's range and sigma with its parts, the track on a
-//! map coloured by the filtered disturbance and the profile along the track with its
+//! drift of each stretch, the disturbance's range and sigma with its parts (north and east
+//! too where a session gives attitude), the crossovers,
+//! the track on a map coloured by the filtered disturbance and the profile along the track with its
 //! 1-sigma band.
 
 use crate::Error;
@@ -55,8 +56,68 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
             .to_owned(),
         disturbance(ds, &epochs),
     ));
+    if let Some(t) = horizontal(ds, &table)? {
+        s.tables.push((
+            "With attitude: the filtered disturbance north and east and their sigma (mGal; \
+             the sigma's parts are medians; never tied)"
+                .to_owned(),
+            t,
+        ));
+    }
+    s.tables.push((
+        "Crossovers: where the track crosses itself (mGal)".to_owned(),
+        crossovers(&r),
+    ));
     s.plots.extend(plots(&epochs)?);
     Ok(Some(s))
+}
+
+/// Each crossover's two passes, the difference against its sigma; then their rms and the
+/// rms of difference over sigma (near 1 when the sigmas are honest), or a row saying the
+/// track does not cross itself.
+fn crossovers(r: &GravityReport) -> Table {
+    let mut t = Table::new(&[
+        "where (lat, lon)",
+        "first pass",
+        "second pass",
+        "angle (deg)",
+        "difference",
+        "sigma",
+        "difference / sigma",
+    ]);
+    let pass = |p: &ingest::contract::gravity_ledger::Pass| {
+        format!(
+            "{} {} #{}: {:.3} ± {:.3}",
+            p.session, p.time, p.stretch, p.filtered_mgal, p.sigma_mgal
+        )
+    };
+    for c in &r.crossovers {
+        t.rows.push(vec![
+            format!("{:.5}, {:.5}", c.latitude_deg, c.longitude_deg),
+            pass(&c.first),
+            pass(&c.second),
+            format!("{:.0}", c.angle_deg),
+            format!("{:+.3}", c.difference_mgal),
+            format!("{:.3}", c.sigma_mgal),
+            format!("{:+.2}", c.difference_mgal / c.sigma_mgal),
+        ]);
+    }
+    let n = r.crossovers.len();
+    let mut last = vec![String::new(); 7];
+    if n == 0 {
+        last[0] = "none: the track does not cross itself where it may be compared \
+                   (moving, not turning, not near a stretch's end)"
+            .to_owned();
+    } else {
+        let rms = |f: &dyn Fn(&ingest::contract::gravity_ledger::Crossover) -> f64| {
+            (r.crossovers.iter().map(|c| f(c).powi(2)).sum::<f64>() / n as f64).sqrt()
+        };
+        last[0] = format!("rms of {n}");
+        last[4] = format!("{:.3}", rms(&|c| c.difference_mgal));
+        last[6] = format!("{:.2}", rms(&|c| c.difference_mgal / c.sigma_mgal));
+    }
+    t.rows.push(last);
+    t
 }
 
 fn summary(r: &GravityReport) -> String {
@@ -211,6 +272,62 @@ fn disturbance(ds: &Dataset, epochs: &[Epoch]) -> Table {
         t.rows.push(row);
     }
     t
+}
+
+/// North and east per session where the table holds them (sessions with attitude): the
+/// range of the filtered values, the median sigma and its parts; None when no session has
+/// them.
+fn horizontal(ds: &Dataset, path: &Path) -> Result<Option<Table>, Error> {
+    use arrow::array::Array;
+    let names = gravity::HORIZONTAL;
+    // Per session, per column, the values of the rows that have them.
+    let mut per: std::collections::BTreeMap<u16, Vec<Vec<f64>>> = Default::default();
+    align::read::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {
+        for i in 0..b.time_ns.len() {
+            if b.values[0].is_null(i) || b.flags[i] & gravity::EDGE != 0 {
+                continue;
+            }
+            let cols = per
+                .entry(b.session[i])
+                .or_insert_with(|| vec![Vec::new(); names.len()]);
+            for (c, v) in cols.iter_mut().enumerate() {
+                v.push(b.values[c].value(i));
+            }
+        }
+        Ok(())
+    })?;
+    if per.is_empty() {
+        return Ok(None);
+    }
+    let mut t = Table::new(&[
+        "session",
+        "component",
+        "min",
+        "max",
+        "median sigma",
+        "calibration",
+        "positions",
+        "noise",
+        "attitude",
+    ]);
+    for (index, cols) in per {
+        let id = ds
+            .sessions
+            .get(usize::from(index))
+            .map_or_else(|| index.to_string(), |s| s.session.id.clone());
+        for (c, name) in ["north", "east"].into_iter().enumerate() {
+            let filtered = &cols[7 * c + 1];
+            let (lo, hi) = filtered
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+            let mut row = vec![id.clone(), name.to_owned(), format!("{lo:.1}"), format!("{hi:.1}")];
+            for k in 2..7 {
+                row.push(format!("{:.1}", median(cols[7 * c + k].clone())));
+            }
+            t.rows.push(row);
+        }
+    }
+    Ok(Some(t))
 }
 
 fn read(path: &Path) -> Result<Vec<Epoch>, Error> {

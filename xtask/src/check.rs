@@ -73,9 +73,12 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
         }
         // The trajectory is not ingest's: copied whole, for the manifest to validate.
         if let Some(src) = &s.trajectory {
-            let rel = src.path.strip_prefix(&ds.dir).unwrap_or(&src.path);
-            std::fs::copy(&src.path, copy.join(rel))
-                .with_context(|| format!("copying {}", src.path.display()))?;
+            let attitude = src.attitude.as_ref().map(|(p, _)| p);
+            for path in std::iter::once(&src.path).chain(attitude) {
+                let rel = path.strip_prefix(&ds.dir).unwrap_or(path);
+                std::fs::copy(path, copy.join(rel))
+                    .with_context(|| format!("copying {}", path.display()))?;
+            }
         }
     }
     let opts = ingest::Options {
@@ -114,9 +117,9 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
     }
 }
 
-/// A survey session's trajectory read whole with the gravity stage's reader: its epochs,
-/// first and last time and rate, or the error naming file, line and field. Returns whether
-/// it reads.
+/// A survey session's trajectory and attitude read whole with the gravity stage's readers:
+/// their epochs, first and last time and rate, or the error naming file, line and field.
+/// Returns whether they read.
 fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Result<bool> {
     use adjust::gravity::trajectory::{read_csv, read_rtklib};
     use ingest::contract::survey::TrajectoryFormat;
@@ -143,17 +146,37 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
             return Ok(false);
         }
     };
-    let n = t.time_gps_ns.len();
-    let mut d: Vec<i64> = t.time_gps_ns.windows(2).map(|x| x[1] - x[0]).collect();
+    let what = format!("(session {}, trajectory; {layout})", s.session.id);
+    print_epochs(&rel, &what, &t.time_gps_ns, w)?;
+    let Some((path, form)) = &src.attitude else {
+        return Ok(true);
+    };
+    let rel = path.strip_prefix(&ds.dir).unwrap_or(path).display().to_string();
+    match adjust::gravity::attitude::read_csv(path, s.times.reader(*form)) {
+        Ok(a) => {
+            let what = format!("(session {}, attitude; CSV)", s.session.id);
+            print_epochs(&rel, &what, &a.time_gps_ns, w)?;
+            Ok(true)
+        }
+        Err(e) => {
+            writeln!(w, "{rel} (session {}, attitude): {e}", s.session.id)?;
+            Ok(false)
+        }
+    }
+}
+
+/// A file of epochs read whole: how many, the first and last, the median rate.
+fn print_epochs(rel: &str, what: &str, times: &[i64], w: &mut impl Write) -> Result<()> {
+    let n = times.len();
+    let mut d: Vec<i64> = times.windows(2).map(|x| x[1] - x[0]).collect();
     d.sort_unstable();
     let rate = d
         .get(d.len() / 2)
         .filter(|&&m| m > 0)
         .map_or("-".to_owned(), |&m| format!("{:.4} Hz", 1e9 / m as f64));
-    let span = t
-        .time_gps_ns
+    let span = times
         .first()
-        .zip(t.time_gps_ns.last())
+        .zip(times.last())
         .map_or(String::new(), |(a, b)| {
             format!(
                 ", first {} last {}",
@@ -161,12 +184,8 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
                 ingest::time::utc_iso(*b)
             )
         });
-    writeln!(
-        w,
-        "{rel} (session {}, trajectory; {layout}): read whole; {n} epochs{span}, {rate}",
-        s.session.id
-    )?;
-    Ok(true)
+    writeln!(w, "{rel} {what}: read whole; {n} epochs{span}, {rate}")?;
+    Ok(())
 }
 
 /// Every log of a session: its path, whether it is a binary log, how it writes its times.

@@ -110,18 +110,16 @@ impl TriadFunction {
         None
     }
 
-    /// The gradient by the parameters of m . (c(x) - c(x_ref)): how the calibration's
-    /// error along `m` that a tie read at `x_ref` does not take away depends on the
-    /// parameters' errors (a bias cancels; scales and angles act on the difference of the
-    /// vectors). Models without temperature terms.
-    pub fn difference_gradient(&self, x: [f64; 3], x_ref: [f64; 3], m: [f64; 3]) -> Vec<f64> {
+    /// The gradient by the parameters of m . c(x): how the calibration's error along `m` at
+    /// readings `x` depends on the parameters' errors (the difference of two such is what a
+    /// tie read at the second does not take away: a bias cancels, scales and angles act on
+    /// the difference of the vectors). Models without temperature terms.
+    pub fn gradient(&self, x: [f64; 3], m: [f64; 3]) -> Vec<f64> {
         let n = self.p.len();
-        let mut j1 = [0.0; 3 * MAX_PARAMS];
-        let mut j0 = [0.0; 3 * MAX_PARAMS];
-        self.model.evaluate(&self.p, x, [0.0; 3], Some(&mut j1));
-        self.model.evaluate(&self.p, x_ref, [0.0; 3], Some(&mut j0));
+        let mut j = [0.0; 3 * MAX_PARAMS];
+        self.model.evaluate(&self.p, x, [0.0; 3], Some(&mut j));
         (0..n)
-            .map(|c| (0..3).map(|r| m[r] * (j1[r * n + c] - j0[r * n + c])).sum())
+            .map(|c| (0..3).map(|r| m[r] * j[r * n + c]).sum())
             .collect()
     }
 

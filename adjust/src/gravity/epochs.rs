@@ -98,6 +98,8 @@ pub struct Bin {
     sum: f64,
     sigma_sum: f64,
     vector_sum: [f64; 3],
+    /// A triad's covariance elements (xx, xy, xz, yy, yz, zz), summed.
+    covariance_sum: [f64; 6],
     /// The samples' apply flags, or-ed.
     pub flags: u8,
 }
@@ -124,6 +126,23 @@ impl Bin {
     /// The calibration's sigma of the mean (its error is common to the samples), mGal.
     pub fn sigma_calibration(&self) -> f64 {
         self.sigma_sum / self.value_weight
+    }
+
+    /// A triad's calibration sigma of the mean vector along `m` (a unit row), mGal: from
+    /// the samples' mean covariance, their errors being common.
+    pub fn sigma_along(&self, m: [f64; 3]) -> f64 {
+        let c = self.covariance_sum.map(|v| v / self.value_weight);
+        let sym = |i: usize, j: usize| {
+            let (a, b) = (i.min(j), i.max(j));
+            c[a * 3 + b - a * (a + 1) / 2]
+        };
+        let mut var = 0.0;
+        for i in 0..3 {
+            for j in 0..3 {
+                var += m[i] * m[j] * sym(i, j);
+            }
+        }
+        var.max(0.0).sqrt()
     }
 }
 
@@ -259,6 +278,9 @@ pub fn fill(
                     bin.sigma_sum += w * var.sqrt();
                     if matches!(force, DownForce::Triad { .. }) {
                         for (sum, v) in bin.vector_sum.iter_mut().zip(&values) {
+                            *sum += w * v.unwrap_or(0.0);
+                        }
+                        for (sum, v) in bin.covariance_sum.iter_mut().zip(&values[3..]) {
                             *sum += w * v.unwrap_or(0.0);
                         }
                     }

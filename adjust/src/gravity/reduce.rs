@@ -27,6 +27,8 @@ pub struct Stretch {
     pub longitude_deg: Vec<f64>,
     /// Ellipsoidal height of the accelerometers, m.
     pub height_m: Vec<f64>,
+    /// The antenna's, as the trajectory gives it, m (written out, not used here).
+    pub height_antenna_m: Vec<f64>,
     /// The positions' sd up, m (0 where unknown).
     pub sd_up_m: Vec<f64>,
     /// Specific force down at each epoch, mGal (about -g at rest).
@@ -36,25 +38,27 @@ pub struct Stretch {
     /// Where a tie will fix the level: how the calibration's error at each epoch less its
     /// error at the first tie (what the tie does not take away) depends on the parameters;
     /// None: taken as the difference of the sigmas (exact when one parameter dominates).
-    pub calibration_tied: Option<TiedCalibration>,
+    pub calibration_tied: Option<CalibrationGradient>,
     /// The sd of the epoch's value from the samples' own noise (their scatter in the epoch
     /// over the square root of their number), mGal; 0 where unknown.
     pub noise_f_mgal: Vec<f64>,
 }
 
-/// The calibration's error left after a tie, as a linear function of the parameters' errors.
+/// The calibration's error at each epoch as a linear function of the parameters' errors: for
+/// the down component once tied, the error at the epoch less the error at the tie; for
+/// north and east (never tied), the error at the epoch.
 #[derive(Clone, Debug, Default)]
-pub struct TiedCalibration {
-    /// Per parameter, per epoch: d(error at the epoch - error at the tie) / d(parameter), mGal.
+pub struct CalibrationGradient {
+    /// Per parameter, per epoch: d(error) / d(parameter), mGal.
     pub gradient: Vec<Vec<f64>>,
     /// The parameters' covariance, row-major n x n.
     pub covariance: Vec<f64>,
 }
 
-impl TiedCalibration {
+impl CalibrationGradient {
     /// The sd at each epoch of the filtered error: the gradients filtered (the filter is
     /// linear and the parameters common to all epochs), then g C g^T.
-    fn filtered_sigma(&self, sections: &[filter::Section], pad: usize, pivot: usize) -> Vec<f64> {
+    pub(super) fn filtered_sigma(&self, sections: &[filter::Section], pad: usize, pivot: usize) -> Vec<f64> {
         let g: Vec<Vec<f64>> = self
             .gradient
             .iter()
@@ -149,7 +153,7 @@ impl Drift {
 }
 
 /// The epochs' interval, s, checked even (within 1 % of the median).
-fn interval_s(t: &[i64]) -> Result<f64, GravityError> {
+pub(super) fn interval_s(t: &[i64]) -> Result<f64, GravityError> {
     let mut d: Vec<i64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     d.sort_unstable();
     let m = *d
@@ -166,7 +170,7 @@ fn interval_s(t: &[i64]) -> Result<f64, GravityError> {
 
 /// The white-noise gain of `x -> filter(second difference of x)`: the sd of the filtered
 /// acceleration per unit sd of independent heights, at epoch `at` of `n`.
-fn position_noise_gain(sections: &[filter::Section], n: usize, at: usize, dt: f64) -> f64 {
+pub(super) fn position_noise_gain(sections: &[filter::Section], n: usize, at: usize, dt: f64) -> f64 {
     // The operator's row at `at`: the response at `at` to a unit height at each epoch j.
     // By symmetry of the zero-phase filter, it is the response to an impulse at `at`.
     let mut x = vec![0.0; n];
@@ -237,13 +241,13 @@ fn filtered(
 }
 
 /// The padding at each end of a stretch: three filter periods, or the stretch.
-fn padding(filter_s: f64, dt: f64) -> usize {
+pub(super) fn padding(filter_s: f64, dt: f64) -> usize {
     (3.0 * filter_s / dt).ceil() as usize
 }
 
 /// The white-noise gain of the filter: the sd of the filtered series per unit sd of
 /// independent values, at the middle of `n` epochs.
-fn white_noise_gain(sections: &[filter::Section], n: usize) -> f64 {
+pub(super) fn white_noise_gain(sections: &[filter::Section], n: usize) -> f64 {
     let mut x = vec![0.0; n];
     x[n / 2] = 1.0;
     let y = filter::filtfilt_pivoted(sections, &x, 0, 1);

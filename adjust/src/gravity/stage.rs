@@ -6,13 +6,16 @@
 //! written. Every epoch of every trajectory is accounted for: written, or dropped by reason.
 
 use super::GravityError;
+use super::crossover;
+use super::attitude::{self, Attitude, AttitudeAt};
 use super::epochs::{self, Bin, DownForce, Target};
-use super::reduce::{self, Reduced, Stretch, Tie, TiedCalibration};
+use super::horizontal::{self, Horizontal, ReducedHorizontal};
+use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
 use super::trajectory::{self, Trajectory};
 use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
-    DriftFitted, FilterUsed, GravityReport, Input, LEDGER_FILE, LEDGER_FORMAT, STAGE_DIR,
+    Crossover, DriftFitted, FilterUsed, GravityReport, Input, LEDGER_FILE, LEDGER_FORMAT, STAGE_DIR,
     SessionGravity, StretchSummary, TieUsed, dropped,
 };
 use ingest::contract::manifest::{Dataset, ResolvedSession};
@@ -31,9 +34,10 @@ pub struct Options<'a> {
     pub accelerometer: Option<&'a str>,
 }
 
-/// A survey session's trajectory, read and made ready: the accelerometers' heights (the
-/// lever arm applied), epochs outside the session's days or whose time does not increase
-/// dropped.
+/// A survey session's trajectory, read and made ready: the accelerometers' positions (the
+/// lever arm applied: through the attitude where the session gives one, its down component
+/// alone on a levelled platform otherwise), epochs outside the session's days, whose time
+/// does not increase, or (with attitude) without an attitude dropped.
 struct Track<'a> {
     index: u16,
     session: &'a ResolvedSession,
@@ -42,8 +46,10 @@ struct Track<'a> {
     times: Vec<i64>,
     kept: Vec<usize>,
     dropped: BTreeMap<String, u64>,
-    /// The lever arm's down component, m (the antenna is this much above the accelerometers).
-    lever_down_m: f64,
+    /// The antenna's heights as the trajectory gives them, m, per trajectory epoch.
+    antenna_height_m: Vec<f64>,
+    /// The attitude at each kept epoch, when the session gives it.
+    attitude: Option<Vec<AttitudeAt>>,
 }
 
 /// Runs the stage on `dataset` into `out`.
@@ -55,7 +61,19 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     let table = out.join(apply_ledger::STAGE_DIR).join(applied::FILE);
     let force = down_force(&applied, &survey, opts.accelerometer)?;
     let triad = triad_function(&applied, opts.apply.calibration)?;
-    let tracks = read_tracks(&ds, survey.lever_arm_m[2])?;
+    let tracks = read_tracks(&ds, &survey)?;
+    if let (DownForce::Axis { .. }, Some(t)) =
+        (&force, tracks.iter().find(|t| t.attitude.is_some()))
+    {
+        return Err(GravityError::Refused {
+            message: format!(
+                "session {} gives an attitude, which turns a triad's vector into north, east \
+                 and down: an axis model gives one axis; apply a triad model, or remove the \
+                 session's `attitude`",
+                t.session.session.id
+            ),
+        });
+    }
     let targets: Vec<Target<'_>> = tracks
         .iter()
         .map(|t| Target {
@@ -83,10 +101,8 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
             ties: &ds.ties,
             samples_per_s: per_epoch,
             sample_sd_mgal: filled.sample_sd_mgal[k],
-            triad: match (&triad, &force) {
-                (Some(f), DownForce::Triad { row }) => Some((f, *row)),
-                _ => None,
-            },
+            triad: triad.as_ref(),
+            mounting: mounting(&survey),
         };
         let summary = reduce_track(track, bins, &ctx, &mut rows, &mut ties)?;
         if summary.epochs_used == 0 {
@@ -108,19 +124,21 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     }
     let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let filter = filter_used(&rows, survey.filter_s);
+    let crossovers = rows.crossovers(&names, &tracks, &sessions, survey.filter_s);
     let (rows_written, sha256) = rows.write(&dir, &names)?;
     let inputs = inputs(&table, &tracks)?;
     let report = GravityReport {
         format: LEDGER_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
         calibration: applied.calibration.clone(),
-        specific_force: describe(&force, &survey),
+        specific_force: describe(&force, &survey, &tracks),
         inputs,
         lever_arm_m: survey.lever_arm_m,
         mounting_deg: survey.mounting_deg,
         filter,
         sessions,
         ties,
+        crossovers,
         rows_written,
         sha256,
     };
@@ -223,16 +241,17 @@ fn triad_function(
 
 /// The calibration's error at each epoch of the stretch less its error at the first tie
 /// with a window of two epochs or more (the drift's reference), as gradients by the
-/// parameters: each epoch's mean vector and the tie window's read back into readings.
-/// None without such a tie or where a vector cannot be read back.
+/// parameters: each epoch's mean vector and the tie window's read back into readings, each
+/// along its epoch's down row (the mounting's, or C_b^n's with attitude; the tie's the
+/// window's mean). None without such a tie or where a vector cannot be read back.
 fn tied_calibration(
     f: &TriadFunction,
-    row: [f64; 3],
+    track: &Track<'_>,
     bins: &[Bin],
-    span: std::ops::Range<usize>,
+    (span, ctx): (std::ops::Range<usize>, &Context<'_>),
     s: &Stretch,
     inside: &[(usize, Tie)],
-) -> Option<TiedCalibration> {
+) -> Option<CalibrationGradient> {
     let window = inside.iter().find_map(|(_, tie)| {
         let half = (tie.duration_s * 0.5e9) as i64;
         let idx: Vec<usize> = (0..s.time_gps_ns.len())
@@ -240,88 +259,86 @@ fn tied_calibration(
             .collect();
         (idx.len() >= 2).then_some(idx)
     })?;
-    let mut reference = [0.0; 3];
+    let row = |k: usize| body_to_nav(track, k, &ctx.mounting).map_or(ctx.mounting[2], |c| c[2]);
+    let (mut reference, mut row_ref) = ([0.0; 3], [0.0; 3]);
     for &i in &window {
         let v = bins[span.start + i].mean_vector();
+        let m = row(span.start + i);
         for k in 0..3 {
             reference[k] += v[k] / window.len() as f64;
+            row_ref[k] += m[k] / window.len() as f64;
         }
     }
-    let x_ref = f.readings_for(reference)?;
-    let n = f.covariance().len().isqrt();
-    let mut gradient = vec![Vec::with_capacity(span.len()); n];
+    let at_tie = f.gradient(f.readings_for(reference)?, row_ref);
+    let mut gradient = vec![Vec::with_capacity(span.len()); at_tie.len()];
     for k in span {
-        let x = f.readings_for(bins[k].mean_vector())?;
-        for (series, g) in gradient
-            .iter_mut()
-            .zip(f.difference_gradient(x, x_ref, row))
-        {
-            series.push(g);
+        let g = f.gradient(f.readings_for(bins[k].mean_vector())?, row(k));
+        for ((series, g), g0) in gradient.iter_mut().zip(g).zip(&at_tie) {
+            series.push(g - g0);
         }
     }
-    Some(TiedCalibration {
+    Some(CalibrationGradient {
         gradient,
         covariance: f.covariance().to_vec(),
     })
 }
 
 /// For gravity.json: how f_D was formed.
-fn describe(force: &DownForce, survey: &SurveyConfig) -> String {
+fn describe(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> String {
+    let with: Vec<&str> = tracks
+        .iter()
+        .filter(|t| t.attitude.is_some())
+        .map(|t| t.session.session.id.as_str())
+        .collect();
+    let levelled = tracks.len() - with.len();
     match force {
-        DownForce::Triad { row } => format!(
+        DownForce::Triad { row } if with.is_empty() || levelled > 0 => format!(
             "triad vector through the mounting (roll, pitch, yaw {:?} deg): f_D = \
-             {:.6} f_x + {:.6} f_y + {:.6} f_z, the platform levelled",
-            survey.mounting_deg, row[0], row[1], row[2]
+             {:.6} f_x + {:.6} f_y + {:.6} f_z, the platform levelled{}",
+            survey.mounting_deg,
+            row[0],
+            row[1],
+            row[2],
+            if with.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; with attitude ({}): f^n = C_v^n C_b^v f^b, north, east and down",
+                    with.join(", ")
+                )
+            }
+        ),
+        DownForce::Triad { .. } => format!(
+            "triad vector through the mounting (roll, pitch, yaw {:?} deg) and the attitude: \
+             f^n = C_v^n C_b^v f^b, north, east and down",
+            survey.mounting_deg
         ),
         DownForce::Axis { id } => format!("{id} taken as the vertical axis pointing up: f_D = F"),
     }
 }
 
 /// Each survey session's trajectory read, in manifest order; none is an error.
-fn read_tracks(ds: &Dataset, lever_down_m: f64) -> Result<Vec<Track<'_>>, GravityError> {
+fn read_tracks<'a>(
+    ds: &'a Dataset,
+    survey: &SurveyConfig,
+) -> Result<Vec<Track<'a>>, GravityError> {
     let mut tracks = Vec::new();
     for (index, s) in ds.sessions.iter().enumerate() {
         let Some(src) = &s.trajectory else { continue };
-        let mut trajectory = match src.format {
+        let trajectory = match src.format {
             TrajectoryFormat::Rtklib => trajectory::read_rtklib(&src.path)?,
             TrajectoryFormat::Csv => {
                 let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
                 trajectory::read_csv(&src.path, s.times.reader(form))?
             }
         };
-        // r_acc = r_ant + C_v^n l; levelled, its down component is l_z.
-        for h in &mut trajectory.height_m {
-            *h -= lever_down_m;
-        }
-        let mut dropped = BTreeMap::new();
-        let mut kept = Vec::with_capacity(trajectory.time_gps_ns.len());
-        let mut times = Vec::with_capacity(kept.capacity());
-        let (from, to) = s.gps_range_ns();
-        for (k, &t) in trajectory.time_gps_ns.iter().enumerate() {
-            if !(from..to).contains(&t) {
-                *dropped
-                    .entry(dropped::OUTSIDE_SESSION.to_owned())
-                    .or_insert(0) += 1;
-                continue;
-            }
-            if times.last().is_some_and(|&last| t <= last) {
-                *dropped
-                    .entry(dropped::NOT_INCREASING.to_owned())
-                    .or_insert(0) += 1;
-                continue;
-            }
-            kept.push(k);
-            times.push(t);
-        }
-        tracks.push(Track {
-            index: u16::try_from(index).unwrap_or(u16::MAX),
-            session: s,
-            trajectory,
-            times,
-            kept,
-            dropped,
-            lever_down_m,
-        });
+        let attitude = match &src.attitude {
+            Some((path, form)) => Some(attitude::read_csv(path, s.times.reader(*form))?),
+            None => None,
+        };
+        let mut track = gated(index, s, trajectory, attitude.as_ref());
+        move_to_accelerometers(&mut track, survey.lever_arm_m);
+        tracks.push(track);
     }
     if tracks.is_empty() {
         return Err(GravityError::Refused {
@@ -333,6 +350,79 @@ fn read_tracks(ds: &Dataset, lever_down_m: f64) -> Result<Vec<Track<'_>>, Gravit
         });
     }
     Ok(tracks)
+}
+
+/// The track of session `index` with its epochs gated: outside the session's days,
+/// not after the one before, or (with attitude) where none can be interpolated, dropped
+/// and counted.
+fn gated<'a>(
+    index: usize,
+    s: &'a ResolvedSession,
+    trajectory: Trajectory,
+    attitude: Option<&Attitude>,
+) -> Track<'a> {
+    let mut dropped = BTreeMap::new();
+    let mut count = |reason: &str| *dropped.entry(reason.to_owned()).or_insert(0) += 1;
+    let mut kept = Vec::with_capacity(trajectory.time_gps_ns.len());
+    let mut times = Vec::with_capacity(kept.capacity());
+    let (from, to) = s.gps_range_ns();
+    for (k, &t) in trajectory.time_gps_ns.iter().enumerate() {
+        if !(from..to).contains(&t) {
+            count(dropped::OUTSIDE_SESSION);
+        } else if times.last().is_some_and(|&last| t <= last) {
+            count(dropped::NOT_INCREASING);
+        } else {
+            kept.push(k);
+            times.push(t);
+        }
+    }
+    let attitude = attitude.map(|a| {
+        let at = a.at(&times);
+        let (mut k2, mut t2, mut a2) = (Vec::new(), Vec::new(), Vec::new());
+        for ((k, t), a) in kept.iter().zip(&times).zip(at) {
+            match a {
+                Some(a) => {
+                    k2.push(*k);
+                    t2.push(*t);
+                    a2.push(a);
+                }
+                None => count(dropped::NO_ATTITUDE),
+            }
+        }
+        (kept, times) = (k2, t2);
+        a2
+    });
+    Track {
+        index: u16::try_from(index).unwrap_or(u16::MAX),
+        session: s,
+        antenna_height_m: trajectory.height_m.clone(),
+        trajectory,
+        times,
+        kept,
+        dropped,
+        attitude,
+    }
+}
+
+/// r_acc = r_ant + C_v^n l at each kept epoch: through the attitude where there is one;
+/// levelled without, where only the down component (a constant) can be applied.
+fn move_to_accelerometers(track: &mut Track<'_>, lever_arm_m: [f64; 3]) {
+    let t = &mut track.trajectory;
+    let Some(att) = &track.attitude else {
+        for h in &mut t.height_m {
+            *h -= lever_arm_m[2];
+        }
+        return;
+    };
+    for (a, &j) in att.iter().zip(&track.kept) {
+        let d = attitude::apply(&a.vehicle_to_nav(), lever_arm_m);
+        let (r_m, r_n) = super::navigation::radii(&super::normal::GRS80, t.latitude_deg[j]);
+        let h = t.height_m[j];
+        let lat = t.latitude_deg[j].to_radians();
+        t.latitude_deg[j] += (d[0] / (r_m + h)).to_degrees();
+        t.longitude_deg[j] += (d[1] / ((r_n + h) * lat.cos())).to_degrees();
+        t.height_m[j] -= d[2];
+    }
 }
 
 /// The median interval between `times`, ns (1 s for fewer than two).
@@ -348,9 +438,23 @@ struct Context<'a> {
     ties: &'a [ResolvedTie],
     samples_per_s: f64,
     sample_sd_mgal: f64,
-    /// A triad model without temperature terms, and the mounting's down row: the
-    /// calibration's error left after a tie, from the parameters.
-    triad: Option<(&'a TriadFunction, [f64; 3])>,
+    /// A triad model without temperature terms: the calibration's error from the
+    /// parameters.
+    triad: Option<&'a TriadFunction>,
+    /// C_b^v, the mounting.
+    mounting: [[f64; 3]; 3],
+}
+
+/// C_b^v = Rz(yaw) Ry(pitch) Rx(roll) of `[survey] mounting_deg`.
+fn mounting(survey: &SurveyConfig) -> [[f64; 3]; 3] {
+    let [roll, pitch, yaw] = survey.mounting_deg.map(f64::to_radians);
+    attitude::rotation(yaw, pitch, roll)
+}
+
+/// C_b^n at kept epoch `k` of a track with attitude: C_v^n C_b^v.
+fn body_to_nav(track: &Track<'_>, k: usize, mounting: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let a = track.attitude.as_ref()?;
+    Some(attitude::product(&a[k].vehicle_to_nav(), mounting))
 }
 
 /// One session reduced: its epochs checked, cut into stretches, each reduced and its rows
@@ -376,12 +480,11 @@ fn reduce_track(
     let (spans, gaps) = stretches(&track.times, bins, interval, expected, &mut summary.dropped);
     summary.gaps = gaps;
     for span in spans {
-        let s = stretch(track, bins, span.clone(), ctx.sample_sd_mgal);
+        let mut s = stretch(track, bins, span.clone(), ctx);
         let inside = ties_inside(ctx.ties, &s);
-        let mut s = s;
         s.calibration_tied = ctx
             .triad
-            .and_then(|(f, row)| tied_calibration(f, row, bins, span.clone(), &s, &inside));
+            .and_then(|f| tied_calibration(f, track, bins, (span.clone(), ctx), &s, &inside));
         let only: Vec<Tie> = inside.iter().map(|(_, t)| *t).collect();
         let r = match reduce::reduce(&s, ctx.survey.filter_s, &only) {
             Ok(r) => r,
@@ -401,12 +504,19 @@ fn reduce_track(
             }
         }
         summary.stretches.push(stretch_summary(&s, &r));
-        let flags = flags_of(&s, bins, span, ctx.survey.filter_s, &r);
+        let flags = flags_of(&s, bins, span.clone(), ctx.survey.filter_s, &r);
         for (name, n) in count_flags(&flags) {
             *summary.flagged.entry(name).or_insert(0) += n;
         }
         summary.epochs_used += s.time_gps_ns.len() as u64;
-        rows.push(track, number, &s, &r, &flags);
+        let h = match track.attitude {
+            Some(_) => {
+                let inputs = horizontal_inputs(track, bins, span, ctx);
+                Some(horizontal::reduce_horizontal(&s, &inputs, ctx.survey.filter_s)?)
+            }
+            None => None,
+        };
+        rows.push(track.index, number, (&s, &r, h.as_ref()), &flags);
     }
     Ok(summary)
 }
@@ -467,12 +577,13 @@ fn stretches(
     (out, gaps)
 }
 
-/// The reduction's input for the epochs `span` of `track`.
+/// The reduction's input for the epochs `span` of `track`: with attitude, f_D from the
+/// triad's mean vector through C_b^n; levelled, the bins' own.
 fn stretch(
     track: &Track<'_>,
     bins: &[Bin],
     span: std::ops::Range<usize>,
-    sample_sd: f64,
+    ctx: &Context<'_>,
 ) -> Stretch {
     let mut s = Stretch::default();
     let t = &track.trajectory;
@@ -482,12 +593,72 @@ fn stretch(
         s.latitude_deg.push(t.latitude_deg[j]);
         s.longitude_deg.push(t.longitude_deg[j]);
         s.height_m.push(t.height_m[j]);
+        s.height_antenna_m.push(track.antenna_height_m[j]);
         s.sd_up_m.push(t.sd_neu_m[j].map_or(0.0, |sd| sd[2]));
-        s.f_down_mgal.push(bins[k].mean());
-        s.sigma_f_mgal.push(bins[k].sigma_calibration());
-        s.noise_f_mgal.push(bins[k].noise(sample_sd));
+        match body_to_nav(track, k, &ctx.mounting) {
+            Some(c) => {
+                s.f_down_mgal.push(attitude::apply(&c, bins[k].mean_vector())[2]);
+                s.sigma_f_mgal.push(bins[k].sigma_along(c[2]));
+            }
+            None => {
+                s.f_down_mgal.push(bins[k].mean());
+                s.sigma_f_mgal.push(bins[k].sigma_calibration());
+            }
+        }
+        s.noise_f_mgal.push(bins[k].noise(ctx.sample_sd_mgal));
     }
     s
+}
+
+/// North and east's inputs for the epochs `span` of a track with attitude: the specific
+/// force through C_b^n, its calibration sigma along each row (or the parameters' gradients
+/// with a triad without temperature terms), the attitude's sigma, the positions' sds.
+fn horizontal_inputs(
+    track: &Track<'_>,
+    bins: &[Bin],
+    span: std::ops::Range<usize>,
+    ctx: &Context<'_>,
+) -> Horizontal {
+    let mut h = Horizontal::default();
+    let att = track.attitude.as_deref().unwrap_or_default();
+    let mut gradients: [Option<Vec<Vec<f64>>>; 2] = match ctx.triad {
+        Some(f) => std::array::from_fn(|_| Some(vec![Vec::new(); f.covariance().len().isqrt()])),
+        None => [None, None],
+    };
+    for k in span {
+        let Some(c) = body_to_nav(track, k, &ctx.mounting) else {
+            continue;
+        };
+        let v = bins[k].mean_vector();
+        let f = attitude::apply(&c, v);
+        let a = &att[k];
+        let sigma_att = horizontal::attitude_sigma(a.hpr_rad[0], a.sd_rad, f);
+        let sd = track.trajectory.sd_neu_m[track.kept[k]].unwrap_or([0.0; 3]);
+        let x = ctx.triad.and_then(|t| t.readings_for(v));
+        for i in 0..2 {
+            h.f_mgal[i].push(f[i]);
+            h.sigma_calibration_mgal[i].push(bins[k].sigma_along(c[i]));
+            h.sigma_attitude_mgal[i].push(sigma_att[i]);
+            h.sd_m[i].push(sd[i]);
+            if let (Some(series), Some(t)) = (&mut gradients[i], ctx.triad) {
+                match x {
+                    Some(x) => {
+                        for (s, g) in series.iter_mut().zip(t.gradient(x, c[i])) {
+                            s.push(g);
+                        }
+                    }
+                    None => gradients[i] = None,
+                }
+            }
+        }
+    }
+    h.calibration = gradients.map(|g| {
+        g.zip(ctx.triad).map(|(gradient, t)| CalibrationGradient {
+            gradient,
+            covariance: t.covariance().to_vec(),
+        })
+    });
+    h
 }
 
 fn stretch_summary(s: &Stretch, r: &Reduced) -> StretchSummary {
@@ -612,16 +783,23 @@ struct Rows {
     time: Vec<i64>,
     stretch: Vec<u32>,
     floats: [Vec<f64>; 14],
+    /// North and east ([`gravity::HORIZONTAL`]), null without attitude.
+    horizontal: [Vec<Option<f64>>; 14],
     flags: Vec<u8>,
 }
 
 impl Rows {
-    fn push(&mut self, track: &Track<'_>, number: u32, s: &Stretch, r: &Reduced, flags: &[u8]) {
+    fn push(
+        &mut self,
+        session: u16,
+        number: u32,
+        (s, r, h): (&Stretch, &Reduced, Option<&ReducedHorizontal>),
+        flags: &[u8],
+    ) {
         let n = s.time_gps_ns.len();
-        self.session.extend(std::iter::repeat_n(track.index, n));
+        self.session.extend(std::iter::repeat_n(session, n));
         self.time.extend(&s.time_gps_ns);
         self.stretch.extend(std::iter::repeat_n(number, n));
-        let antenna: Vec<f64> = s.height_m.iter().map(|h| h + track.lever_down_m).collect();
         let columns: [&[f64]; 14] = [
             &s.latitude_deg,
             &s.longitude_deg,
@@ -636,12 +814,63 @@ impl Rows {
             &r.sigma_positions_mgal,
             &r.sigma_noise_mgal,
             &r.sigma_tie_mgal,
-            &antenna,
+            &s.height_antenna_m,
         ];
         for (dst, src) in self.floats.iter_mut().zip(columns) {
             dst.extend_from_slice(src);
         }
+        for (c, dst) in self.horizontal.iter_mut().enumerate() {
+            let (i, part) = (c / 7, c % 7);
+            match h {
+                Some(h) => dst.extend(
+                    [
+                        &h.disturbance_mgal[i],
+                        &h.filtered_mgal[i],
+                        &h.sigma_mgal[i],
+                        &h.sigma_calibration_mgal[i],
+                        &h.sigma_positions_mgal[i],
+                        &h.sigma_noise_mgal[i],
+                        &h.sigma_attitude_mgal[i],
+                    ][part]
+                        .iter()
+                        .map(|v| Some(*v)),
+                ),
+                None => dst.extend(std::iter::repeat_n(None, n)),
+            }
+        }
         self.flags.extend_from_slice(flags);
+    }
+
+    /// Where the track crosses itself ([`crossover`]).
+    fn crossovers(
+        &self,
+        names: &[String],
+        tracks: &[Track<'_>],
+        sessions: &[SessionGravity],
+        filter_s: f64,
+    ) -> Vec<Crossover> {
+        let f = &self.floats;
+        let epochs = crossover::Epochs {
+            session: &self.session,
+            names,
+            stretch: &self.stretch,
+            time_gps_ns: &self.time,
+            latitude_deg: &f[0],
+            longitude_deg: &f[1],
+            speed_m_s: &f[3],
+            filtered_mgal: &f[7],
+            sigma_mgal: &f[8],
+            sigma_positions_mgal: &f[10],
+            sigma_noise_mgal: &f[11],
+            sigma_tie_mgal: &f[12],
+            flags: &self.flags,
+        };
+        let rate_sigma = |session: u16, stretch: u32| {
+            let k = tracks.iter().position(|t| t.index == session)?;
+            let drift = sessions[k].stretches.get(stretch as usize)?.drift.as_ref()?;
+            drift.sigma_rate_mgal_per_h
+        };
+        crossover::crossovers(&epochs, filter_s, rate_sigma)
     }
 
     /// Writes gravity.parquet into `dir`; returns the rows and the file's SHA-256.
@@ -663,6 +892,9 @@ impl Rows {
             Arc::new(UInt32Array::from(self.stretch)),
         ];
         for f in self.floats {
+            columns.push(Arc::new(Float64Array::from(f)));
+        }
+        for f in self.horizontal {
             columns.push(Arc::new(Float64Array::from(f)));
         }
         columns.push(Arc::new(UInt8Array::from(self.flags)));
@@ -759,6 +991,19 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
         let _ = writeln!(
             w,
             "gravity: {unused} tie(s) not used: no stretch holds their still window"
+        );
+    }
+    for c in &r.crossovers {
+        let _ = writeln!(
+            w,
+            "gravity: crossover at {:.5} {:.5} ({} and {}, {:.0} deg): {:+.3} +/- {:.3} mGal",
+            c.latitude_deg,
+            c.longitude_deg,
+            c.first.time,
+            c.second.time,
+            c.angle_deg,
+            c.difference_mgal,
+            c.sigma_mgal
         );
     }
 }

@@ -1,7 +1,7 @@
 //! `OUT/gravity/gravity.json` (docs/formats.md 10.3): what the gravity stage read (each
 //! input's SHA-256), the calibration and model it used, the filter and the resolution it
-//! gives, per session the stretches of track with the ties and drift fitted on each, and
-//! every epoch of the trajectories accounted for: used, or dropped by reason.
+//! gives, per session the stretches of track with the ties and drift fitted on each, the
+//! crossover differences where the track crosses itself, and every epoch of the trajectories accounted for: used, or dropped by reason.
 
 use crate::contract::apply_ledger::CalibrationUsed;
 use serde::{Deserialize, Serialize};
@@ -26,6 +26,9 @@ pub mod dropped {
     pub const NOT_INCREASING: &str = "time_not_increasing";
     /// Its time lies outside the session's days (the time gate of every log).
     pub const OUTSIDE_SESSION: &str = "outside_session";
+    /// The session gives an attitude, and none can be interpolated at the epoch (outside
+    /// the attitude file's span, or in a gap of it).
+    pub const NO_ATTITUDE: &str = "no_attitude";
 }
 
 /// A file read, with its hash.
@@ -111,6 +114,46 @@ pub struct TieUsed {
     pub used_in: Option<(String, u32)>,
 }
 
+/// One pass over a crossover point.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Pass {
+    /// Session id.
+    pub session: String,
+    /// Its stretch (the `stretch` column).
+    pub stretch: u32,
+    /// When, UTC ISO 8601 (interpolated between the two epochs either side).
+    pub time: String,
+    /// The same, GPS ns (gravity.parquet's `time_ns`).
+    pub time_gps_ns: i64,
+    /// The filtered disturbance down there, mGal.
+    pub filtered_mgal: f64,
+    /// Its sigma (all parts), mGal.
+    pub sigma_mgal: f64,
+}
+
+/// Where the track crosses itself: two passes, at least twice the filter's period apart,
+/// over one point, both moving, neither turning nor near a stretch's end nor outside the
+/// calibration (docs/model.md 7).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Crossover {
+    /// The point, deg.
+    pub latitude_deg: f64,
+    /// Longitude, deg.
+    pub longitude_deg: f64,
+    /// The angle between the two courses, deg (0-90).
+    pub angle_deg: f64,
+    /// The earlier pass.
+    pub first: Pass,
+    /// The later pass.
+    pub second: Pass,
+    /// Second minus first, mGal.
+    pub difference_mgal: f64,
+    /// Its sigma, mGal: the parts independent between the passes (noise, positions, and
+    /// the tie's: its rate's over the time between them on one stretch, both passes' in
+    /// full on two); the calibration's part is common to both and cancels.
+    pub sigma_mgal: f64,
+}
+
 /// `gravity.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct GravityReport {
@@ -135,6 +178,9 @@ pub struct GravityReport {
     pub sessions: Vec<SessionGravity>,
     /// The ties.
     pub ties: Vec<TieUsed>,
+    /// Where the track crosses itself.
+    #[serde(default)]
+    pub crossovers: Vec<Crossover>,
     /// Rows of gravity.parquet.
     pub rows_written: u64,
     /// Its SHA-256.

@@ -398,7 +398,7 @@ pub struct Session {
     /// How a CSV trajectory writes its times.
     #[serde(default)]
     pub trajectory_time: Option<TimeForm>,
-    /// Attitude (docs/formats.md 10.2): not read yet, refused with a message.
+    /// A survey session's attitude CSV (docs/formats.md 10.2).
     #[serde(default)]
     pub attitude: Option<String>,
     /// How the attitude file writes its times.
@@ -758,7 +758,8 @@ fn session_times(
     };
     let theodolite = s.theodolite_time.unwrap_or(TimeForm::Iso);
     let uses_start = [adc, temperature, theodolite].contains(&TimeForm::S)
-        || s.trajectory_time == Some(TimeForm::S);
+        || s.trajectory_time == Some(TimeForm::S)
+        || s.attitude_time == Some(TimeForm::S);
     let start_gps_ns = match (&s.start, uses_start) {
         (None, true) => {
             return Err(err(

@@ -79,12 +79,14 @@ pub struct TrajectorySource {
     pub format: TrajectoryFormat,
     /// For a CSV, how it writes its times.
     pub time: Option<TimeForm>,
+    /// The attitude file (docs/formats.md 10.2), if any, and how it writes its times.
+    pub attitude: Option<(PathBuf, TimeForm)>,
 }
 
-/// Session `i`'s trajectory keys checked and its file resolved: only on a survey session;
+/// Session `i`'s trajectory keys checked and its files resolved: only on a survey session;
 /// `trajectory_format` required with `trajectory`; `trajectory_time` for a CSV only, and
-/// its form readable with the session's `start`; attitude not read yet (refused, so that
-/// nothing is silently ignored).
+/// its form readable with the session's `start`; `attitude` only with a trajectory, with
+/// its `attitude_time` (the same rule for `"s"`).
 pub fn trajectory(
     i: usize,
     s: &Session,
@@ -93,18 +95,12 @@ pub fn trajectory(
     err: &impl Fn(String, String) -> Error,
 ) -> Result<Option<TrajectorySource>> {
     let key = |k: &str| format!("session[{i}].{k}");
-    if s.attitude.is_some() || s.attitude_time.is_some() {
-        return Err(err(
-            key("attitude"),
-            "attitude files (docs/formats.md 10.2) are not read yet: the gravity stage takes \
-             the platform as levelled and gives the down component; remove the key"
-                .to_owned(),
-        ));
-    }
     let Some(rel) = &s.trajectory else {
         if let Some(k) = [
             ("trajectory_format", s.trajectory_format.is_some()),
             ("trajectory_time", s.trajectory_time.is_some()),
+            ("attitude", s.attitude.is_some()),
+            ("attitude_time", s.attitude_time.is_some()),
         ]
         .iter()
         .find_map(|(k, given)| given.then_some(*k))
@@ -134,7 +130,37 @@ pub fn trajectory(
         )
     })?;
     let time = trajectory_time(format, s.trajectory_time, times, &key, err)?;
-    Ok(Some(TrajectorySource { path, format, time }))
+    let attitude = match (&s.attitude, s.attitude_time) {
+        (None, None) => None,
+        (None, Some(_)) => {
+            return Err(err(
+                key("attitude_time"),
+                "describes `attitude`, which is not given".to_owned(),
+            ));
+        }
+        (Some(_), None) => {
+            return Err(err(
+                key("attitude_time"),
+                "missing: how the attitude CSV writes its times (\"gps_week_tow\", \"iso\", \
+                 \"unix_s\" or \"s\")"
+                    .to_owned(),
+            ));
+        }
+        (Some(_), Some(TimeForm::S)) if times.start_gps_ns.is_none() => {
+            return Err(err(
+                key("attitude_time"),
+                "\"s\" counts from the session's `start`, which this session does not give"
+                    .to_owned(),
+            ));
+        }
+        (Some(rel), Some(t)) => Some((file(key("attitude"), rel)?, t)),
+    };
+    Ok(Some(TrajectorySource {
+        path,
+        format,
+        time,
+        attitude,
+    }))
 }
 
 /// A trajectory's time form checked against its format and the session's `start`.

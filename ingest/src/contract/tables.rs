@@ -474,6 +474,9 @@ pub mod applied {
 /// | sigma_down_mgal | float64 | the filtered value's sigma: the four below in quadrature, mGal |
 /// | sigma_calibration_mgal, sigma_positions_mgal, sigma_noise_mgal, sigma_tie_mgal | float64 | its parts, mGal |
 /// | height_antenna_m | float64 | the antenna's height as the trajectory gives it, m |
+/// | north_mgal, north_filtered_mgal, sigma_north_mgal | float64, null without attitude | the disturbance north, unfiltered and filtered, and the filtered value's sigma: the four below in quadrature |
+/// | sigma_north_calibration_mgal, sigma_north_positions_mgal, sigma_north_noise_mgal, sigma_north_attitude_mgal | float64, null without attitude | its parts |
+/// | east_... | float64, null without attitude | the same seven east |
 /// | flags | uint8 | the bits of this module's flags, or-ed |
 pub mod gravity {
     use super::*;
@@ -510,6 +513,24 @@ pub mod gravity {
         "sigma_tie_mgal",
         "height_antenna_m",
     ];
+    /// The nullable Float64 columns of north and east (docs/formats.md 10.3), after
+    /// [`FLOATS`]: values only with attitude and a triad model, null elsewhere.
+    pub const HORIZONTAL: [&str; 14] = [
+        "north_mgal",
+        "north_filtered_mgal",
+        "sigma_north_mgal",
+        "sigma_north_calibration_mgal",
+        "sigma_north_positions_mgal",
+        "sigma_north_noise_mgal",
+        "sigma_north_attitude_mgal",
+        "east_mgal",
+        "east_filtered_mgal",
+        "sigma_east_mgal",
+        "sigma_east_calibration_mgal",
+        "sigma_east_positions_mgal",
+        "sigma_east_noise_mgal",
+        "sigma_east_attitude_mgal",
+    ];
     /// The stretch column.
     pub const STRETCH: &str = "stretch";
     /// The flags column.
@@ -524,6 +545,9 @@ pub mod gravity {
         ];
         for name in FLOATS {
             fields.push(Field::new(name, DataType::Float64, false));
+        }
+        for name in HORIZONTAL {
+            fields.push(Field::new(name, DataType::Float64, true));
         }
         fields.push(Field::new(FLAGS, DataType::UInt8, false));
         with_sessions(fields, sessions)

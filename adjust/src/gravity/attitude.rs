@@ -1,0 +1,295 @@
+//! Attitude (docs/formats.md 10.2): a CSV `time,heading_deg,pitch_deg,roll_deg[,
+//! sd_heading_deg,sd_pitch_deg,sd_roll_deg]`, the time in any form of docs/formats.md 9.1,
+//! from a multi-antenna GNSS or an INS; vehicle frame x forward, y right, z down, the
+//! rotation from vehicle to navigation frame Rz(heading) Ry(pitch) Rx(roll). A line that
+//! breaks the format is an error naming file, line and field. Brought onto the
+//! trajectory's epochs by linear interpolation (the heading unwrapped), only between two
+//! attitude epochs no further apart than twice their median interval: an epoch outside
+//! that is not reduced (`no_attitude`).
+
+use super::GravityError;
+use ingest::time::TimeReader;
+use std::path::Path;
+
+/// Attitude epochs, as columns.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Attitude {
+    /// GPS time, ns.
+    pub time_gps_ns: Vec<i64>,
+    /// Heading, pitch, roll, deg (heading unwrapped: continuous across north).
+    pub hpr_deg: Vec<[f64; 3]>,
+    /// Their sds, deg, where the file gives them.
+    pub sd_deg: Vec<Option<[f64; 3]>>,
+}
+
+/// The attitude at one trajectory epoch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AttitudeAt {
+    /// Heading, pitch, roll, rad.
+    pub hpr_rad: [f64; 3],
+    /// Their sds, rad (0 where the file gives none).
+    pub sd_rad: [f64; 3],
+}
+
+impl AttitudeAt {
+    /// C_v^n = Rz(heading) Ry(pitch) Rx(roll), row-major.
+    pub fn vehicle_to_nav(&self) -> [[f64; 3]; 3] {
+        let [h, p, r] = self.hpr_rad;
+        rotation(h, p, r)
+    }
+}
+
+/// Rz(z) Ry(y) Rx(x), row-major.
+pub fn rotation(z: f64, y: f64, x: f64) -> [[f64; 3]; 3] {
+    let (sz, cz) = z.sin_cos();
+    let (sy, cy) = y.sin_cos();
+    let (sx, cx) = x.sin_cos();
+    [
+        [cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx],
+        [sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx],
+        [-sy, cy * sx, cy * cx],
+    ]
+}
+
+/// a b, 3 x 3.
+pub fn product(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
+/// m v.
+pub fn apply(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
+}
+
+fn bad(path: &Path, line: u64, field: &str, message: String) -> GravityError {
+    GravityError::Line {
+        path: path.to_path_buf(),
+        line,
+        field: field.to_owned(),
+        message,
+    }
+}
+
+/// Reads an attitude CSV whose times `time` reads; times must increase.
+pub fn read_csv(path: &Path, mut time: TimeReader) -> Result<Attitude, GravityError> {
+    let text = std::fs::read_to_string(path).map_err(|e| GravityError::File {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let mut out = Attitude::default();
+    let fields = time.form.fields();
+    let mut header_seen = false;
+    for (i, l) in text.lines().enumerate() {
+        let line = i as u64 + 1;
+        let t = l.split('#').next().unwrap_or("").trim();
+        if t.is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = t.split(',').map(str::trim).collect();
+        if !header_seen {
+            header_seen = true;
+            if f.first().is_some_and(|x| x.starts_with("time")) {
+                continue;
+            }
+        }
+        if f.len() != fields + 3 && f.len() != fields + 6 {
+            return Err(bad(
+                path,
+                line,
+                "line",
+                format!(
+                    "{} fields: expected time, heading_deg, pitch_deg, roll_deg and optionally \
+                     sd_heading_deg, sd_pitch_deg, sd_roll_deg",
+                    f.len()
+                ),
+            ));
+        }
+        let bytes: Vec<&[u8]> = f[..fields].iter().map(|x| x.as_bytes()).collect();
+        let tns = time
+            .read(&bytes)
+            .map_err(|(field, m)| bad(path, line, field, m))?;
+        if out.time_gps_ns.last().is_some_and(|&last| tns <= last) {
+            return Err(bad(
+                path,
+                line,
+                "time",
+                "does not increase from the line before".to_owned(),
+            ));
+        }
+        let hpr = angles(path, line, &f[fields..fields + 3])?;
+        let sd = if f.len() == fields + 6 {
+            Some(sds(path, line, &f[fields + 3..])?)
+        } else {
+            None
+        };
+        out.time_gps_ns.push(tns);
+        out.hpr_deg.push(hpr);
+        out.sd_deg.push(sd);
+    }
+    unwrap_heading(&mut out.hpr_deg);
+    Ok(out)
+}
+
+/// Heading in [-360, 360], pitch in [-90, 90], roll in [-180, 180].
+fn angles(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
+    let names = ["heading_deg", "pitch_deg", "roll_deg"];
+    let limits = [360.0, 90.0, 180.0];
+    let mut out = [0.0; 3];
+    for k in 0..3 {
+        let v: f64 = f[k]
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| bad(path, line, names[k], format!("`{}` is not a number", f[k])))?;
+        if v.abs() > limits[k] {
+            return Err(bad(
+                path,
+                line,
+                names[k],
+                format!("{v} is outside [-{0}, {0}] deg", limits[k]),
+            ));
+        }
+        out[k] = v;
+    }
+    Ok(out)
+}
+
+/// Three sds (deg), each finite, not negative and under 90.
+fn sds(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
+    let mut out = [0.0; 3];
+    for (k, name) in ["sd_heading_deg", "sd_pitch_deg", "sd_roll_deg"]
+        .iter()
+        .enumerate()
+    {
+        out[k] = f[k]
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite() && (0.0..90.0).contains(v))
+            .ok_or_else(|| bad(path, line, name, format!("`{}` is not an sd in deg", f[k])))?;
+    }
+    Ok(out)
+}
+
+/// The heading made continuous: each step taken as the shortest turn.
+fn unwrap_heading(hpr: &mut [[f64; 3]]) {
+    for k in 1..hpr.len() {
+        let step = (hpr[k][0] - hpr[k - 1][0] + 180.0).rem_euclid(360.0) - 180.0;
+        hpr[k][0] = hpr[k - 1][0] + step;
+    }
+}
+
+impl Attitude {
+    /// The attitude at each of `times` (increasing), or None where it cannot be
+    /// interpolated: outside the file's span, or between two attitude epochs more than
+    /// twice their median interval apart.
+    pub fn at(&self, times: &[i64]) -> Vec<Option<AttitudeAt>> {
+        let t = &self.time_gps_ns;
+        let mut d: Vec<i64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+        d.sort_unstable();
+        let max_gap = 2 * d.get(d.len() / 2).copied().unwrap_or(0);
+        let mut k = 0;
+        times
+            .iter()
+            .map(|&x| {
+                while k + 1 < t.len() && t[k + 1] < x {
+                    k += 1;
+                }
+                if t.is_empty() || x < t[0] || x > t[t.len() - 1] {
+                    return None;
+                }
+                if t[k] == x {
+                    return Some(self.interpolated(k, k, 0.0));
+                }
+                let next = (k + 1).min(t.len() - 1);
+                if t[next] - t[k] > max_gap {
+                    return None;
+                }
+                let f = (x - t[k]) as f64 / (t[next] - t[k]) as f64;
+                Some(self.interpolated(k, next, f))
+            })
+            .collect()
+    }
+
+    fn interpolated(&self, a: usize, b: usize, f: f64) -> AttitudeAt {
+        let hpr = std::array::from_fn(|j| {
+            (self.hpr_deg[a][j] + f * (self.hpr_deg[b][j] - self.hpr_deg[a][j])).to_radians()
+        });
+        let sd = |k: usize| self.sd_deg[k].unwrap_or([0.0; 3]);
+        let sd_rad =
+            std::array::from_fn(|j| (sd(a)[j] + f * (sd(b)[j] - sd(a)[j])).to_radians());
+        AttitudeAt {
+            hpr_rad: hpr,
+            sd_rad,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ingest::contract::manifest::TimeScale;
+    use ingest::time::TimeForm;
+
+    fn read(text: &str) -> Result<Attitude, GravityError> {
+        let d = tempfile::tempdir().expect("tempdir");
+        let p = d.path().join("att.csv");
+        std::fs::write(&p, text).expect("write");
+        read_csv(&p, TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None))
+    }
+
+    #[test]
+    fn headings_across_north_interpolate_the_short_way() {
+        let a = read(
+            "time,heading_deg,pitch_deg,roll_deg,sd_heading_deg,sd_pitch_deg,sd_roll_deg\n\
+             1773479523.0,359.0,1.0,-2.0,0.1,0.01,0.01\n\
+             1773479523.1,1.0,1.2,-2.2,0.1,0.01,0.01\n",
+        )
+        .expect("reads");
+        let t0 = a.time_gps_ns[0];
+        let at = a.at(&[t0 - 1, t0 + 50_000_000, t0 + 100_000_000, t0 + 100_000_001]);
+        assert_eq!(at[0], None);
+        assert_eq!(at[3], None);
+        let mid = at[1].expect("inside");
+        assert!((mid.hpr_rad[0].to_degrees() - 360.0).abs() < 1e-9, "{mid:?}");
+        assert!((mid.hpr_rad[1].to_degrees() - 1.1).abs() < 1e-9, "{mid:?}");
+        assert!((mid.sd_rad[1].to_degrees() - 0.01).abs() < 1e-12, "{mid:?}");
+    }
+
+    #[test]
+    fn the_rotation_is_z_y_x() {
+        // A heading of 90 deg takes the vehicle's x (forward) to east.
+        let m = rotation(90f64.to_radians(), 0.0, 0.0);
+        let v = apply(&m, [1.0, 0.0, 0.0]);
+        assert!((v[1] - 1.0).abs() < 1e-12 && v[0].abs() < 1e-12, "{v:?}");
+        // A roll of 90 deg takes y (right) to down.
+        let m = rotation(0.0, 0.0, 90f64.to_radians());
+        let v = apply(&m, [0.0, 1.0, 0.0]);
+        assert!((v[2] - 1.0).abs() < 1e-12, "{v:?}");
+        // The product is Rz (Ry Rx).
+        let (z, y, x) = (0.3, -0.2, 0.1);
+        let p = product(
+            &rotation(z, 0.0, 0.0),
+            &product(&rotation(0.0, y, 0.0), &rotation(0.0, 0.0, x)),
+        );
+        let r = rotation(z, y, x);
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((p[i][j] - r[i][j]).abs() < 1e-15);
+            }
+        }
+    }
+
+    #[test]
+    fn bad_lines_are_named() {
+        let e = read("time,heading_deg,pitch_deg,roll_deg\n1773479523.0,10.0,95.0,0.0\n")
+            .expect_err("pitch 95")
+            .to_string();
+        assert!(e.contains(":2: pitch_deg: 95 is outside"), "{e}");
+        let e = read("1773479523.0,10.0,1.0,0.0\n1773479523.0,10.0,1.0,0.0\n")
+            .expect_err("repeated time")
+            .to_string();
+        assert!(e.contains(":2: time: does not increase"), "{e}");
+        let e = read("1773479523.0,10.0,1.0\n").expect_err("short").to_string();
+        assert!(e.contains(":1: line: 3 fields"), "{e}");
+    }
+}

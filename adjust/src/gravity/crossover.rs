@@ -1,0 +1,376 @@
+//! Crossovers (docs/model.md 7): where the track crosses itself, the two passes' filtered
+//! disturbances differ by their errors alone, a check of the sigmas nobody had to simulate.
+//!
+//! The epochs that may take part are those moving (over 1 m/s) and carrying no flag (not
+//! turning, not within a filter period of a stretch's end, not outside the calibration);
+//! consecutive such epochs of one stretch make the segments of the track. Two segments at
+//! least twice the filter's period apart in time (so that the filter's windows do not
+//! overlap and the noise is independent) that intersect give a crossover. The search is in
+//! latitude and longitude with the longitude scaled by the cosine of the mean latitude: a
+//! map that is affine, so that where two segments cross, as fractions along each, is the
+//! same as in any local metric frame. Segments are hashed into square cells four median
+//! segment lengths wide, and a pair is tested (once) only where both fall into one cell. Intersections of one pair of
+//! passes within a filter period of each other (a track that wanders across a line under
+//! its noise) count as one crossover.
+//!
+//! The difference (second pass minus first) is interpolated linearly along each segment.
+//! Its sigma takes the parts independent between the passes: the noise and the positions
+//! of each pass, and the tie's: on one stretch the drift's rate over the time between the
+//! passes (the offset is common), on two stretches each pass's tie sigma in full. The
+//! calibration's part is common to both passes (one calibration, the same specific force
+//! on a levelled platform) and cancels to first order, so it is left out.
+
+use ingest::contract::gravity_ledger::{Crossover, Pass};
+use ingest::time::utc_iso;
+use std::collections::{HashMap, HashSet};
+
+/// The epochs written, as the stage gathered them (rows of gravity.parquet, in order).
+pub struct Epochs<'a> {
+    /// The session's index into `names`.
+    pub session: &'a [u16],
+    /// Session ids.
+    pub names: &'a [String],
+    /// The stretch's number within its session.
+    pub stretch: &'a [u32],
+    /// GPS ns.
+    pub time_gps_ns: &'a [i64],
+    /// Deg.
+    pub latitude_deg: &'a [f64],
+    /// Deg.
+    pub longitude_deg: &'a [f64],
+    /// m/s.
+    pub speed_m_s: &'a [f64],
+    /// The filtered disturbance down, mGal.
+    pub filtered_mgal: &'a [f64],
+    /// Its sigma, all parts.
+    pub sigma_mgal: &'a [f64],
+    /// The noise's part.
+    pub sigma_noise_mgal: &'a [f64],
+    /// The positions' part.
+    pub sigma_positions_mgal: &'a [f64],
+    /// The tie's part.
+    pub sigma_tie_mgal: &'a [f64],
+    /// gravity.parquet's flags.
+    pub flags: &'a [u8],
+}
+
+/// Slowest speed at which an epoch may take part, m/s.
+const MOVING_M_S: f64 = 1.0;
+
+/// The crossovers of `e`; `rate_sigma(session, stretch)` is the sigma of the drift's rate
+/// fitted on a stretch, mGal/h (none without one).
+pub fn crossovers(
+    e: &Epochs<'_>,
+    filter_s: f64,
+    rate_sigma: impl Fn(u16, u32) -> Option<f64>,
+) -> Vec<Crossover> {
+    let plane = Plane::new(e);
+    let segments = segments(e);
+    let separation_ns = (2.0 * filter_s * 1e9) as i64;
+    let mut found = Vec::new();
+    let mut tested = HashSet::new();
+    for members in plane.cells(&segments).values() {
+        for (x, &a) in members.iter().enumerate() {
+            for &b in &members[x + 1..] {
+                let (a, b) = (a.min(b), a.max(b));
+                if (e.time_gps_ns[b] - e.time_gps_ns[a]).abs() < separation_ns
+                    || !tested.insert((a, b))
+                {
+                    continue;
+                }
+                if let Some((s, u)) = plane.intersect(a, b) {
+                    found.push((a, s, b, u));
+                }
+            }
+        }
+    }
+    found.sort_by(|p, q| (p.0, p.2).cmp(&(q.0, q.2)));
+    let found = merged(e, found, (filter_s * 1e9) as i64);
+    found
+        .into_iter()
+        .map(|(a, s, b, u)| crossover(e, &plane, (a, s), (b, u), &rate_sigma))
+        .collect()
+}
+
+/// The segments: epoch k to k + 1, both taking part, on one stretch.
+fn segments(e: &Epochs<'_>) -> Vec<usize> {
+    let takes_part = |k: usize| e.flags[k] == 0 && e.speed_m_s[k] > MOVING_M_S;
+    (0..e.time_gps_ns.len().saturating_sub(1))
+        .filter(|&k| {
+            takes_part(k)
+                && takes_part(k + 1)
+                && e.session[k] == e.session[k + 1]
+                && e.stretch[k] == e.stretch[k + 1]
+        })
+        .collect()
+}
+
+/// Intersections of one pair of passes within `window_ns` on both kept once (the first).
+fn merged(
+    e: &Epochs<'_>,
+    found: Vec<(usize, f64, usize, f64)>,
+    window_ns: i64,
+) -> Vec<(usize, f64, usize, f64)> {
+    let mut kept: Vec<(usize, f64, usize, f64)> = Vec::new();
+    for f in found {
+        let near = kept.iter().any(|k| {
+            (e.time_gps_ns[k.0] - e.time_gps_ns[f.0]).abs() < window_ns
+                && (e.time_gps_ns[k.2] - e.time_gps_ns[f.2]).abs() < window_ns
+        });
+        if !near {
+            kept.push(f);
+        }
+    }
+    kept
+}
+
+/// Latitude and scaled longitude, deg, and the hashing cell's size.
+struct Plane {
+    xy: Vec<[f64; 2]>,
+    cell_deg: f64,
+}
+
+impl Plane {
+    fn new(e: &Epochs<'_>) -> Self {
+        let n = e.latitude_deg.len();
+        let mean = e.latitude_deg.iter().sum::<f64>() / n.max(1) as f64;
+        let c = mean.to_radians().cos();
+        let xy: Vec<[f64; 2]> = (0..n)
+            .map(|k| [e.longitude_deg[k] * c, e.latitude_deg[k]])
+            .collect();
+        let mut lengths: Vec<f64> = segments(e)
+            .iter()
+            .map(|&k| (xy[k + 1][0] - xy[k][0]).hypot(xy[k + 1][1] - xy[k][1]))
+            .collect();
+        lengths.sort_by(f64::total_cmp);
+        let median = lengths.get(lengths.len() / 2).copied().unwrap_or(1e-5);
+        Plane {
+            xy,
+            cell_deg: (4.0 * median).max(1e-7),
+        }
+    }
+
+    fn cell_of(&self, p: [f64; 2]) -> (i64, i64) {
+        (
+            (p[0] / self.cell_deg).floor() as i64,
+            (p[1] / self.cell_deg).floor() as i64,
+        )
+    }
+
+    /// Each cell with the segments whose bounding box touches it.
+    fn cells(&self, segments: &[usize]) -> HashMap<(i64, i64), Vec<usize>> {
+        let mut cells: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+        for &k in segments {
+            let (p, q) = (self.xy[k], self.xy[k + 1]);
+            let lo = self.cell_of([p[0].min(q[0]), p[1].min(q[1])]);
+            let hi = self.cell_of([p[0].max(q[0]), p[1].max(q[1])]);
+            for i in lo.0..=hi.0 {
+                for j in lo.1..=hi.1 {
+                    cells.entry((i, j)).or_default().push(k);
+                }
+            }
+        }
+        cells
+    }
+
+    /// The point a fraction `s` along segment `k`.
+    fn along(&self, k: usize, s: f64) -> [f64; 2] {
+        let (p, q) = (self.xy[k], self.xy[k + 1]);
+        [p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1])]
+    }
+
+    /// Where segments `a` and `b` cross, as fractions along each in [0, 1) (half open, so
+    /// that a crossing through an epoch counts once).
+    fn intersect(&self, a: usize, b: usize) -> Option<(f64, f64)> {
+        let (p, r) = (self.xy[a], sub(self.xy[a + 1], self.xy[a]));
+        let (q, d) = (self.xy[b], sub(self.xy[b + 1], self.xy[b]));
+        let den = cross(r, d);
+        if den == 0.0 {
+            return None;
+        }
+        let w = sub(q, p);
+        let (s, u) = (cross(w, d) / den, cross(w, r) / den);
+        ((0.0..1.0).contains(&s) && (0.0..1.0).contains(&u)).then_some((s, u))
+    }
+
+    /// The angle between the segments' directions, deg in 0-90.
+    fn angle_deg(&self, a: usize, b: usize) -> f64 {
+        let r = sub(self.xy[a + 1], self.xy[a]);
+        let d = sub(self.xy[b + 1], self.xy[b]);
+        let cos = (r[0] * d[0] + r[1] * d[1]) / (r[0].hypot(r[1]) * d[0].hypot(d[1]));
+        let angle = cos.clamp(-1.0, 1.0).acos().to_degrees();
+        angle.min(180.0 - angle)
+    }
+}
+
+fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[1] - a[1] * b[0]
+}
+
+/// `v` interpolated a fraction `s` from epoch k to k + 1.
+fn at(v: &[f64], k: usize, s: f64) -> f64 {
+    v[k] + s * (v[k + 1] - v[k])
+}
+
+fn pass(e: &Epochs<'_>, k: usize, s: f64) -> Pass {
+    let t = e.time_gps_ns[k] + (s * (e.time_gps_ns[k + 1] - e.time_gps_ns[k]) as f64) as i64;
+    Pass {
+        session: e.names[usize::from(e.session[k])].clone(),
+        stretch: e.stretch[k],
+        time: utc_iso(t),
+        time_gps_ns: t,
+        filtered_mgal: at(e.filtered_mgal, k, s),
+        sigma_mgal: at(e.sigma_mgal, k, s),
+    }
+}
+
+fn crossover(
+    e: &Epochs<'_>,
+    plane: &Plane,
+    (a, s): (usize, f64),
+    (b, u): (usize, f64),
+    rate_sigma: &impl Fn(u16, u32) -> Option<f64>,
+) -> Crossover {
+    let ((a, s), (b, u)) = if e.time_gps_ns[b] < e.time_gps_ns[a] {
+        ((b, u), (a, s))
+    } else {
+        ((a, s), (b, u))
+    };
+    let independent = |k: usize, f: f64| {
+        at(e.sigma_noise_mgal, k, f).hypot(at(e.sigma_positions_mgal, k, f))
+    };
+    let same = e.session[a] == e.session[b] && e.stretch[a] == e.stretch[b];
+    let tie = if same {
+        let hours = (e.time_gps_ns[b] - e.time_gps_ns[a]) as f64 / 3.6e12;
+        rate_sigma(e.session[a], e.stretch[a]).unwrap_or(0.0) * hours
+    } else {
+        at(e.sigma_tie_mgal, a, s).hypot(at(e.sigma_tie_mgal, b, u))
+    };
+    let sigma = independent(a, s).hypot(independent(b, u)).hypot(tie);
+    let point = plane.along(a, s);
+    let (first, second) = (pass(e, a, s), pass(e, b, u));
+    Crossover {
+        latitude_deg: point[1],
+        longitude_deg: at(e.longitude_deg, a, s),
+        angle_deg: plane.angle_deg(a, b),
+        difference_mgal: second.filtered_mgal - first.filtered_mgal,
+        sigma_mgal: sigma,
+        first,
+        second,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two straight passes: east along latitude 43 and back north-west across it, epochs
+    /// every 0.5 s, with a disturbance that is x on the first and x + 1 on the second.
+    struct Track {
+        session: Vec<u16>,
+        stretch: Vec<u32>,
+        time: Vec<i64>,
+        lat: Vec<f64>,
+        lon: Vec<f64>,
+        speed: Vec<f64>,
+        value: Vec<f64>,
+        sigma: Vec<f64>,
+        flags: Vec<u8>,
+    }
+
+    fn track(wander: f64) -> Track {
+        let mut t = Track {
+            session: vec![],
+            stretch: vec![],
+            time: vec![],
+            lat: vec![],
+            lon: vec![],
+            speed: vec![],
+            value: vec![],
+            sigma: vec![],
+            flags: vec![],
+        };
+        let mut push = |k: usize, lat: f64, lon: f64, v: f64| {
+            t.session.push(0);
+            t.stretch.push(0);
+            t.time.push(k as i64 * 500_000_000);
+            t.lat.push(lat);
+            t.lon.push(lon);
+            t.speed.push(5.0);
+            t.value.push(v);
+            t.sigma.push(0.3);
+            t.flags.push(0);
+        };
+        // 2000 epochs east from lon 5.0 to 5.02, then 2000 back crossing at lon 5.01.
+        for k in 0..2000 {
+            let lon = 5.0 + 1e-5 * k as f64;
+            push(k, 43.0, lon, lon);
+        }
+        for k in 0..2000 {
+            let lon = 5.02 - 1e-5 * k as f64;
+            // Crosses latitude 43 at k = 1000; a wander of `wander` deg about the line.
+            let jitter = if k % 2 == 0 { wander } else { -wander };
+            let lat = 43.0 + 1e-6 * (1000.0 - k as f64) + jitter;
+            push(2000 + k, lat, lon, lon + 1.0);
+        }
+        t
+    }
+
+    fn epochs<'a>(t: &'a Track, names: &'a [String]) -> Epochs<'a> {
+        Epochs {
+            session: &t.session,
+            names,
+            stretch: &t.stretch,
+            time_gps_ns: &t.time,
+            latitude_deg: &t.lat,
+            longitude_deg: &t.lon,
+            speed_m_s: &t.speed,
+            filtered_mgal: &t.value,
+            sigma_mgal: &t.sigma,
+            sigma_noise_mgal: &t.sigma,
+            sigma_positions_mgal: &t.sigma,
+            sigma_tie_mgal: &t.sigma,
+            flags: &t.flags,
+        }
+    }
+
+    #[test]
+    fn two_passes_cross_once_where_they_cross_with_the_difference_between_them() {
+        let t = track(0.0);
+        let names = ["s".to_owned()];
+        let e = epochs(&t, &names);
+        let found = crossovers(&e, 100.0, |_, _| Some(0.5));
+        assert_eq!(found.len(), 1, "{found:?}");
+        let c = &found[0];
+        assert!((c.longitude_deg - 5.01).abs() < 1e-7, "{c:?}");
+        assert!((c.latitude_deg - 43.0).abs() < 1e-9, "{c:?}");
+        assert!((c.difference_mgal - 1.0).abs() < 1e-9, "{c:?}");
+        // Noise and positions of each pass (0.3 each), the rate's sigma over the time
+        // between the passes (1000 s = 0.278 h at 0.5 mGal/h).
+        let hours: f64 = 1000.0 / 3600.0;
+        let expect = (4.0 * 0.09 + (0.5 * hours).powi(2)).sqrt();
+        assert!((c.sigma_mgal - expect).abs() < 1e-3, "{c:?} against {expect}");
+        let slope = 1e-6 / (1e-5 * 43f64.to_radians().cos());
+        assert!((c.angle_deg - slope.atan().to_degrees()).abs() < 1e-3, "{c:?}");
+    }
+
+    #[test]
+    fn a_wandering_pass_crosses_once_and_flagged_or_close_epochs_take_no_part() {
+        // A wander larger than a step across the line: several intersections, one crossover.
+        let t = track(2.5e-6);
+        let names = ["s".to_owned()];
+        let e = epochs(&t, &names);
+        assert_eq!(crossovers(&e, 100.0, |_, _| None).len(), 1);
+        // Passes within twice the filter's period of each other do not cross.
+        assert!(crossovers(&e, 600.0, |_, _| None).is_empty());
+        let mut t = track(0.0);
+        for k in 2990..3010 {
+            t.flags[k] = 2;
+        }
+        assert!(crossovers(&epochs(&t, &names), 100.0, |_, _| None).is_empty());
+    }
+}

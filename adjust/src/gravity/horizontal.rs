@@ -1,0 +1,218 @@
+//! North and east along a stretch of track (docs/model.md 7), free of I/O: with attitude and
+//! a triad model the specific force is known in the navigation frame, and
+//!
+//!     delta g_N = a_N - f_N + ((2 omega_ie + omega_en) x v)_N,   likewise east,
+//!
+//! normal gravity having no horizontal component along the ellipsoidal normal. The
+//! kinematic acceleration is the second difference of the track's northing and easting,
+//! each step the change of latitude (longitude) times the radius of curvature (times the
+//! cosine of the latitude) at the step's middle, so that the second difference is the
+//! change of the local velocity, dv^n/dt, as the navigation equation wants it (a fixed
+//! plane would add the meridians' convergence); the velocities for the Coriolis and
+//! transport-rate term are central differences of the same. Filtered as the down component
+//! is ([`super::reduce`]): the positions through the filter before they are differentiated,
+//! the rest extended about its smooth level at each end.
+//!
+//! Sigmas, kept apart: the positions' sd north or east through the differentiator and the
+//! filter; the accelerometers' noise (the down component's per-axis sd: the noise is taken
+//! as the same on each axis) through the filter; the calibration's (untied: no tie gives the
+//! horizontal components, so its whole error stays, the parameters' gradients filtered and
+//! carried through their covariance where the triad has no temperature terms, the filtered
+//! sigma otherwise); and the attitude's: a tilt error eps turns the specific force, delta f =
+//! eps x f, so that its north part is f_D eps_E - f_E eps_heading, first order in the tilt (1
+//! mrad is about 980 mGal). Attitude errors of a multi-antenna GNSS or an INS are slow, so
+//! they are taken as correlated over the filter's length: the filter does not reduce them
+//! (for white attitude noise this overstates the sigma by the filter's white-noise gain).
+
+use super::GravityError;
+use super::filter;
+use super::navigation::{coriolis_transport, radii};
+use super::normal::GRS80;
+use super::reduce::{self, CalibrationGradient, Stretch};
+
+/// What a stretch's horizontal reduction needs beyond the down component's inputs, per
+/// epoch, indexed [north, east].
+#[derive(Clone, Debug, Default)]
+pub struct Horizontal {
+    /// The specific force north and east, mGal.
+    pub f_mgal: [Vec<f64>; 2],
+    /// The calibration's sigma of each (used where `calibration` is None), mGal.
+    pub sigma_calibration_mgal: [Vec<f64>; 2],
+    /// The calibration's error as gradients by the parameters, where they can be formed.
+    pub calibration: [Option<CalibrationGradient>; 2],
+    /// The attitude's sigma of each, mGal.
+    pub sigma_attitude_mgal: [Vec<f64>; 2],
+    /// The positions' sds north and east, m (0 where unknown).
+    pub sd_m: [Vec<f64>; 2],
+}
+
+/// North and east reduced, indexed [north, east].
+#[derive(Clone, Debug, Default)]
+pub struct ReducedHorizontal {
+    /// Unfiltered disturbance, mGal.
+    pub disturbance_mgal: [Vec<f64>; 2],
+    /// Filtered.
+    pub filtered_mgal: [Vec<f64>; 2],
+    /// The filtered value's sigma, its four parts in quadrature.
+    pub sigma_mgal: [Vec<f64>; 2],
+    /// The calibration's part.
+    pub sigma_calibration_mgal: [Vec<f64>; 2],
+    /// The positions'.
+    pub sigma_positions_mgal: [Vec<f64>; 2],
+    /// The accelerometers' noise.
+    pub sigma_noise_mgal: [Vec<f64>; 2],
+    /// The attitude's.
+    pub sigma_attitude_mgal: [Vec<f64>; 2],
+}
+
+/// The track's northing and easting, m, from its first epoch (see the module's text).
+fn northing_easting(s: &Stretch) -> [Vec<f64>; 2] {
+    let n = s.time_gps_ns.len();
+    let mut out = [vec![0.0; n], vec![0.0; n]];
+    for k in 1..n {
+        let lat = 0.5 * (s.latitude_deg[k] + s.latitude_deg[k - 1]);
+        let h = 0.5 * (s.height_m[k] + s.height_m[k - 1]);
+        let (r_m, r_n) = radii(&GRS80, lat);
+        let d_lat = (s.latitude_deg[k] - s.latitude_deg[k - 1]).to_radians();
+        let d_lon = (s.longitude_deg[k] - s.longitude_deg[k - 1]).to_radians();
+        out[0][k] = out[0][k - 1] + d_lat * (r_m + h);
+        out[1][k] = out[1][k - 1] + d_lon * (r_n + h) * lat.to_radians().cos();
+    }
+    out
+}
+
+/// The Coriolis and transport-rate term north and east at each epoch, mGal.
+fn coriolis(s: &Stretch, xy: &[Vec<f64>; 2], dt: f64) -> [Vec<f64>; 2] {
+    let n = s.time_gps_ns.len();
+    let mut out = [Vec::with_capacity(n), Vec::with_capacity(n)];
+    for k in 0..n {
+        let (lo, hi) = (k.saturating_sub(1), (k + 1).min(n - 1));
+        let span = (hi - lo) as f64 * dt;
+        let v = [
+            (xy[0][hi] - xy[0][lo]) / span,
+            (xy[1][hi] - xy[1][lo]) / span,
+            -(s.height_m[hi] - s.height_m[lo]) / span,
+        ];
+        let c = coriolis_transport(&GRS80, s.latitude_deg[k], s.height_m[k], v);
+        out[0].push(c[0] * 1e5);
+        out[1].push(c[1] * 1e5);
+    }
+    out
+}
+
+/// The second difference of `x` at each epoch, mGal (at the ends, the neighbour's).
+fn second_difference(x: &[f64], dt: f64) -> Vec<f64> {
+    let n = x.len();
+    (0..n)
+        .map(|k| {
+            let c = k.clamp(1, n - 2);
+            (x[c + 1] - 2.0 * x[c] + x[c - 1]) / (dt * dt) * 1e5
+        })
+        .collect()
+}
+
+/// North and east along `s` (its down component's inputs: positions, noise) with `h`,
+/// filtered with cut-off period `filter_s`.
+pub fn reduce_horizontal(
+    s: &Stretch,
+    h: &Horizontal,
+    filter_s: f64,
+) -> Result<ReducedHorizontal, GravityError> {
+    let n = s.time_gps_ns.len();
+    let dt = reduce::interval_s(&s.time_gps_ns)?;
+    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt)?;
+    let pad = reduce::padding(filter_s, dt);
+    let pivot = ((filter_s / dt).round() as usize).min(n);
+    let xy = northing_easting(s);
+    let cor = coriolis(s, &xy, dt);
+    let position_gain = reduce::position_noise_gain(&sections, n, n / 2, dt) * 1e5;
+    let noise_gain = reduce::white_noise_gain(&sections, n);
+    let mut out = ReducedHorizontal::default();
+    for c in 0..2 {
+        let a = second_difference(&xy[c], dt);
+        out.disturbance_mgal[c] = (0..n).map(|k| a[k] - h.f_mgal[c][k] + cor[c][k]).collect();
+        let rest: Vec<f64> = (0..n).map(|k| -h.f_mgal[c][k] + cor[c][k]).collect();
+        let mut f = filter::filtfilt_pivoted(&sections, &rest, pad, pivot);
+        let x = filter::filtfilt_pivoted(&sections, &xy[c], pad, 1);
+        for (v, a) in f.iter_mut().zip(second_difference(&x, dt)) {
+            *v += a;
+        }
+        out.filtered_mgal[c] = f;
+        out.sigma_positions_mgal[c] = h.sd_m[c].iter().map(|sd| sd * position_gain).collect();
+        out.sigma_noise_mgal[c] = s.noise_f_mgal.iter().map(|sd| sd * noise_gain).collect();
+        out.sigma_calibration_mgal[c] = match &h.calibration[c] {
+            Some(g) => g.filtered_sigma(&sections, pad, pivot),
+            None => filter::filtfilt_pivoted(&sections, &h.sigma_calibration_mgal[c], pad, pivot),
+        };
+        out.sigma_attitude_mgal[c] =
+            filter::filtfilt_pivoted(&sections, &h.sigma_attitude_mgal[c], pad, pivot);
+        out.sigma_mgal[c] = (0..n)
+            .map(|k| {
+                [
+                    out.sigma_calibration_mgal[c][k],
+                    out.sigma_positions_mgal[c][k],
+                    out.sigma_noise_mgal[c][k],
+                    out.sigma_attitude_mgal[c][k],
+                ]
+                .iter()
+                .map(|v| v * v)
+                .sum::<f64>()
+                .sqrt()
+            })
+            .collect();
+    }
+    Ok(out)
+}
+
+/// The attitude's sigma of the specific force north and east, mGal, at heading `heading`
+/// (rad) with sds of heading, pitch and roll `sd` (rad), for the specific force `f` (N, E,
+/// D, mGal): the tilt errors turned into the navigation frame, eps_N = cos(h) d_roll -
+/// sin(h) d_pitch, eps_E = sin(h) d_roll + cos(h) d_pitch, eps_D = d_heading, and
+/// delta f = eps x f.
+pub fn attitude_sigma(heading: f64, sd: [f64; 3], f: [f64; 3]) -> [f64; 2] {
+    let (sh, ch) = heading.sin_cos();
+    let [s_head, s_pitch, s_roll] = sd;
+    let var_n = (ch * s_roll).powi(2) + (sh * s_pitch).powi(2);
+    let var_e = (sh * s_roll).powi(2) + (ch * s_pitch).powi(2);
+    let north = f[2] * f[2] * var_e + f[1] * f[1] * s_head * s_head;
+    let east = f[2] * f[2] * var_n + f[0] * f[0] * s_head * s_head;
+    [north.sqrt(), east.sqrt()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A level, still platform: 0.1 mrad of pitch heading north tilts the force north by
+    /// g 1e-4 (98 mGal); the heading's error acts only on a horizontal force.
+    #[test]
+    fn a_tilt_error_turns_gravity_into_the_horizontal() {
+        let g = 980_000.0;
+        let [n, e] = attitude_sigma(0.0, [1e-3, 1e-4, 0.0], [0.0, 0.0, -g]);
+        assert!((n - 98.0).abs() < 1e-9 && e.abs() < 1e-9, "{n} {e}");
+        let [n, e] = attitude_sigma(std::f64::consts::FRAC_PI_2, [0.0, 1e-4, 0.0], [0.0, 0.0, -g]);
+        assert!(n.abs() < 1e-9 && (e - 98.0).abs() < 1e-9, "{n} {e}");
+        let [n, e] = attitude_sigma(0.0, [1e-3, 0.0, 0.0], [0.0, 1000.0, 0.0]);
+        assert!((n - 1.0).abs() < 1e-9 && e.abs() < 1e-9, "{n} {e}");
+    }
+
+    /// Northing and easting along a parallel going east at 10 m/s: the easting grows by
+    /// 10 m an epoch, the northing stays, and the second difference is zero.
+    #[test]
+    fn a_steady_course_has_no_acceleration() {
+        let mut s = Stretch::default();
+        let (_, r_n) = radii(&GRS80, 45.0);
+        for k in 0..100 {
+            s.time_gps_ns.push(k * 1_000_000_000);
+            s.latitude_deg.push(45.0);
+            s.longitude_deg
+                .push(5.0 + (10.0 * k as f64 / (r_n * 45f64.to_radians().cos())).to_degrees());
+            s.height_m.push(0.0);
+        }
+        let xy = northing_easting(&s);
+        assert!((xy[1][99] - 990.0).abs() < 1e-6, "{}", xy[1][99]);
+        assert!(xy[0].iter().all(|v| v.abs() < 1e-9));
+        let a = second_difference(&xy[1], 1.0);
+        assert!(a.iter().all(|v| v.abs() < 1e-3), "{a:?}");
+    }
+}
