@@ -143,12 +143,17 @@ fn crossover_z(
         * 6_378_137.0
         * plan.origin[0].to_radians().cos();
     let want_east = plan.crossing_east_m().expect("the lines cross");
-    assert!((east_m - want_east).abs() < 0.01 * plan.line_m, "{c:?} at {east_m} m");
+    assert!(
+        (east_m - want_east).abs() < 0.01 * plan.line_m,
+        "{c:?} at {east_m} m"
+    );
     assert!((c.angle_deg - plan.return_deg).abs() < 1.0, "{c:?}");
     let (rows, want) = filtered_truth(dataset, out, r.filter.filter_s);
     let truth = |ns: i64| {
         let t = ns as f64 * 1e-9;
-        let k = rows.partition_point(|x| x.time_s <= t).clamp(1, rows.len() - 1);
+        let k = rows
+            .partition_point(|x| x.time_s <= t)
+            .clamp(1, rows.len() - 1);
         let f = (t - rows[k - 1].time_s) / (rows[k].time_s - rows[k - 1].time_s);
         want[k - 1] + f * (want[k] - want[k - 1])
     };
@@ -325,7 +330,12 @@ fn horizontal_scores(dataset: &Path, out: &Path, filter_s: f64) -> [[f64; 4]; 2]
         let (est, sigma, att) = (&values[3 * c], &values[3 * c + 1], &values[3 * c + 2]);
         let err = |k: usize| est[k] - want[k];
         let rms = (inner.iter().map(|&k| err(k).powi(2)).sum::<f64>() / n).sqrt();
-        let z = (inner.iter().map(|&k| (err(k) / sigma[k]).powi(2)).sum::<f64>() / n).sqrt();
+        let z = (inner
+            .iter()
+            .map(|&k| (err(k) / sigma[k]).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
         let sig = median(inner.iter().map(|&k| sigma[k]).collect());
         let a = median(inner.iter().map(|&k| att[k]).collect());
         [rms, z, sig, a]
@@ -344,20 +354,28 @@ fn with_attitude_north_and_east_are_within_their_sigmas() {
     fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
     let out = dir.path().join("out");
     let r = reduce(&dataset, &out);
-    assert!(r.specific_force.contains("attitude"), "{}", r.specific_force);
+    assert!(
+        r.specific_force.contains("attitude"),
+        "{}",
+        r.specific_force
+    );
     let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
     eprintln!("with attitude, down: rms error {rms:.3} mGal, rms z {z:.3}");
     assert!((0.8..1.2).contains(&z), "down rms z {z}");
-    for (name, [rms, z, sigma, att]) in ["north", "east"]
-        .into_iter()
-        .zip(horizontal_scores(&dataset, &out, r.filter.filter_s))
+    for (name, [rms, z, sigma, att]) in
+        ["north", "east"]
+            .into_iter()
+            .zip(horizontal_scores(&dataset, &out, r.filter.filter_s))
     {
         eprintln!(
             "with attitude, {name}: rms error {rms:.2} mGal, rms z {z:.3}; median sigma \
              {sigma:.1} mGal, of it the attitude's {att:.1}"
         );
         assert!(z < 1.3, "{name} rms z {z}");
-        assert!((60.0..150.0).contains(&att), "{name}: attitude's part {att} mGal");
+        assert!(
+            (60.0..150.0).contains(&att),
+            "{name}: attitude's part {att} mGal"
+        );
     }
 }
 
@@ -476,6 +494,45 @@ fn the_new_keys_are_refused_where_they_cannot_work() {
     }
 }
 
+/// North and east over replicas: the rolling boat with attitude, 8 seeds (the attitude's
+/// errors, the positions', the triad's), pooled over both components: the attitude's errors
+/// wander over 10 minutes, so one survey of 40 minutes holds few independent values of them
+/// and only a pool can say whether the sigma is their size.
+#[test]
+fn monte_carlo_of_north_and_east_with_attitude() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (mut down_z2, mut horizontal_z2, mut n) = (0.0, 0.0, 0.0);
+    for seed in 1..=8u64 {
+        let plan = fixtures::survey_lines::LinesPlan {
+            seed,
+            ..fixtures::survey_lines::attitude_plan()
+        };
+        let dataset = dir.path().join(format!("rolling-{seed}"));
+        fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+        let out = dir.path().join(format!("out-{seed}"));
+        let r = args(&dataset).run(&out).expect("gravity");
+        let (_, z) = scores(&dataset, &out, r.filter.filter_s);
+        let [north, east] = horizontal_scores(&dataset, &out, r.filter.filter_s);
+        eprintln!(
+            "seed {seed}: down rms z {z:.3}; north {:.1} mGal, z {:.3}; east {:.1} mGal, z {:.3}",
+            north[0], north[1], east[0], east[1]
+        );
+        down_z2 += z * z;
+        horizontal_z2 += 0.5 * (north[1].powi(2) + east[1].powi(2));
+        n += 1.0;
+    }
+    let (down, horizontal) = ((down_z2 / n).sqrt(), (horizontal_z2 / n).sqrt());
+    eprintln!(
+        "8 rolling boats with attitude: pooled rms of error / sigma down {down:.3}, north and \
+         east {horizontal:.3}"
+    );
+    assert!((0.8..1.2).contains(&down), "down pooled rms z {down}");
+    assert!(
+        (0.7..1.3).contains(&horizontal),
+        "north and east pooled rms z {horizontal}"
+    );
+}
+
 /// The sigma over replicas: the boat survey with other noise (8 seeds: the positions' and the
 /// triad's), reduced; the pooled rms of error / sigma over the epochs not at an edge.
 #[test]
@@ -507,5 +564,8 @@ fn monte_carlo_of_the_boat_sigmas() {
     assert!((0.85..1.15).contains(&z), "pooled rms z {z}");
     // The sum of eight z^2 is chi-square with 8 degrees of freedom when the sigmas are
     // honest: 0.6 % below the lower bound, 0.5 % above the upper.
-    assert!((0.42..1.65).contains(&crossing_z), "crossovers' rms z {crossing_z}");
+    assert!(
+        (0.42..1.65).contains(&crossing_z),
+        "crossovers' rms z {crossing_z}"
+    );
 }

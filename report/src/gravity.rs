@@ -21,7 +21,7 @@ struct Epoch {
     lon: f64,
     filtered: f64,
     sigma: f64,
-    parts: [f64; 4],
+    parts: [f64; 5],
 }
 
 /// Most points a plot draws (every k-th epoch beyond).
@@ -243,6 +243,7 @@ fn disturbance(ds: &Dataset, epochs: &[Epoch]) -> Table {
         "positions",
         "noise",
         "tie",
+        "attitude",
     ]);
     for (index, s) in ds.sessions.iter().enumerate() {
         let e: Vec<&Epoch> = epochs
@@ -263,7 +264,7 @@ fn disturbance(ds: &Dataset, epochs: &[Epoch]) -> Table {
             format!("{hi:.3}"),
             format!("{:.3}", median(e.iter().map(|x| x.sigma).collect())),
         ];
-        for k in 0..4 {
+        for k in 0..5 {
             row.push(format!(
                 "{:.3}",
                 median(e.iter().map(|x| x.parts[k]).collect())
@@ -319,8 +320,15 @@ fn horizontal(ds: &Dataset, path: &Path) -> Result<Option<Table>, Error> {
             let filtered = &cols[7 * c + 1];
             let (lo, hi) = filtered
                 .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
-            let mut row = vec![id.clone(), name.to_owned(), format!("{lo:.1}"), format!("{hi:.1}")];
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                    (a.min(*x), b.max(*x))
+                });
+            let mut row = vec![
+                id.clone(),
+                name.to_owned(),
+                format!("{lo:.1}"),
+                format!("{hi:.1}"),
+            ];
             for k in 2..7 {
                 row.push(format!("{:.1}", median(cols[7 * c + k].clone())));
             }
@@ -340,6 +348,7 @@ fn read(path: &Path) -> Result<Vec<Epoch>, Error> {
         "sigma_positions_mgal",
         "sigma_noise_mgal",
         "sigma_tie_mgal",
+        "sigma_attitude_mgal",
     ];
     let mut out = Vec::new();
     align::read::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {
@@ -352,7 +361,7 @@ fn read(path: &Path) -> Result<Vec<Epoch>, Error> {
                 lon: v(1),
                 filtered: v(2),
                 sigma: v(3),
-                parts: [v(4), v(5), v(6), v(7)],
+                parts: [v(4), v(5), v(6), v(7), v(8)],
             });
         }
         Ok(())

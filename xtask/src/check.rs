@@ -151,7 +151,11 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
     let Some((path, form)) = &src.attitude else {
         return Ok(true);
     };
-    let rel = path.strip_prefix(&ds.dir).unwrap_or(path).display().to_string();
+    let rel = path
+        .strip_prefix(&ds.dir)
+        .unwrap_or(path)
+        .display()
+        .to_string();
     match adjust::gravity::attitude::read_csv(path, s.times.reader(*form)) {
         Ok(a) => {
             let what = format!("(session {}, attitude; CSV)", s.session.id);

@@ -215,8 +215,7 @@ impl Attitude {
             (self.hpr_deg[a][j] + f * (self.hpr_deg[b][j] - self.hpr_deg[a][j])).to_radians()
         });
         let sd = |k: usize| self.sd_deg[k].unwrap_or([0.0; 3]);
-        let sd_rad =
-            std::array::from_fn(|j| (sd(a)[j] + f * (sd(b)[j] - sd(a)[j])).to_radians());
+        let sd_rad = std::array::from_fn(|j| (sd(a)[j] + f * (sd(b)[j] - sd(a)[j])).to_radians());
         AttitudeAt {
             hpr_rad: hpr,
             sd_rad,
@@ -250,7 +249,10 @@ mod tests {
         assert_eq!(at[0], None);
         assert_eq!(at[3], None);
         let mid = at[1].expect("inside");
-        assert!((mid.hpr_rad[0].to_degrees() - 360.0).abs() < 1e-9, "{mid:?}");
+        assert!(
+            (mid.hpr_rad[0].to_degrees() - 360.0).abs() < 1e-9,
+            "{mid:?}"
+        );
         assert!((mid.hpr_rad[1].to_degrees() - 1.1).abs() < 1e-9, "{mid:?}");
         assert!((mid.sd_rad[1].to_degrees() - 0.01).abs() < 1e-12, "{mid:?}");
     }
@@ -289,7 +291,9 @@ mod tests {
             .expect_err("repeated time")
             .to_string();
         assert!(e.contains(":2: time: does not increase"), "{e}");
-        let e = read("1773479523.0,10.0,1.0\n").expect_err("short").to_string();
+        let e = read("1773479523.0,10.0,1.0\n")
+            .expect_err("short")
+            .to_string();
         assert!(e.contains(":1: line: 3 fields"), "{e}");
     }
 }

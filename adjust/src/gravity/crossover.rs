@@ -84,7 +84,7 @@ pub fn crossovers(
             }
         }
     }
-    found.sort_by(|p, q| (p.0, p.2).cmp(&(q.0, q.2)));
+    found.sort_by_key(|p| (p.0, p.2));
     let found = merged(e, found, (filter_s * 1e9) as i64);
     found
         .into_iter()
@@ -193,13 +193,28 @@ impl Plane {
         ((0.0..1.0).contains(&s) && (0.0..1.0).contains(&u)).then_some((s, u))
     }
 
-    /// The angle between the segments' directions, deg in 0-90.
-    fn angle_deg(&self, a: usize, b: usize) -> f64 {
-        let r = sub(self.xy[a + 1], self.xy[a]);
-        let d = sub(self.xy[b + 1], self.xy[b]);
+    /// The angle between the courses at segments `a` and `b`, deg in 0-90: each course
+    /// over 5 s either side (a segment's own direction turns with the positions' noise).
+    fn angle_deg(&self, e: &Epochs<'_>, a: usize, b: usize) -> f64 {
+        let (r, d) = (self.course(e, a), self.course(e, b));
         let cos = (r[0] * d[0] + r[1] * d[1]) / (r[0].hypot(r[1]) * d[0].hypot(d[1]));
         let angle = cos.clamp(-1.0, 1.0).acos().to_degrees();
         angle.min(180.0 - angle)
+    }
+
+    /// The displacement from 5 s before segment `k` to 5 s after, on its stretch.
+    fn course(&self, e: &Epochs<'_>, k: usize) -> [f64; 2] {
+        let same = |j: usize| e.session[j] == e.session[k] && e.stretch[j] == e.stretch[k];
+        let within = |j: usize| (e.time_gps_ns[j] - e.time_gps_ns[k]).abs() <= 5_000_000_000;
+        let mut lo = k;
+        while lo > 0 && same(lo - 1) && within(lo - 1) {
+            lo -= 1;
+        }
+        let mut hi = k + 1;
+        while hi + 1 < e.time_gps_ns.len() && same(hi + 1) && within(hi + 1) {
+            hi += 1;
+        }
+        sub(self.xy[hi], self.xy[lo])
     }
 }
 
@@ -240,9 +255,8 @@ fn crossover(
     } else {
         ((a, s), (b, u))
     };
-    let independent = |k: usize, f: f64| {
-        at(e.sigma_noise_mgal, k, f).hypot(at(e.sigma_positions_mgal, k, f))
-    };
+    let independent =
+        |k: usize, f: f64| at(e.sigma_noise_mgal, k, f).hypot(at(e.sigma_positions_mgal, k, f));
     let same = e.session[a] == e.session[b] && e.stretch[a] == e.stretch[b];
     let tie = if same {
         let hours = (e.time_gps_ns[b] - e.time_gps_ns[a]) as f64 / 3.6e12;
@@ -256,7 +270,7 @@ fn crossover(
     Crossover {
         latitude_deg: point[1],
         longitude_deg: at(e.longitude_deg, a, s),
-        angle_deg: plane.angle_deg(a, b),
+        angle_deg: plane.angle_deg(e, a, b),
         difference_mgal: second.filtered_mgal - first.filtered_mgal,
         sigma_mgal: sigma,
         first,
@@ -353,9 +367,15 @@ mod tests {
         // between the passes (1000 s = 0.278 h at 0.5 mGal/h).
         let hours: f64 = 1000.0 / 3600.0;
         let expect = (4.0 * 0.09 + (0.5 * hours).powi(2)).sqrt();
-        assert!((c.sigma_mgal - expect).abs() < 1e-3, "{c:?} against {expect}");
+        assert!(
+            (c.sigma_mgal - expect).abs() < 1e-3,
+            "{c:?} against {expect}"
+        );
         let slope = 1e-6 / (1e-5 * 43f64.to_radians().cos());
-        assert!((c.angle_deg - slope.atan().to_degrees()).abs() < 1e-3, "{c:?}");
+        assert!(
+            (c.angle_deg - slope.atan().to_degrees()).abs() < 1e-3,
+            "{c:?}"
+        );
     }
 
     #[test]

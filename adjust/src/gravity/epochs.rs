@@ -18,6 +18,7 @@
 //! (F = -f . u, so f_D = F).
 
 use super::GravityError;
+use super::attitude::{self, AttitudeAt};
 use ingest::contract::tables::{TIME_GPS_NS, applied};
 use std::path::Path;
 
@@ -100,6 +101,8 @@ pub struct Bin {
     vector_sum: [f64; 3],
     /// A triad's covariance elements (xx, xy, xz, yy, yz, zz), summed.
     covariance_sum: [f64; 6],
+    /// With attitude: each sample's vector turned into the navigation frame, summed.
+    nav_sum: [f64; 3],
     /// The samples' apply flags, or-ed.
     pub flags: u8,
 }
@@ -128,6 +131,15 @@ impl Bin {
         self.sigma_sum / self.value_weight
     }
 
+    /// With attitude, the weighted mean specific force in the navigation frame (north,
+    /// east, down), mGal: each sample turned by the attitude at its own time before the
+    /// mean, so that a vehicle rolling within the epoch's interval leaves no bias (turning
+    /// the mean vector by the epoch's attitude leaves 0.7 mGal down on a boat rolling 3 deg
+    /// at 8 s: the mean of a product of two swells).
+    pub fn mean_nav(&self) -> [f64; 3] {
+        self.nav_sum.map(|v| v / self.value_weight)
+    }
+
     /// A triad's calibration sigma of the mean vector along `m` (a unit row), mGal: from
     /// the samples' mean covariance, their errors being common.
     pub fn sigma_along(&self, m: [f64; 3]) -> f64 {
@@ -147,7 +159,7 @@ impl Bin {
 }
 
 /// One session's epochs to fill: its index in the tables, its epoch times (increasing) and
-/// the median interval.
+/// the median interval, and with attitude how to turn a sample into the navigation frame.
 pub struct Target<'a> {
     /// The session's index in ingest's tables.
     pub session: u16,
@@ -155,6 +167,28 @@ pub struct Target<'a> {
     pub times: &'a [i64],
     /// The median epoch interval, ns.
     pub interval_ns: i64,
+    /// With attitude: the attitude at each epoch, and C_b^v.
+    pub attitude: Option<(&'a [AttitudeAt], [[f64; 3]; 3])>,
+}
+
+impl Target<'_> {
+    /// C_b^n at time `t` from the attitude at the epochs either side (linear in the angles
+    /// between them; the one epoch's where there is one), None without attitude.
+    fn body_to_nav(&self, t: i64, epochs: &[Option<(usize, f64)>; 2]) -> Option<[[f64; 3]; 3]> {
+        let (att, mounting) = self.attitude?;
+        let hpr = match (epochs[0], epochs[1]) {
+            (Some((a, _)), Some((b, _))) => {
+                let f = (t - self.times[a]) as f64 / (self.times[b] - self.times[a]) as f64;
+                std::array::from_fn(|j| {
+                    att[a].hpr_rad[j] + f * (att[b].hpr_rad[j] - att[a].hpr_rad[j])
+                })
+            }
+            (Some((a, _)), None) | (None, Some((a, _))) => att[a].hpr_rad,
+            (None, None) => return None,
+        };
+        let [h, p, r] = hpr;
+        Some(attitude::product(&attitude::rotation(h, p, r), &mounting))
+    }
 }
 
 /// The epochs within `interval_ns` of `t` and their triangle weights: the one at or before
@@ -265,10 +299,15 @@ pub fn fill(
             if let Some((down, _)) = value {
                 noise[ti].push(b.time_ns[i], down);
             }
-            for (k, w) in epochs_of(t.times, t.interval_ns, b.time_ns[i])
-                .into_iter()
-                .flatten()
-            {
+            let near = epochs_of(t.times, t.interval_ns, b.time_ns[i]);
+            let nav = match (value, t.body_to_nav(b.time_ns[i], &near)) {
+                (Some(_), Some(c)) => {
+                    let v = [values[0], values[1], values[2]].map(|x| x.unwrap_or(0.0));
+                    Some(attitude::apply(&c, v))
+                }
+                _ => None,
+            };
+            for (k, w) in near.into_iter().flatten() {
                 let bin = &mut bins[ti][k];
                 bin.weight += w;
                 bin.flags |= b.flags[i];
@@ -282,6 +321,11 @@ pub fn fill(
                         }
                         for (sum, v) in bin.covariance_sum.iter_mut().zip(&values[3..]) {
                             *sum += w * v.unwrap_or(0.0);
+                        }
+                        if let Some(n) = nav {
+                            for (sum, v) in bin.nav_sum.iter_mut().zip(n) {
+                                *sum += w * v;
+                            }
                         }
                     }
                 }

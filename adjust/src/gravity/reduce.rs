@@ -35,6 +35,8 @@ pub struct Stretch {
     pub f_down_mgal: Vec<f64>,
     /// Its sigma from the calibration's covariance, mGal.
     pub sigma_f_mgal: Vec<f64>,
+    /// Its sigma from the attitude's errors (0 without attitude), mGal.
+    pub sigma_attitude_mgal: Vec<f64>,
     /// Where a tie will fix the level: how the calibration's error at each epoch less its
     /// error at the first tie (what the tie does not take away) depends on the parameters;
     /// None: taken as the difference of the sigmas (exact when one parameter dominates).
@@ -58,7 +60,12 @@ pub struct CalibrationGradient {
 impl CalibrationGradient {
     /// The sd at each epoch of the filtered error: the gradients filtered (the filter is
     /// linear and the parameters common to all epochs), then g C g^T.
-    pub(super) fn filtered_sigma(&self, sections: &[filter::Section], pad: usize, pivot: usize) -> Vec<f64> {
+    pub(super) fn filtered_sigma(
+        &self,
+        sections: &[filter::Section],
+        pad: usize,
+        pivot: usize,
+    ) -> Vec<f64> {
         let g: Vec<Vec<f64>> = self
             .gradient
             .iter()
@@ -106,7 +113,10 @@ pub struct Reduced {
     pub sigma_noise_mgal: Vec<f64>,
     /// Sigma of the tie's offset and drift at the epoch, mGal (0 untied).
     pub sigma_tie_mgal: Vec<f64>,
-    /// The filtered value's sigma: the four above in quadrature, mGal.
+    /// Sigma of the filtered value from the attitude (taken as correlated over the
+    /// filter's length, so not reduced by it), mGal (0 without attitude).
+    pub sigma_attitude_mgal: Vec<f64>,
+    /// The filtered value's sigma: the five above in quadrature, mGal.
     pub sigma_mgal: Vec<f64>,
     /// Speed over ground, m/s.
     pub speed_m_s: Vec<f64>,
@@ -170,7 +180,12 @@ pub(super) fn interval_s(t: &[i64]) -> Result<f64, GravityError> {
 
 /// The white-noise gain of `x -> filter(second difference of x)`: the sd of the filtered
 /// acceleration per unit sd of independent heights, at epoch `at` of `n`.
-pub(super) fn position_noise_gain(sections: &[filter::Section], n: usize, at: usize, dt: f64) -> f64 {
+pub(super) fn position_noise_gain(
+    sections: &[filter::Section],
+    n: usize,
+    at: usize,
+    dt: f64,
+) -> f64 {
     // The operator's row at `at`: the response at `at` to a unit height at each epoch j.
     // By symmetry of the zero-phase filter, it is the response to an impulse at `at`.
     let mut x = vec![0.0; n];
@@ -308,12 +323,18 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
         }
     }
     out.sigma_calibration_mgal = calibration;
+    out.sigma_attitude_mgal = if s.sigma_attitude_mgal.iter().any(|v| *v > 0.0) {
+        filter::filtfilt_pivoted(&sections, &s.sigma_attitude_mgal, pad, pivot)
+    } else {
+        vec![0.0; n]
+    };
     out.sigma_mgal = (0..n)
         .map(|k| {
             let parts = [
                 random[k],
                 out.sigma_calibration_mgal[k],
                 out.sigma_tie_mgal[k],
+                out.sigma_attitude_mgal[k],
             ];
             parts.iter().map(|v| v * v).sum::<f64>().sqrt()
         })

@@ -6,8 +6,8 @@
 //! written. Every epoch of every trajectory is accounted for: written, or dropped by reason.
 
 use super::GravityError;
-use super::crossover;
 use super::attitude::{self, Attitude, AttitudeAt};
+use super::crossover;
 use super::epochs::{self, Bin, DownForce, Target};
 use super::horizontal::{self, Horizontal, ReducedHorizontal};
 use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
@@ -15,8 +15,8 @@ use super::trajectory::{self, Trajectory};
 use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
-    Crossover, DriftFitted, FilterUsed, GravityReport, Input, LEDGER_FILE, LEDGER_FORMAT, STAGE_DIR,
-    SessionGravity, StretchSummary, TieUsed, dropped,
+    Crossover, DriftFitted, FilterUsed, GravityReport, Input, LEDGER_FILE, LEDGER_FORMAT,
+    STAGE_DIR, SessionGravity, StretchSummary, TieUsed, dropped,
 };
 use ingest::contract::manifest::{Dataset, ResolvedSession};
 use ingest::contract::survey::{ResolvedTie, SurveyConfig, TrajectoryFormat};
@@ -80,6 +80,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
             session: t.index,
             times: &t.times,
             interval_ns: median_interval_ns(&t.times),
+            attitude: t.attitude.as_deref().map(|a| (a, mounting(&survey))),
         })
         .collect();
     let interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
@@ -318,10 +319,7 @@ fn describe(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> S
 }
 
 /// Each survey session's trajectory read, in manifest order; none is an error.
-fn read_tracks<'a>(
-    ds: &'a Dataset,
-    survey: &SurveyConfig,
-) -> Result<Vec<Track<'a>>, GravityError> {
+fn read_tracks<'a>(ds: &'a Dataset, survey: &SurveyConfig) -> Result<Vec<Track<'a>>, GravityError> {
     let mut tracks = Vec::new();
     for (index, s) in ds.sessions.iter().enumerate() {
         let Some(src) = &s.trajectory else { continue };
@@ -512,7 +510,11 @@ fn reduce_track(
         let h = match track.attitude {
             Some(_) => {
                 let inputs = horizontal_inputs(track, bins, span, ctx);
-                Some(horizontal::reduce_horizontal(&s, &inputs, ctx.survey.filter_s)?)
+                Some(horizontal::reduce_horizontal(
+                    &s,
+                    &inputs,
+                    ctx.survey.filter_s,
+                )?)
             }
             None => None,
         };
@@ -597,12 +599,19 @@ fn stretch(
         s.sd_up_m.push(t.sd_neu_m[j].map_or(0.0, |sd| sd[2]));
         match body_to_nav(track, k, &ctx.mounting) {
             Some(c) => {
-                s.f_down_mgal.push(attitude::apply(&c, bins[k].mean_vector())[2]);
+                let f = bins[k].mean_nav();
+                s.f_down_mgal.push(f[2]);
                 s.sigma_f_mgal.push(bins[k].sigma_along(c[2]));
+                let a = track.attitude.as_ref().map(|a| a[k]);
+                let att = a.map_or(0.0, |a| {
+                    horizontal::attitude_sigma(a.hpr_rad[0], a.sd_rad, f)[2]
+                });
+                s.sigma_attitude_mgal.push(att);
             }
             None => {
                 s.f_down_mgal.push(bins[k].mean());
                 s.sigma_f_mgal.push(bins[k].sigma_calibration());
+                s.sigma_attitude_mgal.push(0.0);
             }
         }
         s.noise_f_mgal.push(bins[k].noise(ctx.sample_sd_mgal));
@@ -630,7 +639,7 @@ fn horizontal_inputs(
             continue;
         };
         let v = bins[k].mean_vector();
-        let f = attitude::apply(&c, v);
+        let f = bins[k].mean_nav();
         let a = &att[k];
         let sigma_att = horizontal::attitude_sigma(a.hpr_rad[0], a.sd_rad, f);
         let sd = track.trajectory.sd_neu_m[track.kept[k]].unwrap_or([0.0; 3]);
@@ -782,7 +791,7 @@ struct Rows {
     session: Vec<u16>,
     time: Vec<i64>,
     stretch: Vec<u32>,
-    floats: [Vec<f64>; 14],
+    floats: [Vec<f64>; 15],
     /// North and east ([`gravity::HORIZONTAL`]), null without attitude.
     horizontal: [Vec<Option<f64>>; 14],
     flags: Vec<u8>,
@@ -800,7 +809,7 @@ impl Rows {
         self.session.extend(std::iter::repeat_n(session, n));
         self.time.extend(&s.time_gps_ns);
         self.stretch.extend(std::iter::repeat_n(number, n));
-        let columns: [&[f64]; 14] = [
+        let columns: [&[f64]; 15] = [
             &s.latitude_deg,
             &s.longitude_deg,
             &s.height_m,
@@ -814,6 +823,7 @@ impl Rows {
             &r.sigma_positions_mgal,
             &r.sigma_noise_mgal,
             &r.sigma_tie_mgal,
+            &r.sigma_attitude_mgal,
             &s.height_antenna_m,
         ];
         for (dst, src) in self.floats.iter_mut().zip(columns) {
@@ -867,7 +877,11 @@ impl Rows {
         };
         let rate_sigma = |session: u16, stretch: u32| {
             let k = tracks.iter().position(|t| t.index == session)?;
-            let drift = sessions[k].stretches.get(stretch as usize)?.drift.as_ref()?;
+            let drift = sessions[k]
+                .stretches
+                .get(stretch as usize)?
+                .drift
+                .as_ref()?;
             drift.sigma_rate_mgal_per_h
         };
         crossover::crossovers(&epochs, filter_s, rate_sigma)

@@ -471,8 +471,8 @@ pub mod applied {
 /// | eotvos_mgal, normal_mgal | float64 | the Eotvos term and normal gravity, mGal |
 /// | down_mgal | float64 | the gravity disturbance down, unfiltered (ties applied), mGal |
 /// | down_filtered_mgal | float64 | the same after the low-pass filter, mGal |
-/// | sigma_down_mgal | float64 | the filtered value's sigma: the four below in quadrature, mGal |
-/// | sigma_calibration_mgal, sigma_positions_mgal, sigma_noise_mgal, sigma_tie_mgal | float64 | its parts, mGal |
+/// | sigma_down_mgal | float64 | the filtered value's sigma: the five below in quadrature, mGal |
+/// | sigma_calibration_mgal, sigma_positions_mgal, sigma_noise_mgal, sigma_tie_mgal, sigma_attitude_mgal | float64 | its parts, mGal (the attitude's 0 without attitude) |
 /// | height_antenna_m | float64 | the antenna's height as the trajectory gives it, m |
 /// | north_mgal, north_filtered_mgal, sigma_north_mgal | float64, null without attitude | the disturbance north, unfiltered and filtered, and the filtered value's sigma: the four below in quadrature |
 /// | sigma_north_calibration_mgal, sigma_north_positions_mgal, sigma_north_noise_mgal, sigma_north_attitude_mgal | float64, null without attitude | its parts |
@@ -497,7 +497,7 @@ pub mod gravity {
         (EDGE, "edge"),
     ];
     /// The Float64 columns after session_index, time_gps_ns and stretch, in order.
-    pub const FLOATS: [&str; 14] = [
+    pub const FLOATS: [&str; 15] = [
         "latitude_deg",
         "longitude_deg",
         "height_m",
@@ -511,6 +511,7 @@ pub mod gravity {
         "sigma_positions_mgal",
         "sigma_noise_mgal",
         "sigma_tie_mgal",
+        "sigma_attitude_mgal",
         "height_antenna_m",
     ];
     /// The nullable Float64 columns of north and east (docs/formats.md 10.3), after
