@@ -379,6 +379,53 @@ fn with_attitude_north_and_east_are_within_their_sigmas() {
     }
 }
 
+/// Two minutes of attitude lost under way: the epochs without one dropped by name, the
+/// track cut there; an attitude file of another day: nothing reduced, said so.
+#[test]
+fn epochs_without_attitude_are_dropped_by_name() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("rolling");
+    let plan = fixtures::survey_lines::attitude_plan();
+    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+    let att = dataset.join("raw/lines_att.csv");
+    let text = std::fs::read_to_string(&att).expect("attitude");
+    let kept: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(k, _)| !(8001..9201).contains(k))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(&att, kept.join("\n") + "\n").expect("write");
+    let r = reduce(&dataset, &dir.path().join("out"));
+    let s = &r.sessions[0];
+    let lost = s.dropped.get("no_attitude").copied().unwrap_or(0);
+    assert!((1195..=1201).contains(&lost), "{:?}", s.dropped);
+    assert_eq!(s.stretches.len(), 2, "{s:?}");
+    assert_eq!(
+        s.epochs_used + s.dropped.values().sum::<u64>(),
+        s.epochs_read
+    );
+    // A day later: no epoch has an attitude.
+    let shifted: String = text
+        .lines()
+        .map(|l| match l.split_once(',') {
+            Some((t, rest)) if t.parse::<f64>().is_ok() => {
+                format!("{:.3},{rest}\n", t.parse::<f64>().unwrap_or(0.0) + 86_400.0)
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(&att, shifted).expect("write");
+    let e = args(&dataset)
+        .run(&dir.path().join("out2"))
+        .expect_err("no attitude")
+        .to_string();
+    assert!(
+        e.contains("none of its") && e.contains("no_attitude"),
+        "{e}"
+    );
+}
+
 #[test]
 fn a_gap_cuts_the_track_and_every_epoch_is_accounted_for() {
     let (_dir, dataset, out) = edited(|m| m);

@@ -390,6 +390,44 @@ fn the_gravity_section_shows_the_track() {
         "{md}"
     );
     assert!(md.contains("Ties and drift, per stretch"), "{md}");
+    // The crossover of the two lines, with its difference over its sigma.
+    assert_eq!(g.crossovers.len(), 1, "{:?}", g.crossovers);
+    let c = &g.crossovers[0];
+    assert!(
+        md.contains("Crossovers: where the track crosses itself"),
+        "{md}"
+    );
+    assert!(
+        md.contains(&format!("{:+.3}", c.difference_mgal))
+            && md.contains(&format!("{:+.2}", c.difference_mgal / c.sigma_mgal))
+            && md.contains("rms of 1"),
+        "{md}"
+    );
+    // No attitude here: no north and east table; the rolling boat with attitude has one.
+    assert!(!md.contains("With attitude"), "{md}");
+    let rolling = tempfile::tempdir().expect("tempdir");
+    let rolling = rolling.path().join("rolling");
+    fixtures::survey_lines::write_survey_lines(&fixtures::survey_lines::attitude_plan(), &rolling)
+        .expect("rolling boat");
+    let rolling_out = pipeline(&rolling);
+    adjust::gravity::stage::GravityArgs {
+        dataset: rolling.clone(),
+        calibration: cal_out.path().join("adjust/calibration.json"),
+        model: None,
+        session: Some("lab".to_owned()),
+        accelerometer: None,
+        out: None,
+    }
+    .run(rolling_out.path())
+    .expect("gravity with attitude");
+    report::run(&rolling, rolling_out.path()).expect("report");
+    let md2 = std::fs::read_to_string(rolling_out.path().join("report/report.md")).expect("md");
+    assert!(
+        md2.contains("With attitude: the filtered disturbance north and east")
+            && md2.contains("| lines | north |")
+            && md2.contains("| lines | east |"),
+        "{md2}"
+    );
     for plot in ["gravity_map_0.svg", "gravity_profile_0.svg"] {
         let svg = std::fs::read_to_string(out.path().join("report/plots").join(plot))
             .unwrap_or_else(|e| panic!("{plot}: {e}"));

@@ -36,6 +36,8 @@ enum Layout {
     Theodolite,
     /// A survey's GNSS positions (docs/formats.md 10.1).
     Trajectory(TrajectoryFormat),
+    /// A survey's attitude (docs/formats.md 10.2).
+    Attitude,
 }
 
 impl Layout {
@@ -48,6 +50,7 @@ impl Layout {
             Layout::Theodolite => "theodolite log",
             Layout::Trajectory(TrajectoryFormat::Rtklib) => "RTKLIB trajectory",
             Layout::Trajectory(TrajectoryFormat::Csv) => "CSV trajectory",
+            Layout::Attitude => "attitude CSV",
         }
     }
 }
@@ -124,9 +127,19 @@ fn recognise(path: &Path) -> Result<Found> {
 
 /// A survey's trajectory (docs/formats.md 10.1): an RTKLIB solution file (a `%` column
 /// header naming the latitude, and its time scale) or a CSV whose header begins
-/// `time,lat_deg`; its span and rate from its ends.
+/// `time,lat_deg`; or its attitude (10.2), a CSV whose header begins `time,heading_deg`;
+/// span and rate from their ends.
 fn trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
-    rtklib_trajectory(rel, head, tail).or_else(|| csv_trajectory(rel, head, tail))
+    rtklib_trajectory(rel, head, tail)
+        .or_else(|| {
+            csv_epochs(
+                rel,
+                (head, tail),
+                "lat_deg",
+                Layout::Trajectory(TrajectoryFormat::Csv),
+            )
+        })
+        .or_else(|| csv_epochs(rel, (head, tail), "heading_deg", Layout::Attitude))
 }
 
 /// A trajectory's entry: its layout, time form, and span and rate from its ends' times.
@@ -186,11 +199,17 @@ fn rtklib_trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
     ))
 }
 
-/// A CSV trajectory: a header beginning `time,lat_deg`; its time form from the first line.
-fn csv_trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
+/// A CSV of epochs (a trajectory, an attitude): a header beginning `time,<second>`; its
+/// time form from the first line.
+fn csv_epochs(
+    rel: &str,
+    (head, tail): (&str, &str),
+    second: &str,
+    layout: Layout,
+) -> Option<Found> {
     let (lines, _) = data_lines(head);
     let header = lines.first()?;
-    if !(header.len() >= 4 && header[0] == "time" && header[1] == "lat_deg") {
+    if !(header.len() >= 4 && header[0] == "time" && header[1] == second) {
         return None;
     }
     let first = lines.get(1)?.first()?;
@@ -209,13 +228,7 @@ fn csv_trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
     let times: Vec<i64> = lines.iter().skip(1).filter_map(time).collect();
     let (tail_lines, _) = data_lines(tail);
     let last = tail_lines.iter().skip(1).filter_map(time).next_back();
-    Some(trajectory_found(
-        rel,
-        Layout::Trajectory(TrajectoryFormat::Csv),
-        Some(form),
-        times,
-        last,
-    ))
+    Some(trajectory_found(rel, layout, Some(form), times, last))
 }
 
 /// The first and last [`PEEK`] bytes of a file (the whole file twice when it is shorter),
@@ -442,6 +455,9 @@ fn stem(rel: &str) -> String {
         "_adc",
         "_acc",
         "_lab",
+        "_attitude",
+        "_att",
+        "_pos",
     ];
     while let Some(s) = suffixes
         .iter()
@@ -660,7 +676,7 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
         );
     }
     if let Some(tr) = track {
-        trajectory_keys(t, tr);
+        trajectory_keys(t, tr, get(Layout::Attitude));
     }
     if let Some(th) = theodolite {
         theodolite_keys(t, th);
@@ -698,7 +714,7 @@ fn kind(theodolite: bool, trajectory: bool) -> String {
 
 /// A survey session's trajectory keys, and the `[survey]` table's, commented: how the
 /// accelerometers sit in the vehicle and the ties are the experimenter's, in no log.
-fn trajectory_keys(t: &mut String, tr: &Found) {
+fn trajectory_keys(t: &mut String, tr: &Found, attitude: Option<&Found>) {
     let format = match tr.layout {
         Layout::Trajectory(TrajectoryFormat::Csv) => "csv",
         _ => "rtklib",
@@ -710,6 +726,15 @@ fn trajectory_keys(t: &mut String, tr: &Found) {
     );
     if let Some(form) = tr.time {
         let _ = writeln!(t, "trajectory_time = \"{}\"", form.name());
+    }
+    if let Some(a) = attitude {
+        let form = a.time.unwrap_or(TimeForm::Iso);
+        let _ = writeln!(
+            t,
+            "attitude = \"{}\"\nattitude_time = \"{}\"",
+            a.rel,
+            form.name()
+        );
     }
     let _ = writeln!(
         t,

@@ -196,6 +196,50 @@ fn a_draft_filled_in_calibrates_as_the_committed_manifest() {
     }
 }
 
+/// A survey folder with an attitude CSV beside its trajectory: the draft names both in one
+/// session, with the attitude's time form, and filled in it resolves as the written manifest.
+#[test]
+fn an_attitude_file_is_drafted_beside_its_trajectory() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("rolling");
+    let plan = fixtures::survey_lines::attitude_plan();
+    // The attitude is written at the GNSS's rate, one line per trajectory epoch.
+    let truth = fixtures::survey_lines::write_survey_lines(&plan, &ds).expect("survey");
+    let text = std::fs::read_to_string(ds.join("dataset.toml")).expect("manifest");
+    let written: Value = toml::from_str(&text).expect("toml");
+    std::fs::remove_file(ds.join("dataset.toml")).expect("remove");
+    let o = xtask(&["init", ds.to_str().expect("utf-8")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let draft = std::fs::read_to_string(ds.join("dataset.toml")).expect("draft");
+    assert_eq!(draft.matches("[[session]]").count(), 1, "{draft}");
+    assert!(
+        draft.contains("attitude = \"raw/lines_att.csv\"\nattitude_time = \"unix_s\""),
+        "{draft}"
+    );
+    std::fs::write(ds.join("dataset.toml"), fill(&draft, &written)).expect("write");
+    let b = ingest::contract::manifest::Dataset::load(&ds).expect("the filled draft loads");
+    let attitude = b.sessions[0]
+        .trajectory
+        .as_ref()
+        .and_then(|t| t.attitude.clone())
+        .expect("attitude");
+    assert!(attitude.0.ends_with("raw/lines_att.csv"), "{attitude:?}");
+    assert_eq!(attitude.1, ingest::time::TimeForm::UnixS);
+    // check reads it whole with the gravity stage's reader.
+    let o = xtask(&["check", ds.to_str().expect("utf-8")]);
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let line = format!(
+        "raw/lines_att.csv (session lines, attitude; CSV): read whole; {} epochs",
+        truth.epochs
+    );
+    assert!(said.contains(&line), "{said}");
+}
+
 /// docs/calibrate-your-own.md's last section, followed as written: the lab fixture's logs
 /// drafted, the draft filled with the page's own lines, checked, calibrated and applied.
 #[test]

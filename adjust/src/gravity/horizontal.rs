@@ -1,9 +1,7 @@
 //! North and east along a stretch of track (docs/model.md 7), free of I/O: with attitude and
 //! a triad model the specific force is known in the navigation frame, and
-//!
-//!     delta g_N = a_N - f_N + ((2 omega_ie + omega_en) x v)_N,   likewise east,
-//!
-//! normal gravity having no horizontal component along the ellipsoidal normal. The
+//! `delta g_N = a_N - f_N + ((2 omega_ie + omega_en) x v)_N`, likewise east, normal gravity
+//! having no horizontal component along the ellipsoidal normal. The
 //! kinematic acceleration is the second difference of the track's northing and easting,
 //! each step the change of latitude (longitude) times the radius of curvature (times the
 //! cosine of the latitude) at the step's middle, so that the second difference is the
