@@ -792,8 +792,10 @@ struct Rows {
     time: Vec<i64>,
     stretch: Vec<u32>,
     floats: [Vec<f64>; 15],
-    /// North and east ([`gravity::HORIZONTAL`]), null without attitude.
-    horizontal: [Vec<Option<f64>>; 14],
+    /// North and east ([`gravity::HORIZONTAL`]) and whether each row has them: empty until
+    /// a stretch with attitude comes (a survey without attitude holds nothing for them).
+    horizontal: [Vec<f64>; 14],
+    horizontal_valid: Vec<bool>,
     flags: Vec<u8>,
 }
 
@@ -829,11 +831,32 @@ impl Rows {
         for (dst, src) in self.floats.iter_mut().zip(columns) {
             dst.extend_from_slice(src);
         }
-        for (c, dst) in self.horizontal.iter_mut().enumerate() {
-            let (i, part) = (c / 7, c % 7);
-            match h {
-                Some(h) => dst.extend(
-                    [
+        self.push_horizontal(h, n);
+        self.flags.extend_from_slice(flags);
+    }
+
+    /// North and east of the `n` rows just pushed; the rows before the first with attitude
+    /// are filled in as null when it comes.
+    fn push_horizontal(&mut self, h: Option<&ReducedHorizontal>, n: usize) {
+        let before = self.time.len() - n;
+        match h {
+            None if self.horizontal_valid.is_empty() => {}
+            None => {
+                for dst in &mut self.horizontal {
+                    dst.extend(std::iter::repeat_n(0.0, n));
+                }
+                self.horizontal_valid.extend(std::iter::repeat_n(false, n));
+            }
+            Some(h) => {
+                if self.horizontal_valid.is_empty() {
+                    for dst in &mut self.horizontal {
+                        dst.resize(before, 0.0);
+                    }
+                    self.horizontal_valid.resize(before, false);
+                }
+                for (c, dst) in self.horizontal.iter_mut().enumerate() {
+                    let i = c / 7;
+                    let parts = [
                         &h.disturbance_mgal[i],
                         &h.filtered_mgal[i],
                         &h.sigma_mgal[i],
@@ -841,14 +864,12 @@ impl Rows {
                         &h.sigma_positions_mgal[i],
                         &h.sigma_noise_mgal[i],
                         &h.sigma_attitude_mgal[i],
-                    ][part]
-                        .iter()
-                        .map(|v| Some(*v)),
-                ),
-                None => dst.extend(std::iter::repeat_n(None, n)),
+                    ];
+                    dst.extend_from_slice(parts[c % 7]);
+                }
+                self.horizontal_valid.extend(std::iter::repeat_n(true, n));
             }
         }
-        self.flags.extend_from_slice(flags);
     }
 
     /// Where the track crosses itself ([`crossover`]).
@@ -900,6 +921,7 @@ impl Rows {
             gravity::schema(sessions),
             ingest::table::Encodings::default(),
         )?;
+        let n_rows = self.time.len();
         let mut columns: Vec<ArrayRef> = vec![
             Arc::new(UInt16Array::from(self.session)),
             Arc::new(Int64Array::from(self.time)),
@@ -908,8 +930,13 @@ impl Rows {
         for f in self.floats {
             columns.push(Arc::new(Float64Array::from(f)));
         }
+        let valid = (!self.horizontal_valid.is_empty())
+            .then(|| arrow::buffer::NullBuffer::from(self.horizontal_valid));
         for f in self.horizontal {
-            columns.push(Arc::new(Float64Array::from(f)));
+            columns.push(Arc::new(match &valid {
+                Some(v) => Float64Array::new(f.into(), Some(v.clone())),
+                None => Float64Array::new_null(n_rows),
+            }));
         }
         columns.push(Arc::new(UInt8Array::from(self.flags)));
         writer.write(columns)?;
@@ -1019,5 +1046,68 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
             c.difference_mgal,
             c.sigma_mgal
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rows of `n` epochs: the stretch's and the reduction's columns all `n` long.
+    fn rows_of(n: usize) -> (Stretch, Reduced, ReducedHorizontal) {
+        let v = vec![1.0; n];
+        let s = Stretch {
+            time_gps_ns: (0..n as i64).collect(),
+            latitude_deg: v.clone(),
+            longitude_deg: v.clone(),
+            height_m: v.clone(),
+            height_antenna_m: v.clone(),
+            ..Stretch::default()
+        };
+        let r = Reduced {
+            speed_m_s: v.clone(),
+            eotvos_mgal: v.clone(),
+            normal_mgal: v.clone(),
+            disturbance_mgal: v.clone(),
+            filtered_mgal: v.clone(),
+            sigma_mgal: v.clone(),
+            sigma_calibration_mgal: v.clone(),
+            sigma_positions_mgal: v.clone(),
+            sigma_noise_mgal: v.clone(),
+            sigma_tie_mgal: v.clone(),
+            sigma_attitude_mgal: v.clone(),
+            ..Reduced::default()
+        };
+        let two = || [v.clone(), v.clone()];
+        let h = ReducedHorizontal {
+            disturbance_mgal: two(),
+            filtered_mgal: two(),
+            sigma_mgal: two(),
+            sigma_calibration_mgal: two(),
+            sigma_positions_mgal: two(),
+            sigma_noise_mgal: two(),
+            sigma_attitude_mgal: two(),
+        };
+        (s, r, h)
+    }
+
+    /// North and east are held only once a stretch has them; the rows before and after
+    /// without attitude are null.
+    #[test]
+    fn rows_without_attitude_are_null_in_north_and_east() {
+        let mut rows = Rows::default();
+        let (s, r, _) = rows_of(2);
+        rows.push(0, 0, (&s, &r, None), &[0, 0]);
+        assert!(rows.horizontal_valid.is_empty() && rows.horizontal[0].is_empty());
+        let (s, r, h) = rows_of(3);
+        rows.push(1, 0, (&s, &r, Some(&h)), &[0; 3]);
+        let (s, r, _) = rows_of(1);
+        rows.push(0, 1, (&s, &r, None), &[0]);
+        assert_eq!(
+            rows.horizontal_valid,
+            [false, false, true, true, true, false]
+        );
+        assert!(rows.horizontal.iter().all(|c| c.len() == 6));
+        assert_eq!(rows.horizontal[1][2..5], [1.0; 3]);
     }
 }
