@@ -1,7 +1,9 @@
 //! `cargo xtask bench gravity`: the gravity stage (apply, then the reduction) on a boat
 //! survey logged at 250 Hz with a 10 Hz trajectory (fixtures' `survey_lines::bench_plan`),
-//! at `hours` and a quarter of it, so that peak memory shows whether it grows with the log.
-//! Measured, never asserted. No peer does this (docs/model.md 7).
+//! at `hours` and a quarter of it, so that peak memory shows whether it grows with the log;
+//! levelled (the down component) and rolling with a 10 Hz attitude file (north, east and
+//! down, each sample turned into the navigation frame). Measured, never asserted. No peer
+//! does this (docs/model.md 7).
 
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
@@ -30,15 +32,23 @@ pub fn gravity(root: &Path, hours: f64, runs: usize) -> Result<()> {
     std::fs::create_dir_all(&data)?;
     let cal = calibration(&data)?;
     let mut rows = Vec::new();
-    for h in [hours / 4.0, hours] {
-        let plan = fixtures::survey_lines::bench_plan(h);
-        let dataset = data.join(format!("survey-lines-250hz-{h}h"));
+    let cases = [hours / 4.0, hours]
+        .into_iter()
+        .flat_map(|h| [(h, false), (h, true)]);
+    for (h, with_attitude) in cases {
+        let mut plan = fixtures::survey_lines::bench_plan(h);
+        let mut name = format!("survey-lines-250hz-{h}h");
+        if with_attitude {
+            plan.attitude = fixtures::survey_lines::attitude_plan().attitude;
+            name.push_str("-attitude");
+        }
+        let dataset = data.join(name);
         if !dataset.join("dataset.toml").exists() {
             eprintln!("bench: generating {}", dataset.display());
             let _ = std::fs::remove_dir_all(&dataset);
             fixtures::survey_lines::write_survey_lines(&plan, &dataset)?;
         }
-        let out = data.join(format!("out-gravity-{h}h"));
+        let out = data.join(format!("out-gravity-{h}h-{with_attitude}"));
         let _ = std::fs::remove_dir_all(&out);
         ingest::run(&dataset, &out).context("ingesting the benchmark survey")?;
         let extra = [
@@ -59,17 +69,22 @@ pub fn gravity(root: &Path, hours: f64, runs: usize) -> Result<()> {
             .get(ingest::contract::tables::lab::FILE)
             .copied()
             .unwrap_or(0);
-        rows.push((h, samples, report.rows_written, r, median));
+        rows.push((h, with_attitude, samples, report.rows_written, r, median));
         let _ = std::fs::remove_dir_all(&out);
     }
     println!(
         "| survey | samples (250 Hz) | epochs (10 Hz) | seconds (fastest) | seconds (median) | Msamples/s | CPU s | peak RSS MB |"
     );
     println!("|---|---|---|---|---|---|---|---|");
-    for (h, samples, epochs, r, median) in rows {
+    for (h, with_attitude, samples, epochs, r, median) in rows {
         let cpu = r.cpu_seconds.map_or("-".to_owned(), |c| format!("{c:.2}"));
+        let kind = if with_attitude {
+            "with attitude"
+        } else {
+            "levelled"
+        };
         println!(
-            "| {h} h | {samples} | {epochs} | {:.2} | {median:.2} | {:.1} | {cpu} | {:.0} |",
+            "| {h} h, {kind} | {samples} | {epochs} | {:.2} | {median:.2} | {:.1} | {cpu} | {:.0} |",
             r.seconds,
             samples as f64 / 1e6 / r.seconds,
             r.peak_rss_mb
