@@ -85,3 +85,36 @@ pub enum GravityError {
     #[error(transparent)]
     Ingest(#[from] ingest::Error),
 }
+
+/// A line of a trajectory or attitude file set aside under `--skip-bad-lines` (without it,
+/// the same line is an error): where it is and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BadLine {
+    /// The line (1-based).
+    pub line: u64,
+    /// The field.
+    pub field: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// With `skip`, a line's error set aside into `bad`; any other error, or any error without
+/// `skip`, returned.
+fn set_aside(e: GravityError, skip: bool, bad: &mut Vec<BadLine>) -> Result<(), GravityError> {
+    match e {
+        GravityError::Line {
+            line,
+            field,
+            message,
+            ..
+        } if skip => {
+            bad.push(BadLine {
+                line,
+                field,
+                message,
+            });
+            Ok(())
+        }
+        e => Err(e),
+    }
+}

@@ -33,6 +33,7 @@ fn args(dataset: &Path) -> GravityArgs {
         session: Some("lab".to_owned()),
         accelerometer: None,
         out: None,
+        skip_bad_lines: false,
     }
 }
 
@@ -424,6 +425,39 @@ fn epochs_without_attitude_are_dropped_by_name() {
         e.contains("none of its") && e.contains("no_attitude"),
         "{e}"
     );
+}
+
+/// One damaged line in the trajectory: an error naming file, line and field; with
+/// --skip-bad-lines, set aside, counted and listed, and the epochs around it reduced.
+#[test]
+fn a_damaged_trajectory_line_fails_or_is_set_aside() {
+    let (_dir, dataset, out) = edited(|m| m);
+    let pos = dataset.join("raw/lines.pos");
+    let text = std::fs::read_to_string(&pos).expect("pos");
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    // Line 5001 (1-based), an epoch under way: its latitude damaged.
+    let f: Vec<String> = lines[5000].split_whitespace().map(str::to_owned).collect();
+    lines[5000] = lines[5000].replacen(&f[2], "43.2x", 1);
+    std::fs::write(&pos, lines.join("\n") + "\n").expect("write");
+    let e = args(&dataset).run(&out).expect_err("damaged").to_string();
+    assert!(e.contains("lines.pos:5001: latitude:"), "{e}");
+    let mut a = args(&dataset);
+    a.skip_bad_lines = true;
+    let r = a.run(&out).expect("set aside");
+    let s = &r.sessions[0];
+    assert_eq!(s.dropped.get("bad_line"), Some(&1), "{:?}", s.dropped);
+    assert_eq!(s.bad_lines.len(), 1, "{:?}", s.bad_lines);
+    assert!(
+        s.bad_lines[0].starts_with("raw/lines.pos:5001: latitude:"),
+        "{:?}",
+        s.bad_lines
+    );
+    assert_eq!(
+        s.epochs_used + s.dropped.values().sum::<u64>(),
+        s.epochs_read
+    );
+    // The missing epoch is a gap: the track is cut there, both sides reduced.
+    assert_eq!(s.stretches.len(), 2, "{s:?}");
 }
 
 #[test]

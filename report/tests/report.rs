@@ -379,6 +379,7 @@ fn the_gravity_section_shows_the_track() {
         session: Some("lab".to_owned()),
         accelerometer: None,
         out: None,
+        skip_bad_lines: false,
     }
     .run(out.path())
     .expect("gravity");
@@ -417,6 +418,7 @@ fn the_gravity_section_shows_the_track() {
         session: Some("lab".to_owned()),
         accelerometer: None,
         out: None,
+        skip_bad_lines: false,
     }
     .run(rolling_out.path())
     .expect("gravity with attitude");
@@ -457,6 +459,7 @@ fn the_gravity_section_shows_the_track() {
         session: Some("lab".to_owned()),
         accelerometer: None,
         out: None,
+        skip_bad_lines: false,
     }
     .run(out.path())
     .expect("gravity");

@@ -133,10 +133,10 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
         .display()
         .to_string();
     let (layout, read) = match src.format {
-        TrajectoryFormat::Rtklib => ("RTKLIB solution", read_rtklib(&src.path)),
+        TrajectoryFormat::Rtklib => ("RTKLIB solution", read_rtklib(&src.path, false)),
         TrajectoryFormat::Csv => {
             let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
-            ("CSV", read_csv(&src.path, s.times.reader(form)))
+            ("CSV", read_csv(&src.path, s.times.reader(form), false))
         }
     };
     let t = match read {
@@ -156,7 +156,7 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
         .unwrap_or(path)
         .display()
         .to_string();
-    match adjust::gravity::attitude::read_csv(path, s.times.reader(*form)) {
+    match adjust::gravity::attitude::read_csv(path, s.times.reader(*form), false) {
         Ok(a) => {
             let what = format!("(session {}, attitude; CSV)", s.session.id);
             print_epochs(&rel, &what, &a.time_gps_ns, w)?;

@@ -391,6 +391,7 @@ fn ci() -> Result<()> {
         session: Some("lab".to_owned()),
         accelerometer: None,
         out: None,
+        skip_bad_lines: false,
     }
     .run(&scratch.join(lines))
     .context("gravity of survey-lines with triad-multipos's calibration")

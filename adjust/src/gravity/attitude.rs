@@ -7,7 +7,7 @@
 //! attitude epochs no further apart than twice their median interval: an epoch outside
 //! that is not reduced (`no_attitude`).
 
-use super::GravityError;
+use super::{BadLine, GravityError, set_aside};
 use ingest::time::TimeReader;
 use std::path::Path;
 
@@ -20,6 +20,8 @@ pub struct Attitude {
     pub hpr_deg: Vec<[f64; 3]>,
     /// Their sds, deg, where the file gives them.
     pub sd_deg: Vec<Option<[f64; 3]>>,
+    /// Lines set aside (`--skip-bad-lines`).
+    pub bad_lines: Vec<BadLine>,
 }
 
 /// The attitude at one trajectory epoch.
@@ -70,14 +72,14 @@ fn bad(path: &Path, line: u64, field: &str, message: String) -> GravityError {
     }
 }
 
-/// Reads an attitude CSV whose times `time` reads; times must increase.
-pub fn read_csv(path: &Path, mut time: TimeReader) -> Result<Attitude, GravityError> {
+/// Reads an attitude CSV whose times `time` reads; times must increase. With `skip`, a
+/// line that breaks the format is set aside instead of failing the file.
+pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Attitude, GravityError> {
     let text = std::fs::read_to_string(path).map_err(|e| GravityError::File {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
     let mut out = Attitude::default();
-    let fields = time.form.fields();
     let mut header_seen = false;
     for (i, l) in text.lines().enumerate() {
         let line = i as u64 + 1;
@@ -92,42 +94,61 @@ pub fn read_csv(path: &Path, mut time: TimeReader) -> Result<Attitude, GravityEr
                 continue;
             }
         }
-        if f.len() != fields + 3 && f.len() != fields + 6 {
-            return Err(bad(
-                path,
-                line,
-                "line",
-                format!(
-                    "{} fields: expected time, heading_deg, pitch_deg, roll_deg and optionally \
-                     sd_heading_deg, sd_pitch_deg, sd_roll_deg",
-                    f.len()
-                ),
-            ));
+        match attitude_line(path, line, &f, &mut time, out.time_gps_ns.last().copied()) {
+            Ok((tns, hpr, sd)) => {
+                out.time_gps_ns.push(tns);
+                out.hpr_deg.push(hpr);
+                out.sd_deg.push(sd);
+            }
+            Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
         }
-        let bytes: Vec<&[u8]> = f[..fields].iter().map(|x| x.as_bytes()).collect();
-        let tns = time
-            .read(&bytes)
-            .map_err(|(field, m)| bad(path, line, field, m))?;
-        if out.time_gps_ns.last().is_some_and(|&last| tns <= last) {
-            return Err(bad(
-                path,
-                line,
-                "time",
-                "does not increase from the line before".to_owned(),
-            ));
-        }
-        let hpr = angles(path, line, &f[fields..fields + 3])?;
-        let sd = if f.len() == fields + 6 {
-            Some(sds(path, line, &f[fields + 3..])?)
-        } else {
-            None
-        };
-        out.time_gps_ns.push(tns);
-        out.hpr_deg.push(hpr);
-        out.sd_deg.push(sd);
     }
     unwrap_heading(&mut out.hpr_deg);
     Ok(out)
+}
+
+/// One line: its time (after `last`), heading, pitch and roll, and their sds if given.
+type AttitudeLine = (i64, [f64; 3], Option<[f64; 3]>);
+
+fn attitude_line(
+    path: &Path,
+    line: u64,
+    f: &[&str],
+    time: &mut TimeReader,
+    last: Option<i64>,
+) -> Result<AttitudeLine, GravityError> {
+    let fields = time.form.fields();
+    if f.len() != fields + 3 && f.len() != fields + 6 {
+        return Err(bad(
+            path,
+            line,
+            "line",
+            format!(
+                "{} fields: expected time, heading_deg, pitch_deg, roll_deg and optionally \
+                 sd_heading_deg, sd_pitch_deg, sd_roll_deg",
+                f.len()
+            ),
+        ));
+    }
+    let bytes: Vec<&[u8]> = f[..fields].iter().map(|x| x.as_bytes()).collect();
+    let tns = time
+        .read(&bytes)
+        .map_err(|(field, m)| bad(path, line, field, m))?;
+    if last.is_some_and(|last| tns <= last) {
+        return Err(bad(
+            path,
+            line,
+            "time",
+            "does not increase from the line before".to_owned(),
+        ));
+    }
+    let hpr = angles(path, line, &f[fields..fields + 3])?;
+    let sd = if f.len() == fields + 6 {
+        Some(sds(path, line, &f[fields + 3..])?)
+    } else {
+        None
+    };
+    Ok((tns, hpr, sd))
 }
 
 /// Heading in [-360, 360], pitch in [-90, 90], roll in [-180, 180].
@@ -233,7 +254,11 @@ mod tests {
         let d = tempfile::tempdir().expect("tempdir");
         let p = d.path().join("att.csv");
         std::fs::write(&p, text).expect("write");
-        read_csv(&p, TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None))
+        read_csv(
+            &p,
+            TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None),
+            false,
+        )
     }
 
     #[test]
@@ -295,5 +320,20 @@ mod tests {
             .expect_err("short")
             .to_string();
         assert!(e.contains(":1: line: 3 fields"), "{e}");
+        // With skip, the repeated time is set aside and the rest read.
+        let d = tempfile::tempdir().expect("tempdir");
+        let p = d.path().join("att.csv");
+        std::fs::write(
+            &p,
+            "1773479523.0,10.0,1.0,0.0\n1773479523.0,10.0,1.0,0.0\n1773479523.1,10.0,1.0,0.0\n",
+        )
+        .expect("write");
+        let r = TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None);
+        let a = read_csv(&p, r, true).expect("skips");
+        assert_eq!(a.time_gps_ns.len(), 2);
+        assert_eq!(
+            (a.bad_lines[0].line, a.bad_lines[0].field.as_str()),
+            (2, "time")
+        );
     }
 }

@@ -32,6 +32,9 @@ pub struct Options<'a> {
     pub apply: crate::apply::stream::Options<'a>,
     /// With an axis model: the accelerometer taken as the vertical axis.
     pub accelerometer: Option<&'a str>,
+    /// Set aside a trajectory's or attitude's line that breaks the format (counted and
+    /// listed) instead of failing on it.
+    pub skip_bad_lines: bool,
 }
 
 /// A survey session's trajectory, read and made ready: the accelerometers' positions (the
@@ -50,6 +53,8 @@ struct Track<'a> {
     antenna_height_m: Vec<f64>,
     /// The attitude at each kept epoch, when the session gives it.
     attitude: Option<Vec<AttitudeAt>>,
+    /// The trajectory's and attitude's lines set aside, as listed in the ledger.
+    bad_lines: Vec<String>,
 }
 
 /// Runs the stage on `dataset` into `out`.
@@ -61,7 +66,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     let table = out.join(apply_ledger::STAGE_DIR).join(applied::FILE);
     let force = down_force(&applied, &survey, opts.accelerometer)?;
     let triad = triad_function(&applied, opts.apply.calibration)?;
-    let tracks = read_tracks(&ds, &survey)?;
+    let tracks = read_tracks(&ds, &survey, opts.skip_bad_lines)?;
     if let (DownForce::Axis { .. }, Some(t)) =
         (&force, tracks.iter().find(|t| t.attitude.is_some()))
     {
@@ -319,22 +324,31 @@ fn describe(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> S
 }
 
 /// Each survey session's trajectory read, in manifest order; none is an error.
-fn read_tracks<'a>(ds: &'a Dataset, survey: &SurveyConfig) -> Result<Vec<Track<'a>>, GravityError> {
+fn read_tracks<'a>(
+    ds: &'a Dataset,
+    survey: &SurveyConfig,
+    skip: bool,
+) -> Result<Vec<Track<'a>>, GravityError> {
     let mut tracks = Vec::new();
     for (index, s) in ds.sessions.iter().enumerate() {
         let Some(src) = &s.trajectory else { continue };
         let trajectory = match src.format {
-            TrajectoryFormat::Rtklib => trajectory::read_rtklib(&src.path)?,
+            TrajectoryFormat::Rtklib => trajectory::read_rtklib(&src.path, skip)?,
             TrajectoryFormat::Csv => {
                 let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
-                trajectory::read_csv(&src.path, s.times.reader(form))?
+                trajectory::read_csv(&src.path, s.times.reader(form), skip)?
             }
         };
         let attitude = match &src.attitude {
-            Some((path, form)) => Some(attitude::read_csv(path, s.times.reader(*form))?),
+            Some((path, form)) => Some(attitude::read_csv(path, s.times.reader(*form), skip)?),
             None => None,
         };
+        let mut bad_lines = listed(ds, &src.path, &trajectory.bad_lines);
+        if let (Some(a), Some((path, _))) = (&attitude, &src.attitude) {
+            bad_lines.extend(listed(ds, path, &a.bad_lines));
+        }
         let mut track = gated(index, s, trajectory, attitude.as_ref());
+        track.bad_lines = bad_lines;
         move_to_accelerometers(&mut track, survey.lever_arm_m);
         tracks.push(track);
     }
@@ -350,6 +364,20 @@ fn read_tracks<'a>(ds: &'a Dataset, survey: &SurveyConfig) -> Result<Vec<Track<'
     Ok(tracks)
 }
 
+/// A file's lines set aside, as the ledger lists them (the first
+/// [`ingest::contract::ledger::MAX_LISTED`]).
+fn listed(ds: &Dataset, path: &Path, bad: &[super::BadLine]) -> Vec<String> {
+    let rel = path
+        .strip_prefix(&ds.dir)
+        .unwrap_or(path)
+        .display()
+        .to_string();
+    bad.iter()
+        .take(ingest::contract::ledger::MAX_LISTED)
+        .map(|b| format!("{rel}:{}: {}: {}", b.line, b.field, b.message))
+        .collect()
+}
+
 /// The track of session `index` with its epochs gated: outside the session's days,
 /// not after the one before, or (with attitude) where none can be interpolated, dropped
 /// and counted.
@@ -360,6 +388,12 @@ fn gated<'a>(
     attitude: Option<&Attitude>,
 ) -> Track<'a> {
     let mut dropped = BTreeMap::new();
+    if !trajectory.bad_lines.is_empty() {
+        dropped.insert(
+            dropped::BAD_LINE.to_owned(),
+            trajectory.bad_lines.len() as u64,
+        );
+    }
     let mut count = |reason: &str| *dropped.entry(reason.to_owned()).or_insert(0) += 1;
     let mut kept = Vec::with_capacity(trajectory.time_gps_ns.len());
     let mut times = Vec::with_capacity(kept.capacity());
@@ -399,6 +433,7 @@ fn gated<'a>(
         kept,
         dropped,
         attitude,
+        bad_lines: Vec::new(),
     }
 }
 
@@ -468,11 +503,12 @@ fn reduce_track(
     let expected = ctx.samples_per_s * interval as f64 * 1e-9;
     let mut summary = SessionGravity {
         id: track.session.session.id.clone(),
-        epochs_read: track.trajectory.time_gps_ns.len() as u64,
+        epochs_read: (track.trajectory.time_gps_ns.len() + track.trajectory.bad_lines.len()) as u64,
         epochs_used: 0,
         dropped: track.dropped.clone(),
         flagged: BTreeMap::new(),
         gaps: 0,
+        bad_lines: track.bad_lines.clone(),
         stretches: Vec::new(),
     };
     let (spans, gaps) = stretches(&track.times, bins, interval, expected, &mut summary.dropped);
@@ -967,6 +1003,10 @@ pub struct GravityArgs {
     /// OUT/gravity/.
     #[arg(long)]
     pub out: Option<std::path::PathBuf>,
+    /// Set aside a trajectory's or attitude's line that breaks the format (counted as
+    /// `bad_line` and listed in gravity.json) instead of failing on it.
+    #[arg(long)]
+    pub skip_bad_lines: bool,
 }
 
 impl GravityArgs {
@@ -984,6 +1024,7 @@ impl GravityArgs {
                     },
                 },
                 accelerometer: self.accelerometer.as_deref(),
+                skip_bad_lines: self.skip_bad_lines,
             },
         )
     }
@@ -1014,6 +1055,9 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
                 format!("; dropped: {}", dropped.join(", "))
             }
         );
+        for b in &s.bad_lines {
+            let _ = writeln!(w, "gravity: {}: set aside: {b}", s.id);
+        }
         for st in &s.stretches {
             let drift = st.drift.as_ref().map_or_else(
                 || "untied (the calibration's level)".to_owned(),

@@ -6,7 +6,7 @@
 //! degrees-minutes-seconds solution is refused as a whole, with what would work. No
 //! resampling here: epochs as written, in time order.
 
-use super::GravityError;
+use super::{BadLine, GravityError, set_aside};
 use ingest::contract::manifest::TimeScale;
 use ingest::time::{TimeForm, TimeReader};
 use std::io::BufRead;
@@ -27,6 +27,8 @@ pub struct Trajectory {
     pub sd_neu_m: Vec<Option<[f64; 3]>>,
     /// The file's line of each epoch.
     pub line: Vec<u64>,
+    /// Lines set aside (`--skip-bad-lines`).
+    pub bad_lines: Vec<BadLine>,
 }
 
 impl Trajectory {
@@ -110,8 +112,9 @@ fn numbered_lines(
         }))
 }
 
-/// Reads RTKLIB's `.pos` solution file.
-pub fn read_rtklib(path: &Path) -> Result<Trajectory, GravityError> {
+/// Reads RTKLIB's `.pos` solution file; with `skip`, a line that breaks the format is set
+/// aside instead of failing the file.
+pub fn read_rtklib(path: &Path, skip: bool) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
     let mut scale: Option<TimeScale> = None;
     for (line_no, l) in numbered_lines(path)? {
@@ -138,49 +141,61 @@ pub fn read_rtklib(path: &Path) -> Result<Trajectory, GravityError> {
         if t.is_empty() {
             continue;
         }
-        let Some(scale) = scale else {
-            return Err(bad(
-                path,
-                line_no,
-                "header",
-                "a solution line before RTKLIB's column header (`%  GPST  latitude(deg) ...`)"
-                    .to_owned(),
-            ));
-        };
-        let f: Vec<&str> = t.split_whitespace().collect();
-        if f.len() < 10 {
-            return Err(bad(
-                path,
-                line_no,
-                "line",
-                format!(
-                    "{} fields: expected time (2), latitude, longitude, height, Q, ns, sdn, \
-                     sde, sdu (degrees-minutes-seconds solutions are not read: \
-                     `out-solformat = llh` with decimal degrees)",
-                    f.len()
-                ),
-            ));
+        match rtklib_line(path, line_no, t, scale) {
+            Ok((time, llh, sd)) => out.push(time, llh, Some(sd), line_no),
+            Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
         }
-        let time = if f[0].contains('/') {
-            let iso = format!("{}T{}", f[0].replace('/', "-"), f[1]);
-            TimeReader::new(TimeForm::Iso, scale, None).read(&[iso.as_bytes()])
-        } else {
-            TimeReader::new(TimeForm::GpsWeekTow, scale, None)
-                .read(&[f[0].as_bytes(), f[1].as_bytes()])
-        }
-        .map_err(|(field, m)| bad(path, line_no, field, m))?;
-        let llh = position(path, line_no, &f[2..5])?;
-        let sd = sds(path, line_no, &f[7..10])?;
-        out.push(time, llh, Some(sd), line_no);
     }
     Ok(out)
 }
 
-/// Reads a CSV trajectory whose times `time` reads.
-pub fn read_csv(path: &Path, mut time: TimeReader) -> Result<Trajectory, GravityError> {
+/// One solution line of an RTKLIB file: time, position, sds.
+fn rtklib_line(
+    path: &Path,
+    line_no: u64,
+    t: &str,
+    scale: Option<TimeScale>,
+) -> Result<(i64, [f64; 3], [f64; 3]), GravityError> {
+    let Some(scale) = scale else {
+        return Err(bad(
+            path,
+            line_no,
+            "header",
+            "a solution line before RTKLIB's column header (`%  GPST  latitude(deg) ...`)"
+                .to_owned(),
+        ));
+    };
+    let f: Vec<&str> = t.split_whitespace().collect();
+    if f.len() < 10 {
+        return Err(bad(
+            path,
+            line_no,
+            "line",
+            format!(
+                "{} fields: expected time (2), latitude, longitude, height, Q, ns, sdn, \
+                 sde, sdu (degrees-minutes-seconds solutions are not read: \
+                 `out-solformat = llh` with decimal degrees)",
+                f.len()
+            ),
+        ));
+    }
+    let time = if f[0].contains('/') {
+        let iso = format!("{}T{}", f[0].replace('/', "-"), f[1]);
+        TimeReader::new(TimeForm::Iso, scale, None).read(&[iso.as_bytes()])
+    } else {
+        TimeReader::new(TimeForm::GpsWeekTow, scale, None).read(&[f[0].as_bytes(), f[1].as_bytes()])
+    }
+    .map_err(|(field, m)| bad(path, line_no, field, m))?;
+    let llh = position(path, line_no, &f[2..5])?;
+    let sd = sds(path, line_no, &f[7..10])?;
+    Ok((time, llh, sd))
+}
+
+/// Reads a CSV trajectory whose times `time` reads; with `skip`, a line that breaks the
+/// format is set aside instead of failing the file.
+pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
     let mut header_seen = false;
-    let fields = time.form.fields();
     for (line_no, l) in numbered_lines(path)? {
         let l = l?;
         let t = l.split('#').next().unwrap_or("").trim();
@@ -194,31 +209,48 @@ pub fn read_csv(path: &Path, mut time: TimeReader) -> Result<Trajectory, Gravity
                 continue;
             }
         }
-        if f.len() != fields + 3 && f.len() != fields + 6 {
-            return Err(bad(
-                path,
-                line_no,
-                "line",
-                format!(
-                    "{} fields: expected time, lat_deg, lon_deg, h_m and optionally sd_n_m, \
-                     sd_e_m, sd_u_m",
-                    f.len()
-                ),
-            ));
+        match csv_line(path, line_no, &f, &mut time) {
+            Ok((tns, llh, sd)) => out.push(tns, llh, sd, line_no),
+            Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
         }
-        let bytes: Vec<&[u8]> = f[..fields].iter().map(|x| x.as_bytes()).collect();
-        let tns = time
-            .read(&bytes)
-            .map_err(|(field, m)| bad(path, line_no, field, m))?;
-        let llh = position(path, line_no, &f[fields..fields + 3])?;
-        let sd = if f.len() == fields + 6 {
-            Some(sds(path, line_no, &f[fields + 3..])?)
-        } else {
-            None
-        };
-        out.push(tns, llh, sd, line_no);
     }
     Ok(out)
+}
+
+/// A trajectory line's time (GPS ns), position and sds if given.
+type Epoch = (i64, [f64; 3], Option<[f64; 3]>);
+
+/// One line of a CSV trajectory: time, position, sds if given.
+fn csv_line(
+    path: &Path,
+    line_no: u64,
+    f: &[&str],
+    time: &mut TimeReader,
+) -> Result<Epoch, GravityError> {
+    let fields = time.form.fields();
+    if f.len() != fields + 3 && f.len() != fields + 6 {
+        return Err(bad(
+            path,
+            line_no,
+            "line",
+            format!(
+                "{} fields: expected time, lat_deg, lon_deg, h_m and optionally sd_n_m, \
+                 sd_e_m, sd_u_m",
+                f.len()
+            ),
+        ));
+    }
+    let bytes: Vec<&[u8]> = f[..fields].iter().map(|x| x.as_bytes()).collect();
+    let tns = time
+        .read(&bytes)
+        .map_err(|(field, m)| bad(path, line_no, field, m))?;
+    let llh = position(path, line_no, &f[fields..fields + 3])?;
+    let sd = if f.len() == fields + 6 {
+        Some(sds(path, line_no, &f[fields + 3..])?)
+    } else {
+        None
+    };
+    Ok((tns, llh, sd))
 }
 
 #[cfg(test)]
@@ -240,7 +272,7 @@ mod tests {
             "{HEADER}2026/03/14 09:12:03.500   48.016600000    0.157600000    60.1230   1   9   0.0040   0.0030   0.0090   0.0010  -0.0010   0.0020   0.00    0.0\n\
              2409 551523.600   48.016600100    0.157600100    60.1240   1   9   0.0040   0.0030   0.0090   0.0010  -0.0010   0.0020   0.00    0.0\n"
         ));
-        let t = read_rtklib(&p).expect("reads");
+        let t = read_rtklib(&p, false).expect("reads");
         assert_eq!(t.time_gps_ns.len(), 2);
         // 2026-03-14 is a Saturday of GPS week 2409: 09:12:03.5 is 6 d 33123.5 s in.
         assert_eq!(t.time_gps_ns[1] - t.time_gps_ns[0], 100_000_000);
@@ -253,10 +285,10 @@ mod tests {
         let (_d, p) = write(&format!(
             "{HEADER}2026/03/14 09:12:03.500   98.0    0.1    60.1   1   9   0.004   0.003   0.009   0.001  -0.001   0.002   0.00    0.0\n"
         ));
-        let e = read_rtklib(&p).expect_err("latitude 98").to_string();
+        let e = read_rtklib(&p, false).expect_err("latitude 98").to_string();
         assert!(e.contains(":3: latitude: 98 is outside"), "{e}");
         let (_d, p) = write("%  GPST   x-ecef(m)  y-ecef(m)  z-ecef(m)\n");
-        let e = read_rtklib(&p).expect_err("ecef").to_string();
+        let e = read_rtklib(&p, false).expect_err("ecef").to_string();
         assert!(e.contains("XYZ-ECEF"), "{e}");
     }
 
@@ -270,7 +302,15 @@ mod tests {
         )
         .expect("write");
         let r = TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None);
-        let e = read_csv(&p, r).expect_err("nan height").to_string();
+        let e = read_csv(&p, r, false).expect_err("nan height").to_string();
         assert!(e.contains(":3: height:"), "{e}");
+        // Set aside, the line before still read.
+        let t = read_csv(&p, r, true).expect("skips");
+        assert_eq!(t.time_gps_ns.len(), 1);
+        assert_eq!(t.bad_lines.len(), 1);
+        assert_eq!(
+            (t.bad_lines[0].line, t.bad_lines[0].field.as_str()),
+            (3, "height")
+        );
     }
 }

@@ -24,6 +24,9 @@ pub mod dropped {
     pub const STRETCH_TOO_SHORT: &str = "stretch_too_short";
     /// Its time repeats or goes back from the epoch before.
     pub const NOT_INCREASING: &str = "time_not_increasing";
+    /// Its line breaks the format, set aside under `--skip-bad-lines` (listed in the
+    /// session's `bad_lines`).
+    pub const BAD_LINE: &str = "bad_line";
     /// Its time lies outside the session's days (the time gate of every log).
     pub const OUTSIDE_SESSION: &str = "outside_session";
     /// The session gives an attitude, and none can be interpolated at the epoch (outside
@@ -99,6 +102,11 @@ pub struct SessionGravity {
     pub flagged: BTreeMap<String, u64>,
     /// Gaps that cut the track (intervals over 1.5 times the median).
     pub gaps: u64,
+    /// Lines of the trajectory and attitude files set aside under `--skip-bad-lines`, as
+    /// `path:line: field: message` (the first [`crate::contract::ledger::MAX_LISTED`] of
+    /// each file; a trajectory's are also counted in `dropped` as `bad_line`).
+    #[serde(default)]
+    pub bad_lines: Vec<String>,
     /// The stretches.
     pub stretches: Vec<StretchSummary>,
 }
