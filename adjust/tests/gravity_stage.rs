@@ -360,6 +360,11 @@ fn with_attitude_north_and_east_are_within_their_sigmas() {
         "{}",
         r.specific_force
     );
+    assert!(
+        r.inputs.iter().any(|i| i.role == "attitude of lines"),
+        "{:?}",
+        r.inputs
+    );
     let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
     eprintln!("with attitude, down: rms error {rms:.3} mGal, rms z {z:.3}");
     assert!((0.8..1.2).contains(&z), "down rms z {z}");

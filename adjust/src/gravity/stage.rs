@@ -67,18 +67,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     let force = down_force(&applied, &survey, opts.accelerometer)?;
     let triad = triad_function(&applied, opts.apply.calibration)?;
     let tracks = read_tracks(&ds, &survey, opts.skip_bad_lines)?;
-    if let (DownForce::Axis { .. }, Some(t)) =
-        (&force, tracks.iter().find(|t| t.attitude.is_some()))
-    {
-        return Err(GravityError::Refused {
-            message: format!(
-                "session {} gives an attitude, which turns a triad's vector into north, east \
-                 and down: an axis model gives one axis; apply a triad model, or remove the \
-                 session's `attitude`",
-                t.session.session.id
-            ),
-        });
-    }
+    refuse_attitude_with_an_axis(&force, &tracks)?;
     let targets: Vec<Target<'_>> = tracks
         .iter()
         .map(|t| Target {
@@ -97,37 +86,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     })?;
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
-    let per_epoch = ds.manifest.instrument.sample_rate_hz;
-    let mut rows = Rows::default();
-    let mut sessions = Vec::new();
-    let mut ties: Vec<TieUsed> = ds.ties.iter().map(tie_entry).collect();
-    for (k, (track, bins)) in tracks.iter().zip(&filled.bins).enumerate() {
-        let ctx = Context {
-            survey: &survey,
-            ties: &ds.ties,
-            samples_per_s: per_epoch,
-            sample_sd_mgal: filled.sample_sd_mgal[k],
-            triad: triad.as_ref(),
-            mounting: mounting(&survey),
-        };
-        let summary = reduce_track(track, bins, &ctx, &mut rows, &mut ties)?;
-        if summary.epochs_used == 0 {
-            let why: Vec<String> = summary
-                .dropped
-                .iter()
-                .map(|(k, n)| format!("{n} {k}"))
-                .collect();
-            return Err(GravityError::Refused {
-                message: format!(
-                    "session {}: none of its {} trajectory epochs could be reduced ({})",
-                    summary.id,
-                    summary.epochs_read,
-                    why.join(", ")
-                ),
-            });
-        }
-        sessions.push(summary);
-    }
+    let (rows, sessions, ties) = reduce_tracks(&ds, &survey, &tracks, &filled, triad.as_ref())?;
     let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let filter = filter_used(&rows, survey.filter_s);
     let crossovers = rows.crossovers(&names, &tracks, &sessions, survey.filter_s);
@@ -152,7 +111,68 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     Ok(report)
 }
 
-/// The files read, with their hashes: apply's table and each trajectory.
+/// An attitude turns a triad's vector; an axis model has none to turn.
+fn refuse_attitude_with_an_axis(
+    force: &DownForce,
+    tracks: &[Track<'_>],
+) -> Result<(), GravityError> {
+    match (force, tracks.iter().find(|t| t.attitude.is_some())) {
+        (DownForce::Axis { .. }, Some(t)) => Err(GravityError::Refused {
+            message: format!(
+                "session {} gives an attitude, which turns a triad's vector into north, east \
+                 and down: an axis model gives one axis; apply a triad model, or remove the \
+                 session's `attitude`",
+                t.session.session.id
+            ),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Every track reduced: gravity.parquet's rows, each session's summary, the ties marked
+/// with the stretch that used them. A session none of whose epochs could be reduced is an
+/// error naming it and why.
+fn reduce_tracks(
+    ds: &Dataset,
+    survey: &SurveyConfig,
+    tracks: &[Track<'_>],
+    filled: &epochs::Filled,
+    triad: Option<&TriadFunction>,
+) -> Result<(Rows, Vec<SessionGravity>, Vec<TieUsed>), GravityError> {
+    let mut rows = Rows::default();
+    let mut sessions = Vec::new();
+    let mut ties: Vec<TieUsed> = ds.ties.iter().map(tie_entry).collect();
+    for (k, (track, bins)) in tracks.iter().zip(&filled.bins).enumerate() {
+        let ctx = Context {
+            survey,
+            ties: &ds.ties,
+            samples_per_s: ds.manifest.instrument.sample_rate_hz,
+            sample_sd_mgal: filled.sample_sd_mgal[k],
+            triad,
+            mounting: mounting(survey),
+        };
+        let summary = reduce_track(track, bins, &ctx, &mut rows, &mut ties)?;
+        if summary.epochs_used == 0 {
+            let why: Vec<String> = summary
+                .dropped
+                .iter()
+                .map(|(k, n)| format!("{n} {k}"))
+                .collect();
+            return Err(GravityError::Refused {
+                message: format!(
+                    "session {}: none of its {} trajectory epochs could be reduced ({})",
+                    summary.id,
+                    summary.epochs_read,
+                    why.join(", ")
+                ),
+            });
+        }
+        sessions.push(summary);
+    }
+    Ok((rows, sessions, ties))
+}
+
+/// The files read, with their hashes: apply's table, each trajectory and attitude.
 fn inputs(table: &Path, tracks: &[Track<'_>]) -> Result<Vec<Input>, GravityError> {
     let mut inputs = vec![Input {
         role: "calibrated samples".to_owned(),
@@ -160,11 +180,15 @@ fn inputs(table: &Path, tracks: &[Track<'_>]) -> Result<Vec<Input>, GravityError
         sha256: ingest::contract::custody::sha256_file(table)?,
     }];
     for t in tracks {
-        if let Some(src) = &t.session.trajectory {
+        let Some(src) = &t.session.trajectory else {
+            continue;
+        };
+        let attitude = src.attitude.as_ref().map(|(p, _)| ("attitude", p));
+        for (role, path) in std::iter::once(("trajectory", &src.path)).chain(attitude) {
             inputs.push(Input {
-                role: format!("trajectory of {}", t.session.session.id),
-                path: src.path.display().to_string(),
-                sha256: ingest::contract::custody::sha256_file(&src.path)?,
+                role: format!("{role} of {}", t.session.session.id),
+                path: path.display().to_string(),
+                sha256: ingest::contract::custody::sha256_file(path)?,
             });
         }
     }
