@@ -212,14 +212,8 @@ fn csv_epochs(
     if !(header.len() >= 4 && header[0] == "time" && header[1] == second) {
         return None;
     }
-    let first = lines.get(1)?.first()?;
-    let form = if parse_iso(first).is_ok() {
-        TimeForm::Iso
-    } else if first.parse::<f64>().is_ok_and(|t| t > 1e8) {
-        TimeForm::UnixS
-    } else {
-        TimeForm::S
-    };
+    // Not a `gps_week` header: a calendar time, Unix seconds or seconds since a start.
+    let form = time_form(lines.get(1).filter(|f| !f.is_empty())?, "");
     let time = |f: &Vec<&str>| match form {
         TimeForm::Iso => iso_ns(f.first()?),
         TimeForm::UnixS => unix_to_gps_ns(ingest::time::parse_seconds_ns(f.first()?.as_bytes())?),
@@ -342,39 +336,9 @@ fn text(rel: String, head: &str, tail: &str) -> Result<Found> {
     let tail_lines: Vec<_> = tail_lines.into_iter().skip(1).collect();
     let first = lines.first().context("no data line in its first 64 KiB")?;
     if first.len() >= 3 && parse_iso(first[1]).is_ok() && first[0].parse::<f64>().is_err() {
-        let times: Vec<i64> = lines
-            .iter()
-            .chain(tail_lines.iter())
-            .filter_map(|f| f.get(1).and_then(|t| iso_ns(t)))
-            .collect();
-        return Ok(Found {
-            rel,
-            layout: Layout::Theodolite,
-            time: Some(TimeForm::Iso),
-            span_ns: times.first().zip(times.last()).map(|(&a, &b)| (a, b)),
-            rate_hz: None,
-            channels: 1,
-            comments,
-            magnitude: lines
-                .iter()
-                .filter_map(|f| f.get(2)?.parse::<f64>().ok())
-                .fold(0.0, f64::max),
-        });
+        return Ok(theodolite(rel, &lines, &tail_lines, comments));
     }
-    let form = if first.len() >= 2
-        && first[0].parse::<u32>().is_ok_and(|w| w < 10_000)
-        && !first[0].contains('.')
-        && first[1].parse::<f64>().is_ok()
-        && names.starts_with("gps_week")
-    {
-        TimeForm::GpsWeekTow
-    } else if parse_iso(first[0]).is_ok() {
-        TimeForm::Iso
-    } else if first[0].parse::<f64>().is_ok_and(|t| t > 1e8) {
-        TimeForm::UnixS
-    } else {
-        TimeForm::S
-    };
+    let form = time_form(first, &names);
     let time_of = |f: &Vec<&str>| -> Option<i64> {
         match form {
             TimeForm::GpsWeekTow => {
@@ -425,6 +389,54 @@ fn text(rel: String, head: &str, tail: &str) -> Result<Found> {
         comments,
         magnitude,
     })
+}
+
+/// A theodolite log (a station's name, then a calendar time, then the reading): its span
+/// from both ends and its largest reading.
+fn theodolite(
+    rel: String,
+    lines: &[Vec<&str>],
+    tail_lines: &[Vec<&str>],
+    comments: String,
+) -> Found {
+    let times: Vec<i64> = lines
+        .iter()
+        .chain(tail_lines.iter())
+        .filter_map(|f| f.get(1).and_then(|t| iso_ns(t)))
+        .collect();
+    Found {
+        rel,
+        layout: Layout::Theodolite,
+        time: Some(TimeForm::Iso),
+        span_ns: times.first().zip(times.last()).map(|(&a, &b)| (a, b)),
+        rate_hz: None,
+        channels: 1,
+        comments,
+        magnitude: lines
+            .iter()
+            .filter_map(|f| f.get(2)?.parse::<f64>().ok())
+            .fold(0.0, f64::max),
+    }
+}
+
+/// A CSV's time form from its first data line (and its header's names): GPS week and
+/// seconds under a `gps_week` header, a calendar time, Unix seconds (past 1973), or seconds
+/// since a start.
+fn time_form(first: &[&str], names: &str) -> TimeForm {
+    if first.len() >= 2
+        && first[0].parse::<u32>().is_ok_and(|w| w < 10_000)
+        && !first[0].contains('.')
+        && first[1].parse::<f64>().is_ok()
+        && names.starts_with("gps_week")
+    {
+        TimeForm::GpsWeekTow
+    } else if parse_iso(first[0]).is_ok() {
+        TimeForm::Iso
+    } else if first[0].parse::<f64>().is_ok_and(|t| t > 1e8) {
+        TimeForm::UnixS
+    } else {
+        TimeForm::S
+    }
 }
 
 /// An ISO 8601 time as GPS ns (zone-less times taken as UTC: only the date is used).
