@@ -628,6 +628,57 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
     let theodolite = get(Layout::Theodolite);
     let temperature = get(Layout::TemperatureCsv);
     let _ = writeln!(t, "[[session]]\nid = \"{id}\"");
+    list_files(t, files);
+    let _ = writeln!(t, "date = {}", date(files));
+    let lab = get(Layout::LabStream);
+    let track = files
+        .iter()
+        .copied()
+        .find(|f| matches!(f.layout, Layout::Trajectory(_)));
+    let _ = writeln!(t, "kind = {}", kind(theodolite.is_some(), track.is_some()));
+    acquisition_keys(t, get(Layout::Binary), lab, get(Layout::CountsCsv));
+    if let Some(x) = temperature {
+        let _ = writeln!(
+            t,
+            "temperature_csv = \"{}\"\ntemperature_time = \"{}\"",
+            x.rel,
+            x.time.unwrap_or(TimeForm::GpsWeekTow).name()
+        );
+    }
+    match (track, get(Layout::Attitude)) {
+        (Some(tr), attitude) => trajectory_keys(t, tr, attitude),
+        (None, Some(a)) => {
+            let _ = writeln!(
+                t,
+                "# {}: an attitude without a trajectory in this session is not used: the \
+                 gravity stage reads both (docs/formats.md 10)",
+                a.rel
+            );
+        }
+        (None, None) => {}
+    }
+    if let Some(th) = theodolite {
+        theodolite_keys(t, th);
+        let _ = writeln!(
+            t,
+            "# roll_deg = 0.0                # the block's roll about the vertical, deg (docs/formats.md 8.2)"
+        );
+    } else {
+        let _ = writeln!(
+            t,
+            "# quiet_start_s = 40.0          # multi-position: the still stretch at the start, s (8.4)\n\
+             # static_s = [[40.0, 52.5]]     # multi-position: the still intervals, s since the start"
+        );
+    }
+    let _ = writeln!(
+        t,
+        "# days = 2                      # UTC days the session spans from its date\n"
+    );
+    theodolite.is_none() && lab.is_some() && track.is_none()
+}
+
+/// A comment line per file: its layout, time form, channels, rate and span.
+fn list_files(t: &mut String, files: &[&Found]) {
     for f in files {
         let span = f.span_ns.map_or(String::new(), |(a, b)| match f.layout {
             Layout::Binary => " (times by the 10-bit week)".to_owned(),
@@ -648,14 +699,17 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
             f.rate_hz.map_or(String::new(), |r| format!(", {r:.4} Hz"))
         );
     }
-    let _ = writeln!(t, "date = {}", date(files));
-    let lab = get(Layout::LabStream);
-    let track = files
-        .iter()
-        .copied()
-        .find(|f| matches!(f.layout, Layout::Trajectory(_)));
-    let _ = writeln!(t, "kind = {}", kind(theodolite.is_some(), track.is_some()));
-    if let Some(b) = get(Layout::Binary) {
+}
+
+/// How the session's samples are logged: a binary log, else a lab stream, else a counts
+/// CSV, with their time forms (a stream counting from a start asks for it).
+fn acquisition_keys(
+    t: &mut String,
+    binary: Option<&Found>,
+    lab: Option<&Found>,
+    counts: Option<&Found>,
+) {
+    if let Some(b) = binary {
         let _ = writeln!(t, "acquisition = \"{}\"", b.rel);
     } else if let Some(l) = lab {
         let form = l.time.unwrap_or(TimeForm::S);
@@ -671,7 +725,7 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
                 "start = {FILL}                # the time (ISO 8601, e.g. 2026-03-14T09:00:00Z) of the stream's t = 0"
             );
         }
-    } else if let Some(c) = get(Layout::CountsCsv) {
+    } else if let Some(c) = counts {
         let _ = writeln!(
             t,
             "adc_csv = \"{}\"\nadc_time = \"{}\"",
@@ -679,35 +733,6 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
             c.time.unwrap_or(TimeForm::GpsWeekTow).name()
         );
     }
-    if let Some(x) = temperature {
-        let _ = writeln!(
-            t,
-            "temperature_csv = \"{}\"\ntemperature_time = \"{}\"",
-            x.rel,
-            x.time.unwrap_or(TimeForm::GpsWeekTow).name()
-        );
-    }
-    if let Some(tr) = track {
-        trajectory_keys(t, tr, get(Layout::Attitude));
-    }
-    if let Some(th) = theodolite {
-        theodolite_keys(t, th);
-        let _ = writeln!(
-            t,
-            "# roll_deg = 0.0                # the block's roll about the vertical, deg (docs/formats.md 8.2)"
-        );
-    } else {
-        let _ = writeln!(
-            t,
-            "# quiet_start_s = 40.0          # multi-position: the still stretch at the start, s (8.4)\n\
-             # static_s = [[40.0, 52.5]]     # multi-position: the still intervals, s since the start"
-        );
-    }
-    let _ = writeln!(
-        t,
-        "# days = 2                      # UTC days the session spans from its date\n"
-    );
-    theodolite.is_none() && lab.is_some() && track.is_none()
 }
 
 /// A session's kind: a theodolite log makes it a tilt table, a trajectory a survey; else
