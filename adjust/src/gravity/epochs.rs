@@ -13,9 +13,11 @@
 //!
 //! The specific force down: with a triad model, the calibrated body-frame vector through
 //! the mounting's third row, f_D = (C_b^v f^b)_z, the platform levelled (docs/formats.md
-//! 10.2: without attitude); its variance m^T Sigma m from the vector's covariance. With an
-//! axis model, the one accelerometer's F, taken as the vertical axis pointing up
-//! (F = -f . u, so f_D = F).
+//! 10.2: without attitude); its variance m^T Sigma m from the vector's covariance. With
+//! attitude, each sample's vector is also turned into the navigation frame by C_b^n at its
+//! own time (the attitude interpolated between the epochs either side) and that mean kept
+//! ([`Bin::mean_nav`]). With an axis model, the one accelerometer's F, taken as the
+//! vertical axis pointing up (F = -f . u, so f_D = F).
 
 use super::GravityError;
 use super::attitude::{self, AttitudeAt};

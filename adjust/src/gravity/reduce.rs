@@ -9,7 +9,9 @@
 //! below a tenth of the epochs' Nyquist frequency, far above any filter's cut-off); f_D is
 //! the specific force's down component (-g at rest). Without attitude the platform is
 //! taken as levelled, so only the lever arm's down component (a constant offset of the
-//! height) matters.
+//! height) matters; with attitude the stage has already turned each sample into the
+//! navigation frame and moved the positions by the lever arm (north and east are
+//! [`super::horizontal`]'s).
 
 use super::GravityError;
 use super::filter;
