@@ -75,26 +75,9 @@ fn bad(path: &Path, line: u64, field: &str, message: String) -> GravityError {
 /// Reads an attitude CSV whose times `time` reads; times must increase. With `skip`, a
 /// line that breaks the format is set aside instead of failing the file.
 pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Attitude, GravityError> {
-    let text = std::fs::read_to_string(path).map_err(|e| GravityError::File {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
     let mut out = Attitude::default();
-    let mut header_seen = false;
-    for (i, l) in text.lines().enumerate() {
-        let line = i as u64 + 1;
-        let t = l.split('#').next().unwrap_or("").trim();
-        if t.is_empty() {
-            continue;
-        }
-        let f: Vec<&str> = t.split(',').map(str::trim).collect();
-        if !header_seen {
-            header_seen = true;
-            if f.first().is_some_and(|x| x.starts_with("time")) {
-                continue;
-            }
-        }
-        match attitude_line(path, line, &f, &mut time, out.time_gps_ns.last().copied()) {
+    super::trajectory::for_each_csv_line(path, |line, f| {
+        match attitude_line(path, line, f, &mut time, out.time_gps_ns.last().copied()) {
             Ok((tns, hpr, sd)) => {
                 out.time_gps_ns.push(tns);
                 out.hpr_deg.push(hpr);
@@ -102,7 +85,8 @@ pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Attitud
             }
             Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
         }
-    }
+        Ok(())
+    })?;
     unwrap_heading(&mut out.hpr_deg);
     Ok(out)
 }

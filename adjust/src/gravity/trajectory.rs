@@ -195,6 +195,23 @@ fn rtklib_line(
 /// format is set aside instead of failing the file.
 pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
+    for_each_csv_line(path, |line_no, f| {
+        match csv_line(path, line_no, f, &mut time) {
+            Ok((tns, llh, sd)) => out.push(tns, llh, sd, line_no),
+            Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Calls `f` with each data line of a CSV (a trajectory's, an attitude's): its number
+/// (from 1) and its comma-separated fields, trimmed; `#` starts a comment, blank lines are
+/// passed over, and a first line whose first field begins `time` is the header.
+pub(super) fn for_each_csv_line(
+    path: &Path,
+    mut f: impl FnMut(u64, &[&str]) -> Result<(), GravityError>,
+) -> Result<(), GravityError> {
     let mut header_seen = false;
     for (line_no, l) in numbered_lines(path)? {
         let l = l?;
@@ -202,19 +219,16 @@ pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Traject
         if t.is_empty() {
             continue;
         }
-        let f: Vec<&str> = t.split(',').map(str::trim).collect();
+        let fields: Vec<&str> = t.split(',').map(str::trim).collect();
         if !header_seen {
             header_seen = true;
-            if f.first().is_some_and(|x| x.starts_with("time")) {
+            if fields.first().is_some_and(|x| x.starts_with("time")) {
                 continue;
             }
         }
-        match csv_line(path, line_no, &f, &mut time) {
-            Ok((tns, llh, sd)) => out.push(tns, llh, sd, line_no),
-            Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
-        }
+        f(line_no, &fields)?;
     }
-    Ok(out)
+    Ok(())
 }
 
 /// A trajectory line's time (GPS ns), position and sds if given.
