@@ -1,8 +1,8 @@
 //! The gravity stage (docs/model.md 7, docs/formats.md 10): a survey's calibrated specific
 //! force reduced to the gravity disturbance along the track. It reads apply's output, so it
 //! lives beside apply in the adjust crate, as a module tree of its own with its own error
-//! type. Built so far: the pieces the navigation equation is made of, each checked against
-//! a peer (`tests/gravity_peers.rs`):
+//! type. The pieces the navigation equation is made of, each checked against a peer
+//! (`tests/gravity_peers.rs`) or the simulator's truth:
 //!
 //! - [`normal`]: GRS80 normal gravity at any point on or above the ellipsoid (closed form,
 //!   no free-air series), against boule;
@@ -12,18 +12,20 @@
 //! - [`filter`]: the zero-phase Butterworth low-pass whose response is 0.5 at the cut-off
 //!   period `filter_s`, against scipy.signal's `sosfiltfilt`;
 //! - [`trajectory`]: GNSS positions from RTKLIB's `.pos` or a CSV;
+//! - [`attitude`]: heading, pitch and roll from a CSV, onto the trajectory's epochs;
 //! - [`reduce`]: the down component along an evenly spaced stretch of track, free of I/O:
 //!   kinematic acceleration and velocities by central differences, the Eotvos term, normal
 //!   gravity, the filter with the stretch's ends extended consistently, ties and a drift,
 //!   the sigmas apart (`tests/gravity_reduce.rs`);
-//! - [`epochs`]: apply's calibrated samples brought onto the trajectory's epochs;
+//! - [`horizontal`]: north and east along a stretch with attitude, never tied, the
+//!   attitude's part of their sigma apart;
+//! - [`epochs`]: apply's calibrated samples brought onto the trajectory's epochs (with
+//!   attitude, each turned into the navigation frame at its own time);
 //! - [`crossover`]: where the track crosses itself, the two passes' difference and its
 //!   sigma;
 //! - [`stage`]: the run, `cargo xtask gravity` (`tests/gravity_stage.rs`: the fixture
 //!   survey-lines recovered within its sigmas, its crossover within its sigma, each
-//!   convention broken failing).
-//!
-//! Not built yet: north and east with attitude.
+//!   convention broken failing; a rolling boat with attitude, north and east within theirs).
 
 pub mod attitude;
 pub mod crossover;
