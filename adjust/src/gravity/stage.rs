@@ -567,9 +567,9 @@ fn reduce_track(
             *summary.flagged.entry(name).or_insert(0) += n;
         }
         summary.epochs_used += s.time_gps_ns.len() as u64;
-        let h = match track.attitude {
-            Some(_) => {
-                let inputs = horizontal_inputs(track, bins, span, ctx);
+        let h = match &track.attitude {
+            Some(att) => {
+                let inputs = horizontal_inputs((track, att), bins, span, ctx);
                 Some(horizontal::reduce_horizontal(
                     &s,
                     &inputs,
@@ -683,21 +683,18 @@ fn stretch(
 /// force through C_b^n, its calibration sigma along each row (or the parameters' gradients
 /// with a triad without temperature terms), the attitude's sigma, the positions' sds.
 fn horizontal_inputs(
-    track: &Track<'_>,
+    (track, att): (&Track<'_>, &[AttitudeAt]),
     bins: &[Bin],
     span: std::ops::Range<usize>,
     ctx: &Context<'_>,
 ) -> Horizontal {
     let mut h = Horizontal::default();
-    let att = track.attitude.as_deref().unwrap_or_default();
     let mut gradients: [Option<Vec<Vec<f64>>>; 2] = match ctx.triad {
         Some(f) => std::array::from_fn(|_| Some(vec![Vec::new(); f.covariance().len().isqrt()])),
         None => [None, None],
     };
     for k in span {
-        let Some(c) = body_to_nav(track, k, &ctx.mounting) else {
-            continue;
-        };
+        let c = attitude::product(&att[k].vehicle_to_nav(), &ctx.mounting);
         let v = bins[k].mean_vector();
         let f = bins[k].mean_nav();
         let a = &att[k];
