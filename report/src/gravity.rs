@@ -1,9 +1,8 @@
 //! The report's section on a survey reduced to gravity (docs/formats.md 10), when OUT holds
 //! the gravity stage's outputs for this dataset: what was reduced and dropped, the ties and
 //! drift of each stretch, the disturbance's range and sigma with its parts (north and east
-//! too where a session gives attitude), the crossovers,
-//! the track on a map coloured by the filtered disturbance and the profile along the track with its
-//! 1-sigma band.
+//! too where a session gives attitude), the crossovers, the track on a map coloured by the
+//! filtered disturbance and the profile along the track with its 1-sigma band.
 
 use crate::Error;
 use crate::plots;
