@@ -64,15 +64,16 @@ fn rows(out: &Path) -> Vec<Row> {
     rows
 }
 
-/// The true disturbance down at `t` (GPS s), from truth.csv at 1 Hz, linearly interpolated.
-fn truth_at(dataset: &Path) -> impl Fn(f64) -> f64 {
+/// The truth's `columns` of truth.csv (4 down, 5 north, 6 east, mGal) at `t` (GPS s),
+/// linearly interpolated between its 1 Hz rows.
+fn truth_table<const N: usize>(dataset: &Path, columns: [usize; N]) -> impl Fn(f64) -> [f64; N] {
     let text = std::fs::read_to_string(dataset.join("truth.csv")).expect("truth.csv");
-    let table: Vec<(f64, f64)> = text
+    let table: Vec<(f64, [f64; N])> = text
         .lines()
         .skip(1)
         .map(|l| {
             let f: Vec<f64> = l.split(',').map(|x| x.parse().expect("number")).collect();
-            (f[0], f[4])
+            (f[0], columns.map(|c| f[c]))
         })
         .collect();
     move |t| {
@@ -80,7 +81,7 @@ fn truth_at(dataset: &Path) -> impl Fn(f64) -> f64 {
             .partition_point(|(s, _)| *s <= t)
             .clamp(1, table.len() - 1);
         let ((t0, v0), (t1, v1)) = (table[k - 1], table[k]);
-        v0 + (v1 - v0) * (t - t0) / (t1 - t0)
+        std::array::from_fn(|c| v0[c] + (v1[c] - v0[c]) * (t - t0) / (t1 - t0))
     }
 }
 
@@ -114,7 +115,7 @@ fn scores(dataset: &Path, out: &Path, filter_s: f64) -> (f64, f64) {
 /// stretch.
 fn filtered_truth(dataset: &Path, out: &Path, filter_s: f64) -> (Vec<Row>, Vec<f64>) {
     let rows = rows(out);
-    let truth = truth_at(dataset);
+    let truth = truth_table(dataset, [4]);
     let dt = (rows[1].time_s - rows[0].time_s).abs();
     let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt).expect("filter");
     // The truth filtered stretch by stretch, as the stage filters.
@@ -122,7 +123,7 @@ fn filtered_truth(dataset: &Path, out: &Path, filter_s: f64) -> (Vec<Row>, Vec<f
     let mut start = 0;
     for k in 1..=rows.len() {
         if k == rows.len() || rows[k].time_s - rows[k - 1].time_s > 1.5 * dt {
-            let raw: Vec<f64> = rows[start..k].iter().map(|r| truth(r.time_s)).collect();
+            let raw: Vec<f64> = rows[start..k].iter().map(|r| truth(r.time_s)[0]).collect();
             want.extend(filter::filtfilt(&sections, &raw).expect("filtered truth"));
             start = k;
         }
@@ -266,27 +267,6 @@ fn a_convention_broken_fails_the_truth() {
     }
 }
 
-/// The true disturbance north and east at `t` (GPS s), from truth.csv, linearly
-/// interpolated.
-fn truth_horizontal(dataset: &Path) -> impl Fn(f64) -> [f64; 2] {
-    let text = std::fs::read_to_string(dataset.join("truth.csv")).expect("truth.csv");
-    let table: Vec<(f64, [f64; 2])> = text
-        .lines()
-        .skip(1)
-        .map(|l| {
-            let f: Vec<f64> = l.split(',').map(|x| x.parse().expect("number")).collect();
-            (f[0], [f[5], f[6]])
-        })
-        .collect();
-    move |t| {
-        let k = table
-            .partition_point(|(s, _)| *s <= t)
-            .clamp(1, table.len() - 1);
-        let ((t0, v0), (t1, v1)) = (table[k - 1], table[k]);
-        std::array::from_fn(|c| v0[c] + (v1[c] - v0[c]) * (t - t0) / (t1 - t0))
-    }
-}
-
 /// North and east against the truth through the stage's filter, over the epochs not at an
 /// edge: per component the rms error (mGal), the rms of error / sigma, and the median sigma
 /// and its attitude part.
@@ -314,7 +294,7 @@ fn horizontal_scores(dataset: &Path, out: &Path, filter_s: f64) -> [[f64; 4]; 2]
         Ok(())
     })
     .expect("gravity.parquet");
-    let truth = truth_horizontal(dataset);
+    let truth = truth_table(dataset, [5, 6]);
     let dt = time[1] - time[0];
     let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt).expect("filter");
     let inner: Vec<usize> = (0..time.len())

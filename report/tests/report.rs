@@ -363,6 +363,24 @@ fn the_first_screen_holds_every_calibration() {
 /// A survey reduced to gravity gets its section: what was reduced, the ties and drift, the
 /// disturbance and its sigma's parts, the map and the profile; Chromium renders both plots
 /// inline.
+/// The gravity stage on `dataset` into `out`, with triad-multipos's calibration from `cal`.
+fn gravity(
+    dataset: &Path,
+    cal: &Path,
+    out: &Path,
+) -> Result<ingest::contract::gravity_ledger::GravityReport, adjust::gravity::GravityError> {
+    adjust::gravity::stage::GravityArgs {
+        dataset: dataset.to_path_buf(),
+        calibration: cal.join("adjust/calibration.json"),
+        model: None,
+        session: Some("lab".to_owned()),
+        accelerometer: None,
+        out: None,
+        skip_bad_lines: false,
+    }
+    .run(out)
+}
+
 #[test]
 fn the_gravity_section_shows_the_track() {
     let cal_out = tempfile::tempdir().expect("tempdir");
@@ -372,17 +390,7 @@ fn the_gravity_section_shows_the_track() {
     adjust::run(&multipos, cal_out.path()).expect("adjust");
     let dataset = fixtures::dataset_dir(fixtures::survey_lines::SURVEY_LINES);
     let out = pipeline(&dataset);
-    let g = adjust::gravity::stage::GravityArgs {
-        dataset: dataset.clone(),
-        calibration: cal_out.path().join("adjust/calibration.json"),
-        model: None,
-        session: Some("lab".to_owned()),
-        accelerometer: None,
-        out: None,
-        skip_bad_lines: false,
-    }
-    .run(out.path())
-    .expect("gravity");
+    let g = gravity(&dataset, cal_out.path(), out.path()).expect("gravity");
     report::run(&dataset, out.path()).expect("report");
     let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("md");
     assert!(md.contains("## Gravity along the track"), "{md}");
@@ -411,17 +419,7 @@ fn the_gravity_section_shows_the_track() {
     fixtures::survey_lines::write_survey_lines(&fixtures::survey_lines::attitude_plan(), &rolling)
         .expect("rolling boat");
     let rolling_out = pipeline(&rolling);
-    adjust::gravity::stage::GravityArgs {
-        dataset: rolling.clone(),
-        calibration: cal_out.path().join("adjust/calibration.json"),
-        model: None,
-        session: Some("lab".to_owned()),
-        accelerometer: None,
-        out: None,
-        skip_bad_lines: false,
-    }
-    .run(rolling_out.path())
-    .expect("gravity with attitude");
+    gravity(&rolling, cal_out.path(), rolling_out.path()).expect("gravity with attitude");
     report::run(&rolling, rolling_out.path()).expect("report");
     let md2 = std::fs::read_to_string(rolling_out.path().join("report/report.md")).expect("md");
     assert!(
@@ -452,17 +450,7 @@ fn the_gravity_section_shows_the_track() {
     };
     // Rebuilt whole, then opened.
     let _ = std::fs::remove_dir_all(out.path().join("gravity"));
-    adjust::gravity::stage::GravityArgs {
-        dataset: dataset.clone(),
-        calibration: cal_out.path().join("adjust/calibration.json"),
-        model: None,
-        session: Some("lab".to_owned()),
-        accelerometer: None,
-        out: None,
-        skip_bad_lines: false,
-    }
-    .run(out.path())
-    .expect("gravity");
+    gravity(&dataset, cal_out.path(), out.path()).expect("gravity");
     report::run(&dataset, out.path()).expect("report");
     let profile = tempfile::tempdir().expect("profile");
     let url = format!("file://{}", out.path().join("report/index.html").display());

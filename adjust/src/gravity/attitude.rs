@@ -7,6 +7,7 @@
 //! attitude epochs no further apart than twice their median interval: an epoch outside
 //! that is not reduced (`no_attitude`).
 
+use super::trajectory::{bad, timed_fields};
 use super::{BadLine, GravityError, set_aside};
 use ingest::time::TimeReader;
 use std::path::Path;
@@ -63,15 +64,6 @@ pub fn apply(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
 }
 
-fn bad(path: &Path, line: u64, field: &str, message: String) -> GravityError {
-    GravityError::Line {
-        path: path.to_path_buf(),
-        line,
-        field: field.to_owned(),
-        message,
-    }
-}
-
 /// Reads an attitude CSV whose times `time` reads; times must increase. With `skip`, a
 /// line that breaks the format is set aside instead of failing the file.
 pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Attitude, GravityError> {
@@ -101,23 +93,9 @@ fn attitude_line(
     time: &mut TimeReader,
     last: Option<i64>,
 ) -> Result<AttitudeLine, GravityError> {
-    let fields = time.form.fields();
-    if f.len() != fields + 3 && f.len() != fields + 6 {
-        return Err(bad(
-            path,
-            line,
-            "line",
-            format!(
-                "{} fields: expected time, heading_deg, pitch_deg, roll_deg and optionally \
-                 sd_heading_deg, sd_pitch_deg, sd_roll_deg",
-                f.len()
-            ),
-        ));
-    }
-    let bytes: Vec<&[u8]> = f[..fields].iter().map(|x| x.as_bytes()).collect();
-    let tns = time
-        .read(&bytes)
-        .map_err(|(field, m)| bad(path, line, field, m))?;
+    let expected = "time, heading_deg, pitch_deg, roll_deg and optionally sd_heading_deg, \
+                    sd_pitch_deg, sd_roll_deg";
+    let (tns, values, sd) = timed_fields(path, line, f, time, expected)?;
     if last.is_some_and(|last| tns <= last) {
         return Err(bad(
             path,
@@ -126,12 +104,8 @@ fn attitude_line(
             "does not increase from the line before".to_owned(),
         ));
     }
-    let hpr = angles(path, line, &f[fields..fields + 3])?;
-    let sd = if f.len() == fields + 6 {
-        Some(sds(path, line, &f[fields + 3..])?)
-    } else {
-        None
-    };
+    let hpr = angles(path, line, values)?;
+    let sd = sd.map(|x| sds(path, line, x)).transpose()?;
     Ok((tns, hpr, sd))
 }
 

@@ -64,8 +64,8 @@ pub fn crossovers(
     filter_s: f64,
     rate_sigma: impl Fn(u16, u32) -> Option<f64>,
 ) -> Vec<Crossover> {
-    let plane = Plane::new(e);
     let segments = segments(e);
+    let plane = Plane::new(e, &segments);
     let separation_ns = (2.0 * filter_s * 1e9) as i64;
     let mut found = Vec::new();
     let mut tested = HashSet::new();
@@ -131,14 +131,15 @@ struct Plane {
 }
 
 impl Plane {
-    fn new(e: &Epochs<'_>) -> Self {
+    /// The plane of `e`'s positions, its cells sized by `segments`' median length.
+    fn new(e: &Epochs<'_>, segments: &[usize]) -> Self {
         let n = e.latitude_deg.len();
         let mean = e.latitude_deg.iter().sum::<f64>() / n.max(1) as f64;
         let c = mean.to_radians().cos();
         let xy: Vec<[f64; 2]> = (0..n)
             .map(|k| [e.longitude_deg[k] * c, e.latitude_deg[k]])
             .collect();
-        let mut lengths: Vec<f64> = segments(e)
+        let mut lengths: Vec<f64> = segments
             .iter()
             .map(|&k| (xy[k + 1][0] - xy[k][0]).hypot(xy[k + 1][1] - xy[k][1]))
             .collect();

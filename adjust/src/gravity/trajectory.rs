@@ -42,7 +42,7 @@ impl Trajectory {
     }
 }
 
-fn bad(path: &Path, line: u64, field: &str, message: String) -> GravityError {
+pub(super) fn bad(path: &Path, line: u64, field: &str, message: String) -> GravityError {
     GravityError::Line {
         path: path.to_path_buf(),
         line,
@@ -241,30 +241,41 @@ fn csv_line(
     f: &[&str],
     time: &mut TimeReader,
 ) -> Result<Epoch, GravityError> {
-    let fields = time.form.fields();
-    if f.len() != fields + 3 && f.len() != fields + 6 {
+    let expected = "time, lat_deg, lon_deg, h_m and optionally sd_n_m, sd_e_m, sd_u_m";
+    let (tns, values, sd) = timed_fields(path, line_no, f, time, expected)?;
+    let llh = position(path, line_no, values)?;
+    let sd = sd.map(|x| sds(path, line_no, x)).transpose()?;
+    Ok((tns, llh, sd))
+}
+
+/// A CSV line's time (GPS ns), its three values, and their three sds where given.
+pub(super) type TimedFields<'a, 'b> = (i64, &'a [&'b str], Option<&'a [&'b str]>);
+
+/// A CSV line of epochs (a trajectory's, an attitude's): its time, read by `time`, then its
+/// three values and, where given, their three sds; another number of fields is an error
+/// naming what was `expected`.
+pub(super) fn timed_fields<'a, 'b>(
+    path: &Path,
+    line_no: u64,
+    f: &'a [&'b str],
+    time: &mut TimeReader,
+    expected: &str,
+) -> Result<TimedFields<'a, 'b>, GravityError> {
+    let n = time.form.fields();
+    if f.len() != n + 3 && f.len() != n + 6 {
         return Err(bad(
             path,
             line_no,
             "line",
-            format!(
-                "{} fields: expected time, lat_deg, lon_deg, h_m and optionally sd_n_m, \
-                 sd_e_m, sd_u_m",
-                f.len()
-            ),
+            format!("{} fields: expected {expected}", f.len()),
         ));
     }
-    let bytes: Vec<&[u8]> = f[..fields].iter().map(|x| x.as_bytes()).collect();
+    let bytes: Vec<&[u8]> = f[..n].iter().map(|x| x.as_bytes()).collect();
     let tns = time
         .read(&bytes)
         .map_err(|(field, m)| bad(path, line_no, field, m))?;
-    let llh = position(path, line_no, &f[fields..fields + 3])?;
-    let sd = if f.len() == fields + 6 {
-        Some(sds(path, line_no, &f[fields + 3..])?)
-    } else {
-        None
-    };
-    Ok((tns, llh, sd))
+    let sd = (f.len() == n + 6).then(|| &f[n + 3..]);
+    Ok((tns, &f[n..n + 3], sd))
 }
 
 #[cfg(test)]

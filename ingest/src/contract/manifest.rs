@@ -1051,7 +1051,7 @@ fn resolve_session(
     };
     let theodolite = theodolite_log(i, s, file, err)?;
     check_session_keys(i, s, err)?;
-    let trajectory = crate::contract::survey::trajectory(i, s, &times, file, err)?;
+    let trajectory = crate::contract::survey::trajectory(i, s, file, err)?;
     Ok(ResolvedSession {
         trajectory,
         times,

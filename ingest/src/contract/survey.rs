@@ -2,7 +2,7 @@
 //! and the `[survey]` table (lever arm, mounting, filter, static ties), parsed with the
 //! manifest and validated here, every error naming the key.
 
-use super::manifest::{Session, SessionKind, SessionTimes, TimeScale};
+use super::manifest::{Session, SessionKind, TimeScale};
 use crate::error::{Error, Result};
 use crate::time::TimeForm;
 use serde::{Deserialize, Serialize};
@@ -84,13 +84,12 @@ pub struct TrajectorySource {
 }
 
 /// Session `i`'s trajectory keys checked and its files resolved: only on a survey session;
-/// `trajectory_format` required with `trajectory`; `trajectory_time` for a CSV only, and
-/// its form readable with the session's `start`; `attitude` only with a trajectory, with
-/// its `attitude_time` (the same rule for `"s"`).
+/// `trajectory_format` required with `trajectory`; `trajectory_time` for a CSV only;
+/// `attitude` only with a trajectory, with its `attitude_time`. (A `"s"` time form without
+/// the session's `start` was refused with the session's times, which count these keys.)
 pub fn trajectory(
     i: usize,
     s: &Session,
-    times: &SessionTimes,
     file: &impl Fn(String, &str) -> Result<PathBuf>,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<Option<TrajectorySource>> {
@@ -129,7 +128,7 @@ pub fn trajectory(
             "missing: \"rtklib\" (a .pos solution file) or \"csv\"".to_owned(),
         )
     })?;
-    let time = trajectory_time(format, s.trajectory_time, times, &key, err)?;
+    let time = trajectory_time(format, s.trajectory_time, &key, err)?;
     let attitude = match (&s.attitude, s.attitude_time) {
         (None, None) => None,
         (None, Some(_)) => {
@@ -146,13 +145,6 @@ pub fn trajectory(
                     .to_owned(),
             ));
         }
-        (Some(_), Some(TimeForm::S)) if times.start_gps_ns.is_none() => {
-            return Err(err(
-                key("attitude_time"),
-                "\"s\" counts from the session's `start`, which this session does not give"
-                    .to_owned(),
-            ));
-        }
         (Some(rel), Some(t)) => Some((file(key("attitude"), rel)?, t)),
     };
     Ok(Some(TrajectorySource {
@@ -163,11 +155,11 @@ pub fn trajectory(
     }))
 }
 
-/// A trajectory's time form checked against its format and the session's `start`.
+/// A trajectory's time form checked against its format (a `"s"` without the session's
+/// `start` is refused with the session's times, before this).
 fn trajectory_time(
     format: TrajectoryFormat,
     time: Option<TimeForm>,
-    times: &SessionTimes,
     key: &impl Fn(&str) -> String,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<Option<TimeForm>> {
@@ -185,13 +177,6 @@ fn trajectory_time(
                 key("trajectory_time"),
                 "missing: how the CSV writes its times (\"gps_week_tow\", \"iso\", \"unix_s\" \
                  or \"s\")"
-                    .to_owned(),
-            ));
-        }
-        (TrajectoryFormat::Csv, Some(TimeForm::S)) if times.start_gps_ns.is_none() => {
-            return Err(err(
-                key("trajectory_time"),
-                "\"s\" counts from the session's `start`, which this session does not give"
                     .to_owned(),
             ));
         }
