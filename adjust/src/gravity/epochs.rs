@@ -136,8 +136,8 @@ impl Bin {
     /// With attitude, the weighted mean specific force in the navigation frame (north,
     /// east, down), mGal: each sample turned by the attitude at its own time before the
     /// mean, so that a vehicle rolling within the epoch's interval leaves no bias (turning
-    /// the mean vector by the epoch's attitude leaves 0.7 mGal down on a boat rolling 3 deg
-    /// at 8 s: the mean of a product of two swells).
+    /// the mean vector by the epoch's attitude biases down: the mean of a product of two
+    /// swells, tenths of a mGal on a boat rolling 3 deg at 8 s).
     pub fn mean_nav(&self) -> [f64; 3] {
         self.nav_sum.map(|v| v / self.value_weight)
     }
