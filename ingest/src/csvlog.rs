@@ -9,7 +9,7 @@
 use crate::contract::ledger::{FileLedger, reason};
 use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::error::{Error, Result};
-use crate::lines::{read_lines, strip_comment, text};
+use crate::lines::{digits, read_lines, strip_comment, text};
 use crate::streams::StreamWriter;
 use crate::time::NS_PER_WEEK;
 use crate::time::{TimeForm, TimeReader};
@@ -116,7 +116,6 @@ enum Row {
 /// what is wrong.
 fn parse_adc_fast(line: &[u8]) -> Option<Row> {
     let mut p = 0usize;
-    let n = line.len();
     let uint = |p: &mut usize, max_digits: usize| digits(line, p, max_digits);
     let week = uint(&mut p, 4)?;
     (line.get(p) == Some(&b',')).then_some(())?;
@@ -133,6 +132,19 @@ fn parse_adc_fast(line: &[u8]) -> Option<Row> {
     if tow >= NS_PER_WEEK {
         return None;
     }
+    let (counts, status) = counts_fast(line, p)?;
+    Some(Row::Adc {
+        time_ns: week * NS_PER_WEEK + tow,
+        counts,
+        status,
+    })
+}
+
+/// The ADC line's three counts from `line[p..]` (each after a comma, an empty field for a
+/// channel not connected) and their status, in one pass; None unless the line ends there.
+#[inline]
+fn counts_fast(line: &[u8], mut p: usize) -> Option<([i32; 3], u8)> {
+    let n = line.len();
     let mut counts = [0i32; 3];
     let mut status = 0u8;
     for ch in 0..3 {
@@ -146,7 +158,7 @@ fn parse_adc_fast(line: &[u8]) -> Option<Row> {
         if neg {
             p += 1;
         }
-        let v = uint(&mut p, 8)?;
+        let v = digits(line, &mut p, 8)?;
         let v = if neg { -v } else { v };
         if !(COUNT_MIN..=COUNT_MAX).contains(&v) {
             return None;
@@ -156,59 +168,22 @@ fn parse_adc_fast(line: &[u8]) -> Option<Row> {
         }
         counts[ch] = v as i32;
     }
-    (p == n).then_some(Row::Adc {
-        time_ns: week * NS_PER_WEEK + tow,
+    (p == n).then_some((counts, status))
+}
+
+/// One pass over a plain ADC line whose time is one field in another form (`time,int,int,int`,
+/// no spaces around the counts): the time through `time`, the counts as [`parse_adc_fast`]
+/// reads them. `None` sends the line to [`parse_row_timed`], which also explains what is
+/// wrong.
+fn parse_adc_timed_fast(line: &[u8], time: &mut TimeReader) -> Option<Row> {
+    let comma = memchr::memchr(b',', line)?;
+    let time_ns = time.read(&[&line[..comma]]).ok()?;
+    let (counts, status) = counts_fast(line, comma)?;
+    Some(Row::Adc {
+        time_ns,
         counts,
         status,
     })
-}
-
-/// The run of ASCII digits at `line[*p..]` as a number, if it has 1 to `max_digits` (at most
-/// 9) digits; moves `p` past it. Eight bytes are looked at together: which are digits from
-/// two additions whose top bits mark the bytes out of `0x30..=0x39`, and their value by three
-/// multiplications, instead of a multiply-add per digit, each waiting for the one before.
-#[inline(always)]
-fn digits(line: &[u8], p: &mut usize, max_digits: usize) -> Option<i64> {
-    const ONES: u64 = 0x0101_0101_0101_0101;
-    let rest = &line[*p..];
-    let word = match rest.first_chunk::<8>() {
-        Some(w) => u64::from_le_bytes(*w),
-        None => {
-            // Fewer than 8 bytes left: pad with a non-digit.
-            let mut w = [b','; 8];
-            w[..rest.len()].copy_from_slice(rest);
-            u64::from_le_bytes(w)
-        }
-    };
-    // A byte's top bit is set by +0x46 from ':' (0x3a) up, by -0x30 below '0'. Carries and
-    // borrows only run up from a non-digit byte, so the lowest flagged byte is the first
-    // non-digit.
-    let flags = (word.wrapping_add(0x46 * ONES) | word.wrapping_sub(0x30 * ONES)) & (0x80 * ONES);
-    let k = (flags.trailing_zeros() / 8) as usize;
-    if k == 0 || k > max_digits {
-        return None;
-    }
-    if k == 8 {
-        // Possibly longer than 8: count the whole run, one digit at a time.
-        let run = rest.iter().take_while(|b| b.is_ascii_digit()).count();
-        if run > max_digits {
-            return None;
-        }
-        *p += run;
-        return Some(
-            rest[..run]
-                .iter()
-                .fold(0i64, |v, &d| v * 10 + i64::from(d - b'0')),
-        );
-    }
-    // The k digits moved to the top bytes, most significant first, zeros below them; then
-    // pairs, quadruples and the eight combined.
-    let mut v = (word & (0x0f * ONES)) << (8 * (8 - k));
-    v = (v.wrapping_mul(10 * 256 + 1)) >> 8;
-    v = ((v & 0x00ff_00ff_00ff_00ff).wrapping_mul(100 * 65536 + 1)) >> 16;
-    v = ((v & 0x0000_ffff_0000_ffff).wrapping_mul(10000 * (1 << 32) + 1)) >> 32;
-    *p += k;
-    Some(v as i64)
 }
 
 fn parse_row(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
@@ -413,12 +388,13 @@ pub fn read_csv(
     let gps_week_tow = time.form == TimeForm::GpsWeekTow;
     let mut sink = RowSink { streams, ledger };
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
-        // A line the fast ADC parser takes whole holds only digits, signs, points and
-        // commas: no comment or white space to strip, which saves a search per line.
-        let fast = if header_seen && gps_week_tow && kind == CsvKind::Adc {
-            parse_adc_fast(raw)
-        } else {
-            None
+        // A line a fast ADC parser takes whole has no comment and no white space at either
+        // end to strip (its counts are digits, signs and commas, its time a form's own
+        // characters), which saves a search per line.
+        let fast = match (header_seen && kind == CsvKind::Adc, gps_week_tow) {
+            (false, _) => None,
+            (true, true) => parse_adc_fast(raw),
+            (true, false) => parse_adc_timed_fast(raw, &mut time),
         };
         let line = if fast.is_some() {
             raw
@@ -468,10 +444,10 @@ pub fn read_csv(
             other_lines += 1;
             return Ok(());
         }
-        let parsed = if gps_week_tow {
-            fast.map_or_else(|| parse_row(kind, line), Ok)
-        } else {
-            parse_row_timed(kind, line, &mut time)
+        let parsed = match fast {
+            Some(row) => Ok(row),
+            None if gps_week_tow => parse_row(kind, line),
+            None => parse_row_timed(kind, line, &mut time),
         };
         let row = match parsed {
             Ok(r) => r,
@@ -588,45 +564,51 @@ mod tests {
         assert!(parse_adc_fast(b"1308,295200.032,1534211,,-8388608").is_some());
     }
 
-    /// The eight-at-a-time digit reader agrees with reading one digit at a time.
+    /// The fast path of a log in another time form agrees with the general parser on every
+    /// line it takes, takes the plain ones, and declines what it cannot judge.
     #[test]
-    fn digits_agree_with_a_digit_at_a_time() {
-        let reference = |line: &[u8], p: usize, max: usize| {
-            let run = line[p..].iter().take_while(|b| b.is_ascii_digit()).count();
-            (1..=max).contains(&run).then(|| {
-                let v = line[p..p + run]
-                    .iter()
-                    .fold(0i64, |v, &d| v * 10 + i64::from(d - b'0'));
-                (v, p + run)
-            })
-        };
-        let mut rng = 0x2545_f491_4f6c_dd1d_u64;
-        let alphabet = b"0123456789012345678901234567890123456789,.-# /:\x00\x7f\xb9\xba\xff";
-        for _ in 0..200_000 {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            let len = (rng % 24) as usize + 1;
-            let line: Vec<u8> = (0..len)
-                .map(|i| alphabet[((rng >> (i % 8 * 8)) as usize + i * 7) % alphabet.len()])
-                .collect();
-            let p = (rng >> 40) as usize % len;
-            let max = (rng >> 50) as usize % 9 + 1;
-            let mut q = p;
-            let got = digits(&line, &mut q, max).map(|v| (v, q));
-            assert_eq!(
-                got,
-                reference(&line, p, max),
-                "{:?} from {p}, max {max}",
-                text(&line)
-            );
+    fn timed_fast_path_agrees_with_the_general_parser() {
+        use crate::contract::manifest::TimeScale;
+        let cases: [(TimeForm, &[u8], bool); 12] = [
+            (
+                TimeForm::Iso,
+                b"2026-03-14T09:12:03Z,1534211,,-8388608",
+                true,
+            ),
+            (TimeForm::Iso, b"2026-03-14T09:12:03.125Z,1,2,3", true),
+            (TimeForm::Iso, b"2026-03-14 09:12:03.125,1,2,3", true),
+            (TimeForm::Iso, b"2026-03-14T09:12:03+01:00,1,2,3", true),
+            (TimeForm::Iso, b"2026-03-14T09:12:03Z, 1,2,3", false),
+            (TimeForm::Iso, b"2026-03-14T09:12:03Z,1,2,3 # note", false),
+            (TimeForm::Iso, b"2026-03-14T09:12:60Z,1,2,3", false),
+            (TimeForm::Iso, b"2026-03-14T09:12:03Z,1,2", false),
+            (TimeForm::Iso, b"2026-03-14T09:12:03Z,1,2,8388608", false),
+            (TimeForm::UnixS, b"1773479523.004,1,-2,3", true),
+            (TimeForm::UnixS, b"1773479523.004,1,x,3", false),
+            (TimeForm::S, b"12.5,1,2,3", true),
+        ];
+        for (form, line, taken) in cases {
+            let mut fast = TimeReader::new(form, TimeScale::Utc, Some(1_000_000_000_000));
+            let mut general = fast;
+            let got = parse_adc_timed_fast(line, &mut fast);
+            assert_eq!(got.is_some(), taken, "{}", text(line));
+            if let Some(Row::Adc {
+                time_ns,
+                counts,
+                status,
+            }) = got
+            {
+                let Ok(Row::Adc {
+                    time_ns: t,
+                    counts: c,
+                    status: s,
+                }) = parse_row_timed(CsvKind::Adc, line, &mut general)
+                else {
+                    panic!("the general parser rejects {}", text(line));
+                };
+                assert_eq!((time_ns, counts, status), (t, c, s), "{}", text(line));
+            }
         }
-        let mut p = 0;
-        assert_eq!(digits(b"123456789,", &mut p, 9), Some(123_456_789));
-        assert_eq!(p, 9);
-        let mut p = 0;
-        assert_eq!(digits(b"12345678", &mut p, 8), Some(12_345_678));
-        assert_eq!(digits(b"1234567890", &mut 0, 9), None);
     }
 
     #[test]

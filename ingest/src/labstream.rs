@@ -20,11 +20,13 @@
 use crate::contract::ledger::{FileLedger, LabStreamReport, reason};
 use crate::contract::tables;
 use crate::error::{Error, Result};
-use crate::lines::{read_lines, strip_comment, text};
+use crate::lines::{digits, read_lines, strip_comment, text};
 use crate::table::{Encodings, TableWriter};
 use crate::time::parse_seconds_ns;
 use crate::timegate::{Position, Sink, TimeGate};
-use arrow::array::{ArrayRef, Float64Array, Int64Array, UInt16Array, UInt64Array};
+use arrow::array::{
+    ArrayRef, Float64Array, Int64Array, NullBufferBuilder, UInt16Array, UInt64Array,
+};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -32,15 +34,49 @@ use std::sync::Arc;
 /// Rows buffered before a batch goes to the table.
 const BATCH_ROWS: usize = 1 << 16;
 
-/// `lab.parquet`, written a batch at a time on a thread of its own (parquet-rs's encoding
-/// and zstd), while the caller parses the next lines.
+/// `lab.parquet`, written a batch at a time on a thread of its own (the batch's columns
+/// built, parquet-rs's encoding and zstd), while the caller parses the next lines.
 pub struct LabWriter {
     to_writer: Option<std::sync::mpsc::SyncSender<ToWriter>>,
     writer: Option<std::thread::JoinHandle<Result<u64>>>,
+    rows: Rows,
+}
+
+/// Rows of the lab table, as the reader gives them: each reading's value (0 when null) and
+/// its validity apart, so a column of readings becomes an array without a copy, and a
+/// stream without `nan` without a validity buffer.
+struct Rows {
     session: Vec<u16>,
     time: Vec<i64>,
-    values: [Vec<Option<f64>>; 3],
+    values: [Vec<f64>; 3],
+    valid: [NullBufferBuilder; 3],
     line: Vec<u64>,
+}
+
+impl Rows {
+    /// Room for a batch, so that no row moves the ones before it.
+    fn new() -> Self {
+        Rows {
+            session: Vec::with_capacity(BATCH_ROWS),
+            time: Vec::with_capacity(BATCH_ROWS),
+            values: std::array::from_fn(|_| Vec::with_capacity(BATCH_ROWS)),
+            valid: std::array::from_fn(|_| NullBufferBuilder::new(BATCH_ROWS)),
+            line: Vec::with_capacity(BATCH_ROWS),
+        }
+    }
+
+    /// The table's columns, in schema order.
+    fn columns(self) -> Vec<ArrayRef> {
+        let mut columns: Vec<ArrayRef> = vec![
+            Arc::new(UInt16Array::from(self.session)),
+            Arc::new(Int64Array::from(self.time)),
+        ];
+        for (c, mut valid) in self.values.into_iter().zip(self.valid) {
+            columns.push(Arc::new(Float64Array::new(c.into(), valid.finish())));
+        }
+        columns.push(Arc::new(UInt64Array::from(self.line)));
+        columns
+    }
 }
 
 impl LabWriter {
@@ -66,7 +102,7 @@ impl LabWriter {
         let writer = std::thread::spawn(move || -> Result<u64> {
             for message in batches {
                 match message {
-                    ToWriter::Batch(columns) => table.write(columns)?,
+                    ToWriter::Batch(rows) => table.write(rows.columns())?,
                     ToWriter::Finish => return table.finish(),
                 }
             }
@@ -75,10 +111,7 @@ impl LabWriter {
         Ok(LabWriter {
             to_writer: Some(to_writer),
             writer: Some(writer),
-            session: Vec::new(),
-            time: Vec::new(),
-            values: Default::default(),
-            line: Vec::new(),
+            rows: Rows::new(),
         })
     }
 
@@ -89,34 +122,29 @@ impl LabWriter {
         values: [Option<f64>; 3],
         line: u64,
     ) -> Result<()> {
-        self.session.push(session);
-        self.time.push(time_ns);
-        for (c, v) in self.values.iter_mut().zip(values) {
-            c.push(v);
+        let rows = &mut self.rows;
+        rows.session.push(session);
+        rows.time.push(time_ns);
+        for ((c, valid), v) in rows.values.iter_mut().zip(&mut rows.valid).zip(values) {
+            c.push(v.unwrap_or(0.0));
+            valid.append(v.is_some());
         }
-        self.line.push(line);
-        if self.time.len() >= BATCH_ROWS {
+        rows.line.push(line);
+        if rows.time.len() >= BATCH_ROWS {
             self.flush()?;
         }
         Ok(())
     }
 
     fn flush(&mut self) -> Result<()> {
-        if self.time.is_empty() {
+        if self.rows.time.is_empty() {
             return Ok(());
         }
-        let mut columns: Vec<ArrayRef> = vec![
-            Arc::new(UInt16Array::from(std::mem::take(&mut self.session))),
-            Arc::new(Int64Array::from(std::mem::take(&mut self.time))),
-        ];
-        for c in &mut self.values {
-            columns.push(Arc::new(Float64Array::from(std::mem::take(c))));
-        }
-        columns.push(Arc::new(UInt64Array::from(std::mem::take(&mut self.line))));
+        let rows = std::mem::replace(&mut self.rows, Rows::new());
         let sent = self
             .to_writer
             .as_ref()
-            .map(|w| w.send(ToWriter::Batch(columns)));
+            .map(|w| w.send(ToWriter::Batch(Box::new(rows))));
         if !matches!(sent, Some(Ok(()))) {
             // The writer stopped: its error says why.
             return self.join().map(|_| ());
@@ -165,8 +193,8 @@ impl Drop for LabWriter {
 
 /// What the lab table's writer thread is told.
 enum ToWriter {
-    /// A batch of rows, in schema order.
-    Batch(Vec<ArrayRef>),
+    /// A batch of rows.
+    Batch(Box<Rows>),
     /// Close the table and rename it into place.
     Finish,
 }
@@ -246,6 +274,52 @@ fn fast_decimal(field: &[u8]) -> Option<(f64, bool)> {
     Some((if negative { -v } else { v }, scientific))
 }
 
+/// The common data line in one pass: a time `seconds[.fraction]` (at most 10 and 9 digits),
+/// then three plain decimals (a `-`, digits, a `.` and digits, 15 digits at most), each
+/// after one comma, space or tab, and nothing else. Returns the time since zero (ns), the
+/// readings and where the time field ends. What it reads is what [`parse_line`] reads from
+/// the same line, bit for bit (the readings are Clinger's exact case of `str::parse`);
+/// None sends the line there, which also says what is wrong with it.
+#[inline]
+fn fast_line(line: &[u8]) -> Option<(i64, [Option<f64>; 3], usize)> {
+    let mut p = 0;
+    let mut ns = digits(line, &mut p, 10)?.checked_mul(1_000_000_000)?;
+    if line.get(p) == Some(&b'.') {
+        p += 1;
+        let start = p;
+        let frac = digits(line, &mut p, 9)?;
+        ns = ns.checked_add(frac * 10i64.pow(9 - (p - start) as u32))?;
+    }
+    let time_end = p;
+    let mut values = [None; 3];
+    for value in &mut values {
+        if !matches!(line.get(p), Some(b',' | b' ' | b'\t')) {
+            return None;
+        }
+        p += 1;
+        let negative = line.get(p) == Some(&b'-');
+        p += usize::from(negative);
+        let start = p;
+        let mut mantissa = digits(line, &mut p, 15)?;
+        let mut decimals = 0;
+        if line.get(p) == Some(&b'.') {
+            p += 1;
+            let frac_start = p;
+            let frac = digits(line, &mut p, 15 - (frac_start - 1 - start).min(15))?;
+            decimals = p - frac_start;
+            mantissa = mantissa * 10i64.pow(decimals as u32) + frac;
+        }
+        // A whole number (counts) needs no division, the slowest step of the line.
+        let v = if decimals == 0 {
+            mantissa as f64
+        } else {
+            mantissa as f64 / EXACT_POWERS[decimals]
+        };
+        *value = Some(if negative { -v } else { v });
+    }
+    (p == line.len()).then_some((ns, values, time_end))
+}
+
 /// One data line: (time since zero ns, readings, values in scientific notation).
 fn parse_line(
     fields: &[&[u8]],
@@ -319,9 +393,9 @@ struct RunSink<'a> {
     null_values: BTreeMap<String, u64>,
     /// Intervals between consecutive written times, by length, of runs spread up to the
     /// next stamp (the last run, spread at the declared interval, measures nothing).
-    intervals: BTreeMap<i64, u64>,
+    intervals: Histogram,
     /// Steps between distinct kept stamps, by length.
-    steps: BTreeMap<i64, u64>,
+    steps: Histogram,
     last_written: Option<i64>,
     pool: Vec<Vec<Sample>>,
 }
@@ -340,7 +414,7 @@ impl RunSink<'_> {
             if let Some(prev) = self.last_written
                 && (next.is_some() || j == 0)
             {
-                *self.intervals.entry(t - prev).or_default() += 1;
+                self.intervals.add(t - prev);
             }
             self.last_written = Some(t);
             for (k, v) in values.iter().enumerate() {
@@ -369,7 +443,7 @@ impl Sink<Vec<Sample>> for RunSink<'_> {
 
     fn accept(&mut self, time_ns: i64, samples: Vec<Sample>) -> Result<()> {
         if let Some(p) = &self.pending {
-            *self.steps.entry(time_ns - p.stamp_ns).or_default() += 1;
+            self.steps.add(time_ns - p.stamp_ns);
         }
         self.write_pending(Some(time_ns))?;
         self.pending = Some(Run {
@@ -396,6 +470,38 @@ impl Sink<Vec<Sample>> for RunSink<'_> {
                 .reject(format!("line {line}"), why, detail.clone());
         }
         self.pool.push(samples);
+    }
+}
+
+/// Counts by key: the intervals and steps of a stream. A run of equal keys (nearly every
+/// sample of a logger's stream) is counted in place and added to the map once.
+#[derive(Default)]
+struct Histogram {
+    map: BTreeMap<i64, u64>,
+    run: Option<(i64, u64)>,
+}
+
+impl Histogram {
+    fn add(&mut self, key: i64) {
+        match &mut self.run {
+            Some((k, n)) if *k == key => *n += 1,
+            _ => {
+                self.flush();
+                self.run = Some((key, 1));
+            }
+        }
+    }
+
+    fn flush(&mut self) {
+        if let Some((k, n)) = self.run.take() {
+            *self.map.entry(k).or_default() += n;
+        }
+    }
+
+    /// Every count, in the map.
+    fn counts(mut self) -> BTreeMap<i64, u64> {
+        self.flush();
+        self.map
     }
 }
 
@@ -511,6 +617,11 @@ impl<'c> Lines<'c> {
         raw: &'l [u8],
         ledger: &mut FileLedger,
     ) -> Result<Option<DataLine<'l>>> {
+        if self.data_seen
+            && let Some((rel, values, time_end)) = fast_line(raw)
+        {
+            return Ok(self.judge(line_no, rel, values, &raw[..time_end], ledger));
+        }
         let line = strip_comment(raw);
         if line.is_empty() {
             self.other += 1;
@@ -563,6 +674,19 @@ impl<'c> Lines<'c> {
             }
         };
         self.scientific += scientific;
+        Ok(self.judge(line_no, rel, values, fields[0], ledger))
+    }
+
+    /// A parsed line judged: its GPS time, readings and time field, or None when it is
+    /// rejected into `ledger` (a reading outside the limits, a time outside the session).
+    fn judge<'l>(
+        &self,
+        line_no: u64,
+        rel: i64,
+        values: [Option<f64>; 3],
+        time_field: &'l [u8],
+        ledger: &mut FileLedger,
+    ) -> Option<DataLine<'l>> {
         let l = self.limits;
         if let Some((k, v)) = (0..3).find_map(|k| {
             values[k]
@@ -580,7 +704,7 @@ impl<'c> Lines<'c> {
                     l.hi
                 ),
             );
-            return Ok(None);
+            return None;
         }
         let Some(t) = self.zero_gps_ns.checked_add(rel) else {
             ledger.reject(
@@ -588,17 +712,17 @@ impl<'c> Lines<'c> {
                 reason::OUTSIDE_SESSION,
                 "time beyond any GPS time".to_owned(),
             );
-            return Ok(None);
+            return None;
         };
         if t < self.range_ns.0 || t >= self.range_ns.1 {
             ledger.reject(
                 format!("line {line_no}"),
                 reason::OUTSIDE_SESSION,
-                format!("time {} s is outside the session", text(fields[0])),
+                format!("time {} s is outside the session", text(time_field)),
             );
-            return Ok(None);
+            return None;
         }
-        Ok(Some((t, values, fields[0])))
+        Some((t, values, time_field))
     }
 }
 
@@ -625,8 +749,8 @@ pub fn read_lab(
         accepted: 0,
         shared: 0,
         null_values: BTreeMap::new(),
-        intervals: BTreeMap::new(),
-        steps: BTreeMap::new(),
+        intervals: Histogram::default(),
+        steps: Histogram::default(),
         last_written: None,
         pool: Vec::new(),
     };
@@ -675,8 +799,8 @@ pub fn read_lab(
         header: lines.header,
         scientific_notation_values: lines.scientific,
         samples_sharing_a_stamp: sink.shared,
-        stamp_step_ns: mode(&sink.steps),
-        median_interval_ns: median(&sink.intervals),
+        stamp_step_ns: mode(&sink.steps.counts()),
+        median_interval_ns: median(&sink.intervals.counts()),
     };
     let (accepted, null_values) = (sink.accepted, sink.null_values);
     ledger.sha256 = sha;
@@ -692,7 +816,7 @@ pub fn read_lab(
 struct TemperatureSink<'a> {
     streams: &'a mut crate::streams::StreamWriter,
     ledger: &'a mut FileLedger,
-    intervals: BTreeMap<i64, u64>,
+    intervals: Histogram,
     last: Option<i64>,
 }
 
@@ -701,7 +825,7 @@ impl Sink<[Option<f64>; 3]> for TemperatureSink<'_> {
 
     fn accept(&mut self, time_ns: i64, celsius: [Option<f64>; 3]) -> Result<()> {
         if let Some(prev) = self.last {
-            *self.intervals.entry(time_ns - prev).or_default() += 1;
+            self.intervals.add(time_ns - prev);
         }
         self.last = Some(time_ns);
         // A `nan` is a channel that gave no value: stored as null, counted by the writer.
@@ -736,7 +860,7 @@ pub fn read_lab_temperature(
     let mut sink = TemperatureSink {
         streams,
         ledger,
-        intervals: BTreeMap::new(),
+        intervals: Histogram::default(),
         last: None,
     };
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
@@ -753,7 +877,7 @@ pub fn read_lab_temperature(
     ledger.accept("temperature", gate.accepted());
     ledger.comment_blank_or_header_lines = Some(lines.other);
     ledger.null_values = null_values;
-    Ok(median(&intervals))
+    Ok(median(&intervals.counts()))
 }
 
 #[cfg(test)]
@@ -844,6 +968,97 @@ mod tests {
             "1234567890123456789",
         ] {
             assert_eq!(fast_decimal(c.as_bytes()), None, "{c}");
+        }
+    }
+
+    /// The one-pass reader of a common line gives what the general parser gives from the
+    /// same line, bit for bit, takes the lines a logger usually writes, and leaves every
+    /// other line to the general parser.
+    #[test]
+    fn the_fast_line_agrees_with_the_general_parser() {
+        let general = |line: &[u8]| {
+            let fields: Vec<&[u8]> = line
+                .split(|&c| c == b',' || c.is_ascii_whitespace())
+                .filter(|f| !f.is_empty())
+                .collect();
+            parse_line(&fields, XYZ).ok().map(|(t, v, _)| (t, v))
+        };
+        let mut state = 11u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1442695040888963407);
+            state >> 11
+        };
+        let mut lines: Vec<String> = Vec::new();
+        for _ in 0..20_000 {
+            let seconds = next() % 10u64.pow(1 + (next() % 10) as u32);
+            let decimals = (next() % 10) as usize;
+            let mut line = seconds.to_string();
+            if decimals > 0 {
+                line += &format!(".{:0w$}", next() % 10u64.pow(decimals as u32), w = decimals);
+            }
+            for _ in 0..3 {
+                line.push([',', ' ', '\t'][(next() % 3) as usize]);
+                let m = (next() % 10u64.pow(1 + (next() % 16) as u32)).to_string();
+                let at = ((next() % 8) as usize).min(m.len() - 1);
+                let sign = if next() % 2 == 0 { "-" } else { "" };
+                if at == 0 {
+                    line += &format!("{sign}{m}");
+                } else {
+                    line += &format!("{sign}{}.{}", &m[..m.len() - at], &m[m.len() - at..]);
+                }
+            }
+            lines.push(line);
+        }
+        let mut taken = 0;
+        for line in &lines {
+            let Some(want) = general(line.as_bytes()) else {
+                // A time beyond an i64 of ns.
+                assert_eq!(fast_line(line.as_bytes()), None, "{line}");
+                continue;
+            };
+            if let Some((t, values, end)) = fast_line(line.as_bytes()) {
+                taken += 1;
+                assert_eq!(t, want.0, "{line}");
+                let bits = |v: [Option<f64>; 3]| v.map(|x| x.map(f64::to_bits));
+                assert_eq!(bits(values), bits(want.1), "{line}");
+                let time = line.split([',', ' ', '\t']).next().expect("time");
+                assert_eq!(&line.as_bytes()[..end], time.as_bytes());
+            }
+        }
+        // Readings of 16 digits and times past 2^63 ns go to the general parser.
+        assert!(taken > lines.len() * 8 / 10, "{taken} of {}", lines.len());
+        for line in [
+            "0.004,1451608,1479836,1433175",
+            "1672887159.123456 9.80665 -0.001 0.5",
+            "12\t-0\t0.0\t-7.25",
+        ] {
+            assert!(fast_line(line.as_bytes()).is_some(), "{line}");
+        }
+        for line in [
+            "t,x,y,z",
+            "0.004,1,2",
+            "0.004,1,2,3,4",
+            "0.004,1,2,3 ",
+            " 0.004,1,2,3",
+            "0.004,,1,2,3",
+            "0.004, 1,2,3",
+            "0.004,1,2,3 # note",
+            "0.004,1,2,nan",
+            "0.004,1,2,9.8e+00",
+            "0.004,+1,2,3",
+            "0.004,.5,2,3",
+            "0.004,5.,2,3",
+            ".004,1,2,3",
+            "-0.004,1,2,3",
+            "0.0041234567,1,2,3",
+            "12345678901,1,2,3",
+            "9300000000,1,2,3",
+            "0.004,1234567890123456,2,3",
+            "0.004,123456789.0123456,2,3",
+        ] {
+            assert_eq!(fast_line(line.as_bytes()), None, "{line}");
         }
     }
 
