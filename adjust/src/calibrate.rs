@@ -48,6 +48,9 @@ pub struct Obs {
     pub ng: f64,
     /// Sd of Ng.
     pub sigma_ng: f64,
+    /// Degrees of freedom of that sd when it was estimated from the window's samples (None:
+    /// known). The ADC component's reference takes it into account.
+    pub sigma_ng_dof: Option<f64>,
     /// Temperature, degC.
     pub temperature_c: f64,
     /// Body tide at the reading, mGal, added to the fit's gravity (0 when none).
@@ -635,9 +638,10 @@ struct Groups {
     station: Vec<usize>,
     /// Dof of each sigma_Dz.
     dof: Vec<Option<f64>>,
-    /// Window means and their a-priori sds.
+    /// Window means, their a-priori sds and the sds' dof.
     ng: Vec<f64>,
     sigma_ng: Vec<f64>,
+    sigma_ng_dof: Vec<Option<f64>>,
     /// Session and time of each observation.
     session: Vec<usize>,
     time_s: Vec<f64>,
@@ -656,6 +660,7 @@ impl Groups {
             dof: used.iter().map(|o| o.sigma_dz_dof).collect(),
             ng: used.iter().map(|o| o.ng).collect(),
             sigma_ng: used.iter().map(|o| o.sigma_ng).collect(),
+            sigma_ng_dof: used.iter().map(|o| o.sigma_ng_dof).collect(),
             session: used.iter().map(|o| o.session).collect(),
             time_s: used.iter().map(|o| o.time_s).collect(),
         }
@@ -698,7 +703,7 @@ fn estimate_components(
     groups: &Groups,
     coloured: Option<&ColouredAdc>,
 ) -> Result<(gh::Solution, Vec<Component>), GhError> {
-    let within = coloured.map_or(0.0, |noise| {
+    let within = coloured.map_or(correlated::Excess::default(), |noise| {
         correlated::within_station_excess(
             &groups.station,
             &groups.sigma_ng,
@@ -707,7 +712,13 @@ fn estimate_components(
             noise,
         )
     });
-    let adc = components::adc_component(&groups.ng, &groups.sigma_ng, &groups.station, within);
+    let adc = components::adc_component(
+        &groups.ng,
+        &groups.sigma_ng,
+        &groups.sigma_ng_dof,
+        &groups.station,
+        within,
+    );
     let at_one = components::theodolite_step(
         s,
         &groups.station,
@@ -769,6 +780,7 @@ mod tests {
                     roll_rad: 0.0,
                     ng: counts.unwrap_or((-G * dz_rad.cos() - b) / k) + noise,
                     sigma_ng: 0.3,
+                    sigma_ng_dof: None,
                     temperature_c: t + 0.001 * i as f64,
                     tide_mgal: 0.0,
                 }

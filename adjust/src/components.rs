@@ -50,6 +50,26 @@ fn t2_variance(dof: Option<f64>) -> f64 {
     }
 }
 
+/// Relative variance of sigma^2 / s^2 for a variance s^2 estimated on `dof` degrees of
+/// freedom, 2 / (d - 4); 0 for a known variance.
+fn relative_variance(dof: Option<f64>) -> f64 {
+    match dof {
+        Some(d) if d.is_finite() => 2.0 / (d.max(MIN_VARIANCE_DOF) - 4.0),
+        _ => 0.0,
+    }
+}
+
+/// A station's window means, for the ADC component: their weights' sums, count, and the
+/// sums of their sds' predictive factors and relative variances.
+#[derive(Clone, Debug, Default)]
+struct WindowGroup {
+    sum_w: f64,
+    sum_wx: f64,
+    m: usize,
+    sum_f: f64,
+    sum_c: f64,
+}
+
 /// A quadratic form tested against the scaled chi-square of its mean and variance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScaledChi2 {
@@ -239,30 +259,63 @@ pub fn theodolite_component(estimate: f64, form: &ScaledChi2, at_one: ScaledChi2
 
 /// The ADC component from the scatter of each station's window means `ng` about their
 /// weighted mean, in units of their a-priori sds `sigma_ng`, less `excess`, what coloured
-/// noise explains of it.
-pub fn adc_component(ng: &[f64], sigma_ng: &[f64], station: &[usize], excess: f64) -> Component {
+/// noise adds to it (its expectation and its variance, which the reference carries too).
+///
+/// A window mean's sd estimated from its own samples on `dof` degrees of freedom (None:
+/// known) is independent of the mean (a normal sample's mean and variance are), so each
+/// term is sigma^2 u (x - x_w)^2 / sigma^2 with u = sigma^2 / s^2 an inverse chi-square of
+/// mean f = d/(d - 2) and relative variance c = 2/(d - 4). Given the u, a station's form of
+/// m windows has mean tr(A) and variance 2 tr(A^2), A = U - u u^T / sum(u); to first order
+/// in c its expectation is f (m - 1 - c) and its variance f^2 (2 (m - 1 + c (m - 4)) +
+/// m c (1 - 1/m)^2), the weighted mean taking a little of the scatter the estimated sds
+/// add. The reference is the scaled chi-square of their sums (a station's f and c the
+/// means of its windows'). Taken as known, sds from 80 samples made the test reject 7.8 %
+/// of the time at its 5 % (docs/model.md 6.1).
+pub fn adc_component(
+    ng: &[f64],
+    sigma_ng: &[f64],
+    dof: &[Option<f64>],
+    station: &[usize],
+    excess: crate::correlated::Excess,
+) -> Component {
     let count = station.iter().max().map_or(0, |m| m + 1);
-    // Two passes: the weighted mean of each station, then the squares about it (counts of
-    // millions would cancel to nothing in sum w x^2 - (sum w x)^2 / sum w).
-    let mut mean = vec![(0.0, 0.0, 0usize); count];
-    for ((&x, &s), &j) in ng.iter().zip(sigma_ng).zip(station) {
+    // Two passes: the weighted mean of each station (with its windows' f and c), then the
+    // squares about it (counts of millions would cancel to nothing in sum w x^2 - (sum w
+    // x)^2 / sum w).
+    let mut mean = vec![WindowGroup::default(); count];
+    for (((&x, &s), &d), &j) in ng.iter().zip(sigma_ng).zip(dof).zip(station) {
         let w = 1.0 / (s * s);
-        mean[j].0 += w;
-        mean[j].1 += w * x;
-        mean[j].2 += 1;
+        let g = &mut mean[j];
+        g.sum_w += w;
+        g.sum_wx += w * x;
+        g.m += 1;
+        g.sum_f += predictive_factor(d);
+        g.sum_c += relative_variance(d);
     }
     let mut form = 0.0;
     for ((&x, &s), &j) in ng.iter().zip(sigma_ng).zip(station) {
-        if mean[j].2 > 1 && mean[j].0 > 0.0 {
-            form += ((x - mean[j].1 / mean[j].0) / s).powi(2);
+        let g = &mean[j];
+        if g.m > 1 && g.sum_w > 0.0 {
+            form += ((x - g.sum_wx / g.sum_w) / s).powi(2);
         }
+    }
+    let (mut expected, mut variance) = (0.0, 0.0);
+    for g in mean.iter().filter(|g| g.m > 1 && g.sum_w > 0.0) {
+        let m = g.m as f64;
+        let (f, c) = (g.sum_f / m, g.sum_c / m);
+        expected += f * (m - 1.0 - c);
+        variance += f * f * (2.0 * (m - 1.0 + c * (m - 4.0)) + m * c * (1.0 - 1.0 / m).powi(2));
     }
     let dof: f64 = mean
         .iter()
-        .filter(|m| m.2 > 1 && m.0 > 0.0)
-        .map(|m| (m.2 - 1) as f64)
+        .filter(|g| g.m > 1 && g.sum_w > 0.0)
+        .map(|g| (g.m - 1) as f64)
         .sum();
-    let test = ScaledChi2::with_excess(form, dof, 2.0 * dof, excess);
+    let test = ScaledChi2::new(
+        form,
+        expected + excess.mean.max(0.0),
+        variance + excess.variance.max(0.0),
+    );
     if dof < MIN_COMPONENT_DOF || !form.is_finite() {
         return Component::held(
             GROUPS[1],
@@ -272,11 +325,11 @@ pub fn adc_component(ng: &[f64], sigma_ng: &[f64], station: &[usize], excess: f6
             ),
         );
     }
-    let estimate = ((form - excess) / dof).max(1e-6);
+    let estimate = ((form - excess.mean) / expected).max(1e-6);
     Component {
         group: GROUPS[1],
         estimate,
-        sigma: estimate * (2.0 / dof).sqrt(),
+        sigma: estimate * (2.0 / test.dof).sqrt(),
         test,
         not_estimable: None,
     }
@@ -285,6 +338,7 @@ pub fn adc_component(ng: &[f64], sigma_ng: &[f64], station: &[usize], excess: f6
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::correlated::Excess;
 
     #[test]
     fn known_sigmas_reduce_to_chi_square() {
@@ -311,10 +365,79 @@ mod tests {
         let ng = [10.0, 14.0, 10.0, 14.0, 100.0, 104.0, 100.0, 104.0];
         let sigma = [2.0; 8];
         let station = [0, 0, 0, 0, 1, 1, 1, 1];
-        let c = adc_component(&ng, &sigma, &station, 0.0);
+        let c = adc_component(&ng, &sigma, &[None; 8], &station, Excess::default());
         // Each station: 4 x (2/2)^2 = 4 on 3 dof; 8 / 6.
         assert!((c.estimate - 8.0 / 6.0).abs() < 1e-12, "{c:?}");
-        let one = adc_component(&ng[..2], &sigma[..2], &station[..2], 0.0);
+        // Sds estimated on 20 dof: a station expects f (m - 1 - c), f = 20/18, c = 2/16.
+        let estimated = adc_component(&ng, &sigma, &[Some(20.0); 8], &station, Excess::default());
+        let expected = 2.0 * 20.0 / 18.0 * (3.0 - 2.0 / 16.0);
+        assert!((estimated.estimate - 8.0 / expected).abs() < 1e-12);
+        assert!(estimated.test.upper > c.test.upper);
+        let one = adc_component(
+            &ng[..2],
+            &sigma[..2],
+            &[None; 2],
+            &station[..2],
+            Excess::default(),
+        );
         assert!(one.not_estimable.is_some());
+    }
+
+    /// Window means whose sds come from their own 80 samples, 5 and 20 windows a station:
+    /// the component averages 1 and its two-sided 5 % test rejects 5 % of the time (within
+    /// 3 standard errors of 3000 replicas), where taking the sds as known rejects
+    /// measurably more often (the more windows, the more).
+    #[test]
+    fn the_adc_test_holds_its_level_with_estimated_window_sds() {
+        let mut rng = fixtures::rng::Rng::new(26, "adc-component");
+        let (replicas, samples) = (3000, 80);
+        let n = f64::from(replicas);
+        let se = (0.05 * 0.95 / n).sqrt();
+        for (stations, windows) in [(40, 5), (20, 20)] {
+            let (mut estimate, mut rejected, mut low, mut rejected_known) = (0.0, 0, 0, 0);
+            let station: Vec<usize> = (0..stations * windows).map(|i| i / windows).collect();
+            let dof = vec![Some(f64::from(samples - 1)); station.len()];
+            for _ in 0..replicas {
+                let mut ng = Vec::with_capacity(station.len());
+                let mut sigma = Vec::with_capacity(station.len());
+                for &j in &station {
+                    let x: Vec<f64> = (0..samples)
+                        .map(|_| 1000.0 * j as f64 + rng.normal())
+                        .collect();
+                    let k = f64::from(samples);
+                    let m = x.iter().sum::<f64>() / k;
+                    let var = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (k - 1.0);
+                    ng.push(m);
+                    sigma.push((var / k).sqrt());
+                }
+                let c = adc_component(&ng, &sigma, &dof, &station, Excess::default());
+                estimate += c.estimate;
+                rejected += usize::from(!c.test.passed());
+                low += usize::from(c.test.statistic < c.test.lower);
+                let known = adc_component(
+                    &ng,
+                    &sigma,
+                    &vec![None; station.len()],
+                    &station,
+                    Excess::default(),
+                );
+                rejected_known += usize::from(!known.test.passed());
+            }
+            let (rate, known) = (rejected as f64 / n, rejected_known as f64 / n);
+            eprintln!(
+                "ADC component, {stations} stations x {windows} windows of {samples} samples, \
+                 {replicas} replicas: mean {:.4}, test rejects {:.2} % ({:.2} % low), \
+                 {:.2} % with the sds taken as known",
+                estimate / n,
+                100.0 * rate,
+                100.0 * low as f64 / n,
+                100.0 * known
+            );
+            assert!((estimate / n - 1.0).abs() < 0.01, "mean {}", estimate / n);
+            assert!((rate - 0.05).abs() < 3.0 * se, "rejects {rate}");
+            if windows == 20 {
+                assert!(known > 0.05 + 3.0 * se, "known sds reject only {known}");
+            }
+        }
     }
 }

@@ -247,17 +247,30 @@ pub fn between_station_excess(
     total
 }
 
-/// The expectation, under the coloured noise, of the window means' scatter about their
-/// station's weighted mean, sum_i (Ng_i - mean_j)^2 / sigma_i^2, beyond what the sigmas
-/// predict: the flicker moves the windows of a station apart, which the ADC's variance
-/// component must not mistake for mis-weighting.
+/// What the coloured noise adds to the window means' scatter about their station's
+/// weighted mean, sum_i (Ng_i - mean_j)^2 / sigma_i^2, beyond what the sigmas predict: its
+/// expectation and its variance. The flicker moves the windows of a station apart, which
+/// the ADC's variance component must not mistake for mis-weighting; and the windows move
+/// together, so the scatter varies more than as many independent terms would.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Excess {
+    /// Added expectation.
+    pub mean: f64,
+    /// Added variance.
+    pub variance: f64,
+}
+
+/// The [`Excess`] of the within-station scatter of window means: per station the form is
+/// y^T M y with M = W - w w^T / sum(w), y of covariance S = W^-1 + C (C the coloured
+/// noise's, less the diagonal the weights hold), so its mean is tr(M S) and its variance
+/// 2 tr((M S)^2); the excess is what they exceed m - 1 and 2 (m - 1) by.
 pub fn within_station_excess(
     station: &[usize],
     sigma_ng: &[f64],
     time_s: &[f64],
     session: &[usize],
     noise: &ColouredAdc,
-) -> f64 {
+) -> Excess {
     let stations = station.iter().max().map_or(0, |v| v + 1);
     let firsts = session_starts(time_s, session);
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); stations];
@@ -265,26 +278,35 @@ pub fn within_station_excess(
         members[j].push(i);
     }
     let flicker = Flicker::new(noise.bias_instability);
-    let mut total = 0.0;
+    let mut total = Excess::default();
     for obs in members.iter().filter(|o| o.len() > 1) {
         let first = firsts[session[obs[0]]];
-        let cov = |a: usize, b: usize| {
-            pair_covariance(&flicker, noise, (time_s[a], time_s[b], first), a == b)
-        };
+        let m = obs.len();
         let w: Vec<f64> = obs.iter().map(|&i| sigma_ng[i].powi(-2)).collect();
         let sum_w: f64 = w.iter().sum();
-        let diag: f64 = obs.iter().zip(&w).map(|(&i, wi)| wi * cov(i, i)).sum();
-        let all: f64 = obs
-            .iter()
-            .zip(&w)
-            .map(|(&a, wa)| {
-                obs.iter()
-                    .zip(&w)
-                    .map(|(&b, wb)| wa * wb * cov(a, b))
-                    .sum::<f64>()
+        // S = W^-1 + C, then M S = W S - w (w^T S) / sum(w).
+        let mut s = vec![0.0; m * m];
+        for (a, &ia) in obs.iter().enumerate() {
+            for (b, &ib) in obs.iter().enumerate() {
+                let c = pair_covariance(&flicker, noise, (time_s[ia], time_s[ib], first), a == b);
+                s[a * m + b] = c + if a == b { 1.0 / w[a] } else { 0.0 };
+            }
+        }
+        let wts: Vec<f64> = (0..m)
+            .map(|b| (0..m).map(|a| w[a] * s[a * m + b]).sum())
+            .collect();
+        let ms: Vec<f64> = (0..m * m)
+            .map(|k| {
+                let (a, b) = (k / m, k % m);
+                w[a] * s[k] - w[a] * wts[b] / sum_w
             })
+            .collect();
+        let trace: f64 = (0..m).map(|a| ms[a * m + a]).sum();
+        let trace_sq: f64 = (0..m)
+            .map(|a| (0..m).map(|b| ms[a * m + b] * ms[b * m + a]).sum::<f64>())
             .sum();
-        total += diag - all / sum_w;
+        total.mean += trace - (m - 1) as f64;
+        total.variance += 2.0 * (trace_sq - (m - 1) as f64);
     }
     total
 }

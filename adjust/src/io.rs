@@ -39,6 +39,8 @@ pub struct ObservationRow {
     pub ng: Option<f64>,
     /// Its sd.
     pub sigma_ng: Option<f64>,
+    /// Degrees of freedom of that sd (None: known, or an older table without the column).
+    pub sigma_ng_dof: Option<f64>,
     /// Temperature, degC.
     pub temperature_c: Option<f64>,
     /// Align's exclusion reason.
@@ -158,6 +160,10 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
             Some(_) => Some(c.f64s(col::SIGMA_DZ_DOF)?),
             None => None,
         };
+        let ng_dof = match b.column_by_name(col::SIGMA_NG_DOF) {
+            Some(_) => Some(c.f64s(col::SIGMA_NG_DOF)?),
+            None => None,
+        };
         let loo = match b.column_by_name(col::SIGMA_DZ_LOO_RAD) {
             Some(_) => Some((
                 c.f64s(col::SIGMA_DZ_LOO_RAD)?,
@@ -179,6 +185,7 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
                 sigma_dz_loo_dof: loo.as_ref().and_then(|(_, d)| opt(d, i)),
                 ng: opt(&ng, i),
                 sigma_ng: opt(&sng, i),
+                sigma_ng_dof: ng_dof.as_ref().and_then(|d| opt(d, i)),
                 temperature_c: opt(&temp, i),
                 excluded: excluded.is_valid(i).then(|| excluded.value(i).to_owned()),
                 tide_mgal: opt(&tide, i),

@@ -254,6 +254,7 @@ pub(crate) fn fit_job(
             time_s: (o.time_gps_ns - t0) as f64 * 1e-9,
             ng: o.ng.unwrap_or_default(),
             sigma_ng: o.sigma_ng.unwrap_or_default(),
+            sigma_ng_dof: o.sigma_ng_dof,
             temperature_c: o.temperature_c.unwrap_or_default(),
             tide_mgal: o.tide_mgal.unwrap_or_default(),
             roll_rad: job.rolls[i],

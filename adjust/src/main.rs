@@ -59,6 +59,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
             roll_rad: 0.0,
             ng: v[2],
             sigma_ng: v[3],
+            sigma_ng_dof: None,
             temperature_c: 20.0,
             tide_mgal: 0.0,
         });

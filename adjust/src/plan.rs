@@ -331,6 +331,7 @@ pub fn observations(plan: &Plan) -> Result<Vec<(String, Obs)>, PlanError> {
                         roll_rad: s.roll_deg.to_radians(),
                         ng,
                         sigma_ng,
+                        sigma_ng_dof: None,
                         temperature_c: s.temperature_c,
                         tide_mgal: 0.0,
                     },

@@ -109,6 +109,8 @@ pub struct Observation {
     pub ng: Option<f64>,
     /// Sd of the mean count.
     pub sigma_ng: Option<f64>,
+    /// Its degrees of freedom; None when taken as known.
+    pub sigma_ng_dof: Option<f64>,
     /// Valid samples in the window.
     pub n_samples: u32,
     /// Samples a full window holds.

@@ -150,6 +150,7 @@ pub(crate) fn observe_session<'t>(
                 sigma_am_mgal: setup.g * p.reading.dz_rad.sin().abs() * sigma_dz_rad,
                 ng: stats.map(|s| s.mean),
                 sigma_ng: stats.map(|s| (s.sigma_mean.powi(2) + coloured).sqrt()),
+                sigma_ng_dof: stats.and_then(|s| s.sigma_mean_dof(w.n, coloured)),
                 n_samples: w.n,
                 expected_samples: setup.expected,
                 temperature_c: temperature.map(|(v, _)| v),

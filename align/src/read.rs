@@ -424,6 +424,7 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
         )),
         Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.ng))),
         Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.sigma_ng))),
+        Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.sigma_ng_dof))),
         Arc::new(UInt32Array::from_iter_values(
             obs.iter().map(|o| o.n_samples),
         )),

@@ -37,6 +37,19 @@ pub struct WindowStats {
     pub sigma_mean: f64,
     /// t statistic of the slope of a straight line through the samples (0 when n < 4).
     pub drift_t: f64,
+    /// Whether the sample variance was below the floor (the sd is then the floor's, known).
+    pub floored: bool,
+}
+
+impl WindowStats {
+    /// Degrees of freedom of the window mean's variance `sigma_mean^2 + coloured` taken from
+    /// `n` samples: n - 1 for the sample variance, Satterthwaite's (n - 1) (total / estimated
+    /// part)^2 when a known `coloured` variance is added; None when the floor set it (known).
+    pub fn sigma_mean_dof(&self, n: u32, coloured: f64) -> Option<f64> {
+        let own = self.sigma_mean.powi(2);
+        (!self.floored && n >= 2 && own > 0.0)
+            .then(|| f64::from(n - 1) * ((own + coloured.max(0.0)) / own).powi(2))
+    }
 }
 
 impl WindowSums {
@@ -82,6 +95,7 @@ impl WindowSums {
             mean: x0 + mean_d,
             sigma_mean: (var.max(floor_variance) / n).sqrt(),
             drift_t,
+            floored: var < floor_variance,
         })
     }
 }

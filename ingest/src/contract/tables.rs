@@ -188,6 +188,7 @@ pub mod theodolite {
 /// | sigma_am_mgal | float64 | g sin(Dz) sigma_Dz, mGal |
 /// | ng | float64, null | mean counts in the window |
 /// | sigma_ng | float64, null | sd of that mean, counts |
+/// | sigma_ng_dof | float64, null | degrees of freedom of sigma_ng (the window's own sample variance, n - 1, Satterthwaite's with the coloured noise's known part); null when taken as known (the quantisation floor) |
 /// | n_samples | uint32 | samples in the window |
 /// | expected_samples | float64 | window_s x sample_rate_hz |
 /// | temperature_c | float64, null | accelerometer temperature at the reading, degC |
@@ -225,6 +226,8 @@ pub mod observations {
     pub const NG: &str = "ng";
     /// Sd of the mean counts.
     pub const SIGMA_NG: &str = "sigma_ng";
+    /// Degrees of freedom of sigma_ng (null: known).
+    pub const SIGMA_NG_DOF: &str = "sigma_ng_dof";
     /// Samples in the window.
     pub const N_SAMPLES: &str = "n_samples";
     /// Samples a full window holds.
@@ -257,6 +260,7 @@ pub mod observations {
             Field::new(SIGMA_AM_MGAL, DataType::Float64, false),
             Field::new(NG, DataType::Float64, true),
             Field::new(SIGMA_NG, DataType::Float64, true),
+            Field::new(SIGMA_NG_DOF, DataType::Float64, true),
             Field::new(N_SAMPLES, DataType::UInt32, false),
             Field::new(EXPECTED_SAMPLES, DataType::Float64, false),
             Field::new(TEMPERATURE_C, DataType::Float64, true),
