@@ -346,6 +346,79 @@ fn session_starts(time_s: &[f64], session: &[usize]) -> Vec<f64> {
 mod tests {
     use super::*;
 
+    /// The within-station excess is the mean and variance of the scatter form itself: window
+    /// means drawn from N(0, W^-1 + C) (C the model's, a random walk and a flicker), the form
+    /// sum_i w_i (y_i - y_w)^2 over 40 000 draws has mean m - 1 + excess and variance
+    /// 2 (m - 1) + excess, within 4 standard errors.
+    #[test]
+    fn within_station_excess_is_the_forms_mean_and_variance() {
+        let noise = ColouredAdc {
+            bias_instability: 0.6,
+            random_walk: 0.05,
+            window_s: 2.56,
+        };
+        let time: Vec<f64> = vec![30.0, 60.0, 90.0, 300.0, 330.0, 600.0];
+        let sigma: Vec<f64> = vec![1.0, 1.5, 1.0, 2.0, 1.0, 1.2];
+        let m = time.len();
+        let excess = within_station_excess(&vec![0; m], &sigma, &time, &vec![0; m], &noise);
+        assert!(excess.mean > 0.5 && excess.variance > 1.0, "{excess:?}");
+        // S and its Cholesky factor.
+        let flicker = Flicker::new(noise.bias_instability);
+        let mut s = vec![0.0; m * m];
+        for a in 0..m {
+            for b in 0..m {
+                let c = pair_covariance(&flicker, &noise, (time[a], time[b], time[0]), a == b);
+                s[a * m + b] = c + if a == b { sigma[a].powi(2) } else { 0.0 };
+            }
+        }
+        let mut l = vec![0.0; m * m];
+        for i in 0..m {
+            for j in 0..=i {
+                let dot: f64 = (0..j).map(|k| l[i * m + k] * l[j * m + k]).sum();
+                l[i * m + j] = if i == j {
+                    (s[i * m + i] - dot).sqrt()
+                } else {
+                    (s[i * m + j] - dot) / l[j * m + j]
+                };
+            }
+        }
+        let mut rng = fixtures::rng::Rng::new(7, "within-station");
+        let draws = 40_000;
+        let w: Vec<f64> = sigma.iter().map(|x| x.powi(-2)).collect();
+        let sum_w: f64 = w.iter().sum();
+        let forms: Vec<f64> = (0..draws)
+            .map(|_| {
+                let z: Vec<f64> = (0..m).map(|_| rng.normal()).collect();
+                let y: Vec<f64> = (0..m)
+                    .map(|i| (0..=i).map(|k| l[i * m + k] * z[k]).sum())
+                    .collect();
+                let mean = (0..m).map(|i| w[i] * y[i]).sum::<f64>() / sum_w;
+                (0..m).map(|i| w[i] * (y[i] - mean).powi(2)).sum()
+            })
+            .collect();
+        let n = f64::from(draws);
+        let mean = forms.iter().sum::<f64>() / n;
+        let variance = forms.iter().map(|f| (f - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        let (want_mean, want_var) = (
+            (m - 1) as f64 + excess.mean,
+            2.0 * (m - 1) as f64 + excess.variance,
+        );
+        eprintln!("excess {excess:?}; form mean {mean:.3}, variance {variance:.3}");
+        // The form's sd over sqrt(n); its variance's se from the fourth moment.
+        let fourth = forms.iter().map(|f| (f - mean).powi(4)).sum::<f64>() / n;
+        let se_var = ((fourth - variance * variance) / n).sqrt();
+        assert!(
+            (mean - want_mean).abs() < 4.0 * (variance / n).sqrt(),
+            "mean {mean} vs {want_mean}"
+        );
+        assert!(
+            (variance - want_var).abs() < 4.0 * se_var,
+            "variance {variance} vs {want_var} (se {se_var})"
+        );
+        // The excess's variance matters: the known-sd variance alone is far off.
+        assert!((variance - 2.0 * (m - 1) as f64).abs() > 6.0 * se_var);
+    }
+
     /// The between-station excess equals its dense form: sum_j share_j u_j^T R S R^T u_j / W_j
     /// with R = I - A Q A^T W and S = Bn (C - D) Bn.
     #[test]
