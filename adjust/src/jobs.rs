@@ -3,6 +3,7 @@
 //! reason a fit could not be made.
 
 use super::*;
+use ingest::contract::calibration::ALL_SESSIONS;
 
 /// The models to fit: the manifest's, or the defaults (docs/formats.md section 2): `linear`, plus
 /// `thermal` when the sessions' mean temperatures differ by more than 1 degree C.
@@ -104,7 +105,7 @@ pub(crate) fn plan_jobs<'a>(
                     .filter(|s| s.is_tilt_table())
                     .map(|s| s.session.id.clone())
                     .collect(),
-                Per::All => vec!["all".to_owned()],
+                Per::All => vec![ALL_SESSIONS.to_owned()],
             };
             for session in groups {
                 let disconnected = align_report
@@ -124,7 +125,8 @@ pub(crate) fn plan_jobs<'a>(
                     .iter()
                     .copied()
                     .filter(|o| {
-                        o.accelerometer == acc.id && (session == "all" || o.session == session)
+                        o.accelerometer == acc.id
+                            && (session == ALL_SESSIONS || o.session == session)
                     })
                     .collect();
                 jobs.push(Job {

@@ -10,6 +10,7 @@
 
 use crate::calibrate::{self, CalError, FitOptions, Obs, Snooping};
 use crate::model::{Misalignment, Terms};
+use ingest::contract::calibration::ALL_SESSIONS;
 use serde::{Deserialize, Serialize};
 
 /// Baarda's non-centrality for alpha 0.001 (two-sided) and power 0.80: 3.29 + 0.84.
@@ -360,7 +361,7 @@ pub fn predict(plan: &Plan) -> Result<Vec<FitPrediction>, PlanError> {
                 .filter(|(s, _)| g.is_none_or(|g| s == g))
                 .map(|(_, o)| o.clone())
                 .collect();
-            out.push(predict_fit(plan, m, g.unwrap_or("all"), &obs));
+            out.push(predict_fit(plan, m, g.unwrap_or(ALL_SESSIONS), &obs));
         }
     }
     Ok(out)

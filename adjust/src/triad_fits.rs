@@ -5,11 +5,10 @@
 
 use crate::triad::{self, Position, TriadModel, TriadSolution};
 use ingest::contract::align_ledger::{AlignReport, MultiPosition, StaticPosition};
-use ingest::contract::calibration::{GlobalTest, Parameter, Skipped, TriadPosition, TriadResult};
+use ingest::contract::calibration::{
+    ALL_SESSIONS, GlobalTest, Parameter, Skipped, TRIAD, TriadPosition, TriadResult,
+};
 use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
-
-/// The accelerometer a triad fit's entry in `skipped` names.
-pub const TRIAD: &str = "triad";
 
 /// Every triad model of `models` fitted: results and the fits skipped with their reasons.
 pub fn fit_all(
@@ -26,10 +25,17 @@ pub fn fit_all(
                 .iter()
                 .map(|m| (m.session.clone(), vec![m]))
                 .collect(),
-            Per::All => vec![("all".to_owned(), align.multi_position.iter().collect())],
+            Per::All => vec![(
+                ALL_SESSIONS.to_owned(),
+                align.multi_position.iter().collect(),
+            )],
         };
         if align.multi_position.is_empty() {
-            skipped.push(skip(model, "all", "no multi-position session".to_owned()));
+            skipped.push(skip(
+                model,
+                ALL_SESSIONS,
+                "no multi-position session".to_owned(),
+            ));
             continue;
         }
         let kind = TriadModel {

@@ -27,7 +27,7 @@ pub(crate) fn plots_section(st: &Stages<'_>) -> Result<Section, Error> {
         let (lo, hi) = plots::range(used);
         Some((lo.min(0.0), hi.max(0.0)))
     };
-    for r in st.cal.results.iter().filter(|r| r.session != "all") {
+    for r in st.cal.results.iter().filter(|r| !r.over_all_sessions()) {
         s.plots.extend(fit_plots(st, r, y_range(&r.model))?);
     }
     for session in st.ds.sessions.iter().filter(|x| x.is_tilt_table()) {

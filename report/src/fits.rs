@@ -36,7 +36,7 @@ pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
     for r in cal
         .results
         .iter()
-        .filter(|r| r.session != "all" && r.order == 1 && !r.temperature && !r.misalignment)
+        .filter(|r| !r.over_all_sessions() && r.order == 1 && !r.temperature && !r.misalignment)
     {
         let (Some(b), Some(k)) = (param(r, "b"), param(r, "k")) else {
             continue;

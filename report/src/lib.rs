@@ -130,7 +130,7 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         .cal
         .results
         .iter()
-        .any(|r| r.session != "all" && r.order == 1 && !r.temperature && !r.misalignment);
+        .any(|r| !r.over_all_sessions() && r.order == 1 && !r.temperature && !r.misalignment);
     let extra = st
         .cal
         .results

@@ -242,13 +242,13 @@ pub(crate) fn comparison_section(st: &Stages<'_>) -> Result<Option<Section>, Err
     let results = &st.cal.results;
     for thermal in results
         .iter()
-        .filter(|r| r.session == "all" && r.temperature && r.order == 1 && !r.misalignment)
+        .filter(|r| r.over_all_sessions() && r.temperature && r.order == 1 && !r.misalignment)
     {
         let sessions: Vec<&CalibrationResult> = results
             .iter()
             .filter(|r| {
                 r.accelerometer == thermal.accelerometer
-                    && r.session != "all"
+                    && !r.over_all_sessions()
                     && r.order == 1
                     && !r.temperature
                     && !r.misalignment

@@ -4,7 +4,7 @@
 //! session named.
 
 use super::CalibrationFunction;
-use ingest::contract::calibration::{Calibration, TriadResult};
+use ingest::contract::calibration::{ALL_SESSIONS, Calibration, TriadResult};
 use ingest::contract::manifest::{Accelerometer, Dataset};
 use std::collections::BTreeSet;
 
@@ -87,13 +87,13 @@ pub fn select(
         .filter(|(m, _)| *m == model)
         .map(|(_, s)| s)
         .collect();
-    let session = if sessions.len() == 1 && sessions.contains("all") {
+    let session = if sessions.len() == 1 && sessions.contains(ALL_SESSIONS) {
         if let Some(s) = choice.session {
             return Err(format!(
                 "model `{model}` is fitted over all sessions: --session {s} does not apply"
             ));
         }
-        "all".to_owned()
+        ALL_SESSIONS.to_owned()
     } else {
         match choice.session {
             Some(s) if sessions.contains(s) => s.to_owned(),

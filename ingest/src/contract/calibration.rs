@@ -217,12 +217,19 @@ pub fn check_parameters(
     Ok(())
 }
 
+/// The session id of a fit over every session of a dataset (a model with `per = "all"`):
+/// a scope, not a session, so the manifest reserves it as a session id.
+pub const ALL_SESSIONS: &str = "all";
+/// The accelerometer id of a triad fit's rows where a row names an accelerometer (a fit not
+/// made): the manifest reserves it as an accelerometer id.
+pub const TRIAD: &str = "triad";
+
 /// One fitted calibration function (docs/formats.md section 6).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CalibrationResult {
     /// Accelerometer id.
     pub accelerometer: String,
-    /// Session id or `all`.
+    /// Session id or [`ALL_SESSIONS`].
     pub session: String,
     /// Model name.
     pub model: String,
@@ -272,6 +279,13 @@ pub struct CalibrationResult {
     /// `misalignment = "vector"` whose rolls determine it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub misalignment_vector: Option<MisalignmentVector>,
+}
+
+impl CalibrationResult {
+    /// Whether the fit pooled every session ([`ALL_SESSIONS`]).
+    pub fn over_all_sessions(&self) -> bool {
+        self.session == ALL_SESSIONS
+    }
 }
 
 /// The sensitive axis's misalignment as a magnitude and a direction in the block's frame.

@@ -1235,9 +1235,10 @@ pub const MAX_NAME_LEN: usize = 64;
 
 /// Words a fit's scope or a triad's identity stands for in the outputs: a session id
 /// `all` would be pooled with every session, an accelerometer id `triad` read as a triad.
-pub const RESERVED_SESSION_IDS: &[&str] = &["all"];
+pub const RESERVED_SESSION_IDS: &[&str] = &[super::calibration::ALL_SESSIONS];
 /// See [`RESERVED_SESSION_IDS`].
-pub const RESERVED_ACCELEROMETER_IDS: &[&str] = &["all", "triad"];
+pub const RESERVED_ACCELEROMETER_IDS: &[&str] =
+    &[super::calibration::ALL_SESSIONS, super::calibration::TRIAD];
 
 /// A file name made of checked names: at most 200 bytes of `A-Z a-z 0-9 . _ -`, beginning
 /// with a letter or a digit (one plain file in the folder it is joined to).
