@@ -370,6 +370,126 @@ pub struct CsvConfig {
     pub time: TimeReader,
 }
 
+/// A CSV log's lines as they are read: the header (required in GPS week + tow, optional and
+/// taken by position in any other time form), then rows.
+struct CsvLines<'p> {
+    path: &'p Path,
+    kind: CsvKind,
+    skip_bad_lines: bool,
+    time: TimeReader,
+    gps_week_tow: bool,
+    header_seen: bool,
+    /// Comment, blank and header lines.
+    other: u64,
+}
+
+impl CsvLines<'_> {
+    /// The row of line `line_no`; None for a comment, blank or header line, or a line
+    /// rejected into `ledger` (malformed when skipping, a temperature out of range); an
+    /// error for a malformed line or header otherwise.
+    #[inline]
+    fn row(&mut self, line_no: u64, raw: &[u8], ledger: &mut FileLedger) -> Result<Option<Row>> {
+        // A line a fast ADC parser takes whole has no comment and no white space at either
+        // end to strip (its counts are digits, signs and commas, its time a form's own
+        // characters), which saves a search per line.
+        let fast = match (
+            self.header_seen && self.kind == CsvKind::Adc,
+            self.gps_week_tow,
+        ) {
+            (false, _) => None,
+            (true, true) => parse_adc_fast(raw),
+            (true, false) => parse_adc_timed_fast(raw, &mut self.time),
+        };
+        let line = if fast.is_some() {
+            raw
+        } else {
+            strip_comment(raw)
+        };
+        if line.is_empty() || (!self.header_seen && self.header(line_no, line)?) {
+            self.other += 1;
+            return Ok(None);
+        }
+        let parsed = match fast {
+            Some(row) => Ok(row),
+            None if self.gps_week_tow => parse_row(self.kind, line),
+            None => parse_row_timed(self.kind, line, &mut self.time),
+        };
+        let row = match parsed {
+            Ok(r) => r,
+            Err(b) if self.skip_bad_lines => {
+                ledger.reject(
+                    format!("line {line_no}"),
+                    reason::MALFORMED,
+                    format!("{}: {}", b.field, b.message),
+                );
+                return Ok(None);
+            }
+            Err(b) => return Err(self.error(line_no, b.field, b.message)),
+        };
+        if let Row::Temperature { celsius, .. } = &row
+            && let Some((ch, v)) = celsius
+                .iter()
+                .enumerate()
+                .find_map(|(ch, v)| v.filter(|v| !CELSIUS_RANGE.contains(v)).map(|v| (ch, v)))
+        {
+            ledger.reject(
+                format!("line {line_no}"),
+                reason::TEMPERATURE_OUT_OF_RANGE,
+                format!("{}: {v} degC", self.kind.header()[2 + ch]),
+            );
+            return Ok(None);
+        }
+        Ok(Some(row))
+    }
+
+    /// The first line that is not a comment: whether it is the header (an error when it must
+    /// be and is not the expected one). In another time form than GPS week + tow a header
+    /// is optional, any names, taken by position: a first field that is not a time.
+    fn header(&mut self, line_no: u64, line: &[u8]) -> Result<bool> {
+        self.header_seen = true;
+        let fields = || line.split(|&c| c == b',').map(<[u8]>::trim_ascii);
+        if !self.gps_week_tow {
+            let first = fields().next().unwrap_or_default();
+            if self.time.read(&[first]).is_ok() {
+                return Ok(false);
+            }
+            let n = fields().count();
+            if n != 4 {
+                let message = format!(
+                    "`{}`: {n} names, expected 4 (the time, then one per channel)",
+                    text(line)
+                );
+                return Err(self.error(line_no, "header", message));
+            }
+            return Ok(true);
+        }
+        let names = self.kind.header();
+        let got: Vec<&[u8]> = fields().collect();
+        if got.len() != 5 || got.iter().zip(names).any(|(g, n)| *g != n.as_bytes()) {
+            let message = format!("`{}`, expected `{}`", text(line), names.join(","));
+            return Err(self.error(line_no, "header", message));
+        }
+        Ok(true)
+    }
+
+    fn error(&self, line: u64, field: &str, message: String) -> Error {
+        Error::Line {
+            path: self.path.to_path_buf(),
+            line,
+            field: field.to_owned(),
+            message,
+        }
+    }
+}
+
+impl Row {
+    fn time_ns(&self) -> i64 {
+        match self {
+            Row::Adc { time_ns, .. } | Row::Temperature { time_ns, .. } => *time_ns,
+        }
+    }
+}
+
 /// Reads one CSV log into `streams`, filling in `ledger`. Returns the median interval
 /// between accepted rows (ns), if there were two.
 pub fn read_csv(
@@ -380,123 +500,27 @@ pub fn read_csv(
     progress: &indicatif::ProgressBar,
 ) -> Result<Option<i64>> {
     let kind = config.kind;
-    let mut header_seen = false;
-    let mut other_lines = 0u64;
+    let mut lines = CsvLines {
+        path,
+        kind,
+        skip_bad_lines: config.skip_bad_lines,
+        time: config.time,
+        gps_week_tow: config.time.form == TimeForm::GpsWeekTow,
+        header_seen: false,
+        other: 0,
+    };
     let mut gate = TimeGate::new(config.interval_ns, config.range_ns);
-    let names = kind.header();
-    let mut time = config.time;
-    let gps_week_tow = time.form == TimeForm::GpsWeekTow;
     let mut sink = RowSink { streams, ledger };
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
-        // A line a fast ADC parser takes whole has no comment and no white space at either
-        // end to strip (its counts are digits, signs and commas, its time a form's own
-        // characters), which saves a search per line.
-        let fast = match (header_seen && kind == CsvKind::Adc, gps_week_tow) {
-            (false, _) => None,
-            (true, true) => parse_adc_fast(raw),
-            (true, false) => parse_adc_timed_fast(raw, &mut time),
-        };
-        let line = if fast.is_some() {
-            raw
-        } else {
-            strip_comment(raw)
-        };
-        if line.is_empty() {
-            other_lines += 1;
-            return Ok(());
+        match lines.row(line_no, raw, sink.ledger)? {
+            Some(row) => gate.offer(row.time_ns(), Position::Line(line_no), row, &mut sink),
+            None => Ok(()),
         }
-        if !header_seen && !gps_week_tow {
-            // Another time form: a header is optional, any names, taken by position.
-            header_seen = true;
-            let first = line
-                .split(|&c| c == b',')
-                .next()
-                .unwrap_or_default()
-                .trim_ascii();
-            if time.read(&[first]).is_err() {
-                let n = line.split(|&c| c == b',').count();
-                if n != 4 {
-                    return Err(Error::Line {
-                        path: path.to_path_buf(),
-                        line: line_no,
-                        field: "header".to_owned(),
-                        message: format!(
-                            "`{}`: {n} names, expected 4 (the time, then one per channel)",
-                            text(line)
-                        ),
-                    });
-                }
-                other_lines += 1;
-                return Ok(());
-            }
-        }
-        if !header_seen {
-            let got: Vec<&[u8]> = line.split(|&c| c == b',').map(<[u8]>::trim_ascii).collect();
-            if got.len() != 5 || got.iter().zip(names).any(|(g, n)| *g != n.as_bytes()) {
-                return Err(Error::Line {
-                    path: path.to_path_buf(),
-                    line: line_no,
-                    field: "header".to_owned(),
-                    message: format!("`{}`, expected `{}`", text(line), names.join(",")),
-                });
-            }
-            header_seen = true;
-            other_lines += 1;
-            return Ok(());
-        }
-        let parsed = match fast {
-            Some(row) => Ok(row),
-            None if gps_week_tow => parse_row(kind, line),
-            None => parse_row_timed(kind, line, &mut time),
-        };
-        let row = match parsed {
-            Ok(r) => r,
-            Err(b) if config.skip_bad_lines => {
-                sink.ledger.reject(
-                    format!("line {line_no}"),
-                    reason::MALFORMED,
-                    format!("{}: {}", b.field, b.message),
-                );
-                return Ok(());
-            }
-            Err(b) => {
-                return Err(Error::Line {
-                    path: path.to_path_buf(),
-                    line: line_no,
-                    field: b.field.to_owned(),
-                    message: b.message,
-                });
-            }
-        };
-        let time_ns =
-            match &row {
-                Row::Adc { time_ns, .. } => *time_ns,
-                Row::Temperature {
-                    time_ns, celsius, ..
-                } => {
-                    if let Some((ch, v)) = celsius.iter().enumerate().find_map(|(ch, v)| {
-                        v.filter(|v| !CELSIUS_RANGE.contains(v)).map(|v| (ch, v))
-                    }) {
-                        sink.ledger.reject(
-                            format!("line {line_no}"),
-                            reason::TEMPERATURE_OUT_OF_RANGE,
-                            format!("{}: {v} degC", names[2 + ch]),
-                        );
-                        return Ok(());
-                    }
-                    *time_ns
-                }
-            };
-        gate.offer(time_ns, Position::Line(line_no), row, &mut sink)
     })?;
     gate.finish(&mut sink)?;
-    if !header_seen {
-        return Err(Error::Line {
-            path: path.to_path_buf(),
-            line: 1,
-            field: "header".to_owned(),
-            message: format!("no header line `{}`", names.join(",")),
-        });
+    if !lines.header_seen {
+        let message = format!("no header line `{}`", kind.header().join(","));
+        return Err(lines.error(1, "header", message));
     }
     let RowSink { streams, ledger } = sink;
     ledger.accept(
@@ -510,7 +534,7 @@ pub fn read_csv(
     ledger.null_values = streams.take_null_counts()?;
     ledger.sha256 = sha;
     ledger.bytes = bytes;
-    ledger.comment_blank_or_header_lines = Some(other_lines);
+    ledger.comment_blank_or_header_lines = Some(lines.other);
     Ok(gate.median_interval_ns())
 }
 
