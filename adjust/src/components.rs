@@ -261,16 +261,16 @@ pub fn theodolite_component(estimate: f64, form: &ScaledChi2, at_one: ScaledChi2
 /// weighted mean, in units of their a-priori sds `sigma_ng`, less `excess`, what coloured
 /// noise adds to it (its expectation and its variance, which the reference carries too).
 ///
-/// A window mean's sd estimated from its own samples on `dof` degrees of freedom (None:
+/// A window mean's sd s estimated from its own samples on `dof` degrees of freedom (None:
 /// known) is independent of the mean (a normal sample's mean and variance are), so each
-/// term is sigma^2 u (x - x_w)^2 / sigma^2 with u = sigma^2 / s^2 an inverse chi-square of
-/// mean f = d/(d - 2) and relative variance c = 2/(d - 4). Given the u, a station's form of
+/// term is u (x - x_w)^2 / sigma^2 with u = sigma^2 / s^2 an inverse chi-square of mean
+/// f = d/(d - 2) and relative variance c = 2/(d - 4). Given the u, a station's form of
 /// m windows has mean tr(A) and variance 2 tr(A^2), A = U - u u^T / sum(u); to first order
 /// in c its expectation is f (m - 1 - c) and its variance f^2 (2 (m - 1 + c (m - 4)) +
 /// m c (1 - 1/m)^2), the weighted mean taking a little of the scatter the estimated sds
 /// add. The reference is the scaled chi-square of their sums (a station's f and c the
 /// means of its windows'). Taken as known, sds from 80 samples made the test reject 7.8 %
-/// of the time at its 5 % (docs/model.md 6.1).
+/// of the time at its 5 % (docs/model.md 6.2).
 pub fn adc_component(
     ng: &[f64],
     sigma_ng: &[f64],
