@@ -705,8 +705,29 @@ fn session_times(
         Some(t) => t,
         None => s.theodolite_time_scale,
     };
-    let lab = s.adc_format == AdcFormat::Seconds;
-    let (adc, temperature) = if lab {
+    let (adc, temperature) = log_time_forms(s, &key, err)?;
+    let theodolite = s.theodolite_time.unwrap_or(TimeForm::Iso);
+    let uses_start = [adc, temperature, theodolite].contains(&TimeForm::S)
+        || s.trajectory_time == Some(TimeForm::S)
+        || s.attitude_time == Some(TimeForm::S);
+    Ok(SessionTimes {
+        adc,
+        temperature,
+        theodolite,
+        scale,
+        start_gps_ns: start_gps_ns(s.start.as_deref(), uses_start, scale, &key, err)?,
+    })
+}
+
+/// The time forms of a session's ADC and temperature logs: a lab stream's seconds (its
+/// temperature log in the same form), the binary log's GPS week and milliseconds (no key
+/// applies), or the CSV logs' declared forms (GPS week + tow by default).
+fn log_time_forms(
+    s: &Session,
+    key: &impl Fn(&str) -> String,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<(TimeForm, TimeForm)> {
+    if s.adc_format == AdcFormat::Seconds {
         let unit = match s.time_unit {
             TimeUnit::Seconds => TimeForm::S,
             TimeUnit::UnixSeconds => TimeForm::UnixS,
@@ -733,8 +754,9 @@ fn session_times(
                 ),
             ));
         }
-        (adc, adc)
-    } else if s.acquisition.is_some() {
+        return Ok((adc, adc));
+    }
+    if s.acquisition.is_some() {
         if let Some(k) = [
             ("adc_time", s.adc_time),
             ("temperature_time", s.temperature_time),
@@ -749,32 +771,33 @@ fn session_times(
                     .to_owned(),
             ));
         }
-        (TimeForm::GpsWeekTow, TimeForm::GpsWeekTow)
-    } else {
-        (
-            s.adc_time.unwrap_or(TimeForm::GpsWeekTow),
-            s.temperature_time.unwrap_or(TimeForm::GpsWeekTow),
-        )
-    };
-    let theodolite = s.theodolite_time.unwrap_or(TimeForm::Iso);
-    let uses_start = [adc, temperature, theodolite].contains(&TimeForm::S)
-        || s.trajectory_time == Some(TimeForm::S)
-        || s.attitude_time == Some(TimeForm::S);
-    let start_gps_ns = match (&s.start, uses_start) {
-        (None, true) => {
-            return Err(err(
-                key("start"),
-                "missing: a log of this session counts seconds since `start` (\"s\")".to_owned(),
-            ));
-        }
-        (Some(_), false) => {
-            return Err(err(
-                key("start"),
-                "no log of this session counts seconds since a start (a time form \"s\")"
-                    .to_owned(),
-            ));
-        }
-        (None, false) => None,
+        return Ok((TimeForm::GpsWeekTow, TimeForm::GpsWeekTow));
+    }
+    Ok((
+        s.adc_time.unwrap_or(TimeForm::GpsWeekTow),
+        s.temperature_time.unwrap_or(TimeForm::GpsWeekTow),
+    ))
+}
+
+/// The GPS time of the session's `start` (in `scale` unless it carries an offset), which
+/// must be given exactly when a log counts seconds since it (`uses_start`).
+fn start_gps_ns(
+    start: Option<&str>,
+    uses_start: bool,
+    scale: TimeScale,
+    key: &impl Fn(&str) -> String,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<Option<i64>> {
+    match (start, uses_start) {
+        (None, true) => Err(err(
+            key("start"),
+            "missing: a log of this session counts seconds since `start` (\"s\")".to_owned(),
+        )),
+        (Some(_), false) => Err(err(
+            key("start"),
+            "no log of this session counts seconds since a start (a time form \"s\")".to_owned(),
+        )),
+        (None, false) => Ok(None),
         (Some(start), true) => {
             let (c, offset) = crate::time::parse_iso(start).map_err(|m| err(key("start"), m))?;
             let scale = if offset.is_some() {
@@ -788,16 +811,9 @@ fn session_times(
                     format!("`{start}` is before the GPS epoch (1980-01-06)"),
                 )
             })?;
-            Some(t - i64::from(offset.unwrap_or(0)) * 60_000_000_000)
+            Ok(Some(t - i64::from(offset.unwrap_or(0)) * 60_000_000_000))
         }
-    };
-    Ok(SessionTimes {
-        adc,
-        temperature,
-        theodolite,
-        scale,
-        start_gps_ns,
-    })
+    }
 }
 
 /// Reads and parses `dataset.toml` (UTF-8, a byte-order mark allowed): TOML's error names
