@@ -166,104 +166,113 @@ impl TimeReader {
     /// The GPS time (ns) of a time written as `fields` (as many as the form takes): Err with
     /// the field's name and what is wrong.
     pub fn read(&mut self, fields: &[&[u8]]) -> Result<i64, (&'static str, String)> {
-        let text = |f: &[u8]| String::from_utf8_lossy(f).into_owned();
         match self.form {
-            TimeForm::GpsWeekTow => {
-                let week = std::str::from_utf8(fields[0])
-                    .ok()
-                    .and_then(|w| w.parse::<i64>().ok())
-                    .filter(|w| (0..=9_999).contains(w))
-                    .ok_or_else(|| {
-                        (
-                            "gps_week",
-                            format!("`{}` is not a GPS week [0, 9999]", text(fields[0])),
-                        )
-                    })?;
-                let tow = parse_seconds_ns(fields[1])
-                    .filter(|t| (0..NS_PER_WEEK).contains(t))
-                    .ok_or_else(|| {
-                        (
-                            "tow_s",
-                            format!(
-                                "`{}` is not a time of week in seconds [0, 604800)",
-                                text(fields[1])
-                            ),
-                        )
-                    })?;
-                Ok(week * NS_PER_WEEK + tow)
-            }
-            TimeForm::Iso => {
-                if let Some(t) = self.iso_fast(fields[0]) {
-                    return Ok(t);
-                }
-                let s =
-                    std::str::from_utf8(fields[0]).map_err(|_| ("time", "not UTF-8".to_owned()))?;
-                let (c, offset_min) = parse_iso(s).map_err(|m| ("time", m))?;
-                let scale = if offset_min.is_some() {
-                    TimeScale::Utc
-                } else {
-                    self.scale
-                };
-                let t = if c.second == 60 {
-                    leap_second(c, scale).map_err(|m| ("time", format!("`{s}`: {m}")))?
-                } else {
-                    gps_ns(c, scale)
-                }
-                .ok_or_else(|| {
-                    (
-                        "time",
-                        format!("`{s}` is before the GPS epoch (1980-01-06)"),
-                    )
-                })?;
-                Ok(t - i64::from(offset_min.unwrap_or(0)) * 60_000_000_000)
-            }
-            TimeForm::UnixS => {
-                let unix = parse_seconds_ns(fields[0]).ok_or_else(|| {
-                    (
-                        "time",
-                        format!("`{}` is not a time in seconds since 1970", text(fields[0])),
-                    )
-                })?;
-                let day = unix.div_euclid(NS_PER_DAY);
-                let offset = match self.utc_day {
-                    Some((d, o)) if d == day => o,
-                    _ => {
-                        let date = civil_from_days(day);
-                        let o =
-                            gps_ns(Calendar::midnight(date), TimeScale::Utc).ok_or_else(|| {
-                                (
-                                    "time",
-                                    format!("`{}` is before the GPS epoch", text(fields[0])),
-                                )
-                            })? - day * NS_PER_DAY;
-                        self.utc_day = Some((day, o));
-                        o
-                    }
-                };
-                Ok(unix + offset)
-            }
-            TimeForm::S => {
-                let s = parse_seconds_ns(fields[0]).ok_or_else(|| {
-                    (
-                        "time",
-                        format!("`{}` is not a time in seconds", text(fields[0])),
-                    )
-                })?;
-                let start = self.start_gps_ns.ok_or_else(|| {
-                    (
-                        "time",
-                        "times in seconds since the start need the session's `start`".to_owned(),
-                    )
-                })?;
-                start.checked_add(s).ok_or_else(|| {
-                    (
-                        "time",
-                        format!("`{}` is beyond any GPS time", text(fields[0])),
-                    )
-                })
-            }
+            TimeForm::GpsWeekTow => gps_week_tow(fields[0], fields[1]),
+            TimeForm::Iso => self.iso(fields[0]),
+            TimeForm::UnixS => self.unix(fields[0]),
+            TimeForm::S => self.since_start(fields[0]),
         }
     }
+
+    /// An ISO 8601 time: the common case on [`Self::iso_fast`], the rest (an offset, a leap
+    /// second, an error to explain) through the calendar.
+    fn iso(&mut self, field: &[u8]) -> Result<i64, (&'static str, String)> {
+        if let Some(t) = self.iso_fast(field) {
+            return Ok(t);
+        }
+        let s = std::str::from_utf8(field).map_err(|_| ("time", "not UTF-8".to_owned()))?;
+        let (c, offset_min) = parse_iso(s).map_err(|m| ("time", m))?;
+        let scale = if offset_min.is_some() {
+            TimeScale::Utc
+        } else {
+            self.scale
+        };
+        let t = if c.second == 60 {
+            leap_second(c, scale).map_err(|m| ("time", format!("`{s}`: {m}")))?
+        } else {
+            gps_ns(c, scale)
+        }
+        .ok_or_else(|| {
+            (
+                "time",
+                format!("`{s}` is before the GPS epoch (1980-01-06)"),
+            )
+        })?;
+        Ok(t - i64::from(offset_min.unwrap_or(0)) * 60_000_000_000)
+    }
+
+    /// Unix seconds: GPS minus Unix time worked out once a UTC day.
+    fn unix(&mut self, field: &[u8]) -> Result<i64, (&'static str, String)> {
+        let unix = parse_seconds_ns(field).ok_or_else(|| {
+            (
+                "time",
+                format!("`{}` is not a time in seconds since 1970", text(field)),
+            )
+        })?;
+        let day = unix.div_euclid(NS_PER_DAY);
+        let offset = match self.utc_day {
+            Some((d, o)) if d == day => o,
+            _ => {
+                let date = civil_from_days(day);
+                let o = gps_ns(Calendar::midnight(date), TimeScale::Utc).ok_or_else(|| {
+                    ("time", format!("`{}` is before the GPS epoch", text(field)))
+                })? - day * NS_PER_DAY;
+                self.utc_day = Some((day, o));
+                o
+            }
+        };
+        Ok(unix + offset)
+    }
+
+    /// Seconds since the session's `start`.
+    fn since_start(&self, field: &[u8]) -> Result<i64, (&'static str, String)> {
+        let s = parse_seconds_ns(field).ok_or_else(|| {
+            (
+                "time",
+                format!("`{}` is not a time in seconds", text(field)),
+            )
+        })?;
+        let start = self.start_gps_ns.ok_or_else(|| {
+            (
+                "time",
+                "times in seconds since the start need the session's `start`".to_owned(),
+            )
+        })?;
+        start
+            .checked_add(s)
+            .ok_or_else(|| ("time", format!("`{}` is beyond any GPS time", text(field))))
+    }
+}
+
+/// A field as text for a message.
+fn text(f: &[u8]) -> String {
+    String::from_utf8_lossy(f).into_owned()
+}
+
+/// GPS week and seconds of week as GPS time, ns.
+fn gps_week_tow(week: &[u8], tow: &[u8]) -> Result<i64, (&'static str, String)> {
+    let week = std::str::from_utf8(week)
+        .ok()
+        .and_then(|w| w.parse::<i64>().ok())
+        .filter(|w| (0..=9_999).contains(w))
+        .ok_or_else(|| {
+            (
+                "gps_week",
+                format!("`{}` is not a GPS week [0, 9999]", text(week)),
+            )
+        })?;
+    let tow = parse_seconds_ns(tow)
+        .filter(|t| (0..NS_PER_WEEK).contains(t))
+        .ok_or_else(|| {
+            (
+                "tow_s",
+                format!(
+                    "`{}` is not a time of week in seconds [0, 604800)",
+                    text(tow)
+                ),
+            )
+        })?;
+    Ok(week * NS_PER_WEEK + tow)
 }
 
 /// Days from 1970-01-01 to `date` (proleptic Gregorian; Hinnant's days_from_civil).
