@@ -116,48 +116,22 @@ fn result(
                 .collect()
         })
         .collect();
-    let removed: Vec<usize> = s.removed.iter().map(|(i, _)| *i).collect();
-    let positions_out = rows
-        .iter()
-        .enumerate()
-        .map(|(i, (session, p))| {
-            let a = s.calibrated(&positions[i]);
-            let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-            let used = s.residuals.iter().find(|r| r.0 == i);
-            let (residual_mgal, w) = match used {
-                Some(r) => (r.1, r.2),
-                None => {
-                    let w = s.removed.iter().find(|r| r.0 == i).map_or(0.0, |r| r.1);
-                    (n - positions[i].g_mgal, w)
-                }
-            };
-            TriadPosition {
-                session: (*session).to_owned(),
-                start_gps_ns: p.start_gps_ns,
-                residual_mgal,
-                w,
-                direction: a.map(|x| x / n),
-                temperature_c: positions[i].temperature_c,
-                removed: removed.contains(&i),
-            }
-        })
-        .collect();
     let (lo, hi, passed) = s.global_test;
     let used: Vec<usize> = s.residuals.iter().map(|r| r.0).collect();
-    let readings_range = std::array::from_fn(|k| {
-        used.iter()
-            .map(|&i| positions[i].mean[k])
-            .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], x| {
-                [a.min(x), b.max(x)]
-            })
-    });
+    let range = |values: &mut dyn Iterator<Item = f64>| {
+        values.fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], x| {
+            [a.min(x), b.max(x)]
+        })
+    };
+    let readings_range =
+        std::array::from_fn(|k| range(&mut used.iter().map(|&i| positions[i].mean[k])));
     let temperature_range_c = s.t_ref_c.map(|_| {
-        used.iter()
-            .filter_map(|&i| positions[i].temperature_c)
-            .flatten()
-            .fold([f64::INFINITY, f64::NEG_INFINITY], |[a, b], x| {
-                [a.min(x), b.max(x)]
-            })
+        range(
+            &mut used
+                .iter()
+                .filter_map(|&i| positions[i].temperature_c)
+                .flatten(),
+        )
     });
     TriadResult {
         model: model.name.clone(),
@@ -181,20 +155,60 @@ fn result(
             passed,
         },
         positions_used: s.residuals.len(),
-        positions: positions_out,
+        positions: positions_out(rows, positions, s),
         positions_without_temperature: 0,
-        // A model the data reject says so in its file's name: imu_tk's layout has no room
-        // for a comment, and a user who loads it should not take it for a calibration.
-        calib_file: (s.model == TriadModel::LINEAR).then(|| {
-            let rejected = if passed || s.vtpv < lo {
-                ""
-            } else {
-                "-REJECTED"
-            };
-            format!("{}-{session}{rejected}.calib", model.name)
-        }),
+        calib_file: calib_file(&model.name, session, s),
         readings_range: Some(readings_range),
     }
+}
+
+/// The imu_tk file a linear triad model is written to. A model the data reject says so in
+/// its file's name: imu_tk's layout has no room for a comment, and a user who loads it
+/// should not take it for a calibration.
+fn calib_file(model: &str, session: &str, s: &TriadSolution) -> Option<String> {
+    let (lo, _, passed) = s.global_test;
+    (s.model == TriadModel::LINEAR).then(|| {
+        let rejected = if passed || s.vtpv < lo {
+            ""
+        } else {
+            "-REJECTED"
+        };
+        format!("{model}-{session}{rejected}.calib")
+    })
+}
+
+/// Every position of a triad fit with its residual (the fit's, or the calibrated vector's
+/// length against gravity for a removed one), w-test, direction and temperature.
+fn positions_out(
+    rows: &[(&str, &StaticPosition)],
+    positions: &[Position],
+    s: &TriadSolution,
+) -> Vec<TriadPosition> {
+    let removed: Vec<usize> = s.removed.iter().map(|(i, _)| *i).collect();
+    rows.iter()
+        .enumerate()
+        .map(|(i, (session, p))| {
+            let a = s.calibrated(&positions[i]);
+            let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            let used = s.residuals.iter().find(|r| r.0 == i);
+            let (residual_mgal, w) = match used {
+                Some(r) => (r.1, r.2),
+                None => {
+                    let w = s.removed.iter().find(|r| r.0 == i).map_or(0.0, |r| r.1);
+                    (n - positions[i].g_mgal, w)
+                }
+            };
+            TriadPosition {
+                session: (*session).to_owned(),
+                start_gps_ns: p.start_gps_ns,
+                residual_mgal,
+                w,
+                direction: a.map(|x| x / n),
+                temperature_c: positions[i].temperature_c,
+                removed: removed.contains(&i),
+            }
+        })
+        .collect()
 }
 
 /// A parameter's unit from its name's prefix, readings in `unit`.
