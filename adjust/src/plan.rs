@@ -165,14 +165,12 @@ impl Plan {
     /// Checks the plan as a manifest is checked (names, orders, ranges, counts), before
     /// anything is built; the error names the key.
     pub fn check(&self) -> Result<(), PlanError> {
-        use ingest::contract::manifest::{ModelKind, RESERVED_SESSION_IDS, check_name};
-        let finite = |key: String, v: f64| {
-            if v.is_finite() {
-                Ok(())
-            } else {
-                Err(bad(key, format!("{v} is not a finite number")))
-            }
-        };
+        self.check_site_and_noise()?;
+        self.check_sessions()?;
+        self.check_models()
+    }
+
+    fn check_site_and_noise(&self) -> Result<(), PlanError> {
         finite("site.g_mgal".into(), self.site.g_mgal)?;
         if !(900_000.0..=1_000_000.0).contains(&self.site.g_mgal) {
             return Err(bad(
@@ -203,6 +201,13 @@ impl Plan {
                 return Err(bad(key.into(), format!("{v} is not in (0, 1e6]")));
             }
         }
+        Ok(())
+    }
+
+    /// Sessions: at least one, ids checked and unique, finite conditions, readings per
+    /// station and the observations in all within their bounds.
+    fn check_sessions(&self) -> Result<(), PlanError> {
+        use ingest::contract::manifest::{RESERVED_SESSION_IDS, check_name};
         if self.session.is_empty() {
             return Err(bad(
                 "session".into(),
@@ -240,6 +245,12 @@ impl Plan {
                 format!("{total} observations planned; at most {MAX_OBSERVATIONS} are allowed"),
             ));
         }
+        Ok(())
+    }
+
+    /// Models: at least one, each checked as the manifest's, axis models only, names unique.
+    fn check_models(&self) -> Result<(), PlanError> {
+        use ingest::contract::manifest::ModelKind;
         if self.model.is_empty() {
             return Err(bad("model".into(), "at least one [[model]] is required"));
         }
@@ -261,6 +272,15 @@ impl Plan {
             }
         }
         Ok(())
+    }
+}
+
+/// `v` finite, or an error naming `key`.
+fn finite(key: String, v: f64) -> Result<(), PlanError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(bad(key, format!("{v} is not a finite number")))
     }
 }
 
