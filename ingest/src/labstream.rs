@@ -305,7 +305,7 @@ fn fast_line(line: &[u8]) -> Option<(i64, [Option<f64>; 3], usize)> {
         if line.get(p) == Some(&b'.') {
             p += 1;
             let frac_start = p;
-            let frac = digits(line, &mut p, 15 - (frac_start - 1 - start).min(15))?;
+            let frac = digits(line, &mut p, 15 - (frac_start - 1 - start))?;
             decimals = p - frac_start;
             mantissa = mantissa * 10i64.pow(decimals as u32) + frac;
         }
@@ -902,16 +902,21 @@ mod tests {
 
     const XYZ: [&str; 4] = ["t", "x", "y", "z"];
 
-    /// The fast path gives str::parse's double, bit for bit, and leaves the rest to it.
-    #[test]
-    fn fast_decimals_are_str_parse_bit_for_bit() {
-        let mut state = 7u64;
-        let mut next = || {
+    /// A 64-bit linear congruential generator from `seed`, its top 53 bits a draw.
+    fn lcg(seed: u64) -> impl FnMut() -> u64 {
+        let mut state = seed;
+        move || {
             state = state
                 .wrapping_mul(6_364_136_223_846_793_005)
                 .wrapping_add(1442695040888963407);
             state >> 11
-        };
+        }
+    }
+
+    /// The fast path gives str::parse's double, bit for bit, and leaves the rest to it.
+    #[test]
+    fn fast_decimals_are_str_parse_bit_for_bit() {
+        let mut next = lcg(7);
         let mut cases: Vec<String> = [
             "0",
             "-0",
@@ -933,7 +938,7 @@ mod tests {
         for _ in 0..20_000 {
             let m = next() % 10u64.pow(1 + (next() % 15) as u32);
             let e = (next() % 31) as i32 - 15;
-            let sign = if next() % 2 == 0 { "-" } else { "" };
+            let sign = if next().is_multiple_of(2) { "-" } else { "" };
             cases.push(format!("{sign}{m}e{e}"));
             let point = (next() % 16) as usize;
             let digits = m.to_string();
@@ -983,13 +988,7 @@ mod tests {
                 .collect();
             parse_line(&fields, XYZ).ok().map(|(t, v, _)| (t, v))
         };
-        let mut state = 11u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1442695040888963407);
-            state >> 11
-        };
+        let mut next = lcg(11);
         let mut lines: Vec<String> = Vec::new();
         for _ in 0..20_000 {
             let seconds = next() % 10u64.pow(1 + (next() % 10) as u32);
@@ -1002,7 +1001,7 @@ mod tests {
                 line.push([',', ' ', '\t'][(next() % 3) as usize]);
                 let m = (next() % 10u64.pow(1 + (next() % 16) as u32)).to_string();
                 let at = ((next() % 8) as usize).min(m.len() - 1);
-                let sign = if next() % 2 == 0 { "-" } else { "" };
+                let sign = if next().is_multiple_of(2) { "-" } else { "" };
                 if at == 0 {
                     line += &format!("{sign}{m}");
                 } else {

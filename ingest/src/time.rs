@@ -2,6 +2,7 @@
 //! Leap seconds come from hifitime's maintained table, not from a list written here.
 
 use crate::contract::manifest::TimeScale;
+use crate::lines::text;
 use hifitime::Epoch;
 
 /// Nanoseconds in a GPS week.
@@ -242,11 +243,6 @@ impl TimeReader {
             .checked_add(s)
             .ok_or_else(|| ("time", format!("`{}` is beyond any GPS time", text(field))))
     }
-}
-
-/// A field as text for a message.
-fn text(f: &[u8]) -> String {
-    String::from_utf8_lossy(f).into_owned()
 }
 
 /// GPS week and seconds of week as GPS time, ns.
