@@ -13,9 +13,11 @@
 //! the temperature terms move each axis's bias (reading units per K) and scale (mGal per
 //! reading unit per K) with its own temperature. The condition is `|a_p| - g_p = 0` (the
 //! length of the calibrated vector is gravity; written in mGal, not as |a|^2 - g^2, so that
-//! its residual is the report's |a| - g per position). Each condition has three observations
-//! of its own (the means, with their sigmas; the temperatures are taken as known, as in the
-//! axis model): a Gauss-Helmert model on [`crate::gh`] with K = 3, data snooping on the
+//! its residual is the report's |a| - g per position). Each condition has six observations
+//! of its own: the three means with their sigmas, and the three axes' temperatures with the
+//! sds align gives them from the thermometer's noise (exact, sd 0, when it gives none or the
+//! model has no temperature terms): a Gauss-Helmert model on [`crate::gh`] with K = 6, data
+//! snooping on the
 //! positions (w-test, alpha 0.001), the global test, and the parameters the positions
 //! cannot determine named (too few positions; orientations in one plane; one temperature
 //! for temperature terms). No I/O.
@@ -94,6 +96,22 @@ impl TriadModel {
         (s2, s3, bt)
     }
 
+    /// Each axis's du_j/dtau_j at readings `x` and temperature offsets `tau` (0 without
+    /// temperature terms): da_r/dtau_j = T[r][j] du_j/dtau_j.
+    pub fn tau_slopes(&self, p: &[f64], x: [f64; 3], tau: [f64; 3]) -> [f64; 3] {
+        let (o2, o3, ot) = self.offsets();
+        let Some(ot) = ot else {
+            return [0.0; 3];
+        };
+        let at = |o: Option<usize>, j: usize| o.map_or(0.0, |o| p[o + j]);
+        std::array::from_fn(|j| {
+            let (s2, s3, bt, st) = (at(o2, j), at(o3, j), p[ot + j], p[ot + 3 + j]);
+            let d = x[j] - p[6 + j] - bt * tau[j];
+            let du = p[3 + j] + st * tau[j] + d * (2.0 * s2 + 3.0 * s3 * d);
+            st * d - du * bt
+        })
+    }
+
     /// The calibrated vector at readings `x` and temperature offsets `tau` (ignored without
     /// temperature terms), its derivatives by the readings (da_r/dx_j = T[r][j] u'_j), and,
     /// when `jac` is given, da/dp into it (3 rows of n_params).
@@ -165,6 +183,8 @@ pub struct Position {
     pub g_mgal: f64,
     /// Each axis's temperature over the position, degC.
     pub temperature_c: Option<[f64; 3]>,
+    /// The sd of each of those temperatures; none (or 0) takes them as exact.
+    pub temperature_sd_c: Option<[f64; 3]>,
 }
 
 /// The calibrated vector of the linear model a = T K (x - B) (the first 9 parameters).
@@ -178,32 +198,54 @@ struct TriadConditions<'a> {
     t_ref_c: f64,
 }
 
-impl TriadConditions<'_> {
-    fn tau(&self, i: usize) -> [f64; 3] {
-        self.positions[i]
-            .temperature_c
-            .map_or([0.0; 3], |t| t.map(|t| t - self.t_ref_c))
-    }
-}
-
-impl Conditions<3> for TriadConditions<'_> {
+impl Conditions<6> for TriadConditions<'_> {
     fn n_params(&self) -> usize {
         self.model.n_params()
     }
 
-    fn eval(&self, i: usize, p: &[f64], l: [f64; 3], a: &mut [f64]) -> (f64, [f64; 3]) {
+    /// Observations `l`: the three means, then the three temperatures (taken as t_ref, and
+    /// so ignored, without temperature terms).
+    fn eval(&self, i: usize, p: &[f64], l: [f64; 6], a: &mut [f64]) -> (f64, [f64; 6]) {
         let n = self.model.n_params();
+        let x = [l[0], l[1], l[2]];
+        let tau = [l[3], l[4], l[5]].map(|t| t - self.t_ref_c);
         let mut jac = [0.0; 3 * MAX_PARAMS];
-        let (v, dadx) = self.model.evaluate(p, l, self.tau(i), Some(&mut jac));
+        let (v, dadx) = self.model.evaluate(p, x, tau, Some(&mut jac));
         let norm = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         let e: [f64; 3] = std::array::from_fn(|j| v[j] / norm);
-        // d|a|/dp = e^T da/dp; d|a|/dx = e^T da/dx.
+        // d|a|/dp = e^T da/dp; d|a|/dx = e^T da/dx; d|a|/dT_j = e^T T[.][j] du_j/dtau_j.
         for (k, out) in a.iter_mut().enumerate().take(n) {
             *out = (0..3).map(|r| e[r] * jac[r * n + k]).sum();
         }
-        let bl = std::array::from_fn(|j| (0..3).map(|r| e[r] * dadx[r][j]).sum::<f64>());
+        // T's column j is da/dx_j over du_j/dx_j; the temperature moves u_j by its slope.
+        let slopes = self.model.tau_slopes(p, x, tau);
+        let t = [[1.0, -p[0], p[1]], [0.0, 1.0, -p[2]], [0.0, 0.0, 1.0]];
+        let bl = std::array::from_fn(|j| {
+            if j < 3 {
+                (0..3).map(|r| e[r] * dadx[r][j]).sum::<f64>()
+            } else {
+                (0..3).map(|r| e[r] * t[r][j - 3]).sum::<f64>() * slopes[j - 3]
+            }
+        });
         (norm - self.positions[i].g_mgal, bl)
     }
+}
+
+/// The six observations of each position, and their sds: the means, then the temperatures
+/// (t_ref, sd 0, without temperature terms or a temperature; sd 0 when it has none).
+fn observations(positions: &[Position], t_ref_c: Option<f64>) -> (Vec<[f64; 6]>, Vec<[f64; 6]>) {
+    positions
+        .iter()
+        .map(|q| {
+            let (t, sd) = match (t_ref_c, q.temperature_c) {
+                (Some(_), Some(t)) => (t, q.temperature_sd_c.unwrap_or([0.0; 3])),
+                _ => ([t_ref_c.unwrap_or(0.0); 3], [0.0; 3]),
+            };
+            let l = [q.mean[0], q.mean[1], q.mean[2], t[0], t[1], t[2]];
+            let s = [q.sigma[0], q.sigma[1], q.sigma[2], sd[0], sd[1], sd[2]];
+            (l, s)
+        })
+        .unzip()
 }
 
 /// What a triad calibration found.
@@ -430,8 +472,7 @@ pub fn calibrate(model: TriadModel, positions: &[Position]) -> Result<TriadSolut
     let mut start = p0;
     loop {
         let kept: Vec<Position> = used.iter().map(|&i| positions[i]).collect();
-        let l: Vec<[f64; 3]> = kept.iter().map(|q| q.mean).collect();
-        let sigma: Vec<[f64; 3]> = kept.iter().map(|q| q.sigma).collect();
+        let (l, sigma) = observations(&kept, t_ref_c);
         let s = gh::solve(
             &TriadConditions {
                 model,
@@ -503,6 +544,7 @@ mod tests {
             sigma: [1.0; 3],
             g_mgal: 980_000.0,
             temperature_c: Some([31.5, 29.0, 30.2]),
+            temperature_sd_c: None,
         }];
         for order in 1..=3 {
             for temperature in [false, true] {
@@ -522,12 +564,13 @@ mod tests {
                         _ => 2e-5,
                     });
                 }
-                check_derivatives(&c, &p, &names, q[0].mean);
+                let (l, _) = observations(&q, Some(30.0));
+                check_derivatives(&c, &p, &names, l[0]);
             }
         }
     }
 
-    fn check_derivatives(c: &TriadConditions, p: &[f64], names: &[&str], x: [f64; 3]) {
+    fn check_derivatives(c: &TriadConditions, p: &[f64], names: &[&str], x: [f64; 6]) {
         let n = p.len();
         let mut a = vec![0.0; n];
         let (_, b) = c.eval(0, p, x, &mut a);
@@ -548,15 +591,26 @@ mod tests {
                 a[j]
             );
         }
-        for j in 0..3 {
-            let h = 1.0;
+        // The readings by one unit, the temperatures by 1 mK.
+        for j in 0..6 {
+            let h = if j < 3 { 1.0 } else { 1e-3 };
             let mut up = x;
             up[j] += h;
             let mut down = x;
             down[j] -= h;
             let d =
                 (c.eval(0, p, up, &mut scratch).0 - c.eval(0, p, down, &mut scratch).0) / (2.0 * h);
-            assert!((d - b[j]).abs() <= 1e-6 * d.abs(), "x{j}: {d} vs {}", b[j]);
+            assert!(
+                (d - b[j]).abs() <= 1e-6 * d.abs().max(1e-6),
+                "{:?} l{j}: {d} vs {}",
+                c.model,
+                b[j]
+            );
+        }
+        if !c.model.temperature {
+            assert_eq!(&b[3..], &[0.0; 3]);
+        } else {
+            assert!(b[3..].iter().all(|d| d.abs() > 1.0), "{b:?}");
         }
     }
 

@@ -63,6 +63,7 @@ pub fn fit_all(
                     sigma: p.sigma,
                     g_mgal: p.gravity_mgal,
                     temperature_c: p.temperature_c,
+                    temperature_sd_c: p.temperature_sd_c,
                 })
                 .collect();
             match triad::calibrate(kind, &positions) {
@@ -133,6 +134,17 @@ fn result(
                 .flatten(),
         )
     });
+    let sds: Vec<[f64; 3]> = used
+        .iter()
+        .filter_map(|&i| positions[i].temperature_sd_c)
+        .collect();
+    let temperature_sd_c = (s.t_ref_c.is_some() && !sds.is_empty()).then(|| {
+        std::array::from_fn(|k| {
+            let mut v: Vec<f64> = sds.iter().map(|sd| sd[k]).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        })
+    });
     TriadResult {
         model: model.name.clone(),
         session: session.to_owned(),
@@ -141,6 +153,7 @@ fn result(
         temperature: s.model.temperature,
         t_ref_c: s.t_ref_c,
         temperature_range_c,
+        temperature_sd_c,
         parameters,
         correlation,
         non_orthogonality_mrad: non_orthogonality(s),

@@ -24,6 +24,7 @@ fn as_positions(s: &[StaticPosition]) -> Vec<Position> {
             sigma: q.sigma,
             g_mgal: q.g_mgal,
             temperature_c: None,
+            temperature_sd_c: None,
         })
         .collect()
 }
@@ -91,14 +92,29 @@ impl MonteCarlo {
     }
 }
 
+/// How a Monte-Carlo's positions' temperatures are read.
+#[derive(Clone, Copy)]
+struct Thermometer {
+    /// The sd of a position's temperature, degC.
+    sd_c: f64,
+    /// Whether the fit is given that sd (or takes the temperatures as exact).
+    given: bool,
+}
+
+/// The temperatures known exactly.
+const EXACT: Thermometer = Thermometer {
+    sd_c: 0.0,
+    given: false,
+};
+
 /// `replicas` replicas of one design of `n` positions (directions, durations; with
-/// temperature terms each position at one of a chamber's plateaus 20, 27, 34 degC, known
-/// exactly), new noise each replica.
+/// temperature terms each position at one of a chamber's plateaus 20, 27, 34 degC, read by
+/// `thermometer`), new noise each replica.
 fn monte_carlo(
     model: TriadModel,
     truth: &Triad,
-    n: usize,
-    replicas: usize,
+    (n, replicas): (usize, usize),
+    thermometer: Thermometer,
     seed: u64,
 ) -> MonteCarlo {
     let mut rng = Rng::new(seed, "triad/monte-carlo");
@@ -121,11 +137,13 @@ fn monte_carlo(
                 let t = temperature(i);
                 let a = d.direction.map(|x| x * G);
                 let clean = truth.readings_at(a, t.unwrap_or([truth.t_ref_c; 3]));
+                let mean = std::array::from_fn(|k| clean[k] + d.sigma[k] * rng.normal());
                 Position {
-                    mean: std::array::from_fn(|k| clean[k] + d.sigma[k] * rng.normal()),
+                    mean,
                     sigma: d.sigma,
                     g_mgal: G,
-                    temperature_c: t,
+                    temperature_c: t.map(|t| t.map(|t| t + thermometer.sd_c * rng.normal())),
+                    temperature_sd_c: thermometer.given.then_some([thermometer.sd_c; 3]),
                 }
             })
             .collect();
@@ -160,9 +178,11 @@ fn monte_carlo(
         rate: rejected as f64 / r,
     };
     eprintln!(
-        "triad monte carlo, order {} {} temperature terms, {replicas} replicas of {n} positions: sd/sigma {}; Mahalanobis / dof {:.3}; global test rejects {:.1} %",
+        "triad monte carlo, order {} {} temperature terms, {replicas} replicas of {n} positions, temperatures' sd {} mK{}: sd/sigma {}; Mahalanobis / dof {:.3}; global test rejects {:.1} %",
         model.order,
         if model.temperature { "with" } else { "without" },
+        1e3 * thermometer.sd_c,
+        if thermometer.given { " (given)" } else { "" },
         names
             .iter()
             .zip(&mc.ratios)
@@ -177,7 +197,7 @@ fn monte_carlo(
 
 #[test]
 fn monte_carlo_of_the_triad_sigmas() {
-    let mc = monte_carlo(TriadModel::LINEAR, &Triad::esgt(), 24, 400, 16);
+    let mc = monte_carlo(TriadModel::LINEAR, &Triad::esgt(), (24, 400), EXACT, 16);
     // se of an sd ratio 1/sqrt(2n) = 0.035, of the Mahalanobis mean sqrt(2/9/n) = 0.024, of
     // the rate 0.011: bounds at about 3 se.
     mc.assert_honest(&NAMES, 0.11, 0.08);
@@ -192,8 +212,32 @@ fn monte_carlo_of_the_thermal_triad_sigmas() {
         order: 2,
         temperature: true,
     };
-    let mc = monte_carlo(model, &Triad::esgt_thermal(), 42, 400, 17);
+    let mc = monte_carlo(model, &Triad::esgt_thermal(), (42, 400), EXACT, 17);
     mc.assert_honest(&model.names(), 0.125, 0.06);
+}
+
+/// The same with a noisy thermometer (each position's temperatures off by 5 mK sd, as a
+/// position averaging a few readings of a 10 mK sensor): given that sd, the fit takes the
+/// temperatures as observations and its sigmas and global test hold as above; taking them
+/// as exact, the global test rejects far beyond its 5 %.
+#[test]
+fn monte_carlo_of_the_thermal_triad_with_a_noisy_thermometer() {
+    let model = TriadModel {
+        order: 2,
+        temperature: true,
+    };
+    let noisy = Thermometer {
+        sd_c: 0.005,
+        given: true,
+    };
+    let mc = monte_carlo(model, &Triad::esgt_thermal(), (42, 400), noisy, 19);
+    mc.assert_honest(&model.names(), 0.125, 0.06);
+    let exact = Thermometer {
+        given: false,
+        ..noisy
+    };
+    let mc = monte_carlo(model, &Triad::esgt_thermal(), (42, 200), exact, 19);
+    assert!(mc.rate > 0.3, "rejects {}", mc.rate);
 }
 
 #[test]
@@ -221,6 +265,7 @@ fn too_few_positions_and_one_plane_are_named() {
                 sigma: [0.5; 3],
                 g_mgal: G,
                 temperature_c: None,
+                temperature_sd_c: None,
             }
         })
         .collect();
@@ -555,6 +600,53 @@ fn a_short_quiet_start_is_named_and_set_aside() {
     );
 }
 
+/// The thermal chamber read by a thermometer ten times noisier (5 mK a reading): align
+/// estimates that noise from the log, gives each position's temperatures their sd, and the
+/// order-2 thermal triad takes them as observations: its global test passes and every
+/// parameter is within its sigma's Bonferroni bound of truth (with the temperatures taken as
+/// exact, sigma0 is 1.33 and the global test fails).
+#[test]
+fn a_noisy_thermometer_widens_the_sigmas_instead_of_failing_the_model() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("thermal-noisy");
+    let mut plan = fixtures::triad::thermal_chamber(42, 2);
+    let noise_c = 0.005;
+    if let Some(th) = plan.thermal.as_mut() {
+        th.noise_c = noise_c;
+    }
+    let truth = fixtures::triad::write_multipos(&plan, &dataset).expect("write");
+    let out = dir.path().join("out");
+    let c = pipeline(&dataset, &out);
+    let a = ingest::contract::align_ledger::AlignReport::load(&out.join("align")).expect("align");
+    let found = a.multi_position[0].thermometer_sd_c;
+    eprintln!("thermometer sd estimated {found:?} degC");
+    for sd in found {
+        let sd = sd.expect("estimated");
+        assert!((sd / noise_c - 1.0).abs() < 0.1, "{sd}");
+    }
+    let position = &a.multi_position[0].positions[0];
+    let sd = position
+        .temperature_sd_c
+        .expect("a position's temperature sd");
+    assert!(sd.iter().all(|&s| s > 0.0 && s < noise_c), "{sd:?}");
+    let r = &c.triad[0];
+    let taken = r
+        .temperature_sd_c
+        .expect("the temperatures taken as observations");
+    eprintln!(
+        "sigma0 {:.3}, global test {:?}, median temperature sds {taken:?}",
+        r.sigma0, r.global_test
+    );
+    assert!(r.global_test.passed, "{:?}", r.global_test);
+    let shift = r.t_ref_c.expect("t_ref") - plan.triad.t_ref_c;
+    let mut want = truth.parameters.clone();
+    for j in 0..3 {
+        want[3 + j] += want[15 + j] * shift;
+        want[6 + j] += want[12 + j] * shift;
+    }
+    within_sigmas(r, &want);
+}
+
 /// A thermal chamber (plateaus at 20, 27 and 34 degC, a temperature log in the "seconds"
 /// layout beside the stream): a triad of order 2 with temperature terms recovers all 21
 /// parameters, each within its sigma's Bonferroni bound; the same stream fitted without
@@ -767,7 +859,7 @@ fn monte_carlo_of_the_cubic_triad_sigmas() {
         s3: [3e-20, -2e-20, 2.5e-20],
         ..Triad::esgt_thermal()
     };
-    let mc = monte_carlo(model, &truth, 36, 400, 18);
+    let mc = monte_carlo(model, &truth, (36, 400), EXACT, 18);
     mc.assert_honest(&model.names(), 0.125, 0.06);
 }
 

@@ -19,6 +19,7 @@ pub mod allan;
 pub mod colour;
 pub mod read;
 pub mod statics;
+pub mod thermometer;
 pub mod tide;
 pub mod weights;
 pub mod window;

@@ -8,7 +8,8 @@ use super::*;
 /// axis of fewer than three values is counted, not used. Each position's temperature per
 /// channel is the mean over its samples' times of the temperature interpolated as for a
 /// window (the average the mean reading sees; none when a channel has no sample within
-/// the gap allowed: a model without temperature terms still uses the position).
+/// the gap allowed: a model without temperature terms still uses the position), with its
+/// sd from the thermometer's noise ([`thermometer`]).
 pub(crate) fn multi_positions(
     ds: &Dataset,
     setup: &Setup,
@@ -87,6 +88,11 @@ pub(crate) fn session_positions(
         used: 0,
         rejected: Default::default(),
         noise: Vec::new(),
+        thermometer_sd_c: [1u8, 2, 3].map(|ch| {
+            temperatures
+                .get(&(w, ch))
+                .and_then(|(_, v)| thermometer::white_noise_sd(v))
+        }),
         positions: Vec::new(),
     };
     let intervals = find_intervals(s, data, rate, ingest_dir, &mut mp)?;
@@ -117,10 +123,25 @@ pub(crate) fn session_positions(
                 .map_or(0.0, |n| n.coloured_variance(duration_s));
             (white[k] * white[k] + coloured).sqrt()
         });
-        let temperature_c = [1u8, 2, 3].map(|ch| {
+        let temperature = [1u8, 2, 3].map(|ch| {
             let (t, v) = temperatures.get(&(w, ch))?;
-            interval_mean(t, v, &data.time_ns[i..j], setup.max_gap_ns)
+            thermometer::interval_mean(t, v, &data.time_ns[i..j], setup.max_gap_ns)
         });
+        let (temperature_c, temperature_sd_c) = match temperature {
+            [Some(a), Some(b), Some(c)] => {
+                let sd = std::array::from_fn(|k| {
+                    mp.thermometer_sd_c[k].map(|sd| sd * [a, b, c][k].1.sqrt())
+                });
+                (
+                    Some([a.0, b.0, c.0]),
+                    match sd {
+                        [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+                        _ => None,
+                    },
+                )
+            }
+            _ => (None, None),
+        };
         mp.positions.push(StaticPosition {
             start_gps_ns: t0,
             end_gps_ns: t1,
@@ -129,10 +150,8 @@ pub(crate) fn session_positions(
             sigma,
             sigma_white: Some(white),
             gravity_mgal: setup.g + setup.tide(t0 / 2 + t1 / 2).unwrap_or(0.0),
-            temperature_c: match temperature_c {
-                [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                _ => None,
-            },
+            temperature_c,
+            temperature_sd_c,
         });
     }
     mp.used = mp.positions.len() as u64;
@@ -173,17 +192,6 @@ pub(crate) fn static_noise(
             })
         })
         .collect()
-}
-
-/// The mean of a temperature series interpolated at `times` (sorted); none when any of
-/// them is farther than `max_gap_ns` from a temperature sample.
-pub(crate) fn interval_mean(t: &[i64], v: &[f64], times: &[i64], max_gap_ns: i64) -> Option<f64> {
-    let mut it = window::Interpolator::new(t, v);
-    let mut sum = 0.0;
-    for &time in times {
-        sum += it.at(time, max_gap_ns)?.0;
-    }
-    (!times.is_empty()).then(|| sum / times.len() as f64)
 }
 
 /// A multi-position session's line: how its intervals were had, found, used, rejected by

@@ -164,7 +164,16 @@ fn triad_summary(r: &calibration::TriadResult) -> String {
             (o, t) => format!(
                 "order {o}{}; ",
                 t.map_or(String::new(), |t| format!(
-                    ", temperature terms about t_ref = {t:.2} degC"
+                    ", temperature terms about t_ref = {t:.2} degC, the temperatures {}",
+                    r.temperature_sd_c.map_or_else(
+                        || "taken as exact".to_owned(),
+                        |sd| format!(
+                            "observed with sds about {:.2}, {:.2}, {:.2} mK",
+                            1e3 * sd[0],
+                            1e3 * sd[1],
+                            1e3 * sd[2]
+                        )
+                    )
                 ))
             ),
         } + &r.calib_file.as_ref().map_or_else(

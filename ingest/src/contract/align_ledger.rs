@@ -189,6 +189,11 @@ pub struct MultiPosition {
     /// variance at a position's duration to the position's sigma.
     #[serde(default)]
     pub noise: Vec<StaticNoise>,
+    /// The white noise sd of the temperature log's channels 1..3 over the session, degC,
+    /// from its second differences (docs/model.md 6.5); none for a channel with fewer than
+    /// 22 temperatures.
+    #[serde(default)]
+    pub thermometer_sd_c: [Option<f64>; 3],
     /// The positions: the static intervals used.
     pub positions: Vec<StaticPosition>,
 }
@@ -241,6 +246,12 @@ pub struct StaticPosition {
     /// log has a gap there.
     #[serde(default)]
     pub temperature_c: Option<[f64; 3]>,
+    /// The sd of each of those temperatures from the thermometer's noise (the session's
+    /// `thermometer_sd_c` times the root of the sum of the squared weights the mean gives
+    /// the log's samples); absent when the temperature is, or the noise could not be
+    /// estimated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature_sd_c: Option<[f64; 3]>,
 }
 
 impl AlignReport {

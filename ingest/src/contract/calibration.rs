@@ -341,6 +341,11 @@ pub struct TriadResult {
     /// terms): an application outside it is flagged.
     #[serde(default)]
     pub temperature_range_c: Option<[f64; 2]>,
+    /// With temperature terms, the median over the positions used of each axis's
+    /// temperature sd from the thermometer's noise, degC: the fit took the temperatures as
+    /// observations with their sds (docs/model.md 6.5). None: taken as exact.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature_sd_c: Option<[f64; 3]>,
     /// a_yz, a_zy, a_zx (rad), s_x, s_y, s_z (mGal per reading unit), b_x, b_y, b_z; then
     /// by order s2_x.. (mGal per unit^2), s3_x.. (per unit^3); with temperature bt_x..
     /// (reading units per K) and st_x.. (mGal per unit per K).
