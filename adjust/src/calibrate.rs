@@ -53,6 +53,9 @@ pub struct Obs {
     pub sigma_ng_dof: Option<f64>,
     /// Temperature, degC.
     pub temperature_c: f64,
+    /// Its sd from the thermometer's noise, degC (0: taken as exact). A model with
+    /// temperature terms takes the temperature as an observation with this sd.
+    pub sigma_temperature_c: f64,
     /// Body tide at the reading, mGal, added to the fit's gravity (0 when none).
     pub tide_mgal: f64,
 }
@@ -444,7 +447,6 @@ pub fn calibrate_with(
             .map(|o| (o.ng - centre).abs())
             .fold(0.0, f64::max)
             .max(1.0);
-        let temps: Vec<f64> = used.iter().map(|o| o.temperature_c).collect();
         let tides: Vec<f64> = used.iter().map(|o| o.tide_mgal).collect();
         let rolls: Vec<f64> = used.iter().map(|o| o.roll_rad).collect();
         let model = CalibrationConditions {
@@ -453,7 +455,6 @@ pub fn calibrate_with(
             centre,
             scale,
             t_ref_c,
-            temperature_c: &temps,
             tide_mgal: &tides,
             roll_rad: &rolls,
         };
@@ -509,12 +510,12 @@ pub fn mdb_noncentrality(dof: Option<f64>) -> f64 {
 
 /// Baarda's w of each condition with its reading's Dz referred to the left-out sigma_Dz
 /// ([`Obs::sigma_dz_left_out`]; docs/model.md 6.1): the misclosure over
-/// sqrt(r (q_Dz,left-out + q_Ng)), a Student t whose degrees of freedom are the left-out
+/// sqrt(r (q_Dz,left-out + q_Ng + q_T)), a Student t whose degrees of freedom are the left-out
 /// variance's carried by its share of the condition's variance (Welch-Satterthwaite; the
 /// window means' variance is taken as known), returned as the standard normal quantile of
 /// the same tail probability, so that one critical value ([`W_CRITICAL`]) holds alpha
 /// whatever the dof. With sigma_Dz known the t is the normal and w is Baarda's own.
-fn left_out_w_tests(s: &gh::Solution, used: &[&Obs]) -> Vec<f64> {
+fn left_out_w_tests(s: &gh::Solution<3>, used: &[&Obs]) -> Vec<f64> {
     use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
     let normal = Normal::standard();
     used.iter()
@@ -529,7 +530,7 @@ fn left_out_w_tests(s: &gh::Solution, used: &[&Obs]) -> Vec<f64> {
                 .sigma_dz_left_out
                 .map_or((o.sigma_dz_rad, o.sigma_dz_dof), |l| (l.sigma_rad, l.dof));
             let q_dz = s.q_parts[i][0] * sigma.powi(2) / fitted;
-            let q = q_dz + s.q_parts[i][1];
+            let q = q_dz + s.q_parts[i][1] + s.q_parts[i][2];
             let w = s.misclosure[i] / (q * r).sqrt();
             let Some(d) = dof.filter(|d| d.is_finite() && *d > 0.0) else {
                 return w;
@@ -546,14 +547,21 @@ fn left_out_w_tests(s: &gh::Solution, used: &[&Obs]) -> Vec<f64> {
 }
 
 /// Observations and their sds as the adjustment takes them: Dz weighed by its predictive
-/// variance.
-fn observations(used: &[&Obs]) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
-    let l = used.iter().map(|o| [o.dz_rad, o.ng]).collect();
+/// variance, then Ng, then the temperature with its sd from the thermometer's noise.
+fn observations(used: &[&Obs]) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let l = used
+        .iter()
+        .map(|o| [o.dz_rad, o.ng, o.temperature_c])
+        .collect();
     let sigma = used
         .iter()
         .map(|o| {
             let factor = components::predictive_factor(o.sigma_dz_dof);
-            [o.sigma_dz_rad * factor.sqrt(), o.sigma_ng]
+            [
+                o.sigma_dz_rad * factor.sqrt(),
+                o.sigma_ng,
+                o.sigma_temperature_c,
+            ]
         })
         .collect();
     (l, sigma)
@@ -566,7 +574,7 @@ fn conclude(
     model: &CalibrationConditions<'_>,
     used: &[&Obs],
     active: &[usize],
-    s: &gh::Solution,
+    s: &gh::Solution<3>,
     options: &FitOptions,
 ) -> Result<CalibrationSolution, GhError> {
     let m = model.terms.len();
@@ -669,7 +677,7 @@ impl Groups {
     /// The expected part of solution `s`'s between-station form due to coloured ADC noise
     /// (0 when white): weighted by the theodolite's shares for its component, or whole for
     /// the global test.
-    fn excess(&self, s: &gh::Solution, noise: Option<&ColouredAdc>, shared: bool) -> f64 {
+    fn excess(&self, s: &gh::Solution<3>, noise: Option<&ColouredAdc>, shared: bool) -> f64 {
         noise.map_or(0.0, |noise| {
             let share = if shared {
                 components::shares(s, &self.station)
@@ -697,12 +705,12 @@ const MAX_COMPONENT_ITERATIONS: usize = 50;
 /// what `coloured` ADC noise explains of them.
 fn estimate_components(
     model: &CalibrationConditions<'_>,
-    l: &[[f64; 2]],
-    sigma: &[[f64; 2]],
-    s: &gh::Solution,
+    l: &[[f64; 3]],
+    sigma: &[[f64; 3]],
+    s: &gh::Solution<3>,
     groups: &Groups,
     coloured: Option<&ColouredAdc>,
-) -> Result<(gh::Solution, Vec<Component>), GhError> {
+) -> Result<(gh::Solution<3>, Vec<Component>), GhError> {
     let within = coloured.map_or(correlated::Excess::default(), |noise| {
         correlated::within_station_excess(
             &groups.station,
@@ -725,10 +733,10 @@ fn estimate_components(
         &groups.dof,
         groups.excess(s, coloured, true),
     );
-    let refit = |theta: f64, from: &gh::Solution| {
-        let scaled: Vec<[f64; 2]> = sigma
+    let refit = |theta: f64, from: &gh::Solution<3>| {
+        let scaled: Vec<[f64; 3]> = sigma
             .iter()
-            .map(|x| [x[0] * theta.sqrt(), x[1] * adc.estimate.sqrt()])
+            .map(|x| [x[0] * theta.sqrt(), x[1] * adc.estimate.sqrt(), x[2]])
             .collect();
         gh::solve(model, l, &scaled, &from.p, &Options::default())
     };
@@ -782,6 +790,7 @@ mod tests {
                     sigma_ng: 0.3,
                     sigma_ng_dof: None,
                     temperature_c: t + 0.001 * i as f64,
+                    sigma_temperature_c: 0.0,
                     tide_mgal: 0.0,
                 }
             })

@@ -133,7 +133,7 @@ struct Station {
 /// Station-level sums of a solution, by station index (a station without observations is
 /// all zeros): `station[i]` groups observation i, `dof[i]` is the dof of its sigma_Dz
 /// (None: known).
-fn stations(s: &crate::gh::Solution, station: &[usize], dof: &[Option<f64>]) -> Vec<Station> {
+fn stations(s: &crate::gh::Solution<3>, station: &[usize], dof: &[Option<f64>]) -> Vec<Station> {
     let count = station.iter().max().map_or(0, |m| m + 1);
     let mut out = vec![Station::default(); count];
     for (i, &j) in station.iter().enumerate() {
@@ -165,7 +165,7 @@ impl Station {
 }
 
 /// The theodolite's share of each station's variance, by station index.
-pub fn shares(s: &crate::gh::Solution, station: &[usize]) -> Vec<f64> {
+pub fn shares(s: &crate::gh::Solution<3>, station: &[usize]) -> Vec<f64> {
     stations(s, station, &vec![None; station.len()])
         .iter()
         .map(|x| x.share)
@@ -175,7 +175,7 @@ pub fn shares(s: &crate::gh::Solution, station: &[usize]) -> Vec<f64> {
 /// The global test of a solution: the between-station part of v^T P v against its scaled
 /// chi-square; `excess` is its expected part from noise the weights do not carry.
 pub fn lack_of_fit(
-    s: &crate::gh::Solution,
+    s: &crate::gh::Solution<3>,
     station: &[usize],
     dof: &[Option<f64>],
     excess: f64,
@@ -227,7 +227,7 @@ impl Component {
 /// at the current components (`excess`: the share-weighted part of noise the weights do not
 /// carry); the test is meaningful at the a-priori weights.
 pub fn theodolite_step(
-    s: &crate::gh::Solution,
+    s: &crate::gh::Solution<3>,
     station: &[usize],
     dof: &[Option<f64>],
     excess: f64,

@@ -39,7 +39,7 @@ impl ColouredAdc {
 /// parameters, m x m row-major): observation i at `time_s[i]` in session `session[i]`, the
 /// counts its second observed quantity.
 pub fn extra_covariance(
-    s: &Solution,
+    s: &Solution<3>,
     time_s: &[f64],
     session: &[usize],
     noise: &ColouredAdc,
@@ -174,7 +174,7 @@ pub fn apply_excess(
 /// their sum, e the misclosure residuals), beyond what the weights predict: what the
 /// variance components and the global test must not mistake for the theodolite.
 pub fn between_station_excess(
-    s: &Solution,
+    s: &Solution<3>,
     station: &[usize],
     share: &[f64],
     time_s: &[f64],
@@ -443,17 +443,17 @@ mod tests {
         let s = Solution {
             p: vec![0.0; m],
             q_pp: q_pp.clone(),
-            v: vec![[0.0; 2]; n],
+            v: vec![[0.0; 3]; n],
             misclosure: vec![0.0; n],
             q_ww: q_ww.clone(),
-            q_parts: vec![[0.5, 0.5]; n],
+            q_parts: vec![[0.5, 0.5, 0.0]; n],
             redundancy: vec![0.5; n],
             w_test: vec![0.0; n],
             vtpv: 0.0,
             dof: n - m,
             iterations: 1,
             a: a.clone(),
-            b: (0..n).map(|i| [1.0, 0.25 + 0.01 * i as f64]).collect(),
+            b: (0..n).map(|i| [1.0, 0.25 + 0.01 * i as f64, 0.0]).collect(),
         };
         let noise = ColouredAdc {
             bias_instability: 0.8,
@@ -505,10 +505,10 @@ mod tests {
         let s = Solution {
             p: vec![0.0; m],
             q_pp: vec![2.0, 0.3, 0.3, 1.0],
-            v: vec![[0.0; 2]; n],
+            v: vec![[0.0; 3]; n],
             misclosure: vec![0.0; n],
             q_ww: (0..n).map(|i| 1.0 + 0.1 * i as f64).collect(),
-            q_parts: vec![[0.5, 0.5]; n],
+            q_parts: vec![[0.5, 0.5, 0.0]; n],
             redundancy: vec![0.5; n],
             w_test: vec![0.0; n],
             vtpv: 0.0,
@@ -517,7 +517,7 @@ mod tests {
             a: (0..n * m)
                 .map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.4)
                 .collect(),
-            b: (0..n).map(|i| [1.0, 0.2 + 0.05 * i as f64]).collect(),
+            b: (0..n).map(|i| [1.0, 0.2 + 0.05 * i as f64, 0.0]).collect(),
         };
         let noise = ColouredAdc {
             bias_instability: 0.8,

@@ -43,6 +43,8 @@ pub struct ObservationRow {
     pub sigma_ng_dof: Option<f64>,
     /// Temperature, degC.
     pub temperature_c: Option<f64>,
+    /// Its sd from the thermometer's noise (None: none estimated, or an older table).
+    pub sigma_temperature_c: Option<f64>,
     /// Align's exclusion reason.
     pub excluded: Option<String>,
     /// Body tide at the reading, mGal (None when none is applied).
@@ -164,6 +166,10 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
             Some(_) => Some(c.f64s(col::SIGMA_NG_DOF)?),
             None => None,
         };
+        let sigma_temp = match b.column_by_name(col::SIGMA_TEMPERATURE_C) {
+            Some(_) => Some(c.f64s(col::SIGMA_TEMPERATURE_C)?),
+            None => None,
+        };
         let loo = match b.column_by_name(col::SIGMA_DZ_LOO_RAD) {
             Some(_) => Some((
                 c.f64s(col::SIGMA_DZ_LOO_RAD)?,
@@ -187,6 +193,7 @@ pub fn read_observations(align_dir: &Path) -> Result<Vec<ObservationRow>, Error>
                 sigma_ng: opt(&sng, i),
                 sigma_ng_dof: ng_dof.as_ref().and_then(|d| opt(d, i)),
                 temperature_c: opt(&temp, i),
+                sigma_temperature_c: sigma_temp.as_ref().and_then(|s| opt(s, i)),
                 excluded: excluded.is_valid(i).then(|| excluded.value(i).to_owned()),
                 tide_mgal: opt(&tide, i),
             });

@@ -258,6 +258,7 @@ pub(crate) fn fit_job(
             sigma_ng: o.sigma_ng.unwrap_or_default(),
             sigma_ng_dof: o.sigma_ng_dof,
             temperature_c: o.temperature_c.unwrap_or_default(),
+            sigma_temperature_c: o.sigma_temperature_c.unwrap_or_default(),
             tide_mgal: o.tide_mgal.unwrap_or_default(),
             roll_rad: job.rolls[i],
         })

@@ -61,6 +61,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
             sigma_ng: v[3],
             sigma_ng_dof: None,
             temperature_c: 20.0,
+            sigma_temperature_c: 0.0,
             tide_mgal: 0.0,
         });
     }

@@ -147,7 +147,9 @@ pub fn apply(m: &[f64], p: &[f64]) -> Vec<f64> {
 
 /// The calibration condition `g_i cos(Dz + beta) + c(Ng, T) = 0`, `g_i = g + tide_i`, with
 /// `c = a0 + a1 x + a2 x^2 + a3 x^3 + (at0 + at1 x) (T - t_ref)`, `x = (Ng - centre) / scale`.
-/// Observations are `(Dz, Ng)`. With the misalignment as a vector (docs/model.md 6.4) the
+/// Observations are `(Dz, Ng, T)`: the temperature is an observation with the sd the
+/// thermometer's noise gives it (0: exact); without temperature terms it enters nothing.
+/// With the misalignment as a vector (docs/model.md 6.4) the
 /// reference is `g_i (s_z cos Dz - s_perp sin Dz)`: `s_perp = theta_x cos(roll) +
 /// theta_y sin(roll)` is the sensitive axis's component in the tilt plane at the session's
 /// roll, `s_z = sqrt(1 - theta_x^2 - theta_y^2)`; at roll 0, theta_x is beta (sin beta).
@@ -162,8 +164,6 @@ pub struct CalibrationConditions<'a> {
     pub scale: f64,
     /// Reference temperature, degC.
     pub t_ref_c: f64,
-    /// Temperature of each observation, degC.
-    pub temperature_c: &'a [f64],
     /// Body tide at each observation, mGal (all 0 when none is applied).
     pub tide_mgal: &'a [f64],
     /// Roll of the block at each observation, rad (the vector misalignment only).
@@ -198,12 +198,12 @@ impl CalibrationConditions<'_> {
     }
 }
 
-impl Conditions for CalibrationConditions<'_> {
+impl Conditions<3> for CalibrationConditions<'_> {
     fn n_params(&self) -> usize {
         self.terms.len()
     }
 
-    fn eval(&self, i: usize, p: &[f64], l: [f64; 2], a: &mut [f64]) -> (f64, [f64; 2]) {
+    fn eval(&self, i: usize, p: &[f64], l: [f64; 3], a: &mut [f64]) -> (f64, [f64; 3]) {
         let o = self.terms.order;
         let x = (l[1] - self.centre) / self.scale;
         let mut value = 0.0;
@@ -218,12 +218,15 @@ impl Conditions for CalibrationConditions<'_> {
             xp *= x;
         }
         let mut at = o + 1;
+        // dc/dT: the temperature terms' slope at this x.
+        let mut by_t = 0.0;
         if self.terms.temperature {
-            let tau = self.temperature_c[i] - self.t_ref_c;
+            let tau = l[2] - self.t_ref_c;
             a[at] = tau;
             a[at + 1] = tau * x;
             value += (p[at] + p[at + 1] * x) * tau;
             slope += p[at + 1] * tau;
+            by_t = p[at] + p[at + 1] * x;
             at += 2;
         }
         let g = self.g_mgal + self.tide_mgal[i];
@@ -239,7 +242,7 @@ impl Conditions for CalibrationConditions<'_> {
                 a[at + 1] = g * (-ty / s_z * cos_d - sin_r * sin_d);
                 (
                     g * (s_z * cos_d - s_perp * sin_d) + value,
-                    [-g * (s_z * sin_d + s_perp * cos_d), sl],
+                    [-g * (s_z * sin_d + s_perp * cos_d), sl, by_t],
                 )
             }
             Misalignment::Plane | Misalignment::None => {
@@ -253,7 +256,7 @@ impl Conditions for CalibrationConditions<'_> {
                 if self.terms.misalignment.any() {
                     a[at] = -g_sin;
                 }
-                (g * angle.cos() + value, [-g_sin, sl])
+                (g * angle.cos() + value, [-g_sin, sl, by_t])
             }
         }
     }
@@ -340,11 +343,44 @@ mod tests {
         assert_eq!(v.len(), 7);
     }
 
+    /// With temperature terms, the condition's derivative by the temperature (the
+    /// temperature an observation) is the numerical one: b_t + k_t Ng in the scaled terms.
+    #[test]
+    fn temperature_derivative_is_the_numerical_one() {
+        let (tides, rolls) = ([0.0], [0.0]);
+        let c = CalibrationConditions {
+            terms: Terms {
+                order: 2,
+                temperature: true,
+                misalignment: Misalignment::None,
+            },
+            g_mgal: 980_000.0,
+            centre: 1.4e6,
+            scale: 1e5,
+            t_ref_c: 25.0,
+            tide_mgal: &tides,
+            roll_rad: &rolls,
+        };
+        let p = [-29_500.0, 24_300.0, 12.0, 35.0, -4.0];
+        let l = [2.1, 1.45e6, 27.3];
+        let mut a = [0.0; 5];
+        let (_, b) = c.eval(0, &p, l, &mut a);
+        let h = 1e-3;
+        let up = c.eval(0, &p, [l[0], l[1], l[2] + h], &mut [0.0; 5]).0;
+        let down = c.eval(0, &p, [l[0], l[1], l[2] - h], &mut [0.0; 5]).0;
+        let numerical = (up - down) / (2.0 * h);
+        assert!(
+            (numerical - b[2]).abs() < 1e-9 * b[2].abs(),
+            "{numerical} {}",
+            b[2]
+        );
+        assert!((b[2] - (35.0 - 4.0 * 0.5)).abs() < 1e-9, "{}", b[2]);
+    }
+
     /// The vector condition's derivatives are the numerical ones, and at roll 0 with
     /// theta_y = 0 it is the plane condition with beta = asin(theta_x).
     #[test]
     fn vector_condition_derivatives_and_the_plane() {
-        let temps = [25.0];
         let tides = [0.0];
         let rolls = [0.7];
         let terms = Terms {
@@ -358,12 +394,11 @@ mod tests {
             centre: 1.4e6,
             scale: 1e5,
             t_ref_c: 25.0,
-            temperature_c: &temps,
             tide_mgal: &tides,
             roll_rad: &rolls,
         };
         let p = [-29_500.0, 24_300.0, 3e-4, -2e-4];
-        let l = [2.1, 1.45e6];
+        let l = [2.1, 1.45e6, 25.0];
         let mut a = [0.0; 4];
         let (f, b) = c.eval(0, &p, l, &mut a);
         let h = 1e-7;
@@ -374,8 +409,10 @@ mod tests {
             let (f2, _) = c.eval(0, &q, l, &mut dummy);
             assert!(((f2 - f) / h - a[j]).abs() < 1e-3 * a[j].abs(), "{j}");
         }
-        let (f3, _) = c.eval(0, &p, [l[0] + 1e-7, l[1]], &mut [0.0; 4]);
+        let (f3, _) = c.eval(0, &p, [l[0] + 1e-7, l[1], l[2]], &mut [0.0; 4]);
         assert!(((f3 - f) / 1e-7 - b[0]).abs() < 1e-3 * b[0].abs());
+        // Without temperature terms the temperature enters nothing.
+        assert!(b[2].abs() < f64::MIN_POSITIVE, "{}", b[2]);
         let zero_roll = [0.0];
         let v = CalibrationConditions {
             roll_rad: &zero_roll,

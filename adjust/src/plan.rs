@@ -354,6 +354,7 @@ pub fn observations(plan: &Plan) -> Result<Vec<(String, Obs)>, PlanError> {
                         sigma_ng,
                         sigma_ng_dof: None,
                         temperature_c: s.temperature_c,
+                        sigma_temperature_c: 0.0,
                         tide_mgal: 0.0,
                     },
                 ));

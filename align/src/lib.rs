@@ -118,6 +118,8 @@ pub struct Observation {
     pub expected_samples: f64,
     /// Temperature at the reading, degC.
     pub temperature_c: Option<f64>,
+    /// Its sd from the thermometer's noise, degC.
+    pub sigma_temperature_c: Option<f64>,
     /// Trend t statistic.
     pub drift_t: Option<f64>,
     /// Why it is not used.

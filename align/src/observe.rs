@@ -108,6 +108,7 @@ pub(crate) fn observe_session<'t>(
             continue;
         }
         let temps = temps(acc.channel);
+        let thermometer_sd = temps.and_then(|(_, v)| thermometer::white_noise_sd(v));
         let coloured = coloured_variance(&formed.noise, &acc.id, setup.cfg.window_s);
         let mut c = Counts {
             session: id.to_owned(),
@@ -115,6 +116,7 @@ pub(crate) fn observe_session<'t>(
             readings: pending.len() as u64,
             used: 0,
             excluded: BTreeMap::new(),
+            thermometer_sd_c: thermometer_sd,
         };
         for (k, p) in pending.iter().enumerate() {
             let w = &p.sums[ch];
@@ -125,8 +127,12 @@ pub(crate) fn observe_session<'t>(
                 dof: sigma_dz_dof,
             } = sigma.station[p.reading.station.as_str()];
             let left_out = sigma.left_out[k];
-            let temperature =
-                temps.and_then(|(t, v)| interpolate(t, v, p.reading.time_gps_ns, setup.max_gap_ns));
+            let time = p.reading.time_gps_ns;
+            let temperature = temps.and_then(|(t, v)| interpolate(t, v, time, setup.max_gap_ns));
+            // The interpolation's weights on the log's samples, for the temperature's sd.
+            let squares = temps
+                .and_then(|(t, v)| thermometer::interval_mean(t, v, &[time], setup.max_gap_ns))
+                .map(|(_, squares)| squares);
             let has_temperatures = temps.is_some_and(|(t, _)| !t.is_empty());
             let excluded = setup.exclusion(w, stats, has_temperatures, temperature.map(|(v, _)| v));
             match excluded {
@@ -154,6 +160,7 @@ pub(crate) fn observe_session<'t>(
                 n_samples: w.n,
                 expected_samples: setup.expected,
                 temperature_c: temperature.map(|(v, _)| v),
+                sigma_temperature_c: squares.zip(thermometer_sd).map(|(q, sd)| sd * q.sqrt()),
                 drift_t: stats.map(|s| s.drift_t),
                 excluded,
                 tide_mgal,

@@ -432,6 +432,9 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
             obs.iter().map(|o| o.expected_samples),
         )),
         Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.temperature_c))),
+        Arc::new(Float64Array::from_iter(
+            obs.iter().map(|o| o.sigma_temperature_c),
+        )),
         Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.drift_t))),
         Arc::new(StringArray::from_iter(obs.iter().map(|o| o.excluded))),
         Arc::new(Float64Array::from_iter(obs.iter().map(|o| o.tide_mgal))),

@@ -6,9 +6,11 @@
 //! The estimate is that of white noise from the log's second differences,
 //! `d_k = T_{k-1} - 2 T_k + T_{k+1}`, whose variance is `6 sigma^2` for white noise and which
 //! a temperature changing smoothly (a plateau, a ramp) leaves near zero. The sd of the
-//! differences is taken robustly (1.4826 times their median absolute value), so the few
-//! knees where a ramp begins or ends do not count as noise. A log resolved coarser than its
-//! noise gives the quantisation's share (rounding to steps of q adds q^2/12 to each value).
+//! differences is their root mean square over those within 5 robust sds (1.4826 times their
+//! median absolute value) of zero, so the few knees where a ramp begins or ends do not count
+//! as noise, and a log written in steps (a median of whole steps) is still measured finely.
+//! A log resolved coarser than its noise gives the quantisation's share (rounding to steps
+//! of q adds q^2/12 to each value); one whose differences are mostly 0 gives 0.
 
 /// Fewest second differences for an estimate.
 pub const MIN_DIFFERENCES: usize = 20;
@@ -25,7 +27,12 @@ pub fn white_noise_sd(values: &[f64]) -> Option<f64> {
         .collect();
     let mid = d.len() / 2;
     let (_, median, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(1.4826 * *median / 6f64.sqrt())
+    let bound = 5.0 * 1.4826 * *median;
+    let (sum, n) = d
+        .iter()
+        .filter(|x| **x <= bound)
+        .fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+    Some((sum / n as f64 / 6.0).sqrt())
 }
 
 /// The mean over `times` (sorted) of the series `(t, v)` interpolated linearly, as align's
@@ -117,6 +124,15 @@ mod tests {
         let sd = white_noise_sd(&noisy).expect("enough samples");
         assert!((sd / 0.005 - 1.0).abs() < 0.05, "{sd}");
         assert_eq!(white_noise_sd(&noisy[..21]), None);
+        // Written in whole mK (as a logger of millidegrees): 2 mK of noise is measured as
+        // the root of 2^2 + 1/12 mK^2, not in steps of the median's whole mK.
+        let steps: Vec<f64> = clean
+            .iter()
+            .map(|t| ((t + 0.002 * rng.normal()) * 1e3).round() / 1e3)
+            .collect();
+        let sd = white_noise_sd(&steps).expect("enough samples");
+        let want = (4.0f64 + 1.0 / 12.0).sqrt() * 1e-3;
+        assert!((sd / want - 1.0).abs() < 0.05, "{sd} {want}");
     }
 
     /// The mean is the mean of the interpolated values, and the squared weights' sum is

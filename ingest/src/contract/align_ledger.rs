@@ -97,6 +97,11 @@ pub struct Counts {
     pub used: u64,
     /// Excluded, by reason.
     pub excluded: BTreeMap<String, u64>,
+    /// The white noise sd of the accelerometer's temperature log over the session, degC,
+    /// from its second differences (docs/model.md 6.5); none without a log of at least 22
+    /// temperatures.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thermometer_sd_c: Option<f64>,
 }
 
 /// An accelerometer that gave no observations in a session.

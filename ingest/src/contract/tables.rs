@@ -192,6 +192,7 @@ pub mod theodolite {
 /// | n_samples | uint32 | samples in the window |
 /// | expected_samples | float64 | window_s x sample_rate_hz |
 /// | temperature_c | float64, null | accelerometer temperature at the reading, degC |
+/// | sigma_temperature_c | float64, null | its sd from the thermometer's noise (the session's estimate for the channel times the root of the interpolation weights' squares), degC; null when there is no temperature or no estimate |
 /// | drift_t | float64, null | t statistic of a linear trend of the counts in the window |
 /// | tide_mgal | float64, null | body tide at the reading's time, mGal; null when none is applied |
 /// | gravity_mgal | float64 | gravity at the proof masses at the reading: g (+ tide), mGal |
@@ -234,6 +235,8 @@ pub mod observations {
     pub const EXPECTED_SAMPLES: &str = "expected_samples";
     /// Temperature, degC.
     pub const TEMPERATURE_C: &str = "temperature_c";
+    /// Its sd from the thermometer's noise, degC.
+    pub const SIGMA_TEMPERATURE_C: &str = "sigma_temperature_c";
     /// Trend t statistic.
     pub const DRIFT_T: &str = "drift_t";
     /// Body tide, mGal.
@@ -264,6 +267,7 @@ pub mod observations {
             Field::new(N_SAMPLES, DataType::UInt32, false),
             Field::new(EXPECTED_SAMPLES, DataType::Float64, false),
             Field::new(TEMPERATURE_C, DataType::Float64, true),
+            Field::new(SIGMA_TEMPERATURE_C, DataType::Float64, true),
             Field::new(DRIFT_T, DataType::Float64, true),
             Field::new(EXCLUDED, DataType::Utf8, true),
             Field::new(TIDE_MGAL, DataType::Float64, true),
