@@ -743,7 +743,12 @@ fn estimate_components(
     let mut theta = 1.0;
     let mut sol = refit(theta, s)?;
     let mut step = components::theodolite_step(&sol, &groups.station, &groups.dof, 0.0);
-    if step.mean >= components::MIN_COMPONENT_DOF {
+    // Whether the component is estimated is decided here, at its a-priori weight: its
+    // degrees of freedom grow with its estimate, and deciding at the converged one kept the
+    // high estimates and held the low ones at 1 (a 0.1 K thermometer's share left about 3
+    // dof, and the kept estimates averaged 1.7).
+    let apriori = step;
+    if apriori.mean >= components::MIN_COMPONENT_DOF {
         for _ in 0..MAX_COMPONENT_ITERATIONS {
             // The theodolite's part of the form is what the coloured noise does not explain.
             let excess = groups.excess(&sol, coloured, true);
@@ -757,7 +762,7 @@ fn estimate_components(
             }
         }
     }
-    let theodolite = components::theodolite_component(theta, &step, at_one);
+    let theodolite = components::theodolite_component(theta, (&apriori, &step), at_one);
     Ok((sol, vec![theodolite, adc]))
 }
 

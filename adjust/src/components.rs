@@ -235,16 +235,21 @@ pub fn theodolite_step(
     between_form(&stations(s, station, dof), |x| x.share, excess)
 }
 
-/// The theodolite component from its last step (`form`, at the converged components) and
-/// its test at the a-priori weights (`at_one`).
-pub fn theodolite_component(estimate: f64, form: &ScaledChi2, at_one: ScaledChi2) -> Component {
-    if form.mean < MIN_COMPONENT_DOF {
+/// The theodolite component from its first and last steps (`apriori`, at its a-priori
+/// weight, which decides whether it is estimated; `form`, at the converged components,
+/// which gives its sd) and its test at the a-priori weights (`at_one`).
+pub fn theodolite_component(
+    estimate: f64,
+    (apriori, form): (&ScaledChi2, &ScaledChi2),
+    at_one: ScaledChi2,
+) -> Component {
+    if apriori.mean < MIN_COMPONENT_DOF {
         return Component::held(
             GROUPS[0],
             at_one,
             format!(
                 "the station means give it {:.1} degrees of freedom (fewer than {MIN_COMPONENT_DOF})",
-                form.mean
+                apriori.mean
             ),
         );
     }

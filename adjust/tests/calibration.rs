@@ -951,8 +951,9 @@ fn monte_carlo_default_is_honest_full() {
 /// the adjustment takes the temperatures as observations and its sigmas hold (sd/sigma and
 /// the Mahalanobis mean within 1 +/- 0.07, 3 se at 1000 replicas; the global test
 /// 2.9-7.1 %). The adjustment alone, at the a-priori weights: with the variance components
-/// estimated as well, the theodolite's comes out about 1.4 (printed for the record, with
-/// the same temperatures taken as exact; docs/model.md 6.1).
+/// estimated as well, the theodolite's on about 6 dof makes the sigmas of b and k 7-10 %
+/// small (printed for the record, with the same temperatures taken as exact; docs/model.md
+/// 6.1).
 #[test]
 fn monte_carlo_with_a_noisy_thermometer() {
     let noisy = Thermometer {
