@@ -134,17 +134,6 @@ fn result(
                 .flatten(),
         )
     });
-    let sds: Vec<[f64; 3]> = used
-        .iter()
-        .filter_map(|&i| positions[i].temperature_sd_c)
-        .collect();
-    let temperature_sd_c = (s.t_ref_c.is_some() && !sds.is_empty()).then(|| {
-        std::array::from_fn(|k| {
-            let mut v: Vec<f64> = sds.iter().map(|sd| sd[k]).collect();
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        })
-    });
     TriadResult {
         model: model.name.clone(),
         session: session.to_owned(),
@@ -153,7 +142,9 @@ fn result(
         temperature: s.model.temperature,
         t_ref_c: s.t_ref_c,
         temperature_range_c,
-        temperature_sd_c,
+        temperature_sd_c: s
+            .t_ref_c
+            .and_then(|_| median_temperature_sd(&used, positions)),
         parameters,
         correlation,
         non_orthogonality_mrad: non_orthogonality(s),
@@ -173,6 +164,22 @@ fn result(
         calib_file: calib_file(&model.name, session, s),
         readings_range: Some(readings_range),
     }
+}
+
+/// Per axis, the median over the positions `used` of their temperatures' sds; none when no
+/// position has them.
+fn median_temperature_sd(used: &[usize], positions: &[Position]) -> Option<[f64; 3]> {
+    let sds: Vec<[f64; 3]> = used
+        .iter()
+        .filter_map(|&i| positions[i].temperature_sd_c)
+        .collect();
+    (!sds.is_empty()).then(|| {
+        std::array::from_fn(|k| {
+            let mut v: Vec<f64> = sds.iter().map(|sd| sd[k]).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        })
+    })
 }
 
 /// The imu_tk file a linear triad model is written to. A model the data reject says so in

@@ -84,6 +84,35 @@ pub(crate) struct Formed {
     pub(crate) multi_position: Vec<MultiPosition>,
 }
 
+/// An accelerometer whose channel no sample of session `id` connected.
+fn never_connected(id: &str, accelerometer: &str, channel: u8) -> Disconnected {
+    Disconnected {
+        session: id.to_owned(),
+        accelerometer: accelerometer.to_owned(),
+        channel,
+        reason: "channel not connected in any sample of the session".to_owned(),
+    }
+}
+
+/// The temperature at a reading's `time` from the series `temps` (value and distance to the
+/// nearest sample), and its sd from the thermometer's noise `sd` through the
+/// interpolation's weights.
+fn reading_temperature(
+    temps: Option<&(Vec<i64>, Vec<f64>)>,
+    time: i64,
+    max_gap_ns: i64,
+    sd: Option<f64>,
+) -> (Option<(f64, i64)>, Option<f64>) {
+    let Some((t, v)) = temps else {
+        return (None, None);
+    };
+    let squares = thermometer::interval_mean(t, v, &[time], max_gap_ns).map(|(_, q)| q);
+    (
+        interpolate(t, v, time, max_gap_ns),
+        squares.zip(sd).map(|(q, sd)| sd * q.sqrt()),
+    )
+}
+
 /// The observations of one session, one per (reading, accelerometer); `never` lists the
 /// channels not connected in any sample, `temps` gives a channel's temperature series.
 pub(crate) fn observe_session<'t>(
@@ -99,12 +128,9 @@ pub(crate) fn observe_session<'t>(
     for acc in &ds.manifest.instrument.accelerometer {
         let ch = usize::from(acc.channel) - 1;
         if never.contains(&acc.channel) {
-            formed.disconnected.push(Disconnected {
-                session: id.to_owned(),
-                accelerometer: acc.id.clone(),
-                channel: acc.channel,
-                reason: "channel not connected in any sample of the session".to_owned(),
-            });
+            formed
+                .disconnected
+                .push(never_connected(id, &acc.id, acc.channel));
             continue;
         }
         let temps = temps(acc.channel);
@@ -128,25 +154,22 @@ pub(crate) fn observe_session<'t>(
             } = sigma.station[p.reading.station.as_str()];
             let left_out = sigma.left_out[k];
             let time = p.reading.time_gps_ns;
-            let temperature = temps.and_then(|(t, v)| interpolate(t, v, time, setup.max_gap_ns));
-            // The interpolation's weights on the log's samples, for the temperature's sd.
-            let squares = temps
-                .and_then(|(t, v)| thermometer::interval_mean(t, v, &[time], setup.max_gap_ns))
-                .map(|(_, squares)| squares);
+            let (temperature, sigma_temperature_c) =
+                reading_temperature(temps, time, setup.max_gap_ns, thermometer_sd);
             let has_temperatures = temps.is_some_and(|(t, _)| !t.is_empty());
             let excluded = setup.exclusion(w, stats, has_temperatures, temperature.map(|(v, _)| v));
             match excluded {
                 Some(r) => *c.excluded.entry(r.to_owned()).or_default() += 1,
                 None => c.used += 1,
             }
-            let tide_mgal = setup.tide(p.reading.time_gps_ns);
+            let tide_mgal = setup.tide(time);
             formed.observations.push(Observation {
                 session: id.to_owned(),
                 accelerometer: acc.id.clone(),
                 channel: acc.channel,
                 station: p.reading.station.clone(),
                 line: p.reading.line,
-                time_gps_ns: p.reading.time_gps_ns,
+                time_gps_ns: time,
                 dz_rad: p.reading.dz_rad,
                 sigma_dz_rad,
                 sigma_dz_source: source,
@@ -160,7 +183,7 @@ pub(crate) fn observe_session<'t>(
                 n_samples: w.n,
                 expected_samples: setup.expected,
                 temperature_c: temperature.map(|(v, _)| v),
-                sigma_temperature_c: squares.zip(thermometer_sd).map(|(q, sd)| sd * q.sqrt()),
+                sigma_temperature_c,
                 drift_t: stats.map(|s| s.drift_t),
                 excluded,
                 tide_mgal,

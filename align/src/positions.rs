@@ -123,25 +123,12 @@ pub(crate) fn session_positions(
                 .map_or(0.0, |n| n.coloured_variance(duration_s));
             (white[k] * white[k] + coloured).sqrt()
         });
-        let temperature = [1u8, 2, 3].map(|ch| {
-            let (t, v) = temperatures.get(&(w, ch))?;
-            thermometer::interval_mean(t, v, &data.time_ns[i..j], setup.max_gap_ns)
-        });
-        let (temperature_c, temperature_sd_c) = match temperature {
-            [Some(a), Some(b), Some(c)] => {
-                let sd = std::array::from_fn(|k| {
-                    mp.thermometer_sd_c[k].map(|sd| sd * [a, b, c][k].1.sqrt())
-                });
-                (
-                    Some([a.0, b.0, c.0]),
-                    match sd {
-                        [Some(a), Some(b), Some(c)] => Some([a, b, c]),
-                        _ => None,
-                    },
-                )
-            }
-            _ => (None, None),
-        };
+        let (temperature_c, temperature_sd_c) = position_temperatures(
+            temperatures,
+            w,
+            (&data.time_ns[i..j], setup.max_gap_ns),
+            mp.thermometer_sd_c,
+        );
         mp.positions.push(StaticPosition {
             start_gps_ns: t0,
             end_gps_ns: t1,
@@ -156,6 +143,29 @@ pub(crate) fn session_positions(
     }
     mp.used = mp.positions.len() as u64;
     Ok(mp)
+}
+
+/// A position's temperature per channel over the sample `times` of session `w`, and their
+/// sds from the thermometer's noise `thermometer_sd_c`: none unless every channel has one.
+fn position_temperatures(
+    temperatures: &read::Temperatures,
+    w: u16,
+    (times, max_gap_ns): (&[i64], i64),
+    thermometer_sd_c: [Option<f64>; 3],
+) -> (Option<[f64; 3]>, Option<[f64; 3]>) {
+    let all = |v: [Option<f64>; 3]| match v {
+        [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+        _ => None,
+    };
+    let means = [1u8, 2, 3].map(|ch| {
+        let (t, v) = temperatures.get(&(w, ch))?;
+        thermometer::interval_mean(t, v, times, max_gap_ns)
+    });
+    let sd = std::array::from_fn(|k| Some(thermometer_sd_c[k]? * means[k]?.1.sqrt()));
+    match all(means.map(|m| m.map(|m| m.0))) {
+        Some(t) => (Some(t), all(sd)),
+        None => (None, None),
+    }
 }
 
 /// One point of an Allan curve for align.json.
