@@ -1211,3 +1211,4 @@ fn snooping_holds_its_level() {
         );
     }
 }
+
