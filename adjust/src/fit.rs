@@ -73,47 +73,8 @@ pub fn fit(
         return Err(FitError::Degree(degree));
     }
     assert_eq!(x.len(), y.len(), "x and y of equal length");
-    let n = x.len();
-    let mut l = Vec::with_capacity(n);
-    let mut sigma = Vec::with_capacity(n);
-    for i in 0..n {
-        let sx = sigma_x.map_or(0.0, |s| s[i]);
-        let sy = sigma_y.map_or(1.0, |s| s[i]);
-        if !(x[i].is_finite() && y[i].is_finite() && sx.is_finite() && sy.is_finite())
-            || sx < 0.0
-            || sy <= 0.0
-        {
-            return Err(FitError::BadValue {
-                row: i + 1,
-                message: format!(
-                    "x {} y {} sigma_x {sx} sigma_y {sy}: values must be finite, sigma_y > 0, sigma_x >= 0",
-                    x[i], y[i]
-                ),
-            });
-        }
-        l.push([x[i], y[i]]);
-        sigma.push([sx, sy]);
-    }
-    let (lo, hi) = x
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    let centre = 0.5 * lo + 0.5 * hi;
-    let scale = if hi > lo { 0.5 * hi - 0.5 * lo } else { 1.0 };
-    let largest = lo.abs().max(hi.abs());
-    if n > 0
-        && !(largest
-            .powi(i32::try_from(degree).unwrap_or(i32::MAX))
-            .is_finite()
-            && scale.is_finite())
-    {
-        return Err(FitError::Overflow(format!(
-            "x reaches {largest:e}: x^{degree} is beyond a double (about 1.8e308), so the \
-             coefficients cannot be represented; rescale x (e.g. fit in x / {:e})",
-            10f64.powi(largest.log10().floor() as i32)
-        )));
-    }
+    let (l, sigma) = observations(x, y, sigma_x, sigma_y)?;
+    let (centre, scale) = centre_and_scale(x, degree)?;
     let model = Polynomial {
         degree,
         centre,
@@ -151,11 +112,87 @@ pub fn fit(
         })
         .collect();
     let parameters: Vec<FitParameter> = parameters;
+    check_finite(&parameters, sigma0, residual_sd)?;
+    Ok(FitOutput {
+        parameters,
+        sigma0,
+        residual_sd,
+        dof,
+        iterations: s.iterations,
+    })
+}
+
+/// Per observation, a pair: (x, y), or their sds.
+type Pairs = Vec<[f64; 2]>;
+
+/// The observations `(x, y)` and their sds (sigma_x 0 and sigma_y 1 when not given), each
+/// checked: finite, sigma_y > 0, sigma_x >= 0; a bad one named by its row.
+fn observations(
+    x: &[f64],
+    y: &[f64],
+    sigma_x: Option<&[f64]>,
+    sigma_y: Option<&[f64]>,
+) -> Result<(Pairs, Pairs), FitError> {
+    let n = x.len();
+    let mut l = Vec::with_capacity(n);
+    let mut sigma = Vec::with_capacity(n);
+    for i in 0..n {
+        let sx = sigma_x.map_or(0.0, |s| s[i]);
+        let sy = sigma_y.map_or(1.0, |s| s[i]);
+        if !(x[i].is_finite() && y[i].is_finite() && sx.is_finite() && sy.is_finite())
+            || sx < 0.0
+            || sy <= 0.0
+        {
+            return Err(FitError::BadValue {
+                row: i + 1,
+                message: format!(
+                    "x {} y {} sigma_x {sx} sigma_y {sy}: values must be finite, sigma_y > 0, sigma_x >= 0",
+                    x[i], y[i]
+                ),
+            });
+        }
+        l.push([x[i], y[i]]);
+        sigma.push([sx, sy]);
+    }
+    Ok((l, sigma))
+}
+
+/// The centre and half-range of `x` the polynomial is formed in; an error when x^degree
+/// is beyond a double.
+fn centre_and_scale(x: &[f64], degree: usize) -> Result<(f64, f64), FitError> {
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let centre = 0.5 * lo + 0.5 * hi;
+    let scale = if hi > lo { 0.5 * hi - 0.5 * lo } else { 1.0 };
+    let largest = lo.abs().max(hi.abs());
+    let representable = largest
+        .powi(i32::try_from(degree).unwrap_or(i32::MAX))
+        .is_finite()
+        && scale.is_finite();
+    if !(x.is_empty() || representable) {
+        return Err(FitError::Overflow(format!(
+            "x reaches {largest:e}: x^{degree} is beyond a double (about 1.8e308), so the \
+             coefficients cannot be represented; rescale x (e.g. fit in x / {:e})",
+            10f64.powi(largest.log10().floor() as i32)
+        )));
+    }
+    Ok((centre, scale))
+}
+
+/// An error when a parameter, its a-priori sd, sigma0 or the residual sd is not a finite
+/// number (with finite weights no a-priori sd is 0: one that is has underflowed).
+fn check_finite(
+    parameters: &[FitParameter],
+    sigma0: f64,
+    residual_sd: f64,
+) -> Result<(), FitError> {
     if let Some(p) = parameters
         .iter()
         .find(|p| !(p.value.is_finite() && p.sigma_apriori.is_finite() && p.sigma_apriori > 0.0))
     {
-        // With finite weights no a-priori sd is 0: one that is has underflowed.
         return Err(FitError::Overflow(format!(
             "{} came out as {} with an a-priori sd of {}: the arithmetic over- or \
              underflowed (x or y too large or too small for their powers); rescale them",
@@ -168,13 +205,7 @@ pub fn fit(
              x and y"
         )));
     }
-    Ok(FitOutput {
-        parameters,
-        sigma0,
-        residual_sd,
-        dof,
-        iterations: s.iterations,
-    })
+    Ok(())
 }
 
 /// `a + b` as a sum and its rounding error.

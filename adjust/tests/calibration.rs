@@ -1211,4 +1211,3 @@ fn snooping_holds_its_level() {
         );
     }
 }
-

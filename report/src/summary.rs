@@ -28,14 +28,36 @@ pub(crate) fn with_sigma(p: &Parameter) -> String {
 pub(crate) fn summary_section(st: &Stages<'_>) -> Section {
     let cal = &st.cal;
     let mut s = section("Summary: the calibrations");
+    s.text.push(models_sentence(cal, &st.align_report.surveys));
+    let t = calibrations_table(cal);
+    if !t.rows.is_empty() {
+        s.tables.push(("Calibrations".to_owned(), t));
+    }
+    s.text.extend(global_test_advice(cal));
+    if !cal.skipped.is_empty() {
+        let mut k = Table::new(&["model", "accelerometer", "session", "why not"]);
+        for f in &cal.skipped {
+            k.rows.push(vec![
+                f.model.clone(),
+                f.accelerometer.clone(),
+                f.session.clone(),
+                f.reason.clone(),
+            ]);
+        }
+        s.tables.push(("Fits not made".to_owned(), k));
+    }
+    s
+}
+
+/// What the dataset's models are, and how `apply` chooses among them; or why there is none.
+fn models_sentence(cal: &Calibration, surveys: &[String]) -> String {
     let models: std::collections::BTreeSet<&str> = cal
         .results
         .iter()
         .map(|r| r.model.as_str())
         .chain(cal.triad.iter().map(|t| t.model.as_str()))
         .collect();
-    let surveys = &st.align_report.surveys;
-    s.text.push(match models.len() {
+    match models.len() {
         0 if cal.skipped.is_empty() && !surveys.is_empty() => format!(
             "A survey dataset: nothing here to calibrate (no tilt-table or multi-position \
              session). Its survey sessions ({}) are calibrated by `cargo xtask apply <dataset> \
@@ -52,7 +74,12 @@ pub(crate) fn summary_section(st: &Stages<'_>) -> Section {
             "{n} models ({}): `cargo xtask apply --model M` chooses the one to apply; sigmas are at the estimated variance components.",
             models.iter().copied().collect::<Vec<_>>().join(", ")
         ),
-    });
+    }
+}
+
+/// One row per fit, axis and triad: what was fitted, its parameters with sigmas, and its
+/// statistics.
+fn calibrations_table(cal: &Calibration) -> Table {
     let mut t = Table::new(&[
         "model",
         "accelerometer",
@@ -63,83 +90,64 @@ pub(crate) fn summary_section(st: &Stages<'_>) -> Section {
         "used / removed",
         "verdict",
     ]);
-    // One row: what was fitted, its parameters with sigmas, and its statistics.
-    let row = |who: [&str; 3],
-               parameters: &[Parameter],
-               t_ref: Option<f64>,
-               gt: &calibration::GlobalTest,
-               sigma0: f64,
-               used: String| {
-        let calibration = parameters
-            .iter()
-            .map(with_sigma)
-            .collect::<Vec<_>>()
-            .join("; ")
-            + &t_ref.map_or(String::new(), |t| format!(" (at t_ref {t:.2} degC)"));
-        let passed = if gt.passed { "passed" } else { "FAILED" };
-        let mut cells: Vec<String> = who.iter().map(|w| (*w).to_owned()).collect();
-        cells.extend([
-            calibration,
-            format!("{sigma0:.3}"),
-            passed.to_owned(),
-            used,
-            verdict(gt).to_owned(),
-        ]);
-        cells
-    };
     for r in &cal.results {
-        t.rows.push(row(
+        t.rows.push(summary_row(
             [&r.model, &r.accelerometer, &r.session],
-            &r.parameters,
-            r.t_ref_c,
-            &r.global_test,
-            r.sigma0,
+            (&r.parameters, r.t_ref_c),
+            (&r.global_test, r.sigma0),
             format!("{} / {}", r.n_observations, r.n_excluded),
         ));
     }
     for r in &cal.triad {
         let removed = r.positions.iter().filter(|p| p.removed).count();
-        t.rows.push(row(
+        t.rows.push(summary_row(
             [&r.model, "triad (x, y, z)", &r.session],
-            &r.parameters,
-            None,
-            &r.global_test,
-            r.sigma0,
+            (&r.parameters, None),
+            (&r.global_test, r.sigma0),
             format!("{} positions / {removed}", r.positions_used),
         ));
     }
-    if !t.rows.is_empty() {
-        s.tables.push(("Calibrations".to_owned(), t));
-    }
-    for r in &cal.results {
-        if let Some(a) = r.global_test.advice(
+    t
+}
+
+/// A row of the calibrations' table.
+fn summary_row(
+    who: [&str; 3],
+    (parameters, t_ref): (&[Parameter], Option<f64>),
+    (gt, sigma0): (&calibration::GlobalTest, f64),
+    used: String,
+) -> Vec<String> {
+    let calibration = parameters
+        .iter()
+        .map(with_sigma)
+        .collect::<Vec<_>>()
+        .join("; ")
+        + &t_ref.map_or(String::new(), |t| format!(" (at t_ref {t:.2} degC)"));
+    let passed = if gt.passed { "passed" } else { "FAILED" };
+    let mut cells: Vec<String> = who.iter().map(|w| (*w).to_owned()).collect();
+    cells.extend([
+        calibration,
+        format!("{sigma0:.3}"),
+        passed.to_owned(),
+        used,
+        verdict(gt).to_owned(),
+    ]);
+    cells
+}
+
+/// What each failed global test means and what to try, axis fits first.
+fn global_test_advice(cal: &Calibration) -> Vec<String> {
+    let axis = cal.results.iter().filter_map(|r| {
+        r.global_test.advice(
             &format!("{} {} {}", r.model, r.accelerometer, r.session),
             false,
-        ) {
-            s.text.push(a);
-        }
-    }
-    for r in &cal.triad {
-        if let Some(a) = r
-            .global_test
+        )
+    });
+    let triad = cal.triad.iter().filter_map(|r| {
+        r.global_test
             .advice(&format!("triad {} {}", r.model, r.session), true)
-        {
-            s.text.push(a);
-        }
-    }
-    if !cal.skipped.is_empty() {
-        let mut k = Table::new(&["model", "accelerometer", "session", "why not"]);
-        for f in &cal.skipped {
-            k.rows.push(vec![
-                f.model.clone(),
-                f.accelerometer.clone(),
-                f.session.clone(),
-                f.reason.clone(),
-            ]);
-        }
-        s.tables.push(("Fits not made".to_owned(), k));
-    }
-    s
+    });
+    axis.chain(triad).collect()
 }
 
 /// Appendix: the inputs' hashes and the chain of custody.
