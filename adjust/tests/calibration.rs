@@ -507,10 +507,14 @@ fn window_means(
     });
     let mut out = vec![WindowMean::default(); design.len()];
     let half = WINDOW_SAMPLES as f64 * SAMPLE_S / 2.0;
-    for session in 0..2 {
+    let sessions = design.iter().map(|r| r.session).max().map_or(0, |m| m + 1);
+    for session in 0..sessions {
         let mut order: Vec<usize> = (0..design.len())
             .filter(|&i| design[i].session == session)
             .collect();
+        if order.is_empty() {
+            continue;
+        }
         order.sort_by(|&a, &b| design[a].time_s.total_cmp(&design[b].time_s));
         let mut process = fixtures::colour::Coloured::new(coloured, rng);
         let mut now = design[order[0]].time_s - half;
@@ -570,10 +574,13 @@ fn station_weights(design: &[McReading], dz: &[f64], weights: Weights) -> Vec<(f
         })
         .collect();
     let mut out = vec![(0.0, None); stations];
-    for session in 0..2 {
+    for session in 0..=session_of.iter().copied().max().unwrap_or(0) {
         let idx: Vec<usize> = (0..stations)
             .filter(|&j| session_of[j] == session)
             .collect();
+        if idx.is_empty() {
+            continue;
+        }
         let sub: Vec<(f64, f64)> = idx.iter().map(|&j| own[j]).collect();
         let m = align::weights::moderate(&sub).expect("stations with readings");
         let pooled: f64 = sub.iter().map(|x| x.1).sum();
@@ -622,10 +629,13 @@ fn left_out_weights(
         (var, n - 1.0)
     };
     let mut out = vec![None; design.len()];
-    for session in 0..2 {
+    for session in 0..=design.iter().map(|r| r.session).max().unwrap_or(0) {
         let idx: Vec<usize> = (0..stations)
             .filter(|&j| by[j].first().is_some_and(|&k| design[k].session == session))
             .collect();
+        if idx.is_empty() {
+            continue;
+        }
         let sub: Vec<(f64, f64)> = idx.iter().map(|&j| own(&by[j])).collect();
         let m = align::weights::moderate(&sub).expect("stations with readings");
         let pooled: f64 = sub.iter().map(|x| x.1).sum();
@@ -1209,5 +1219,132 @@ fn snooping_holds_its_level() {
             (power - 0.8).abs() <= 0.1,
             "{label}: power at the MDB {power}"
         );
+    }
+}
+
+/// What the per-session study varies, one thing at a time.
+#[derive(Clone, Copy, Debug)]
+enum Varied {
+    /// esgt-2005's day as simulated: its accelerometer's temperature moving by a few mK
+    /// over the half hour, which a per-session linear model does not include.
+    AsSimulated,
+    /// The temperature held at the day's mean: nothing the model does not include.
+    ConstantTemperature,
+    /// As simulated, with a wander added: a random walk reaching 5 mK sd in 50 minutes.
+    Wander,
+}
+
+/// rms of (estimate - truth) / sigma for b and k, and the global test's rejection rate,
+/// over `replicas` per-session linear fits of esgt-2005's day 1 for accelerometer `acc`
+/// (0-based), default weights and components, white ADC noise. The truth is b and k at the
+/// day's mean temperature: a temperature moving within the day is, for this model, an error
+/// it does not carry.
+fn per_session_study(replicas: usize, acc: usize, varied: Varied) -> ([f64; 2], f64) {
+    let truth = fixtures::read_truth(&fixtures::dataset_dir("esgt-2005")).expect("truth");
+    let a = &truth.accelerometer[acc];
+    let day: Vec<&fixtures::write::ReadingTruth> = truth
+        .reading
+        .iter()
+        .filter(|r| r.session == "day1")
+        .collect();
+    let mean_t = day.iter().map(|r| r.temperature_c[acc]).sum::<f64>() / day.len() as f64;
+    let t0 = day[0].time_gps_ns;
+    let mut keys: Vec<&str> = Vec::new();
+    let mut rng = fixtures::rng::Rng::new(20_261_126, "per-session study");
+    let terms = adjust::model::Terms {
+        order: 1,
+        temperature: false,
+        misalignment: adjust::model::Misalignment::None,
+    };
+    let tau = mean_t - truth.t_ref_c;
+    let want = [
+        a.b_mgal + a.b_t_mgal_per_c * tau,
+        a.k_mgal_per_bit + a.k_t_mgal_per_bit_per_c * tau,
+    ];
+    let (mut z2, mut rejected, mut n) = ([0.0; 2], 0, 0);
+    for _ in 0..replicas {
+        // The wander: a random walk of variance (5 mK)^2 per 50 minutes, from 0.
+        let mut wander = 0.0;
+        let mut last_s = 0.0;
+        let design: Vec<McReading> = day
+            .iter()
+            .map(|r| {
+                let time_s = (r.time_gps_ns - t0) as f64 * 1e-9;
+                if matches!(varied, Varied::Wander) {
+                    wander += 0.005 * ((time_s - last_s) / 3000.0).sqrt() * rng.normal();
+                }
+                last_s = time_s;
+                let t = match varied {
+                    Varied::ConstantTemperature => mean_t,
+                    _ => r.temperature_c[acc] + wander,
+                } - truth.t_ref_c;
+                if !keys.contains(&r.station.as_str()) {
+                    keys.push(&r.station);
+                }
+                let g = truth.gravity_mgal + r.tide_mgal;
+                McReading {
+                    station: keys.iter().position(|k| *k == r.station).unwrap_or(0),
+                    session: 0,
+                    dz_true_rad: r.dz_true_rad,
+                    sigma_dz_rad: r.sigma_dz_rad,
+                    ng_true: (-g * r.dz_true_rad.cos() - a.b_mgal - a.b_t_mgal_per_c * t)
+                        / (a.k_mgal_per_bit + a.k_t_mgal_per_bit_per_c * t),
+                    sigma_sample_bits: r.sigma_sample_bits[acc],
+                    temperature_c: r.temperature_c[acc],
+                    tide_mgal: r.tide_mgal,
+                    time_s,
+                }
+            })
+            .collect();
+        let dz: Vec<f64> = design
+            .iter()
+            .map(|r| r.dz_true_rad + r.sigma_dz_rad * rng.normal())
+            .collect();
+        let means = window_means(&design, None, &mut rng);
+        let obs = replica_obs(&design, &dz, &means, Weights::Moderated);
+        let Ok(f) = adjust::calibrate::calibrate(&obs, terms, truth.gravity_mgal) else {
+            continue;
+        };
+        for j in 0..2 {
+            z2[j] += ((f.values[j] - want[j]) / f.sigma(j)).powi(2);
+        }
+        rejected += usize::from(!f.global_test_passed());
+        n += 1;
+    }
+    let n = f64::from(u32::try_from(n).unwrap_or(u32::MAX));
+    (
+        z2.map(|s| (s / n).sqrt()),
+        f64::from(u32::try_from(rejected).unwrap_or(u32::MAX)) / n,
+    )
+}
+
+/// The independent simulation's sigmas came out 16-28 % small for the per-session linear
+/// fits. One thing at a time on esgt-2005's day 1, 300 replicas each, printed for the
+/// record (docs/model.md 6.1): the temperature held at the day's mean, as simulated (it
+/// moves by 6-14 mK over the half hour), and with a 5 mK wander added. Asserted: with the
+/// temperature held, the rms z of b and k is within 0.15 of 1 (it is 1.09-1.12: the
+/// theodolite's component on about 12 dof makes z a t, not a normal).
+#[test]
+fn per_session_fits_one_thing_at_a_time() {
+    let replicas = 300;
+    for acc in 0..3 {
+        for varied in [
+            Varied::ConstantTemperature,
+            Varied::AsSimulated,
+            Varied::Wander,
+        ] {
+            let ([zb, zk], rate) = per_session_study(replicas, acc, varied);
+            eprintln!(
+                "per-session linear fit, acc{} day1, {varied:?}, {replicas} replicas: rms z b {zb:.3}, k {zk:.3}; global test rejects {:.1} %",
+                acc + 1,
+                100.0 * rate
+            );
+            if matches!(varied, Varied::ConstantTemperature) {
+                assert!(
+                    (zb - 1.0).abs() < 0.15 && (zk - 1.0).abs() < 0.15,
+                    "{zb} {zk}"
+                );
+            }
+        }
     }
 }
