@@ -133,6 +133,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
             }),
         }
     }
+    thermal_warnings(&mut results);
     let adc_noise = kalibr_noise(&align_report, &results);
     let (triad, triad_skipped) = triad_fits::fit_all(&ds, &models, &align_report);
     skipped.extend(triad_skipped);

@@ -136,6 +136,13 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
         ) {
             let _ = writeln!(w, "adjust: {advice}");
         }
+        for note in &r.warnings {
+            let _ = writeln!(
+                w,
+                "adjust: {} {} {}: {note}",
+                r.model, r.accelerometer, r.session
+            );
+        }
     }
     if let Some(advice) = c.component_advice() {
         let _ = writeln!(w, "adjust: {advice}");

@@ -252,3 +252,56 @@ pub fn misalignment_vector(f: &calibrate::CalibrationSolution, terms: Terms) -> 
 
 /// theta must exceed this many sds for its direction psi to be given.
 pub(crate) const PSI_SIGMAS: f64 = 3.0;
+
+/// A temperature effect this large against sigma_b is named (docs/model.md 6.1).
+pub(crate) const THERMAL_NOTE_SIGMAS: f64 = 0.3;
+
+/// Each fit without temperature terms whose observations' temperature moved: when a fit
+/// of the same accelerometer with temperature terms gives its sensitivity dc/dT =
+/// b_t + k_t Ng, the largest change that movement makes over the fit's counts, against
+/// sigma_b, is a warning of what the model takes for noise it does not weigh (on
+/// esgt-2005's day 1, a few mK made the rms z of b 1.28-1.42 where 1.10 without it).
+pub(crate) fn thermal_warnings(results: &mut [CalibrationResult]) {
+    let sensitivities: Vec<(String, String, f64, f64)> = results
+        .iter()
+        .filter(|r| r.temperature)
+        .filter_map(|r| {
+            let value = |name: &str| r.parameters.iter().find(|p| p.name == name);
+            Some((
+                r.accelerometer.clone(),
+                r.model.clone(),
+                value("b_t")?.value,
+                value("k_t")?.value,
+            ))
+        })
+        .collect();
+    for r in results.iter_mut().filter(|r| !r.temperature) {
+        let (Some([t_lo, t_hi]), Some([n_lo, n_hi])) = (r.temperature_range_c, r.counts_range)
+        else {
+            continue;
+        };
+        let Some(sigma_b) = r.parameters.iter().find(|p| p.name == "b").map(|p| p.sigma) else {
+            continue;
+        };
+        let Some((_, model, b_t, k_t)) = sensitivities.iter().find(|s| s.0 == r.accelerometer)
+        else {
+            continue;
+        };
+        let (lo, hi) = (b_t + k_t * n_lo, b_t + k_t * n_hi);
+        let effect = lo.abs().max(hi.abs()) * (t_hi - t_lo);
+        if effect > THERMAL_NOTE_SIGMAS * sigma_b {
+            r.warnings.push(format!(
+                "the temperature moved by {:.1} mK over the observations (their range, a \
+                 thermometer's noise included); model {model} \
+                 gives this accelerometer dc/dT = b_t + k_t Ng of {:.0} to {:.0} mGal/K over \
+                 these counts, so up to {effect:.2} mGal ({:.1} sigma of b) that this model, \
+                 without temperature terms, takes as noise its sigmas do not carry: prefer \
+                 {model}, or a session at a steadier temperature",
+                1e3 * (t_hi - t_lo),
+                lo.min(hi),
+                lo.max(hi),
+                effect / sigma_b
+            ));
+        }
+    }
+}

@@ -97,6 +97,27 @@ fn replica_recovers_the_truth() {
     let linear: Vec<&CalibrationResult> =
         c.results.iter().filter(|r| r.model == "linear").collect();
     assert_eq!(linear.len(), 5);
+    // The linear fits of acc1 and acc3, whose temperature moved within the day, say what
+    // that does with the thermal model's sensitivity (docs/model.md 6.1); acc2 has no
+    // thermal model to say it with, and the thermal fits carry the temperature.
+    let moved = |r: &&CalibrationResult| r.warnings.iter().any(|w| w.contains("temperature moved"));
+    let warned: Vec<(&str, &str)> = c
+        .results
+        .iter()
+        .filter(moved)
+        .map(|r| (r.accelerometer.as_str(), r.session.as_str()))
+        .collect();
+    assert_eq!(
+        warned,
+        [
+            ("acc1", "day1"),
+            ("acc1", "day2"),
+            ("acc3", "day1"),
+            ("acc3", "day2")
+        ],
+        "{:?}",
+        c.results.iter().map(|r| &r.warnings).collect::<Vec<_>>()
+    );
     let mut z: Vec<(String, f64)> = Vec::new();
     let (mut chance_removals, mut tested) = (0usize, 0usize);
     for r in &linear {

@@ -272,7 +272,8 @@ pub struct CalibrationResult {
     /// Each removed observation with its w-test value.
     pub removed: Vec<Removed>,
     /// Notes on estimability (a parameter correlated above 0.999 with another; a vector
-    /// misalignment that one roll could not determine).
+    /// misalignment that one roll could not determine), and on what the model does not
+    /// carry (a temperature that moved, for a model without temperature terms).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
     /// The misalignment vector as a magnitude and a direction (models with
