@@ -4,7 +4,8 @@
 //! ([`crate::calibrate::calibrate_with`], same conditions, same design check, no snooping,
 //! no variance components): the predicted sigmas are the a-priori sigmas of that
 //! adjustment. Also each parameter's correlations, the minimal detectable bias of a
-//! theodolite reading and of a window mean (Baarda: alpha 0.001, power 0.80), and for a
+//! theodolite reading and of a window mean (alpha 0.001, power 0.80: as the pipeline's
+//! w-test on the station's other readings finds it, and Baarda's), and for a
 //! parameter the plan cannot determine, what would fix it. The plan's format is in
 //! docs/planning.md. No I/O.
 
@@ -113,13 +114,20 @@ pub struct Predicted {
     pub sigma: f64,
 }
 
-/// Minimal detectable biases over the observations of a fit.
+/// Minimal detectable biases over the observations of a fit: as the pipeline's w-test
+/// detects them (its reading's sigma_Dz from the station's other readings, a t on n - 2
+/// dof; the moderation toward the session's variance adds dof and lowers them toward
+/// Baarda's), and with sigma_Dz known (Baarda's 4.13).
 #[derive(Clone, Debug, Serialize)]
 pub struct Mdb {
     /// Of one theodolite reading, arcsec: median and largest over the readings.
     pub dz_arcsec: [f64; 2],
     /// Of one window mean, counts: median and largest.
     pub ng_counts: [f64; 2],
+    /// The same with sigma_Dz known.
+    pub dz_arcsec_known: [f64; 2],
+    /// The same with sigma_Dz known.
+    pub ng_counts_known: [f64; 2],
 }
 
 /// What the plan gives one fit.
@@ -451,20 +459,33 @@ fn fix_for(parameter: &str) -> &'static str {
     }
 }
 
-/// Baarda's minimal detectable bias of each reading and window mean: the bias whose w-test
-/// reaches the non-centrality [`DELTA_0`], `DELTA_0 sqrt(q_i / r_i) / |B_ij|`.
+/// The minimal detectable bias of each reading and window mean: the bias whose w-test
+/// reaches the non-centrality `delta`, `delta sqrt(q_i / r_i) / |B_ij|`, with `delta` that
+/// of a t on n - 2 dof for a station of n readings ([`calibrate::mdb_noncentrality`]), and
+/// Baarda's [`DELTA_0`].
 fn mdb(plan: &Plan, obs: &[Obs], f: &calibrate::CalibrationSolution) -> Mdb {
     let k = plan.instrument.k_mgal_per_bit.abs();
-    let mut dz = Vec::new();
-    let mut ng = Vec::new();
+    let stations = obs.iter().map(|o| o.station).max().map_or(0, |m| m + 1);
+    let mut readings = vec![0usize; stations];
+    for o in obs {
+        readings[o.station] += 1;
+    }
+    let (mut dz, mut ng, mut dz_known, mut ng_known) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for r in &f.residuals {
         let o = &obs[r.index];
         let b0 = plan.site.g_mgal * o.dz_rad.sin().abs();
         let q = (b0 * o.sigma_dz_rad).powi(2) + (k * o.sigma_ng).powi(2);
         if r.redundancy > 1e-9 {
-            let base = DELTA_0 * (q / r.redundancy).sqrt();
-            dz.push((base / b0).to_degrees() * 3600.0);
-            ng.push(base / k);
+            let dof = (readings[o.station] > 2).then(|| (readings[o.station] - 2) as f64);
+            for (delta, dz, ng) in [
+                (calibrate::mdb_noncentrality(dof), &mut dz, &mut ng),
+                (DELTA_0, &mut dz_known, &mut ng_known),
+            ] {
+                let base = delta * (q / r.redundancy).sqrt();
+                dz.push((base / b0).to_degrees() * 3600.0);
+                ng.push(base / k);
+            }
         }
     }
     let stats = |mut v: Vec<f64>| {
@@ -478,6 +499,8 @@ fn mdb(plan: &Plan, obs: &[Obs], f: &calibrate::CalibrationSolution) -> Mdb {
     Mdb {
         dz_arcsec: stats(dz),
         ng_counts: stats(ng),
+        dz_arcsec_known: stats(dz_known),
+        ng_counts_known: stats(ng_known),
     }
 }
 
@@ -506,8 +529,13 @@ pub fn render(predictions: &[FitPrediction]) -> String {
         }
         if let Some(m) = &p.mdb {
             s += &format!(
-                "  MDB (alpha 0.001, power 0.80): theodolite reading {:.2} arcsec (worst {:.2}), window mean {:.2} counts (worst {:.2})\n",
-                m.dz_arcsec[0], m.dz_arcsec[1], m.ng_counts[0], m.ng_counts[1]
+                "  MDB (alpha 0.001, power 0.80; each reading tested on its station's other readings, a t on n - 2 dof): theodolite reading {:.2} arcsec (worst {:.2}), window mean {:.2} counts (worst {:.2}); with sigma_Dz known (Baarda): {:.2} arcsec, {:.2} counts\n",
+                m.dz_arcsec[0],
+                m.dz_arcsec[1],
+                m.ng_counts[0],
+                m.ng_counts[1],
+                m.dz_arcsec_known[0],
+                m.ng_counts_known[0]
             );
         }
         for n in &p.not_estimable {

@@ -125,7 +125,20 @@ fn the_papers_design_names_what_it_cannot_determine() {
         .find(|x| x.model == "linear")
         .expect("linear");
     assert!(linear.not_estimable.is_empty());
-    assert!(linear.mdb.is_some());
+    // The MDB as the w-test on the station's other readings finds it (a t on n - 2 = 13
+    // dof for 15 readings a station), and Baarda's with sigma_Dz known: larger by the ratio
+    // of their non-centralities.
+    let mdb = linear.mdb.as_ref().expect("an MDB");
+    let ratio = adjust::calibrate::mdb_noncentrality(Some(13.0)) / adjust::plan::DELTA_0;
+    for (t, known) in [
+        (mdb.dz_arcsec[0], mdb.dz_arcsec_known[0]),
+        (mdb.ng_counts[0], mdb.ng_counts_known[0]),
+    ] {
+        assert!(
+            ratio > 1.2 && (t / known / ratio - 1.0).abs() < 0.02,
+            "{t} {known} {ratio}"
+        );
+    }
 }
 
 /// The two-roll plan's observations with the sensitive axis misaligned by `theta` at `psi`.
