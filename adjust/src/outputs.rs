@@ -72,77 +72,10 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
         );
     }
     for t in &c.triad {
-        let removed = t.positions.iter().filter(|p| p.removed).count();
-        let p: Vec<String> = t
-            .parameters
-            .iter()
-            .map(|p| format!("{} = {:.6e} +/- {:.1e}", p.name, p.value, p.sigma))
-            .collect();
-        let _ = writeln!(
-            w,
-            "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed{}, global test {}; {}",
-            t.model,
-            t.session,
-            p.join(", "),
-            t.sigma0,
-            t.positions_used,
-            match t.positions_without_temperature {
-                0 => String::new(),
-                n => format!(", {n} without temperature left out"),
-            },
-            if t.global_test.passed {
-                "passed"
-            } else {
-                "failed"
-            },
-            t.calib_file.as_ref().map_or_else(
-                || "no imu_tk file (its layout has no higher orders or temperature terms)"
-                    .to_owned(),
-                |f| format!("wrote {f}")
-            )
-        );
-        if let Some(advice) = t
-            .global_test
-            .advice(&format!("triad {} {}", t.model, t.session), true)
-        {
-            let _ = writeln!(w, "adjust: {advice}");
-        }
+        print_triad(t, w);
     }
     for r in &c.results {
-        let p: Vec<String> = r
-            .parameters
-            .iter()
-            .map(|p| format!("{} = {:.6e} +/- {:.2e}", p.name, p.value, p.sigma))
-            .collect();
-        let _ = writeln!(
-            w,
-            "adjust: {} {} {}: {}; sigma0 {:.3}, {} obs, {} removed, global test {}",
-            r.model,
-            r.accelerometer,
-            r.session,
-            p.join(", "),
-            r.sigma0,
-            r.n_observations,
-            r.n_excluded,
-            if r.global_test.passed {
-                "passed"
-            } else {
-                "FAILED"
-            }
-        );
-        if let Some(advice) = r.global_test.advice(
-            &format!("{} {} {}", r.model, r.accelerometer, r.session),
-            false,
-        ) {
-            let _ = writeln!(w, "adjust: {advice}");
-        }
-        for note in &r.warnings {
-            let _ = writeln!(
-                w,
-                "adjust: {} {} {}: {note}",
-                r.model, r.accelerometer, r.session
-            );
-        }
+        print_fit(r, w);
     }
     if let Some(advice) = c.component_advice() {
         let _ = writeln!(w, "adjust: {advice}");
@@ -152,6 +85,84 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
             w,
             "adjust: {} {} {}: skipped: {}",
             s.model, s.accelerometer, s.session, s.reason
+        );
+    }
+}
+
+/// A triad fit's line: its parameters, sigma0, positions, the global test and its imu_tk
+/// file; and what a failed global test means.
+fn print_triad(t: &ingest::contract::calibration::TriadResult, w: &mut impl std::io::Write) {
+    let removed = t.positions.iter().filter(|p| p.removed).count();
+    let p: Vec<String> = t
+        .parameters
+        .iter()
+        .map(|p| format!("{} = {:.6e} +/- {:.1e}", p.name, p.value, p.sigma))
+        .collect();
+    let _ = writeln!(
+        w,
+        "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed{}, global test {}; {}",
+        t.model,
+        t.session,
+        p.join(", "),
+        t.sigma0,
+        t.positions_used,
+        match t.positions_without_temperature {
+            0 => String::new(),
+            n => format!(", {n} without temperature left out"),
+        },
+        if t.global_test.passed {
+            "passed"
+        } else {
+            "failed"
+        },
+        t.calib_file.as_ref().map_or_else(
+            || "no imu_tk file (its layout has no higher orders or temperature terms)".to_owned(),
+            |f| format!("wrote {f}")
+        )
+    );
+    if let Some(advice) = t
+        .global_test
+        .advice(&format!("triad {} {}", t.model, t.session), true)
+    {
+        let _ = writeln!(w, "adjust: {advice}");
+    }
+}
+
+/// An axis fit's line: its parameters, sigma0, observations, the global test; what a failed
+/// global test means, and the fit's warnings.
+fn print_fit(r: &CalibrationResult, w: &mut impl std::io::Write) {
+    let p: Vec<String> = r
+        .parameters
+        .iter()
+        .map(|p| format!("{} = {:.6e} +/- {:.2e}", p.name, p.value, p.sigma))
+        .collect();
+    let _ = writeln!(
+        w,
+        "adjust: {} {} {}: {}; sigma0 {:.3}, {} obs, {} removed, global test {}",
+        r.model,
+        r.accelerometer,
+        r.session,
+        p.join(", "),
+        r.sigma0,
+        r.n_observations,
+        r.n_excluded,
+        if r.global_test.passed {
+            "passed"
+        } else {
+            "FAILED"
+        }
+    );
+    if let Some(advice) = r.global_test.advice(
+        &format!("{} {} {}", r.model, r.accelerometer, r.session),
+        false,
+    ) {
+        let _ = writeln!(w, "adjust: {advice}");
+    }
+    for note in &r.warnings {
+        let _ = writeln!(
+            w,
+            "adjust: {} {} {}: {note}",
+            r.model, r.accelerometer, r.session
         );
     }
 }
