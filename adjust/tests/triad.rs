@@ -203,9 +203,9 @@ fn monte_carlo_of_the_triad_sigmas() {
     mc.assert_honest(&NAMES, 0.11, 0.08);
 }
 
-/// The sigmas of order 2 with temperature terms (21 parameters, 42 positions over three
+/// The sigmas of order 2 with temperature terms (18 parameters, 42 positions over three
 /// plateaus), temperatures known: sd over sigma per parameter within 3.5 se (0.035 for 400
-/// replicas; 21 ratios), the Mahalanobis mean within 4 se (0.015), the rate within 3 se.
+/// replicas; 18 ratios), the Mahalanobis mean within 4 se (0.015), the rate within 3 se.
 #[test]
 fn monte_carlo_of_the_thermal_triad_sigmas() {
     let model = TriadModel {
@@ -648,7 +648,7 @@ fn a_noisy_thermometer_widens_the_sigmas_instead_of_failing_the_model() {
 }
 
 /// A thermal chamber (plateaus at 20, 27 and 34 degC, a temperature log in the "seconds"
-/// layout beside the stream): a triad of order 2 with temperature terms recovers all 21
+/// layout beside the stream): a triad of order 2 with temperature terms recovers all 18
 /// parameters, each within its sigma's Bonferroni bound; the same stream fitted without
 /// temperature terms fails its global test. Applied to its own stream, the vector's length
 /// at each plateau's positions is g within the sigmas.
