@@ -645,6 +645,23 @@ fn a_noisy_thermometer_widens_the_sigmas_instead_of_failing_the_model() {
         want[6 + j] += want[12 + j] * shift;
     }
     within_sigmas(r, &want);
+
+    // The thermometer's noise given in the manifest (a datasheet's): used instead of the
+    // estimate, and the fit holds as well.
+    let manifest = std::fs::read_to_string(dataset.join("dataset.toml")).expect("manifest");
+    let given = manifest.replace("[instrument]\n", "[instrument]\nthermometer_sd_c = 0.005\n");
+    assert_ne!(given, manifest, "an [instrument] table to give it in");
+    std::fs::write(dataset.join("dataset.toml"), given).expect("write");
+    let c = pipeline(&dataset, &out);
+    let a = ingest::contract::align_ledger::AlignReport::load(&out.join("align")).expect("align");
+    assert_eq!(a.multi_position[0].thermometer_sd_c, [Some(noise_c); 3]);
+    let r = &c.triad[0];
+    eprintln!(
+        "given: sigma0 {:.3}, global test {:?}",
+        r.sigma0, r.global_test
+    );
+    assert!(r.global_test.passed, "{:?}", r.global_test);
+    within_sigmas(r, &want);
 }
 
 /// A thermal chamber (plateaus at 20, 27 and 34 degC, a temperature log in the "seconds"

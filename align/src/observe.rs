@@ -134,7 +134,9 @@ pub(crate) fn observe_session<'t>(
             continue;
         }
         let temps = temps(acc.channel);
-        let thermometer_sd = temps.and_then(|(_, v)| thermometer::white_noise_sd(v));
+        let given = ds.manifest.instrument.thermometer_sd_c;
+        let thermometer_sd =
+            temps.and_then(|(_, v)| given.or_else(|| thermometer::white_noise_sd(v)));
         let coloured = coloured_variance(&formed.noise, &acc.id, setup.cfg.window_s);
         let mut c = Counts {
             session: id.to_owned(),

@@ -89,9 +89,10 @@ pub(crate) fn session_positions(
         rejected: Default::default(),
         noise: Vec::new(),
         thermometer_sd_c: [1u8, 2, 3].map(|ch| {
+            let given = ds.manifest.instrument.thermometer_sd_c;
             temperatures
                 .get(&(w, ch))
-                .and_then(|(_, v)| thermometer::white_noise_sd(v))
+                .and_then(|(_, v)| given.or_else(|| thermometer::white_noise_sd(v)))
         }),
         positions: Vec::new(),
     };

@@ -337,6 +337,11 @@ fn manifest_errors_name_the_key_and_file() {
         ),
         ("name = \"gon-gpst\"", "name = \"Gon GPST\"", "name"),
         ("sample_rate_hz = 31.25\n", "", "sample_rate_hz"),
+        (
+            "sample_rate_hz = 31.25\n",
+            "sample_rate_hz = 31.25\nthermometer_sd_c = -0.002\n",
+            "instrument.thermometer_sd_c",
+        ),
     ];
     for (from, to, key) in cases {
         let msg = error_with_manifest(|t| {

@@ -97,8 +97,9 @@ pub struct Counts {
     pub used: u64,
     /// Excluded, by reason.
     pub excluded: BTreeMap<String, u64>,
-    /// The white noise sd of the accelerometer's temperature log over the session, degC,
-    /// from its second differences (docs/model.md 6.5); none without a log of at least 22
+    /// The white noise sd of the accelerometer's temperature log over the session, degC:
+    /// the manifest's `instrument.thermometer_sd_c` when given, else estimated from the log's
+    /// second differences (docs/model.md 6.5); none without a log of at least 22
     /// temperatures.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thermometer_sd_c: Option<f64>,
@@ -194,9 +195,10 @@ pub struct MultiPosition {
     /// variance at a position's duration to the position's sigma.
     #[serde(default)]
     pub noise: Vec<StaticNoise>,
-    /// The white noise sd of the temperature log's channels 1..3 over the session, degC,
-    /// from its second differences (docs/model.md 6.5); none for a channel with fewer than
-    /// 22 temperatures.
+    /// The white noise sd of the temperature log's channels 1..3 over the session, degC:
+    /// the manifest's `instrument.thermometer_sd_c` when given, else estimated from its
+    /// second differences (docs/model.md 6.5); none for a channel with fewer than 22
+    /// temperatures.
     #[serde(default)]
     pub thermometer_sd_c: [Option<f64>; 3],
     /// The positions: the static intervals used.

@@ -112,6 +112,10 @@ pub struct Instrument {
     /// Unit of the readings (docs/formats.md 8.3).
     #[serde(default)]
     pub reading_unit: ReadingUnit,
+    /// The thermometer's white noise per reading, degC (a datasheet's or a test's), used
+    /// instead of align's estimate from the temperature log (docs/model.md 6.5).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thermometer_sd_c: Option<f64>,
 }
 
 fn default_adc_bits() -> u32 {
@@ -960,6 +964,9 @@ fn check_instrument(ins: &Instrument, err: &impl Fn(String, String) -> Error) ->
         ins.full_scale_g,
         (0.001, 100.0),
     )?;
+    if let Some(sd) = ins.thermometer_sd_c {
+        in_range(err, "instrument.thermometer_sd_c", sd, (0.0, 1.0))?;
+    }
     let accs = &ins.accelerometer;
     if accs.is_empty() || accs.len() > 3 {
         return Err(err(
