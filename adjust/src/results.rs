@@ -262,17 +262,24 @@ pub(crate) const THERMAL_NOTE_SIGMAS: f64 = 0.3;
 /// sigma_b, is a warning of what the model takes for noise it does not weigh (on
 /// esgt-2005's day 1, a few mK made the rms z of b 1.28-1.42 where 1.10 without it).
 pub(crate) fn thermal_warnings(results: &mut [CalibrationResult]) {
-    let sensitivities: Vec<(String, String, f64, f64)> = results
+    /// An accelerometer's thermal sensitivity from a fit with temperature terms.
+    struct Sensitivity {
+        accelerometer: String,
+        model: String,
+        b_t: f64,
+        k_t: f64,
+    }
+    let sensitivities: Vec<Sensitivity> = results
         .iter()
         .filter(|r| r.temperature)
         .filter_map(|r| {
             let value = |name: &str| r.parameters.iter().find(|p| p.name == name);
-            Some((
-                r.accelerometer.clone(),
-                r.model.clone(),
-                value("b_t")?.value,
-                value("k_t")?.value,
-            ))
+            Some(Sensitivity {
+                accelerometer: r.accelerometer.clone(),
+                model: r.model.clone(),
+                b_t: value("b_t")?.value,
+                k_t: value("k_t")?.value,
+            })
         })
         .collect();
     for r in results.iter_mut().filter(|r| !r.temperature) {
@@ -283,7 +290,11 @@ pub(crate) fn thermal_warnings(results: &mut [CalibrationResult]) {
         let Some(sigma_b) = r.parameters.iter().find(|p| p.name == "b").map(|p| p.sigma) else {
             continue;
         };
-        let Some((_, model, b_t, k_t)) = sensitivities.iter().find(|s| s.0 == r.accelerometer)
+        let Some(Sensitivity {
+            model, b_t, k_t, ..
+        }) = sensitivities
+            .iter()
+            .find(|s| s.accelerometer == r.accelerometer)
         else {
             continue;
         };

@@ -233,7 +233,10 @@ impl Conditions<6> for TriadConditions<'_> {
 
 /// The six observations of each position, and their sds: the means, then the temperatures
 /// (t_ref, sd 0, without temperature terms or a temperature; sd 0 when it has none).
-fn observations(positions: &[Position], t_ref_c: Option<f64>) -> (Vec<[f64; 6]>, Vec<[f64; 6]>) {
+fn position_observations(
+    positions: &[Position],
+    t_ref_c: Option<f64>,
+) -> (Vec<[f64; 6]>, Vec<[f64; 6]>) {
     positions
         .iter()
         .map(|q| {
@@ -472,7 +475,7 @@ pub fn calibrate(model: TriadModel, positions: &[Position]) -> Result<TriadSolut
     let mut start = p0;
     loop {
         let kept: Vec<Position> = used.iter().map(|&i| positions[i]).collect();
-        let (l, sigma) = observations(&kept, t_ref_c);
+        let (l, sigma) = position_observations(&kept, t_ref_c);
         let s = gh::solve(
             &TriadConditions {
                 model,
@@ -564,7 +567,7 @@ mod tests {
                         _ => 2e-5,
                     });
                 }
-                let (l, _) = observations(&q, Some(30.0));
+                let (l, _) = position_observations(&q, Some(30.0));
                 check_derivatives(&c, &p, &names, l[0]);
             }
         }
