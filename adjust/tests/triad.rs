@@ -8,7 +8,7 @@ use fixtures::rng::Rng;
 use fixtures::triad::{StaticPosition, Triad, positions};
 
 mod common;
-use common::quadratic_form_of_inverse;
+use common::{EXACT, Thermometer, quadratic_form_of_inverse};
 
 #[path = "../../align/tests/peers/mod.rs"]
 mod peers;
@@ -91,21 +91,6 @@ impl MonteCarlo {
         );
     }
 }
-
-/// How a Monte-Carlo's positions' temperatures are read.
-#[derive(Clone, Copy)]
-struct Thermometer {
-    /// The sd of a position's temperature, degC.
-    sd_c: f64,
-    /// Whether the fit is given that sd (or takes the temperatures as exact).
-    given: bool,
-}
-
-/// The temperatures known exactly.
-const EXACT: Thermometer = Thermometer {
-    sd_c: 0.0,
-    given: false,
-};
 
 /// `replicas` replicas of one design of `n` positions (directions, durations; with
 /// temperature terms each position at one of a chamber's plateaus 20, 27, 34 degC, read by

@@ -19,3 +19,21 @@ pub fn quadratic_form_of_inverse(c: &dyn Fn(usize, usize) -> f64, x: &[f64]) -> 
     }
     y.iter().map(|v| v * v).sum()
 }
+
+/// How a Monte-Carlo's temperatures are read: each one off by `sd_c` (degC), the fit told
+/// of that sd when `given` (as align tells adjust) or taking the temperatures as exact.
+#[derive(Clone, Copy, Debug)]
+#[allow(dead_code, reason = "not every test binary reads temperatures")]
+pub struct Thermometer {
+    /// The sd of a temperature, degC.
+    pub sd_c: f64,
+    /// Whether the fit is given that sd.
+    pub given: bool,
+}
+
+/// The temperatures known exactly.
+#[allow(dead_code, reason = "not every test binary reads temperatures")]
+pub const EXACT: Thermometer = Thermometer {
+    sd_c: 0.0,
+    given: false,
+};
