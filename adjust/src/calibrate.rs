@@ -462,7 +462,12 @@ pub fn calibrate_with(
         let p0 = start_values(&used, &model);
         let to_cal = |e| cal_error(e, &names, &active);
         let mut s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(to_cal)?;
-        s.w_test = left_out_w_tests(&s, &used);
+        let coloured = options.coloured.as_ref().map(|noise| {
+            let time_s: Vec<f64> = used.iter().map(|o| o.time_s).collect();
+            let session: Vec<usize> = used.iter().map(|o| o.session).collect();
+            correlated::misclosure_excess(&s, &time_s, &session, noise)
+        });
+        s.w_test = left_out_w_tests(&s, &used, coloured.as_deref());
         let worst = s
             .w_test
             .iter()
@@ -511,11 +516,14 @@ pub fn mdb_noncentrality(dof: Option<f64>) -> f64 {
 /// Baarda's w of each condition with its reading's Dz referred to the left-out sigma_Dz
 /// ([`Obs::sigma_dz_left_out`]; docs/model.md 6.1): the misclosure over
 /// sqrt(r (q_Dz,left-out + q_Ng + q_T)), a Student t whose degrees of freedom are the left-out
-/// variance's carried by its share of the condition's variance (Welch-Satterthwaite; the
-/// window means' variance is taken as known), returned as the standard normal quantile of
-/// the same tail probability, so that one critical value ([`W_CRITICAL`]) holds alpha
-/// whatever the dof. With sigma_Dz known the t is the normal and w is Baarda's own.
-fn left_out_w_tests(s: &gh::Solution<3>, used: &[&Obs]) -> Vec<f64> {
+/// variance's and the window mean's sd's, each carried by its share of the condition's
+/// variance (Welch-Satterthwaite; the temperature's variance is taken as known), returned
+/// as the standard normal quantile of the same tail probability, so that one critical value
+/// ([`W_CRITICAL`]) holds alpha whatever the dof. With both sds known the t is the normal
+/// and w is Baarda's own.
+/// `coloured`: what the coloured ADC noise adds to each misclosure's variance
+/// ([`correlated::misclosure_excess`]), known as the window means' variance is.
+fn left_out_w_tests(s: &gh::Solution<3>, used: &[&Obs], coloured: Option<&[f64]>) -> Vec<f64> {
     use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
     let normal = Normal::standard();
     used.iter()
@@ -530,12 +538,24 @@ fn left_out_w_tests(s: &gh::Solution<3>, used: &[&Obs]) -> Vec<f64> {
                 .sigma_dz_left_out
                 .map_or((o.sigma_dz_rad, o.sigma_dz_dof), |l| (l.sigma_rad, l.dof));
             let q_dz = s.q_parts[i][0] * sigma.powi(2) / fitted;
-            let q = q_dz + s.q_parts[i][1] + s.q_parts[i][2];
+            // The misclosure's variance is q r; the coloured noise's share, over r, joins
+            // the known part (kept positive: an excess is a small correction).
+            let extra = coloured.map_or(0.0, |c| c[i] / r);
+            let q_known = s.q_parts[i][1] + s.q_parts[i][2];
+            let q = q_dz + (q_known + extra).max(0.5 * q_known);
             let w = s.misclosure[i] / (q * r).sqrt();
-            let Some(d) = dof.filter(|d| d.is_finite() && *d > 0.0) else {
-                return w;
+            // Welch-Satterthwaite over the estimated shares: the left-out sigma_Dz's and the
+            // window mean's sd (estimated from its own samples; a t's tail at 3.29 is far
+            // from the normal's even on 79 dof).
+            let share = |part: f64, dof: Option<f64>| {
+                dof.filter(|d| d.is_finite() && *d > 0.0)
+                    .map(|d| part * part / d)
             };
-            let nu = q * q / (q_dz * q_dz / d);
+            let parts = [share(q_dz, dof), share(s.q_parts[i][1], o.sigma_ng_dof)];
+            if parts.iter().all(Option::is_none) {
+                return w;
+            }
+            let nu = q * q / parts.iter().flatten().sum::<f64>();
             let tail = StudentsT::new(0.0, 1.0, nu).map_or(f64::NAN, |t| t.cdf(-w.abs()));
             if tail.is_finite() && tail > 0.0 {
                 -normal.inverse_cdf(tail) * w.signum()

@@ -247,6 +247,67 @@ pub fn between_station_excess(
     total
 }
 
+/// What the coloured noise adds to the variance of each condition's fitted misclosure
+/// beyond the q_i r_i its weights give it: the diagonal of R S R^T, with R = I - A Q_pp A^T W
+/// the map from the conditions' errors to the fitted misclosures and S = Bn (C - D) Bn the
+/// errors' coloured covariance less what the weights hold, in time linear in the
+/// observations. The w-test adds it to its reference (docs/model.md 6.2): a random walk
+/// that no constant in the model absorbs makes the misclosures scatter more than their
+/// weights say, and good readings were removed at 1.13 alpha.
+pub fn misclosure_excess(
+    s: &Solution<3>,
+    time_s: &[f64],
+    session: &[usize],
+    noise: &ColouredAdc,
+) -> Vec<f64> {
+    let n = s.q_ww.len();
+    let m = s.p.len();
+    let bng: Vec<f64> = s.b.iter().map(|b| b[1]).collect();
+    // g_i = Q_pp a_i w_i, so that H = A G and (R S R^T)_ii = S_ii - 2 (H S)_ii + (H S H^T)_ii.
+    let g: Vec<Vec<f64>> = (0..n)
+        .map(|i| {
+            (0..m)
+                .map(|r| {
+                    (0..m)
+                        .map(|c| s.q_pp[r * m + c] * s.a[i * m + c])
+                        .sum::<f64>()
+                        / s.q_ww[i]
+                })
+                .collect()
+        })
+        .collect();
+    // Y = (C - D) Bn G^T; then S G^T = Bn Y.
+    let x: Vec<Vec<f64>> = g
+        .iter()
+        .zip(&bng)
+        .map(|(gi, b)| gi.iter().map(|v| v * b).collect())
+        .collect();
+    let y = apply_excess(&x, time_s, session, noise);
+    // G S G^T = sum_i g_i (b_i y_i)^T.
+    let mut gsg = vec![0.0; m * m];
+    for i in 0..n {
+        for r in 0..m {
+            for c in 0..m {
+                gsg[r * m + c] += g[i][r] * bng[i] * y[i][c];
+            }
+        }
+    }
+    let firsts = session_starts(time_s, session);
+    let flicker = Flicker::new(noise.bias_instability);
+    (0..n)
+        .map(|i| {
+            let a = &s.a[i * m..(i + 1) * m];
+            let t = time_s[i];
+            let own = pair_covariance(&flicker, noise, (t, t, firsts[session[i]]), true);
+            let hs: f64 = a.iter().zip(&y[i]).map(|(a, y)| a * y).sum::<f64>() * bng[i];
+            let hsh: f64 = (0..m)
+                .map(|r| (0..m).map(|c| a[r] * gsg[r * m + c] * a[c]).sum::<f64>())
+                .sum();
+            bng[i] * bng[i] * own - 2.0 * hs + hsh
+        })
+        .collect()
+}
+
 /// What the coloured noise adds to the window means' scatter about their station's
 /// weighted mean, sum_i (Ng_i - mean_j)^2 / sigma_i^2, beyond what the sigmas predict: its
 /// expectation and its variance. The flicker moves the windows of a station apart, which
@@ -420,9 +481,10 @@ mod tests {
     }
 
     /// The between-station excess equals its dense form: sum_j share_j u_j^T R S R^T u_j / W_j
-    /// with R = I - A Q A^T W and S = Bn (C - D) Bn.
+    /// with R = I - A Q A^T W and S = Bn (C - D) Bn; and each misclosure's excess the
+    /// diagonal of R S R^T.
     #[test]
-    fn between_station_excess_equals_its_dense_form() {
+    fn excesses_equal_their_dense_forms() {
         let (n, m) = (8, 2);
         let time: Vec<f64> = vec![0.0, 5.0, 10.0, 130.0, 135.0, 140.0, 400.0, 410.0];
         let session = vec![0; n];
@@ -492,6 +554,14 @@ mod tests {
             slow += share[j] * quad / u.iter().sum::<f64>();
         }
         assert!((fast - slow).abs() < 1e-9 * slow.abs(), "{fast} vs {slow}");
+        // Each misclosure's excess: (R S R^T)_ii.
+        let fast = misclosure_excess(&s, &time, &session, &noise);
+        for (i, f) in fast.iter().enumerate() {
+            let slow: f64 = (0..n)
+                .map(|k| (0..n).map(|l| r(i, k) * cov(k, l) * r(i, l)).sum::<f64>())
+                .sum();
+            assert!((f - slow).abs() < 1e-9 * slow.abs(), "{i}: {f} vs {slow}");
+        }
     }
 
     /// The linear-time sums equal the direct double sum over the model's covariance (windows

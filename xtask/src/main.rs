@@ -7,6 +7,7 @@ mod bench_gravity;
 mod check;
 mod init;
 mod show;
+mod verdicts;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
@@ -29,6 +30,54 @@ struct DatasetArgs {
     out: Option<PathBuf>,
 }
 
+/// `cargo xtask fixtures`'s arguments.
+#[derive(clap::Args)]
+struct FixturesArgs {
+    /// Regenerate into a scratch folder and compare with what is committed; change nothing.
+    #[arg(long)]
+    check: bool,
+    /// Write a large benchmark log instead (never committed) into --out.
+    #[arg(long)]
+    bench: bool,
+    /// Benchmark sampling rate, Hz: 31.25 or 250.
+    #[arg(long, default_value_t = 31.25)]
+    rate: f64,
+    /// Benchmark logging time, hours.
+    #[arg(long, default_value_t = 8.0)]
+    hours: f64,
+    /// Where to write (default: the fixtures/ folder; for --bench, target/bench-data).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Only this committed dataset (default: all of them).
+    #[arg(long)]
+    only: Option<String>,
+}
+
+/// `cargo xtask bench`'s arguments.
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Which stage: ingest, align, adjust, apply or gravity; or smoke (each once, small, as CI).
+    what: String,
+    /// Logging hours of the 250 Hz log (the 31.25 Hz log is twice as long).
+    #[arg(long, default_value_t = 24.0)]
+    hours: f64,
+    /// Skip the Python peers (polars, pyarrow).
+    #[arg(long)]
+    no_peers: bool,
+    /// Ingest benchmark: runs of each program; the table gives the fastest and the median.
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
+    /// Align benchmark: stations per daily session (four sessions).
+    #[arg(long, default_value_t = 250)]
+    stations: usize,
+    /// Align benchmark: readings per station.
+    #[arg(long, default_value_t = 100)]
+    readings: usize,
+    /// Adjust benchmark: observations.
+    #[arg(long, default_value_t = 1_000_000)]
+    observations: usize,
+}
+
 #[derive(Subcommand)]
 enum Cmd {
     /// Runs ingest, align, adjust and report in order.
@@ -46,26 +95,7 @@ enum Cmd {
     /// A survey reduced to gravity along the track (OUT/gravity/; docs/formats.md 10).
     Gravity(adjust::gravity::stage::GravityArgs),
     /// Writes the committed fixture datasets, checks them, or writes a large benchmark log.
-    Fixtures {
-        /// Regenerate into a scratch folder and compare with what is committed; change nothing.
-        #[arg(long)]
-        check: bool,
-        /// Write a large benchmark log instead (never committed) into --out.
-        #[arg(long)]
-        bench: bool,
-        /// Benchmark sampling rate, Hz: 31.25 or 250.
-        #[arg(long, default_value_t = 31.25)]
-        rate: f64,
-        /// Benchmark logging time, hours.
-        #[arg(long, default_value_t = 8.0)]
-        hours: f64,
-        /// Where to write (default: the fixtures/ folder; for --bench, target/bench-data).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Only this committed dataset (default: all of them).
-        #[arg(long)]
-        only: Option<String>,
-    },
+    Fixtures(FixturesArgs),
     /// Fits a polynomial to two columns of a CSV table (docs/formats.md section 7); prints JSON.
     Fit(adjust::FitArgs),
     /// Predicts what a planned experiment will determine, before any data (docs/model.md 6.6).
@@ -110,32 +140,18 @@ enum Cmd {
         #[arg(long)]
         head: Option<usize>,
     },
+    /// Every verdict a fit prints at its measured error rate: the Monte-Carlos run on
+    /// --replicas, their rates in one table (docs/model.md 6.8); fails when one does not hold.
+    Verdicts {
+        /// Replicas of each Monte-Carlo (CI's tests run 300, and 200 of the noise selection).
+        #[arg(long, default_value_t = 2000)]
+        replicas: usize,
+    },
     /// Runs what CI runs: fmt, clippy, the tests, the fixture check, the pipeline on every
     /// fixture, apply, and every benchmark once on a small size.
     Ci,
     /// Benchmarks (speed and memory), measured, not asserted.
-    Bench {
-        /// Which stage: ingest, align, adjust, apply or gravity; or smoke (each once, small, as CI).
-        what: String,
-        /// Logging hours of the 250 Hz log (the 31.25 Hz log is twice as long).
-        #[arg(long, default_value_t = 24.0)]
-        hours: f64,
-        /// Skip the Python peers (polars, pyarrow).
-        #[arg(long)]
-        no_peers: bool,
-        /// Ingest benchmark: runs of each program; the table gives the fastest and the median.
-        #[arg(long, default_value_t = 3)]
-        runs: usize,
-        /// Align benchmark: stations per daily session (four sessions).
-        #[arg(long, default_value_t = 250)]
-        stations: usize,
-        /// Align benchmark: readings per station.
-        #[arg(long, default_value_t = 100)]
-        readings: usize,
-        /// Adjust benchmark: observations.
-        #[arg(long, default_value_t = 1_000_000)]
-        observations: usize,
-    },
+    Bench(BenchArgs),
 }
 
 fn workspace_root() -> PathBuf {
@@ -440,6 +456,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Cmd::Digest => digest(),
+        Cmd::Verdicts { replicas } => verdicts::run(&workspace_root(), replicas),
         Cmd::Check { dataset } => {
             let mut out = std::io::stdout().lock();
             if check::run(&dataset, &mut out)? {
@@ -461,117 +478,127 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Align(a) => run_stages(&a, &["align"]),
         Cmd::Adjust(a) => run_stages(&a, &["adjust"]),
         Cmd::Report(a) => run_stages(&a, &["report"]),
-        Cmd::Apply(mut a) => {
-            a.out = Some(out_dir(&DatasetArgs {
-                dataset: a.dataset.clone(),
-                out: a.out.clone(),
-            })?);
-            let t0 = std::time::Instant::now();
-            let report = a
-                .run(&workspace_root())
-                .with_context(|| format!("apply on {}", a.dataset.display()))?;
-            adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
-            eprintln!("apply: {:.2} s", t0.elapsed().as_secs_f64());
-            Ok(())
-        }
-        Cmd::Gravity(a) => {
-            // The survey dataset's own pipeline first (its report gains the gravity
-            // section), then apply and gravity, then the report again.
-            let args = DatasetArgs {
-                dataset: a.dataset.clone(),
-                out: a.out.clone(),
-            };
-            let out = out_dir(&args)?;
-            run_stages(&args, &["ingest", "align", "adjust"])?;
-            let t0 = std::time::Instant::now();
-            let report = a
-                .run(&out)
-                .with_context(|| format!("gravity on {}", a.dataset.display()))?;
-            adjust::gravity::stage::print_summary(&report, &mut std::io::stderr());
-            eprintln!("gravity: {:.2} s", t0.elapsed().as_secs_f64());
-            run_stages(&args, &["report"])
-        }
-        Cmd::Fixtures {
-            check,
-            bench,
-            rate,
-            hours,
-            out,
-            only,
-        } => {
-            if check {
-                return fixtures_check();
-            }
-            if bench {
-                let interval_ms = match rate {
-                    r if (r - 31.25).abs() < 1e-9 => 32,
-                    r if (r - 250.0).abs() < 1e-9 => 4,
-                    r => bail!("--rate {r}: the benchmark logs are at 31.25 or 250 Hz"),
-                };
-                let scenario = fixtures::catalog::bench(interval_ms, hours);
-                let root = out.unwrap_or_else(|| workspace_root().join("target/bench-data"));
-                let dir = root.join(&scenario.name);
-                fixtures::write::write_dataset(&scenario, &dir)?;
-                eprintln!("fixtures: wrote {}", dir.display());
-                return Ok(());
-            }
-            let root = out.unwrap_or_else(fixtures::fixtures_dir);
-            if let Some(name) = only
-                .as_deref()
-                .filter(|n| !fixtures::catalog::ALL.contains(n))
-            {
-                bail!(
-                    "--only {name}: the datasets are {}",
-                    fixtures::catalog::ALL.join(", ")
-                );
-            }
-            for name in fixtures::catalog::ALL
-                .iter()
-                .filter(|n| only.as_deref().is_none_or(|o| o == **n))
-            {
-                fixtures::generate(name, &root)?;
-                eprintln!("fixtures: wrote {}", root.join(name).display());
-            }
-            Ok(())
-        }
+        Cmd::Apply(a) => apply(a),
+        Cmd::Gravity(a) => gravity(&a),
+        Cmd::Fixtures(a) => fixtures_command(a),
         Cmd::Ci => ci(),
         Cmd::Fit(args) => {
             let out = adjust::fit_csv(&args)?;
             print_stdout(&serde_json::to_string_pretty(&out)?)
         }
-        Cmd::Plan { plan, json } => {
-            let text = std::fs::read_to_string(&plan)
-                .with_context(|| format!("reading {}", plan.display()))?;
-            let parsed: adjust::plan::Plan =
-                toml::from_str(&text).with_context(|| format!("{}", plan.display()))?;
-            let predictions =
-                adjust::plan::predict(&parsed).with_context(|| format!("{}", plan.display()))?;
-            if json {
-                print_stdout(&serde_json::to_string_pretty(&predictions)?)
-            } else {
-                print_stdout(&adjust::plan::render(&predictions))
-            }
-        }
-        Cmd::Bench {
-            what,
-            hours,
-            no_peers,
-            runs,
-            stations,
-            readings,
-            observations,
-        } => match what.as_str() {
-            "ingest" => bench::ingest(&workspace_root(), hours, !no_peers, runs.max(1)),
-            "align" => bench::align(&workspace_root(), stations, readings),
-            "adjust" => bench::adjust(&workspace_root(), observations, !no_peers),
-            "apply" => bench_apply::apply(&workspace_root(), hours, !no_peers, runs.max(1)),
-            "gravity" => bench_gravity::gravity(&workspace_root(), hours, runs.max(1)),
-            "smoke" => bench_smoke(),
-            other => bail!(
-                "no benchmark `{other}`: there are ingest, align, adjust, apply, gravity (and \
-                 smoke: each once on a small size, as CI runs them)"
-            ),
-        },
+        Cmd::Plan { plan, json } => plan_command(&plan, json),
+        Cmd::Bench(a) => bench_command(&a),
+    }
+}
+
+/// `cargo xtask apply`: the calibration applied to a dataset's survey samples.
+fn apply(mut a: adjust::apply::stream::ApplyArgs) -> Result<()> {
+    a.out = Some(out_dir(&DatasetArgs {
+        dataset: a.dataset.clone(),
+        out: a.out.clone(),
+    })?);
+    let t0 = std::time::Instant::now();
+    let report = a
+        .run(&workspace_root())
+        .with_context(|| format!("apply on {}", a.dataset.display()))?;
+    adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
+    eprintln!("apply: {:.2} s", t0.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// `cargo xtask gravity`: the survey dataset's own pipeline first (its report gains the
+/// gravity section), then apply and gravity, then the report again.
+fn gravity(a: &adjust::gravity::stage::GravityArgs) -> Result<()> {
+    let args = DatasetArgs {
+        dataset: a.dataset.clone(),
+        out: a.out.clone(),
+    };
+    let out = out_dir(&args)?;
+    run_stages(&args, &["ingest", "align", "adjust"])?;
+    let t0 = std::time::Instant::now();
+    let report = a
+        .run(&out)
+        .with_context(|| format!("gravity on {}", a.dataset.display()))?;
+    adjust::gravity::stage::print_summary(&report, &mut std::io::stderr());
+    eprintln!("gravity: {:.2} s", t0.elapsed().as_secs_f64());
+    run_stages(&args, &["report"])
+}
+
+/// `cargo xtask fixtures`: the committed datasets written or checked, or a benchmark log.
+fn fixtures_command(a: FixturesArgs) -> Result<()> {
+    let FixturesArgs {
+        check,
+        bench,
+        rate,
+        hours,
+        out,
+        only,
+    } = a;
+    if check {
+        return fixtures_check();
+    }
+    if bench {
+        let interval_ms = match rate {
+            r if (r - 31.25).abs() < 1e-9 => 32,
+            r if (r - 250.0).abs() < 1e-9 => 4,
+            r => bail!("--rate {r}: the benchmark logs are at 31.25 or 250 Hz"),
+        };
+        let scenario = fixtures::catalog::bench(interval_ms, hours);
+        let root = out.unwrap_or_else(|| workspace_root().join("target/bench-data"));
+        let dir = root.join(&scenario.name);
+        fixtures::write::write_dataset(&scenario, &dir)?;
+        eprintln!("fixtures: wrote {}", dir.display());
+        return Ok(());
+    }
+    let root = out.unwrap_or_else(fixtures::fixtures_dir);
+    if let Some(name) = only
+        .as_deref()
+        .filter(|n| !fixtures::catalog::ALL.contains(n))
+    {
+        bail!(
+            "--only {name}: the datasets are {}",
+            fixtures::catalog::ALL.join(", ")
+        );
+    }
+    for name in fixtures::catalog::ALL
+        .iter()
+        .filter(|n| only.as_deref().is_none_or(|o| o == **n))
+    {
+        fixtures::generate(name, &root)?;
+        eprintln!("fixtures: wrote {}", root.join(name).display());
+    }
+    Ok(())
+}
+
+/// `cargo xtask plan`: a plan's predictions, as a table or JSON.
+fn plan_command(plan: &Path, json: bool) -> Result<()> {
+    let text =
+        std::fs::read_to_string(plan).with_context(|| format!("reading {}", plan.display()))?;
+    let parsed: adjust::plan::Plan =
+        toml::from_str(&text).with_context(|| format!("{}", plan.display()))?;
+    let predictions =
+        adjust::plan::predict(&parsed).with_context(|| format!("{}", plan.display()))?;
+    if json {
+        print_stdout(&serde_json::to_string_pretty(&predictions)?)
+    } else {
+        print_stdout(&adjust::plan::render(&predictions))
+    }
+}
+
+/// `cargo xtask bench`: one stage's benchmark.
+fn bench_command(a: &BenchArgs) -> Result<()> {
+    let root = workspace_root();
+    match a.what.as_str() {
+        "ingest" => bench::ingest(&root, a.hours, !a.no_peers, a.runs.max(1)),
+        "align" => bench::align(&root, a.stations, a.readings),
+        "adjust" => bench::adjust(&root, a.observations, !a.no_peers),
+        "apply" => bench_apply::apply(&root, a.hours, !a.no_peers, a.runs.max(1)),
+        "gravity" => bench_gravity::gravity(&root, a.hours, a.runs.max(1)),
+        "smoke" => bench_smoke(),
+        other => bail!(
+            "no benchmark `{other}`: there are ingest, align, adjust, apply, gravity (and \
+             smoke: each once on a small size, as CI runs them)"
+        ),
     }
 }
 
