@@ -169,18 +169,118 @@ pub fn solve<const K: usize>(
     }
     let mut p = p0.to_vec();
     let mut v = vec![[0.0f64; K]; n];
-    let mut a_row = vec![0.0; m];
-    let mut design = Mat::<f64>::zeros(n, m);
-    let mut rhs = Mat::<f64>::zeros(n, 1);
-    let mut w = vec![0.0; n];
-    let mut b = vec![[0.0; K]; n];
-    let mut q = vec![0.0; n];
-    let mut q_parts = vec![[0.0; K]; n];
+    let mut lin = Linearised::<K>::new(n, m);
     let mut last_change = f64::INFINITY;
     for iteration in 1..=opts.max_iterations {
-        for i in 0..n {
+        lin.at(c, l, sigma, &p, &v)?;
+        let step = Step::solve(&mut lin.design, &lin.rhs, opts, iteration)?;
+        for j in 0..m {
+            p[j] += step.dp[j];
+        }
+        // The largest change in units of its sd, to tell a rounding floor from divergence.
+        let rounding = 1e-13;
+        let mut settled = step.dp.iter().enumerate().all(|(j, d)| {
+            d.abs() <= opts.tolerance * step.q_pp[j * m + j].sqrt() + rounding * p[j].abs()
+        });
+        let mut change = step
+            .dp
+            .iter()
+            .enumerate()
+            .map(|(j, d)| d.abs() / step.q_pp[j * m + j].sqrt())
+            .fold(0.0, f64::max);
+        let after = lin.residuals(&step, l, sigma, &mut v, opts, iteration)?;
+        settled &= after.settled;
+        change = change.max(after.change);
+        // At the rounding floor of an ill-conditioned problem the changes stop contracting a
+        // few orders above `tolerance`: settled when they are below ROUNDING_FLOOR sds and
+        // no longer halve.
+        settled |= change <= ROUNDING_FLOOR && change > 0.5 * last_change;
+        last_change = change;
+        if settled {
+            let (redundancy, w_test) = lin.redundancy(&step, &after.misclosure);
+            let a = (0..n)
+                .flat_map(|i| (0..m).map(move |j| (i, j)))
+                .map(|(i, j)| lin.design[(i, j)] * step.scale[j] * lin.q[i].sqrt())
+                .collect();
+            return Ok(Solution {
+                p,
+                q_pp: step.q_pp,
+                v,
+                misclosure: after.misclosure,
+                q_ww: lin.q,
+                q_parts: lin.q_parts,
+                redundancy,
+                w_test,
+                vtpv: after.vtpv,
+                dof: n - m,
+                iterations: iteration,
+                a,
+                b: lin.b,
+            });
+        }
+    }
+    Err(GhError::NotConverged {
+        iterations: opts.max_iterations,
+    })
+}
+
+/// The conditions linearised at the parameters and the adjusted observations: the weighted
+/// design and right-hand side, and per condition its misclosure w, its B row and its
+/// variance q = B Sigma B^T, in parts by observed quantity.
+struct Linearised<const K: usize> {
+    design: Mat<f64>,
+    rhs: Mat<f64>,
+    w: Vec<f64>,
+    b: Vec<[f64; K]>,
+    q: Vec<f64>,
+    q_parts: Vec<[f64; K]>,
+    a_row: Vec<f64>,
+}
+
+/// One Gauss-Newton step from the linearised conditions: the parameters' change and
+/// covariance, and the equilibrated design's R and column scales.
+struct Step {
+    dp: Vec<f64>,
+    q_pp: Vec<f64>,
+    r: Vec<f64>,
+    scale: Vec<f64>,
+}
+
+/// The observations' residuals after a step: the conditions' misclosures, v^T P v, and
+/// whether the residuals settled (their largest change in units of their sds).
+struct AfterStep {
+    misclosure: Vec<f64>,
+    vtpv: f64,
+    settled: bool,
+    change: f64,
+}
+
+impl<const K: usize> Linearised<K> {
+    fn new(n: usize, m: usize) -> Self {
+        Linearised {
+            design: Mat::<f64>::zeros(n, m),
+            rhs: Mat::<f64>::zeros(n, 1),
+            w: vec![0.0; n],
+            b: vec![[0.0; K]; n],
+            q: vec![0.0; n],
+            q_parts: vec![[0.0; K]; n],
+            a_row: vec![0.0; m],
+        }
+    }
+
+    /// Linearises the conditions at `p` and the observations `l + v`.
+    fn at(
+        &mut self,
+        c: &impl Conditions<K>,
+        l: &[[f64; K]],
+        sigma: &[[f64; K]],
+        p: &[f64],
+        v: &[[f64; K]],
+    ) -> Result<(), GhError> {
+        let m = self.a_row.len();
+        for i in 0..l.len() {
             let l0: [f64; K] = std::array::from_fn(|t| l[i][t] + v[i][t]);
-            let (f, bi) = c.eval(i, &p, l0, &mut a_row);
+            let (f, bi) = c.eval(i, p, l0, &mut self.a_row);
             let wi = (0..K).fold(f, |acc, t| acc - bi[t] * v[i][t]);
             let parts: [f64; K] = std::array::from_fn(|t| (bi[t] * sigma[i][t]).powi(2));
             let qi = parts.iter().skip(1).fold(parts[0], |acc, x| acc + x);
@@ -189,15 +289,100 @@ pub fn solve<const K: usize>(
             }
             let s = qi.sqrt().recip();
             for j in 0..m {
-                design[(i, j)] = a_row[j] * s;
+                self.design[(i, j)] = self.a_row[j] * s;
             }
-            rhs[(i, 0)] = -wi * s;
-            w[i] = wi;
-            b[i] = bi;
-            q[i] = qi;
-            q_parts[i] = parts;
+            self.rhs[(i, 0)] = -wi * s;
+            self.w[i] = wi;
+            self.b[i] = bi;
+            self.q[i] = qi;
+            self.q_parts[i] = parts;
         }
-        // Column equilibration, then QR.
+        Ok(())
+    }
+
+    /// New residuals from the Lagrange multipliers of `step`, written into `v`.
+    fn residuals(
+        &self,
+        step: &Step,
+        l: &[[f64; K]],
+        sigma: &[[f64; K]],
+        v: &mut [[f64; K]],
+        opts: &Options,
+        iteration: usize,
+    ) -> Result<AfterStep, GhError> {
+        let n = l.len();
+        let m = step.dp.len();
+        let rounding = 1e-13;
+        let mut after = AfterStep {
+            misclosure: vec![0.0; n],
+            vtpv: 0.0,
+            settled: true,
+            change: 0.0,
+        };
+        for i in 0..n {
+            let adp: f64 = (0..m)
+                .map(|j| self.design[(i, j)] * step.scale[j] * self.q[i].sqrt() * step.dp[j])
+                .sum();
+            let e = self.w[i] + adp;
+            let k = -e / self.q[i];
+            let nv: [f64; K] = std::array::from_fn(|t| sigma[i][t].powi(2) * self.b[i][t] * k);
+            for t in 0..K {
+                let limit = opts.tolerance * sigma[i][t] + rounding * l[i][t].abs();
+                if sigma[i][t] > 0.0 && (nv[t] - v[i][t]).abs() > limit {
+                    after.settled = false;
+                    after.change = after.change.max((nv[t] - v[i][t]).abs() / sigma[i][t]);
+                }
+            }
+            v[i] = nv;
+            after.vtpv += e * e / self.q[i];
+            after.misclosure[i] = -e;
+        }
+        if !after.vtpv.is_finite() {
+            return Err(GhError::NonFinite { iteration });
+        }
+        Ok(after)
+    }
+
+    /// Each condition's redundancy 1 - h_i, with the leverage h_i = || R^-T a~_i ||^2 of
+    /// the equilibrated, weighted design row, and its w-test.
+    fn redundancy(&self, step: &Step, misclosure: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let n = misclosure.len();
+        let m = step.dp.len();
+        let r = &step.r;
+        let mut redundancy = vec![0.0; n];
+        let mut w_test = vec![0.0; n];
+        let mut z = vec![0.0; m];
+        for i in 0..n {
+            for k in 0..m {
+                let mut s = self.design[(i, k)];
+                for t in 0..k {
+                    s -= r[t * m + k] * z[t];
+                }
+                z[k] = s / r[k * m + k];
+            }
+            let h: f64 = z.iter().map(|x| x * x).sum();
+            let ri = (1.0 - h).max(0.0);
+            redundancy[i] = ri;
+            w_test[i] = if ri > 1e-9 {
+                misclosure[i] / (self.q[i] * ri).sqrt()
+            } else {
+                0.0
+            };
+        }
+        (redundancy, w_test)
+    }
+}
+
+impl Step {
+    /// Equilibrates the design's columns (in place), then QR: the step, and the
+    /// parameters' cofactor matrix Q_pp = D^-1 R^-1 R^-T D^-1.
+    fn solve(
+        design: &mut Mat<f64>,
+        rhs: &Mat<f64>,
+        opts: &Options,
+        iteration: usize,
+    ) -> Result<Step, GhError> {
+        let (n, m) = (design.nrows(), design.ncols());
         let mut scale = vec![0.0; m];
         for j in 0..m {
             let norm = (0..n).map(|i| design[(i, j)].powi(2)).sum::<f64>().sqrt();
@@ -223,13 +408,12 @@ pub fn solve<const K: usize>(
                 return Err(GhError::NotEstimable { index: j });
             }
         }
-        let sol = qr.solve_lstsq(&rhs);
+        let sol = qr.solve_lstsq(rhs);
         let dp: Vec<f64> = (0..m).map(|j| sol[(j, 0)] / scale[j]).collect();
         if dp.iter().any(|x| !x.is_finite()) {
             return Err(GhError::NonFinite { iteration });
         }
         let r_inv = invert_upper(&r, m);
-        // Q_pp = D^-1 R^-1 R^-T D^-1.
         let mut q_pp = vec![0.0; m * m];
         for i in 0..m {
             for j in 0..m {
@@ -239,94 +423,8 @@ pub fn solve<const K: usize>(
                 q_pp[i * m + j] = s / (scale[i] * scale[j]);
             }
         }
-        for j in 0..m {
-            p[j] += dp[j];
-        }
-        // New residuals from the Lagrange multipliers.
-        let rounding = 1e-13;
-        let mut settled = dp.iter().enumerate().all(|(j, d)| {
-            d.abs() <= opts.tolerance * q_pp[j * m + j].sqrt() + rounding * p[j].abs()
-        });
-        // The largest change in units of its sd, to tell a rounding floor from divergence.
-        let mut change = dp
-            .iter()
-            .enumerate()
-            .map(|(j, d)| d.abs() / q_pp[j * m + j].sqrt())
-            .fold(0.0, f64::max);
-        let mut vtpv = 0.0;
-        let mut misclosure = vec![0.0; n];
-        for i in 0..n {
-            let adp: f64 = (0..m)
-                .map(|j| design[(i, j)] * scale[j] * q[i].sqrt() * dp[j])
-                .sum();
-            let e = w[i] + adp;
-            let k = -e / q[i];
-            let nv: [f64; K] = std::array::from_fn(|t| sigma[i][t].powi(2) * b[i][t] * k);
-            for t in 0..K {
-                let limit = opts.tolerance * sigma[i][t] + rounding * l[i][t].abs();
-                if sigma[i][t] > 0.0 && (nv[t] - v[i][t]).abs() > limit {
-                    settled = false;
-                    change = change.max((nv[t] - v[i][t]).abs() / sigma[i][t]);
-                }
-            }
-            v[i] = nv;
-            vtpv += e * e / q[i];
-            misclosure[i] = -e;
-        }
-        if !vtpv.is_finite() {
-            return Err(GhError::NonFinite { iteration });
-        }
-        // At the rounding floor of an ill-conditioned problem the changes stop contracting a
-        // few orders above `tolerance`: settled when they are below ROUNDING_FLOOR sds and
-        // no longer halve.
-        settled |= change <= ROUNDING_FLOOR && change > 0.5 * last_change;
-        last_change = change;
-        if settled {
-            // Leverage h_i = || R^-T a~_i ||^2 of the equilibrated, weighted design row.
-            let mut redundancy = vec![0.0; n];
-            let mut w_test = vec![0.0; n];
-            let mut z = vec![0.0; m];
-            for i in 0..n {
-                for k in 0..m {
-                    let mut s = design[(i, k)];
-                    for t in 0..k {
-                        s -= r[t * m + k] * z[t];
-                    }
-                    z[k] = s / r[k * m + k];
-                }
-                let h: f64 = z.iter().map(|x| x * x).sum();
-                let ri = (1.0 - h).max(0.0);
-                redundancy[i] = ri;
-                w_test[i] = if ri > 1e-9 {
-                    misclosure[i] / (q[i] * ri).sqrt()
-                } else {
-                    0.0
-                };
-            }
-            let a = (0..n)
-                .flat_map(|i| (0..m).map(move |j| (i, j)))
-                .map(|(i, j)| design[(i, j)] * scale[j] * q[i].sqrt())
-                .collect();
-            return Ok(Solution {
-                p,
-                q_pp,
-                v,
-                misclosure,
-                q_ww: q,
-                q_parts,
-                redundancy,
-                w_test,
-                vtpv,
-                dof: n - m,
-                iterations: iteration,
-                a,
-                b,
-            });
-        }
+        Ok(Step { dp, q_pp, r, scale })
     }
-    Err(GhError::NotConverged {
-        iterations: opts.max_iterations,
-    })
 }
 
 #[cfg(test)]

@@ -469,32 +469,7 @@ fn encode_delta_column<T: DeltaColumn>(
 ) -> parquet::errors::Result<(bytes::Bytes, ColumnCloseResult)> {
     let path = descr.path();
     let nullable = descr.max_def_level() == 1;
-    let rows = match levels {
-        Some(l) if nullable => {
-            // All levels 0 or 1 exactly when their bits ORed (negative ones all set) are.
-            if l.iter().fold(0u16, |a, &l| a | l as u16) > 1
-                && let Some(bad) = l.iter().find(|&&l| l != 0 && l != 1)
-            {
-                return Err(ParquetError::General(format!(
-                    "definition level {bad} in a column whose maximum is 1"
-                )));
-            }
-            let defined = ones(l);
-            if defined != values.len() {
-                return Err(ParquetError::General(format!(
-                    "{} values for {defined} definition levels of 1",
-                    values.len()
-                )));
-            }
-            l.len()
-        }
-        Some(_) => {
-            return Err(ParquetError::General(
-                "definition levels for a required column".to_owned(),
-            ));
-        }
-        None => values.len(),
-    };
+    let rows = checked_rows(nullable, values.len(), levels)?;
     let mut zstd = match props.compression(path) {
         Compression::ZSTD(level) => Some(
             zstd::bulk::Compressor::new(level.compression_level())
@@ -503,16 +478,11 @@ fn encode_delta_column<T: DeltaColumn>(
         _ => None,
     };
     let statistics = props.statistics_enabled(path);
-    let mut column_index = (statistics == EnabledStatistics::Page)
-        .then(|| ColumnIndexBuilder::new(descr.physical_type()));
+    let mut bounds = PageBounds::<T>::new(descr, statistics);
     let mut offset_index = (!props.offset_index_disabled()).then(OffsetIndexBuilder::new);
-    let (mut ascending, mut descending) = (true, true);
-    let mut last_page: Option<(T, T)> = None;
-    let mut chunk: Option<(T, T)> = None;
-
     let mut sink = TrackedWrite::new(Vec::new());
     let mut pages = SerializedPageWriter::new(&mut sink);
-    let (mut compressed, mut uncompressed, mut written, mut page_count) = (0u64, 0u64, 0, 0);
+    let mut totals = ChunkTotals::default();
     let mut buf = Vec::new();
     let mut next_value = 0;
     for first_row in (0..rows).step_by(DELTA_PAGE_ROWS) {
@@ -533,28 +503,7 @@ fn encode_delta_column<T: DeltaColumn>(
         let page_values = &values[next_value..next_value + page_values];
         next_value += page_values.len();
         encoding::put_delta(page_values, &mut buf);
-        let nulls = (page_rows - page_values.len()) as i64;
-        let min_max = match page_values.split_first() {
-            Some((&v, rest)) if statistics != EnabledStatistics::None => Some(
-                rest.iter()
-                    .fold((v, v), |(lo, hi), &v| (lo.min(v), hi.max(v))),
-            ),
-            _ => None,
-        };
-        if let Some((lo, hi)) = min_max {
-            chunk = Some(chunk.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-            if let Some((plo, phi)) = last_page {
-                ascending &= plo <= lo && phi <= hi;
-                descending &= plo >= lo && phi >= hi;
-            }
-            last_page = Some((lo, hi));
-        }
-        if let Some(ci) = column_index.as_mut() {
-            match min_max {
-                Some((lo, hi)) => ci.append(false, lo.plain(), hi.plain(), nulls, None),
-                None => ci.append(true, Vec::new(), Vec::new(), nulls, None),
-            }
-        }
+        bounds.page(page_values, (page_rows - page_values.len()) as i64);
         let uncompressed_size = buf.len();
         let data = match zstd.as_mut() {
             Some(z) => z
@@ -575,53 +524,168 @@ fn encode_delta_column<T: DeltaColumn>(
             oi.append_offset_and_size(spec.offset as i64, spec.compressed_size as i32);
             oi.append_row_count(page_rows as i64);
         }
-        compressed += spec.compressed_size as u64;
-        uncompressed += spec.uncompressed_size as u64;
-        written += spec.bytes_written;
-        page_count += 1;
+        totals.compressed += spec.compressed_size as u64;
+        totals.uncompressed += spec.uncompressed_size as u64;
+        totals.written += spec.bytes_written;
+        totals.pages += 1;
     }
     pages.close()?;
+    let (chunk, column_index) = bounds.finish()?;
+    let chunk_statistics = (statistics != EnabledStatistics::None)
+        .then(|| T::statistics(chunk, (rows - values.len()) as u64));
+    let close = ColumnCloseResult {
+        bytes_written: totals.written,
+        rows_written: rows as u64,
+        metadata: delta_chunk_metadata(descr, props, &totals, rows, chunk_statistics)?,
+        bloom_filter: None,
+        column_index,
+        offset_index: offset_index.map(OffsetIndexBuilder::build),
+    };
+    Ok((sink.into_inner()?.into(), close))
+}
 
+/// The rows of a column of `values` values with definition `levels`, checked: in a
+/// nullable column every level 0 or 1 and one value per level 1; no levels for a required
+/// column.
+fn checked_rows(
+    nullable: bool,
+    values: usize,
+    levels: Option<&[i16]>,
+) -> parquet::errors::Result<usize> {
+    match levels {
+        Some(l) if nullable => {
+            // All levels 0 or 1 exactly when their bits ORed (negative ones all set) are.
+            if l.iter().fold(0u16, |a, &l| a | l as u16) > 1
+                && let Some(bad) = l.iter().find(|&&l| l != 0 && l != 1)
+            {
+                return Err(ParquetError::General(format!(
+                    "definition level {bad} in a column whose maximum is 1"
+                )));
+            }
+            let defined = ones(l);
+            if defined != values {
+                return Err(ParquetError::General(format!(
+                    "{values} values for {defined} definition levels of 1"
+                )));
+            }
+            Ok(l.len())
+        }
+        Some(_) => Err(ParquetError::General(
+            "definition levels for a required column".to_owned(),
+        )),
+        None => Ok(values),
+    }
+}
+
+/// What a column chunk's pages add up to.
+#[derive(Default)]
+struct ChunkTotals {
+    compressed: u64,
+    uncompressed: u64,
+    written: u64,
+    pages: i32,
+}
+
+/// The bounds of a column chunk's pages as they are written: the chunk's min and max, the
+/// page index's entries (with page statistics) and the order the pages' bounds keep.
+struct PageBounds<T> {
+    enabled: bool,
+    column_index: Option<ColumnIndexBuilder>,
+    ascending: bool,
+    descending: bool,
+    last_page: Option<(T, T)>,
+    chunk: Option<(T, T)>,
+}
+
+impl<T: DeltaColumn> PageBounds<T> {
+    fn new(descr: &ColumnDescPtr, statistics: EnabledStatistics) -> Self {
+        PageBounds {
+            enabled: statistics != EnabledStatistics::None,
+            column_index: (statistics == EnabledStatistics::Page)
+                .then(|| ColumnIndexBuilder::new(descr.physical_type())),
+            ascending: true,
+            descending: true,
+            last_page: None,
+            chunk: None,
+        }
+    }
+
+    /// A page of `values` (its defined values) and `nulls`.
+    fn page(&mut self, values: &[T], nulls: i64) {
+        let min_max = match values.split_first() {
+            Some((&v, rest)) if self.enabled => Some(
+                rest.iter()
+                    .fold((v, v), |(lo, hi), &v| (lo.min(v), hi.max(v))),
+            ),
+            _ => None,
+        };
+        if let Some((lo, hi)) = min_max {
+            self.chunk = Some(self.chunk.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+            if let Some((plo, phi)) = self.last_page {
+                self.ascending &= plo <= lo && phi <= hi;
+                self.descending &= plo >= lo && phi >= hi;
+            }
+            self.last_page = Some((lo, hi));
+        }
+        if let Some(ci) = self.column_index.as_mut() {
+            match min_max {
+                Some((lo, hi)) => ci.append(false, lo.plain(), hi.plain(), nulls, None),
+                None => ci.append(true, Vec::new(), Vec::new(), nulls, None),
+            }
+        }
+    }
+
+    /// The chunk's min and max, and the column index with the pages' boundary order.
+    #[allow(clippy::type_complexity, reason = "parquet-rs's own types, once")]
+    fn finish(
+        self,
+    ) -> parquet::errors::Result<(
+        Option<(T, T)>,
+        Option<parquet::file::page_index::column_index::ColumnIndexMetaData>,
+    )> {
+        let column_index = match self.column_index {
+            Some(mut ci) => {
+                ci.set_boundary_order(if self.ascending {
+                    BoundaryOrder::ASCENDING
+                } else if self.descending {
+                    BoundaryOrder::DESCENDING
+                } else {
+                    BoundaryOrder::UNORDERED
+                });
+                Some(ci.build()?)
+            }
+            None => None,
+        };
+        Ok((self.chunk, column_index))
+    }
+}
+
+/// A delta-encoded column chunk's metadata: its encodings, sizes, rows and statistics.
+fn delta_chunk_metadata(
+    descr: &ColumnDescPtr,
+    props: &WriterPropertiesPtr,
+    totals: &ChunkTotals,
+    rows: usize,
+    statistics: Option<Statistics>,
+) -> parquet::errors::Result<ColumnChunkMetaData> {
     let mut metadata = ColumnChunkMetaData::builder(descr.clone())
-        .set_compression(props.compression(path))
+        .set_compression(props.compression(descr.path()))
         .set_encodings_mask(EncodingMask::new_from_encodings(
             [Encoding::RLE, Encoding::DELTA_BINARY_PACKED].iter(),
         ))
         .set_page_encoding_stats(vec![PageEncodingStats {
             page_type: PageType::DATA_PAGE,
             encoding: Encoding::DELTA_BINARY_PACKED,
-            count: page_count,
+            count: totals.pages,
         }])
-        .set_total_compressed_size(compressed as i64)
-        .set_total_uncompressed_size(uncompressed as i64)
+        .set_total_compressed_size(totals.compressed as i64)
+        .set_total_uncompressed_size(totals.uncompressed as i64)
         .set_num_values(rows as i64)
         .set_data_page_offset(0);
-    if statistics != EnabledStatistics::None {
-        let nulls = (rows - values.len()) as u64;
-        metadata = metadata.set_statistics(T::statistics(chunk, nulls));
+    if let Some(s) = statistics {
+        metadata = metadata.set_statistics(s);
     }
-    let column_index = match column_index {
-        Some(mut ci) => {
-            ci.set_boundary_order(if ascending {
-                BoundaryOrder::ASCENDING
-            } else if descending {
-                BoundaryOrder::DESCENDING
-            } else {
-                BoundaryOrder::UNORDERED
-            });
-            Some(ci.build()?)
-        }
-        None => None,
-    };
-    let close = ColumnCloseResult {
-        bytes_written: written,
-        rows_written: rows as u64,
-        metadata: metadata.build()?,
-        bloom_filter: None,
-        column_index,
-        offset_index: offset_index.map(OffsetIndexBuilder::build),
-    };
-    Ok((sink.into_inner()?.into(), close))
+    metadata.build()
 }
 
 /// A session column of `n` rows, dictionary-encoded.
