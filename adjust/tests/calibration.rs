@@ -800,6 +800,10 @@ enum Told {
     /// The levels that generated it.
     Generating,
     /// Other levels (as align may estimate them).
+    #[cfg_attr(
+        not(gravcal_monte_carlo),
+        allow(dead_code, reason = "told only by a gated Monte-Carlo")
+    )]
     These(fixtures::colour::ColouredNoise),
 }
 
