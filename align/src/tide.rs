@@ -55,6 +55,63 @@ fn poly(c: [f64; 4], t: f64) -> f64 {
     c[0] + t * (c[1] + t * (c[2] + t * c[3]))
 }
 
+/// Mean elements (Schureman), rad: the Moon's longitude s, its perigee p, the Sun's
+/// longitude h, the Moon's node n, the Sun's perigee p1; and the Earth orbit's eccentricity
+/// e1.
+struct MeanElements {
+    s: f64,
+    p: f64,
+    h: f64,
+    n: f64,
+    p1: f64,
+    e1: f64,
+}
+
+impl MeanElements {
+    /// The elements `t` Julian centuries after Longman's epoch.
+    fn at(t: f64) -> MeanElements {
+        let s = poly(
+            [
+                4.72000889397,
+                8399.70927456,
+                3.45575191895e-05,
+                3.49065850399e-08,
+            ],
+            t,
+        );
+        let p = poly(
+            [
+                5.83515162814,
+                71.0180412089,
+                1.80108282532e-04,
+                1.74532925199e-07,
+            ],
+            t,
+        );
+        let h = poly([4.88162798259, 628.331950894, 5.23598775598e-06, 0.0], t);
+        let n = poly(
+            [
+                4.52360161181,
+                -33.757146295,
+                3.6264063347e-05,
+                3.39369576777e-08,
+            ],
+            t,
+        );
+        let p1 = poly(
+            [
+                4.90822941839,
+                0.0300025492114,
+                7.85398163397e-06,
+                5.3329504922e-08,
+            ],
+            t,
+        );
+        let e1 = 0.01675104 - 4.180e-5 * t - 1.26e-7 * t * t;
+        MeanElements { s, p, h, n, p1, e1 }
+    }
+}
+
 /// The body tide's effect on gravity at `site`, mGal, at `utc_s` seconds of UTC since the
 /// GPS epoch (1980-01-06 00:00 UTC; that is, GPS time less the leap seconds since then).
 pub fn body_tide_mgal(site: Site, utc_s: f64) -> f64 {
@@ -65,46 +122,7 @@ pub fn body_tide_mgal(site: Site, utc_s: f64) -> f64 {
     let (sin_lat, cos_lat) = lat.sin_cos();
     let omega = OBLIQUITY_DEG.to_radians();
 
-    // Mean elements (Schureman): the Moon's longitude s, its perigee p, the Sun's longitude
-    // h, the Moon's node n, the Sun's perigee p1; the Earth orbit's eccentricity e1.
-    let s = poly(
-        [
-            4.72000889397,
-            8399.70927456,
-            3.45575191895e-05,
-            3.49065850399e-08,
-        ],
-        t,
-    );
-    let p = poly(
-        [
-            5.83515162814,
-            71.0180412089,
-            1.80108282532e-04,
-            1.74532925199e-07,
-        ],
-        t,
-    );
-    let h = poly([4.88162798259, 628.331950894, 5.23598775598e-06, 0.0], t);
-    let n = poly(
-        [
-            4.52360161181,
-            -33.757146295,
-            3.6264063347e-05,
-            3.39369576777e-08,
-        ],
-        t,
-    );
-    let p1 = poly(
-        [
-            4.90822941839,
-            0.0300025492114,
-            7.85398163397e-06,
-            5.3329504922e-08,
-        ],
-        t,
-    );
-    let e1 = 0.01675104 - 4.180e-5 * t - 1.26e-7 * t * t;
+    let MeanElements { s, p, h, n, p1, e1 } = MeanElements::at(t);
 
     // The Moon's orbit against the equator.
     let incl = (omega.cos() * I_MOON.cos() - omega.sin() * I_MOON.sin() * n.cos()).acos();

@@ -38,48 +38,7 @@ pub(crate) fn misalignment_section(st: &Stages<'_>) -> Result<Section, Error> {
         let (Some(ix), Some(iy)) = (at("theta_x"), at("theta_y")) else {
             continue;
         };
-        let (px, py) = (&r.parameters[ix], &r.parameters[iy]);
-        let rho = r.correlation[ix][iy];
-        // An ellipse too small to see beside theta is magnified by a power of ten, and says so.
-        let theta_mrad = v.theta_rad * 1e3;
-        let extent = ELLIPSE_95 * (px.sigma.max(py.sigma)) * 1e3;
-        let magnify = if extent > 0.0 && extent < 0.05 * theta_mrad {
-            10f64.powf((0.1 * theta_mrad / extent).log10().round())
-        } else {
-            1.0
-        };
-        let (sx, sy) = (px.sigma * 1e3 * magnify, py.sigma * 1e3 * magnify);
-        // The ellipse: x = sx c cos u, y = sy c (rho cos u + sqrt(1 - rho^2) sin u).
-        let ellipse: Vec<(f64, f64)> = (0..=72)
-            .map(|i| {
-                let u = f64::from(i) * std::f64::consts::TAU / 72.0;
-                (
-                    px.value * 1e3 + ELLIPSE_95 * sx * u.cos(),
-                    py.value * 1e3
-                        + ELLIPSE_95
-                            * sy
-                            * (rho * u.cos() + (1.0 - rho * rho).max(0.0).sqrt() * u.sin()),
-                )
-            })
-            .collect();
-        let title = format!("{} {}: misalignment", r.model, r.accelerometer);
-        let name = format!("misalignment-{}-{}", r.model, r.accelerometer);
-        let label = if magnify > 1.0 {
-            format!("95 % error ellipse, magnified {magnify:.0} x")
-        } else {
-            "95 % error ellipse".to_owned()
-        };
-        let svg = plots::polar(&plots::Polar {
-            title: &title,
-            point: (px.value * 1e3, py.value * 1e3),
-            ellipse: &ellipse,
-            ellipse_label: &label,
-        })
-        .map_err(|message| Error::Plot {
-            name: name.clone(),
-            message,
-        })?;
-        s.plots.push((format!("{name}.svg"), svg));
+        s.plots.push(misalignment_plot(r, (ix, iy), v.theta_rad)?);
     }
     if t.rows.is_empty() {
         s.text.push(
@@ -97,6 +56,58 @@ pub(crate) fn misalignment_section(st: &Stages<'_>) -> Result<Section, Error> {
         s.tables.push(("Misalignment vector".to_owned(), t));
     }
     Ok(s)
+}
+
+/// Result `r`'s plot of (theta_x, theta_y) (parameters `ix`, `iy`) with its 95 % error
+/// ellipse, magnified by a power of ten (and saying so) when too small to see beside
+/// theta: the file name and the SVG.
+fn misalignment_plot(
+    r: &CalibrationResult,
+    (ix, iy): (usize, usize),
+    theta_rad: f64,
+) -> Result<(String, String), Error> {
+    let (px, py) = (&r.parameters[ix], &r.parameters[iy]);
+    let rho = r.correlation[ix][iy];
+    // An ellipse too small to see beside theta is magnified by a power of ten, and says so.
+    let theta_mrad = theta_rad * 1e3;
+    let extent = ELLIPSE_95 * (px.sigma.max(py.sigma)) * 1e3;
+    let magnify = if extent > 0.0 && extent < 0.05 * theta_mrad {
+        10f64.powf((0.1 * theta_mrad / extent).log10().round())
+    } else {
+        1.0
+    };
+    let (sx, sy) = (px.sigma * 1e3 * magnify, py.sigma * 1e3 * magnify);
+    // The ellipse: x = sx c cos u, y = sy c (rho cos u + sqrt(1 - rho^2) sin u).
+    let ellipse: Vec<(f64, f64)> = (0..=72)
+        .map(|i| {
+            let u = f64::from(i) * std::f64::consts::TAU / 72.0;
+            (
+                px.value * 1e3 + ELLIPSE_95 * sx * u.cos(),
+                py.value * 1e3
+                    + ELLIPSE_95
+                        * sy
+                        * (rho * u.cos() + (1.0 - rho * rho).max(0.0).sqrt() * u.sin()),
+            )
+        })
+        .collect();
+    let title = format!("{} {}: misalignment", r.model, r.accelerometer);
+    let name = format!("misalignment-{}-{}", r.model, r.accelerometer);
+    let label = if magnify > 1.0 {
+        format!("95 % error ellipse, magnified {magnify:.0} x")
+    } else {
+        "95 % error ellipse".to_owned()
+    };
+    let svg = plots::polar(&plots::Polar {
+        title: &title,
+        point: (px.value * 1e3, py.value * 1e3),
+        ellipse: &ellipse,
+        ellipse_label: &label,
+    })
+    .map_err(|message| Error::Plot {
+        name: name.clone(),
+        message,
+    })?;
+    Ok((format!("{name}.svg"), svg))
 }
 
 /// The triad calibrations (docs/formats.md 8.4): parameters, departures from orthogonality, the

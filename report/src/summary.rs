@@ -229,43 +229,8 @@ pub(crate) fn ledger_section(st: &Stages<'_>) -> Section {
     } = st;
     // Ledgers.
     let mut s = section("What was read, used and excluded");
-    let mut files = Table::new(&[
-        "file",
-        "role",
-        "read",
-        "accepted",
-        "rejected",
-        "bytes skipped",
-        "null values",
-    ]);
-    for f in &ingest_report.files {
-        let rejected: Vec<String> = f.rejected.iter().map(|(r, n)| format!("{n} {r}")).collect();
-        let nulls: Vec<String> = f
-            .null_values
-            .iter()
-            .map(|(r, n)| format!("{n} {r}"))
-            .collect();
-        files.rows.push(vec![
-            f.path.clone(),
-            f.role.clone(),
-            format!("{} {}", f.read, f.unit),
-            f.accepted.to_string(),
-            if rejected.is_empty() {
-                "-".into()
-            } else {
-                rejected.join(", ")
-            },
-            f.byte_ledger
-                .as_ref()
-                .map_or("-".into(), |b| b.skipped_resynchronising.to_string()),
-            if nulls.is_empty() {
-                "-".into()
-            } else {
-                nulls.join(", ")
-            },
-        ]);
-    }
-    s.tables.push(("Ingest".to_owned(), files));
+    s.tables
+        .push(("Ingest".to_owned(), ingest_table(ingest_report)));
     let mut al = Table::new(&["session", "accelerometer", "readings", "used", "excluded"]);
     for c in &align_report.counts {
         let ex: Vec<String> = c.excluded.iter().map(|(r, n)| format!("{n} {r}")).collect();
@@ -308,4 +273,46 @@ pub(crate) fn ledger_section(st: &Stages<'_>) -> Section {
         align_report.config.theodolite_sigma_arcsec
     ));
     s
+}
+
+/// Ingest's ledger per file: what was read, accepted and rejected (by reason), the bytes
+/// skipped resynchronising and the values stored as null.
+fn ingest_table(report: &IngestReport) -> Table {
+    let mut files = Table::new(&[
+        "file",
+        "role",
+        "read",
+        "accepted",
+        "rejected",
+        "bytes skipped",
+        "null values",
+    ]);
+    for f in &report.files {
+        let rejected: Vec<String> = f.rejected.iter().map(|(r, n)| format!("{n} {r}")).collect();
+        let nulls: Vec<String> = f
+            .null_values
+            .iter()
+            .map(|(r, n)| format!("{n} {r}"))
+            .collect();
+        files.rows.push(vec![
+            f.path.clone(),
+            f.role.clone(),
+            format!("{} {}", f.read, f.unit),
+            f.accepted.to_string(),
+            if rejected.is_empty() {
+                "-".into()
+            } else {
+                rejected.join(", ")
+            },
+            f.byte_ledger
+                .as_ref()
+                .map_or("-".into(), |b| b.skipped_resynchronising.to_string()),
+            if nulls.is_empty() {
+                "-".into()
+            } else {
+                nulls.join(", ")
+            },
+        ]);
+    }
+    files
 }
