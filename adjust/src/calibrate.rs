@@ -440,13 +440,7 @@ pub fn calibrate_with(
     loop {
         round += 1;
         let used: Vec<&Obs> = active.iter().map(|&i| &obs[i]).collect();
-        let n = used.len() as f64;
-        let centre = used.iter().map(|o| o.ng).sum::<f64>() / n;
-        let scale = used
-            .iter()
-            .map(|o| (o.ng - centre).abs())
-            .fold(0.0, f64::max)
-            .max(1.0);
+        let (centre, scale) = counts_centre_and_scale(&used);
         let tides: Vec<f64> = used.iter().map(|o| o.tide_mgal).collect();
         let rolls: Vec<f64> = used.iter().map(|o| o.roll_rad).collect();
         let model = CalibrationConditions {
@@ -462,11 +456,10 @@ pub fn calibrate_with(
         let p0 = start_values(&used, &model);
         let to_cal = |e| cal_error(e, &names, &active);
         let mut s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(to_cal)?;
-        let coloured = options.coloured.as_ref().map(|noise| {
-            let time_s: Vec<f64> = used.iter().map(|o| o.time_s).collect();
-            let session: Vec<usize> = used.iter().map(|o| o.session).collect();
-            correlated::misclosure_excess(&s, &time_s, &session, noise)
-        });
+        let coloured = options
+            .coloured
+            .as_ref()
+            .map(|noise| misclosure_excess(&s, &used, noise));
         s.w_test = left_out_w_tests(&s, &used, coloured.as_deref());
         let worst = s
             .w_test
@@ -511,6 +504,27 @@ pub fn mdb_noncentrality(dof: Option<f64>) -> f64 {
             c + POWER_Z * (1.0 + c * c / (2.0 * d)).sqrt()
         }
     }
+}
+
+/// The counts' mean and largest distance from it (at least 1): the model's internal
+/// parameters are scaled by them.
+fn counts_centre_and_scale(used: &[&Obs]) -> (f64, f64) {
+    let n = used.len() as f64;
+    let centre = used.iter().map(|o| o.ng).sum::<f64>() / n;
+    let scale = used
+        .iter()
+        .map(|o| (o.ng - centre).abs())
+        .fold(0.0, f64::max)
+        .max(1.0);
+    (centre, scale)
+}
+
+/// What the coloured ADC noise adds to the variance of each of `used`'s misclosures
+/// ([`correlated::misclosure_excess`]).
+fn misclosure_excess(s: &gh::Solution<3>, used: &[&Obs], noise: &ColouredAdc) -> Vec<f64> {
+    let time_s: Vec<f64> = used.iter().map(|o| o.time_s).collect();
+    let session: Vec<usize> = used.iter().map(|o| o.session).collect();
+    correlated::misclosure_excess(s, &time_s, &session, noise)
 }
 
 /// Baarda's w of each condition with its reading's Dz referred to the left-out sigma_Dz

@@ -145,26 +145,7 @@ pub fn apply_excess(
                 }
             }
         }
-        // Random walk: K^2 (sum_{j<=i} tau_j x_j + tau_i sum_{j>i} x_j).
-        let tau = |i: usize| time_s[i] - time_s[first];
-        let mut below = vec![0.0; k];
-        for &i in &order {
-            for (b, v) in below.iter_mut().zip(&x[i]) {
-                *b += tau(i) * v;
-            }
-            for (out, b) in y[i].iter_mut().zip(&below) {
-                *out += k2 * b;
-            }
-        }
-        let mut above = vec![0.0; k];
-        for &i in order.iter().rev() {
-            for (out, a) in y[i].iter_mut().zip(&above) {
-                *out += k2 * tau(i) * a;
-            }
-            for (a, v) in above.iter_mut().zip(&x[i]) {
-                *a += v;
-            }
-        }
+        add_random_walk(&mut y, x, &order, |i| time_s[i] - time_s[first], k2);
     }
     y
 }
@@ -245,6 +226,37 @@ pub fn between_station_excess(
         total += share[j] * (local - 2.0 * cross + quad) / sum_w;
     }
     total
+}
+
+/// Adds the random walk's part of (C - D) x to `y` for one session's observations in time
+/// `order`: K^2 (sum_{j<=i} tau_j x_j + tau_i sum_{j>i} x_j), `tau` the time since the
+/// session's first observation.
+fn add_random_walk(
+    y: &mut [Vec<f64>],
+    x: &[Vec<f64>],
+    order: &[usize],
+    tau: impl Fn(usize) -> f64,
+    k2: f64,
+) {
+    let k = x.first().map_or(0, Vec::len);
+    let mut below = vec![0.0; k];
+    for &i in order {
+        for (b, v) in below.iter_mut().zip(&x[i]) {
+            *b += tau(i) * v;
+        }
+        for (out, b) in y[i].iter_mut().zip(&below) {
+            *out += k2 * b;
+        }
+    }
+    let mut above = vec![0.0; k];
+    for &i in order.iter().rev() {
+        for (out, a) in y[i].iter_mut().zip(&above) {
+            *out += k2 * tau(i) * a;
+        }
+        for (a, v) in above.iter_mut().zip(&x[i]) {
+            *a += v;
+        }
+    }
 }
 
 /// What the coloured noise adds to the variance of each condition's fitted misclosure
