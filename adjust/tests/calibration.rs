@@ -842,8 +842,7 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {
             (a.min(r.ng_true), b.max(r.ng_true))
         });
-    let (mut rejected, mut theodolite, mut removed) = (0, 0.0, 0);
-    let (mut adc, mut component_rejected) = (0.0, [0usize; 2]);
+    let (mut theodolite, mut adc) = (0.0, 0.0);
     let mut failed = Vec::new();
     let mut counts = VerdictCounts::default();
     let terms = MC_TERMS;
@@ -877,7 +876,6 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
                 continue;
             }
         };
-        removed += f.removed.len();
         let names: Vec<&str> = terms.names().iter().map(|n| n.name).collect();
         let at = |p: &str| names.iter().position(|n| *n == p).expect("parameter");
         est.push(MC_PARAMETERS.map(|p| f.values[at(p)]));
@@ -906,7 +904,6 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
                 .sum();
             (err, var.sqrt())
         }));
-        rejected += usize::from(!f.global_test_passed());
         theodolite += f.components.first().map_or(1.0, |c| c.estimate);
         adc += f.components.get(1).map_or(1.0, |c| c.estimate);
         counts.fits += 1;
@@ -916,7 +913,6 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
         counts.removed_squared += f.removed.len().pow(2);
         for (k, c) in f.components.iter().take(2).enumerate() {
             let tested = c.not_estimable.is_none();
-            component_rejected[k] += usize::from(tested && !c.test.passed());
             counts.component_tested[k] += usize::from(tested);
             counts.component_rejected[k] += usize::from(tested && !c.test.passed());
         }
@@ -931,7 +927,7 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
     MonteCarlo {
         sd_over_sigma: [0, 1, 2, 3, 4].map(|j| sd(j) / mean(j, &sig)),
         bias_z: [2, 3, 4].map(|j| (mean(j, &est) - truths[j - 2]) / (sd(j) / n.sqrt())),
-        rejection_rate: rejected as f64 / n,
+        rejection_rate: counts.global_rejected as f64 / n,
         mahalanobis_ratio: mahalanobis.iter().sum::<f64>() / n / 5.0,
         applied_sd_over_sigma: [0, 1, 2].map(|k| {
             let e: Vec<f64> = applied.iter().map(|a| a[k].0).collect();
@@ -941,8 +937,8 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
         }),
         mean_theodolite_component: theodolite / n,
         mean_adc_component: adc / n,
-        component_rejection: component_rejected.map(|k| k as f64 / n),
-        mean_removed: removed as f64 / n,
+        component_rejection: counts.component_rejected.map(|k| k as f64 / n),
+        mean_removed: counts.removed as f64 / n,
         failed,
         counts,
     }
