@@ -230,25 +230,7 @@ pub(crate) fn write_outputs(
         Root::Out,
         &format!("{STAGE_DIR}/{}", tables::observations::FILE),
     )?];
-    let errors = ds
-        .sessions
-        .iter()
-        .filter(|s| !s.session.expect_empty && s.is_tilt_table())
-        .filter(|s| {
-            formed
-                .counts
-                .iter()
-                .filter(|c| c.session == s.session.id)
-                .all(|c| c.used == 0)
-        })
-        .map(|s| {
-            format!(
-                "session {}: no usable observation for any accelerometer (align.json counts why; \
-                 if this is expected, set `expect_empty = true` in its [[session]])",
-                s.session.id
-            )
-        })
-        .collect();
+    let errors = unused_sessions(ds, &formed);
     let report = AlignReport {
         format: LEDGER_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
@@ -279,6 +261,29 @@ pub(crate) fn write_outputs(
         .into());
     }
     Ok(report)
+}
+
+/// A tilt-table session that gave no usable observation for any accelerometer (and was not
+/// declared `expect_empty`), each as an error naming it.
+fn unused_sessions(ds: &Dataset, formed: &Formed) -> Vec<String> {
+    ds.sessions
+        .iter()
+        .filter(|s| !s.session.expect_empty && s.is_tilt_table())
+        .filter(|s| {
+            formed
+                .counts
+                .iter()
+                .filter(|c| c.session == s.session.id)
+                .all(|c| c.used == 0)
+        })
+        .map(|s| {
+            format!(
+                "session {}: no usable observation for any accelerometer (align.json counts why; \
+                 if this is expected, set `expect_empty = true` in its [[session]])",
+                s.session.id
+            )
+        })
+        .collect()
 }
 
 /// Writes a few lines: per session and accelerometer, used and excluded by reason.

@@ -281,51 +281,9 @@ pub(crate) fn comparison_section(st: &Stages<'_>) -> Result<Option<Section>, Err
             continue;
         }
         for (name, slope, unit) in [("b", "b_t", "mGal"), ("k", "k_t", "mGal/bit")] {
-            let at: Vec<(f64, f64, f64)> = sessions
-                .iter()
-                .filter_map(|r| {
-                    let p = param(r, name)?;
-                    Some((r.mean_temperature_c, p.value, p.sigma))
-                })
-                .collect();
-            let line = temperature_line(thermal, name, slope, t_ref, &at);
-            let Some(model_at) = temperature_model(thermal, name, slope, t_ref) else {
-                continue;
-            };
-            // Differences from the model's line, which the plot draws at 0 with its band:
-            // b changes by tens of mGal between sessions, their sigmas are below one.
-            let points: Vec<(f64, f64, f64)> = at
-                .iter()
-                .map(|&(t, v, e)| (t, v - model_at(t), e))
-                .collect();
-            let line: Vec<(f64, f64, f64)> = line.iter().map(|&(t, _, e)| (t, 0.0, e)).collect();
-            let title = format!(
-                "{} {name}: per-session {} fits minus the {} model's {name}(T)",
-                thermal.accelerometer, sessions[0].model, thermal.model
-            );
-            let y_label = format!("{name} - {name}(T) ({unit})");
-            let labels = (
-                format!("{} per session", sessions[0].model),
-                format!("{} model {name}(T) (0)", thermal.model),
-            );
-            let svg = plots::trend(&plots::Trend {
-                title: &title,
-                y_label: &y_label,
-                points: &points,
-                line: &line,
-                labels: (&labels.0, &labels.1),
-            })
-            .map_err(|message| Error::Plot {
-                name: title.clone(),
-                message,
-            })?;
-            s.plots.push((
-                format!(
-                    "trend-{}-{}-{name}.svg",
-                    thermal.model, thermal.accelerometer
-                ),
-                svg,
-            ));
+            if let Some(plot) = trend_plot(thermal, &sessions, (name, slope, unit), t_ref)? {
+                s.plots.push(plot);
+            }
         }
     }
     if s.plots.is_empty() {
@@ -340,6 +298,62 @@ pub(crate) fn comparison_section(st: &Stages<'_>) -> Result<Option<Section>, Err
             .to_owned(),
     );
     Ok(Some(s))
+}
+
+/// The plot of the per-session fits' `name` (b or k) against temperature, less the thermal
+/// model's `name` + `slope` (T - t_ref), with the model's band about 0: the file name and the
+/// SVG; None when the model lacks the parameters.
+fn trend_plot(
+    thermal: &CalibrationResult,
+    sessions: &[&CalibrationResult],
+    (name, slope, unit): (&str, &str, &str),
+    t_ref: f64,
+) -> Result<Option<(String, String)>, Error> {
+    let at: Vec<(f64, f64, f64)> = sessions
+        .iter()
+        .filter_map(|r| {
+            let p = param(r, name)?;
+            Some((r.mean_temperature_c, p.value, p.sigma))
+        })
+        .collect();
+    let line = temperature_line(thermal, name, slope, t_ref, &at);
+    let Some(model_at) = temperature_model(thermal, name, slope, t_ref) else {
+        return Ok(None);
+    };
+    // Differences from the model's line, which the plot draws at 0 with its band:
+    // b changes by tens of mGal between sessions, their sigmas are below one.
+    let points: Vec<(f64, f64, f64)> = at
+        .iter()
+        .map(|&(t, v, e)| (t, v - model_at(t), e))
+        .collect();
+    let line: Vec<(f64, f64, f64)> = line.iter().map(|&(t, _, e)| (t, 0.0, e)).collect();
+    let title = format!(
+        "{} {name}: per-session {} fits minus the {} model's {name}(T)",
+        thermal.accelerometer, sessions[0].model, thermal.model
+    );
+    let y_label = format!("{name} - {name}(T) ({unit})");
+    let labels = (
+        format!("{} per session", sessions[0].model),
+        format!("{} model {name}(T) (0)", thermal.model),
+    );
+    let svg = plots::trend(&plots::Trend {
+        title: &title,
+        y_label: &y_label,
+        points: &points,
+        line: &line,
+        labels: (&labels.0, &labels.1),
+    })
+    .map_err(|message| Error::Plot {
+        name: title.clone(),
+        message,
+    })?;
+    Ok(Some((
+        format!(
+            "trend-{}-{}-{name}.svg",
+            thermal.model, thermal.accelerometer
+        ),
+        svg,
+    )))
 }
 
 /// The model's `name` + `slope` (T - t_ref) as a function of T.

@@ -93,21 +93,7 @@ pub fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
     let mut svg = String::new();
     {
-        let all = || s.used.iter().chain(s.removed).chain(s.line);
-        let (x0, x1) = range(all().map(|p| p.0));
-        // The y range follows the used points (and the line): a blunder of hundreds of mGal
-        // must not squash the residuals. Removed points beyond it sit on the frame's edge.
-        let (mut y0, mut y1) = if let Some(r) = s.y_range {
-            r
-        } else if s.used.is_empty() {
-            range(all().map(|p| p.1))
-        } else {
-            range(s.used.iter().chain(s.line).map(|p| p.1))
-        };
-        if s.zero_line {
-            y0 = y0.min(0.0);
-            y1 = y1.max(0.0);
-        }
+        let ((x0, x1), (y0, y1)) = scatter_ranges(s);
         let root = SVGBackend::with_string(&mut svg, (560, 360)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let (plot, strip) = root.split_vertically(336);
@@ -170,6 +156,26 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
+}
+
+/// A scatter plot's x and y ranges: x over every point and the line; y over the used
+/// points and the line (a blunder of hundreds of mGal must not squash the residuals;
+/// removed points beyond it sit on the frame's edge), or as given, with 0 when drawn.
+fn scatter_ranges(s: &Scatter<'_>) -> ((f64, f64), (f64, f64)) {
+    let all = || s.used.iter().chain(s.removed).chain(s.line);
+    let x = range(all().map(|p| p.0));
+    let (mut y0, mut y1) = if let Some(r) = s.y_range {
+        r
+    } else if s.used.is_empty() {
+        range(all().map(|p| p.1))
+    } else {
+        range(s.used.iter().chain(s.line).map(|p| p.1))
+    };
+    if s.zero_line {
+        y0 = y0.min(0.0);
+        y1 = y1.max(0.0);
+    }
+    (x, (y0, y1))
 }
 
 /// A parameter of per-session fits against temperature (points with 1-sigma bars) and a
