@@ -28,13 +28,45 @@ pub struct FitArgs {
 
 /// Fits a polynomial to the columns of a CSV table (docs/formats.md section 7).
 pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
-    let (path, x, y, degree) = (
-        args.input.as_path(),
-        args.x.as_str(),
-        args.y.as_str(),
-        args.degree,
-    );
+    let path = args.input.as_path();
     let (sigma_x, sigma_y) = (args.sigma_x.as_deref(), args.sigma_y.as_deref());
+    let wanted = [
+        Some(args.x.as_str()),
+        Some(args.y.as_str()),
+        sigma_x,
+        sigma_y,
+    ];
+    let (data, line_of_row) = read_columns(path, wanted)?;
+    let degree = args.degree;
+    let [xs, ys, sx, sy] = data;
+    fit::fit(
+        &xs,
+        &ys,
+        sigma_x.map(|_| sx.as_slice()),
+        sigma_y.map(|_| sy.as_slice()),
+        degree,
+    )
+    .map_err(|e| match e {
+        fit::FitError::BadValue { row, message } => Error::Fit(format!(
+            "{}:{}: {message}",
+            path.display(),
+            line_of_row.get(row - 1).copied().unwrap_or(row)
+        )),
+        e => Error::Fit(format!("{}: {e}", path.display())),
+    })
+}
+
+/// The columns `wanted` (x, y and the optional sigmas, by name) of the CSV table at `path`,
+/// and the file's line of each data row: blank lines and `#` comments skipped, a
+/// byte-order mark dropped, every error naming the file, the line and the column.
+#[allow(
+    clippy::type_complexity,
+    reason = "four columns and their rows' lines, once"
+)]
+fn read_columns(
+    path: &Path,
+    wanted: [Option<&str>; 4],
+) -> Result<([Vec<f64>; 4], Vec<usize>), Error> {
     if path.is_dir() {
         return Err(Error::Fit(format!(
             "{}: is a folder, not a CSV file",
@@ -64,12 +96,10 @@ pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
             ))
         })
     };
-    let cols: Vec<Option<usize>> = vec![
-        Some(index(x)?),
-        Some(index(y)?),
-        sigma_x.map(index).transpose()?,
-        sigma_y.map(index).transpose()?,
-    ];
+    let cols: Vec<Option<usize>> = wanted
+        .iter()
+        .map(|w| w.map(index).transpose())
+        .collect::<Result<_, _>>()?;
     let mut data: [Vec<f64>; 4] = Default::default();
     // The file's line of each data row, for messages about a row.
     let mut line_of_row = Vec::new();
@@ -93,20 +123,5 @@ pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
             }
         }
     }
-    let [xs, ys, sx, sy] = data;
-    fit::fit(
-        &xs,
-        &ys,
-        sigma_x.map(|_| sx.as_slice()),
-        sigma_y.map(|_| sy.as_slice()),
-        degree,
-    )
-    .map_err(|e| match e {
-        fit::FitError::BadValue { row, message } => Error::Fit(format!(
-            "{}:{}: {message}",
-            path.display(),
-            line_of_row.get(row - 1).copied().unwrap_or(row)
-        )),
-        e => Error::Fit(format!("{}: {e}", path.display())),
-    })
+    Ok((data, line_of_row))
 }
