@@ -74,28 +74,7 @@ pub fn show(path: &Path, options: ShowOptions, out: &mut impl Write) -> Result<(
         }
     }
     if !options.csv {
-        let widths: Vec<usize> = (0..names.len())
-            .map(|c| {
-                lines
-                    .iter()
-                    .map(|r| r[c].len())
-                    .chain([names[c].len()])
-                    .max()
-                    .unwrap_or(0)
-            })
-            .collect();
-        let line = |cells: &[String]| {
-            cells
-                .iter()
-                .zip(&widths)
-                .map(|(c, w)| format!("{c:>w$}"))
-                .collect::<Vec<_>>()
-                .join("  ")
-        };
-        writeln!(out, "{}", line(&names))?;
-        for r in &lines {
-            writeln!(out, "{}", line(r))?;
-        }
+        write_aligned(out, &names, &lines)?;
         if (printed as i64) < rows {
             writeln!(
                 out,
@@ -103,6 +82,33 @@ pub fn show(path: &Path, options: ShowOptions, out: &mut impl Write) -> Result<(
                 rows - printed as i64
             )?;
         }
+    }
+    Ok(())
+}
+
+/// The header `names` and the rows `lines`, each column right-aligned to its widest cell.
+fn write_aligned(out: &mut impl Write, names: &[String], lines: &[Vec<String>]) -> Result<()> {
+    let widths: Vec<usize> = (0..names.len())
+        .map(|c| {
+            lines
+                .iter()
+                .map(|r| r[c].len())
+                .chain([names[c].len()])
+                .max()
+                .unwrap_or(0)
+        })
+        .collect();
+    let line = |cells: &[String]| {
+        cells
+            .iter()
+            .zip(&widths)
+            .map(|(c, w)| format!("{c:>w$}"))
+            .collect::<Vec<_>>()
+            .join("  ")
+    };
+    writeln!(out, "{}", line(names))?;
+    for r in lines {
+        writeln!(out, "{}", line(r))?;
     }
     Ok(())
 }
