@@ -50,14 +50,7 @@ pub fn extra_covariance(
     let gain: Vec<Vec<f64>> = (0..n)
         .map(|i| {
             let f = -s.b[i][1] / s.q_ww[i];
-            (0..m)
-                .map(|r| {
-                    (0..m)
-                        .map(|c| s.q_pp[r * m + c] * s.a[i * m + c])
-                        .sum::<f64>()
-                        * f
-                })
-                .collect()
+            q_pp_a(s, i).into_iter().map(|v| v * f).collect()
         })
         .collect();
     // sum_ij g_i g_j^T (C - D)_ij = G^T ((C - D) G).
@@ -79,6 +72,19 @@ pub fn extra_covariance(
         }
     }
     acc
+}
+
+/// Q_pp a_i: the parameters' cofactor matrix times condition `i`'s design row, the part of
+/// its gain the weights and the counts' partial then scale.
+fn q_pp_a(s: &Solution<3>, i: usize) -> Vec<f64> {
+    let m = s.p.len();
+    (0..m)
+        .map(|r| {
+            (0..m)
+                .map(|c| s.q_pp[r * m + c] * s.a[i * m + c])
+                .sum::<f64>()
+        })
+        .collect()
 }
 
 /// `C x` for an n x k matrix `x` (row per observation): the coloured noise's covariance of
@@ -277,16 +283,7 @@ pub fn misclosure_excess(
     let bng: Vec<f64> = s.b.iter().map(|b| b[1]).collect();
     // g_i = Q_pp a_i w_i, so that H = A G and (R S R^T)_ii = S_ii - 2 (H S)_ii + (H S H^T)_ii.
     let g: Vec<Vec<f64>> = (0..n)
-        .map(|i| {
-            (0..m)
-                .map(|r| {
-                    (0..m)
-                        .map(|c| s.q_pp[r * m + c] * s.a[i * m + c])
-                        .sum::<f64>()
-                        / s.q_ww[i]
-                })
-                .collect()
-        })
+        .map(|i| q_pp_a(s, i).into_iter().map(|v| v / s.q_ww[i]).collect())
         .collect();
     // Y = (C - D) Bn G^T; then S G^T = Bn Y.
     let x: Vec<Vec<f64>> = g

@@ -463,6 +463,10 @@ impl VerdictCounts {
         let mean = self.removed as f64 / r;
         let variance = (self.removed_squared as f64 - r * mean * mean) / (r - 1.0);
         let per_fit = self.observations as f64 / r;
+        if mean == 0.0 || r < 2.0 {
+            // Nothing removed: no dispersion to measure; the binomial's.
+            return 1.0;
+        }
         variance / (mean * (1.0 - mean / per_fit))
     }
 
@@ -1078,7 +1082,9 @@ fn monte_carlo_default_is_honest_full() {
 /// The ADC component when the fit is told less coloured noise than there is (docs/model.md
 /// 6.8): esgt-2005's coloured noise generated (B = 0.75 counts, K = 0.01 counts sqrt(Hz)),
 /// the fit told the generating levels, the levels align estimates on esgt-2005 for acc1 (B
-/// 0.65, no random walk found), or nothing. Printed for the record (GRAVCAL_MONTE_CARLO=1).
+/// 0.65, no random walk found), or nothing (GRAVCAL_MONTE_CARLO=1). Told the generating
+/// levels, the ADC component averages 1 within 0.05; told less, its test sees it: above
+/// 1.05 and rejecting more than its 5 % when told align's estimate, above 1.2 told nothing.
 #[cfg(gravcal_monte_carlo)]
 #[test]
 fn adc_component_when_the_noise_is_under_told() {
@@ -1096,7 +1102,14 @@ fn adc_component_when_the_noise_is_under_told() {
             told,
             ..McSetup::WHITE
         };
-        print_monte_carlo(label, 1000, &monte_carlo(1000, Weights::Moderated, setup));
+        let m = monte_carlo(1000, Weights::Moderated, setup);
+        print_monte_carlo(label, 1000, &m);
+        let (adc, rejects) = (m.mean_adc_component, m.component_rejection[1]);
+        match told {
+            Told::Generating => assert!((adc - 1.0).abs() <= 0.05, "{label}: {adc}"),
+            Told::These(_) => assert!(adc > 1.05 && rejects > 0.1, "{label}: {adc} {rejects}"),
+            Told::Nothing => assert!(adc > 1.2, "{label}: {adc}"),
+        }
     }
 }
 
