@@ -174,31 +174,38 @@ impl CalibrationFunction {
         }
         let (value, variance) = polynomials(&coef, &cov);
         let (value_poly, variance_poly) = (Polynomial::new(value), Polynomial::new(variance));
-        // Where the calibration is meant to be used, its value and sigma must be numbers.
-        let counts = r.counts_range.map_or(vec![0.0], |[lo, hi]| vec![lo, hi]);
-        let taus = match (r.temperature, r.temperature_range_c) {
-            (true, Some([lo, hi])) => vec![lo - t_ref_c, hi - t_ref_c],
-            _ => vec![0.0],
-        };
-        for &ng in &counts {
-            for &tau in &taus {
-                let (v, var) = (value_poly.at(ng, tau), variance_poly.at(ng, tau));
-                if !(v.is_finite() && var.is_finite()) {
-                    return Err(unusable(format!(
-                        "at {ng} counts the function gives {v} (variance {var}): its \
-                         parameters overflow the arithmetic"
-                    )));
-                }
-            }
-        }
-        Ok(Self {
+        let function = Self {
             value_poly,
             variance_poly,
             temperature: r.temperature,
             t_ref_c,
             counts_range: r.counts_range,
             temperature_range_c: r.temperature_range_c,
-        })
+        };
+        function.finite_where_used().map_err(unusable)?;
+        Ok(function)
+    }
+
+    /// Where the calibration is meant to be used (the corners of its counts' and
+    /// temperatures' ranges), its value and sigma must be numbers.
+    fn finite_where_used(&self) -> Result<(), String> {
+        let counts = self.counts_range.map_or(vec![0.0], |[lo, hi]| vec![lo, hi]);
+        let taus = match (self.temperature, self.temperature_range_c) {
+            (true, Some([lo, hi])) => vec![lo - self.t_ref_c, hi - self.t_ref_c],
+            _ => vec![0.0],
+        };
+        for &ng in &counts {
+            for &tau in &taus {
+                let (v, var) = (self.value_poly.at(ng, tau), self.variance_poly.at(ng, tau));
+                if !(v.is_finite() && var.is_finite()) {
+                    return Err(format!(
+                        "at {ng} counts the function gives {v} (variance {var}): its \
+                         parameters overflow the arithmetic"
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Calibrates counts `ng` at temperature `temperature_c`.

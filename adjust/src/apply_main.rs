@@ -18,17 +18,8 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    match args.apply.run(std::path::Path::new(".")) {
-        Ok(report) => {
-            adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
-            if args.report_peak_rss {
-                ingest::print_usage();
-            }
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("gravcal-apply: error: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    let result = args.apply.run(std::path::Path::new("."));
+    ingest::cli::finish("apply", result, args.report_peak_rss, |r| {
+        adjust::apply::stream::print_summary(r, &mut std::io::stderr());
+    })
 }

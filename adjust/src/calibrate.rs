@@ -4,7 +4,7 @@
 //! counts. No I/O.
 
 use crate::components::{self, Component, ScaledChi2};
-use crate::correlated::{self, ColouredAdc};
+use crate::correlated::{self, ColouredAdc, Timeline};
 use crate::gh::{self, GhError, Options};
 use crate::model::{CalibrationConditions, Terms, apply, propagate};
 
@@ -88,8 +88,8 @@ pub enum CalError {
         m: usize,
     },
     /// The adjustment failed otherwise.
-    #[error("{0}")]
-    Adjustment(String),
+    #[error(transparent)]
+    Adjustment(GhError),
 }
 
 /// An observation removed by data snooping.
@@ -524,7 +524,14 @@ fn counts_centre_and_scale(used: &[&Obs]) -> (f64, f64) {
 fn misclosure_excess(s: &gh::Solution<3>, used: &[&Obs], noise: &ColouredAdc) -> Vec<f64> {
     let time_s: Vec<f64> = used.iter().map(|o| o.time_s).collect();
     let session: Vec<usize> = used.iter().map(|o| o.session).collect();
-    correlated::misclosure_excess(s, &time_s, &session, noise)
+    correlated::misclosure_excess(
+        s,
+        Timeline {
+            time_s: &time_s,
+            session: &session,
+        },
+        noise,
+    )
 }
 
 /// Baarda's w of each condition with its reading's Dz referred to the left-out sigma_Dz
@@ -634,7 +641,7 @@ fn conclude(
         .collect();
     let mut q = weighted.q_pp.clone();
     if let Some(noise) = &options.coloured {
-        let extra = correlated::extra_covariance(&weighted, &groups.time_s, &groups.session, noise);
+        let extra = correlated::extra_covariance(&weighted, groups.timeline(), noise);
         for (x, e) in q.iter_mut().zip(extra) {
             *x += e;
         }
@@ -670,7 +677,7 @@ fn cal_error(e: GhError, names: &[crate::model::ParamName], active: &[usize]) ->
         GhError::ZeroVariance { index } => CalError::ZeroVariance {
             index: active[index],
         },
-        other => CalError::Adjustment(other.to_string()),
+        other => CalError::Adjustment(other),
     }
 }
 
@@ -690,6 +697,14 @@ struct Groups {
 }
 
 impl Groups {
+    /// When each observation was read, for the coloured noise.
+    fn timeline(&self) -> Timeline<'_> {
+        Timeline {
+            time_s: &self.time_s,
+            session: &self.session,
+        }
+    }
+
     fn of(used: &[&Obs]) -> Self {
         let mut ids: Vec<usize> = used.iter().map(|o| o.station).collect();
         ids.sort_unstable();
@@ -718,14 +733,7 @@ impl Groups {
             } else {
                 vec![1.0; self.station.iter().max().map_or(0, |m| m + 1)]
             };
-            correlated::between_station_excess(
-                s,
-                &self.station,
-                &share,
-                &self.time_s,
-                &self.session,
-                noise,
-            )
+            correlated::between_station_excess(s, &self.station, &share, self.timeline(), noise)
         })
     }
 }
@@ -749,8 +757,7 @@ fn estimate_components(
         correlated::within_station_excess(
             &groups.station,
             &groups.sigma_ng,
-            &groups.time_s,
-            &groups.session,
+            groups.timeline(),
             noise,
         )
     });

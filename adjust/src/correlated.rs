@@ -35,15 +35,59 @@ impl ColouredAdc {
     }
 }
 
+/// When each observation was read: its window's centre, s, and its session's index
+/// (0..sessions). The coloured noise correlates observations within a session only.
+#[derive(Clone, Copy, Debug)]
+pub struct Timeline<'a> {
+    /// Window centre per observation, s.
+    pub time_s: &'a [f64],
+    /// Session index per observation.
+    pub session: &'a [usize],
+}
+
+impl Timeline<'_> {
+    /// The first observation time of each session, by session index.
+    fn session_starts(&self) -> Vec<f64> {
+        let mut first = vec![f64::INFINITY; self.sessions()];
+        for (&t, &s) in self.time_s.iter().zip(self.session) {
+            first[s] = first[s].min(t);
+        }
+        first
+    }
+
+    /// How many sessions the indices run over.
+    fn sessions(&self) -> usize {
+        self.session.iter().max().map_or(0, |v| v + 1)
+    }
+}
+
+/// Observations by station: `station[i]` in 0..stations, each station's indices in order.
+fn station_members(station: &[usize]) -> Vec<Vec<usize>> {
+    let stations = station.iter().max().map_or(0, |v| v + 1);
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); stations];
+    for (i, &j) in station.iter().enumerate() {
+        members[j].push(i);
+    }
+    members
+}
+
+/// L^T R, m x m row-major, for n x m matrices `l` and `r` (a row per observation).
+fn cross(l: &[Vec<f64>], r: &[Vec<f64>], m: usize) -> Vec<f64> {
+    let mut acc = vec![0.0; m * m];
+    for (li, ri) in l.iter().zip(r) {
+        for a in 0..m {
+            for b in 0..m {
+                acc[a * m + b] += li[a] * ri[b];
+            }
+        }
+    }
+    acc
+}
+
 /// The covariance the coloured noise adds to the parameters of solution `s` (its internal
 /// parameters, m x m row-major): observation i at `time_s[i]` in session `session[i]`, the
 /// counts its second observed quantity.
-pub fn extra_covariance(
-    s: &Solution<3>,
-    time_s: &[f64],
-    session: &[usize],
-    noise: &ColouredAdc,
-) -> Vec<f64> {
+pub fn extra_covariance(s: &Solution<3>, at: Timeline<'_>, noise: &ColouredAdc) -> Vec<f64> {
     let m = s.p.len();
     let n = s.q_ww.len();
     // Gain of observation i's counts: dp/dNg_i = -Q_pp a_i B_i2 / q_i.
@@ -54,15 +98,8 @@ pub fn extra_covariance(
         })
         .collect();
     // sum_ij g_i g_j^T (C - D)_ij = G^T ((C - D) G).
-    let cg = apply_excess(&gain, time_s, session, noise);
-    let mut acc = vec![0.0; m * m];
-    for (g, c) in gain.iter().zip(&cg) {
-        for r in 0..m {
-            for q in 0..m {
-                acc[r * m + q] += g[r] * c[q];
-            }
-        }
-    }
+    let cg = apply_excess(&gain, at, noise);
+    let mut acc = cross(&gain, &cg, m);
     // Symmetric up to rounding; make it exactly so.
     for r in 0..m {
         for q in 0..r {
@@ -91,12 +128,7 @@ fn q_pp_a(s: &Solution<3>, i: usize) -> Vec<f64> {
 /// the window means less what the weights hold (C - D), within each session, by forward and
 /// backward passes in time order. Windows are taken not to overlap (a pair that does is
 /// counted as if its windows touched): a session's readings are seconds apart.
-pub fn apply_excess(
-    x: &[Vec<f64>],
-    time_s: &[f64],
-    session: &[usize],
-    noise: &ColouredAdc,
-) -> Vec<Vec<f64>> {
+pub fn apply_excess(x: &[Vec<f64>], at: Timeline<'_>, noise: &ColouredAdc) -> Vec<Vec<f64>> {
     let n = x.len();
     let k = x.first().map_or(0, Vec::len);
     let flicker = Flicker::new(noise.bias_instability);
@@ -114,8 +146,8 @@ pub fn apply_excess(
         .iter()
         .map(|r| r.iter().map(|v| -d * v).collect())
         .collect();
-    let sessions = session.iter().max().map_or(0, |v| v + 1);
-    for sess in 0..sessions {
+    let Timeline { time_s, session } = at;
+    for sess in 0..at.sessions() {
         let mut order: Vec<usize> = (0..n).filter(|&i| session[i] == sess).collect();
         order.sort_by(|&a, &b| time_s[a].total_cmp(&time_s[b]));
         let Some(&first) = order.first() else {
@@ -164,8 +196,7 @@ pub fn between_station_excess(
     s: &Solution<3>,
     station: &[usize],
     share: &[f64],
-    time_s: &[f64],
-    session: &[usize],
+    at: Timeline<'_>,
     noise: &ColouredAdc,
 ) -> f64 {
     let n = s.q_ww.len();
@@ -177,27 +208,17 @@ pub fn between_station_excess(
     let x: Vec<Vec<f64>> = (0..n)
         .map(|i| (0..m).map(|c| bng[i] * w[i] * s.a[i * m + c]).collect())
         .collect();
-    let c_x = apply_excess(&x, time_s, session, noise);
+    let c_x = apply_excess(&x, at, noise);
     // A^T W Bn (C - D) Bn W A = X^T (C - D) X.
-    let mut xcx = vec![0.0; m * m];
-    for i in 0..n {
-        for r in 0..m {
-            for c in 0..m {
-                xcx[r * m + c] += x[i][r] * c_x[i][c];
-            }
-        }
-    }
+    let xcx = cross(&x, &c_x, m);
     let cx: Vec<Vec<f64>> = c_x
         .into_iter()
         .enumerate()
         .map(|(i, r)| r.into_iter().map(|v| v * bng[i]).collect())
         .collect();
-    let stations = station.iter().max().map_or(0, |v| v + 1);
-    let firsts = session_starts(time_s, session);
-    let mut members: Vec<Vec<usize>> = vec![Vec::new(); stations];
-    for (i, &j) in station.iter().enumerate() {
-        members[j].push(i);
-    }
+    let Timeline { time_s, session } = at;
+    let firsts = at.session_starts();
+    let members = station_members(station);
     let flicker = Flicker::new(noise.bias_instability);
     let mut total = 0.0;
     for (j, obs) in members.iter().enumerate() {
@@ -272,12 +293,7 @@ fn add_random_walk(
 /// observations. The w-test adds it to its reference (docs/model.md 6.2): a random walk
 /// that no constant in the model absorbs makes the misclosures scatter more than their
 /// weights say, and good readings were removed at 1.13 alpha.
-pub fn misclosure_excess(
-    s: &Solution<3>,
-    time_s: &[f64],
-    session: &[usize],
-    noise: &ColouredAdc,
-) -> Vec<f64> {
+pub fn misclosure_excess(s: &Solution<3>, at: Timeline<'_>, noise: &ColouredAdc) -> Vec<f64> {
     let n = s.q_ww.len();
     let m = s.p.len();
     let bng: Vec<f64> = s.b.iter().map(|b| b[1]).collect();
@@ -291,17 +307,11 @@ pub fn misclosure_excess(
         .zip(&bng)
         .map(|(gi, b)| gi.iter().map(|v| v * b).collect())
         .collect();
-    let y = apply_excess(&x, time_s, session, noise);
-    // G S G^T = sum_i g_i (b_i y_i)^T.
-    let mut gsg = vec![0.0; m * m];
-    for i in 0..n {
-        for r in 0..m {
-            for c in 0..m {
-                gsg[r * m + c] += g[i][r] * bng[i] * y[i][c];
-            }
-        }
-    }
-    let firsts = session_starts(time_s, session);
+    let y = apply_excess(&x, at, noise);
+    // G S G^T = sum_i (g_i b_i) y_i^T = X^T Y.
+    let gsg = cross(&x, &y, m);
+    let Timeline { time_s, session } = at;
+    let firsts = at.session_starts();
     let flicker = Flicker::new(noise.bias_instability);
     (0..n)
         .map(|i| {
@@ -337,16 +347,12 @@ pub struct Excess {
 pub fn within_station_excess(
     station: &[usize],
     sigma_ng: &[f64],
-    time_s: &[f64],
-    session: &[usize],
+    at: Timeline<'_>,
     noise: &ColouredAdc,
 ) -> Excess {
-    let stations = station.iter().max().map_or(0, |v| v + 1);
-    let firsts = session_starts(time_s, session);
-    let mut members: Vec<Vec<usize>> = vec![Vec::new(); stations];
-    for (i, &j) in station.iter().enumerate() {
-        members[j].push(i);
-    }
+    let Timeline { time_s, session } = at;
+    let firsts = at.session_starts();
+    let members = station_members(station);
     let flicker = Flicker::new(noise.bias_instability);
     let mut total = Excess::default();
     for obs in members.iter().filter(|o| o.len() > 1) {
@@ -403,15 +409,6 @@ fn pair_covariance(
     }
 }
 
-/// The first observation time of each session, by session index.
-fn session_starts(time_s: &[f64], session: &[usize]) -> Vec<f64> {
-    let mut first = vec![f64::INFINITY; session.iter().max().map_or(0, |v| v + 1)];
-    for (&t, &s) in time_s.iter().zip(session) {
-        first[s] = first[s].min(t);
-    }
-    first
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -430,7 +427,12 @@ mod tests {
         let time: Vec<f64> = vec![30.0, 60.0, 90.0, 300.0, 330.0, 600.0];
         let sigma: Vec<f64> = vec![1.0, 1.5, 1.0, 2.0, 1.0, 1.2];
         let m = time.len();
-        let excess = within_station_excess(&vec![0; m], &sigma, &time, &vec![0; m], &noise);
+        let session = vec![0; m];
+        let at = Timeline {
+            time_s: &time,
+            session: &session,
+        };
+        let excess = within_station_excess(&vec![0; m], &sigma, at, &noise);
         assert!(excess.mean > 0.5 && excess.variance > 1.0, "{excess:?}");
         // S and its Cholesky factor.
         let flicker = Flicker::new(noise.bias_instability);
@@ -531,7 +533,16 @@ mod tests {
             random_walk: 0.02,
             window_s: 2.56,
         };
-        let fast = between_station_excess(&s, &station, &share, &time, &session, &noise);
+        let fast = between_station_excess(
+            &s,
+            &station,
+            &share,
+            Timeline {
+                time_s: &time,
+                session: &session,
+            },
+            &noise,
+        );
         let flicker = Flicker::new(noise.bias_instability);
         let cov = |i: usize, j: usize| {
             let c = pair_covariance(&flicker, &noise, (time[i], time[j], 0.0), i == j);
@@ -564,7 +575,14 @@ mod tests {
         }
         assert!((fast - slow).abs() < 1e-9 * slow.abs(), "{fast} vs {slow}");
         // Each misclosure's excess: (R S R^T)_ii.
-        let fast = misclosure_excess(&s, &time, &session, &noise);
+        let fast = misclosure_excess(
+            &s,
+            Timeline {
+                time_s: &time,
+                session: &session,
+            },
+            &noise,
+        );
         for (i, f) in fast.iter().enumerate() {
             let slow: f64 = (0..n)
                 .map(|k| (0..n).map(|l| r(i, k) * cov(k, l) * r(i, l)).sum::<f64>())
@@ -603,7 +621,14 @@ mod tests {
             random_walk: 0.02,
             window_s: 2.56,
         };
-        let fast = extra_covariance(&s, &time, &session, &noise);
+        let fast = extra_covariance(
+            &s,
+            Timeline {
+                time_s: &time,
+                session: &session,
+            },
+            &noise,
+        );
         let flicker = Flicker::new(noise.bias_instability);
         let gain = |i: usize| -> Vec<f64> {
             let f = -s.b[i][1] / s.q_ww[i];

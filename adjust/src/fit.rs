@@ -52,9 +52,15 @@ pub enum FitError {
         /// What is wrong.
         message: String,
     },
-    /// The adjustment failed; a not-estimable parameter is named.
-    #[error("{0}")]
-    Adjustment(String),
+    /// A coefficient the x values cannot determine.
+    #[error("p{index} is not estimable from these x values")]
+    NotEstimable {
+        /// Its power of x.
+        index: usize,
+    },
+    /// The adjustment failed otherwise.
+    #[error(transparent)]
+    Adjustment(GhError),
     /// The arithmetic cannot hold the fit (a power of x, or a result, beyond a double).
     #[error("{0}")]
     Overflow(String),
@@ -82,10 +88,8 @@ pub fn fit(
     };
     let p0 = vec![0.0; degree + 1];
     let s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(|e| match e {
-        GhError::NotEstimable { index } => {
-            FitError::Adjustment(format!("p{index} is not estimable from these x values"))
-        }
-        other => FitError::Adjustment(other.to_string()),
+        GhError::NotEstimable { index } => FitError::NotEstimable { index },
+        other => FitError::Adjustment(other),
     })?;
     let m = monomial_map(degree, centre, scale);
     let mut p = apply(&m, &s.p);

@@ -47,12 +47,16 @@ pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
         degree,
     )
     .map_err(|e| match e {
-        fit::FitError::BadValue { row, message } => Error::Fit(format!(
-            "{}:{}: {message}",
-            path.display(),
-            line_of_row.get(row - 1).copied().unwrap_or(row)
-        )),
-        e => Error::Fit(format!("{}: {e}", path.display())),
+        fit::FitError::BadValue { row, message } => Error::Fit {
+            path: path.to_path_buf(),
+            line: Some(line_of_row.get(row - 1).copied().unwrap_or(row)),
+            message,
+        },
+        e => Error::Fit {
+            path: path.to_path_buf(),
+            line: None,
+            message: e.to_string(),
+        },
     })
 }
 
@@ -68,10 +72,11 @@ fn read_columns(
     wanted: [Option<&str>; 4],
 ) -> Result<([Vec<f64>; 4], Vec<usize>), Error> {
     if path.is_dir() {
-        return Err(Error::Fit(format!(
-            "{}: is a folder, not a CSV file",
-            path.display()
-        )));
+        return Err(Error::Fit {
+            path: path.to_path_buf(),
+            line: None,
+            message: "is a folder, not a CSV file".to_owned(),
+        });
     }
     let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
         path: path.to_path_buf(),
@@ -83,18 +88,21 @@ fn read_columns(
         .lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-    let (_, header) = lines
-        .next()
-        .ok_or_else(|| Error::Fit(format!("{}: no header line", path.display())))?;
+    let (_, header) = lines.next().ok_or_else(|| Error::Fit {
+        path: path.to_path_buf(),
+        line: None,
+        message: "no header line".to_owned(),
+    })?;
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
     let index = |name: &str| {
-        names.iter().position(|n| *n == name).ok_or_else(|| {
-            Error::Fit(format!(
-                "{}: no column `{name}` (columns: {})",
-                path.display(),
-                names.join(", ")
-            ))
-        })
+        names
+            .iter()
+            .position(|n| *n == name)
+            .ok_or_else(|| Error::Fit {
+                path: path.to_path_buf(),
+                line: None,
+                message: format!("no column `{name}` (columns: {})", names.join(", ")),
+            })
     };
     let cols: Vec<Option<usize>> = wanted
         .iter()
@@ -111,13 +119,10 @@ fn read_columns(
                 let v = fields
                     .get(*c)
                     .and_then(|f| f.parse::<f64>().ok())
-                    .ok_or_else(|| {
-                        Error::Fit(format!(
-                            "{}:{}: {}: not a number",
-                            path.display(),
-                            n + 1,
-                            names[*c]
-                        ))
+                    .ok_or_else(|| Error::Fit {
+                        path: path.to_path_buf(),
+                        line: Some(n + 1),
+                        message: format!("{}: not a number", names[*c]),
                     })?;
                 data[k].push(v);
             }

@@ -18,20 +18,9 @@ struct Args {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    let out = args.gravity.out.clone().unwrap_or_else(|| {
-        std::path::Path::new("out").join(args.gravity.dataset.file_name().unwrap_or_default())
-    });
-    match args.gravity.run(&out) {
-        Ok(report) => {
-            adjust::gravity::stage::print_summary(&report, &mut std::io::stderr());
-            if args.report_peak_rss {
-                ingest::print_usage();
-            }
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("gravcal-gravity: error: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    let out = args.gravity.apply.out_dir(std::path::Path::new("."));
+    let result = args.gravity.run(&out);
+    ingest::cli::finish("gravity", result, args.report_peak_rss, |r| {
+        adjust::gravity::stage::print_summary(r, &mut std::io::stderr());
+    })
 }

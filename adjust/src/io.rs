@@ -232,7 +232,6 @@ pub fn write_residuals(dir: &Path, rows: &[ResidualRow<'_>]) -> Result<u64, Erro
     let mut t = ingest::table::TableWriter::create(
         dir,
         tables::residuals::FILE,
-        "residuals",
         tables::residuals::schema(),
         ingest::table::Encodings {
             dictionary: &[

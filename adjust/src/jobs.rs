@@ -3,7 +3,7 @@
 //! reason a fit could not be made.
 
 use super::*;
-use ingest::contract::calibration::ALL_SESSIONS;
+use ingest::contract::calibration::FitScope;
 
 /// The models to fit: the manifest's, or the defaults (docs/formats.md section 2): `linear`, plus
 /// `thermal` when the sessions' mean temperatures differ by more than 1 degree C.
@@ -40,7 +40,7 @@ pub fn models(declared: &[ModelDecl], session_mean_temperatures: &[f64]) -> Vec<
 pub(crate) struct Job<'a> {
     pub(crate) model: &'a ModelDecl,
     pub(crate) accelerometer: String,
-    pub(crate) session: String,
+    pub(crate) scope: FitScope,
     pub(crate) obs: Vec<&'a io::ObservationRow>,
     /// The accelerometer's coloured ADC noise from align's Allan deviation (None: white).
     pub(crate) coloured: Option<ColouredAdc>,
@@ -97,25 +97,25 @@ pub(crate) fn plan_jobs<'a>(
     let mut skipped = Vec::new();
     for model in models.iter().filter(|m| m.kind == ModelKind::Axis) {
         for acc in &ds.manifest.instrument.accelerometer {
-            let groups: Vec<String> = match model.per {
+            let scopes: Vec<FitScope> = match model.per {
                 // Only tilt-table sessions have observations for an axis calibration.
                 Per::Session => ds
                     .sessions
                     .iter()
                     .filter(|s| s.is_tilt_table())
-                    .map(|s| s.session.id.clone())
+                    .map(|s| FitScope::Session(s.session.id.clone()))
                     .collect(),
-                Per::All => vec![ALL_SESSIONS.to_owned()],
+                Per::All => vec![FitScope::All],
             };
-            for session in groups {
+            for scope in scopes {
                 let disconnected = align_report
                     .disconnected
                     .iter()
-                    .any(|d| d.accelerometer == acc.id && d.session == session);
+                    .any(|d| d.accelerometer == acc.id && d.session == scope.id());
                 if disconnected {
                     skipped.push(Skipped {
                         accelerometer: acc.id.clone(),
-                        session,
+                        session: scope.id().to_owned(),
                         model: model.name.clone(),
                         reason: "channel not connected".to_owned(),
                     });
@@ -124,15 +124,12 @@ pub(crate) fn plan_jobs<'a>(
                 let obs: Vec<&io::ObservationRow> = used
                     .iter()
                     .copied()
-                    .filter(|o| {
-                        o.accelerometer == acc.id
-                            && (session == ALL_SESSIONS || o.session == session)
-                    })
+                    .filter(|o| o.accelerometer == acc.id && scope.covers(&o.session))
                     .collect();
                 jobs.push(Job {
                     model,
                     accelerometer: acc.id.clone(),
-                    session,
+                    scope,
                     coloured: coloured_of(align_report, &acc.id, ds.manifest.align.window_s),
                     rolls: obs
                         .iter()
@@ -279,7 +276,7 @@ pub(crate) fn residual_rows_of<'a>(
     let row = |index: usize, w: f64| io::ResidualRow {
         model: &job.model.name,
         accelerometer: &job.accelerometer,
-        fit_session: &job.session,
+        fit_session: job.scope.id(),
         obs: job.obs[index],
         v_dz_rad: None,
         v_ng: None,

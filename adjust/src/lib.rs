@@ -44,7 +44,7 @@ use ingest::contract::calibration::{
     KalibrNoise, MisalignmentVector, Parameter, Removed, STAGE_DIR, Skipped, VarianceComponent,
 };
 use ingest::contract::custody::{Custody, Folders, Root};
-use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
+use ingest::contract::ingest_ledger::{self, IngestReport};
 use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
 use model::{Misalignment, Terms};
 use rayon::prelude::*;
@@ -85,9 +85,16 @@ pub enum Error {
         /// What does not match, and what to change.
         message: String,
     },
-    /// The fit command's input is unusable.
-    #[error("{0}")]
-    Fit(String),
+    /// The fit command's input is unusable: `path`, at `line` where one is to blame.
+    #[error("{}{}: {message}", path.display(), line.map_or(String::new(), |l| format!(":{l}")))]
+    Fit {
+        /// The CSV table.
+        path: PathBuf,
+        /// Its line, 1-based.
+        line: Option<usize>,
+        /// What is wrong, and where in the line.
+        message: String,
+    },
 }
 
 /// Runs the stage: reads OUT/ingest and OUT/align, writes OUT/adjust.
@@ -123,7 +130,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
             }
             Err(e) => skipped.push(Skipped {
                 accelerometer: job.accelerometer.clone(),
-                session: job.session.clone(),
+                session: job.scope.id().to_owned(),
                 model: job.model.name.clone(),
                 reason: if job.obs.is_empty() {
                     "no usable observations".to_owned()

@@ -134,19 +134,14 @@ fn main() -> ExitCode {
             }
         },
         (None, Some(dataset)) => {
-            let out = args.out.unwrap_or_else(|| {
-                PathBuf::from("out").join(dataset.file_name().unwrap_or_default())
-            });
-            match adjust::run(&dataset, &out) {
-                Ok(c) => {
-                    adjust::print_summary(&c, &mut std::io::stderr());
-                    ExitCode::SUCCESS
-                }
-                Err(e) => {
-                    eprintln!("gravcal-adjust: error: {e}");
-                    ExitCode::FAILURE
-                }
-            }
+            let stage = ingest::cli::StageArgs {
+                dataset,
+                out: args.out,
+            };
+            let result = adjust::run(&stage.dataset, &stage.out_dir());
+            ingest::cli::finish("adjust", result, false, |c| {
+                adjust::print_summary(c, &mut std::io::stderr());
+            })
         }
         (None, None) => {
             eprintln!("gravcal-adjust: give a dataset folder, or `fit --input ...` (see --help)");

@@ -110,11 +110,7 @@ fn print_triad(t: &ingest::contract::calibration::TriadResult, w: &mut impl std:
             0 => String::new(),
             n => format!(", {n} without temperature left out"),
         },
-        if t.global_test.passed {
-            "passed"
-        } else {
-            "failed"
-        },
+        t.global_test.verdict(),
         t.calib_file.as_ref().map_or_else(
             || "no imu_tk file (its layout has no higher orders or temperature terms)".to_owned(),
             |f| format!("wrote {f}")
@@ -146,11 +142,7 @@ fn print_fit(r: &CalibrationResult, w: &mut impl std::io::Write) {
         r.sigma0,
         r.n_observations,
         r.n_excluded,
-        if r.global_test.passed {
-            "passed"
-        } else {
-            "FAILED"
-        }
+        r.global_test.verdict_in_a_table()
     );
     if let Some(advice) = r.global_test.advice(
         &format!("{} {} {}", r.model, r.accelerometer, r.session),

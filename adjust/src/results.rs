@@ -54,7 +54,7 @@ pub(crate) fn result_of(
     warnings.extend(barely_estimable(&terms, &correlation));
     CalibrationResult {
         accelerometer: job.accelerometer.clone(),
-        session: job.session.clone(),
+        session: job.scope.id().to_owned(),
         model: job.model.name.clone(),
         order: job.model.order,
         temperature: job.model.temperature,

@@ -449,6 +449,33 @@ fn reference_temperature(positions: &[Position]) -> Result<f64, TriadError> {
     Ok((sum / (3 * positions.len()) as f64 * 100.0).round() / 100.0)
 }
 
+/// One adjustment of the triad `model` to `positions` from `start`.
+fn adjust_positions(
+    model: TriadModel,
+    positions: &[Position],
+    t_ref_c: Option<f64>,
+    start: &[f64],
+) -> Result<gh::Solution<6>, TriadError> {
+    let (l, sigma) = position_observations(positions, t_ref_c);
+    gh::solve(
+        &TriadConditions {
+            model,
+            positions,
+            t_ref_c: t_ref_c.unwrap_or(0.0),
+        },
+        &l,
+        &sigma,
+        start,
+        &gh::Options::default(),
+    )
+    .map_err(|e| match e {
+        GhError::NotEstimable { index } => TriadError::NotEstimable {
+            name: model.names()[index],
+        },
+        other => TriadError::Adjustment(other),
+    })
+}
+
 /// Calibrates the triad `model` from `positions`: the adjustment, then data snooping (the
 /// position with the largest |w| above 3.29 removed and the adjustment repeated, at most a
 /// tenth of the positions), then the global test.
@@ -469,28 +496,12 @@ pub fn calibrate(model: TriadModel, positions: &[Position]) -> Result<TriadSolut
     let mut p0 = start_values(positions);
     check_spread(positions, &p0)?;
     p0.resize(model.n_params(), 0.0);
-    let names = model.names();
     let mut used: Vec<usize> = (0..positions.len()).collect();
     let mut removed = Vec::new();
     let mut start = p0;
     loop {
         let kept: Vec<Position> = used.iter().map(|&i| positions[i]).collect();
-        let (l, sigma) = position_observations(&kept, t_ref_c);
-        let s = gh::solve(
-            &TriadConditions {
-                model,
-                positions: &kept,
-                t_ref_c: t_ref_c.unwrap_or(0.0),
-            },
-            &l,
-            &sigma,
-            &start,
-            &gh::Options::default(),
-        )
-        .map_err(|e| match e {
-            GhError::NotEstimable { index } => TriadError::NotEstimable { name: names[index] },
-            other => TriadError::Adjustment(other),
-        })?;
+        let s = adjust_positions(model, &kept, t_ref_c, &start)?;
         let worst = s
             .w_test
             .iter()

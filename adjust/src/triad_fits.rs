@@ -6,7 +6,7 @@
 use crate::triad::{self, Position, TriadModel, TriadSolution};
 use ingest::contract::align_ledger::{AlignReport, MultiPosition, StaticPosition};
 use ingest::contract::calibration::{
-    ALL_SESSIONS, GlobalTest, Parameter, Skipped, TRIAD, TriadPosition, TriadResult,
+    ALL_SESSIONS, FitScope, GlobalTest, Parameter, Skipped, TRIAD, TriadPosition, TriadResult,
 };
 use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
 
@@ -19,16 +19,13 @@ pub fn fit_all(
     let mut results = Vec::new();
     let mut skipped = Vec::new();
     for model in models.iter().filter(|m| m.kind == ModelKind::Triad) {
-        let groups: Vec<(String, Vec<&MultiPosition>)> = match model.per {
+        let groups: Vec<(FitScope, Vec<&MultiPosition>)> = match model.per {
             Per::Session => align
                 .multi_position
                 .iter()
-                .map(|m| (m.session.clone(), vec![m]))
+                .map(|m| (FitScope::Session(m.session.clone()), vec![m]))
                 .collect(),
-            Per::All => vec![(
-                ALL_SESSIONS.to_owned(),
-                align.multi_position.iter().collect(),
-            )],
+            Per::All => vec![(FitScope::All, align.multi_position.iter().collect())],
         };
         if align.multi_position.is_empty() {
             skipped.push(skip(
@@ -42,7 +39,7 @@ pub fn fit_all(
             order: model.order,
             temperature: model.temperature,
         };
-        for (session, group) in groups {
+        for (scope, group) in groups {
             let all: Vec<(&str, &StaticPosition)> = group
                 .iter()
                 .flat_map(|m| m.positions.iter().map(|p| (m.session.as_str(), p)))
@@ -68,11 +65,11 @@ pub fn fit_all(
                 .collect();
             match triad::calibrate(kind, &positions) {
                 Ok(s) => {
-                    let mut r = result(ds, model, &session, &rows, &positions, &s);
+                    let mut r = result(ds, model, scope.id(), &rows, &positions, &s);
                     r.positions_without_temperature = total - rows.len();
                     results.push(r);
                 }
-                Err(e) => skipped.push(skip(model, &session, e.to_string())),
+                Err(e) => skipped.push(skip(model, scope.id(), e.to_string())),
             }
         }
     }

@@ -27,12 +27,14 @@ fn calibration() -> &'static Path {
 
 fn args(dataset: &Path) -> GravityArgs {
     GravityArgs {
-        dataset: dataset.to_path_buf(),
-        calibration: calibration().to_path_buf(),
-        model: None,
-        session: Some("lab".to_owned()),
+        apply: adjust::apply::stream::ApplyArgs {
+            dataset: dataset.to_path_buf(),
+            calibration: calibration().to_path_buf(),
+            model: None,
+            session: Some("lab".to_owned()),
+            out: None,
+        },
         accelerometer: None,
-        out: None,
         skip_bad_lines: false,
     }
 }

@@ -391,7 +391,8 @@ fn an_imu_tk_ascii_file_calibrates_with_a_manifest_alone() {
     assert!(head.starts_with("0.00 "), "{}", &head[..40]);
     let out = dir.path().join("out");
     let c = pipeline(&dataset, &out);
-    let report = ingest::contract::ledger::IngestReport::load(&out.join("ingest")).expect("ledger");
+    let report =
+        ingest::contract::ingest_ledger::IngestReport::load(&out.join("ingest")).expect("ledger");
     let lab = report.files[0].lab_stream.as_ref().expect("lab");
     eprintln!(
         "{lab:?}; rate {:?}",

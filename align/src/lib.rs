@@ -38,7 +38,7 @@ use ingest::contract::align_ledger::{
     LEDGER_FORMAT, MultiPosition, STAGE_DIR, StaticNoise, StaticPosition, reason, sigma_source,
 };
 use ingest::contract::custody::{Custody, Folders, Root};
-use ingest::contract::ledger as ingest_ledger;
+use ingest::contract::ingest_ledger;
 use ingest::contract::manifest::{
     self, AlignConfig, Dataset, Location, ReadingUnit, SessionKind, SigmaDzMethod,
 };

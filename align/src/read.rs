@@ -383,7 +383,6 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
     let mut table = ingest::table::TableWriter::create(
         dir,
         tables::observations::FILE,
-        "observations",
         tables::observations::schema(),
         ingest::table::Encodings {
             dictionary: &[

@@ -28,7 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for _ in 0..3 {
         let t0 = Instant::now();
         let mut scanner = ingest::gcb::FrameScanner::new(config);
-        let mut ledger = ingest::contract::ledger::FileLedger::default();
+        let mut ledger = ingest::contract::ingest_ledger::FileLedger::default();
         let mut n = 0u64;
         let mut count = |f: ingest::gcb::Frame| -> Result<(), ()> {
             n += u64::from(matches!(f, ingest::gcb::Frame::Acceleration { .. }));

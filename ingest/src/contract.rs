@@ -8,7 +8,7 @@
 //! | [`status`] | the status bits of a sample, as logged and as stored |
 //! | [`survey`] | `dataset.toml`'s moving-gravimetry keys: trajectories, `[survey]` (docs/formats.md 10) |
 //! | [`tables`] | the Parquet tables: file names, columns, types, units |
-//! | [`ledger`] | `ingest.json`: per input file, what was read, accepted and rejected |
+//! | [`ingest_ledger`] | `ingest.json`: per input file, what was read, accepted and rejected |
 //! | [`align_ledger`] | `align.json`: observations used and excluded, by reason |
 //! | [`calibration`] | `calibration.json`: the results (docs/formats.md section 6) |
 //! | [`apply_ledger`] | `apply.json`: the calibration applied to a survey, rows and flags |
@@ -23,7 +23,7 @@ pub mod apply_ledger;
 pub mod calibration;
 pub mod custody;
 pub mod gravity_ledger;
-pub mod ledger;
+pub mod ingest_ledger;
 pub mod manifest;
 pub mod status;
 pub mod survey;

@@ -6,7 +6,7 @@
 //! field is a channel not connected, and a count at either end of the 24-bit range is taken
 //! as over range (saturated).
 
-use crate::contract::ledger::{FileLedger, reason};
+use crate::contract::ingest_ledger::{FileLedger, reason};
 use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::error::{Error, Result};
 use crate::lines::{digits, read_lines, strip_comment, text};

@@ -64,10 +64,10 @@ pub enum Error {
         message: String,
     },
     /// Building an Arrow batch failed (a bug: the batches are built to their schema).
-    #[error("building an Arrow batch for {table}: {source}")]
+    #[error("building an Arrow batch for {}: {source}", path.display())]
     Arrow {
-        /// The table.
-        table: &'static str,
+        /// The table's file.
+        path: PathBuf,
         /// The underlying error.
         source: arrow::error::ArrowError,
     },

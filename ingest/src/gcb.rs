@@ -8,7 +8,7 @@
 //! (duplicate, time going backwards, reserved status bits, time of week out of range, count
 //! out of the 24-bit range) are rejected whole. It never panics on any byte sequence.
 
-use crate::contract::ledger::{ByteLedger, FileLedger, reason};
+use crate::contract::ingest_ledger::{ByteLedger, FileLedger, reason};
 use crate::contract::status::{RESERVED_BITS, not_connected};
 use crate::time::{NS_PER_MS, NS_PER_WEEK, resolve_week};
 use crate::timegate::{Position, Sink, TimeGate};
@@ -269,13 +269,15 @@ impl FrameScanner {
     #[cold]
     fn list_skip(&mut self, ledger: &mut FileLedger, at: u64) {
         if let Some(start) = self.skip_start.take()
-            && ledger.rejections.len() < crate::contract::ledger::MAX_LISTED
+            && ledger.rejections.len() < crate::contract::ingest_ledger::MAX_LISTED
         {
-            ledger.rejections.push(crate::contract::ledger::Rejection {
-                at: format!("byte {start}"),
-                reason: "skipped".to_owned(),
-                detail: format!("{} bytes skipped while resynchronising", at - start),
-            });
+            ledger
+                .rejections
+                .push(crate::contract::ingest_ledger::Rejection {
+                    at: format!("byte {start}"),
+                    reason: "skipped".to_owned(),
+                    detail: format!("{} bytes skipped while resynchronising", at - start),
+                });
         }
     }
 
@@ -384,13 +386,12 @@ impl FrameScanner {
                 continue;
             }
             if usize::from(rest[3]) != PAYLOAD_LEN {
-                self.end_skip(ledger, at);
-                ledger.reject(
-                    format!("byte {at}"),
+                self.reject_candidate(
+                    ledger,
+                    at,
                     reason::WRONG_LENGTH,
                     format!("length byte {}", rest[3]),
                 );
-                self.skip(at, 1);
                 p += 1;
                 continue;
             }
@@ -406,24 +407,17 @@ impl FrameScanner {
             let crc = u16::from_le_bytes(field(frame, 23));
             let kind = frame[2];
             if frame_crc(frame) != crc {
-                self.end_skip(ledger, at);
-                ledger.reject(
-                    format!("byte {at}"),
-                    reason::BAD_CRC,
-                    format!("type 0x{kind:02x}"),
-                );
-                self.skip(at, 1);
+                self.reject_candidate(ledger, at, reason::BAD_CRC, format!("type 0x{kind:02x}"));
                 p += 1;
                 continue;
             }
             if kind != TYPE_ACCELERATION && kind != TYPE_TEMPERATURE {
-                self.end_skip(ledger, at);
-                ledger.reject(
-                    format!("byte {at}"),
+                self.reject_candidate(
+                    ledger,
+                    at,
                     reason::UNKNOWN_TYPE,
                     format!("type 0x{kind:02x}"),
                 );
-                self.skip(at, 1);
                 p += 1;
                 continue;
             }
@@ -432,6 +426,20 @@ impl FrameScanner {
             self.frame(frame, at, ledger, emit)?;
         }
         Ok(p)
+    }
+
+    /// A candidate frame at `at` rejected for `reason`: the skipped run before it closes,
+    /// and the search for the next sync word restarts one byte after it.
+    fn reject_candidate(
+        &mut self,
+        ledger: &mut FileLedger,
+        at: u64,
+        reason: &'static str,
+        detail: String,
+    ) {
+        self.end_skip(ledger, at);
+        ledger.reject(format!("byte {at}"), reason, detail);
+        self.skip(at, 1);
     }
 
     fn truncated(&mut self, ledger: &mut FileLedger, at: u64, n: usize) {

@@ -17,7 +17,7 @@
 //! Times are read exactly from their decimal digits (a Unix time with microseconds has 16
 //! significant digits, more than an f64 holds); only scientific notation goes through f64.
 
-use crate::contract::ledger::{FileLedger, LabStreamReport, reason};
+use crate::contract::ingest_ledger::{FileLedger, LabStreamReport, reason};
 use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{digits, read_lines, strip_comment, text};
@@ -85,7 +85,6 @@ impl LabWriter {
         let mut table = TableWriter::create(
             dir,
             tables::lab::FILE,
-            "lab",
             tables::lab::schema(sessions),
             // Chosen by measurement (`cargo xtask bench ingest`, docs/benchmarks.md): zstd
             // on the readings' plain doubles was a fifth of the reader's CPU time.

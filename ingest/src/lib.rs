@@ -4,7 +4,7 @@
 //! session the binary acquisition log or the CSV pair, and the theodolite log. Writes, under
 //! `OUT/ingest/`, the raw streams as zstd Parquet tables in one time scale (GPS time, i64 ns
 //! since 1980-01-06; see [`contract::tables`]) and `ingest.json`, the ledger: per input file its
-//! SHA-256, size, and what was read, accepted and rejected by reason ([`contract::ledger`]).
+//! SHA-256, size, and what was read, accepted and rejected by reason ([`contract::ingest_ledger`]).
 //!
 //! ```no_run
 //! let report = ingest::run_with(
@@ -18,6 +18,7 @@
 //! # Ok::<(), ingest::Error>(())
 //! ```
 
+pub mod cli;
 pub mod contract;
 mod csvlog;
 pub mod encoding;
@@ -42,7 +43,7 @@ use session::*;
 pub use error::{Error, Result};
 
 use contract::custody;
-use contract::ledger::{
+use contract::ingest_ledger::{
     FileLedger, IngestReport, LEDGER_FILE, LEDGER_FORMAT, MANIFEST_FILE, STAGE_DIR, SessionSummary,
 };
 use contract::manifest::{self, Acquisition, Dataset};
@@ -137,6 +138,37 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
     let (acc_rows, temp_rows) = closing.wait()?;
     let theo_rows = theo_rows?;
     let lab_rows = lab_rows?;
+    let custody = custody_of(&ds, out, &files)?;
+    let report = IngestReport {
+        format: LEDGER_FORMAT.to_owned(),
+        dataset: ds.manifest.name.clone(),
+        software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
+        files,
+        sessions,
+        tables: [
+            (tables::acceleration::FILE.to_owned(), acc_rows),
+            (tables::temperature::FILE.to_owned(), temp_rows),
+            (tables::theodolite::FILE.to_owned(), theo_rows),
+            (tables::lab::FILE.to_owned(), lab_rows),
+        ]
+        .into_iter()
+        .collect(),
+        custody,
+        errors,
+    };
+    write_json_atomically(&ledger_path, &report)?;
+    if !report.errors.is_empty() {
+        return Err(Error::Unusable {
+            path: ledger_path,
+            errors: report.errors,
+        });
+    }
+    Ok(report)
+}
+
+/// The chain of custody of an ingest run: the manifest and every log read (hashed as they
+/// were read), and the four tables written.
+fn custody_of(ds: &Dataset, out: &Path, files: &[FileLedger]) -> Result<custody::Custody> {
     let folders = custody::Folders {
         dataset: &ds.dir,
         out,
@@ -156,31 +188,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
     .iter()
     .map(|t| folders.record(custody::Root::Out, &format!("{STAGE_DIR}/{t}")))
     .collect::<Result<Vec<_>>>()?;
-    let report = IngestReport {
-        format: LEDGER_FORMAT.to_owned(),
-        dataset: ds.manifest.name.clone(),
-        software: format!("gravcal {}", env!("CARGO_PKG_VERSION")),
-        files,
-        sessions,
-        tables: [
-            (tables::acceleration::FILE.to_owned(), acc_rows),
-            (tables::temperature::FILE.to_owned(), temp_rows),
-            (tables::theodolite::FILE.to_owned(), theo_rows),
-            (tables::lab::FILE.to_owned(), lab_rows),
-        ]
-        .into_iter()
-        .collect(),
-        custody: custody::Custody { inputs, outputs },
-        errors,
-    };
-    write_json_atomically(&ledger_path, &report)?;
-    if !report.errors.is_empty() {
-        return Err(Error::Unusable {
-            path: ledger_path,
-            errors: report.errors,
-        });
-    }
-    Ok(report)
+    Ok(custody::Custody { inputs, outputs })
 }
 
 /// Writes a few lines per file: what was read, accepted and rejected, and why.

@@ -221,7 +221,6 @@ impl StreamWriter {
         let acceleration = ColumnTableWriter::create(
             dir,
             tables::acceleration::FILE,
-            "acceleration",
             tables::acceleration::schema(sessions),
             // Measured on a 250 Hz day (`cargo run --release -p ingest --example
             // encodings`): the counts cost least delta-encoded and not compressed. Session
@@ -245,7 +244,6 @@ impl StreamWriter {
         let temperature = ColumnTableWriter::create(
             dir,
             tables::temperature::FILE,
-            "temperature",
             tables::temperature::schema(sessions),
             Encodings::default(),
         )?;

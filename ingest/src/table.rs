@@ -128,7 +128,6 @@ impl Drop for PartialFile {
 
 /// A Parquet table being written.
 pub struct TableWriter {
-    table: &'static str,
     file: PartialFile,
     schema: SchemaRef,
     writer: ArrowWriter<BufWriter<HashingFile>>,
@@ -184,18 +183,11 @@ fn properties(enc: Encodings<'_>) -> WriterProperties {
 
 impl TableWriter {
     /// Starts `dir/file` (written as `dir/.file.partial` until [`TableWriter::finish`]).
-    pub fn create(
-        dir: &Path,
-        file: &str,
-        table: &'static str,
-        schema: SchemaRef,
-        encodings: Encodings<'_>,
-    ) -> Result<Self> {
+    pub fn create(dir: &Path, file: &str, schema: SchemaRef, enc: Encodings<'_>) -> Result<Self> {
         let (file, f) = PartialFile::create(dir, file)?;
-        let writer = ArrowWriter::try_new(f, schema.clone(), Some(properties(encodings)))
+        let writer = ArrowWriter::try_new(f, schema.clone(), Some(properties(enc)))
             .map_err(|e| file.parquet_error(e))?;
         Ok(TableWriter {
-            table,
             file,
             schema,
             writer,
@@ -207,7 +199,7 @@ impl TableWriter {
     pub fn write(&mut self, columns: Vec<ArrayRef>) -> Result<()> {
         let batch =
             RecordBatch::try_new(self.schema.clone(), columns).map_err(|source| Error::Arrow {
-                table: self.table,
+                path: self.file.path.clone(),
                 source,
             })?;
         self.rows += batch.num_rows() as u64;
@@ -240,7 +232,6 @@ pub enum ColumnValues {
 /// A Parquet table written a row group at a time from [`ColumnValues`]. The Arrow schema is
 /// stored in the file as `ArrowWriter` stores it, so Arrow readers see the same types.
 pub struct ColumnTableWriter {
-    table: &'static str,
     file: PartialFile,
     writer: SerializedFileWriter<BufWriter<HashingFile>>,
     rows: u64,
@@ -253,16 +244,11 @@ pub struct ColumnTableWriter {
 const GROUPS_PER_SYNC: u64 = 16;
 
 impl ColumnTableWriter {
-    /// Starts `dir/file` (written as `dir/.file.partial` until [`ColumnTableWriter::finish`]).
-    pub fn create(
-        dir: &Path,
-        file: &str,
-        table: &'static str,
-        schema: SchemaRef,
-        encodings: Encodings<'_>,
-    ) -> Result<Self> {
+    /// Starts `dir/file` (written as `dir/.file.partial` until
+    /// [`ColumnTableWriter::finish`]).
+    pub fn create(dir: &Path, file: &str, schema: SchemaRef, enc: Encodings<'_>) -> Result<Self> {
         let (file, f) = PartialFile::create(dir, file)?;
-        let mut props = properties(encodings);
+        let mut props = properties(enc);
         add_encoded_arrow_schema_to_metadata(&schema, &mut props);
         let descriptor = ArrowSchemaConverter::new()
             .convert(&schema)
@@ -270,7 +256,6 @@ impl ColumnTableWriter {
         let writer = SerializedFileWriter::new(f, descriptor.root_schema_ptr(), Arc::new(props))
             .map_err(|e| file.parquet_error(e))?;
         Ok(ColumnTableWriter {
-            table,
             file,
             writer,
             rows: 0,
@@ -286,8 +271,7 @@ impl ColumnTableWriter {
         let schema = w.schema_descr();
         if columns.len() != schema.num_columns() {
             return Err(parquet_error(ParquetError::General(format!(
-                "{}: {} columns given, the schema has {}",
-                self.table,
+                "{} columns given, the schema has {}",
                 columns.len(),
                 schema.num_columns()
             ))));
@@ -300,9 +284,8 @@ impl ColumnTableWriter {
             .par_iter()
             .enumerate()
             .map(|(index, values)| {
-                encode_column(schema.column(index), props.clone(), values).map_err(|e| {
-                    ParquetError::General(format!("{}: column {index}: {e}", self.table))
-                })
+                encode_column(schema.column(index), props.clone(), values)
+                    .map_err(|e| ParquetError::General(format!("column {index}: {e}")))
             })
             .collect::<Vec<_>>();
         // Every column checked before the row group is opened: an error leaves the file as
@@ -317,8 +300,8 @@ impl ColumnTableWriter {
             .find(|(_, (_, close))| close.rows_written != rows as u64)
         {
             return Err(parquet_error(ParquetError::General(format!(
-                "{}: column {index} has {} rows, the row group {rows}",
-                self.table, close.rows_written
+                "column {index} has {} rows, the row group {rows}",
+                close.rows_written
             ))));
         }
         let mut group = w.next_row_group().map_err(parquet_error)?;
@@ -488,18 +471,8 @@ fn encode_delta_column<T: DeltaColumn>(
     for first_row in (0..rows).step_by(DELTA_PAGE_ROWS) {
         let page_rows = DELTA_PAGE_ROWS.min(rows - first_row);
         buf.clear();
-        let page_values = match levels {
-            Some(l) => {
-                let l = &l[first_row..first_row + page_rows];
-                encoding::put_levels(l, &mut buf);
-                ones(l)
-            }
-            None if nullable => {
-                encoding::put_all_defined(page_rows, &mut buf);
-                page_rows
-            }
-            None => page_rows,
-        };
+        let page_levels = levels.map(|l| &l[first_row..first_row + page_rows]);
+        let page_values = put_page_levels(page_levels, nullable, page_rows, &mut buf);
         let page_values = &values[next_value..next_value + page_values];
         next_value += page_values.len();
         encoding::put_delta(page_values, &mut buf);
@@ -542,6 +515,28 @@ fn encode_delta_column<T: DeltaColumn>(
         offset_index: offset_index.map(OffsetIndexBuilder::build),
     };
     Ok((sink.into_inner()?.into(), close))
+}
+
+/// Puts a data page's definition levels into `buf` (`levels` the page's, or none: every
+/// one of its `page_rows` rows defined; nothing for a required column); returns how many
+/// values the page holds.
+fn put_page_levels(
+    levels: Option<&[i16]>,
+    nullable: bool,
+    page_rows: usize,
+    buf: &mut Vec<u8>,
+) -> usize {
+    match levels {
+        Some(l) => {
+            encoding::put_levels(l, buf);
+            ones(l)
+        }
+        None if nullable => {
+            encoding::put_all_defined(page_rows, buf);
+            page_rows
+        }
+        None => page_rows,
+    }
 }
 
 /// The rows of a column of `values` values with definition `levels`, checked: in a
@@ -740,7 +735,7 @@ mod tests {
 
     /// A column table `t.parquet` of [`schema`] in `dir`.
     fn writer(dir: &Path, encodings: Encodings<'_>) -> ColumnTableWriter {
-        ColumnTableWriter::create(dir, "t.parquet", "t", schema(), encodings).expect("create")
+        ColumnTableWriter::create(dir, "t.parquet", schema(), encodings).expect("create")
     }
 
     /// Row groups written through the column writers read back through Arrow with the Arrow
@@ -900,7 +895,7 @@ mod tests {
             .expect_err("3 rows");
         assert!(
             e.to_string()
-                .contains("t: column 0 has 2 rows, the row group 3"),
+                .contains("Parquet error: column 0 has 2 rows, the row group 3"),
             "{e}"
         );
         // None of it touched the file.
@@ -921,7 +916,7 @@ mod tests {
             .expect_err("wrong type");
         assert!(
             e.to_string()
-                .contains("t: 1 columns given, the schema has 5"),
+                .contains("Parquet error: 1 columns given, the schema has 5"),
             "{e}"
         );
         drop(w);
@@ -940,8 +935,9 @@ mod tests {
         six.swap(0, 1);
         let e = w.write_row_group(1, &six).expect_err("wrong types");
         assert!(
-            e.to_string()
-                .contains("t: column 0: Parquet error: the values are not of the column's type"),
+            e.to_string().contains(
+                "Parquet error: column 0: Parquet error: the values are not of the column's type"
+            ),
             "{e}"
         );
         drop(w);

@@ -1,7 +1,7 @@
 //! Reader of the theodolite log (docs/formats.md section 5): station, time in the session's time
 //! scale, zenith distance in the session's unit. Times leave as GPS time; angles as radians.
 
-use crate::contract::ledger::{FileLedger, reason};
+use crate::contract::ingest_ledger::{FileLedger, reason};
 use crate::contract::manifest::{AngleUnit, ResolvedSession, TimeScale};
 use crate::contract::tables;
 use crate::error::{Error, Result};
@@ -159,7 +159,6 @@ impl TheodoliteWriter {
             table: TableWriter::create(
                 dir,
                 tables::theodolite::FILE,
-                "theodolite",
                 tables::theodolite::schema(),
                 crate::table::Encodings {
                     dictionary: &[

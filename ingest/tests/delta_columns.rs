@@ -73,7 +73,6 @@ impl Table {
         let mut w = ColumnTableWriter::create(
             dir,
             "own.parquet",
-            "own",
             schema(),
             Encodings {
                 delta: &DELTA,

@@ -3,7 +3,7 @@
 //! log with one out-of-place frame inserted anywhere loses at most one frame.
 
 use fixtures::gcb::{Frame, TYPE_ACCELERATION, TYPE_TEMPERATURE};
-use ingest::contract::ledger::FileLedger;
+use ingest::contract::ingest_ledger::FileLedger;
 use ingest::gcb::{FrameScanner, ScanConfig};
 use proptest::prelude::*;
 

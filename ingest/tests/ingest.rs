@@ -4,8 +4,8 @@
 use arrow::array::{AsArray, RecordBatch};
 use arrow::datatypes::{Float64Type, Int32Type, Int64Type};
 use ingest::Options;
-use ingest::contract::ledger::IngestReport;
-use ingest::contract::ledger::reason;
+use ingest::contract::ingest_ledger::IngestReport;
+use ingest::contract::ingest_ledger::reason;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use sha2::Digest;
 use std::path::{Path, PathBuf};

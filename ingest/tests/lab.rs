@@ -6,7 +6,7 @@
 
 use arrow::array::{Array, AsArray};
 use arrow::datatypes::{Float64Type, Int64Type};
-use ingest::contract::ledger::{IngestReport, reason};
+use ingest::contract::ingest_ledger::{IngestReport, reason};
 use ingest::contract::tables;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::fmt::Write as _;

@@ -4,7 +4,7 @@
 //! be told from the next sample), and the ledger adds up. Before the gate, a line stamped
 //! 400 s ahead made the next 12 499 lines go `time_backwards`.
 
-use ingest::contract::ledger::FileLedger;
+use ingest::contract::ingest_ledger::FileLedger;
 use proptest::prelude::*;
 use std::fmt::Write as _;
 

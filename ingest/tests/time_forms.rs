@@ -5,7 +5,7 @@
 //! acceleration and temperature tables byte for byte, the same readings at the same times.
 //! Before, `2026-03-14T09:12:03Z` was rejected with no hint.
 
-use ingest::contract::ledger::IngestReport;
+use ingest::contract::ingest_ledger::IngestReport;
 use ingest::time::NS_PER_WEEK;
 use std::path::Path;
 

@@ -57,11 +57,7 @@ pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
             r.n_excluded.to_string(),
             format!(
                 "{} ({:.1} in [{:.1}, {:.1}])",
-                if r.global_test.passed {
-                    "passed"
-                } else {
-                    "FAILED"
-                },
+                r.global_test.verdict_in_a_table(),
                 r.global_test.statistic,
                 r.global_test.lower,
                 r.global_test.upper

@@ -339,15 +339,15 @@ fn horizontal(ds: &Dataset, path: &Path) -> Result<Option<Table>, Error> {
 
 fn read(path: &Path) -> Result<Vec<Epoch>, Error> {
     let names = [
-        "latitude_deg",
-        "longitude_deg",
-        "down_filtered_mgal",
-        "sigma_down_mgal",
-        "sigma_calibration_mgal",
-        "sigma_positions_mgal",
-        "sigma_noise_mgal",
-        "sigma_tie_mgal",
-        "sigma_attitude_mgal",
+        gravity::LATITUDE_DEG,
+        gravity::LONGITUDE_DEG,
+        gravity::DOWN_FILTERED_MGAL,
+        gravity::SIGMA_DOWN_MGAL,
+        gravity::SIGMA_CALIBRATION_MGAL,
+        gravity::SIGMA_POSITIONS_MGAL,
+        gravity::SIGMA_NOISE_MGAL,
+        gravity::SIGMA_TIE_MGAL,
+        gravity::SIGMA_ATTITUDE_MGAL,
     ];
     let mut out = Vec::new();
     align::read::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {

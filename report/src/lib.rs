@@ -22,7 +22,7 @@ use summary::*;
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{self, Calibration, CalibrationResult, Parameter};
 use ingest::contract::custody::Root;
-use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
+use ingest::contract::ingest_ledger::{self, IngestReport};
 use ingest::contract::manifest::Dataset;
 use statrs::distribution::{ContinuousCDF, StudentsT};
 use std::fmt::Write as _;

@@ -162,11 +162,7 @@ fn triad_summary(r: &calibration::TriadResult) -> String {
         },
         r.sigma0,
         r.dof,
-        if r.global_test.passed {
-            "passed"
-        } else {
-            "failed"
-        },
+        r.global_test.verdict(),
         r.global_test.lower,
         r.global_test.upper,
         r.global_test.statistic,

@@ -1,6 +1,7 @@
 //! The report's plots, drawn with plotters into SVG strings (text as SVG `<text>`, no system
 //! fonts needed).
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 /// Okabe and Ito's colour-blind-safe palette: blue, vermillion, orange, bluish green.
@@ -48,6 +49,83 @@ fn legend<DB: DrawingBackend>(
     Ok(())
 }
 
+/// The chart every framed plot draws on: f64 on both axes, into an SVG string.
+type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A plot's frame: its size, title, axes, and the legend's strip of 24 pixels under it.
+struct Frame<'a> {
+    size: (u32, u32),
+    title: &'a str,
+    /// The x and y axis labels.
+    axes: (&'a str, &'a str),
+    /// The width of the y labels' area, pixels.
+    y_label_area: u32,
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+/// Draws a plot in `frame`, its y ticks labelled by `ticks` (plotters' own when None):
+/// `draw` puts the data on the chart and returns the legend's entries.
+fn framed(
+    frame: &Frame<'_>,
+    ticks: Option<&dyn Fn(&f64) -> String>,
+    draw: impl FnOnce(&mut Chart<'_, '_>) -> Result<Vec<(Mark, String)>, String>,
+) -> Result<String, String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, frame.size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let (plot, strip) = root.split_vertically(frame.size.1 - 24);
+        let mut chart = ChartBuilder::on(&plot)
+            .caption(frame.title, ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(42)
+            .y_label_area_size(frame.y_label_area)
+            .build_cartesian_2d(frame.x.0..frame.x.1, frame.y.0..frame.y.1)
+            .map_err(|e| e.to_string())?;
+        {
+            let mut mesh = chart.configure_mesh();
+            mesh.x_desc(frame.axes.0)
+                .y_desc(frame.axes.1)
+                .light_line_style(WHITE.mix(0.0));
+            if let Some(ticks) = ticks {
+                mesh.y_label_formatter(ticks);
+            }
+            mesh.draw().map_err(|e| e.to_string())?;
+        }
+        let entries = draw(&mut chart)?;
+        legend(&strip, &entries)?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+/// A line through (x, value) with its 1-sigma band (x, value +/- sigma) under it.
+fn line_with_band(
+    chart: &mut Chart<'_, '_>,
+    points: &[(f64, f64, f64)],
+    colour: RGBColor,
+) -> Result<(), String> {
+    let band: Vec<(f64, f64)> = points
+        .iter()
+        .map(|q| (q.0, q.1 + q.2))
+        .chain(points.iter().rev().map(|q| (q.0, q.1 - q.2)))
+        .collect();
+    chart
+        .draw_series(std::iter::once(Polygon::new(
+            band,
+            colour.mix(0.25).filled(),
+        )))
+        .map_err(|e| e.to_string())?;
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().map(|q| (q.0, q.1)),
+            colour.stroke_width(2),
+        ))
+        .map_err(|e| e.to_string())?;
+    Ok(())
+}
+
 /// A scatter plot: used points, removed points (marked), optional line.
 pub struct Scatter<'a> {
     /// Title.
@@ -91,27 +169,17 @@ pub fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 
 /// Draws `s` as an SVG document.
 pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
-    let mut svg = String::new();
-    {
-        let ((x0, x1), (y0, y1)) = scatter_ranges(s);
-        let root = SVGBackend::with_string(&mut svg, (560, 360)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let (plot, strip) = root.split_vertically(336);
+    let ((x0, x1), (y0, y1)) = scatter_ranges(s);
+    let frame = Frame {
+        size: (560, 360),
+        title: s.title,
+        axes: (s.x_label, s.y_label),
+        y_label_area: 72,
+        x: (x0, x1),
+        y: (y0, y1),
+    };
+    framed(&frame, None, |chart| {
         let mut entries = Vec::new();
-        let mut chart = ChartBuilder::on(&plot)
-            .caption(s.title, ("sans-serif", 16))
-            .margin(12)
-            .x_label_area_size(42)
-            .y_label_area_size(72)
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc(s.x_label)
-            .y_desc(s.y_label)
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| e.to_string())?;
         if s.zero_line {
             chart
                 .draw_series(LineSeries::new([(x0, 0.0), (x1, 0.0)], BLACK.mix(0.4)))
@@ -152,10 +220,8 @@ pub fn scatter(s: &Scatter<'_>) -> Result<String, String> {
                 .map_err(|e| e.to_string())?;
             entries.push((Mark::Cross(VERMILLION), label));
         }
-        legend(&strip, &entries)?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    Ok(svg)
+        Ok(entries)
+    })
 }
 
 /// A scatter plot's x and y ranges: x over every point and the line; y over the used
@@ -195,62 +261,32 @@ pub struct Trend<'a> {
 
 /// Draws `t` as an SVG document.
 pub fn trend(t: &Trend<'_>) -> Result<String, String> {
-    let mut svg = String::new();
-    {
-        let xs = t.points.iter().chain(t.line).map(|p| p.0);
-        let (x0, x1) = range(xs);
-        let ys = t
-            .points
-            .iter()
-            .chain(t.line)
-            .flat_map(|p| [p.1 - p.2, p.1 + p.2]);
-        let (y0, y1) = range(ys);
-        let root = SVGBackend::with_string(&mut svg, (560, 360)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let (plot, strip) = root.split_vertically(336);
-        let mut chart = ChartBuilder::on(&plot)
-            .caption(t.title, ("sans-serif", 16))
-            .margin(12)
-            .x_label_area_size(42)
-            .y_label_area_size(90)
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(|e| e.to_string())?;
-        let fine = (y1 - y0).abs() < 0.1;
-        let ticks = move |v: &f64| {
-            if fine {
-                format!("{v:.1e}")
-            } else {
-                format!("{v:.1}")
-            }
-        };
-        chart
-            .configure_mesh()
-            .x_desc("temperature (degC)")
-            .y_desc(t.y_label)
-            .y_label_formatter(&ticks)
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| e.to_string())?;
+    let xs = t.points.iter().chain(t.line).map(|p| p.0);
+    let ys = t
+        .points
+        .iter()
+        .chain(t.line)
+        .flat_map(|p| [p.1 - p.2, p.1 + p.2]);
+    let frame = Frame {
+        size: (560, 360),
+        title: t.title,
+        axes: ("temperature (degC)", t.y_label),
+        y_label_area: 90,
+        x: range(xs),
+        y: range(ys),
+    };
+    let fine = (frame.y.1 - frame.y.0).abs() < 0.1;
+    let ticks = move |v: &f64| {
+        if fine {
+            format!("{v:.1e}")
+        } else {
+            format!("{v:.1}")
+        }
+    };
+    framed(&frame, Some(&ticks), |chart| {
         let mut entries = Vec::new();
         if !t.line.is_empty() {
-            let band: Vec<(f64, f64)> = t
-                .line
-                .iter()
-                .map(|p| (p.0, p.1 + p.2))
-                .chain(t.line.iter().rev().map(|p| (p.0, p.1 - p.2)))
-                .collect();
-            chart
-                .draw_series(std::iter::once(Polygon::new(
-                    band,
-                    ORANGE.mix(0.25).filled(),
-                )))
-                .map_err(|e| e.to_string())?;
-            chart
-                .draw_series(LineSeries::new(
-                    t.line.iter().map(|p| (p.0, p.1)),
-                    ORANGE.stroke_width(2),
-                ))
-                .map_err(|e| e.to_string())?;
+            line_with_band(chart, t.line, ORANGE)?;
             entries.push((Mark::Line(ORANGE), t.labels.1.to_owned()));
             entries.push((Mark::Band(ORANGE), "its 1-sigma band".to_owned()));
         }
@@ -267,10 +303,8 @@ pub fn trend(t: &Trend<'_>) -> Result<String, String> {
             )
             .map_err(|e| e.to_string())?;
         entries.push((Mark::Dot(BLUE_CB), format!("{} (1-sigma bars)", t.labels.0)));
-        legend(&strip, &entries)?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    Ok(svg)
+        Ok(entries)
+    })
 }
 
 /// A misalignment vector in the block's frame: the estimate (theta_x, theta_y), the line
@@ -382,41 +416,31 @@ fn diverging(v: f64) -> RGBColor {
 
 /// Draws `m` as an SVG document, on equal axes.
 pub fn track_map(m: &TrackMap<'_>) -> Result<String, String> {
-    let mut svg = String::new();
-    {
-        let (mut x0, mut x1) = range(m.points.iter().map(|p| p.0));
-        let (mut y0, mut y1) = range(m.points.iter().map(|p| p.1));
-        // Equal scales: widen the narrower range about its centre (the plot is 520 x 300).
-        let (w, h) = (x1 - x0, y1 - y0);
-        if w / 520.0 > h / 300.0 {
-            let c = 0.5 * (y0 + y1);
-            (y0, y1) = (c - w * 300.0 / 1040.0, c + w * 300.0 / 1040.0);
-        } else {
-            let c = 0.5 * (x0 + x1);
-            (x0, x1) = (c - h * 520.0 / 600.0, c + h * 520.0 / 600.0);
-        }
-        let scale = m
-            .points
-            .iter()
-            .fold(0.0_f64, |a, p| a.max(p.2.abs()))
-            .max(1e-9);
-        let root = SVGBackend::with_string(&mut svg, (600, 400)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let (plot, strip) = root.split_vertically(376);
-        let mut chart = ChartBuilder::on(&plot)
-            .caption(m.title, ("sans-serif", 16))
-            .margin(12)
-            .x_label_area_size(42)
-            .y_label_area_size(60)
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc("east (km)")
-            .y_desc("north (km)")
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| e.to_string())?;
+    let (mut x0, mut x1) = range(m.points.iter().map(|p| p.0));
+    let (mut y0, mut y1) = range(m.points.iter().map(|p| p.1));
+    // Equal scales: widen the narrower range about its centre (the plot is 520 x 300).
+    let (w, h) = (x1 - x0, y1 - y0);
+    if w / 520.0 > h / 300.0 {
+        let c = 0.5 * (y0 + y1);
+        (y0, y1) = (c - w * 300.0 / 1040.0, c + w * 300.0 / 1040.0);
+    } else {
+        let c = 0.5 * (x0 + x1);
+        (x0, x1) = (c - h * 520.0 / 600.0, c + h * 520.0 / 600.0);
+    }
+    let scale = m
+        .points
+        .iter()
+        .fold(0.0_f64, |a, p| a.max(p.2.abs()))
+        .max(1e-9);
+    let frame = Frame {
+        size: (600, 400),
+        title: m.title,
+        axes: ("east (km)", "north (km)"),
+        y_label_area: 60,
+        x: (x0, x1),
+        y: (y0, y1),
+    };
+    framed(&frame, None, |chart| {
         chart
             .draw_series(
                 m.points
@@ -424,7 +448,7 @@ pub fn track_map(m: &TrackMap<'_>) -> Result<String, String> {
                     .map(|&(x, y, v)| Circle::new((x, y), 3, diverging(v / scale).filled())),
             )
             .map_err(|e| e.to_string())?;
-        let entries = [
+        Ok(vec![
             (
                 Mark::Dot(diverging(-1.0)),
                 format!("{:.2} {}", -scale, m.value_label),
@@ -434,11 +458,8 @@ pub fn track_map(m: &TrackMap<'_>) -> Result<String, String> {
                 Mark::Dot(diverging(1.0)),
                 format!("+{scale:.2} {}", m.value_label),
             ),
-        ];
-        legend(&strip, &entries)?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    Ok(svg)
+        ])
+    })
 }
 
 /// A value along a track (distance, value, sigma) drawn as a line with its 1-sigma band,
@@ -454,53 +475,22 @@ pub struct Profile<'a> {
 
 /// Draws `p` as an SVG document.
 pub fn profile(p: &Profile<'_>) -> Result<String, String> {
-    let mut svg = String::new();
-    {
-        let all = || p.stretches.iter().flatten();
-        let (x0, x1) = range(all().map(|q| q.0));
-        let (y0, y1) = range(all().flat_map(|q| [q.1 - q.2, q.1 + q.2]));
-        let root = SVGBackend::with_string(&mut svg, (600, 360)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let (plot, strip) = root.split_vertically(336);
-        let mut chart = ChartBuilder::on(&plot)
-            .caption(p.title, ("sans-serif", 16))
-            .margin(12)
-            .x_label_area_size(42)
-            .y_label_area_size(72)
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc("distance along the track (km)")
-            .y_desc(p.y_label)
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| e.to_string())?;
+    let all = || p.stretches.iter().flatten();
+    let frame = Frame {
+        size: (600, 360),
+        title: p.title,
+        axes: ("distance along the track (km)", p.y_label),
+        y_label_area: 72,
+        x: range(all().map(|q| q.0)),
+        y: range(all().flat_map(|q| [q.1 - q.2, q.1 + q.2])),
+    };
+    framed(&frame, None, |chart| {
         for s in p.stretches.iter().filter(|s| !s.is_empty()) {
-            let band: Vec<(f64, f64)> = s
-                .iter()
-                .map(|q| (q.0, q.1 + q.2))
-                .chain(s.iter().rev().map(|q| (q.0, q.1 - q.2)))
-                .collect();
-            chart
-                .draw_series(std::iter::once(Polygon::new(
-                    band,
-                    BLUE_CB.mix(0.25).filled(),
-                )))
-                .map_err(|e| e.to_string())?;
-            chart
-                .draw_series(LineSeries::new(
-                    s.iter().map(|q| (q.0, q.1)),
-                    BLUE_CB.stroke_width(2),
-                ))
-                .map_err(|e| e.to_string())?;
+            line_with_band(chart, s, BLUE_CB)?;
         }
-        let entries = [
+        Ok(vec![
             (Mark::Line(BLUE_CB), "filtered".to_owned()),
             (Mark::Band(BLUE_CB), "its 1-sigma band".to_owned()),
-        ];
-        legend(&strip, &entries)?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    Ok(svg)
+        ])
+    })
 }

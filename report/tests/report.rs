@@ -370,12 +370,14 @@ fn gravity(
     out: &Path,
 ) -> Result<ingest::contract::gravity_ledger::GravityReport, adjust::gravity::GravityError> {
     adjust::gravity::stage::GravityArgs {
-        dataset: dataset.to_path_buf(),
-        calibration: cal.join("adjust/calibration.json"),
-        model: None,
-        session: Some("lab".to_owned()),
+        apply: adjust::apply::stream::ApplyArgs {
+            dataset: dataset.to_path_buf(),
+            calibration: cal.join("adjust/calibration.json"),
+            model: None,
+            session: Some("lab".to_owned()),
+            out: None,
+        },
         accelerometer: None,
-        out: None,
         skip_bad_lines: false,
     }
     .run(out)

@@ -55,7 +55,7 @@ fn pyarrow_reads(py: &Path, script: &Path, out: &Path) -> Result<()> {
         );
     }
     let got: serde_json::Value = serde_json::from_slice(&o.stdout)?;
-    let report = ingest::contract::ledger::IngestReport::load(&out.join("ingest"))?;
+    let report = ingest::contract::ingest_ledger::IngestReport::load(&out.join("ingest"))?;
     let rows = report
         .tables
         .get(ingest::contract::tables::acceleration::FILE)
@@ -443,7 +443,7 @@ pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
     let out = data.join("out-align");
     let _ = std::fs::remove_dir_all(&out);
     ingest_once(&root.join("target/release/gravcal-ingest"), &dataset, &out)?;
-    let ledger = ingest::contract::ledger::IngestReport::load(&out.join("ingest"))?;
+    let ledger = ingest::contract::ingest_ledger::IngestReport::load(&out.join("ingest"))?;
     let samples: u64 = ledger.sessions.iter().map(|s| s.acceleration_samples).sum();
     let readings_n: u64 = ledger.sessions.iter().map(|s| s.readings).sum();
     let (r, _) = best_of(3, || {
@@ -459,6 +459,29 @@ pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
     );
     let _ = std::fs::remove_dir_all(&out);
     Ok(())
+}
+
+/// The adjust benchmark's `n` observations at gravity `g` mGal, as the CSV `bench-fit`
+/// reads: tilts spread continuously from 109 to 140 deg, sds drawn as the simulator's.
+fn adjust_observations(n: usize, g: f64) -> String {
+    let (b, k) = (-29_497.03, 0.243_05);
+    let mut rng = fixtures::rng::Rng::new(1, "bench-adjust");
+    let mut text = String::with_capacity(n * 64);
+    text.push_str("dz_rad,sigma_dz_rad,ng,sigma_ng\n");
+    for _ in 0..n {
+        let dz: f64 = rng.range(109.0, 140.0).to_radians();
+        let sigma_dz = rng.lognormal_clipped(2.1, 0.45, 0.8, 4.5) / (g * dz.sin().abs());
+        let sigma_ng = rng.lognormal_clipped(1.0, 0.5, 0.5, 2.5);
+        let ng = (-g * dz.cos() - b) / k;
+        text.push_str(&format!(
+            "{:.12},{:.6e},{:.4},{:.4}\n",
+            dz + sigma_dz * rng.normal(),
+            sigma_dz,
+            ng + sigma_ng * rng.normal(),
+            sigma_ng
+        ));
+    }
+    text
 }
 
 /// Runs the ingest benchmark; `hours` scales the logs (31.25 Hz for 2x hours, 250 Hz for
@@ -532,6 +555,13 @@ pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
         }
         let _ = std::fs::remove_dir_all(&out);
     }
+    print_ingest_table(rows);
+    Ok(())
+}
+
+/// The ingest benchmark's table: per row the log, what read it, the input's bytes and the
+/// fastest run with the median's seconds.
+fn print_ingest_table(rows: Vec<(String, String, u64, (Run, f64))>) {
     println!(
         "| log | what | input MB | seconds (fastest) | MB/s (fastest) | MB/s (median) | CPU s | peak RSS MB |"
     );
@@ -547,7 +577,6 @@ pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
             r.peak_rss_mb
         );
     }
-    Ok(())
 }
 
 const ODR: &str = r##"
@@ -584,24 +613,7 @@ pub fn adjust(root: &Path, n: usize, peers: bool) -> Result<()> {
     std::fs::create_dir_all(&data)?;
     let csv = data.join(format!("adjust-{n}.csv"));
     let g = 980_855.7;
-    let (b, k) = (-29_497.03, 0.243_05);
-    let mut rng = fixtures::rng::Rng::new(1, "bench-adjust");
-    let mut text = String::with_capacity(n * 64);
-    text.push_str("dz_rad,sigma_dz_rad,ng,sigma_ng\n");
-    for _ in 0..n {
-        let dz: f64 = rng.range(109.0, 140.0).to_radians();
-        let sigma_dz = rng.lognormal_clipped(2.1, 0.45, 0.8, 4.5) / (g * dz.sin().abs());
-        let sigma_ng = rng.lognormal_clipped(1.0, 0.5, 0.5, 2.5);
-        let ng = (-g * dz.cos() - b) / k;
-        text.push_str(&format!(
-            "{:.12},{:.6e},{:.4},{:.4}\n",
-            dz + sigma_dz * rng.normal(),
-            sigma_dz,
-            ng + sigma_ng * rng.normal(),
-            sigma_ng
-        ));
-    }
-    std::fs::write(&csv, text)?;
+    std::fs::write(&csv, adjust_observations(n, g))?;
     let run = Command::new(root.join("target/release/gravcal-adjust"))
         .args(["bench-fit", "--input"])
         .arg(&csv)

@@ -167,7 +167,7 @@ pub fn apply(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
         let _ = std::fs::remove_dir_all(&out);
         ingest::run(&dataset, &out).context("ingesting the benchmark log")?;
         let ingested = out.join("ingest");
-        let samples = ingest::contract::ledger::IngestReport::load(&ingested)?
+        let samples = ingest::contract::ingest_ledger::IngestReport::load(&ingested)?
             .tables
             .get(ingest::contract::tables::acceleration::FILE)
             .copied()

@@ -64,7 +64,7 @@ pub fn gravity(root: &Path, hours: f64, runs: usize) -> Result<()> {
             &out.join(ingest::contract::gravity_ledger::STAGE_DIR)
                 .join(ingest::contract::gravity_ledger::LEDGER_FILE),
         )?;
-        let samples = ingest::contract::ledger::IngestReport::load(&out.join("ingest"))?
+        let samples = ingest::contract::ingest_ledger::IngestReport::load(&out.join("ingest"))?
             .tables
             .get(ingest::contract::tables::lab::FILE)
             .copied()

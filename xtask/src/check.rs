@@ -10,7 +10,7 @@
 //! uses; what the copy's middle adds (blank lines, zero bytes skipped) is taken off again.
 
 use anyhow::{Context, Result};
-use ingest::contract::ledger::{FileLedger, IngestReport};
+use ingest::contract::ingest_ledger::{FileLedger, IngestReport};
 use ingest::contract::manifest::{Acquisition, Dataset, ResolvedSession};
 use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};

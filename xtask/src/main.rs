@@ -401,12 +401,14 @@ fn ci() -> Result<()> {
     // The third: triad-multipos's calibration reducing survey-lines to gravity.
     let lines = fixtures::survey_lines::SURVEY_LINES;
     let gravity = adjust::gravity::stage::GravityArgs {
-        dataset: fixtures::dataset_dir(lines),
-        calibration: scratch.join("triad-multipos/adjust/calibration.json"),
-        model: None,
-        session: Some("lab".to_owned()),
+        apply: adjust::apply::stream::ApplyArgs {
+            dataset: fixtures::dataset_dir(lines),
+            calibration: scratch.join("triad-multipos/adjust/calibration.json"),
+            model: None,
+            session: Some("lab".to_owned()),
+            out: None,
+        },
         accelerometer: None,
-        out: None,
         skip_bad_lines: false,
     }
     .run(&scratch.join(lines))
@@ -510,15 +512,15 @@ fn apply(mut a: adjust::apply::stream::ApplyArgs) -> Result<()> {
 /// gravity section), then apply and gravity, then the report again.
 fn gravity(a: &adjust::gravity::stage::GravityArgs) -> Result<()> {
     let args = DatasetArgs {
-        dataset: a.dataset.clone(),
-        out: a.out.clone(),
+        dataset: a.apply.dataset.clone(),
+        out: a.apply.out.clone(),
     };
     let out = out_dir(&args)?;
     run_stages(&args, &["ingest", "align", "adjust"])?;
     let t0 = std::time::Instant::now();
     let report = a
         .run(&out)
-        .with_context(|| format!("gravity on {}", a.dataset.display()))?;
+        .with_context(|| format!("gravity on {}", a.apply.dataset.display()))?;
     adjust::gravity::stage::print_summary(&report, &mut std::io::stderr());
     eprintln!("gravity: {:.2} s", t0.elapsed().as_secs_f64());
     run_stages(&args, &["report"])

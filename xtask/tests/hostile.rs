@@ -2,7 +2,7 @@
 //! a hand-edited copy): every case gives the right result or a clear error, and the ledgers
 //! still add up. Issue #12 listed them; each test names the case it holds.
 
-use ingest::contract::ledger::reason;
+use ingest::contract::ingest_ledger::reason;
 use std::path::{Path, PathBuf};
 
 /// A copy of fixture `name` in a fresh folder, its manifest passed through `edit`.

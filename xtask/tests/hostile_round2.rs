@@ -3,7 +3,7 @@
 //! table of damage applied by the test to a committed fixture or to a file it writes, with
 //! the right result or the clear error, and the ledgers still adding up.
 
-use ingest::contract::ledger::{FileLedger, IngestReport, reason};
+use ingest::contract::ingest_ledger::{FileLedger, IngestReport, reason};
 use std::path::{Path, PathBuf};
 
 /// A copy of fixture `name` in a fresh folder, its manifest passed through `edit`.

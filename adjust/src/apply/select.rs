@@ -8,6 +8,124 @@ use ingest::contract::calibration::{ALL_SESSIONS, Calibration, TriadResult};
 use ingest::contract::manifest::{Accelerometer, Dataset};
 use std::collections::BTreeSet;
 
+/// Why a calibration cannot be applied to a survey as asked; each says what to change.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SelectError {
+    /// A calibration.json older than its accelerometers' list.
+    #[error(
+        "the calibration does not list its accelerometers (written before gravcal recorded \
+         them): re-run adjust on its dataset"
+    )]
+    NoAccelerometers,
+    /// An accelerometer of the survey the calibration did not calibrate.
+    #[error(
+        "accelerometer `{id}` of the survey is not in the calibration (which calibrated {calibrated})"
+    )]
+    NotCalibrated {
+        /// The survey's accelerometer.
+        id: String,
+        /// The calibration's, listed.
+        calibrated: String,
+    },
+    /// One id, two serials.
+    #[error(
+        "accelerometer `{id}`: serial {survey} in the survey's manifest, {calibration} in the \
+         calibration's: not the same instrument"
+    )]
+    OtherSerial {
+        /// The accelerometer.
+        id: String,
+        /// The survey's serial, quoted, or none.
+        survey: String,
+        /// The calibration's.
+        calibration: String,
+    },
+    /// Counts against volts, or the other way.
+    #[error(
+        "the calibration was fitted on readings in {fitted}, the survey's are in {survey} \
+         (the instrument's reading_unit)"
+    )]
+    ReadingUnit {
+        /// The calibration's unit.
+        fitted: String,
+        /// The survey's.
+        survey: String,
+    },
+    /// `--model` names a model the calibration has not.
+    #[error("model `{model}` is not in the calibration (it has: {has})")]
+    NoSuchModel {
+        /// As asked.
+        model: String,
+        /// The calibration's models, listed.
+        has: String,
+    },
+    /// Several models and no `--model`.
+    #[error("the calibration holds {count} models ({has}): name one with --model")]
+    WhichModel {
+        /// How many.
+        count: usize,
+        /// Listed.
+        has: String,
+    },
+    /// `--session` for a model fitted over all sessions.
+    #[error("model `{model}` is fitted over all sessions: --session {session} does not apply")]
+    SessionNotApplicable {
+        /// The model.
+        model: String,
+        /// As asked.
+        session: String,
+    },
+    /// `--session` names a session the model has no fits for.
+    #[error("model `{model}` has no fits for session `{session}` (it has: {has})")]
+    NoSuchSession {
+        /// The model.
+        model: String,
+        /// As asked.
+        session: String,
+        /// Its sessions, listed.
+        has: String,
+    },
+    /// A model fitted per session and no `--session`.
+    #[error(
+        "model `{model}` is fitted per session ({has}): name the one to apply with \
+         --session"
+    )]
+    WhichSession {
+        /// The model.
+        model: String,
+        /// Its sessions, listed.
+        has: String,
+    },
+    /// A result that is there but cannot be evaluated.
+    #[error(transparent)]
+    Unusable(#[from] super::ApplyError),
+    /// A triad calibrated on readings in another unit.
+    #[error("triad {model} was calibrated on readings in {fitted}, the survey's are in {survey}")]
+    TriadReadingUnit {
+        /// The triad's model.
+        model: String,
+        /// Its unit.
+        fitted: String,
+        /// The survey's.
+        survey: String,
+    },
+    /// No accelerometer on one of the triad's channels.
+    #[error("the calibration has no accelerometer on channel {channel}")]
+    NoChannel {
+        /// 1-based.
+        channel: usize,
+    },
+    /// A triad axis whose accelerometer the survey does not have.
+    #[error("the triad's axis {axis} is accelerometer `{id}`, not in the survey")]
+    AxisNotInSurvey {
+        /// x, y or z.
+        axis: &'static str,
+        /// The accelerometer.
+        id: String,
+    },
+}
+
 /// What the user asked to apply.
 #[derive(Clone, Debug, Default)]
 pub struct Choice<'a> {
@@ -52,15 +170,14 @@ pub fn select(
     cal: &Calibration,
     survey: &Dataset,
     choice: &Choice<'_>,
-) -> Result<Selection, String> {
+) -> Result<Selection, SelectError> {
     check_instrument(cal, survey)?;
     let unit = survey.manifest.instrument.reading_unit.name();
     if cal.reading_unit != unit {
-        return Err(format!(
-            "the calibration was fitted on readings in {}, the survey's are in {unit} \
-             (the instrument's reading_unit)",
-            cal.reading_unit
-        ));
+        return Err(SelectError::ReadingUnit {
+            fitted: cal.reading_unit.clone(),
+            survey: unit.to_owned(),
+        });
     }
     let mut models = BTreeSet::new();
     for (m, _) in fits(cal) {
@@ -69,18 +186,17 @@ pub fn select(
     let model = match choice.model {
         Some(m) if models.contains(m) => m.to_owned(),
         Some(m) => {
-            return Err(format!(
-                "model `{m}` is not in the calibration (it has: {})",
-                list(models.iter().copied())
-            ));
+            return Err(SelectError::NoSuchModel {
+                model: m.to_owned(),
+                has: list(models.iter().copied()),
+            });
         }
         None if models.len() == 1 => models.first().map(|m| (*m).to_owned()).unwrap_or_default(),
         None => {
-            return Err(format!(
-                "the calibration holds {} models ({}): name one with --model",
-                models.len(),
-                list(models.iter().copied())
-            ));
+            return Err(SelectError::WhichModel {
+                count: models.len(),
+                has: list(models.iter().copied()),
+            });
         }
     };
     let sessions: BTreeSet<&str> = fits(cal)
@@ -89,26 +205,27 @@ pub fn select(
         .collect();
     let session = if sessions.len() == 1 && sessions.contains(ALL_SESSIONS) {
         if let Some(s) = choice.session {
-            return Err(format!(
-                "model `{model}` is fitted over all sessions: --session {s} does not apply"
-            ));
+            return Err(SelectError::SessionNotApplicable {
+                model,
+                session: s.to_owned(),
+            });
         }
         ALL_SESSIONS.to_owned()
     } else {
         match choice.session {
             Some(s) if sessions.contains(s) => s.to_owned(),
             Some(s) => {
-                return Err(format!(
-                    "model `{model}` has no fits for session `{s}` (it has: {})",
-                    list(sessions.iter().copied())
-                ));
+                return Err(SelectError::NoSuchSession {
+                    model,
+                    session: s.to_owned(),
+                    has: list(sessions.iter().copied()),
+                });
             }
             None => {
-                return Err(format!(
-                    "model `{model}` is fitted per session ({}): name the one to apply with \
-                     --session",
-                    list(sessions.iter().copied())
-                ));
+                return Err(SelectError::WhichSession {
+                    model,
+                    has: list(sessions.iter().copied()),
+                });
             }
         }
     };
@@ -149,7 +266,7 @@ pub fn triad_of<'c>(
     cal: &'c Calibration,
     survey: &Dataset,
     selection: &Selection,
-) -> Result<Option<(&'c TriadResult, [usize; 3])>, String> {
+) -> Result<Option<(&'c TriadResult, [usize; 3])>, SelectError> {
     let Some(r) = cal
         .triad
         .iter()
@@ -159,10 +276,11 @@ pub fn triad_of<'c>(
     };
     let unit = survey.manifest.instrument.reading_unit.name();
     if unit != r.reading_unit {
-        return Err(format!(
-            "triad {} was calibrated on readings in {}, the survey's are in {unit}",
-            r.model, r.reading_unit
-        ));
+        return Err(SelectError::TriadReadingUnit {
+            model: r.model.clone(),
+            fitted: r.reading_unit.clone(),
+            survey: unit.to_owned(),
+        });
     }
     let mut channels = [0; 3];
     for (axis, slot) in channels.iter_mut().enumerate() {
@@ -171,23 +289,16 @@ pub fn triad_of<'c>(
             .iter()
             .find(|a| usize::from(a.channel) == axis + 1)
             .map(|a| a.id.as_str())
-            .ok_or_else(|| {
-                format!(
-                    "the calibration has no accelerometer on channel {}",
-                    axis + 1
-                )
-            })?;
+            .ok_or(SelectError::NoChannel { channel: axis + 1 })?;
         let on = survey
             .manifest
             .instrument
             .accelerometer
             .iter()
             .find(|a| a.id == id)
-            .ok_or_else(|| {
-                format!(
-                    "the triad's axis {} is accelerometer `{id}`, not in the survey",
-                    ["x", "y", "z"][axis]
-                )
+            .ok_or_else(|| SelectError::AxisNotInSurvey {
+                axis: ["x", "y", "z"][axis],
+                id: id.to_owned(),
             })?;
         *slot = usize::from(on.channel).saturating_sub(1);
     }
@@ -195,32 +306,25 @@ pub fn triad_of<'c>(
 }
 
 /// Every accelerometer of the survey must be one the calibration calibrated, by id and serial.
-fn check_instrument(cal: &Calibration, survey: &Dataset) -> Result<(), String> {
+fn check_instrument(cal: &Calibration, survey: &Dataset) -> Result<(), SelectError> {
     if cal.accelerometers.is_empty() {
-        return Err(
-            "the calibration does not list its accelerometers (written before gravcal recorded \
-             them): re-run adjust on its dataset"
-                .to_owned(),
-        );
+        return Err(SelectError::NoAccelerometers);
     }
     for acc in &survey.manifest.instrument.accelerometer {
         let Some(c) = cal.accelerometers.iter().find(|c| c.id == acc.id) else {
-            return Err(format!(
-                "accelerometer `{}` of the survey is not in the calibration (which calibrated {})",
-                acc.id,
-                list(cal.accelerometers.iter().map(|c| c.id.as_str()))
-            ));
+            return Err(SelectError::NotCalibrated {
+                id: acc.id.clone(),
+                calibrated: list(cal.accelerometers.iter().map(|c| c.id.as_str())),
+            });
         };
         if c.serial != acc.serial {
             let show =
                 |s: &Option<String>| s.as_deref().map_or("none".to_owned(), |s| format!("`{s}`"));
-            return Err(format!(
-                "accelerometer `{}`: serial {} in the survey's manifest, {} in the calibration's: \
-                 not the same instrument",
-                acc.id,
-                show(&acc.serial),
-                show(&c.serial)
-            ));
+            return Err(SelectError::OtherSerial {
+                id: acc.id.clone(),
+                survey: show(&acc.serial),
+                calibration: show(&c.serial),
+            });
         }
     }
     Ok(())
@@ -233,13 +337,13 @@ fn target(
     model: &str,
     session: &str,
     acc: &Accelerometer,
-) -> Result<Target, String> {
+) -> Result<Target, SelectError> {
     let result = cal
         .results
         .iter()
         .find(|r| r.model == model && r.session == session && r.accelerometer == acc.id);
     let function = match result {
-        Some(r) => Ok(CalibrationFunction::new(r).map_err(|e| e.to_string())?),
+        Some(r) => Ok(CalibrationFunction::new(r)?),
         None => Err(cal
             .skipped
             .iter()

@@ -21,7 +21,7 @@ use ingest::contract::apply_ledger::{
 };
 use ingest::contract::calibration::{CALIBRATION_FORMAT, Calibration};
 use ingest::contract::custody::{Custody, FileHash, Folders, Root, sha256_file};
-use ingest::contract::ledger::{self as ingest_ledger, IngestReport};
+use ingest::contract::ingest_ledger::{self, IngestReport};
 use ingest::contract::manifest::Dataset;
 use ingest::contract::status;
 use ingest::contract::tables::{self, applied};
@@ -55,14 +55,15 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
         path: opts.calibration.to_path_buf(),
         message,
     };
-    let selection = select(&cal, &ds, &opts.choice).map_err(refused)?;
-    let triad = match super::select::triad_of(&cal, &ds, &selection).map_err(&refused)? {
-        Some((result, channels)) => {
-            let f = super::triad_stream::TriadFunction::new(result).map_err(&refused)?;
-            Some((result, channels, f))
-        }
-        None => None,
-    };
+    let selection = select(&cal, &ds, &opts.choice).map_err(|e| refused(e.to_string()))?;
+    let triad =
+        match super::select::triad_of(&cal, &ds, &selection).map_err(|e| refused(e.to_string()))? {
+            Some((result, channels)) => {
+                let f = super::triad_stream::TriadFunction::new(result).map_err(&refused)?;
+                Some((result, channels, f))
+            }
+            None => None,
+        };
     let ingest_report = match IngestReport::load_verified(&ds, out) {
         Ok(r) => r,
         Err(_) => ingest::run(dataset, out)?,
@@ -367,7 +368,6 @@ fn applied_writer(
     Ok(ColumnTableWriter::create(
         dir,
         applied::FILE,
-        "applied acceleration",
         applied::schema(sessions, ids),
         Encodings {
             delta: &delta,
@@ -588,7 +588,8 @@ pub struct ApplyArgs {
     /// The session whose fits to apply, for a model fitted per session.
     #[arg(long)]
     pub session: Option<String>,
-    /// Output folder OUT (default: out/<dataset folder name>); writes OUT/apply/.
+    /// Output folder OUT (default: out/<dataset folder name>); apply writes OUT/apply/,
+    /// gravity also OUT/gravity/.
     #[arg(long)]
     pub out: Option<std::path::PathBuf>,
 }
@@ -604,17 +605,18 @@ impl ApplyArgs {
 
     /// Runs the stage with these arguments.
     pub fn run(&self, root: &Path) -> Result<ApplyReport, Error> {
-        run(
-            &self.dataset,
-            &self.out_dir(root),
-            &Options {
-                calibration: &self.calibration,
-                choice: Choice {
-                    model: self.model.as_deref(),
-                    session: self.session.as_deref(),
-                },
+        run(&self.dataset, &self.out_dir(root), &self.options())
+    }
+
+    /// The calibration and the choice among its fits.
+    pub fn options(&self) -> Options<'_> {
+        Options {
+            calibration: &self.calibration,
+            choice: Choice {
+                model: self.model.as_deref(),
+                session: self.session.as_deref(),
             },
-        )
+        }
     }
 }
 

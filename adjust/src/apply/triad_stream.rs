@@ -276,32 +276,49 @@ impl<'t> AxisTemperatures<'t> {
     }
 }
 
-/// One sample: its vector and covariance, or why it has none.
-fn one(
-    f: &TriadFunction,
-    temperatures: &mut AxisTemperatures<'_>,
-    cols: &mut Columns,
-    out: &mut TriadWritten,
-    (session, time): (u16, i64),
-    x: [Option<f64>; 3],
-    flags: u8,
-) {
-    let (sample, flags) = match (flags, x) {
-        (0, [Some(a), Some(b), Some(c)]) => {
-            let t = if f.needs_temperature() {
-                temperatures.at(session, time)
-            } else {
-                None
-            };
-            f.apply([a, b, c], t)
+/// Where the samples go: the function applied with the axes' temperatures, into the
+/// columns of the next row group, counted.
+struct Applier<'a, 'b> {
+    f: &'a TriadFunction,
+    temperatures: AxisTemperatures<'b>,
+    cols: Columns,
+    out: TriadWritten,
+}
+
+impl Applier<'_, '_> {
+    /// One sample: its vector and covariance, or why it has none.
+    fn one(&mut self, (session, time): (u16, i64), x: [Option<f64>; 3], flags: u8) {
+        let (sample, flags) = match (flags, x) {
+            (0, [Some(a), Some(b), Some(c)]) => {
+                let t = if self.f.needs_temperature() {
+                    self.temperatures.at(session, time)
+                } else {
+                    None
+                };
+                self.f.apply([a, b, c], t)
+            }
+            (0, _) => (None, applied::NOT_CONNECTED),
+            (f, _) => (None, f),
+        };
+        self.out.with_value += u64::from(sample.is_some());
+        self.out.by_flags[usize::from(flags)] += 1;
+        self.out.rows += 1;
+        self.cols.push(session, time, sample, flags);
+    }
+}
+
+/// The flags a sample's status gives the triad: not connected or saturated on any of its
+/// `channels`.
+fn status_flags(st: u8, channels: [usize; 3]) -> u8 {
+    let mut flags = 0;
+    for &ch in &channels {
+        if status::not_connected(st, ch) {
+            flags |= applied::NOT_CONNECTED;
+        } else if status::over_range(st, ch) {
+            flags |= applied::SATURATED;
         }
-        (0, _) => (None, applied::NOT_CONNECTED),
-        (f, _) => (None, f),
-    };
-    out.with_value += u64::from(sample.is_some());
-    out.by_flags[usize::from(flags)] += 1;
-    out.rows += 1;
-    cols.push(session, time, sample, flags);
+    }
+    flags
 }
 
 /// Streams ingest's acceleration and lab tables through `f` into the triad table in `dir`;
@@ -320,12 +337,10 @@ pub fn write(
     } else {
         Temperatures::new()
     };
-    let mut temperatures = AxisTemperatures::new(&series, sessions.len(), channels, max_gap_ns);
     let names = applied::TRIAD_COLUMNS;
     let mut writer = ColumnTableWriter::create(
         dir,
         applied::FILE,
-        "applied triad",
         applied::triad_schema(sessions),
         Encodings {
             delta: &[tables::SESSION_INDEX, tables::TIME_GPS_NS, names[9]],
@@ -333,39 +348,27 @@ pub fn write(
             ..Encodings::default()
         },
     )?;
-    let mut out = TriadWritten {
-        rows: 0,
-        sha256: String::new(),
-        with_value: 0,
-        by_flags: [0; 256],
+    let mut to = Applier {
+        f,
+        temperatures: AxisTemperatures::new(&series, sessions.len(), channels, max_gap_ns),
+        cols: Columns::default(),
+        out: TriadWritten {
+            rows: 0,
+            sha256: String::new(),
+            with_value: 0,
+            by_flags: [0; 256],
+        },
     };
-    let mut cols = Columns::default();
     read::acceleration_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
         for i in 0..b.time_ns.len() {
-            let st = b.status[i];
-            let mut flags = 0;
-            for &ch in &channels {
-                if status::not_connected(st, ch) {
-                    flags |= applied::NOT_CONNECTED;
-                } else if status::over_range(st, ch) {
-                    flags |= applied::SATURATED;
-                }
-            }
             let x = channels.map(|ch| {
                 let c = b.counts[ch];
                 c.is_valid(i).then(|| f64::from(c.value(i)))
             });
-            one(
-                f,
-                &mut temperatures,
-                &mut cols,
-                &mut out,
-                (b.session[i], b.time_ns[i]),
-                x,
-                flags,
-            );
+            let flags = status_flags(b.status[i], channels);
+            to.one((b.session[i], b.time_ns[i]), x, flags);
         }
-        let (n, c) = cols.take();
+        let (n, c) = to.cols.take();
         writer.write_row_group(n, &c)?;
         Ok(())
     })?;
@@ -375,21 +378,13 @@ pub fn write(
                 let v = b.values[ch];
                 v.is_valid(i).then(|| v.value(i))
             });
-            one(
-                f,
-                &mut temperatures,
-                &mut cols,
-                &mut out,
-                (b.session[i], b.time_ns[i]),
-                x,
-                0,
-            );
+            to.one((b.session[i], b.time_ns[i]), x, 0);
         }
-        let (n, c) = cols.take();
+        let (n, c) = to.cols.take();
         writer.write_row_group(n, &c)?;
         Ok(())
     })?;
     let (_, sha256) = writer.finish_hashed()?;
-    out.sha256 = sha256;
-    Ok(out)
+    to.out.sha256 = sha256;
+    Ok(to.out)
 }

@@ -389,7 +389,7 @@ fn read_tracks<'a>(
 }
 
 /// A file's lines set aside, as the ledger lists them (the first
-/// [`ingest::contract::ledger::MAX_LISTED`]).
+/// [`ingest::contract::ingest_ledger::MAX_LISTED`]).
 fn listed(ds: &Dataset, path: &Path, bad: &[super::BadLine]) -> Vec<String> {
     let rel = path
         .strip_prefix(&ds.dir)
@@ -397,7 +397,7 @@ fn listed(ds: &Dataset, path: &Path, bad: &[super::BadLine]) -> Vec<String> {
         .display()
         .to_string();
     bad.iter()
-        .take(ingest::contract::ledger::MAX_LISTED)
+        .take(ingest::contract::ingest_ledger::MAX_LISTED)
         .map(|b| format!("{rel}:{}: {}: {}", b.line, b.field, b.message))
         .collect()
 }
@@ -974,7 +974,6 @@ impl Rows {
         let mut writer = ingest::table::TableWriter::create(
             dir,
             gravity::FILE,
-            "gravity",
             gravity::schema(sessions),
             ingest::table::Encodings::default(),
         )?;
@@ -1003,27 +1002,15 @@ impl Rows {
     }
 }
 
-/// The command line of `cargo xtask gravity`.
+/// The command line of `cargo xtask gravity`: apply's, and what gravity adds.
 #[derive(clap::Args, Clone, Debug)]
 pub struct GravityArgs {
-    /// Dataset folder holding the survey (dataset.toml with trajectories and `[survey]`).
-    pub dataset: std::path::PathBuf,
-    /// The calibration.json to apply (OUT/adjust/calibration.json of the calibration run).
-    #[arg(long)]
-    pub calibration: std::path::PathBuf,
-    /// The model to apply (needed when the calibration holds several).
-    #[arg(long)]
-    pub model: Option<String>,
-    /// The session whose fits to apply, for a model fitted per session.
-    #[arg(long)]
-    pub session: Option<String>,
+    /// The survey, the calibration and the output folder, as apply takes them.
+    #[command(flatten)]
+    pub apply: crate::apply::stream::ApplyArgs,
     /// With an axis model of several accelerometers: the one taken as vertical.
     #[arg(long)]
     pub accelerometer: Option<String>,
-    /// Output folder OUT (default: out/<dataset folder name>); writes OUT/apply/ and
-    /// OUT/gravity/.
-    #[arg(long)]
-    pub out: Option<std::path::PathBuf>,
     /// Set aside a trajectory's or attitude's line that breaks the format (counted as
     /// `bad_line` and listed in gravity.json) instead of failing on it.
     #[arg(long)]
@@ -1034,16 +1021,10 @@ impl GravityArgs {
     /// Runs the stage into `out`.
     pub fn run(&self, out: &Path) -> Result<GravityReport, GravityError> {
         run(
-            &self.dataset,
+            &self.apply.dataset,
             out,
             &Options {
-                apply: crate::apply::stream::Options {
-                    calibration: &self.calibration,
-                    choice: crate::apply::select::Choice {
-                        model: self.model.as_deref(),
-                        session: self.session.as_deref(),
-                    },
-                },
+                apply: self.apply.options(),
                 accelerometer: self.accelerometer.as_deref(),
                 skip_bad_lines: self.skip_bad_lines,
             },

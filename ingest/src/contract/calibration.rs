@@ -3,7 +3,7 @@
 
 use crate::contract::custody::{Custody, Folders, check_dataset};
 use crate::contract::manifest::Dataset;
-use crate::contract::{align_ledger, ledger};
+use crate::contract::{align_ledger, ingest_ledger};
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -46,6 +46,16 @@ pub struct GlobalTest {
 }
 
 impl GlobalTest {
+    /// "passed" or "failed", for a sentence.
+    pub fn verdict(&self) -> &'static str {
+        if self.passed { "passed" } else { "failed" }
+    }
+
+    /// "passed" or "FAILED", for a table's cell, where a failure must stand out.
+    pub fn verdict_in_a_table(&self) -> &'static str {
+        if self.passed { "passed" } else { "FAILED" }
+    }
+
     /// The data reject the model: v^T P v above its 97.5 % bound (the model or the weights do
     /// not explain the scatter). A statistic below the 2.5 % bound fails the test too, but
     /// says the sigmas are pessimistic, not that the model is wrong.
@@ -220,6 +230,34 @@ pub fn check_parameters(
 /// The session id of a fit over every session of a dataset (a model with `per = "all"`):
 /// a scope, not a session, so the manifest reserves it as a session id.
 pub const ALL_SESSIONS: &str = "all";
+
+/// What a fit covers: one session, or every session of the dataset pooled. calibration.json
+/// writes it as the session's id, or [`ALL_SESSIONS`] (which the manifest reserves).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FitScope {
+    /// One session, by id.
+    Session(String),
+    /// Every session, pooled.
+    All,
+}
+
+impl FitScope {
+    /// As calibration.json writes it.
+    pub fn id(&self) -> &str {
+        match self {
+            FitScope::Session(id) => id,
+            FitScope::All => ALL_SESSIONS,
+        }
+    }
+
+    /// Whether an observation of `session` belongs to the fit.
+    pub fn covers(&self, session: &str) -> bool {
+        match self {
+            FitScope::Session(id) => id == session,
+            FitScope::All => true,
+        }
+    }
+}
 /// The accelerometer id of a triad fit's rows where a row names an accelerometer (a fit not
 /// made): the manifest reserves it as an accelerometer id.
 pub const TRIAD: &str = "triad";
@@ -520,7 +558,7 @@ impl Calibration {
     /// Reads OUT/adjust/calibration.json and checks the whole chain behind it: ingest's and
     /// align's records and its own still match the files on disk, all for `ds`.
     pub fn load_verified(ds: &Dataset, out: &Path) -> Result<Self> {
-        ledger::IngestReport::load_verified(ds, out)?;
+        ingest_ledger::IngestReport::load_verified(ds, out)?;
         align_ledger::AlignReport::load_verified(ds, out)?;
         let dir = out.join(STAGE_DIR);
         let c = Calibration::load(&dir)?;

@@ -125,9 +125,9 @@ pub fn sha256_file(path: &Path) -> Result<String> {
 /// over its outputs and break its chain). A ledger that cannot be read says nothing and is
 /// left to the stage that reads it.
 pub fn check_out_folder(out: &Path, expected: &str) -> Result<()> {
-    use crate::contract::{align_ledger, apply_ledger, calibration, gravity_ledger, ledger};
+    use crate::contract::{align_ledger, apply_ledger, calibration, gravity_ledger, ingest_ledger};
     for (dir, file) in [
-        (ledger::STAGE_DIR, ledger::LEDGER_FILE),
+        (ingest_ledger::STAGE_DIR, ingest_ledger::LEDGER_FILE),
         (align_ledger::STAGE_DIR, align_ledger::LEDGER_FILE),
         (calibration::STAGE_DIR, calibration::CALIBRATION_FILE),
         (apply_ledger::STAGE_DIR, apply_ledger::LEDGER_FILE),

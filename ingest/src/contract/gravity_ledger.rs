@@ -103,7 +103,7 @@ pub struct SessionGravity {
     /// Gaps that cut the track (intervals over 1.5 times the median).
     pub gaps: u64,
     /// Lines of the trajectory and attitude files set aside under `--skip-bad-lines`, as
-    /// `path:line: field: message` (the first [`crate::contract::ledger::MAX_LISTED`] of
+    /// `path:line: field: message` (the first [`crate::contract::ingest_ledger::MAX_LISTED`] of
     /// each file; a trajectory's are also counted in `dropped` as `bad_line`).
     #[serde(default)]
     pub bad_lines: Vec<String>,

@@ -1311,7 +1311,7 @@ pub fn check_name(name: &str, reserved: &[&str]) -> std::result::Result<(), Stri
 impl Dataset {
     /// Reads and validates `<dir>/dataset.toml`.
     pub fn load(dir: &Path) -> Result<Dataset> {
-        let manifest_path = dir.join(crate::contract::ledger::MANIFEST_FILE);
+        let manifest_path = dir.join(crate::contract::ingest_ledger::MANIFEST_FILE);
         let manifest = parse(&manifest_path)?;
         let err = |key: String, message: String| Error::Manifest {
             path: manifest_path.clone(),

@@ -504,23 +504,53 @@ pub mod gravity {
         (TURN, "turn"),
         (EDGE, "edge"),
     ];
+    /// Column `latitude_deg`.
+    pub const LATITUDE_DEG: &str = "latitude_deg";
+    /// Column `longitude_deg`.
+    pub const LONGITUDE_DEG: &str = "longitude_deg";
+    /// Column `height_m`.
+    pub const HEIGHT_M: &str = "height_m";
+    /// Column `speed_m_s`.
+    pub const SPEED_M_S: &str = "speed_m_s";
+    /// Column `eotvos_mgal`.
+    pub const EOTVOS_MGAL: &str = "eotvos_mgal";
+    /// Column `normal_mgal`.
+    pub const NORMAL_MGAL: &str = "normal_mgal";
+    /// Column `down_mgal`.
+    pub const DOWN_MGAL: &str = "down_mgal";
+    /// Column `down_filtered_mgal`.
+    pub const DOWN_FILTERED_MGAL: &str = "down_filtered_mgal";
+    /// Column `sigma_down_mgal`.
+    pub const SIGMA_DOWN_MGAL: &str = "sigma_down_mgal";
+    /// Column `sigma_calibration_mgal`.
+    pub const SIGMA_CALIBRATION_MGAL: &str = "sigma_calibration_mgal";
+    /// Column `sigma_positions_mgal`.
+    pub const SIGMA_POSITIONS_MGAL: &str = "sigma_positions_mgal";
+    /// Column `sigma_noise_mgal`.
+    pub const SIGMA_NOISE_MGAL: &str = "sigma_noise_mgal";
+    /// Column `sigma_tie_mgal`.
+    pub const SIGMA_TIE_MGAL: &str = "sigma_tie_mgal";
+    /// Column `sigma_attitude_mgal`.
+    pub const SIGMA_ATTITUDE_MGAL: &str = "sigma_attitude_mgal";
+    /// Column `height_antenna_m`.
+    pub const HEIGHT_ANTENNA_M: &str = "height_antenna_m";
     /// The Float64 columns after session_index, time_gps_ns and stretch, in order.
     pub const FLOATS: [&str; 15] = [
-        "latitude_deg",
-        "longitude_deg",
-        "height_m",
-        "speed_m_s",
-        "eotvos_mgal",
-        "normal_mgal",
-        "down_mgal",
-        "down_filtered_mgal",
-        "sigma_down_mgal",
-        "sigma_calibration_mgal",
-        "sigma_positions_mgal",
-        "sigma_noise_mgal",
-        "sigma_tie_mgal",
-        "sigma_attitude_mgal",
-        "height_antenna_m",
+        LATITUDE_DEG,
+        LONGITUDE_DEG,
+        HEIGHT_M,
+        SPEED_M_S,
+        EOTVOS_MGAL,
+        NORMAL_MGAL,
+        DOWN_MGAL,
+        DOWN_FILTERED_MGAL,
+        SIGMA_DOWN_MGAL,
+        SIGMA_CALIBRATION_MGAL,
+        SIGMA_POSITIONS_MGAL,
+        SIGMA_NOISE_MGAL,
+        SIGMA_TIE_MGAL,
+        SIGMA_ATTITUDE_MGAL,
+        HEIGHT_ANTENNA_M,
     ];
     /// The nullable Float64 columns of north and east (docs/formats.md 10.3), after
     /// [`FLOATS`]: values only with attitude and a triad model, null elsewhere.
