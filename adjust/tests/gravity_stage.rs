@@ -3,7 +3,7 @@
 //! disturbance down is compared with the simulator's truth through the same filter. Each
 //! convention FORMATS.md 10 fixes is checked by breaking it (the result must then fail);
 //! the manifest's new keys are refused where they cannot work; a gap cuts the track and
-//! every epoch is accounted for.
+//! every epoch is accounted for; a thermal triad is applied at its logged temperatures.
 
 use adjust::gravity::filter;
 use adjust::gravity::stage::{GravityArgs, print_summary};
@@ -635,5 +635,60 @@ fn monte_carlo_of_the_boat_sigmas() {
     assert!(
         (0.42..1.65).contains(&crossing_z),
         "crossovers' rms z {crossing_z}"
+    );
+}
+
+/// A thermal-chamber calibration of [`fixtures::triad::thermal_chamber`]'s triad (order 2
+/// with temperature terms, 42 positions), computed once.
+fn thermal_calibration() -> &'static Path {
+    static CAL: OnceLock<PathBuf> = OnceLock::new();
+    CAL.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("tempdir").keep();
+        let dataset = dir.join("triad-thermal");
+        let plan = fixtures::triad::thermal_chamber(42, 2);
+        fixtures::triad::write_multipos(&plan, &dataset).expect("thermal chamber");
+        let out = dir.join("out");
+        ingest::run(&dataset, &out).expect("ingest");
+        align::run(&dataset, &out).expect("align");
+        adjust::run(&dataset, &out).expect("adjust");
+        out.join("adjust").join("calibration.json")
+    })
+}
+
+/// The survey's triad warms and cools by 3 degC over an hour, which the ties' linear drift
+/// cannot take up: with the thermal chamber's calibration, applied at the logged
+/// temperatures, the disturbance is within its sigmas; with triad-multipos's, which has no
+/// temperature terms, the wander shows tens of sigmas over.
+#[test]
+fn a_thermal_triad_is_applied_at_its_temperatures() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("thermal");
+    let plan = fixtures::survey_lines::thermal_plan();
+    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("thermal survey");
+    let out = dir.path().join("out");
+    let mut thermal = args(&dataset);
+    thermal.apply.calibration = thermal_calibration().to_path_buf();
+    let r = thermal.run(&out).expect("gravity");
+    print_summary(&r, &mut std::io::stderr());
+    let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+    eprintln!(
+        "thermal triad, its calibration: rms error {rms:.3} mGal; rms of error / sigma {z:.3}"
+    );
+    assert!((0.8..1.2).contains(&z), "rms z {z}");
+    let s = &r.sessions[0];
+    assert_eq!(
+        s.epochs_used + s.dropped.values().sum::<u64>(),
+        s.epochs_read
+    );
+    let cold = dir.path().join("out-cold");
+    let r = args(&dataset).run(&cold).expect("gravity");
+    let (rms_cold, z_cold) = scores(&dataset, &cold, r.filter.filter_s);
+    eprintln!(
+        "thermal triad, triad-multipos's calibration: rms error {rms_cold:.3} mGal; rms of \
+         error / sigma {z_cold:.3}"
+    );
+    assert!(
+        z_cold > 5.0 && rms_cold > 5.0 * rms,
+        "{rms_cold} mGal, z {z_cold}"
     );
 }
