@@ -555,6 +555,8 @@ fn reduce_track(
             }
             Err(e) => return Err(e),
         };
+        // Its gradients (one series per parameter) served the reduction alone.
+        s.calibration_tied = None;
         let number = summary.stretches.len() as u32;
         if r.drift.is_some() {
             for (k, _) in &inside {
@@ -578,7 +580,7 @@ fn reduce_track(
             }
             None => None,
         };
-        rows.push(track.index, number, (&s, &r, h.as_ref()), &flags);
+        rows.push(track.index, number, (s, r, h), flags);
     }
     Ok(summary)
 }
@@ -842,6 +844,15 @@ fn filter_used(rows: &Rows, filter_s: f64) -> FilterUsed {
     }
 }
 
+/// `src` after `dst`: moved in whole when `dst` is empty, copied otherwise.
+fn append<T: Copy>(dst: &mut Vec<T>, src: Vec<T>) {
+    if dst.is_empty() {
+        *dst = src;
+    } else {
+        dst.extend_from_slice(&src);
+    }
+}
+
 /// gravity.parquet's columns, gathered.
 #[derive(Default)]
 struct Rows {
@@ -857,44 +868,46 @@ struct Rows {
 }
 
 impl Rows {
+    /// Appends a reduced stretch's rows, taking its series: the first stretch's become the
+    /// columns themselves (a survey of one stretch is not held twice).
     fn push(
         &mut self,
         session: u16,
         number: u32,
-        (s, r, h): (&Stretch, &Reduced, Option<&ReducedHorizontal>),
-        flags: &[u8],
+        (s, r, h): (Stretch, Reduced, Option<ReducedHorizontal>),
+        flags: Vec<u8>,
     ) {
         let n = s.time_gps_ns.len();
         self.session.extend(std::iter::repeat_n(session, n));
-        self.time.extend(&s.time_gps_ns);
+        append(&mut self.time, s.time_gps_ns);
         self.stretch.extend(std::iter::repeat_n(number, n));
-        let columns: [&[f64]; 15] = [
-            &s.latitude_deg,
-            &s.longitude_deg,
-            &s.height_m,
-            &r.speed_m_s,
-            &r.eotvos_mgal,
-            &r.normal_mgal,
-            &r.disturbance_mgal,
-            &r.filtered_mgal,
-            &r.sigma_mgal,
-            &r.sigma_calibration_mgal,
-            &r.sigma_positions_mgal,
-            &r.sigma_noise_mgal,
-            &r.sigma_tie_mgal,
-            &r.sigma_attitude_mgal,
-            &s.height_antenna_m,
+        let columns: [Vec<f64>; 15] = [
+            s.latitude_deg,
+            s.longitude_deg,
+            s.height_m,
+            r.speed_m_s,
+            r.eotvos_mgal,
+            r.normal_mgal,
+            r.disturbance_mgal,
+            r.filtered_mgal,
+            r.sigma_mgal,
+            r.sigma_calibration_mgal,
+            r.sigma_positions_mgal,
+            r.sigma_noise_mgal,
+            r.sigma_tie_mgal,
+            r.sigma_attitude_mgal,
+            s.height_antenna_m,
         ];
         for (dst, src) in self.floats.iter_mut().zip(columns) {
-            dst.extend_from_slice(src);
+            append(dst, src);
         }
         self.push_horizontal(h, n);
-        self.flags.extend_from_slice(flags);
+        append(&mut self.flags, flags);
     }
 
     /// North and east of the `n` rows just pushed; the rows before the first with attitude
     /// are filled in as null when it comes.
-    fn push_horizontal(&mut self, h: Option<&ReducedHorizontal>, n: usize) {
+    fn push_horizontal(&mut self, h: Option<ReducedHorizontal>, n: usize) {
         let before = self.time.len() - n;
         match h {
             None if self.horizontal_valid.is_empty() => {}
@@ -911,18 +924,17 @@ impl Rows {
                     }
                     self.horizontal_valid.resize(before, false);
                 }
-                for (c, dst) in self.horizontal.iter_mut().enumerate() {
-                    let i = c / 7;
-                    let parts = [
-                        &h.disturbance_mgal[i],
-                        &h.filtered_mgal[i],
-                        &h.sigma_mgal[i],
-                        &h.sigma_calibration_mgal[i],
-                        &h.sigma_positions_mgal[i],
-                        &h.sigma_noise_mgal[i],
-                        &h.sigma_attitude_mgal[i],
-                    ];
-                    dst.extend_from_slice(parts[c % 7]);
+                let [dn, de] = h.disturbance_mgal;
+                let [fn_, fe] = h.filtered_mgal;
+                let [sn, se] = h.sigma_mgal;
+                let [cn, ce] = h.sigma_calibration_mgal;
+                let [pn, pe] = h.sigma_positions_mgal;
+                let [nn, ne] = h.sigma_noise_mgal;
+                let [an, ae] = h.sigma_attitude_mgal;
+                // In gravity::HORIZONTAL's order: north's seven, then east's.
+                let parts = [dn, fn_, sn, cn, pn, nn, an, de, fe, se, ce, pe, ne, ae];
+                for (dst, src) in self.horizontal.iter_mut().zip(parts) {
+                    append(dst, src);
                 }
                 self.horizontal_valid.extend(std::iter::repeat_n(true, n));
             }
@@ -1124,15 +1136,16 @@ mod tests {
             sigma_attitude_mgal: v.clone(),
             ..Reduced::default()
         };
-        let two = || [v.clone(), v.clone()];
+        // North's parts 10..=16 and east's 20..=26, in gravity::HORIZONTAL's order.
+        let two = |part: usize| [10.0, 20.0].map(|base| vec![base + part as f64; n]);
         let h = ReducedHorizontal {
-            disturbance_mgal: two(),
-            filtered_mgal: two(),
-            sigma_mgal: two(),
-            sigma_calibration_mgal: two(),
-            sigma_positions_mgal: two(),
-            sigma_noise_mgal: two(),
-            sigma_attitude_mgal: two(),
+            disturbance_mgal: two(0),
+            filtered_mgal: two(1),
+            sigma_mgal: two(2),
+            sigma_calibration_mgal: two(3),
+            sigma_positions_mgal: two(4),
+            sigma_noise_mgal: two(5),
+            sigma_attitude_mgal: two(6),
         };
         (s, r, h)
     }
@@ -1143,17 +1156,22 @@ mod tests {
     fn rows_without_attitude_are_null_in_north_and_east() {
         let mut rows = Rows::default();
         let (s, r, _) = rows_of(2);
-        rows.push(0, 0, (&s, &r, None), &[0, 0]);
+        rows.push(0, 0, (s, r, None), vec![0, 0]);
         assert!(rows.horizontal_valid.is_empty() && rows.horizontal[0].is_empty());
         let (s, r, h) = rows_of(3);
-        rows.push(1, 0, (&s, &r, Some(&h)), &[0; 3]);
+        rows.push(1, 0, (s, r, Some(h)), vec![0; 3]);
         let (s, r, _) = rows_of(1);
-        rows.push(0, 1, (&s, &r, None), &[0]);
+        rows.push(0, 1, (s, r, None), vec![0]);
         assert_eq!(
             rows.horizontal_valid,
             [false, false, true, true, true, false]
         );
         assert!(rows.horizontal.iter().all(|c| c.len() == 6));
-        assert_eq!(rows.horizontal[1][2..5], [1.0; 3]);
+        for (c, column) in rows.horizontal.iter().enumerate() {
+            let want = if c < 7 { 10 + c } else { 13 + c } as f64;
+            assert_eq!(column[2..5], [want; 3], "{}", gravity::HORIZONTAL[c]);
+        }
+        assert_eq!(rows.time.len(), 6);
+        assert!(rows.floats.iter().all(|c| c.len() == 6));
     }
 }
