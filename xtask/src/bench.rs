@@ -413,10 +413,17 @@ fn warm(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-pub(crate) fn release_build(root: &Path, packages: &[&str]) -> Result<()> {
+/// The stage binaries the benchmarks time, built in release once for all of them: one
+/// `cargo build` of the three packages, so that every benchmark shares one feature set
+/// (built one package at a time, arrow and parquet were compiled twice on a clean
+/// machine, about 5 minutes of CI).
+const STAGE_PACKAGES: [&str; 3] = ["ingest", "align", "adjust"];
+
+/// Builds [`STAGE_PACKAGES`] in release.
+pub(crate) fn release_build(root: &Path) -> Result<()> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
     let mut args = vec!["build", "--release"];
-    for p in packages {
+    for p in STAGE_PACKAGES {
         args.extend(["-p", p]);
     }
     if !Command::new(&cargo)
@@ -425,14 +432,14 @@ pub(crate) fn release_build(root: &Path, packages: &[&str]) -> Result<()> {
         .status()?
         .success()
     {
-        bail!("release build of {} failed", packages.join(", "));
+        bail!("release build of {} failed", STAGE_PACKAGES.join(", "));
     }
     Ok(())
 }
 
 /// Runs the align benchmark: `stations` x `readings` readings 3.2 s apart at 31.25 Hz.
 pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
-    release_build(root, &["ingest", "align"])?;
+    release_build(root)?;
     let data = root.join("target/bench-data");
     let scenario = fixtures::catalog::bench_dense(stations, readings);
     let dataset = data.join(&scenario.name);
@@ -487,7 +494,7 @@ fn adjust_observations(n: usize, g: f64) -> String {
 /// Runs the ingest benchmark; `hours` scales the logs (31.25 Hz for 2x hours, 250 Hz for
 /// hours); each program runs `runs` times.
 pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
-    release_build(root, &["ingest"])?;
+    release_build(root)?;
     let bin = root.join("target/release/gravcal-ingest");
     let data = root.join("target/bench-data");
     let py = if peers {
@@ -608,7 +615,7 @@ print(json.dumps({"seconds": dt, "which": which, "k": 1 / slope, "b": -intercept
 
 /// Runs the adjust benchmark: `n` observations of the linear model, gravcal against scipy's ODR.
 pub fn adjust(root: &Path, n: usize, peers: bool) -> Result<()> {
-    release_build(root, &["adjust"])?;
+    release_build(root)?;
     let data = root.join("target/bench-data");
     std::fs::create_dir_all(&data)?;
     let csv = data.join(format!("adjust-{n}.csv"));

@@ -143,7 +143,7 @@ fn polars_once(
 
 /// The apply benchmark on `hours` and `hours / 4` of the 250 Hz log.
 pub fn apply(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
-    super::bench::release_build(root, &["adjust"])?;
+    super::bench::release_build(root)?;
     let bin = root.join("target/release/gravcal-apply");
     let data = root.join("target/bench-data");
     std::fs::create_dir_all(&data)?;

@@ -26,7 +26,7 @@ fn calibration(dir: &Path) -> Result<PathBuf> {
 
 /// The gravity benchmark on `hours` and `hours / 4`.
 pub fn gravity(root: &Path, hours: f64, runs: usize) -> Result<()> {
-    super::bench::release_build(root, &["adjust"])?;
+    super::bench::release_build(root)?;
     let bin = root.join("target/release/gravcal-gravity");
     let data = root.join("target/bench-data");
     std::fs::create_dir_all(&data)?;
