@@ -1,7 +1,7 @@
 //! What every stage's binary shares: the dataset and output folder it takes, and how it
 //! ends (its summary, and for benchmarks the process's usage; or its error and exit 1).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// The dataset and the output folder a stage's binary takes.
@@ -18,10 +18,19 @@ pub struct StageArgs {
 impl StageArgs {
     /// OUT: `--out`, or out/<dataset folder name> in the working directory.
     pub fn out_dir(&self) -> PathBuf {
-        self.out.clone().unwrap_or_else(|| {
-            PathBuf::from("out").join(self.dataset.file_name().unwrap_or_default())
-        })
+        out_dir(Path::new(""), &self.dataset, self.out.as_deref())
     }
+}
+
+/// A stage's OUT: `out` when given, else `root`/out/<dataset folder name>.
+pub fn out_dir(root: &Path, dataset: &Path, out: Option<&Path>) -> PathBuf {
+    out.map_or_else(
+        || {
+            root.join("out")
+                .join(dataset.file_name().unwrap_or_default())
+        },
+        Path::to_path_buf,
+    )
 }
 
 /// A stage binary's end: on success `summary` of its report and, with `usage`, the

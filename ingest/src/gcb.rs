@@ -8,7 +8,7 @@
 //! (duplicate, time going backwards, reserved status bits, time of week out of range, count
 //! out of the 24-bit range) are rejected whole. It never panics on any byte sequence.
 
-use crate::contract::ingest_ledger::{ByteLedger, FileLedger, reason};
+use crate::contract::ingest_ledger::{ByteLedger, FileLedger, MAX_LISTED, Rejection, reason};
 use crate::contract::status::{RESERVED_BITS, not_connected};
 use crate::time::{NS_PER_MS, NS_PER_WEEK, resolve_week};
 use crate::timegate::{Position, Sink, TimeGate};
@@ -269,15 +269,13 @@ impl FrameScanner {
     #[cold]
     fn list_skip(&mut self, ledger: &mut FileLedger, at: u64) {
         if let Some(start) = self.skip_start.take()
-            && ledger.rejections.len() < crate::contract::ingest_ledger::MAX_LISTED
+            && ledger.rejections.len() < MAX_LISTED
         {
-            ledger
-                .rejections
-                .push(crate::contract::ingest_ledger::Rejection {
-                    at: format!("byte {start}"),
-                    reason: "skipped".to_owned(),
-                    detail: format!("{} bytes skipped while resynchronising", at - start),
-                });
+            ledger.rejections.push(Rejection {
+                at: format!("byte {start}"),
+                reason: "skipped".to_owned(),
+                detail: format!("{} bytes skipped while resynchronising", at - start),
+            });
         }
     }
 

@@ -895,7 +895,7 @@ mod tests {
             .expect_err("3 rows");
         assert!(
             e.to_string()
-                .contains("Parquet error: column 0 has 2 rows, the row group 3"),
+                .contains("t.parquet: Parquet error: column 0 has 2 rows, the row group 3"),
             "{e}"
         );
         // None of it touched the file.
@@ -916,7 +916,7 @@ mod tests {
             .expect_err("wrong type");
         assert!(
             e.to_string()
-                .contains("Parquet error: 1 columns given, the schema has 5"),
+                .contains("t.parquet: Parquet error: 1 columns given, the schema has 5"),
             "{e}"
         );
         drop(w);

@@ -597,10 +597,7 @@ pub struct ApplyArgs {
 impl ApplyArgs {
     /// OUT: `--out`, or out/<dataset folder name> under `root`.
     pub fn out_dir(&self, root: &Path) -> std::path::PathBuf {
-        self.out.clone().unwrap_or_else(|| {
-            root.join("out")
-                .join(self.dataset.file_name().unwrap_or_default())
-        })
+        ingest::cli::out_dir(root, &self.dataset, self.out.as_deref())
     }
 
     /// Runs the stage with these arguments.
