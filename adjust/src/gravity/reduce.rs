@@ -303,8 +303,8 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
     let random: Vec<f64> = (0..n)
         .map(|k| out.sigma_positions_mgal[k].hypot(out.sigma_noise_mgal[k]))
         .collect();
-    let (gamma, t) = (&out.normal_mgal, &s.time_gps_ns);
-    let drift = tie(t, &filtered, gamma, &random, (ties, filter_s));
+    let drift = tie(s, &filtered, &out.normal_mgal, ties, (&sections, dt));
+    let t = &s.time_gps_ns;
     let mut calibration = filter::filtfilt_pivoted(&sections, &s.sigma_f_mgal, pad, pivot);
     out.sigma_tie_mgal = vec![0.0; n];
     if let Some(d) = &drift {
@@ -355,16 +355,16 @@ fn nearest(t: &[i64], t0: i64) -> Option<usize> {
 /// The drift fitted to the ties inside the stretch: at each, the filtered disturbance's
 /// mean over its still window against the tie's g - gamma (the filter passes a constant
 /// unchanged and removes the positions' noise, which the unfiltered values are dominated
-/// by), its sigma the filtered values' random sigma at the centre over the square root of
-/// the filter periods in the window (filtered values about a filter period apart are
-/// nearly independent); a constant with one tie, a weighted line in time with more.
+/// by), with the sd of that mean ([`window_mean_sd`]); a constant with one tie, a weighted
+/// line in time with more.
 fn tie(
-    t: &[i64],
+    s: &Stretch,
     filtered: &[f64],
     gamma: &[f64],
-    random: &[f64],
-    (ties, filter_s): (&[Tie], f64),
+    ties: &[Tie],
+    filter: (&[filter::Section], f64),
 ) -> Option<Drift> {
+    let t = &s.time_gps_ns;
     let mut points = Vec::new();
     for tie in ties {
         let half = (tie.duration_s * 0.5e9) as i64;
@@ -380,11 +380,38 @@ fn tie(
             .map(|&k| filtered[k] - (tie.g_mgal - gamma[k]))
             .sum::<f64>()
             / n;
-        let centre = idx[idx.len() / 2];
-        let sigma = random[centre] / (tie.duration_s / filter_s).max(1.0).sqrt();
-        points.push((tie.time_gps_ns, mean, sigma));
+        points.push((tie.time_gps_ns, mean, window_mean_sd(s, &idx, filter)));
     }
     line(&points)
+}
+
+/// The sd of the filtered disturbance's mean over the epochs `window` (in order, without a
+/// gap), mGal, from the positions' and the accelerometers' white noise, each through its
+/// operator. The positions' part telescopes: the mean of a second difference is the
+/// difference of the first differences at the window's ends over its length, so it falls as
+/// 1 / length, not as the square root of the filter periods in the window (which overstated
+/// a tie's sigma fourfold on the boat). The filter's operator is taken as symmetric (its
+/// row is its response to an impulse), as in the interior of a stretch.
+fn window_mean_sd(s: &Stretch, window: &[usize], (sections, dt): (&[filter::Section], f64)) -> f64 {
+    let n = s.time_gps_ns.len();
+    let len = window.len() as f64;
+    // The mean as weights on the filtered heights (the stage's second difference, its ends
+    // the neighbour's) and on the filtered specific force.
+    let (mut on_heights, mut on_force) = (vec![0.0; n], vec![0.0; n]);
+    for &k in window {
+        let c = k.clamp(1, n - 2);
+        let w = 1e5 / (len * dt * dt);
+        on_heights[c + 1] -= w;
+        on_heights[c] += 2.0 * w;
+        on_heights[c - 1] -= w;
+        on_force[k] += 1.0 / len;
+    }
+    let heights = filter::filtfilt_pivoted(sections, &on_heights, 0, 1);
+    let force = filter::filtfilt_pivoted(sections, &on_force, 0, 1);
+    let var: f64 = (0..n)
+        .map(|j| (s.sd_up_m[j] * heights[j]).powi(2) + (s.noise_f_mgal[j] * force[j]).powi(2))
+        .sum();
+    var.sqrt()
 }
 
 /// A weighted straight line through (time, misfit, sigma): a constant for one point.
