@@ -448,6 +448,32 @@ fn a_damaged_trajectory_line_fails_or_is_set_aside() {
     assert_eq!(s.stretches.len(), 2, "{s:?}");
 }
 
+/// A trajectory's epochs pass ingest's time gate, as every log does: an epoch stamped an
+/// hour ahead (a receiver's glitch) is dropped alone as `time_outlier`, not every epoch
+/// after it; one stamped an hour back alone as `time_not_increasing`. Each leaves a gap.
+#[test]
+fn a_trajectory_time_out_of_place_costs_that_epoch_alone() {
+    let (_dir, dataset, out) = edited(|m| m);
+    let pos = dataset.join("raw/lines.pos");
+    let text = std::fs::read_to_string(&pos).expect("pos");
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    // Two epochs under way (lines 5001 and 15001, 1-based): an hour ahead, an hour back.
+    lines[5000] = lines[5000].replacen("2026/06/10 07:", "2026/06/10 08:", 1);
+    lines[15000] = lines[15000].replacen("2026/06/10 07:", "2026/06/10 06:", 1);
+    std::fs::write(&pos, lines.join("\n") + "\n").expect("write");
+    let r = args(&dataset).run(&out).expect("gravity");
+    let s = &r.sessions[0];
+    assert_eq!(s.dropped.get("time_outlier"), Some(&1), "{:?}", s.dropped);
+    assert_eq!(
+        s.dropped.get("time_not_increasing"),
+        Some(&1),
+        "{:?}",
+        s.dropped
+    );
+    assert_eq!(s.epochs_used + 2, s.epochs_read, "{:?}", s.dropped);
+    assert_eq!(s.stretches.len(), 3, "{s:?}");
+}
+
 #[test]
 fn a_gap_cuts_the_track_and_every_epoch_is_accounted_for() {
     let (_dir, dataset, out) = edited(|m| m);

@@ -165,7 +165,15 @@ fn reduced(r: &GravityReport) -> Table {
             s.id.clone(),
             s.epochs_read.to_string(),
             s.epochs_used.to_string(),
-            counts(&s.dropped),
+            if s.attitude_dropped.is_empty() {
+                counts(&s.dropped)
+            } else {
+                format!(
+                    "{}; of the attitude's samples, by the time gate: {}",
+                    counts(&s.dropped),
+                    counts(&s.attitude_dropped)
+                )
+            },
             counts(&s.flagged),
             s.stretches.len().to_string(),
             s.gaps.to_string(),

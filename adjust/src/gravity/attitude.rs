@@ -2,7 +2,9 @@
 //! sd_heading_deg,sd_pitch_deg,sd_roll_deg]`, the time in any form of docs/formats.md 9.1,
 //! from a multi-antenna GNSS or an INS; vehicle frame x forward, y right, z down, the
 //! rotation from vehicle to navigation frame Rz(heading) Ry(pitch) Rx(roll). A line that
-//! breaks the format is an error naming file, line and field. Brought onto the
+//! breaks the format is an error naming file, line and field; the samples then pass
+//! ingest's time gate, as every log's do (a time that repeats, goes back or jumps away from
+//! its neighbours and back is dropped alone, counted by reason). Brought onto the
 //! trajectory's epochs by linear interpolation (the heading unwrapped), only between two
 //! attitude epochs no further apart than twice their median interval: an epoch outside
 //! that is not reduced (`no_attitude`).
@@ -10,6 +12,8 @@
 use super::trajectory::{bad, timed_fields};
 use super::{BadLine, GravityError, set_aside};
 use ingest::time::TimeReader;
+use ingest::timegate::{Position, Sink, TimeGate};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Attitude epochs, as columns.
@@ -23,6 +27,9 @@ pub struct Attitude {
     pub sd_deg: Vec<Option<[f64; 3]>>,
     /// Lines set aside (`--skip-bad-lines`).
     pub bad_lines: Vec<BadLine>,
+    /// Samples the time gate dropped, by ingest's reason (`duplicate`, `time_backwards`,
+    /// `time_outlier`, `outside_session`).
+    pub dropped: BTreeMap<String, u64>,
 }
 
 /// The attitude at one trajectory epoch.
@@ -64,26 +71,75 @@ pub fn apply(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
 }
 
-/// Reads an attitude CSV whose times `time` reads; times must increase. With `skip`, a
-/// line that breaks the format is set aside instead of failing the file.
-pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Attitude, GravityError> {
-    let mut out = Attitude::default();
+/// Reads an attitude CSV whose times `time` reads, its samples through the time gate for
+/// the session's `range_ns`. With `skip`, a line that breaks the format is set aside
+/// instead of failing the file.
+pub fn read_csv(
+    path: &Path,
+    mut time: TimeReader,
+    range_ns: (i64, i64),
+    skip: bool,
+) -> Result<Attitude, GravityError> {
+    let mut read = Attitude::default();
+    let mut lines = Vec::new();
     super::trajectory::for_each_csv_line(path, |line, f| {
-        match attitude_line(path, line, f, &mut time, out.time_gps_ns.last().copied()) {
+        match attitude_line(path, line, f, &mut time) {
             Ok((tns, hpr, sd)) => {
-                out.time_gps_ns.push(tns);
-                out.hpr_deg.push(hpr);
-                out.sd_deg.push(sd);
+                read.time_gps_ns.push(tns);
+                read.hpr_deg.push(hpr);
+                read.sd_deg.push(sd);
+                lines.push(line);
             }
-            Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
+            Err(e) => set_aside(e, skip, &mut read.bad_lines)?,
         }
         Ok(())
     })?;
+    let mut out = gated(read, &lines, range_ns);
     unwrap_heading(&mut out.hpr_deg);
     Ok(out)
 }
 
-/// One line: its time (after `last`), heading, pitch and roll, and their sds if given.
+/// The samples kept by the time gate, and the others counted.
+struct Kept<'a> {
+    read: &'a Attitude,
+    out: Attitude,
+}
+
+impl Sink<usize> for Kept<'_> {
+    type Error = std::convert::Infallible;
+
+    fn accept(&mut self, time_ns: i64, k: usize) -> Result<(), Self::Error> {
+        self.out.time_gps_ns.push(time_ns);
+        self.out.hpr_deg.push(self.read.hpr_deg[k]);
+        self.out.sd_deg.push(self.read.sd_deg[k]);
+        Ok(())
+    }
+
+    fn reject(&mut self, _: Position, why: &'static str, _: String, _: usize) {
+        *self.out.dropped.entry(why.to_owned()).or_insert(0) += 1;
+    }
+}
+
+/// `read`'s samples through ingest's time gate at their median interval.
+fn gated(read: Attitude, lines: &[u64], range_ns: (i64, i64)) -> Attitude {
+    let mut d: Vec<i64> = read.time_gps_ns.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_unstable();
+    let interval_ns = d.get(d.len() / 2).copied().unwrap_or(1_000_000_000);
+    let mut gate = TimeGate::new(interval_ns, range_ns);
+    let mut kept = Kept {
+        read: &read,
+        out: Attitude::default(),
+    };
+    for (k, (&t, &line)) in read.time_gps_ns.iter().zip(lines).enumerate() {
+        let Ok(()) = gate.offer(t, Position::Line(line), k, &mut kept);
+    }
+    let Ok(()) = gate.finish(&mut kept);
+    let mut out = kept.out;
+    out.bad_lines = read.bad_lines;
+    out
+}
+
+/// One line: its time, heading, pitch and roll, and their sds if given.
 type AttitudeLine = (i64, [f64; 3], Option<[f64; 3]>);
 
 fn attitude_line(
@@ -91,19 +147,10 @@ fn attitude_line(
     line: u64,
     f: &[&str],
     time: &mut TimeReader,
-    last: Option<i64>,
 ) -> Result<AttitudeLine, GravityError> {
     let expected = "time, heading_deg, pitch_deg, roll_deg and optionally sd_heading_deg, \
                     sd_pitch_deg, sd_roll_deg";
     let (tns, values, sd) = timed_fields(path, line, f, time, expected)?;
-    if last.is_some_and(|last| tns <= last) {
-        return Err(bad(
-            path,
-            line,
-            "time",
-            "does not increase from the line before".to_owned(),
-        ));
-    }
     let hpr = angles(path, line, values)?;
     let sd = sd.map(|x| sds(path, line, x)).transpose()?;
     Ok((tns, hpr, sd))
@@ -215,6 +262,7 @@ mod tests {
         read_csv(
             &p,
             TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None),
+            (i64::MIN, i64::MAX),
             false,
         )
     }
@@ -270,28 +318,45 @@ mod tests {
             .expect_err("pitch 95")
             .to_string();
         assert!(e.contains(":2: pitch_deg: 95 is outside"), "{e}");
-        let e = read("1773479523.0,10.0,1.0,0.0\n1773479523.0,10.0,1.0,0.0\n")
-            .expect_err("repeated time")
-            .to_string();
-        assert!(e.contains(":2: time: does not increase"), "{e}");
         let e = read("1773479523.0,10.0,1.0\n")
             .expect_err("short")
             .to_string();
         assert!(e.contains(":1: line: 3 fields"), "{e}");
-        // With skip, the repeated time is set aside and the rest read.
+        // With skip, a line that breaks the format is set aside and the rest read.
         let d = tempfile::tempdir().expect("tempdir");
         let p = d.path().join("att.csv");
         std::fs::write(
             &p,
-            "1773479523.0,10.0,1.0,0.0\n1773479523.0,10.0,1.0,0.0\n1773479523.1,10.0,1.0,0.0\n",
+            "1773479523.0,10.0,1.0,0.0\n1773479523.1,10.0,95.0,0.0\n1773479523.2,10.0,1.0,0.0\n",
         )
         .expect("write");
         let r = TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None);
-        let a = read_csv(&p, r, true).expect("skips");
+        let a = read_csv(&p, r, (i64::MIN, i64::MAX), true).expect("skips");
         assert_eq!(a.time_gps_ns.len(), 2);
         assert_eq!(
             (a.bad_lines[0].line, a.bad_lines[0].field.as_str()),
-            (2, "time")
+            (2, "pitch_deg")
         );
+    }
+
+    /// Times pass the time gate as every log's do: a repeated time, and one an hour ahead
+    /// of its neighbours, each dropped alone and counted; the samples after them kept.
+    #[test]
+    fn times_out_of_place_are_dropped_alone() {
+        let mut text = String::new();
+        for k in 0..40 {
+            let t = 1_773_479_523.0 + 0.1 * f64::from(k);
+            let t = match k {
+                10 => t - 0.1,
+                20 => t + 3600.0,
+                _ => t,
+            };
+            text.push_str(&format!("{t:.1},10.0,1.0,0.0\n"));
+        }
+        let a = read(&text).expect("read");
+        assert_eq!(a.time_gps_ns.len(), 38, "{:?}", a.dropped);
+        assert_eq!(a.dropped.get("duplicate"), Some(&1), "{:?}", a.dropped);
+        assert_eq!(a.dropped.get("time_outlier"), Some(&1), "{:?}", a.dropped);
+        assert!(a.time_gps_ns.windows(2).all(|w| w[0] < w[1]));
     }
 }

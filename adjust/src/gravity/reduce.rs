@@ -303,7 +303,7 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
     let random: Vec<f64> = (0..n)
         .map(|k| out.sigma_positions_mgal[k].hypot(out.sigma_noise_mgal[k]))
         .collect();
-    let drift = tie(s, &filtered, &out.normal_mgal, ties, (&sections, dt));
+    let drift = tie(s, &filtered, &out.normal_mgal, ties, (&sections, dt, pad));
     let t = &s.time_gps_ns;
     let mut calibration = filter::filtfilt_pivoted(&sections, &s.sigma_f_mgal, pad, pivot);
     out.sigma_tie_mgal = vec![0.0; n];
@@ -362,7 +362,7 @@ fn tie(
     filtered: &[f64],
     gamma: &[f64],
     ties: &[Tie],
-    filter: (&[filter::Section], f64),
+    filter: (&[filter::Section], f64, usize),
 ) -> Option<Drift> {
     let t = &s.time_gps_ns;
     let mut points = Vec::new();
@@ -391,25 +391,36 @@ fn tie(
 /// difference of the first differences at the window's ends over its length, so it falls as
 /// 1 / length, not as the square root of the filter periods in the window (which overstated
 /// a tie's sigma fourfold on the boat). The filter's operator is taken as symmetric (its
-/// row is its response to an impulse), as in the interior of a stretch.
-fn window_mean_sd(s: &Stretch, window: &[usize], (sections, dt): (&[filter::Section], f64)) -> f64 {
+/// row is its response to an impulse) and as in the interior of a stretch: the weights are
+/// filtered with `margin` epochs of zeros either side, so that a window at a stretch's end
+/// does not start the filter on a step, and an epoch beyond the stretch takes the noise of
+/// the nearest in it.
+fn window_mean_sd(
+    s: &Stretch,
+    window: &[usize],
+    (sections, dt, margin): (&[filter::Section], f64, usize),
+) -> f64 {
     let n = s.time_gps_ns.len();
     let len = window.len() as f64;
     // The mean as weights on the filtered heights (the stage's second difference, its ends
-    // the neighbour's) and on the filtered specific force.
-    let (mut on_heights, mut on_force) = (vec![0.0; n], vec![0.0; n]);
+    // the neighbour's) and on the filtered specific force, epoch j at j + margin.
+    let mut on_heights = vec![0.0; n + 2 * margin];
+    let mut on_force = on_heights.clone();
     for &k in window {
-        let c = k.clamp(1, n - 2);
+        let c = k.clamp(1, n - 2) + margin;
         let w = 1e5 / (len * dt * dt);
         on_heights[c + 1] -= w;
         on_heights[c] += 2.0 * w;
         on_heights[c - 1] -= w;
-        on_force[k] += 1.0 / len;
+        on_force[k + margin] += 1.0 / len;
     }
     let heights = filter::filtfilt_pivoted(sections, &on_heights, 0, 1);
     let force = filter::filtfilt_pivoted(sections, &on_force, 0, 1);
-    let var: f64 = (0..n)
-        .map(|j| (s.sd_up_m[j] * heights[j]).powi(2) + (s.noise_f_mgal[j] * force[j]).powi(2))
+    let var: f64 = (0..n + 2 * margin)
+        .map(|i| {
+            let j = i.saturating_sub(margin).min(n - 1);
+            (s.sd_up_m[j] * heights[i]).powi(2) + (s.noise_f_mgal[j] * force[i]).powi(2)
+        })
         .sum();
     var.sqrt()
 }

@@ -22,6 +22,7 @@ use ingest::contract::manifest::{Dataset, ResolvedSession};
 use ingest::contract::survey::{ResolvedTie, SurveyConfig, TrajectoryFormat};
 use ingest::contract::tables::{applied, gravity};
 use ingest::time::utc_iso;
+use ingest::timegate::{Position, TimeGate};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -55,6 +56,8 @@ struct Track<'a> {
     attitude: Option<Vec<AttitudeAt>>,
     /// The trajectory's and attitude's lines set aside, as listed in the ledger.
     bad_lines: Vec<String>,
+    /// The attitude's samples the time gate dropped, by reason.
+    attitude_dropped: BTreeMap<String, u64>,
 }
 
 /// Runs the stage on `dataset` into `out`.
@@ -364,7 +367,12 @@ fn read_tracks<'a>(
             }
         };
         let attitude = match &src.attitude {
-            Some((path, form)) => Some(attitude::read_csv(path, s.times.reader(*form), skip)?),
+            Some((path, form)) => Some(attitude::read_csv(
+                path,
+                s.times.reader(*form),
+                s.gps_range_ns(),
+                skip,
+            )?),
             None => None,
         };
         let mut bad_lines = listed(ds, &src.path, &trajectory.bad_lines);
@@ -373,6 +381,7 @@ fn read_tracks<'a>(
         }
         let mut track = gated(index, s, trajectory, attitude.as_ref());
         track.bad_lines = bad_lines;
+        track.attitude_dropped = attitude.map(|a| a.dropped).unwrap_or_default();
         move_to_accelerometers(&mut track, survey.lever_arm_m);
         tracks.push(track);
     }
@@ -402,36 +411,68 @@ fn listed(ds: &Dataset, path: &Path, bad: &[super::BadLine]) -> Vec<String> {
         .collect()
 }
 
-/// The track of session `index` with its epochs gated: outside the session's days,
-/// not after the one before, or (with attitude) where none can be interpolated, dropped
-/// and counted.
+/// The trajectory's side of the time gate: the epochs kept (indices into the trajectory)
+/// and the others counted by the gravity ledger's reason.
+struct EpochSink {
+    kept: Vec<usize>,
+    times: Vec<i64>,
+    dropped: BTreeMap<String, u64>,
+}
+
+impl ingest::timegate::Sink<usize> for EpochSink {
+    type Error = std::convert::Infallible;
+
+    fn accept(&mut self, time_ns: i64, k: usize) -> Result<(), Self::Error> {
+        self.kept.push(k);
+        self.times.push(time_ns);
+        Ok(())
+    }
+
+    fn reject(&mut self, _: Position, why: &'static str, _: String, _: usize) {
+        use ingest::contract::ingest_ledger::reason;
+        let name = match why {
+            reason::OUTSIDE_SESSION => dropped::OUTSIDE_SESSION,
+            reason::TIME_OUTLIER => dropped::TIME_OUTLIER,
+            _ => dropped::NOT_INCREASING,
+        };
+        *self.dropped.entry(name.to_owned()).or_insert(0) += 1;
+    }
+}
+
+/// The track of session `index` with its epochs gated: through ingest's time gate (every
+/// log's: outside the session's days, a time that repeats or goes back, one that jumps
+/// away from its neighbours and back, each dropped alone, at the trajectory's median
+/// interval), then, with attitude, where none can be interpolated; each dropped epoch
+/// counted.
 fn gated<'a>(
     index: usize,
     s: &'a ResolvedSession,
     trajectory: Trajectory,
     attitude: Option<&Attitude>,
 ) -> Track<'a> {
-    let mut dropped = BTreeMap::new();
+    let mut sink = EpochSink {
+        kept: Vec::with_capacity(trajectory.time_gps_ns.len()),
+        times: Vec::with_capacity(trajectory.time_gps_ns.len()),
+        dropped: BTreeMap::new(),
+    };
     if !trajectory.bad_lines.is_empty() {
-        dropped.insert(
+        sink.dropped.insert(
             dropped::BAD_LINE.to_owned(),
             trajectory.bad_lines.len() as u64,
         );
     }
-    let mut count = |reason: &str| *dropped.entry(reason.to_owned()).or_insert(0) += 1;
-    let mut kept = Vec::with_capacity(trajectory.time_gps_ns.len());
-    let mut times = Vec::with_capacity(kept.capacity());
-    let (from, to) = s.gps_range_ns();
+    let interval_ns = median_interval_ns(&trajectory.time_gps_ns);
+    let mut gate = TimeGate::new(interval_ns, s.gps_range_ns());
     for (k, &t) in trajectory.time_gps_ns.iter().enumerate() {
-        if !(from..to).contains(&t) {
-            count(dropped::OUTSIDE_SESSION);
-        } else if times.last().is_some_and(|&last| t <= last) {
-            count(dropped::NOT_INCREASING);
-        } else {
-            kept.push(k);
-            times.push(t);
-        }
+        let Ok(()) = gate.offer(t, Position::Line(k as u64), k, &mut sink);
     }
+    let Ok(()) = gate.finish(&mut sink);
+    let EpochSink {
+        mut kept,
+        mut times,
+        mut dropped,
+    } = sink;
+    let mut count = |reason: &str| *dropped.entry(reason.to_owned()).or_insert(0) += 1;
     let attitude = attitude.map(|a| {
         let at = a.at(&times);
         let (mut k2, mut t2, mut a2) = (Vec::new(), Vec::new(), Vec::new());
@@ -458,6 +499,7 @@ fn gated<'a>(
         dropped,
         attitude,
         bad_lines: Vec::new(),
+        attitude_dropped: BTreeMap::new(),
     }
 }
 
@@ -533,6 +575,7 @@ fn reduce_track(
         flagged: BTreeMap::new(),
         gaps: 0,
         bad_lines: track.bad_lines.clone(),
+        attitude_dropped: track.attitude_dropped.clone(),
         stretches: Vec::new(),
     };
     let (spans, gaps) = stretches(&track.times, bins, interval, expected, &mut summary.dropped);
@@ -1071,6 +1114,19 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
         );
         for b in &s.bad_lines {
             let _ = writeln!(w, "gravity: {}: set aside: {b}", s.id);
+        }
+        if !s.attitude_dropped.is_empty() {
+            let d: Vec<String> = s
+                .attitude_dropped
+                .iter()
+                .map(|(k, n)| format!("{n} {k}"))
+                .collect();
+            let _ = writeln!(
+                w,
+                "gravity: {}: attitude samples dropped by the time gate: {}",
+                s.id,
+                d.join(", ")
+            );
         }
         for st in &s.stretches {
             let drift = st.drift.as_ref().map_or_else(

@@ -24,6 +24,9 @@ pub mod dropped {
     pub const STRETCH_TOO_SHORT: &str = "stretch_too_short";
     /// Its time repeats or goes back from the epoch before.
     pub const NOT_INCREASING: &str = "time_not_increasing";
+    /// Its time jumps away from its neighbours' (the time gate of every log: a jump ahead
+    /// that the epochs after it do not follow).
+    pub const TIME_OUTLIER: &str = "time_outlier";
     /// Its line breaks the format, set aside under `--skip-bad-lines` (listed in the
     /// session's `bad_lines`).
     pub const BAD_LINE: &str = "bad_line";
@@ -107,6 +110,10 @@ pub struct SessionGravity {
     /// each file; a trajectory's are also counted in `dropped` as `bad_line`).
     #[serde(default)]
     pub bad_lines: Vec<String>,
+    /// Samples of the attitude file the time gate dropped, by ingest's reason
+    /// (`duplicate`, `time_backwards`, `time_outlier`, `outside_session`; absent when none).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub attitude_dropped: BTreeMap<String, u64>,
     /// The stretches.
     pub stretches: Vec<StretchSummary>,
 }
