@@ -537,11 +537,23 @@ fn a_stage_that_would_reduce_nothing_or_the_wrong_thing_is_refused() {
         .expect_err("a triad has no axis to choose")
         .to_string();
     assert!(e.contains("--accelerometer") && e.contains("triad"), "{e}");
+    // A tie whose time falls under way (mistyped): it would move the whole stretch to the
+    // gravity of another place.
+    let (_dir, dataset, out) =
+        edited(|m| m.replacen("2026-06-10T07:03:20.000Z", "2026-06-10T07:20:00.000Z", 1));
+    let e = args(&dataset)
+        .run(&out)
+        .expect_err("moving tie")
+        .to_string();
+    assert!(
+        e.contains("the tie at 2026-06-10T07:20:00.000Z: the vehicle moves at 5.0 m/s"),
+        "{e}"
+    );
 }
 
 #[test]
 fn the_new_keys_are_refused_where_they_cannot_work() {
-    let cases: [(&str, &str, &str); 7] = [
+    let cases: [(&str, &str, &str); 8] = [
         (
             "trajectory_format = \"rtklib\"\n",
             "trajectory_format = \"rtklib\"\ntrajectory_time = \"iso\"\n",
@@ -572,6 +584,13 @@ fn the_new_keys_are_refused_where_they_cannot_work() {
             "duration_s = 300",
             "duration_s = -3",
             "survey.tie[0].duration_s",
+        ),
+        // The first tie given twice: its epochs would tie twice.
+        (
+            "[[survey.tie]]\n",
+            "[[survey.tie]]\ntime = \"2026-06-10T07:04:00Z\"\nduration_s = 60\ng_mgal = \
+             980444.809\n\n[[survey.tie]]\n",
+            "survey.tie[1]",
         ),
     ];
     for (from, to, key) in cases {

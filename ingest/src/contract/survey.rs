@@ -221,12 +221,34 @@ pub fn check(
             format!("{f} is out of range [1, 100000] s"),
         ));
     }
-    survey
+    let ties: Vec<ResolvedTie> = survey
         .tie
         .iter()
         .enumerate()
         .map(|(k, t)| tie(k, t, err))
-        .collect()
+        .collect::<Result<_>>()?;
+    no_overlap(&ties, err)?;
+    Ok(ties)
+}
+
+/// Two ties whose still windows overlap would count the same epochs twice (a tie repeated
+/// by mistake would halve the drift's variance).
+fn no_overlap(ties: &[ResolvedTie], err: &impl Fn(String, String) -> Error) -> Result<()> {
+    let half = |t: &ResolvedTie| (t.duration_s * 0.5e9) as i64;
+    for (j, b) in ties.iter().enumerate() {
+        for (k, a) in ties[..j].iter().enumerate() {
+            if (a.time_gps_ns - b.time_gps_ns).abs() <= half(a) + half(b) {
+                return Err(err(
+                    format!("survey.tie[{j}]"),
+                    format!(
+                        "its still window overlaps survey.tie[{k}]'s: each window's epochs \
+                         can tie once"
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Tie `k` resolved.
