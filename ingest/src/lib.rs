@@ -26,6 +26,7 @@ mod error;
 pub mod gcb;
 pub mod labstream;
 mod lines;
+pub use lines::BOM;
 pub mod lock;
 mod streams;
 pub mod table;

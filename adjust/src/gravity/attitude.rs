@@ -82,8 +82,8 @@ pub fn read_csv(
 ) -> Result<Attitude, GravityError> {
     let mut read = Attitude::default();
     let mut lines = Vec::new();
-    super::trajectory::for_each_csv_line(path, |line, f| {
-        match attitude_line(path, line, f, &mut time) {
+    super::trajectory::for_each_csv_line(path, |line, fields| {
+        match fields.and_then(|f| attitude_line(path, line, f, &mut time)) {
             Ok((tns, hpr, sd)) => {
                 read.time_gps_ns.push(tns);
                 read.hpr_deg.push(hpr);

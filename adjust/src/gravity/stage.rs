@@ -155,6 +155,17 @@ fn reduce_tracks(
             mounting: mounting(survey),
         };
         let summary = reduce_track(track, bins, &ctx, &mut rows, &mut ties)?;
+        if summary.epochs_read == 0 {
+            let path = track.session.trajectory.as_ref().map(|t| t.path.display());
+            return Err(GravityError::Refused {
+                message: format!(
+                    "session {}: its trajectory {} holds no epoch (comments, a header or \
+                     blank lines only)",
+                    summary.id,
+                    path.map_or_else(String::new, |p| p.to_string())
+                ),
+            });
+        }
         if summary.epochs_used == 0 {
             let why: Vec<String> = summary
                 .dropped

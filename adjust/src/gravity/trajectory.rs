@@ -89,8 +89,9 @@ fn sds(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
     Ok(out)
 }
 
-/// The file's lines with their numbers (from 1); a line that cannot be read is an error
-/// naming it.
+/// The file's lines, numbered from 1, without the line end (`\n` or `\r\n`) and, on the
+/// first, a UTF-8 byte-order mark; a line that is not UTF-8 is a line error (field `line`,
+/// the byte offset in it), which `--skip-bad-lines` sets aside as any other.
 fn numbered_lines(
     path: &Path,
 ) -> Result<impl Iterator<Item = (u64, Result<String, GravityError>)>, GravityError> {
@@ -100,14 +101,34 @@ fn numbered_lines(
     })?;
     let path = path.to_path_buf();
     Ok(std::io::BufReader::new(file)
-        .lines()
+        .split(b'\n')
         .enumerate()
         .map(move |(i, l)| {
             let line_no = i as u64 + 1;
-            let l = l.map_err(|e| GravityError::File {
-                path: path.clone(),
-                message: format!("line {line_no}: {e}"),
-            });
+            let l = l
+                .map_err(|e| GravityError::File {
+                    path: path.clone(),
+                    message: format!("line {line_no}: {e}"),
+                })
+                .and_then(|mut b| {
+                    if b.last() == Some(&b'\r') {
+                        b.pop();
+                    }
+                    if line_no == 1 && b.starts_with(ingest::BOM) {
+                        b.drain(..ingest::BOM.len());
+                    }
+                    String::from_utf8(b).map_err(|e| {
+                        bad(
+                            &path,
+                            line_no,
+                            "line",
+                            format!(
+                                "not UTF-8 at byte {} of the line",
+                                e.utf8_error().valid_up_to()
+                            ),
+                        )
+                    })
+                });
             (line_no, l)
         }))
 }
@@ -118,7 +139,13 @@ pub fn read_rtklib(path: &Path, skip: bool) -> Result<Trajectory, GravityError> 
     let mut out = Trajectory::default();
     let mut scale: Option<TimeScale> = None;
     for (line_no, l) in numbered_lines(path)? {
-        let l = l?;
+        let l = match l {
+            Ok(l) => l,
+            Err(e) => {
+                set_aside(e, skip, &mut out.bad_lines)?;
+                continue;
+            }
+        };
         let t = l.trim();
         if let Some(h) = t.strip_prefix('%') {
             if h.contains("x-ecef") {
@@ -195,8 +222,8 @@ fn rtklib_line(
 /// format is set aside instead of failing the file.
 pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
-    for_each_csv_line(path, |line_no, f| {
-        match csv_line(path, line_no, f, &mut time) {
+    for_each_csv_line(path, |line_no, fields| {
+        match fields.and_then(|f| csv_line(path, line_no, f, &mut time)) {
             Ok((tns, llh, sd)) => out.push(tns, llh, sd, line_no),
             Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
         }
@@ -206,15 +233,21 @@ pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Traject
 }
 
 /// Calls `f` with each data line of a CSV (a trajectory's, an attitude's): its number
-/// (from 1) and its comma-separated fields, trimmed; `#` starts a comment, blank lines are
+/// (from 1) and its comma-separated fields, trimmed, or the line's error (not UTF-8); `#` starts a comment, blank lines are
 /// passed over, and a first line whose first field begins `time` is the header.
 pub(super) fn for_each_csv_line(
     path: &Path,
-    mut f: impl FnMut(u64, &[&str]) -> Result<(), GravityError>,
+    mut f: impl FnMut(u64, Result<&[&str], GravityError>) -> Result<(), GravityError>,
 ) -> Result<(), GravityError> {
     let mut header_seen = false;
     for (line_no, l) in numbered_lines(path)? {
-        let l = l?;
+        let l = match l {
+            Ok(l) => l,
+            Err(e) => {
+                f(line_no, Err(e))?;
+                continue;
+            }
+        };
         let t = l.split('#').next().unwrap_or("").trim();
         if t.is_empty() {
             continue;
@@ -226,7 +259,7 @@ pub(super) fn for_each_csv_line(
                 continue;
             }
         }
-        f(line_no, &fields)?;
+        f(line_no, Ok(&fields))?;
     }
     Ok(())
 }
@@ -303,6 +336,27 @@ mod tests {
         assert_eq!(t.time_gps_ns[1] - t.time_gps_ns[0], 100_000_000);
         assert_eq!(t.sd_neu_m[0], Some([0.004, 0.003, 0.009]));
         assert!((t.height_m[0] - 60.123).abs() < 1e-12);
+    }
+
+    /// A byte-order mark and CRLF line ends (a Windows editor's) are read as any file; a
+    /// line that is not UTF-8 is an error naming it, set aside with `skip`.
+    #[test]
+    fn bom_crlf_and_bytes_that_are_not_text() {
+        let line = "2026/03/14 09:12:03.500   48.0166    0.1576   60.1230   1   9   0.004   \
+                    0.003   0.009   0.001  -0.001   0.002   0.00    0.0";
+        let later = line.replace("03.500", "03.600");
+        let text = format!("\u{feff}{HEADER}{line}\n{later}\n").replace('\n', "\r\n");
+        let (_d, p) = write(&text);
+        let t = read_rtklib(&p, false).expect("reads");
+        assert_eq!(t.time_gps_ns.len(), 2);
+        let mut bytes = format!("{HEADER}{line}\n").into_bytes();
+        bytes.extend_from_slice(b"2026/03/14 09:12:03.550 \xff\xfe\n");
+        bytes.extend_from_slice(format!("{later}\n").as_bytes());
+        std::fs::write(&p, &bytes).expect("write");
+        let e = read_rtklib(&p, false).expect_err("not UTF-8").to_string();
+        assert!(e.contains("t.pos:4: line: not UTF-8 at byte 24"), "{e}");
+        let t = read_rtklib(&p, true).expect("set aside");
+        assert_eq!((t.time_gps_ns.len(), t.bad_lines.len()), (2, 1));
     }
 
     #[test]
