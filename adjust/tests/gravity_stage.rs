@@ -448,6 +448,45 @@ fn a_damaged_trajectory_line_fails_or_is_set_aside() {
     assert_eq!(s.stretches.len(), 2, "{s:?}");
 }
 
+/// A trajectory that gives no sds (a CSV of time and position only, seconds since the
+/// session's start): the positions' sd is their own white noise from their third
+/// differences, found at its true 1 and 2 cm, and the sigmas hold as with RTKLIB's sds.
+#[test]
+fn a_trajectory_without_sds_is_weighed_by_its_own_noise() {
+    let (_dir, dataset, out) = edited(|m| {
+        m.replacen(
+            "trajectory = \"raw/lines.pos\"\ntrajectory_format = \"rtklib\"",
+            "trajectory = \"raw/lines.csv\"\ntrajectory_format = \"csv\"\ntrajectory_time = \"s\"",
+            1,
+        )
+    });
+    let pos = std::fs::read_to_string(dataset.join("raw/lines.pos")).expect("pos");
+    let mut csv = String::from("time,lat_deg,lon_deg,h_m\n");
+    for l in pos.lines().filter(|l| !l.starts_with('%')) {
+        let f: Vec<&str> = l.split_whitespace().collect();
+        // GPST 07:00:18 is the session's start (07:00:00 UTC, GPS - UTC = 18 s).
+        let hms: Vec<f64> = f[1].split(':').map(|x| x.parse().expect("time")).collect();
+        let s = (hms[0] - 7.0) * 3600.0 + hms[1] * 60.0 + hms[2] - 18.0;
+        csv.push_str(&format!("{s:.3},{},{},{}\n", f[2], f[3], f[4]));
+    }
+    std::fs::write(dataset.join("raw/lines.csv"), csv).expect("csv");
+    let r = args(&dataset).run(&out).expect("gravity");
+    let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+    let s = &r.sessions[0];
+    eprintln!(
+        "no sds: positions' noise {:?} m; rms error {rms:.3} mGal, rms z {z:.3}",
+        s.position_noise_m
+    );
+    assert_eq!(s.position_sd_given_m, None);
+    let [n, e, u] = s.position_noise_m;
+    assert!(
+        (n / 0.01 - 1.0).abs() < 0.05 && (e / 0.01 - 1.0).abs() < 0.05,
+        "{n} {e}"
+    );
+    assert!((u / 0.02 - 1.0).abs() < 0.05, "{u}");
+    assert!((0.8..1.2).contains(&z), "rms z {z}");
+}
+
 /// A trajectory's epochs pass ingest's time gate, as every log does: an epoch stamped an
 /// hour ahead (a receiver's glitch) is dropped alone as `time_outlier`, not every epoch
 /// after it; one stamped an hour back alone as `time_not_increasing`. Each leaves a gap.

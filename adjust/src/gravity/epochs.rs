@@ -210,13 +210,13 @@ fn epochs_of(times: &[i64], interval_ns: i64, t: i64) -> [Option<(usize, f64)>; 
 /// Third differences in a block of [`ThirdDifferences`].
 const BLOCK: u64 = 1024;
 
-/// The samples' white noise from their third differences (var = 20 sigma^2 for white
-/// noise; a swell's third difference over three sample intervals is far below it), over
-/// runs of consecutive samples: the mean square per block of [`BLOCK`] differences, and the
-/// median over the blocks, so that a step in the specific force (a climb's jerk, a knock)
-/// does not pass for noise.
+/// A series' white noise from its third differences (var = 20 sigma^2 for white noise; a
+/// swell's third difference over three sample intervals is far below it), over runs of
+/// consecutive values: the mean square per block of [`BLOCK`] differences, and the median
+/// over the blocks, so that a step (a climb's jerk, a knock) does not pass for noise. The
+/// samples' specific force, and the trajectory's positions.
 #[derive(Clone, Debug, Default)]
-struct ThirdDifferences {
+pub(super) struct ThirdDifferences {
     last: Vec<(i64, f64)>,
     sum_sq: f64,
     count: u64,
@@ -225,7 +225,15 @@ struct ThirdDifferences {
 }
 
 impl ThirdDifferences {
-    fn push(&mut self, t: i64, v: f64) {
+    /// For values `interval_ns` apart (a longer step starts a new run).
+    pub(super) fn new(interval_ns: i64) -> Self {
+        ThirdDifferences {
+            interval_ns,
+            ..ThirdDifferences::default()
+        }
+    }
+
+    pub(super) fn push(&mut self, t: i64, v: f64) {
         if self
             .last
             .last()
@@ -247,7 +255,8 @@ impl ThirdDifferences {
         }
     }
 
-    fn sd(&self) -> f64 {
+    /// The white noise's sd (0 before the first difference).
+    pub(super) fn sd(&self) -> f64 {
         let mut b = self.blocks.clone();
         if b.is_empty() && self.count > 0 {
             b.push(self.sum_sq / self.count as f64);
@@ -277,13 +286,7 @@ pub fn fill(
         .iter()
         .map(|t| vec![Bin::default(); t.times.len()])
         .collect();
-    let mut noise = vec![
-        ThirdDifferences {
-            interval_ns,
-            ..ThirdDifferences::default()
-        };
-        targets.len()
-    ];
+    let mut noise = vec![ThirdDifferences::new(interval_ns); targets.len()];
     let (names, flags) = force.columns();
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut values = vec![None; refs.len()];
@@ -361,10 +364,7 @@ mod tests {
 
     #[test]
     fn a_step_does_not_pass_for_noise() {
-        let mut d = ThirdDifferences {
-            interval_ns: 10,
-            ..ThirdDifferences::default()
-        };
+        let mut d = ThirdDifferences::new(10);
         let mut state = 7u64;
         for k in 0..20_000i64 {
             // A uniform deviate of sd 1 (an LCG: enough here), and a step of 1000 halfway.

@@ -58,6 +58,8 @@ struct Track<'a> {
     bad_lines: Vec<String>,
     /// The attitude's samples the time gate dropped, by reason.
     attitude_dropped: BTreeMap<String, u64>,
+    /// The positions' white noise north, east, up from their third differences, m.
+    noise_neu_m: [f64; 3],
 }
 
 /// Runs the stage on `dataset` into `out`.
@@ -394,6 +396,7 @@ fn read_tracks<'a>(
         track.bad_lines = bad_lines;
         track.attitude_dropped = attitude.map(|a| a.dropped).unwrap_or_default();
         move_to_accelerometers(&mut track, survey.lever_arm_m);
+        track.noise_neu_m = position_noise_m(&track);
         tracks.push(track);
     }
     if tracks.is_empty() {
@@ -511,6 +514,7 @@ fn gated<'a>(
         attitude,
         bad_lines: Vec::new(),
         attitude_dropped: BTreeMap::new(),
+        noise_neu_m: [0.0; 3],
     }
 }
 
@@ -533,6 +537,42 @@ fn move_to_accelerometers(track: &mut Track<'_>, lever_arm_m: [f64; 3]) {
         t.longitude_deg[j] += (d[1] / ((r_n + h) * lat.cos())).to_degrees();
         t.height_m[j] -= d[2];
     }
+}
+
+/// The kept positions' white noise north, east and up, m: their third differences, as the
+/// samples' ([`epochs::ThirdDifferences`]; a vehicle's motion is smooth at the epochs'
+/// rate, a swell's third difference at 10 Hz a hundredth of a cm), the angles turned into
+/// metres on a sphere of 6371 km (ample for a noise level).
+fn position_noise_m(track: &Track<'_>) -> [f64; 3] {
+    let t = &track.trajectory;
+    let interval = median_interval_ns(&track.times);
+    let mut d: [epochs::ThirdDifferences; 3] =
+        std::array::from_fn(|_| epochs::ThirdDifferences::new(interval));
+    for (&j, &time) in track.kept.iter().zip(&track.times) {
+        let lat = t.latitude_deg[j].to_radians();
+        let ne = [
+            lat * 6.371e6,
+            t.longitude_deg[j].to_radians() * 6.371e6 * lat.cos(),
+            t.height_m[j],
+        ];
+        for (d, v) in d.iter_mut().zip(ne) {
+            d.push(time, v);
+        }
+    }
+    d.map(|d| d.sd())
+}
+
+/// The positions' sds at trajectory epoch `j`, north, east, up, m: the file's, or where it
+/// gives none (or 0) the positions' own white noise.
+fn position_sd_m(track: &Track<'_>, j: usize) -> [f64; 3] {
+    let given = track.trajectory.sd_neu_m[j].unwrap_or([0.0; 3]);
+    std::array::from_fn(|i| {
+        if given[i] > 0.0 {
+            given[i]
+        } else {
+            track.noise_neu_m[i]
+        }
+    })
 }
 
 /// The median interval between `times`, ns (1 s for fewer than two).
@@ -587,6 +627,8 @@ fn reduce_track(
         gaps: 0,
         bad_lines: track.bad_lines.clone(),
         attitude_dropped: track.attitude_dropped.clone(),
+        position_noise_m: track.noise_neu_m,
+        position_sd_given_m: given_sd_median(track),
         stretches: Vec::new(),
     };
     let (spans, gaps) = stretches(&track.times, bins, interval, expected, &mut summary.dropped);
@@ -712,7 +754,7 @@ fn stretch(
         s.longitude_deg.push(t.longitude_deg[j]);
         s.height_m.push(t.height_m[j]);
         s.height_antenna_m.push(track.antenna_height_m[j]);
-        s.sd_up_m.push(t.sd_neu_m[j].map_or(0.0, |sd| sd[2]));
+        s.sd_up_m.push(position_sd_m(track, j)[2]);
         match body_to_nav(track, k, &ctx.mounting) {
             Some(c) => {
                 let f = bins[k].mean_nav();
@@ -755,7 +797,7 @@ fn horizontal_inputs(
         let f = bins[k].mean_nav();
         let a = &att[k];
         let sigma_att = horizontal::attitude_sigma(a.hpr_rad[0], a.sd_rad, f);
-        let sd = track.trajectory.sd_neu_m[track.kept[k]].unwrap_or([0.0; 3]);
+        let sd = position_sd_m(track, track.kept[k]);
         let x = ctx.triad.and_then(|t| t.readings_for(v));
         for i in 0..2 {
             h.f_mgal[i].push(f[i]);
@@ -781,6 +823,24 @@ fn horizontal_inputs(
         })
     });
     h
+}
+
+/// The median over the kept epochs of the trajectory's own sds north, east, up, m (None
+/// where it gives none).
+fn given_sd_median(track: &Track<'_>) -> Option<[f64; 3]> {
+    let sds: Vec<[f64; 3]> = track
+        .kept
+        .iter()
+        .filter_map(|&j| track.trajectory.sd_neu_m[j])
+        .collect();
+    if sds.is_empty() {
+        return None;
+    }
+    Some(std::array::from_fn(|i| {
+        let mut v: Vec<f64> = sds.iter().map(|s| s[i]).collect();
+        v.sort_unstable_by(f64::total_cmp);
+        v[v.len() / 2]
+    }))
 }
 
 fn stretch_summary(s: &Stretch, r: &Reduced) -> StretchSummary {
@@ -1122,6 +1182,20 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
             } else {
                 format!("; dropped: {}", dropped.join(", "))
             }
+        );
+        let [n, e, u] = s.position_noise_m.map(|v| v * 100.0);
+        let given = s.position_sd_given_m.map_or_else(
+            || "the trajectory gives none, so these are used".to_owned(),
+            |g| {
+                let [gn, ge, gu] = g.map(|v| v * 100.0);
+                format!("the trajectory's own median {gn:.2}, {ge:.2}, {gu:.2} cm")
+            },
+        );
+        let _ = writeln!(
+            w,
+            "gravity: {}: positions' white noise north, east, up {n:.2}, {e:.2}, {u:.2} cm \
+             (their third differences); {given}",
+            s.id
         );
         for b in &s.bad_lines {
             let _ = writeln!(w, "gravity: {}: set aside: {b}", s.id);

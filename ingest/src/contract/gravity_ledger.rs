@@ -114,6 +114,15 @@ pub struct SessionGravity {
     /// (`duplicate`, `time_backwards`, `time_outlier`, `outside_session`; absent when none).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub attitude_dropped: BTreeMap<String, u64>,
+    /// The positions' white noise north, east, up, m, from their third differences (the
+    /// median over blocks of 1024): the sd used at an epoch where the trajectory gives none
+    /// (or 0).
+    #[serde(default)]
+    pub position_noise_m: [f64; 3],
+    /// The median of the trajectory's own sds north, east, up, m (none where it gives
+    /// none), to be read beside `position_noise_m`.
+    #[serde(default)]
+    pub position_sd_given_m: Option<[f64; 3]>,
     /// The stretches.
     pub stretches: Vec<StretchSummary>,
 }
