@@ -562,17 +562,12 @@ fn position_noise_m(track: &Track<'_>) -> [f64; 3] {
     d.map(|d| d.sd())
 }
 
-/// The positions' sds at trajectory epoch `j`, north, east, up, m: the file's, or where it
-/// gives none (or 0) the positions' own white noise.
+/// The positions' sds at trajectory epoch `j`, north, east, up, m: the larger of the
+/// file's (none counts as 0) and the positions' own white noise, so that a file whose sds
+/// are smaller than the scatter its positions show is not believed over them.
 fn position_sd_m(track: &Track<'_>, j: usize) -> [f64; 3] {
     let given = track.trajectory.sd_neu_m[j].unwrap_or([0.0; 3]);
-    std::array::from_fn(|i| {
-        if given[i] > 0.0 {
-            given[i]
-        } else {
-            track.noise_neu_m[i]
-        }
-    })
+    std::array::from_fn(|i| given[i].max(track.noise_neu_m[i]))
 }
 
 /// The median interval between `times`, ns (1 s for fewer than two).
@@ -1185,7 +1180,7 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
         );
         let [n, e, u] = s.position_noise_m.map(|v| v * 100.0);
         let given = s.position_sd_given_m.map_or_else(
-            || "the trajectory gives none, so these are used".to_owned(),
+            || "the trajectory gives no sd".to_owned(),
             |g| {
                 let [gn, ge, gu] = g.map(|v| v * 100.0);
                 format!("the trajectory's own median {gn:.2}, {ge:.2}, {gu:.2} cm")

@@ -115,8 +115,8 @@ pub struct SessionGravity {
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub attitude_dropped: BTreeMap<String, u64>,
     /// The positions' white noise north, east, up, m, from their third differences (the
-    /// median over blocks of 1024): the sd used at an epoch where the trajectory gives none
-    /// (or 0).
+    /// median over blocks of 1024): an epoch's sd is the larger of the trajectory's (none
+    /// counting as 0) and this.
     #[serde(default)]
     pub position_noise_m: [f64; 3],
     /// The median of the trajectory's own sds north, east, up, m (none where it gives
