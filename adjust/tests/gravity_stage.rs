@@ -370,6 +370,51 @@ fn with_attitude_north_and_east_are_within_their_sigmas() {
 
 /// Two minutes of attitude lost under way: the epochs without one dropped by name, the
 /// track cut there; an attitude file of another day: nothing reduced, said so.
+/// An attitude file without sds: north and east are given, but their sigmas (and attitude
+/// parts) are null, since the attitude's error, their largest part, is not known; each
+/// epoch is flagged `attitude_sd_unknown`.
+#[test]
+fn without_attitude_sds_north_and_east_have_no_sigma() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("attitude");
+    let plan = fixtures::survey_lines::attitude_plan();
+    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+    let att = dataset.join("raw/lines_att.csv");
+    let text = std::fs::read_to_string(&att).expect("attitude");
+    let stripped: String = text
+        .lines()
+        .map(|l| l.splitn(5, ',').take(4).collect::<Vec<_>>().join(",") + "\n")
+        .collect();
+    std::fs::write(&att, stripped).expect("write");
+    let out = dir.path().join("out");
+    let r = reduce(&dataset, &out);
+    let s = &r.sessions[0];
+    assert_eq!(
+        s.flagged.get("attitude_sd_unknown"),
+        Some(&s.epochs_used),
+        "{:?}",
+        s.flagged
+    );
+    let path = out.join("gravity").join(gravity::FILE);
+    let names = [
+        "north_filtered_mgal",
+        "sigma_north_mgal",
+        "sigma_north_positions_mgal",
+        "sigma_east_attitude_mgal",
+    ];
+    let mut counts = [0usize; 4];
+    align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+        use arrow::array::Array;
+        for (c, v) in b.values.iter().enumerate() {
+            counts[c] += v.len() - v.null_count();
+        }
+        Ok(())
+    })
+    .expect("gravity.parquet");
+    let n = s.epochs_used as usize;
+    assert_eq!(counts, [n, 0, n, 0], "non-null values of {names:?}");
+}
+
 #[test]
 fn epochs_without_attitude_are_dropped_by_name() {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -298,8 +298,13 @@ fn horizontal(ds: &Dataset, path: &Path) -> Result<Option<Table>, Error> {
             let cols = per
                 .entry(b.session[i])
                 .or_insert_with(|| vec![Vec::new(); names.len()]);
+            // A sigma the attitude's sds would give is null without them: NaN here.
             for (c, v) in cols.iter_mut().enumerate() {
-                v.push(b.values[c].value(i));
+                v.push(if b.values[c].is_null(i) {
+                    f64::NAN
+                } else {
+                    b.values[c].value(i)
+                });
             }
         }
         Ok(())
@@ -337,7 +342,16 @@ fn horizontal(ds: &Dataset, path: &Path) -> Result<Option<Table>, Error> {
                 format!("{hi:.1}"),
             ];
             for k in 2..7 {
-                row.push(format!("{:.1}", median(cols[7 * c + k].clone())));
+                let known: Vec<f64> = cols[7 * c + k]
+                    .iter()
+                    .copied()
+                    .filter(|v| !v.is_nan())
+                    .collect();
+                row.push(if known.is_empty() {
+                    "unknown: the attitude gives no sd".to_owned()
+                } else {
+                    format!("{:.1}", median(known))
+                });
             }
             t.rows.push(row);
         }

@@ -39,6 +39,8 @@ pub struct AttitudeAt {
     pub hpr_rad: [f64; 3],
     /// Their sds, rad (0 where the file gives none).
     pub sd_rad: [f64; 3],
+    /// Whether the file gives the sds of both samples it is interpolated between.
+    pub sd_given: bool,
 }
 
 impl AttitudeAt {
@@ -245,6 +247,7 @@ impl Attitude {
         AttitudeAt {
             hpr_rad: hpr,
             sd_rad,
+            sd_given: self.sd_deg[a].is_some() && self.sd_deg[b].is_some(),
         }
     }
 }

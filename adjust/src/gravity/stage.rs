@@ -655,7 +655,13 @@ fn reduce_track(
             }
         }
         summary.stretches.push(stretch_summary(&s, &r));
-        let flags = flags_of(&s, bins, span.clone(), ctx.survey.filter_s, &r);
+        let flags = flags_of(
+            &s,
+            (bins, track.attitude.as_deref()),
+            span.clone(),
+            ctx.survey.filter_s,
+            &r,
+        );
         for (name, n) in count_flags(&flags) {
             *summary.flagged.entry(name).or_insert(0) += n;
         }
@@ -853,10 +859,11 @@ fn stretch_summary(s: &Stretch, r: &Reduced) -> StretchSummary {
     }
 }
 
-/// Each epoch's flags: extrapolated calibration, turning, near the stretch's ends.
+/// Each epoch's flags: extrapolated calibration, turning, near the stretch's ends, an
+/// attitude without sds.
 fn flags_of(
     s: &Stretch,
-    bins: &[Bin],
+    (bins, attitude): (&[Bin], Option<&[AttitudeAt]>),
     span: std::ops::Range<usize>,
     filter_s: f64,
     r: &Reduced,
@@ -879,6 +886,9 @@ fn flags_of(
             let t = s.time_gps_ns[i];
             if t - t0 < edge_ns || t1 - t < edge_ns {
                 f |= gravity::EDGE;
+            }
+            if attitude.is_some_and(|a| !a[k].sd_given) {
+                f |= gravity::ATTITUDE_SD_UNKNOWN;
             }
             f
         })
@@ -1107,11 +1117,22 @@ impl Rows {
         for f in self.floats {
             columns.push(Arc::new(Float64Array::from(f)));
         }
-        let valid = (!self.horizontal_valid.is_empty())
-            .then(|| arrow::buffer::NullBuffer::from(self.horizontal_valid));
-        for f in self.horizontal {
+        // A sigma that needs the attitude's sds is null where the file gives none.
+        let sd_known: Vec<bool> = (self.horizontal_valid.iter().zip(&self.flags))
+            .map(|(v, f)| *v && f & gravity::ATTITUDE_SD_UNKNOWN == 0)
+            .collect();
+        let valid = (!self.horizontal_valid.is_empty()).then(|| {
+            (
+                arrow::buffer::NullBuffer::from(self.horizontal_valid),
+                arrow::buffer::NullBuffer::from(sd_known),
+            )
+        });
+        for (f, name) in self.horizontal.into_iter().zip(gravity::HORIZONTAL) {
             columns.push(Arc::new(match &valid {
-                Some(v) => Float64Array::new(f.into(), Some(v.clone())),
+                Some((v, _)) if !gravity::NEEDS_ATTITUDE_SD.contains(&name) => {
+                    Float64Array::new(f.into(), Some(v.clone()))
+                }
+                Some((_, v)) => Float64Array::new(f.into(), Some(v.clone())),
                 None => Float64Array::new_null(n_rows),
             }));
         }

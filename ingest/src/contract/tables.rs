@@ -496,13 +496,25 @@ pub mod gravity {
     pub const TURN: u8 = 2;
     /// Within one filter period of its stretch's ends, where the filter sees only one side.
     pub const EDGE: u8 = 4;
+    /// The attitude file gives no sd at the epoch: north's and east's sigmas (and their
+    /// attitude parts) are null, not known; down's attitude part is taken as 0 (it is
+    /// second order but in turns).
+    pub const ATTITUDE_SD_UNKNOWN: u8 = 8;
     /// The course rate above which an epoch is flagged [`TURN`], deg/s.
     pub const TURN_DEG_PER_S: f64 = 0.5;
     /// Every flag with its name in gravity.json, in bit order.
-    pub const FLAG_NAMES: [(u8, &str); 3] = [
+    pub const FLAG_NAMES: [(u8, &str); 4] = [
         (OUTSIDE_CALIBRATION, "outside_calibration"),
         (TURN, "turn"),
         (EDGE, "edge"),
+        (ATTITUDE_SD_UNKNOWN, "attitude_sd_unknown"),
+    ];
+    /// The columns of [`HORIZONTAL`] null where [`ATTITUDE_SD_UNKNOWN`] is set.
+    pub const NEEDS_ATTITUDE_SD: [&str; 4] = [
+        "sigma_north_mgal",
+        "sigma_north_attitude_mgal",
+        "sigma_east_mgal",
+        "sigma_east_attitude_mgal",
     ];
     /// Column `latitude_deg`.
     pub const LATITUDE_DEG: &str = "latitude_deg";
