@@ -532,6 +532,35 @@ fn a_trajectory_without_sds_is_weighed_by_its_own_noise() {
     assert!((0.8..1.2).contains(&z), "rms z {z}");
 }
 
+/// A second survey session without a trajectory (the next day's drive, its trajectory
+/// forgotten): apply calibrates it, the stage cannot reduce it and says so, by name.
+#[test]
+fn a_survey_session_without_a_trajectory_is_named_as_not_reduced() {
+    let (_dir, dataset, out) = edited(|m| {
+        let (i, j) = (
+            m.find("[[session]]").expect("session"),
+            m.find("[survey]").expect("survey"),
+        );
+        let next_day: String = m[i..j]
+            .replace("id = \"lines\"", "id = \"lines-b\"")
+            .replace("2026-06-10", "2026-06-11")
+            .lines()
+            .filter(|l| !l.starts_with("trajectory"))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        format!("{}{next_day}\n{}", &m[..j], &m[j..])
+    });
+    let r = args(&dataset).run(&out).expect("gravity");
+    assert_eq!(r.sessions.len(), 1);
+    assert_eq!(r.not_reduced.len(), 1, "{:?}", r.not_reduced);
+    assert_eq!(r.not_reduced[0].session, "lines-b");
+    assert!(
+        r.not_reduced[0].why.contains("no `trajectory`"),
+        "{:?}",
+        r.not_reduced
+    );
+}
+
 /// A trajectory's epochs pass ingest's time gate, as every log does: an epoch stamped an
 /// hour ahead (a receiver's glitch) is dropped alone as `time_outlier`, not every epoch
 /// after it; one stamped an hour back alone as `time_not_increasing`. Each leaves a gap.

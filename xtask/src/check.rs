@@ -156,10 +156,15 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
         .unwrap_or(path)
         .display()
         .to_string();
-    match adjust::gravity::attitude::read_csv(path, s.times.reader(*form), false) {
+    let read =
+        adjust::gravity::attitude::read_csv(path, s.times.reader(*form), s.gps_range_ns(), false);
+    match read {
         Ok(a) => {
             let what = format!("(session {}, attitude; CSV)", s.session.id);
             print_epochs(&rel, &what, &a.time_gps_ns, w)?;
+            for (why, n) in &a.dropped {
+                writeln!(w, "  {n} sample(s) dropped by the time gate: {why}")?;
+            }
             Ok(true)
         }
         Err(e) => {

@@ -16,7 +16,7 @@ use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
     Crossover, DriftFitted, FilterUsed, GravityReport, Input, LEDGER_FILE, LEDGER_FORMAT,
-    STAGE_DIR, SessionGravity, StretchSummary, TieUsed, dropped,
+    NotReduced, STAGE_DIR, SessionGravity, StretchSummary, TieUsed, dropped,
 };
 use ingest::contract::manifest::{Dataset, ResolvedSession};
 use ingest::contract::survey::{ResolvedTie, SurveyConfig, TrajectoryFormat};
@@ -109,6 +109,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
         sessions,
         ties,
         crossovers,
+        not_reduced: not_reduced(&ds),
         rows_written,
         sha256,
     };
@@ -186,6 +187,20 @@ fn reduce_tracks(
         sessions.push(summary);
     }
     Ok((rows, sessions, ties))
+}
+
+/// The dataset's survey sessions without a trajectory: applied by apply, not reduced here.
+fn not_reduced(ds: &Dataset) -> Vec<NotReduced> {
+    ds.sessions
+        .iter()
+        .filter(|s| s.is_survey() && s.trajectory.is_none())
+        .map(|s| NotReduced {
+            session: s.session.id.clone(),
+            why: "no `trajectory` in the manifest (docs/formats.md 10.1): its samples are \
+                  calibrated by apply, but there is no track to reduce them along"
+                .to_owned(),
+        })
+        .collect()
 }
 
 /// The files read, with their hashes: apply's table, each trajectory and attitude.
@@ -1241,6 +1256,9 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
             );
             let _ = writeln!(w, "gravity:   {} to {}: {}", st.first, st.last, drift);
         }
+    }
+    for n in &r.not_reduced {
+        let _ = writeln!(w, "gravity: {}: not reduced: {}", n.session, n.why);
     }
     let unused = r.ties.iter().filter(|t| t.used_in.is_none()).count();
     if unused > 0 {

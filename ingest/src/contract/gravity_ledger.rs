@@ -127,6 +127,15 @@ pub struct SessionGravity {
     pub stretches: Vec<StretchSummary>,
 }
 
+/// A survey session not reduced, and why.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct NotReduced {
+    /// Session id.
+    pub session: String,
+    /// Why.
+    pub why: String,
+}
+
 /// A tie and where it was used.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TieUsed {
@@ -205,6 +214,10 @@ pub struct GravityReport {
     /// Where the track crosses itself.
     #[serde(default)]
     pub crossovers: Vec<Crossover>,
+    /// Survey sessions of the dataset the stage could not reduce, each with why (one
+    /// without a `trajectory`); absent when none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub not_reduced: Vec<NotReduced>,
     /// Rows of gravity.parquet.
     pub rows_written: u64,
     /// Its SHA-256.
