@@ -532,6 +532,49 @@ fn a_trajectory_without_sds_is_weighed_by_its_own_noise() {
     assert!((0.8..1.2).contains(&z), "rms z {z}");
 }
 
+/// Three single-point solutions among the fixed ones (RTKLIB's Q 5: heights 1.5 m off,
+/// and sdu 1.5 m saying so): each epoch's error spreads over the filter's reach, and so
+/// does its sd, so the sigmas hold around them. With the epoch's own sd times the gain,
+/// the neighbours' sigmas would stay at a tenth of a mGal beside errors of tens.
+#[test]
+fn a_single_solution_among_fixed_ones_widens_the_sigma_around_it() {
+    let (_dir, dataset, out) = edited(|m| m);
+    let pos = dataset.join("raw/lines.pos");
+    let text = std::fs::read_to_string(&pos).expect("pos");
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    for k in [6000, 12000, 18000] {
+        let mut f: Vec<String> = lines[k].split_whitespace().map(str::to_owned).collect();
+        let h: f64 = f[4].parse().expect("height");
+        f[4] = format!("{:.4}", h + 1.5);
+        f[5] = "5".to_owned();
+        f[9] = "1.5000".to_owned();
+        lines[k] = f.join("   ");
+    }
+    std::fs::write(&pos, lines.join("\n") + "\n").expect("write");
+    let r = args(&dataset).run(&out).expect("gravity");
+    let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+    // Within 100 s of a single solution (pos line k is epoch k - 2: two header lines).
+    let (rows, want) = filtered_truth(&dataset, &out, r.filter.filter_s);
+    let spikes: Vec<f64> = [6000, 12000, 18000].map(|k| rows[k - 2].time_s).to_vec();
+    let near: Vec<usize> = (0..rows.len())
+        .filter(|&k| spikes.iter().any(|t| (rows[k].time_s - t).abs() < 100.0))
+        .collect();
+    let z_near = (near
+        .iter()
+        .map(|&k| ((rows[k].filtered - want[k]) / rows[k].sigma).powi(2))
+        .sum::<f64>()
+        / near.len() as f64)
+        .sqrt();
+    let sigma_near = near.iter().map(|&k| rows[k].sigma).sum::<f64>() / near.len() as f64;
+    eprintln!(
+        "three single solutions: rms error {rms:.3} mGal, rms z {z:.3}; within 100 s of \
+         them rms z {z_near:.3}, mean sigma {sigma_near:.3} mGal"
+    );
+    assert!((0.8..1.2).contains(&z), "rms z {z}");
+    assert!((0.6..1.4).contains(&z_near), "rms z near them {z_near}");
+    assert!(sigma_near > 1.5 * rows[1000].sigma, "{sigma_near}");
+}
+
 /// A second survey session without a trajectory (the next day's drive, its trajectory
 /// forgotten): apply calibrates it, the stage cannot reduce it and says so, by name.
 #[test]

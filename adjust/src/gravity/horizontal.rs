@@ -123,8 +123,11 @@ pub fn reduce_horizontal(
     let pivot = ((filter_s / dt).round() as usize).min(n);
     let xy = northing_easting(s);
     let cor = coriolis(s, &xy, dt);
-    let position_gain = reduce::position_noise_gain(&sections, n, n / 2, dt) * 1e5;
-    let noise_gain = reduce::white_noise_gain(&sections, n);
+    let reach = reduce::reach(filter_s, dt);
+    let (positions_row, noise_row) = (
+        reduce::row(&sections, reach, Some(dt)),
+        reduce::row(&sections, reach, None),
+    );
     let mut out = ReducedHorizontal::default();
     for c in 0..2 {
         let a = second_difference(&xy[c], dt);
@@ -136,8 +139,9 @@ pub fn reduce_horizontal(
             *v += a;
         }
         out.filtered_mgal[c] = f;
-        out.sigma_positions_mgal[c] = h.sd_m[c].iter().map(|sd| sd * position_gain).collect();
-        out.sigma_noise_mgal[c] = s.noise_f_mgal.iter().map(|sd| sd * noise_gain).collect();
+        let sd: Vec<f64> = h.sd_m[c].iter().map(|sd| sd * 1e5).collect();
+        out.sigma_positions_mgal[c] = reduce::propagated_sd(&positions_row, &sd);
+        out.sigma_noise_mgal[c] = reduce::scaled(&noise_row, &s.noise_f_mgal);
         out.sigma_calibration_mgal[c] = match &h.calibration[c] {
             Some(g) => g.filtered_sigma(&sections, pad, pivot),
             None => filter::filtfilt_pivoted(&sections, &h.sigma_calibration_mgal[c], pad, pivot),

@@ -180,24 +180,117 @@ pub(super) fn interval_s(t: &[i64]) -> Result<f64, GravityError> {
     Ok(m as f64 * 1e-9)
 }
 
-/// The white-noise gain of `x -> filter(second difference of x)`: the sd of the filtered
-/// acceleration per unit sd of independent heights, at epoch `at` of `n`.
-pub(super) fn position_noise_gain(
-    sections: &[filter::Section],
-    n: usize,
-    at: usize,
-    dt: f64,
-) -> f64 {
-    // The operator's row at `at`: the response at `at` to a unit height at each epoch j.
-    // By symmetry of the zero-phase filter, it is the response to an impulse at `at`.
+/// How far either side a filter's row reaches, in epochs: six filter periods, beyond which
+/// its response (and the second difference's) holds under 1e-9 of its norm (four leave
+/// 1.6e-8 of the filter's; `the_row_reaches_far_enough`).
+pub(super) fn reach(filter_s: f64, dt: f64) -> usize {
+    (6.0 * filter_s / dt).ceil() as usize
+}
+
+/// The row of `x -> filter(x)` (or, with `dt`, of `x -> filter(second difference of x)`,
+/// per unit of x, in x's unit per s^2) at any epoch of a stretch's interior: its response
+/// to an impulse at the middle of `2 reach + 1` epochs (the zero-phase filter's operator is
+/// symmetric, so its row is its column).
+pub(super) fn row(sections: &[filter::Section], reach: usize, dt: Option<f64>) -> Vec<f64> {
+    let n = 2 * reach + 1;
     let mut x = vec![0.0; n];
-    x[at] = 1.0;
-    let mut second = vec![0.0; n];
-    for j in 1..n - 1 {
-        second[j] = (x[j + 1] - 2.0 * x[j] + x[j - 1]) / (dt * dt);
+    x[reach] = 1.0;
+    if let Some(dt) = dt {
+        let mut second = vec![0.0; n];
+        for j in 1..n - 1 {
+            second[j] = (x[j + 1] - 2.0 * x[j] + x[j - 1]) / (dt * dt);
+        }
+        x = second;
     }
-    let y = filter::filtfilt_pivoted(sections, &second, 0, 1);
-    y.iter().map(|v| v * v).sum::<f64>().sqrt()
+    filter::filtfilt_pivoted(sections, &x, 0, 1)
+}
+
+/// The sd at each epoch of an operator's output whose `row` ([`row`]) applies to
+/// independent inputs of sds `sd`: sqrt(sum_j row[j - k + reach]^2 sd_j^2), an input
+/// beyond the stretch's ends taken with the end's sd. Where the sds vary by under 1 %
+/// within the row's reach, the row's norm times the epoch's sd (the same to that 1 %, and
+/// nearly free); elsewhere (a float or single solution among fixed ones) the sum itself,
+/// so that an epoch's sd spreads as its error does: O(reach) an epoch there.
+pub(super) fn propagated_sd(row: &[f64], sd: &[f64]) -> Vec<f64> {
+    let n = sd.len();
+    let row = trimmed(row);
+    let reach = row.len() / 2;
+    let gain = row.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let (lo, hi) = sliding_min_max(sd, reach);
+    (0..n)
+        .map(|k| {
+            if hi[k] - lo[k] <= 0.01 * hi[k] {
+                return gain * sd[k];
+            }
+            let var: f64 = row
+                .iter()
+                .enumerate()
+                .map(|(i, r)| {
+                    let j = (k + i).saturating_sub(reach).min(n - 1);
+                    (r * sd[j]).powi(2)
+                })
+                .sum();
+            var.sqrt()
+        })
+        .collect()
+}
+
+/// The row's norm times each epoch's sd: [`propagated_sd`] for sds that hold over the
+/// row's reach, or that change from one epoch to the next (the samples in an epoch, 3 or 4
+/// at 31.25 Hz on 10 Hz epochs) and so average over it.
+pub(super) fn scaled(row: &[f64], sd: &[f64]) -> Vec<f64> {
+    let gain = row.iter().map(|v| v * v).sum::<f64>().sqrt();
+    sd.iter().map(|v| v * gain).collect()
+}
+
+/// `row` without its tails' last 1e-12 of the energy (a relative 5e-13 of the sd; the
+/// IIR filter's rows decay slowly, so this trims little: `the_trimmed_rows_reach`).
+fn trimmed(row: &[f64]) -> &[f64] {
+    let reach = row.len() / 2;
+    let total: f64 = row.iter().map(|v| v * v).sum();
+    let mut tail = 0.0;
+    let mut keep = reach;
+    for m in (1..=reach).rev() {
+        tail += row[reach - m].powi(2) + row[reach + m].powi(2);
+        if tail > 1e-12 * total {
+            break;
+        }
+        keep = m - 1;
+    }
+    &row[reach - keep..=reach + keep]
+}
+
+/// The least and greatest of `x` within `reach` of each index (monotone queues).
+fn sliding_min_max(x: &[f64], reach: usize) -> (Vec<f64>, Vec<f64>) {
+    let n = x.len();
+    let mut out = (vec![0.0; n], vec![0.0; n]);
+    let (mut qmin, mut qmax) = (
+        std::collections::VecDeque::new(),
+        std::collections::VecDeque::new(),
+    );
+    let mut next = 0;
+    for k in 0..n {
+        while next < n && next <= k + reach {
+            while qmin.back().is_some_and(|&b: &usize| x[b] >= x[next]) {
+                qmin.pop_back();
+            }
+            qmin.push_back(next);
+            while qmax.back().is_some_and(|&b: &usize| x[b] <= x[next]) {
+                qmax.pop_back();
+            }
+            qmax.push_back(next);
+            next += 1;
+        }
+        while qmin.front().is_some_and(|&f| f + reach < k) {
+            qmin.pop_front();
+        }
+        while qmax.front().is_some_and(|&f| f + reach < k) {
+            qmax.pop_front();
+        }
+        out.0[k] = qmin.front().map_or(0.0, |&i| x[i]);
+        out.1[k] = qmax.front().map_or(0.0, |&i| x[i]);
+    }
+    out
 }
 
 /// The unfiltered disturbance at each epoch (before ties), with the speed, the Eotvos term
@@ -262,15 +355,6 @@ pub(super) fn padding(filter_s: f64, dt: f64) -> usize {
     (3.0 * filter_s / dt).ceil() as usize
 }
 
-/// The white-noise gain of the filter: the sd of the filtered series per unit sd of
-/// independent values, at the middle of `n` epochs.
-pub(super) fn white_noise_gain(sections: &[filter::Section], n: usize) -> f64 {
-    let mut x = vec![0.0; n];
-    x[n / 2] = 1.0;
-    let y = filter::filtfilt_pivoted(sections, &x, 0, 1);
-    y.iter().map(|v| v * v).sum::<f64>().sqrt()
-}
-
 /// The down gravity disturbance along `s`, filtered with cut-off period `filter_s`, tied
 /// to `ties` (those inside the stretch).
 ///
@@ -296,10 +380,10 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
     let pad = padding(filter_s, dt);
     let pivot = ((filter_s / dt).round() as usize).min(n);
     let mut filtered = filtered(s, &sections, &out, (pad, pivot), dt);
-    let position_gain = position_noise_gain(&sections, n, n / 2, dt) * 1e5;
-    out.sigma_positions_mgal = s.sd_up_m.iter().map(|sd| sd * position_gain).collect();
-    let noise_gain = white_noise_gain(&sections, n);
-    out.sigma_noise_mgal = s.noise_f_mgal.iter().map(|sd| sd * noise_gain).collect();
+    let reach = reach(filter_s, dt);
+    let heights: Vec<f64> = s.sd_up_m.iter().map(|sd| sd * 1e5).collect();
+    out.sigma_positions_mgal = propagated_sd(&row(&sections, reach, Some(dt)), &heights);
+    out.sigma_noise_mgal = scaled(&row(&sections, reach, None), &s.noise_f_mgal);
     let random: Vec<f64> = (0..n)
         .map(|k| out.sigma_positions_mgal[k].hypot(out.sigma_noise_mgal[k]))
         .collect();
@@ -510,4 +594,70 @@ fn line(points: &[(i64, f64, f64)]) -> Option<Drift> {
         covariance_mgal2_per_h: -sx / det,
         ties_used: points.len(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sections() -> Vec<filter::Section> {
+        filter::butterworth(filter::ORDER, 1.0 / 100.0, 10.0).expect("filter")
+    }
+
+    /// The row's reach holds its energy: the gain over four filter periods either side is
+    /// the gain over a stretch five times longer.
+    #[test]
+    fn the_trimmed_rows_reach() {
+        let reach = reach(100.0, 0.1);
+        let p = trimmed(&row(&sections(), reach, Some(0.1))).len() / 2;
+        let f = trimmed(&row(&sections(), reach, None)).len() / 2;
+        eprintln!("trimmed reach: positions {p}, filter {f} of {reach}");
+        assert!(p < reach && f < reach);
+    }
+
+    #[test]
+    fn the_row_reaches_far_enough() {
+        let reach = reach(100.0, 0.1);
+        for dt in [None, Some(0.1)] {
+            let short = row(&sections(), reach, dt);
+            let long = row(&sections(), 5 * reach, dt);
+            let norm = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>().sqrt();
+            assert!(
+                (norm(&short) / norm(&long) - 1.0).abs() < 1e-9,
+                "{dt:?} {}",
+                norm(&short) / norm(&long) - 1.0
+            );
+        }
+    }
+
+    /// An epoch's sd spreads as its error does: with one epoch 100 times noisier, the sd
+    /// at each epoch is the brute-force sum over the row, and a constant sd gives the
+    /// gain times it.
+    #[test]
+    fn an_epochs_sd_spreads_over_the_rows_reach() {
+        let r = row(&sections(), reach(100.0, 0.1), Some(0.1));
+        let n = 20_000;
+        let mut sd = vec![0.02; n];
+        let flat = propagated_sd(&r, &sd);
+        let gain = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(flat.iter().all(|v| (v / (0.02 * gain) - 1.0).abs() < 1e-12));
+        sd[10_000] = 2.0;
+        let got = propagated_sd(&r, &sd);
+        let reach = r.len() / 2;
+        for k in [10_000, 10_050, 10_300, 11_000, 13_000, 500] {
+            let brute: f64 = (0..n)
+                .filter(|&j| j + reach >= k && j <= k + reach)
+                .map(|j| (r[j + reach - k] * sd[j]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let want = if k.abs_diff(10_000) > reach {
+                0.02 * gain
+            } else {
+                brute
+            };
+            assert!((got[k] / want - 1.0).abs() < 1e-9, "{k}: {} {want}", got[k]);
+        }
+        // Near the spike the sigma is far above the quiet epochs'.
+        assert!(got[10_050] > 2.0 * flat[10_050], "{}", got[10_050]);
+    }
 }
