@@ -773,13 +773,7 @@ fn monte_carlo_of_north_and_east_with_attitude() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (mut down_z2, mut horizontal_z2, mut n) = (0.0, 0.0, 0.0);
     for seed in 1..=8u64 {
-        let plan = fixtures::survey_lines::LinesPlan {
-            seed,
-            ..fixtures::survey_lines::attitude_plan()
-        };
-        let dataset = dir.path().join(format!("rolling-{seed}"));
-        fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
-        let out = dir.path().join(format!("out-{seed}"));
+        let (_, dataset, out) = replica(dir.path(), fixtures::survey_lines::attitude_plan(), seed);
         let r = args(&dataset).run(&out).expect("gravity");
         let (_, z) = scores(&dataset, &out, r.filter.filter_s);
         let [north, east] = horizontal_scores(&dataset, &out, r.filter.filter_s);
@@ -803,6 +797,19 @@ fn monte_carlo_of_north_and_east_with_attitude() {
     );
 }
 
+/// Replica `seed` of `plan` (its noise drawn again) written under `dir`: the plan, the
+/// dataset and its output folder.
+fn replica(
+    dir: &Path,
+    plan: fixtures::survey_lines::LinesPlan,
+    seed: u64,
+) -> (fixtures::survey_lines::LinesPlan, PathBuf, PathBuf) {
+    let plan = fixtures::survey_lines::LinesPlan { seed, ..plan };
+    let dataset = dir.join(format!("replica-{seed}"));
+    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("replica");
+    (plan, dataset, dir.join(format!("out-{seed}")))
+}
+
 /// The sigma over replicas: the boat survey with other noise (8 seeds: the positions' and the
 /// triad's), reduced; the pooled rms of error / sigma over the epochs not at an edge.
 #[test]
@@ -810,13 +817,7 @@ fn monte_carlo_of_the_boat_sigmas() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (mut sum_z2, mut sum_e2, mut n, mut crossing_z2) = (0.0, 0.0, 0.0, 0.0);
     for seed in 1..=8u64 {
-        let plan = fixtures::survey_lines::LinesPlan {
-            seed,
-            ..fixtures::survey_lines::plan()
-        };
-        let dataset = dir.path().join(format!("boat-{seed}"));
-        fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
-        let out = dir.path().join(format!("out-{seed}"));
+        let (plan, dataset, out) = replica(dir.path(), fixtures::survey_lines::plan(), seed);
         let r = args(&dataset).run(&out).expect("gravity");
         let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
         eprintln!("seed {seed}: rms error {rms:.3} mGal, rms z {z:.3}");
@@ -924,13 +925,7 @@ fn a_vertical_axis_calibrated_on_a_tilt_table_is_recovered_within_its_sigmas() {
     };
     let (mut sum_z2, mut sum_e2, mut n) = (0.0, 0.0, 0.0);
     for seed in 1..=8u64 {
-        let plan = fixtures::survey_lines::LinesPlan {
-            seed,
-            ..fixtures::survey_lines::vertical_plan()
-        };
-        let dataset = dir.path().join(format!("levelled-{seed}"));
-        fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("levelled survey");
-        let out = dir.path().join(format!("out-{seed}"));
+        let (_, dataset, out) = replica(dir.path(), fixtures::survey_lines::vertical_plan(), seed);
         let r = axis(&dataset, "acc3").run(&out).expect("gravity");
         let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
         let s = &r.sessions[0];

@@ -1189,6 +1189,68 @@ impl GravityArgs {
     }
 }
 
+/// One session's lines of the summary: its epochs, the positions' noise, the lines and
+/// samples set aside, each stretch's tie.
+fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
+    let dropped: Vec<String> = s.dropped.iter().map(|(k, n)| format!("{n} {k}")).collect();
+    let _ = writeln!(
+        w,
+        "gravity: {}: {} of {} epochs used, {} stretch(es), {} gap(s){}",
+        s.id,
+        s.epochs_used,
+        s.epochs_read,
+        s.stretches.len(),
+        s.gaps,
+        if dropped.is_empty() {
+            String::new()
+        } else {
+            format!("; dropped: {}", dropped.join(", "))
+        }
+    );
+    let [n, e, u] = s.position_noise_m.map(|v| v * 100.0);
+    let given = s.position_sd_given_m.map_or_else(
+        || "the trajectory gives no sd".to_owned(),
+        |g| {
+            let [gn, ge, gu] = g.map(|v| v * 100.0);
+            format!("the trajectory's own median {gn:.2}, {ge:.2}, {gu:.2} cm")
+        },
+    );
+    let _ = writeln!(
+        w,
+        "gravity: {}: positions' white noise north, east, up {n:.2}, {e:.2}, {u:.2} cm \
+         (their third differences); {given}",
+        s.id
+    );
+    for b in &s.bad_lines {
+        let _ = writeln!(w, "gravity: {}: set aside: {b}", s.id);
+    }
+    if !s.attitude_dropped.is_empty() {
+        let d: Vec<String> = s
+            .attitude_dropped
+            .iter()
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
+        let _ = writeln!(
+            w,
+            "gravity: {}: attitude samples dropped by the time gate: {}",
+            s.id,
+            d.join(", ")
+        );
+    }
+    for st in &s.stretches {
+        let drift = st.drift.as_ref().map_or_else(
+            || "untied (the calibration's level)".to_owned(),
+            |d| {
+                format!(
+                    "{} tie(s): offset {:.3} +/- {:.3} mGal, drift {:.3} mGal/h",
+                    d.ties, d.offset_mgal, d.sigma_offset_mgal, d.rate_mgal_per_h
+                )
+            },
+        );
+        let _ = writeln!(w, "gravity:   {} to {}: {}", st.first, st.last, drift);
+    }
+}
+
 /// A few lines: per session the epochs used and dropped, the stretches and their ties, the
 /// filter's resolution.
 pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
@@ -1199,63 +1261,7 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
         r.rows_written, f.filter_s, f.resolution_m, f.median_speed_m_s
     );
     for s in &r.sessions {
-        let dropped: Vec<String> = s.dropped.iter().map(|(k, n)| format!("{n} {k}")).collect();
-        let _ = writeln!(
-            w,
-            "gravity: {}: {} of {} epochs used, {} stretch(es), {} gap(s){}",
-            s.id,
-            s.epochs_used,
-            s.epochs_read,
-            s.stretches.len(),
-            s.gaps,
-            if dropped.is_empty() {
-                String::new()
-            } else {
-                format!("; dropped: {}", dropped.join(", "))
-            }
-        );
-        let [n, e, u] = s.position_noise_m.map(|v| v * 100.0);
-        let given = s.position_sd_given_m.map_or_else(
-            || "the trajectory gives no sd".to_owned(),
-            |g| {
-                let [gn, ge, gu] = g.map(|v| v * 100.0);
-                format!("the trajectory's own median {gn:.2}, {ge:.2}, {gu:.2} cm")
-            },
-        );
-        let _ = writeln!(
-            w,
-            "gravity: {}: positions' white noise north, east, up {n:.2}, {e:.2}, {u:.2} cm \
-             (their third differences); {given}",
-            s.id
-        );
-        for b in &s.bad_lines {
-            let _ = writeln!(w, "gravity: {}: set aside: {b}", s.id);
-        }
-        if !s.attitude_dropped.is_empty() {
-            let d: Vec<String> = s
-                .attitude_dropped
-                .iter()
-                .map(|(k, n)| format!("{n} {k}"))
-                .collect();
-            let _ = writeln!(
-                w,
-                "gravity: {}: attitude samples dropped by the time gate: {}",
-                s.id,
-                d.join(", ")
-            );
-        }
-        for st in &s.stretches {
-            let drift = st.drift.as_ref().map_or_else(
-                || "untied (the calibration's level)".to_owned(),
-                |d| {
-                    format!(
-                        "{} tie(s): offset {:.3} +/- {:.3} mGal, drift {:.3} mGal/h",
-                        d.ties, d.offset_mgal, d.sigma_offset_mgal, d.rate_mgal_per_h
-                    )
-                },
-            );
-            let _ = writeln!(w, "gravity:   {} to {}: {}", st.first, st.last, drift);
-        }
+        print_session(s, w);
     }
     for n in &r.not_reduced {
         let _ = writeln!(w, "gravity: {}: not reduced: {}", n.session, n.why);
