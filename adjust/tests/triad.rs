@@ -377,6 +377,18 @@ fn the_committed_lab_session_calibrates_the_triad() {
     ] {
         assert_eq!(got.to_bits(), want.to_bits(), "{got} vs {want}");
     }
+    // A scale damaged to 1e300 would make every applied vector inf (and the gravity
+    // stage's every value NaN): refused where the function is meant to be used, as an
+    // axis function's is.
+    use adjust::apply::triad_stream::TriadFunction;
+    TriadFunction::new(r).expect("the real result applies");
+    let mut bad = r.clone();
+    bad.parameters[3].value = 1e300;
+    let e = TriadFunction::new(&bad).err().expect("overflowing scale");
+    assert!(
+        e.contains("triad") && e.contains("overflow the arithmetic"),
+        "{e}"
+    );
 }
 
 /// imu_tk's ASCII layout at 200 Hz in m/s^2 with 10 ms stamps, no header, 36 positions

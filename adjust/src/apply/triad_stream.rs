@@ -72,14 +72,48 @@ impl TriadFunction {
                 r.parameters[i].sigma * r.parameters[j].sigma * r.correlation[i][j]
             })
             .collect();
-        Ok(TriadFunction {
+        let f = TriadFunction {
             model,
             p,
             cov,
             range: r.readings_range,
             t_ref_c,
             temperature_range_c: r.temperature_range_c,
-        })
+        };
+        f.finite_where_used()
+            .map_err(|e| format!("triad {}: {e}", r.model))?;
+        Ok(f)
+    }
+
+    /// Where the calibration is meant to be used (the corners of its readings' and
+    /// temperatures' ranges, or the biases without them), its vector and covariance must be
+    /// numbers, as an axis function's must.
+    fn finite_where_used(&self) -> Result<(), String> {
+        let corners: Vec<[f64; 3]> = match self.range {
+            Some(rg) => (0..8)
+                .map(|c| std::array::from_fn(|j| rg[j][(c >> j) & 1]))
+                .collect(),
+            None => vec![std::array::from_fn(|j| self.p[6 + j])],
+        };
+        let temperatures: Vec<Option<[f64; 3]>> =
+            match (self.model.temperature, self.temperature_range_c) {
+                (false, _) => vec![None],
+                (true, Some([lo, hi])) => vec![Some([lo; 3]), Some([hi; 3])],
+                (true, None) => vec![Some([self.t_ref_c; 3])],
+            };
+        for x in &corners {
+            for &t in &temperatures {
+                let (v, _) = self.apply(*x, t);
+                let finite = v.is_some_and(|(a, c)| a.iter().chain(&c).all(|x| x.is_finite()));
+                if !finite {
+                    return Err(format!(
+                        "at readings {x:?} the function gives no finite vector and \
+                         covariance: its parameters overflow the arithmetic"
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The readings the function maps to the vector `a` (Newton's method on the model, from
