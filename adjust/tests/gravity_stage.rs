@@ -705,6 +705,18 @@ fn a_stage_that_would_reduce_nothing_or_the_wrong_thing_is_refused() {
         e.contains("the tie at 2026-06-10T07:20:00.000Z: the vehicle moves at 5.0 m/s"),
         "{e}"
     );
+    // A tie's gravity 3000 mGal off normal gravity there (a digit mistyped): another
+    // place's.
+    let (_dir, dataset, out) =
+        edited(|m| m.replacen("g_mgal = 980444.809", "g_mgal = 983444.809", 1));
+    let e = args(&dataset)
+        .run(&out)
+        .expect_err("tie far off")
+        .to_string();
+    assert!(
+        e.contains("the tie at 2026-06-10T07:03:20.000Z: its 983444.809 mGal is 3003 mGal"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -388,7 +388,7 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
         .map(|k| out.sigma_positions_mgal[k].hypot(out.sigma_noise_mgal[k]))
         .collect();
     still(ties, s, dt)?;
-    let drift = tie(s, &filtered, &out.normal_mgal, ties, (&sections, dt, pad));
+    let drift = tie(s, &filtered, &out.normal_mgal, ties, (&sections, dt, pad))?;
     let t = &s.time_gps_ns;
     let mut calibration = filter::filtfilt_pivoted(&sections, &s.sigma_f_mgal, pad, pivot);
     out.sigma_tie_mgal = vec![0.0; n];
@@ -494,7 +494,7 @@ fn tie(
     gamma: &[f64],
     ties: &[Tie],
     filter: (&[filter::Section], f64, usize),
-) -> Option<Drift> {
+) -> Result<Option<Drift>, GravityError> {
     let t = &s.time_gps_ns;
     let mut points = Vec::new();
     for tie in ties {
@@ -506,15 +506,33 @@ fn tie(
             continue;
         }
         let n = idx.len() as f64;
-        let mean = idx
-            .iter()
-            .map(|&k| filtered[k] - (tie.g_mgal - gamma[k]))
-            .sum::<f64>()
-            / n;
+        let disturbance = idx.iter().map(|&k| tie.g_mgal - gamma[k]).sum::<f64>() / n;
+        if disturbance.abs() > MAX_DISTURBANCE_MGAL {
+            let k = idx[idx.len() / 2];
+            return Err(GravityError::Refused {
+                message: format!(
+                    "the tie at {}: its {} mGal is {disturbance:.0} mGal from normal gravity \
+                     where the track is then ({:.5}, {:.5} deg, {:.1} m), beyond any \
+                     disturbance on the Earth ({MAX_DISTURBANCE_MGAL} mGal): is it this \
+                     place's gravity, and the trajectory's position?",
+                    ingest::time::utc_iso(tie.time_gps_ns),
+                    tie.g_mgal,
+                    s.latitude_deg[k],
+                    s.longitude_deg[k],
+                    s.height_m[k]
+                ),
+            });
+        }
+        let mean = idx.iter().map(|&k| filtered[k]).sum::<f64>() / n - disturbance;
         points.push((tie.time_gps_ns, mean, window_mean_sd(s, &idx, filter)));
     }
-    line(&points)
+    Ok(line(&points))
 }
+
+/// The largest gravity disturbance a tie may claim, mGal: free-air disturbances on the
+/// Earth stay within a few hundred mGal; a tie farther from normal gravity belongs to
+/// another place (or the trajectory does).
+pub const MAX_DISTURBANCE_MGAL: f64 = 1000.0;
 
 /// The sd of the filtered disturbance's mean over the epochs `window` (in order, without a
 /// gap), mGal, from the positions' and the accelerometers' white noise, each through its

@@ -344,6 +344,28 @@ fn tied_calibration(
     })
 }
 
+/// A stretch's filtered values and sigmas are numbers: one that is not (inputs at the edge
+/// of the arithmetic: a pole, a calibration extrapolated beyond its range) stops the run
+/// naming the epoch, rather than a NaN written as a result.
+fn numbers_only(s: &Stretch, r: &Reduced) -> Result<(), GravityError> {
+    let bad = (0..s.time_gps_ns.len())
+        .find(|&k| !(r.filtered_mgal[k].is_finite() && r.sigma_mgal[k].is_finite()));
+    match bad {
+        None => Ok(()),
+        Some(k) => Err(GravityError::Refused {
+            message: format!(
+                "at {} (latitude {} deg, specific force down {} mGal) the reduction gives \
+                 {} +/- {} mGal, not a number",
+                utc_iso(s.time_gps_ns[k]),
+                s.latitude_deg[k],
+                s.f_down_mgal[k],
+                r.filtered_mgal[k],
+                r.sigma_mgal[k]
+            ),
+        }),
+    }
+}
+
 /// For gravity.json: how f_D was formed.
 fn describe(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> String {
     let with: Vec<&str> = tracks
@@ -661,6 +683,7 @@ fn reduce_track(
             }
             Err(e) => return Err(e),
         };
+        numbers_only(&s, &r)?;
         // Its gradients (one series per parameter) served the reduction alone.
         s.calibration_tied = None;
         let number = summary.stretches.len() as u32;
