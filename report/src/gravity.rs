@@ -47,6 +47,9 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
     let epochs = read(&table)?;
     let mut s = section("Gravity along the track");
     s.text.push(summary(&r));
+    for n in &r.not_reduced {
+        s.text.push(format!("Session {} was not reduced: {}.", n.session, n.why));
+    }
     s.tables.push(("What was reduced".to_owned(), reduced(&r)));
     s.tables
         .push(("Ties and drift, per stretch".to_owned(), ties(&r)));
