@@ -233,7 +233,17 @@ impl Plan {
                     format!("duplicate id `{}`", s.id),
                 ));
             }
-            finite(format!("session[{i}].temperature_c"), s.temperature_c)?;
+            let t = ingest::labstream::TEMPERATURE_LIMITS;
+            if !(t.lo..=t.hi).contains(&s.temperature_c) {
+                return Err(bad(
+                    format!("session[{i}].temperature_c"),
+                    format!(
+                        "{} is not a temperature a session is read at (every log's readings \
+                         lie in [{}, {}] degC)",
+                        s.temperature_c, t.lo, t.hi
+                    ),
+                ));
+            }
             finite(format!("session[{i}].roll_deg"), s.roll_deg)?;
             let stations = s.tilts(i)?.len();
             if !(1..=MAX_PER_SESSION).contains(&s.readings_per_station) {

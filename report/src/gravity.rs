@@ -48,7 +48,8 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
     let mut s = section("Gravity along the track");
     s.text.push(summary(&r));
     for n in &r.not_reduced {
-        s.text.push(format!("Session {} was not reduced: {}.", n.session, n.why));
+        s.text
+            .push(format!("Session {} was not reduced: {}.", n.session, n.why));
     }
     s.tables.push(("What was reduced".to_owned(), reduced(&r)));
     s.tables

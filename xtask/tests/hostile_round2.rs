@@ -368,6 +368,10 @@ fn the_planner_is_validated_like_a_manifest() {
             plan.replacen("id = \"day1\"", "id = \"all\"", 1),
             "reserved",
         ),
+        (
+            plan.replacen("temperature_c = 31.0", "temperature_c = 3100.0", 1),
+            "session[1].temperature_c: 3100 is not a temperature",
+        ),
     ];
     for (text, says) in cases {
         assert_ne!(text, plan, "the case changed the plan ({says})");
