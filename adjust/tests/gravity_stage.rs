@@ -368,19 +368,23 @@ fn with_attitude_north_and_east_are_within_their_sigmas() {
     }
 }
 
-/// Two minutes of attitude lost under way: the epochs without one dropped by name, the
-/// track cut there; an attitude file of another day: nothing reduced, said so.
+/// The rolling boat written under `dir`: the dataset and its attitude file's text.
+fn rolling_boat(dir: &Path) -> (PathBuf, PathBuf, String) {
+    let dataset = dir.join("rolling");
+    let plan = fixtures::survey_lines::attitude_plan();
+    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+    let att = dataset.join("raw/lines_att.csv");
+    let text = std::fs::read_to_string(&att).expect("attitude");
+    (dataset, att, text)
+}
+
 /// An attitude file without sds: north and east are given, but their sigmas (and attitude
 /// parts) are null, since the attitude's error, their largest part, is not known; each
 /// epoch is flagged `attitude_sd_unknown`.
 #[test]
 fn without_attitude_sds_north_and_east_have_no_sigma() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let dataset = dir.path().join("attitude");
-    let plan = fixtures::survey_lines::attitude_plan();
-    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
-    let att = dataset.join("raw/lines_att.csv");
-    let text = std::fs::read_to_string(&att).expect("attitude");
+    let (dataset, att, text) = rolling_boat(dir.path());
     let stripped: String = text
         .lines()
         .map(|l| l.splitn(5, ',').take(4).collect::<Vec<_>>().join(",") + "\n")
@@ -415,14 +419,12 @@ fn without_attitude_sds_north_and_east_have_no_sigma() {
     assert_eq!(counts, [n, 0, n, 0], "non-null values of {names:?}");
 }
 
+/// Two minutes of attitude lost under way: the epochs without one dropped by name, the
+/// track cut there; an attitude file of another day: nothing reduced, said so.
 #[test]
 fn epochs_without_attitude_are_dropped_by_name() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let dataset = dir.path().join("rolling");
-    let plan = fixtures::survey_lines::attitude_plan();
-    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
-    let att = dataset.join("raw/lines_att.csv");
-    let text = std::fs::read_to_string(&att).expect("attitude");
+    let (dataset, att, text) = rolling_boat(dir.path());
     let kept: Vec<&str> = text
         .lines()
         .enumerate()
