@@ -695,30 +695,25 @@ fn a_stage_that_would_reduce_nothing_or_the_wrong_thing_is_refused() {
         .expect_err("a triad has no axis to choose")
         .to_string();
     assert!(e.contains("--accelerometer") && e.contains("triad"), "{e}");
-    // A tie whose time falls under way (mistyped): it would move the whole stretch to the
-    // gravity of another place.
-    let (_dir, dataset, out) =
-        edited(|m| m.replacen("2026-06-10T07:03:20.000Z", "2026-06-10T07:20:00.000Z", 1));
-    let e = args(&dataset)
-        .run(&out)
-        .expect_err("moving tie")
-        .to_string();
-    assert!(
-        e.contains("the tie at 2026-06-10T07:20:00.000Z: the vehicle moves at 5.0 m/s"),
-        "{e}"
-    );
-    // A tie's gravity 3000 mGal off normal gravity there (a digit mistyped): another
-    // place's.
-    let (_dir, dataset, out) =
-        edited(|m| m.replacen("g_mgal = 980444.809", "g_mgal = 983444.809", 1));
-    let e = args(&dataset)
-        .run(&out)
-        .expect_err("tie far off")
-        .to_string();
-    assert!(
-        e.contains("the tie at 2026-06-10T07:03:20.000Z: its 983444.809 mGal is 3003 mGal"),
-        "{e}"
-    );
+    // Ties no place along the track can have: one whose time falls under way (mistyped),
+    // one whose gravity is 3000 mGal off normal gravity there (a digit mistyped). Either
+    // would move the whole stretch to the gravity of another place.
+    for (from, to, says) in [
+        (
+            "2026-06-10T07:03:20.000Z",
+            "2026-06-10T07:20:00.000Z",
+            "the tie at 2026-06-10T07:20:00.000Z: the vehicle moves at 5.0 m/s",
+        ),
+        (
+            "g_mgal = 980444.809",
+            "g_mgal = 983444.809",
+            "the tie at 2026-06-10T07:03:20.000Z: its 983444.809 mGal is 3003 mGal",
+        ),
+    ] {
+        let (_dir, dataset, out) = edited(|m| m.replacen(from, to, 1));
+        let e = args(&dataset).run(&out).expect_err(says).to_string();
+        assert!(e.contains(says), "{e}");
+    }
 }
 
 #[test]

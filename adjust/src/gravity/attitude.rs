@@ -124,9 +124,7 @@ impl Sink<usize> for Kept<'_> {
 
 /// `read`'s samples through ingest's time gate at their median interval.
 fn gated(read: Attitude, lines: &[u64], range_ns: (i64, i64)) -> Attitude {
-    let mut d: Vec<i64> = read.time_gps_ns.windows(2).map(|w| w[1] - w[0]).collect();
-    d.sort_unstable();
-    let interval_ns = d.get(d.len() / 2).copied().unwrap_or(1_000_000_000);
+    let interval_ns = super::reduce::median_step_ns(&read.time_gps_ns).unwrap_or(1_000_000_000);
     let mut gate = TimeGate::new(interval_ns, range_ns);
     let mut kept = Kept {
         read: &read,
@@ -212,9 +210,7 @@ impl Attitude {
     /// twice their median interval apart.
     pub fn at(&self, times: &[i64]) -> Vec<Option<AttitudeAt>> {
         let t = &self.time_gps_ns;
-        let mut d: Vec<i64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-        d.sort_unstable();
-        let max_gap = 2 * d.get(d.len() / 2).copied().unwrap_or(0);
+        let max_gap = 2 * super::reduce::median_step_ns(t).unwrap_or(0);
         let mut k = 0;
         times
             .iter()

@@ -181,8 +181,8 @@ pub(super) fn interval_s(t: &[i64]) -> Result<f64, GravityError> {
 }
 
 /// How far either side a filter's row reaches, in epochs: six filter periods, beyond which
-/// its response (and the second difference's) holds under 1e-9 of its norm (four leave
-/// 1.6e-8 of the filter's; `the_row_reaches_far_enough`).
+/// its response (and the second difference's) holds under 1e-9 of its norm
+/// (`the_row_reaches_far_enough`).
 pub(super) fn reach(filter_s: f64, dt: f64) -> usize {
     (6.0 * filter_s / dt).ceil() as usize
 }
@@ -213,7 +213,6 @@ pub(super) fn row(sections: &[filter::Section], reach: usize, dt: Option<f64>) -
 /// so that an epoch's sd spreads as its error does: O(reach) an epoch there.
 pub(super) fn propagated_sd(row: &[f64], sd: &[f64]) -> Vec<f64> {
     let n = sd.len();
-    let row = trimmed(row);
     let reach = row.len() / 2;
     let gain = row.iter().map(|v| v * v).sum::<f64>().sqrt();
     let (lo, hi) = sliding_min_max(sd, reach);
@@ -241,23 +240,6 @@ pub(super) fn propagated_sd(row: &[f64], sd: &[f64]) -> Vec<f64> {
 pub(super) fn scaled(row: &[f64], sd: &[f64]) -> Vec<f64> {
     let gain = row.iter().map(|v| v * v).sum::<f64>().sqrt();
     sd.iter().map(|v| v * gain).collect()
-}
-
-/// `row` without its tails' last 1e-12 of the energy (a relative 5e-13 of the sd; the
-/// IIR filter's rows decay slowly, so this trims little: `the_trimmed_rows_reach`).
-fn trimmed(row: &[f64]) -> &[f64] {
-    let reach = row.len() / 2;
-    let total: f64 = row.iter().map(|v| v * v).sum();
-    let mut tail = 0.0;
-    let mut keep = reach;
-    for m in (1..=reach).rev() {
-        tail += row[reach - m].powi(2) + row[reach + m].powi(2);
-        if tail > 1e-12 * total {
-            break;
-        }
-        keep = m - 1;
-    }
-    &row[reach - keep..=reach + keep]
 }
 
 /// The least and greatest of `x` within `reach` of each index (monotone queues).
@@ -432,6 +414,25 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
     Ok(out)
 }
 
+/// The median step between `times`, ns (None for fewer than two).
+pub(super) fn median_step_ns(times: &[i64]) -> Option<i64> {
+    let mut d: Vec<i64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_unstable();
+    d.get(d.len() / 2).copied()
+}
+
+/// The track's displacement north and east from epoch `a` to `b`, m, on a sphere of
+/// 6371 km at epoch `at`'s latitude (ample for a speed or a course over a few seconds).
+pub(super) fn displacement_ne_m(s: &Stretch, (a, b): (usize, usize), at: usize) -> [f64; 2] {
+    let r = 6.371e6;
+    [
+        (s.latitude_deg[b] - s.latitude_deg[a]).to_radians() * r,
+        (s.longitude_deg[b] - s.longitude_deg[a]).to_radians()
+            * r
+            * s.latitude_deg[at].to_radians().cos(),
+    ]
+}
+
 /// The speed below which a tie's window counts as still, m/s (its epochs' median).
 pub const STILL_M_S: f64 = 0.5;
 
@@ -446,10 +447,7 @@ fn still(ties: &[Tie], s: &Stretch, dt: f64) -> Result<(), GravityError> {
     let w = ((5.0 / dt).round() as usize).max(1);
     let speed = |k: usize| {
         let (a, b) = (k.saturating_sub(w), (k + w).min(n - 1));
-        let north = (s.latitude_deg[b] - s.latitude_deg[a]).to_radians() * 6.371e6;
-        let east = (s.longitude_deg[b] - s.longitude_deg[a]).to_radians()
-            * 6.371e6
-            * s.latitude_deg[k].to_radians().cos();
+        let [north, east] = displacement_ne_m(s, (a, b), k);
         north.hypot(east) / ((b - a).max(1) as f64 * dt)
     };
     for tie in ties {
@@ -624,15 +622,6 @@ mod tests {
 
     /// The row's reach holds its energy: the gain over four filter periods either side is
     /// the gain over a stretch five times longer.
-    #[test]
-    fn the_trimmed_rows_reach() {
-        let reach = reach(100.0, 0.1);
-        let p = trimmed(&row(&sections(), reach, Some(0.1))).len() / 2;
-        let f = trimmed(&row(&sections(), reach, None)).len() / 2;
-        eprintln!("trimmed reach: positions {p}, filter {f} of {reach}");
-        assert!(p < reach && f < reach);
-    }
-
     #[test]
     fn the_row_reaches_far_enough() {
         let reach = reach(100.0, 0.1);

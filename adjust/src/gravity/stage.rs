@@ -609,9 +609,7 @@ fn position_sd_m(track: &Track<'_>, j: usize) -> [f64; 3] {
 
 /// The median interval between `times`, ns (1 s for fewer than two).
 fn median_interval_ns(times: &[i64]) -> i64 {
-    let mut d: Vec<i64> = times.windows(2).map(|w| w[1] - w[0]).collect();
-    d.sort_unstable();
-    d.get(d.len() / 2).copied().unwrap_or(1_000_000_000)
+    reduce::median_step_ns(times).unwrap_or(1_000_000_000)
 }
 
 /// What every track's reduction shares.
@@ -941,9 +939,8 @@ fn turning(s: &Stretch, speed: &[f64]) -> Vec<bool> {
     let dt = (s.time_gps_ns[n - 1] - s.time_gps_ns[0]) as f64 * 1e-9 / (n - 1) as f64;
     let w = ((5.0 / dt).round() as usize).max(1);
     let course = |k: usize| {
-        let (a, b) = (k.saturating_sub(w), (k + w).min(n - 1));
-        let north = s.latitude_deg[b] - s.latitude_deg[a];
-        let east = (s.longitude_deg[b] - s.longitude_deg[a]) * s.latitude_deg[k].to_radians().cos();
+        let [north, east] =
+            reduce::displacement_ne_m(s, (k.saturating_sub(w), (k + w).min(n - 1)), k);
         east.atan2(north)
     };
     (0..n)
