@@ -350,9 +350,10 @@ fn text(rel: String, head: &str, tail: &str) -> Result<Found> {
             _ => ingest::time::parse_seconds_ns(f.first()?.as_bytes()),
         }
     };
+    let skip = form.fields();
+    well_formed(first, skip, time_of(first).is_some())?;
     let times: Vec<i64> = lines.iter().filter_map(time_of).collect();
     let last = tail_lines.iter().filter_map(time_of).next_back();
-    let skip = form.fields();
     let values: Vec<&str> = lines
         .iter()
         .flat_map(|f| f.iter().skip(skip).copied())
@@ -389,6 +390,50 @@ fn text(rel: String, head: &str, tail: &str) -> Result<Found> {
         comments,
         magnitude,
     })
+}
+
+/// Whether a text's first data line (`fields`) is one a log writes: a time that reads in
+/// its form (`time_read`), then at least one reading, each a number, `nan` or empty (a
+/// channel not connected). Anything else (random bytes, one long field, a table of words)
+/// is no log, and is left out with the reason rather than drafted as one of no channel.
+fn well_formed(fields: &[&str], skip: usize, time_read: bool) -> Result<()> {
+    let shown = || {
+        // Control characters (random bytes) shown as the replacement character.
+        let line: String = fields
+            .join(",")
+            .chars()
+            .map(|c| if c.is_control() { '\u{fffd}' } else { c })
+            .collect();
+        let cut: String = line.chars().take(60).collect();
+        if cut.len() < line.len() {
+            format!("{cut}...")
+        } else {
+            cut
+        }
+    };
+    if !time_read {
+        bail!("no time in its first data line (`{}`)", shown());
+    }
+    if fields.len() <= skip {
+        bail!(
+            "no reading after the time in its first data line (`{}`)",
+            shown()
+        );
+    }
+    if let Some((k, v)) = fields
+        .iter()
+        .enumerate()
+        .skip(skip)
+        .find(|(_, v)| !v.is_empty() && v.parse::<f64>().is_err())
+    {
+        bail!(
+            "field {} of its first data line, `{}`, is not a number (`{}`)",
+            k + 1,
+            v.chars().take(20).collect::<String>(),
+            shown()
+        );
+    }
+    Ok(())
 }
 
 /// A theodolite log (a station's name, then a calendar time, then the reading): its span

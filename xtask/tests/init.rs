@@ -327,3 +327,61 @@ fn the_walkthrough_drafts_and_calibrates_the_lab_fixture() {
         String::from_utf8_lossy(&apply.stderr)
     );
 }
+
+/// Files in raw/ that no logger wrote (random bytes, one long field, a table of words, a
+/// line of times without a reading) are left out, each named with its reason, and the draft
+/// holds the one log beside them: before, random bytes and a line of digits were drafted as
+/// logs of no channel.
+#[test]
+fn what_is_not_a_log_is_left_out_with_its_reason() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("mixed");
+    let raw = ds.join("raw");
+    std::fs::create_dir_all(&raw).expect("raw");
+    let fixture = fixtures::dataset_dir("triad-multipos").join("raw/lab.txt");
+    std::fs::copy(&fixture, raw.join("lab.txt")).expect("copy");
+    // Bytes from a fixed generator: no seed of the test's own to drift.
+    let mut x = 0x2545_f491_4f6c_dd1du64;
+    let bytes: Vec<u8> = (0..100_000)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 32) as u8
+        })
+        .collect();
+    std::fs::write(raw.join("noise.bin"), bytes).expect("noise");
+    std::fs::write(raw.join("digits.csv"), "1".repeat(200_000)).expect("digits");
+    std::fs::write(
+        raw.join("words.csv"),
+        "name,city\nada,london\nemmy,erlangen\n",
+    )
+    .expect("words");
+    std::fs::write(raw.join("times.csv"), "t\n0.0\n0.1\n0.2\n").expect("times");
+    std::fs::write(raw.join("text.csv"), "t,x\n0.0,abc\n0.1,def\n").expect("text");
+    let o = xtask(&["init", ds.to_str().expect("utf-8")]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    for (file, why) in [
+        ("noise.bin", "no time in its first data line"),
+        ("digits.csv", "no time in its first data line (`111111"),
+        ("words.csv", "no time in its first data line (`ada,london`)"),
+        (
+            "times.csv",
+            "no reading after the time in its first data line (`0.0`)",
+        ),
+        (
+            "text.csv",
+            "field 2 of its first data line, `abc`, is not a number",
+        ),
+    ] {
+        assert!(
+            err.lines()
+                .any(|l| l.contains(&format!("raw/{file}: left out: {why}"))),
+            "{file}: {err}"
+        );
+    }
+    let draft = std::fs::read_to_string(ds.join("dataset.toml")).expect("draft");
+    assert_eq!(draft.matches("[[session]]").count(), 1, "{draft}");
+    assert!(draft.contains("adc_csv = \"raw/lab.txt\""), "{draft}");
+}
