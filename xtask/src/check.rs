@@ -89,7 +89,13 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
     let ledger = IngestReport::load(&out.join("ingest"));
     let dataset_dir = ds.dir.display().to_string();
     let scratch_dir = copy.display().to_string();
-    let real = |s: String| s.replace(&scratch_dir, &dataset_dir);
+    let scratch_out = out.display().to_string();
+    // The scratch folders are gone when the user reads this: the dataset's own files are
+    // named, and the ingest's output folder as a run's (OUT).
+    let real = |s: String| {
+        s.replace(&scratch_dir, &dataset_dir)
+            .replace(&scratch_out, "OUT")
+    };
     if let Ok(report) = &ledger {
         let spans = Spans::read(&out.join("ingest"), ds).unwrap_or_default();
         for f in &report.files {
@@ -316,7 +322,9 @@ fn print_file(
         p.map_or("", |p| p.time_form.as_str()),
         f.counts_line()
     )?;
-    if let Some(lab) = &f.lab_stream {
+    // An empty stream has no separator or header to speak of.
+    let lines = f.read + f.comment_blank_or_header_lines.unwrap_or(0);
+    if let Some(lab) = f.lab_stream.as_ref().filter(|_| lines > 0) {
         writeln!(
             w,
             "  lab stream: {}-separated, {}header{}",
@@ -349,9 +357,9 @@ fn print_file(
     {
         writeln!(
             w,
-            "  rate: {} Hz measured{}",
+            "  rate: {} measured{}",
             s.measured_sample_rate_hz
-                .map_or("none".to_owned(), |r| format!("{r:.4}")),
+                .map_or("none".to_owned(), |r| format!("{r:.4} Hz")),
             if s.channels_never_connected.is_empty() {
                 String::new()
             } else {

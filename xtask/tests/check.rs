@@ -71,3 +71,25 @@ fn a_bad_line_in_the_tail_is_named_as_ingest_names_it() {
         "check said\n{out}\ningest said\n{full}"
     );
 }
+
+/// An empty lab stream: check fails, says none was read and no rate measured, and names no
+/// scratch folder (the error named check's own ingest.json, deleted when it returned); it
+/// claims no separator or header for a file without a line.
+#[test]
+fn an_empty_lab_stream_is_refused_without_naming_the_scratch_copy() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("triad");
+    fixtures::copy_dataset("triad-multipos", &ds, |m| m).expect("copy");
+    std::fs::write(ds.join("raw/lab.txt"), "").expect("empty");
+    let o = check(&ds);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(!o.status.success(), "{out}");
+    assert!(out.contains("0 lines read, 0 accepted"), "{out}");
+    assert!(out.contains("rate: none measured"), "{out}");
+    assert!(!out.contains("separated"), "{out}");
+    assert!(
+        out.contains("OUT/ingest/ingest.json: session lab: raw/lab.txt gave no usable"),
+        "{out}"
+    );
+    assert!(!out.contains("gravcal-check-"), "{out}");
+}
