@@ -2,7 +2,9 @@
 //! without Python. The schema first (each column's type and whether it may be null, and the
 //! file's key-value metadata), then the rows: aligned for reading, or CSV (RFC 4180 quoting)
 //! for a spreadsheet. Values are printed as Arrow's display gives them; nulls as empty
-//! fields.
+//! fields. A table whose stage's ledger lies beside it (OUT/<stage>/<stage>.json) is held
+//! to the SHA-256 that ledger recorded: a table changed since is said to be so on stderr
+//! before its rows, and the command then fails, as the next stage would refuse it.
 
 use anyhow::{Context, Result};
 use arrow::array::RecordBatch;
@@ -26,6 +28,24 @@ pub fn show(path: &Path, options: ShowOptions, out: &mut impl Write) -> Result<(
         anyhow::bail!("{}: is a folder, not a Parquet file", path.display());
     }
     let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    let changed = match recorded(path) {
+        Some((ledger, sha256)) => {
+            let now = ingest::contract::custody::sha256_file(path)?;
+            (now != sha256).then(|| {
+                format!(
+                    "{}: is not the table {ledger} recorded (sha256 {} recorded, {} now): its \
+                     bytes changed after the stage wrote it, and the next stage would refuse it",
+                    path.display(),
+                    &sha256[..sha256.len().min(12)],
+                    &now[..12]
+                )
+            })
+        }
+        None => None,
+    };
+    if let Some(why) = &changed {
+        eprintln!("show: {why}");
+    }
     let builder = ParquetRecordBatchReaderBuilder::try_new(file)
         .with_context(|| format!("{}: not a Parquet file", path.display()))?;
     let rows = builder.metadata().file_metadata().num_rows();
@@ -50,6 +70,56 @@ pub fn show(path: &Path, options: ShowOptions, out: &mut impl Write) -> Result<(
             writeln!(out, "# metadata {k}: {v}")?;
         }
     }
+    let result = print_rows(reader, &names, rows, options, path, out);
+    match changed {
+        Some(_) => result.and(Err(anyhow::anyhow!(
+            "{}: the rows shown are not the table its stage wrote (said above)",
+            path.display()
+        ))),
+        None => result,
+    }
+}
+
+/// The ledger beside `path` (a JSON file in its folder) whose custody lists it among the
+/// tables its stage wrote, and the SHA-256 recorded; None when no ledger there lists it (a
+/// table copied elsewhere, or one the pipeline did not write).
+fn recorded(path: &Path) -> Option<(String, String)> {
+    let dir = path.parent()?;
+    let want = format!(
+        "{}/{}",
+        dir.file_name()?.to_str()?,
+        path.file_name()?.to_str()?
+    );
+    let mut ledgers: Vec<_> = std::fs::read_dir(dir)
+        .ok()?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .collect();
+    ledgers.sort();
+    ledgers.into_iter().find_map(|ledger| {
+        let text = std::fs::read_to_string(&ledger).ok()?;
+        let mut v: serde_json::Value = serde_json::from_str(&text).ok()?;
+        let custody: ingest::contract::custody::Custody =
+            serde_json::from_value(v.get_mut("custody")?.take()).ok()?;
+        let entry = custody.outputs.into_iter().find(|f| f.path == want)?;
+        Some((
+            ledger.file_name()?.to_string_lossy().into_owned(),
+            entry.sha256,
+        ))
+    })
+}
+
+/// The rows of `reader` (a table of `rows` rows whose columns are `names`), as `options`
+/// says.
+fn print_rows(
+    reader: parquet::arrow::arrow_reader::ParquetRecordBatchReader,
+    names: &[String],
+    rows: i64,
+    options: ShowOptions,
+    path: &Path,
+    out: &mut impl Write,
+) -> Result<()> {
     let limit = options.head.unwrap_or(usize::MAX);
     let mut lines: Vec<Vec<String>> = Vec::new();
     let mut printed = 0usize;
@@ -74,7 +144,7 @@ pub fn show(path: &Path, options: ShowOptions, out: &mut impl Write) -> Result<(
         }
     }
     if !options.csv {
-        write_aligned(out, &names, &lines)?;
+        write_aligned(out, names, &lines)?;
         if (printed as i64) < rows {
             writeln!(
                 out,
@@ -189,5 +259,55 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("1 more rows"), "{text}");
+    }
+
+    /// A table listed by the ledger beside it is held to the SHA-256 recorded there: shown
+    /// when it matches, shown and refused when its bytes changed; a table no ledger lists is
+    /// shown as it is.
+    #[test]
+    fn a_table_changed_since_its_stage_wrote_it_is_refused() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let stage = dir.path().join("ingest");
+        std::fs::create_dir(&stage).expect("stage");
+        let path = stage.join("t.parquet");
+        let batch =
+            RecordBatch::try_from_iter([("x", Arc::new(Float64Array::from(vec![1.5, 2.5])) as _)])
+                .expect("batch");
+        let mut w = parquet::arrow::ArrowWriter::try_new(
+            std::fs::File::create(&path).expect("create"),
+            batch.schema(),
+            None,
+        )
+        .expect("writer");
+        w.write(&batch).expect("write");
+        w.close().expect("close");
+        let ledger = |sha: &str| {
+            let text = serde_json::json!({
+                "custody": {
+                    "inputs": [],
+                    "outputs": [{"root": "out", "path": "ingest/t.parquet", "sha256": sha}],
+                },
+            });
+            std::fs::write(stage.join("ingest.json"), text.to_string()).expect("ledger");
+        };
+        let csv = ShowOptions {
+            csv: true,
+            head: None,
+        };
+        let sha = ingest::contract::custody::sha256_file(&path).expect("sha");
+        ledger(&sha);
+        let mut out = Vec::new();
+        show(&path, csv, &mut out).expect("the recorded table");
+        assert_eq!(String::from_utf8(out).expect("utf-8"), "x\n1.5\n2.5\n");
+        ledger(&"0".repeat(64));
+        let mut out = Vec::new();
+        let err = show(&path, csv, &mut out).expect_err("a changed table");
+        assert!(
+            err.to_string().contains("not the table its stage wrote"),
+            "{err}"
+        );
+        assert_eq!(String::from_utf8(out).expect("utf-8"), "x\n1.5\n2.5\n");
+        std::fs::remove_file(stage.join("ingest.json")).expect("remove");
+        show(&path, csv, &mut Vec::new()).expect("no ledger: shown as it is");
     }
 }
