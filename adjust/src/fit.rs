@@ -198,15 +198,15 @@ fn check_finite(
         .find(|p| !(p.value.is_finite() && p.sigma_apriori.is_finite() && p.sigma_apriori > 0.0))
     {
         return Err(FitError::Overflow(format!(
-            "{} came out as {} with an a-priori sd of {}: the arithmetic over- or \
+            "{} came out as {:e} with an a-priori sd of {:e}: the arithmetic over- or \
              underflowed (x or y too large or too small for their powers); rescale them",
             p.name, p.value, p.sigma_apriori
         )));
     }
     if !(sigma0.is_finite() && residual_sd.is_finite()) {
         return Err(FitError::Overflow(format!(
-            "sigma0 {sigma0}, residual sd {residual_sd}: the arithmetic overflowed; rescale \
-             x and y"
+            "sigma0 {sigma0:e}, residual sd {residual_sd:e}: the arithmetic overflowed; \
+             rescale x and y"
         )));
     }
     Ok(())

@@ -63,6 +63,15 @@ pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
 /// The columns `wanted` (x, y and the optional sigmas, by name) of the CSV table at `path`,
 /// and the file's line of each data row: blank lines and `#` comments skipped, a
 /// byte-order mark dropped, every error naming the file, the line and the column.
+/// A CSV field as written: trimmed, and without the double quotes a spreadsheet puts around
+/// it (a comma inside quotes is not read as one field: the tables fitted hold numbers).
+fn field(f: &str) -> &str {
+    let f = f.trim();
+    f.strip_prefix('"')
+        .and_then(|f| f.strip_suffix('"'))
+        .map_or(f, str::trim)
+}
+
 #[allow(
     clippy::type_complexity,
     reason = "four columns and their rows' lines, once"
@@ -93,16 +102,28 @@ fn read_columns(
         line: None,
         message: "no header line".to_owned(),
     })?;
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
+    let names: Vec<&str> = header.split(',').map(field).collect();
     let index = |name: &str| {
-        names
-            .iter()
-            .position(|n| *n == name)
-            .ok_or_else(|| Error::Fit {
-                path: path.to_path_buf(),
-                line: None,
-                message: format!("no column `{name}` (columns: {})", names.join(", ")),
-            })
+        let bad = |message: String| Error::Fit {
+            path: path.to_path_buf(),
+            line: None,
+            message,
+        };
+        let mut at = names.iter().enumerate().filter(|(_, n)| **n == name);
+        let (first, _) = at.next().ok_or_else(|| {
+            bad(format!(
+                "no column `{name}` (columns: {})",
+                names.join(", ")
+            ))
+        })?;
+        if let Some((second, _)) = at.next() {
+            return Err(bad(format!(
+                "two columns are named `{name}` (columns {} and {}): which one is meant?",
+                first + 1,
+                second + 1
+            )));
+        }
+        Ok(first)
     };
     let cols: Vec<Option<usize>> = wanted
         .iter()
@@ -113,17 +134,24 @@ fn read_columns(
     let mut line_of_row = Vec::new();
     for (n, line) in lines {
         line_of_row.push(n + 1);
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let fields: Vec<&str> = line.split(',').map(field).collect();
         for (k, c) in cols.iter().enumerate() {
             if let Some(c) = c {
-                let v = fields
-                    .get(*c)
-                    .and_then(|f| f.parse::<f64>().ok())
-                    .ok_or_else(|| Error::Fit {
-                        path: path.to_path_buf(),
-                        line: Some(n + 1),
-                        message: format!("{}: not a number", names[*c]),
-                    })?;
+                let bad = |message: String| Error::Fit {
+                    path: path.to_path_buf(),
+                    line: Some(n + 1),
+                    message: format!("{}: {message}", names[*c]),
+                };
+                let f = fields.get(*c).ok_or_else(|| {
+                    bad(format!(
+                        "missing (the line has {} field(s), the header {})",
+                        fields.len(),
+                        names.len()
+                    ))
+                })?;
+                let v = f
+                    .parse::<f64>()
+                    .map_err(|_| bad(format!("`{f}` is not a number")))?;
                 data[k].push(v);
             }
         }

@@ -55,7 +55,46 @@ fn fit_names_a_missing_column_and_a_bad_value() {
     ]);
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(
-        !o.status.success() && e.contains("bad.csv:3: y: not a number"),
+        !o.status.success() && e.contains("bad.csv:3: y: `oops` is not a number"),
         "{e}"
     );
+
+    // A short line names the field missing, a column named twice is refused, a
+    // spreadsheet's quotes are read through, an overflow's figures are printed short.
+    for (text, said) in [
+        (
+            "x,y\n1,2\n2\n3,4\n",
+            "bad.csv:3: y: missing (the line has 1 field(s), the header 2)",
+        ),
+        (
+            "x,y,y\n1,2,3\n2,3,4\n3,4,5\n",
+            "two columns are named `y` (columns 2 and 3)",
+        ),
+        (
+            "x,y\n1e300,2\n2e300,4.1\n3e300,5.9\n",
+            "p1 came out as 1.95e-300 with an a-priori sd of 0e0: the arithmetic",
+        ),
+    ] {
+        std::fs::write(&bad, text).expect("write");
+        let o = fit(&[
+            "--input",
+            bad.to_str().expect("utf-8"),
+            "--x",
+            "x",
+            "--y",
+            "y",
+        ]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && e.contains(said), "{said}: {e}");
+    }
+    std::fs::write(&bad, "\"x\",\"y\"\n\"1\",\"2\"\n2,4.1\n3,5.9\n4,8.2\n").expect("write");
+    let o = fit(&[
+        "--input",
+        bad.to_str().expect("utf-8"),
+        "--x",
+        "x",
+        "--y",
+        "y",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
