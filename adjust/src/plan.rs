@@ -191,6 +191,12 @@ impl Plan {
             "instrument.k_mgal_per_bit".into(),
             self.instrument.k_mgal_per_bit,
         )?;
+        if self.instrument.k_mgal_per_bit == 0.0 {
+            return Err(bad(
+                "instrument.k_mgal_per_bit".into(),
+                "0 is no scale factor: the counts would not move with the acceleration",
+            ));
+        }
         if !(0.01..=10_000.0).contains(&self.instrument.sample_rate_hz) {
             return Err(bad(
                 "instrument.sample_rate_hz".into(),
@@ -337,17 +343,17 @@ impl PlanSession {
     }
 }
 
+/// The largest count any ADC a manifest declares gives (32 bits, the manifest's widest).
+const ADC_COUNTS_MAX: f64 = 2_147_483_648.0;
+
 /// The plan's noise-free observations of one accelerometer, with their session ids: per station,
 /// `readings_per_station` readings with counts from the nominal calibration.
 pub fn observations(plan: &Plan) -> Result<Vec<(String, Obs)>, PlanError> {
     let n_window = (plan.noise.window_s * plan.instrument.sample_rate_hz).max(1.0);
     let sigma_ng = plan.noise.adc_sample_bits / n_window.sqrt();
     let sigma_dz = (plan.noise.theodolite_arcsec / 3600.0).to_radians();
-    if !(sigma_ng > 0.0 && sigma_dz > 0.0 && plan.instrument.k_mgal_per_bit != 0.0) {
-        return Err(bad(
-            "noise".to_owned(),
-            "noise levels and the scale factor must be positive",
-        ));
+    if !(sigma_ng > 0.0 && sigma_dz > 0.0) {
+        return Err(bad("noise".to_owned(), "the noise levels must be positive"));
     }
     let mut out = Vec::new();
     let mut station = 0;
@@ -356,6 +362,18 @@ pub fn observations(plan: &Plan) -> Result<Vec<(String, Obs)>, PlanError> {
             let dz = tilt.to_radians();
             let a = -plan.site.g_mgal * dz.cos();
             let ng = (a - plan.instrument.b_mgal) / plan.instrument.k_mgal_per_bit;
+            // NaN too: an overflow is no count.
+            if ng.is_nan() || ng.abs() > ADC_COUNTS_MAX {
+                return Err(bad(
+                    "instrument".to_owned(),
+                    format!(
+                        "b_mgal {:e} and k_mgal_per_bit {:e} give {ng:e} counts at tilt {tilt} \
+                         deg of session[{si}], beyond any ADC's range (+/- 2^31): they are not \
+                         an instrument's calibration",
+                        plan.instrument.b_mgal, plan.instrument.k_mgal_per_bit
+                    ),
+                ));
+            }
             for r in 0..s.readings_per_station {
                 out.push((
                     s.id.clone(),

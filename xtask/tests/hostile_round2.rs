@@ -372,6 +372,20 @@ fn the_planner_is_validated_like_a_manifest() {
             plan.replacen("temperature_c = 31.0", "temperature_c = 3100.0", 1),
             "session[1].temperature_c: 3100 is not a temperature",
         ),
+        // A scale of 0 was said to be a noise level; a scale of 1e-300 mGal/bit planned
+        // counts of 1e305 and printed k's sigma as 0.
+        (
+            plan.replacen("k_mgal_per_bit = 0.24305", "k_mgal_per_bit = 0.0", 1),
+            "instrument.k_mgal_per_bit: 0 is no scale factor",
+        ),
+        (
+            plan.replacen("k_mgal_per_bit = 0.24305", "k_mgal_per_bit = 1e-300", 1),
+            "beyond any ADC's range",
+        ),
+        (
+            plan.replacen("b_mgal = -29497.0", "b_mgal = 1e300", 1),
+            "beyond any ADC's range",
+        ),
     ];
     for (text, says) in cases {
         assert_ne!(text, plan, "the case changed the plan ({says})");
