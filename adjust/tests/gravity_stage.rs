@@ -714,6 +714,27 @@ fn a_stage_that_would_reduce_nothing_or_the_wrong_thing_is_refused() {
         let e = args(&dataset).run(&out).expect_err(says).to_string();
         assert!(e.contains(says), "{e}");
     }
+    // A filter period the epochs cannot show: the trajectory at 1 Hz (every tenth epoch),
+    // a 1.5 s filter. The filter's own check had said "a cut-off of 0.67 Hz at 1 Hz".
+    let (_dir, dataset, out) = edited(|m| m.replacen("filter_s = 100.0", "filter_s = 1.5", 1));
+    let pos = dataset.join("raw/lines.pos");
+    let text = std::fs::read_to_string(&pos).expect("pos");
+    let kept: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with('%'))
+        .chain(text.lines().filter(|l| !l.starts_with('%')).step_by(10))
+        .collect();
+    std::fs::write(&pos, kept.join("\n") + "\n").expect("write");
+    let e = args(&dataset)
+        .run(&out)
+        .expect_err("1.5 s at 1 Hz")
+        .to_string();
+    assert!(
+        e.contains("survey.filter_s = 1.5 s is not longer than two of session lines's epoch")
+            && e.contains("lines.pos: an epoch every 1 s")
+            && e.contains("choose more than 2 s"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -648,6 +648,7 @@ fn reduce_track(
 ) -> Result<SessionGravity, GravityError> {
     let interval = median_interval_ns(&track.times);
     let expected = ctx.samples_per_s * interval as f64 * 1e-9;
+    filter_longer_than_epochs(track, interval, ctx.survey.filter_s)?;
     let mut summary = SessionGravity {
         id: track.session.session.id.clone(),
         epochs_read: (track.trajectory.time_gps_ns.len() + track.trajectory.bad_lines.len()) as u64,
@@ -719,6 +720,35 @@ fn reduce_track(
 }
 
 /// The ties whose window's centre lies inside the stretch, with their index.
+/// The filter's cut-off period against the trajectory's epochs: a period no longer than two
+/// epoch intervals is one the epochs cannot show, refused naming the key and the file (the
+/// filter's own check said only "a cut-off of 1 Hz at 1 Hz").
+fn filter_longer_than_epochs(
+    track: &Track<'_>,
+    interval_ns: i64,
+    filter_s: f64,
+) -> Result<(), GravityError> {
+    let interval_s = interval_ns as f64 * 1e-9;
+    if filter_s > 2.0 * interval_s {
+        return Ok(());
+    }
+    let file = track
+        .session
+        .trajectory
+        .as_ref()
+        .map(|t| t.path.display().to_string())
+        .unwrap_or_default();
+    Err(GravityError::Refused {
+        message: format!(
+            "survey.filter_s = {filter_s} s is not longer than two of session {}'s epoch \
+             intervals ({file}: an epoch every {interval_s} s): the filter cannot keep a period \
+             the epochs cannot show; choose more than {} s",
+            track.session.session.id,
+            2.0 * interval_s
+        ),
+    })
+}
+
 fn ties_inside(ties: &[ResolvedTie], s: &Stretch) -> Vec<(usize, Tie)> {
     let span = s.time_gps_ns[0]..=s.time_gps_ns[s.time_gps_ns.len() - 1];
     ties.iter()
