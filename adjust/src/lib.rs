@@ -85,6 +85,15 @@ pub enum Error {
         /// What does not match, and what to change.
         message: String,
     },
+    /// Two outputs would be written to one file (their names, joined from the manifest's,
+    /// are the same, or differ only in case).
+    #[error("{}: {message}", path.display())]
+    OutputName {
+        /// The file.
+        path: PathBuf,
+        /// Which outputs, and what to rename.
+        message: String,
+    },
     /// The fit command's input is unusable: `path`, at `line` where one is to blame.
     #[error("{}{}: {message}", path.display(), line.map_or(String::new(), |l| format!(":{l}")))]
     Fit {

@@ -43,11 +43,21 @@ pub(crate) fn write_outputs(
         Root::Out,
         &format!("{STAGE_DIR}/{}", ingest::contract::tables::residuals::FILE),
     )?];
+    // A file name joins a model's name and a session's id with `-`, which they may hold.
+    let mut names = ingest::contract::manifest::Names::default();
     for t in &calibration.triad {
         let Some(file) = &t.calib_file else {
             continue;
         };
         let path = dir.join(file);
+        names.insert(file, "file").map_err(|e| Error::OutputName {
+            path: path.clone(),
+            message: format!(
+                "{e}: two triad fits (model {}, session {} among them) would write one \
+                     file; rename a model or a session",
+                t.model, t.session
+            ),
+        })?;
         let tmp = dir.join(format!(".{file}.partial"));
         std::fs::write(&tmp, triad_fits::calib_text(t))
             .and_then(|()| std::fs::rename(&tmp, &path))

@@ -228,17 +228,13 @@ impl Plan {
                 "at least one [[session]] is required",
             ));
         }
-        let mut ids = std::collections::BTreeSet::new();
+        let mut ids = ingest::contract::manifest::Names::default();
         let mut total = 0usize;
         for (i, s) in self.session.iter().enumerate() {
             check_name(&s.id, RESERVED_SESSION_IDS)
                 .map_err(|e| bad(format!("session[{i}].id"), e))?;
-            if !ids.insert(s.id.as_str()) {
-                return Err(bad(
-                    format!("session[{i}].id"),
-                    format!("duplicate id `{}`", s.id),
-                ));
-            }
+            ids.insert(&s.id, "id")
+                .map_err(|e| bad(format!("session[{i}].id"), e))?;
             let t = ingest::labstream::TEMPERATURE_LIMITS;
             if !(t.lo..=t.hi).contains(&s.temperature_c) {
                 return Err(bad(
@@ -278,7 +274,7 @@ impl Plan {
         if self.model.is_empty() {
             return Err(bad("model".into(), "at least one [[model]] is required"));
         }
-        let mut names = std::collections::BTreeSet::new();
+        let mut names = ingest::contract::manifest::Names::default();
         for (i, m) in self.model.iter().enumerate() {
             m.check()
                 .map_err(|(k, e)| bad(format!("model[{i}].{k}"), e))?;
@@ -288,12 +284,9 @@ impl Plan {
                     "the planner predicts axis models (tilt-table sessions) only",
                 ));
             }
-            if !names.insert(m.name.as_str()) {
-                return Err(bad(
-                    format!("model[{i}].name"),
-                    format!("duplicate name `{}`", m.name),
-                ));
-            }
+            names
+                .insert(&m.name, "name")
+                .map_err(|e| bad(format!("model[{i}].name"), e))?;
         }
         Ok(())
     }

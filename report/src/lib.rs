@@ -221,8 +221,19 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Written, Error> {
         source: e,
     })?;
     let mut plots = 0;
+    // Plot names join a model's name, an accelerometer's id and a session's with `-`, which
+    // names may hold: `a-b` with `c` and `a` with `b-c` would write one file, the report
+    // then showing one plot twice.
+    let mut names = ingest::contract::manifest::Names::default();
     for sec in &sections {
         for (file, svg) in &sec.plots {
+            names.insert(file, "plot").map_err(|e| Error::Plot {
+                name: file.clone(),
+                message: format!(
+                    "{e}: two fits would draw one plot file (their model names, ids and \
+                     session ids joined by `-` are the same); rename one"
+                ),
+            })?;
             // Plot names come from ids and model names: whatever calibration.json says, a
             // plot is one plain file inside OUT/report/plots.
             if !ingest::contract::manifest::is_plain_file_name(file) {

@@ -240,8 +240,21 @@ fn a_lab_stream_whose_times_never_move_fails_its_session() {
 #[test]
 fn names_are_checked_as_names() {
     let long = "a".repeat(300);
-    let cases: [(&str, &str, &str, &str); 7] = [
+    let cases: [(&str, &str, &str, &str); 9] = [
         ("id = \"day1\"", "id = \"all\"", "session[0].id", "reserved"),
+        // Outputs are named by ids: macOS and Windows would write one over the other.
+        (
+            "id = \"day2\"",
+            "id = \"DAY1\"",
+            "session[1].id",
+            "`DAY1` and `day1` differ only in case",
+        ),
+        (
+            "id = \"acc2\"",
+            "id = \"Acc1\"",
+            "instrument.accelerometer[1].id",
+            "`Acc1` and `acc1` differ only in case",
+        ),
         (
             "id = \"day1\"",
             "id = \"day2\"",
@@ -575,4 +588,57 @@ fn readings_in_two_units_are_refused() {
         "{msg}"
     );
     assert!(!out.join("apply").exists(), "refused before any work");
+}
+
+/// Output files are named by names joined with `-`, which names may hold: model `t` with
+/// session `x-lab` and model `t-x` with session `lab` both wrote `t-x-lab.calib` (the
+/// second over the first; the report then refused it as not the file adjust wrote). Adjust
+/// now refuses before writing it, naming the file.
+#[test]
+fn two_calibration_files_named_alike_are_refused() {
+    let (dir, ds) = copy("triad-multipos", |m| {
+        let start = m.find("[[session]]").expect("session");
+        let end = m.find("[[adjust.model]]").expect("model");
+        let session = m[start..end].to_owned();
+        let twice = session.clone() + &session.replacen("id = \"lab\"", "id = \"x-lab\"", 1);
+        m.replacen(&session, &twice, 1).replacen(
+            "[[adjust.model]]\nname = \"triad\"\nkind = \"triad\"",
+            "[[adjust.model]]\nname = \"t\"\nkind = \"triad\"\n\n\
+             [[adjust.model]]\nname = \"t-x\"\nkind = \"triad\"",
+            1,
+        )
+    });
+    let out = dir.path().join("out");
+    ingest::run(&ds, &out).expect("ingest");
+    align::run(&ds, &out).expect("align");
+    let msg = adjust::run(&ds, &out)
+        .expect_err("one file for two fits")
+        .to_string();
+    assert!(
+        msg.contains("t-x-lab.calib: duplicate file `t-x-lab.calib`: two triad fits"),
+        "{msg}"
+    );
+    assert!(!out.join("adjust/calibration.json").exists(), "{msg}");
+}
+
+/// The same for the report's plots: model `lin` with accelerometer `x-acc1` and model
+/// `lin-x` with `acc1` drew `lin-x-acc1-day1-residual-dz.svg` twice, the report then
+/// showing one fit's plot for both. The report now refuses, naming the plot.
+#[test]
+fn two_plots_named_alike_are_refused() {
+    let (dir, ds) = copy("esgt-2005", |m| {
+        m.replacen("id = \"acc2\"", "id = \"x-acc1\"", 1)
+            + "\n[[adjust.model]]\nname = \"lin\"\n\n[[adjust.model]]\nname = \"lin-x\"\n"
+    });
+    let out = dir.path().join("out");
+    ingest::run(&ds, &out).expect("ingest");
+    align::run(&ds, &out).expect("align");
+    adjust::run(&ds, &out).expect("adjust");
+    let msg = report::run(&ds, &out)
+        .expect_err("one plot for two fits")
+        .to_string();
+    assert!(
+        msg.contains("duplicate plot `lin-x-acc1-day1-") && msg.contains("rename one"),
+        "{msg}"
+    );
 }

@@ -974,14 +974,12 @@ fn check_instrument(ins: &Instrument, err: &impl Fn(String, String) -> Error) ->
             format!("{} accelerometers declared; 1 to 3 are allowed", accs.len()),
         ));
     }
-    let mut ids = BTreeSet::new();
+    let mut ids = Names::default();
     let mut channels = BTreeSet::new();
     for (i, a) in accs.iter().enumerate() {
         let key = |k: &str| format!("instrument.accelerometer[{i}].{k}");
         check_name(&a.id, RESERVED_ACCELEROMETER_IDS).map_err(|e| err(key("id"), e))?;
-        if !ids.insert(a.id.as_str()) {
-            return Err(err(key("id"), format!("duplicate id `{}`", a.id)));
-        }
+        ids.insert(&a.id, "id").map_err(|e| err(key("id"), e))?;
         if !(1..=3).contains(&a.channel) {
             return Err(err(
                 key("channel"),
@@ -1208,18 +1206,15 @@ fn check_session_keys(i: usize, s: &Session, err: &impl Fn(String, String) -> Er
 
 /// The models' declarations and the sessions' rolls checked.
 fn check_models(m: &Manifest, err: &impl Fn(String, String) -> Error) -> Result<()> {
-    let mut names = BTreeSet::new();
+    let mut names = Names::default();
     for (i, model) in m.adjust.model.iter().enumerate() {
         let key = format!("adjust.model[{i}]");
         model
             .check()
             .map_err(|(k, e)| err(format!("{key}.{k}"), e))?;
-        if !names.insert(model.name.as_str()) {
-            return Err(err(
-                format!("{key}.name"),
-                format!("duplicate name `{}`", model.name),
-            ));
-        }
+        names
+            .insert(&model.name, "name")
+            .map_err(|e| err(format!("{key}.name"), e))?;
     }
     for (i, s) in m.session.iter().enumerate() {
         if !s.roll_deg.is_finite() {
@@ -1273,6 +1268,28 @@ pub fn is_plain_file_name(name: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-'))
 }
 
+/// Names of one kind (sessions, accelerometers, models) seen so far, by their lower case:
+/// outputs are named by them (`triad-lab.calib`, a report's plots), and the file systems of
+/// macOS and Windows do not tell `Lab` from `lab`, so two names that differ only in case
+/// would write one file over the other.
+#[derive(Default)]
+pub struct Names(std::collections::BTreeMap<String, String>);
+
+impl Names {
+    /// Adds `name` (its `what`: "id", "name"); an error if it, or a name differing only in
+    /// case, was seen.
+    pub fn insert(&mut self, name: &str, what: &str) -> std::result::Result<(), String> {
+        match self.0.insert(name.to_ascii_lowercase(), name.to_owned()) {
+            None => Ok(()),
+            Some(seen) if seen == name => Err(format!("duplicate {what} `{name}`")),
+            Some(seen) => Err(format!(
+                "`{name}` and `{seen}` differ only in case: outputs are named by them, and \
+                 the file systems of macOS and Windows do not tell them apart"
+            )),
+        }
+    }
+}
+
 /// Checks an id or a name a user gives (a session, an accelerometer, a model, a dataset):
 /// 1 to [`MAX_NAME_LEN`] characters of `A-Z a-z 0-9 . _ -`, beginning with a letter or a
 /// digit (so never `.`, `..` or an option), not one of `reserved`. Every output path built
@@ -1320,19 +1337,15 @@ impl Dataset {
         };
         let m = &manifest;
         check_globals(m, &err)?;
-        let mut sids = BTreeSet::new();
+        let mut sids = Names::default();
         let mut sessions = Vec::new();
         let root = dir.canonicalize().map_err(|e| Error::io(dir, e))?;
         let file = |key: String, rel: &str| dataset_file(dir, &root, key, rel, &err);
         for (i, s) in m.session.iter().enumerate() {
             check_name(&s.id, RESERVED_SESSION_IDS)
                 .map_err(|e| err(format!("session[{i}].id"), e))?;
-            if !sids.insert(s.id.as_str()) {
-                return Err(err(
-                    format!("session[{i}].id"),
-                    format!("duplicate id `{}`", s.id),
-                ));
-            }
+            sids.insert(&s.id, "id")
+                .map_err(|e| err(format!("session[{i}].id"), e))?;
             sessions.push(resolve_session(i, s, m, &file, &err)?);
         }
         check_models(m, &err)?;
