@@ -983,3 +983,71 @@ fn a_vertical_axis_calibrated_on_a_tilt_table_is_recovered_within_its_sigmas() {
     );
     assert!((0.85..1.15).contains(&z), "pooled rms z {z}");
 }
+
+/// survey-lines moved east by 174.775 deg, so that its lines cross the antimeridian
+/// (179.97 to -179.98): every longitude difference is taken the short way round. Before,
+/// the step across it was 360 deg: the stretch was tied 464 759 mGal off and its crossover
+/// differed by 3.2e9 mGal, exit 0. Now it reduces as the survey at home does, and so does
+/// the same move written in 0 to 360 deg; the positions' east noise no longer takes the
+/// latitude's in proportion to the longitude (2.4 cm east at 180 deg from 1 cm north).
+#[test]
+fn a_survey_across_the_antimeridian_reduces_as_at_home() {
+    let (_home_dir, home, home_out) = edited(|m| m);
+    let at_home = args(&home).run(&home_out).expect("at home");
+    let home_rows = rows(&home_out);
+    for (label, wrap) in [("-180 to 180", true), ("0 to 360", false)] {
+        let (_dir, dataset, out) = edited(|m| m);
+        let pos = dataset.join("raw/lines.pos");
+        let text = std::fs::read_to_string(&pos).expect("pos");
+        let moved: String = text
+            .lines()
+            .map(|l| {
+                if l.starts_with('%') || l.trim().is_empty() {
+                    return format!("{l}\n");
+                }
+                let mut f: Vec<String> = l.split_whitespace().map(str::to_owned).collect();
+                let mut lon = f[3].parse::<f64>().expect("longitude") + 174.775;
+                if wrap && lon >= 180.0 {
+                    lon -= 360.0;
+                }
+                f[3] = format!("{lon:.9}");
+                format!("{}\n", f.join("  "))
+            })
+            .collect();
+        let past = if wrap { "  -179.9" } else { "  180.0" };
+        assert!(moved.contains(past), "{label}: the track crosses");
+        std::fs::write(&pos, moved).expect("write");
+        let across = args(&dataset).run(&out).expect(label);
+        let r = rows(&out);
+        assert_eq!(r.len(), home_rows.len(), "{label}");
+        let worst = r
+            .iter()
+            .zip(&home_rows)
+            .map(|(a, b)| {
+                (a.filtered - b.filtered)
+                    .abs()
+                    .max((a.sigma - b.sigma).abs())
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 0.005, "{label}: differs from home by {worst} mGal");
+        let (s, h) = (&across.sessions[0], &at_home.sessions[0]);
+        for k in 0..3 {
+            assert!(
+                (s.position_noise_m[k] - h.position_noise_m[k]).abs() < 2e-4,
+                "{label}: {:?} {:?}",
+                s.position_noise_m,
+                h.position_noise_m
+            );
+        }
+        assert_eq!(across.crossovers.len(), at_home.crossovers.len(), "{label}");
+        for (c, d) in across.crossovers.iter().zip(&at_home.crossovers) {
+            assert!(
+                (c.difference_mgal - d.difference_mgal).abs() < 0.005,
+                "{label}: {c:?} {d:?}"
+            );
+        }
+    }
+    // East is the noise alone at home too: 1 cm simulated.
+    let east = at_home.sessions[0].position_noise_m[1];
+    assert!((east - 0.01).abs() < 5e-4, "{east}");
+}

@@ -437,7 +437,11 @@ fn plots(epochs: &[Epoch]) -> Result<Vec<(String, String)>, Error> {
         let (lat0, lon0) = (e[0].lat, e[0].lon);
         let k_lat = 111.2;
         let k_lon = 111.2 * lat0.to_radians().cos();
-        let xy = |x: &Epoch| ((x.lon - lon0) * k_lon, (x.lat - lat0) * k_lat);
+        // East from the first epoch the short way round (a track across the antimeridian).
+        let xy = |x: &Epoch| {
+            let d_lon = adjust::gravity::navigation::longitude_step_deg(lon0, x.lon);
+            (d_lon * k_lon, (x.lat - lat0) * k_lat)
+        };
         let map: Vec<(f64, f64, f64)> = e
             .iter()
             .step_by(step)

@@ -20,6 +20,7 @@
 //! calibration's part is common to both passes (one calibration, the same specific force
 //! on a levelled platform) and cancels to first order, so it is left out.
 
+use super::navigation::longitude_step_deg;
 use ingest::contract::gravity_ledger::{Crossover, Pass};
 use ingest::time::utc_iso;
 use std::collections::{HashMap, HashSet};
@@ -136,8 +137,14 @@ impl Plane {
         let n = e.latitude_deg.len();
         let mean = e.latitude_deg.iter().sum::<f64>() / n.max(1) as f64;
         let c = mean.to_radians().cos();
+        // Longitudes from the first epoch's, the short way round: a survey across the
+        // antimeridian stays one piece of plane.
+        let lon0 = e.longitude_deg.first().copied().unwrap_or(0.0);
         let xy: Vec<[f64; 2]> = (0..n)
-            .map(|k| [e.longitude_deg[k] * c, e.latitude_deg[k]])
+            .map(|k| {
+                let x = longitude_step_deg(lon0, e.longitude_deg[k]);
+                [x * c, e.latitude_deg[k]]
+            })
             .collect();
         let mut lengths: Vec<f64> = segments
             .iter()
@@ -270,7 +277,8 @@ fn crossover(
     let (first, second) = (pass(e, a, s), pass(e, b, u));
     Crossover {
         latitude_deg: point[1],
-        longitude_deg: at(e.longitude_deg, a, s),
+        longitude_deg: e.longitude_deg[a]
+            + s * longitude_step_deg(e.longitude_deg[a], e.longitude_deg[a + 1]),
         angle_deg: plane.angle_deg(e, a, b),
         difference_mgal: second.filtered_mgal - first.filtered_mgal,
         sigma_mgal: sigma,

@@ -24,7 +24,7 @@
 
 use super::GravityError;
 use super::filter;
-use super::navigation::{coriolis_transport, radii};
+use super::navigation::{coriolis_transport, longitude_step_deg, radii};
 use super::normal::GRS80;
 use super::reduce::{self, CalibrationGradient, Stretch};
 
@@ -72,7 +72,7 @@ fn northing_easting(s: &Stretch) -> [Vec<f64>; 2] {
         let h = 0.5 * (s.height_m[k] + s.height_m[k - 1]);
         let (r_m, r_n) = radii(&GRS80, lat);
         let d_lat = (s.latitude_deg[k] - s.latitude_deg[k - 1]).to_radians();
-        let d_lon = (s.longitude_deg[k] - s.longitude_deg[k - 1]).to_radians();
+        let d_lon = longitude_step_deg(s.longitude_deg[k - 1], s.longitude_deg[k]).to_radians();
         out[0][k] = out[0][k - 1] + d_lat * (r_m + h);
         out[1][k] = out[1][k - 1] + d_lon * (r_n + h) * lat.to_radians().cos();
     }

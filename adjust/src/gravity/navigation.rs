@@ -4,6 +4,14 @@
 
 use super::normal::Ellipsoid;
 
+/// The step in longitude from `from_deg` to `to_deg`, deg, in [-180, 180): the short way
+/// round, so that a track across the antimeridian (179.99 to -179.99) or across 0 in a file
+/// writing 0 to 360 steps 0.02 deg and not 359.98.
+pub fn longitude_step_deg(from_deg: f64, to_deg: f64) -> f64 {
+    let d = to_deg - from_deg;
+    d - 360.0 * ((d + 180.0) / 360.0).floor()
+}
+
 /// Meridian and prime-vertical radii of curvature (R_M, R_N) at geodetic latitude, m.
 pub fn radii(e: &Ellipsoid, latitude_deg: f64) -> (f64, f64) {
     let s = latitude_deg.to_radians().sin();

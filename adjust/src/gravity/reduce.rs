@@ -15,7 +15,7 @@
 
 use super::GravityError;
 use super::filter;
-use super::navigation::{eotvos_down, radii};
+use super::navigation::{eotvos_down, longitude_step_deg, radii};
 use super::normal::GRS80;
 
 /// One stretch of track: evenly spaced epochs and what was measured at them.
@@ -286,7 +286,7 @@ fn unfiltered(s: &Stretch, dt: f64, out: &mut Reduced) -> Vec<f64> {
         let (r_m, r_n) = radii(&GRS80, s.latitude_deg[k]);
         let h = s.height_m[k];
         let v_n = (s.latitude_deg[hi] - s.latitude_deg[lo]).to_radians() * (r_m + h) / span;
-        let v_e = (s.longitude_deg[hi] - s.longitude_deg[lo]).to_radians()
+        let v_e = longitude_step_deg(s.longitude_deg[lo], s.longitude_deg[hi]).to_radians()
             * (r_n + h)
             * s.latitude_deg[k].to_radians().cos()
             / span;
@@ -427,7 +427,7 @@ pub(super) fn displacement_ne_m(s: &Stretch, (a, b): (usize, usize), at: usize) 
     let r = 6.371e6;
     [
         (s.latitude_deg[b] - s.latitude_deg[a]).to_radians() * r,
-        (s.longitude_deg[b] - s.longitude_deg[a]).to_radians()
+        longitude_step_deg(s.longitude_deg[a], s.longitude_deg[b]).to_radians()
             * r
             * s.latitude_deg[at].to_radians().cos(),
     ]

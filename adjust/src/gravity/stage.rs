@@ -585,13 +585,22 @@ fn position_noise_m(track: &Track<'_>) -> [f64; 3] {
     let interval = median_interval_ns(&track.times);
     let mut d: [epochs::ThirdDifferences; 3] =
         std::array::from_fn(|_| epochs::ThirdDifferences::new(interval));
+    // East summed step by step at each step's own latitude: a longitude times the cosine of
+    // the latitude carried the latitude's noise into east, in proportion to the longitude
+    // (2.4 cm east from 1 cm north at 180 deg).
+    let mut east = 0.0;
+    let mut last: Option<usize> = None;
     for (&j, &time) in track.kept.iter().zip(&track.times) {
         let lat = t.latitude_deg[j].to_radians();
-        let ne = [
-            lat * 6.371e6,
-            t.longitude_deg[j].to_radians() * 6.371e6 * lat.cos(),
-            t.height_m[j],
-        ];
+        if let Some(i) = last {
+            let mid = 0.5 * (lat + t.latitude_deg[i].to_radians());
+            east += super::navigation::longitude_step_deg(t.longitude_deg[i], t.longitude_deg[j])
+                .to_radians()
+                * 6.371e6
+                * mid.cos();
+        }
+        last = Some(j);
+        let ne = [lat * 6.371e6, east, t.height_m[j]];
         for (d, v) in d.iter_mut().zip(ne) {
             d.push(time, v);
         }
