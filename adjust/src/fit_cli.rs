@@ -60,9 +60,6 @@ pub fn fit_csv(args: &FitArgs) -> Result<fit::FitOutput, Error> {
     })
 }
 
-/// The columns `wanted` (x, y and the optional sigmas, by name) of the CSV table at `path`,
-/// and the file's line of each data row: blank lines and `#` comments skipped, a
-/// byte-order mark dropped, every error naming the file, the line and the column.
 /// A CSV field as written: trimmed, and without the double quotes a spreadsheet puts around
 /// it (a comma inside quotes is not read as one field: the tables fitted hold numbers).
 fn field(f: &str) -> &str {
@@ -72,6 +69,9 @@ fn field(f: &str) -> &str {
         .map_or(f, str::trim)
 }
 
+/// The columns `wanted` (x, y and the optional sigmas, by name) of the CSV table at `path`,
+/// and the file's line of each data row: blank lines and `#` comments skipped, a
+/// byte-order mark dropped, every error naming the file, the line and the column.
 #[allow(
     clippy::type_complexity,
     reason = "four columns and their rows' lines, once"

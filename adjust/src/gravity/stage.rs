@@ -728,7 +728,6 @@ fn reduce_track(
     Ok(summary)
 }
 
-/// The ties whose window's centre lies inside the stretch, with their index.
 /// The filter's cut-off period against the trajectory's epochs: a period no longer than two
 /// epoch intervals is one the epochs cannot show, refused naming the key and the file (the
 /// filter's own check said only "a cut-off of 1 Hz at 1 Hz").
@@ -758,6 +757,7 @@ fn filter_longer_than_epochs(
     })
 }
 
+/// The ties whose window's centre lies inside the stretch, with their index.
 fn ties_inside(ties: &[ResolvedTie], s: &Stretch) -> Vec<(usize, Tie)> {
     let span = s.time_gps_ns[0]..=s.time_gps_ns[s.time_gps_ns.len() - 1];
     ties.iter()
