@@ -81,8 +81,9 @@ pub fn show(path: &Path, options: ShowOptions, out: &mut impl Write) -> Result<(
 }
 
 /// The ledger beside `path` (a JSON file in its folder) whose custody lists it among the
-/// tables its stage wrote, and the SHA-256 recorded; None when no ledger there lists it (a
-/// table copied elsewhere, or one the pipeline did not write).
+/// tables its stage wrote (or gravity.json, for gravity.parquet), and the SHA-256 recorded;
+/// None when no ledger there lists it (a table copied elsewhere, or one the pipeline did
+/// not write).
 fn recorded(path: &Path) -> Option<(String, String)> {
     let dir = path.parent()?;
     let want = format!(
@@ -100,13 +101,22 @@ fn recorded(path: &Path) -> Option<(String, String)> {
     ledgers.into_iter().find_map(|ledger| {
         let text = std::fs::read_to_string(&ledger).ok()?;
         let mut v: serde_json::Value = serde_json::from_str(&text).ok()?;
+        let name = ledger.file_name()?.to_string_lossy().into_owned();
+        // gravity.json records its one table's hash as `sha256`, beside no custody.
+        if name == ingest::contract::gravity_ledger::LEDGER_FILE
+            && want
+                == format!(
+                    "{}/{}",
+                    ingest::contract::gravity_ledger::STAGE_DIR,
+                    ingest::contract::tables::gravity::FILE
+                )
+        {
+            return Some((name, v.get("sha256")?.as_str()?.to_owned()));
+        }
         let custody: ingest::contract::custody::Custody =
             serde_json::from_value(v.get_mut("custody")?.take()).ok()?;
         let entry = custody.outputs.into_iter().find(|f| f.path == want)?;
-        Some((
-            ledger.file_name()?.to_string_lossy().into_owned(),
-            entry.sha256,
-        ))
+        Some((name, entry.sha256))
     })
 }
 
@@ -309,5 +319,18 @@ mod tests {
         assert_eq!(String::from_utf8(out).expect("utf-8"), "x\n1.5\n2.5\n");
         std::fs::remove_file(stage.join("ingest.json")).expect("remove");
         show(&path, csv, &mut Vec::new()).expect("no ledger: shown as it is");
+        // gravity.json's form: the one table's hash at the top.
+        let gravity = dir.path().join("gravity");
+        std::fs::create_dir(&gravity).expect("gravity");
+        let table = gravity.join("gravity.parquet");
+        std::fs::copy(&path, &table).expect("copy");
+        let ledger = |sha: &str| {
+            let text = serde_json::json!({"rows_written": 2, "sha256": sha});
+            std::fs::write(gravity.join("gravity.json"), text.to_string()).expect("ledger");
+        };
+        ledger(&sha);
+        show(&table, csv, &mut Vec::new()).expect("the recorded gravity table");
+        ledger(&"0".repeat(64));
+        show(&table, csv, &mut Vec::new()).expect_err("a changed gravity table");
     }
 }
