@@ -715,7 +715,8 @@ fn a_stage_that_would_reduce_nothing_or_the_wrong_thing_is_refused() {
         assert!(e.contains(says), "{e}");
     }
     // A filter period the epochs cannot show: the trajectory at 1 Hz (every tenth epoch),
-    // a 1.5 s filter. The filter's own check had said "a cut-off of 0.67 Hz at 1 Hz".
+    // a 1.5 s filter. The filter's own check had said only "filter: a cut-off of
+    // 0.6666666666666666 Hz at 1 Hz: it must lie in (0, 0.5) Hz".
     let (_dir, dataset, out) = edited(|m| m.replacen("filter_s = 100.0", "filter_s = 1.5", 1));
     let pos = dataset.join("raw/lines.pos");
     let text = std::fs::read_to_string(&pos).expect("pos");
