@@ -44,15 +44,19 @@ fn fit_names_a_missing_column_and_a_bad_value() {
 
     let dir = tempfile::tempdir().expect("tempdir");
     let bad = dir.path().join("bad.csv");
+    // `x` against `y` of bad.csv, as it stands.
+    let fit_bad = || {
+        fit(&[
+            "--input",
+            bad.to_str().expect("utf-8"),
+            "--x",
+            "x",
+            "--y",
+            "y",
+        ])
+    };
     std::fs::write(&bad, "x,y\n1,2\n2,oops\n3,4\n").expect("write");
-    let o = fit(&[
-        "--input",
-        bad.to_str().expect("utf-8"),
-        "--x",
-        "x",
-        "--y",
-        "y",
-    ]);
+    let o = fit_bad();
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(
         !o.status.success() && e.contains("bad.csv:3: y: `oops` is not a number"),
@@ -76,25 +80,11 @@ fn fit_names_a_missing_column_and_a_bad_value() {
         ),
     ] {
         std::fs::write(&bad, text).expect("write");
-        let o = fit(&[
-            "--input",
-            bad.to_str().expect("utf-8"),
-            "--x",
-            "x",
-            "--y",
-            "y",
-        ]);
+        let o = fit_bad();
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && e.contains(said), "{said}: {e}");
     }
     std::fs::write(&bad, "\"x\",\"y\"\n\"1\",\"2\"\n2,4.1\n3,5.9\n4,8.2\n").expect("write");
-    let o = fit(&[
-        "--input",
-        bad.to_str().expect("utf-8"),
-        "--x",
-        "x",
-        "--y",
-        "y",
-    ]);
+    let o = fit_bad();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }

@@ -222,6 +222,18 @@ mod tests {
     use arrow::array::{Float64Array, StringArray};
     use std::sync::Arc;
 
+    /// `batch` written to `path` by parquet-rs.
+    fn write_table(path: &Path, batch: &RecordBatch) {
+        let mut w = parquet::arrow::ArrowWriter::try_new(
+            std::fs::File::create(path).expect("create"),
+            batch.schema(),
+            None,
+        )
+        .expect("writer");
+        w.write(batch).expect("write");
+        w.close().expect("close");
+    }
+
     /// A table written by parquet-rs, printed back: CSV with a null as an empty field and a
     /// comma quoted; aligned with its schema and a count of the rows left out.
     #[test]
@@ -239,14 +251,7 @@ mod tests {
             ),
         ])
         .expect("batch");
-        let mut w = parquet::arrow::ArrowWriter::try_new(
-            std::fs::File::create(&path).expect("create"),
-            batch.schema(),
-            None,
-        )
-        .expect("writer");
-        w.write(&batch).expect("write");
-        w.close().expect("close");
+        write_table(&path, &batch);
         let mut out = Vec::new();
         let csv = ShowOptions {
             csv: true,
@@ -283,14 +288,7 @@ mod tests {
         let batch =
             RecordBatch::try_from_iter([("x", Arc::new(Float64Array::from(vec![1.5, 2.5])) as _)])
                 .expect("batch");
-        let mut w = parquet::arrow::ArrowWriter::try_new(
-            std::fs::File::create(&path).expect("create"),
-            batch.schema(),
-            None,
-        )
-        .expect("writer");
-        w.write(&batch).expect("write");
-        w.close().expect("close");
+        write_table(&path, &batch);
         let ledger = |sha: &str| {
             let text = serde_json::json!({
                 "custody": {
