@@ -126,8 +126,12 @@ pub struct Residual {
 pub struct CalibrationSolution {
     /// Parameters in counts: b, k, [k2], [k3], [b_t, k_t], [beta | theta_x, theta_y].
     pub values: Vec<f64>,
-    /// Their covariance from the estimated variance components, row-major.
+    /// Their covariance from the estimated variance components, row-major, each variance
+    /// that of the parameter's t on `parameter_dof` (nu / (nu - 2) times the adjustment's).
     pub covariance: Vec<f64>,
+    /// The dof of each parameter's variance (Welch-Satterthwaite over the estimated
+    /// components); None where none weighs it, so that it is known.
+    pub parameter_dof: Vec<Option<f64>>,
     /// Their covariance at the a-priori weights (every component 1), row-major.
     pub covariance_apriori: Vec<f64>,
     /// sqrt(v^T P v / dof) at the a-priori weights.
@@ -647,9 +651,12 @@ fn conclude(
         }
     }
     let excess = groups.excess(s, options.coloured.as_ref(), false);
+    let (covariance, parameter_dof) =
+        t_scaled(propagate(&map, &q, m), &weighted, &components, &map);
     Ok(CalibrationSolution {
         values: apply(&map, &weighted.p),
-        covariance: propagate(&map, &q, m),
+        covariance,
+        parameter_dof,
         covariance_apriori: propagate(&map, &s.q_pp, m),
         sigma0: s.sigma0(),
         vtpv: s.vtpv,
@@ -662,6 +669,31 @@ fn conclude(
         removed: Vec::new(),
         residuals,
     })
+}
+
+/// The covariance at estimated components scaled to its parameters' t (docs/model.md 6.1):
+/// each parameter's variance times nu / (nu - 2) on its own dof
+/// ([`components::parameter_dof`]; GUM Supplement 1, 6.4.9.4, the variance of a t, as for a
+/// reading's predictive variance, [`components::predictive_factor`]), the correlations
+/// kept; with its dofs.
+fn t_scaled(
+    mut covariance: Vec<f64>,
+    s: &gh::Solution<3>,
+    components: &[Component],
+    map: &[f64],
+) -> (Vec<f64>, Vec<Option<f64>>) {
+    let m = s.p.len();
+    let dof = components::parameter_dof(s, components, map, &covariance);
+    let f: Vec<f64> = dof
+        .iter()
+        .map(|&d| components::predictive_factor(d).sqrt())
+        .collect();
+    for (i, row) in covariance.chunks_exact_mut(m).enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x *= f[i] * f[j];
+        }
+    }
+    (covariance, dof)
 }
 
 /// An adjustment's failure as a fit's, naming the parameter or observation.

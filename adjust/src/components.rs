@@ -212,6 +212,13 @@ pub struct Component {
 }
 
 impl Component {
+    /// The dof of the estimate, from its sd (`sigma = estimate sqrt(2 / dof)`); None when held
+    /// at 1, which is then known.
+    pub fn dof(&self) -> Option<f64> {
+        (self.not_estimable.is_none() && self.sigma > 0.0)
+            .then(|| 2.0 * (self.estimate / self.sigma).powi(2))
+    }
+
     fn held(group: &'static str, test: ScaledChi2, why: String) -> Self {
         Self {
             group,
@@ -221,6 +228,52 @@ impl Component {
             not_estimable: Some(why),
         }
     }
+}
+
+/// Per parameter, the degrees of freedom of its variance at estimated components
+/// (Welch-Satterthwaite): each group's part of the variance varies with its component,
+/// estimated on the component's dof, so `nu = q^2 / sum_g q_g^2 / nu_g`; None where no
+/// estimated component weighs the parameter. `s` is the adjustment at the components, `map`
+/// takes its parameters to the reported ones, `covariance` is the reported covariance
+/// (with what no component scales, such as coloured noise's). The group's part is
+/// `Q (sum_i a_i a_i^T u_ig / q_i^2) Q`, u_ig its share of condition i's variance q_i (the
+/// parts sum to Q).
+pub fn parameter_dof(
+    s: &crate::gh::Solution<3>,
+    components: &[Component],
+    map: &[f64],
+    covariance: &[f64],
+) -> Vec<Option<f64>> {
+    let m = s.p.len();
+    let mut denominator = vec![0.0; m];
+    for (g, c) in components.iter().enumerate().take(GROUPS.len()) {
+        let Some(dof) = c.dof() else { continue };
+        let mut part = vec![0.0; m * m];
+        let mut y = vec![0.0; m];
+        for (i, (a, parts)) in s.a.chunks_exact(m).zip(&s.q_parts).enumerate() {
+            for (r, yr) in y.iter_mut().enumerate() {
+                *yr = (0..m).map(|j| s.q_pp[r * m + j] * a[j]).sum();
+            }
+            let w = parts[g] / (s.q_ww[i] * s.q_ww[i]);
+            for r in 0..m {
+                for j in 0..m {
+                    part[r * m + j] += w * y[r] * y[j];
+                }
+            }
+        }
+        let reported = crate::model::propagate(map, &part, m);
+        for (j, d) in denominator.iter_mut().enumerate() {
+            *d += reported[j * m + j].powi(2) / dof;
+        }
+    }
+    denominator
+        .iter()
+        .enumerate()
+        .map(|(j, &d)| {
+            let q = covariance[j * m + j];
+            (d > 0.0 && q > 0.0).then(|| q * q / d)
+        })
+        .collect()
 }
 
 /// The theodolite's share of the between-station quadratic form, against its expectation
@@ -344,6 +397,50 @@ pub fn adc_component(
 mod tests {
     use super::*;
     use crate::correlated::Excess;
+
+    /// A weighted mean of n conditions, each with a theodolite part u0 and an ADC part u1 of
+    /// its variance: the parameter's dof is Welch-Satterthwaite's (u0 + u1)^2 / (u0^2 /
+    /// nu0 + u1^2 / nu1); a held component counts as known, and with both held there is
+    /// none.
+    #[test]
+    fn a_parameters_dof_is_welch_satterthwaites() {
+        let (n, u0, u1, nu0, nu1) = (8, 3.0, 1.0, 12.0, 40.0);
+        let q = u0 + u1;
+        let s = crate::gh::Solution::<3> {
+            p: vec![0.0],
+            q_pp: vec![q / n as f64],
+            v: vec![[0.0; 3]; n],
+            misclosure: vec![0.0; n],
+            q_ww: vec![q; n],
+            q_parts: vec![[u0, u1, 0.0]; n],
+            redundancy: vec![1.0; n],
+            w_test: vec![0.0; n],
+            vtpv: 0.0,
+            dof: n - 1,
+            iterations: 1,
+            a: vec![1.0; n],
+            b: vec![[1.0; 3]; n],
+        };
+        let test = ScaledChi2::new(1.0, 1.0, 2.0);
+        let estimated = |group, dof: f64| Component {
+            group,
+            estimate: 1.3,
+            sigma: 1.3 * (2.0 / dof).sqrt(),
+            test,
+            not_estimable: None,
+        };
+        let both = [estimated(GROUPS[0], nu0), estimated(GROUPS[1], nu1)];
+        let covariance = [q / n as f64];
+        let nu = parameter_dof(&s, &both, &[1.0], &covariance)[0].expect("dof");
+        let want = q * q / (u0 * u0 / nu0 + u1 * u1 / nu1);
+        assert!((nu / want - 1.0).abs() < 1e-12, "{nu} {want}");
+        let held = Component::held(GROUPS[1], test, "held".to_owned());
+        let one = [estimated(GROUPS[0], nu0), held.clone()];
+        let nu = parameter_dof(&s, &one, &[1.0], &covariance)[0].expect("dof");
+        assert!((nu / (q * q / (u0 * u0 / nu0)) - 1.0).abs() < 1e-12, "{nu}");
+        let none = [Component::held(GROUPS[0], test, "held".to_owned()), held];
+        assert_eq!(parameter_dof(&s, &none, &[1.0], &covariance), vec![None]);
+    }
 
     #[test]
     fn known_sigmas_reduce_to_chi_square() {

@@ -86,6 +86,7 @@ pub(crate) fn result_of(
                 value: f.values[j],
                 sigma: f.sigma(j),
                 sigma_apriori: f.sigma_apriori(j),
+                dof: f.parameter_dof[j],
             })
             .collect(),
         correlation,

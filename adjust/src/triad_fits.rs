@@ -105,6 +105,7 @@ fn result(
             value: s.values[j],
             sigma: s.sigma(j),
             sigma_apriori: s.sigma(j),
+            dof: None,
         })
         .collect();
     let correlation = (0..n)
@@ -286,6 +287,7 @@ fn non_orthogonality(s: &TriadSolution) -> Vec<Parameter> {
                 value: value[r],
                 sigma: var.max(0.0).sqrt(),
                 sigma_apriori: var.max(0.0).sqrt(),
+                dof: None,
             }
         })
         .collect()

@@ -122,17 +122,27 @@ pub(crate) fn components_section(st: &Stages<'_>) -> Section {
 pub(crate) fn parameters_section(st: &Stages<'_>) -> Section {
     let mut s = section("Parameters of every fit");
     s.text.push(
-        "sigma is at the estimated variance components (the one to quote), sigma a priori at \
-         the weights align gave; the correlations open under each table."
+        "sigma is at the estimated variance components (the one to quote): the sd of the \
+         parameter's t on the dof beside it, so that +/- 2 sigma is a 95 % interval at any \
+         dof (a dash: no estimated component weighs it). sigma a priori is at the weights \
+         align gave; the correlations open under each table."
             .to_owned(),
     );
     for r in &st.cal.results {
-        let mut t = Table::new(&["parameter", "value", "sigma", "sigma a priori", "unit"]);
+        let mut t = Table::new(&[
+            "parameter",
+            "value",
+            "sigma",
+            "dof",
+            "sigma a priori",
+            "unit",
+        ]);
         for p in &r.parameters {
             t.rows.push(vec![
                 p.name.clone(),
                 format!("{:.9e}", p.value),
                 format!("{:.3e}", p.sigma),
+                p.dof.map_or_else(|| "-".to_owned(), |d| format!("{d:.1}")),
                 format!("{:.3e}", p.sigma_apriori),
                 p.unit.clone(),
             ]);

@@ -105,10 +105,15 @@ pub struct Parameter {
     pub unit: String,
     /// Estimate.
     pub value: f64,
-    /// Sd from the estimated variance components: the one to quote.
+    /// Sd from the estimated variance components: the one to quote. Where a component was
+    /// estimated, the sd of the parameter's t on `dof` (docs/model.md 6.1).
     pub sigma: f64,
     /// Sd at the a-priori weights (every component 1).
     pub sigma_apriori: f64,
+    /// Degrees of freedom of `sigma` (Welch-Satterthwaite over the estimated variance
+    /// components); absent where no estimated component weighs the parameter.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dof: Option<f64>,
 }
 
 /// A variance component: the factor the data put on one observation group's a-priori
