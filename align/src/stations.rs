@@ -131,8 +131,10 @@ impl SigmaRule {
 ///
 /// Each reading's left-out sigma is formed the same way from its station's other readings
 /// (n - 2 dof) under the same prior (the prior, estimated from every station, is not formed
-/// again: one reading among a session's hundreds moves it little); a sigma taken as known,
-/// or a station too small to leave a reading out of, keeps the station's own.
+/// again: one reading among a session's hundreds moves it little), leaving out as well any
+/// other reading gross enough to mask a blunder ([`weights::gross_readings`]); a sigma
+/// taken as known, or a station too small to leave a reading out of, keeps the station's
+/// own.
 pub(crate) fn station_sigmas(
     readings: &[Pending],
     fallback_rad: f64,
@@ -169,14 +171,19 @@ pub(crate) fn station_sigmas(
     };
     let mut left_out: Vec<Option<StationSigma>> = vec![None; readings.len()];
     let mut station = BTreeMap::new();
+    let scale_floor = rule
+        .moderated
+        .as_ref()
+        .map_or(floor_rad, |m| m.prior_variance.sqrt().max(floor_rad));
     for (id, ks) in by_station {
         let dz = dz_of(&ks);
         let whole = rule.sigma(&dz);
+        let gross = weights::gross_readings(&dz, scale_floor);
         for (j, &k) in ks.iter().enumerate() {
             let others: Vec<f64> = dz
                 .iter()
                 .enumerate()
-                .filter(|&(i, _)| i != j)
+                .filter(|&(i, _)| i != j && !gross[i])
                 .map(|(_, &x)| x)
                 .collect();
             let without = rule.sigma(&others);

@@ -12,6 +12,41 @@
 //! the moderated variance is `(d0 s0^2 + d_i s_i^2) / (d0 + d_i)`. A station of one reading
 //! (`d_i = 0`) takes `s0^2`.
 
+/// How far from its station's median a reading must lie, in robust sds, to be left out of
+/// the other readings' left-out sigmas (see [`gross_readings`]).
+pub const GROSS_READING_SDS: f64 = 10.0;
+
+/// The readings of one station (`dz`, rad) so far from the others that they would mask
+/// another blunder: each reading's w-test is referred to its station's sigma formed without
+/// it, but a second blunder at the same station stays in that sigma and hides the first
+/// (two readings 25 arcsec off among 15 each tested at w of about 3.1, under 3.29, and both
+/// were kept). A reading more than [`GROSS_READING_SDS`] robust sds from the station's
+/// median is left out of the other readings' sigmas as well (not out of its own, nor of
+/// the station's). The robust sd is 1.4826 times the median absolute deviation, never below
+/// `scale_floor` (the session's prior sd, or the resolution), so that a station whose
+/// readings agree by chance does not flag its own good ones: a good reading is 10 sds off
+/// with a probability of about 1e-23. Fewer than three readings: none.
+pub fn gross_readings(dz: &[f64], scale_floor: f64) -> Vec<bool> {
+    if dz.len() < 3 {
+        return vec![false; dz.len()];
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_unstable_by(f64::total_cmp);
+        let n = v.len();
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
+    };
+    let centre = median(dz.to_vec());
+    let mad = median(dz.iter().map(|x| (x - centre).abs()).collect());
+    let scale = (1.4826 * mad).max(scale_floor);
+    dz.iter()
+        .map(|x| (x - centre).abs() > GROSS_READING_SDS * scale)
+        .collect()
+}
+
 /// The session's prior and each station's moderated variance.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Moderated {
@@ -130,6 +165,31 @@ fn trigamma_inverse(x: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two readings 25 arcsec off among fifteen of 1 arcsec are both gross (and each is
+    /// then left out of the other's sigma); a station of good readings has none, however
+    /// closely they agree (the floor), nor does one of two readings.
+    #[test]
+    fn gross_readings_are_the_ones_that_would_mask_a_blunder() {
+        let arcsec = (1.0f64 / 3600.0).to_radians();
+        let mut dz: Vec<f64> = (0..15)
+            .map(|i| 2.0 + arcsec * (f64::from(i % 5) - 2.0) * 0.7)
+            .collect();
+        assert!(gross_readings(&dz, arcsec).iter().all(|g| !g));
+        dz[3] += 25.0 * arcsec;
+        dz[9] -= 25.0 * arcsec;
+        let gross = gross_readings(&dz, arcsec);
+        let flagged: Vec<usize> = (0..dz.len()).filter(|&i| gross[i]).collect();
+        assert_eq!(flagged, vec![3, 9]);
+        // Readings that agree to 1e-9 of an arcsec are not made gross by the floor.
+        let tight: Vec<f64> = (0..15)
+            .map(|i| 2.0 + 1e-9 * arcsec * f64::from(i))
+            .collect();
+        let mut one_off = tight.clone();
+        one_off[0] += 2.0 * arcsec;
+        assert!(gross_readings(&one_off, arcsec).iter().all(|g| !g));
+        assert_eq!(gross_readings(&dz[..2], arcsec), vec![false, false]);
+    }
 
     #[test]
     fn special_functions() {
