@@ -38,6 +38,21 @@ pub fn predictive_factor(dof: Option<f64>) -> f64 {
     }
 }
 
+/// The half-width of a parameter's 95 % interval, in its sigmas, when its sigma is the sd
+/// of its t on `dof` ([`predictive_factor`], the dof floored alike): t(0.975, d) sqrt((d -
+/// 2) / d), 1.97 at 37 dof, 1.99 at 12; 1.96 for a known variance.
+pub fn interval_95_sigmas(dof: Option<f64>) -> f64 {
+    use statrs::distribution::{Normal, StudentsT};
+    match dof {
+        Some(d) if d.is_finite() => {
+            let d = d.max(MIN_VARIANCE_DOF);
+            StudentsT::new(0.0, 1.0, d)
+                .map_or(f64::NAN, |t| t.inverse_cdf(0.975) * ((d - 2.0) / d).sqrt())
+        }
+        _ => Normal::standard().inverse_cdf(0.975),
+    }
+}
+
 /// Variance of t_d^2 (d - 2)/d, the square of a station mean over its predictive sd: 2 for
 /// a known variance.
 fn t2_variance(dof: Option<f64>) -> f64 {
@@ -440,6 +455,20 @@ mod tests {
         assert!((nu / (q * q / (u0 * u0 / nu0)) - 1.0).abs() < 1e-12, "{nu}");
         let none = [Component::held(GROUPS[0], test, "held".to_owned()), held];
         assert_eq!(parameter_dof(&s, &none, &[1.0], &covariance), vec![None]);
+    }
+
+    /// The 95 % interval's half-width against scipy's `t.ppf(0.975, d) * sqrt((d - 2) / d)`.
+    #[test]
+    fn the_interval_is_the_ts() {
+        for (d, want) in [
+            (37.0, 1.970_669_775_038_486_7),
+            (12.0, 1.988_974_892_313_858_4),
+            (6.0, 1.997_895_160_291_400_4),
+        ] {
+            let got = interval_95_sigmas(Some(d));
+            assert!((got - want).abs() < 1e-9, "{d}: {got} {want}");
+        }
+        assert!((interval_95_sigmas(None) - 1.959_963_984_540_054).abs() < 1e-12);
     }
 
     #[test]

@@ -452,26 +452,31 @@ struct VerdictCounts {
     removed: usize,
     /// The sum over replicas of the square of each one's removals.
     removed_squared: usize,
+    /// The parameters' 95 % intervals (on each one's dof) that missed the truth, over the
+    /// replicas' [`MC_PARAMETERS`], and the sum of each replica's count squared.
+    intervals_missed: usize,
+    intervals_missed_squared: usize,
 }
 
 impl VerdictCounts {
-    /// The removals' design effect: the variance of a replica's count of removals over
-    /// the binomial variance of its observations' (a fit's observations are removed or
-    /// kept together, not as independent trials).
-    fn removal_design_effect(&self) -> f64 {
+    /// A count's design effect: the variance of a replica's count (`hits` in all, the sum
+    /// of each replica's square `squared`, of `trials` in all) over the binomial variance
+    /// of its trials' (a fit's observations are removed or kept together, and its
+    /// correlated parameters' intervals miss together, not as independent trials).
+    fn design_effect(&self, trials: usize, hits: usize, squared: usize) -> f64 {
         let r = self.fits as f64;
-        let mean = self.removed as f64 / r;
-        let variance = (self.removed_squared as f64 - r * mean * mean) / (r - 1.0);
-        let per_fit = self.observations as f64 / r;
+        let mean = hits as f64 / r;
+        let variance = (squared as f64 - r * mean * mean) / (r - 1.0);
+        let per_fit = trials as f64 / r;
         if mean == 0.0 || r < 2.0 {
-            // Nothing removed: no dispersion to measure; the binomial's.
+            // Nothing counted: no dispersion to measure; the binomial's.
             return 1.0;
         }
         variance / (mean * (1.0 - mean / per_fit))
     }
 
-    /// The false-alarm rates of the global test, the two components' tests and the
-    /// w-test, on `replicas`.
+    /// The false-alarm rates of the global test, the two components' tests, the w-test and
+    /// the parameters' 95 % intervals, on `replicas`.
     fn rates(&self, replicas: &str) -> Vec<fixtures::verdicts::Rate> {
         let rate =
             |verdict: &str, nominal: f64, trials: usize, hits: usize| fixtures::verdicts::Rate {
@@ -498,12 +503,29 @@ impl VerdictCounts {
                 self.component_rejected[1],
             ),
             fixtures::verdicts::Rate {
-                design_effect: self.removal_design_effect(),
+                design_effect: self.design_effect(
+                    self.observations,
+                    self.removed,
+                    self.removed_squared,
+                ),
                 ..rate(
                     "w-test (a good reading removed)",
                     0.001,
                     self.observations,
                     self.removed,
+                )
+            },
+            fixtures::verdicts::Rate {
+                design_effect: self.design_effect(
+                    self.fits * MC_PARAMETERS.len(),
+                    self.intervals_missed,
+                    self.intervals_missed_squared,
+                ),
+                ..rate(
+                    "95 % interval of b, k, b_t, k_t, beta (missing the truth)",
+                    0.05,
+                    self.fits * MC_PARAMETERS.len(),
+                    self.intervals_missed,
                 )
             },
         ]
@@ -909,6 +931,14 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
             MC_BETA_RAD,
         ];
         let delta: Vec<f64> = (0..5).map(|j| f.values[idx[j]] - p_true[j]).collect();
+        let missed = (0..5)
+            .filter(|&j| {
+                let half = adjust::components::interval_95_sigmas(f.parameter_dof[idx[j]]);
+                delta[j].abs() > half * f.sigma(idx[j])
+            })
+            .count();
+        counts.intervals_missed += missed;
+        counts.intervals_missed_squared += missed * missed;
         mahalanobis.push(quadratic_form_of_inverse(&cov, &delta));
         applied.push(MC_APPLY_POINTS.map(|(x, t_c)| {
             let ng = ng_lo + x * (ng_hi - ng_lo);
