@@ -166,7 +166,7 @@ fn trigamma_inverse(x: f64) -> f64 {
 mod tests {
     use super::*;
 
-    /// Two readings 25 arcsec off among fifteen of 1 arcsec are both gross (and each is
+    /// Two readings 25 arcsec off among fifteen within an arcsec are both gross (and each is
     /// then left out of the other's sigma); a station of good readings has none, however
     /// closely they agree (the floor), nor does one of two readings.
     #[test]
@@ -181,7 +181,8 @@ mod tests {
         let gross = gross_readings(&dz, arcsec);
         let flagged: Vec<usize> = (0..dz.len()).filter(|&i| gross[i]).collect();
         assert_eq!(flagged, vec![3, 9]);
-        // Readings that agree to 1e-9 of an arcsec are not made gross by the floor.
+        // Among readings that agree to 1e-9 of an arcsec, one 2 arcsec off is not gross:
+        // the floor holds the scale at an arcsec.
         let tight: Vec<f64> = (0..15)
             .map(|i| 2.0 + 1e-9 * arcsec * f64::from(i))
             .collect();

@@ -24,7 +24,6 @@ use ingest::contract::calibration::{self, Calibration, CalibrationResult, Parame
 use ingest::contract::custody::Root;
 use ingest::contract::ingest_ledger::{self, IngestReport};
 use ingest::contract::manifest::Dataset;
-use statrs::distribution::{ContinuousCDF, StudentsT};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -64,7 +63,7 @@ fn param<'a>(r: &'a CalibrationResult, name: &str) -> Option<&'a Parameter> {
 }
 
 fn t_critical(dof: usize) -> f64 {
-    StudentsT::new(0.0, 1.0, dof.max(1) as f64).map_or(1.96, |t| t.inverse_cdf(0.975))
+    adjust::components::t_quantile(0.975, dof.max(1) as f64)
 }
 
 fn gps(ns: i64) -> String {
