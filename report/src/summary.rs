@@ -71,7 +71,7 @@ fn models_sentence(cal: &Calibration, surveys: &[String]) -> String {
             models.first().copied().unwrap_or_default()
         ),
         n => format!(
-            "{n} models ({}): `cargo xtask apply --model M` chooses the one to apply; sigmas are at the estimated variance components.",
+            "{n} models ({}): `cargo xtask apply --model M` chooses the one to apply; sigmas are at the estimated variance components, each the sd of its parameter's t, so that +/- 2 sigma is a 95 % interval.",
             models.iter().copied().collect::<Vec<_>>().join(", ")
         ),
     }
