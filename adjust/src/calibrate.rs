@@ -502,7 +502,8 @@ pub fn calibrate_with(
 /// station's sigma, so that, once removed, it would still make the station's other
 /// readings weigh little and its mean scatter less than its weight says: on esgt-2005's
 /// day 1 with 0.6 % of the readings 25 arcsec off, the theodolite's component averaged
-/// 0.83 over the replicas with a blunder, and the rms z of b and k was 1.16-1.18. A sigma
+/// 0.83 over the replicas with a blunder, and the rms z of b and k was 1.16-1.18 (a probe
+/// of the per-session study, not kept in the code). A sigma
 /// taken as known (no left-out sigma) is kept.
 fn station_without(obs: &mut [Obs], removed: usize) {
     let Some(left) = obs[removed].sigma_dz_left_out else {

@@ -284,23 +284,32 @@ pub fn parameter_dof(
     covariance: &[f64],
 ) -> Vec<Option<f64>> {
     let m = s.p.len();
-    let mut denominator = vec![0.0; m];
-    for (g, c) in components.iter().enumerate().take(GROUPS.len()) {
-        let Some(dof) = c.dof() else { continue };
-        let mut part = vec![0.0; m * m];
-        let mut y = vec![0.0; m];
-        for (i, (a, parts)) in s.a.chunks_exact(m).zip(&s.q_parts).enumerate() {
-            for (r, yr) in y.iter_mut().enumerate() {
-                *yr = (0..m).map(|j| s.q_pp[r * m + j] * a[j]).sum();
-            }
-            let w = parts[g] / (s.q_ww[i] * s.q_ww[i]);
+    // The estimated groups and their dof; each one's part of the cofactor, built in one
+    // pass over the conditions (Q a_i once per condition).
+    let estimated: Vec<(usize, f64)> = components
+        .iter()
+        .take(GROUPS.len())
+        .enumerate()
+        .filter_map(|(g, c)| c.dof().map(|dof| (g, dof)))
+        .collect();
+    let mut parts = vec![vec![0.0; m * m]; estimated.len()];
+    let mut y = vec![0.0; m];
+    for (i, (a, shares)) in s.a.chunks_exact(m).zip(&s.q_parts).enumerate() {
+        for (r, yr) in y.iter_mut().enumerate() {
+            *yr = (0..m).map(|j| s.q_pp[r * m + j] * a[j]).sum();
+        }
+        for ((g, _), part) in estimated.iter().zip(&mut parts) {
+            let w = shares[*g] / (s.q_ww[i] * s.q_ww[i]);
             for r in 0..m {
                 for j in 0..m {
                     part[r * m + j] += w * y[r] * y[j];
                 }
             }
         }
-        let reported = crate::model::propagate(map, &part, m);
+    }
+    let mut denominator = vec![0.0; m];
+    for ((_, dof), part) in estimated.iter().zip(&parts) {
+        let reported = crate::model::propagate(map, part, m);
         for (j, d) in denominator.iter_mut().enumerate() {
             *d += reported[j * m + j].powi(2) / dof;
         }

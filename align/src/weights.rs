@@ -20,7 +20,7 @@ pub const GROSS_READING_SDS: f64 = 10.0;
 /// another blunder: each reading's w-test is referred to its station's sigma formed without
 /// it, but a second blunder at the same station stays in that sigma and hides the first
 /// (two readings 25 arcsec off among 15 each tested at w of about 3.1, under 3.29, and both
-/// were kept). A reading more than [`GROSS_READING_SDS`] robust sds from the station's
+/// were kept, in a probe of adjust's per-session study not kept in the code). A reading more than [`GROSS_READING_SDS`] robust sds from the station's
 /// median is left out of the other readings' sigmas as well (not out of its own, nor of
 /// the station's). The robust sd is 1.4826 times the median absolute deviation, never below
 /// `scale_floor` (the session's prior sd, or the resolution), so that a station whose
