@@ -20,6 +20,10 @@ pub struct ColouredAdc {
     pub random_walk: f64,
     /// The window's length, s.
     pub window_s: f64,
+    /// The dof of B^2 as align's Allan curve determined it (None: known).
+    pub bias_instability_dof: Option<f64>,
+    /// The dof of K^2, alike.
+    pub random_walk_dof: Option<f64>,
 }
 
 impl ColouredAdc {
@@ -344,7 +348,61 @@ pub struct Excess {
 /// y^T M y with M = W - w w^T / sum(w), y of covariance S = W^-1 + C (C the coloured
 /// noise's, less the diagonal the weights hold), so its mean is tr(M S) and its variance
 /// 2 tr((M S)^2); the excess is what they exceed m - 1 and 2 (m - 1) by.
+///
+/// Where a coloured level was estimated (align's Allan curve, on the dof given), the
+/// variance also carries that estimate's own: the form's expectation takes the level's
+/// part E_l = tr(M C_l) (its diagonal, which the weights hold, included) in proportion to
+/// the level's square, so a level's square known to a relative variance 2 / nu adds
+/// E_l^2 2 / nu. The ADC component's test then asks whether the scatter is what the
+/// weights predict as far as the still intervals could tell them, not as though they knew.
 pub fn within_station_excess(
+    station: &[usize],
+    sigma_ng: &[f64],
+    at: Timeline<'_>,
+    noise: &ColouredAdc,
+) -> Excess {
+    let mut excess = scatter_excess(station, sigma_ng, at, noise);
+    let levels = [
+        (
+            ColouredAdc {
+                random_walk: 0.0,
+                ..*noise
+            },
+            noise.bias_instability_dof,
+        ),
+        (
+            ColouredAdc {
+                bias_instability: 0.0,
+                ..*noise
+            },
+            noise.random_walk_dof,
+        ),
+    ];
+    // sum over stations of tr(M) per unit of a diagonal added to every window.
+    let members = station_members(station);
+    let diagonal_trace: f64 = members
+        .iter()
+        .filter(|o| o.len() > 1)
+        .map(|obs| {
+            let w: Vec<f64> = obs.iter().map(|&i| sigma_ng[i].powi(-2)).collect();
+            let sum_w: f64 = w.iter().sum();
+            sum_w - w.iter().map(|x| x * x).sum::<f64>() / sum_w
+        })
+        .sum();
+    for (level, dof) in levels {
+        let (Some(nu), true) = (dof, level.bias_instability > 0.0 || level.random_walk > 0.0)
+        else {
+            continue;
+        };
+        let part = scatter_excess(station, sigma_ng, at, &level).mean
+            + level.window_variance() * diagonal_trace;
+        excess.variance += part * part * 2.0 / nu.max(1.0);
+    }
+    excess
+}
+
+/// [`within_station_excess`] at known levels.
+fn scatter_excess(
     station: &[usize],
     sigma_ng: &[f64],
     at: Timeline<'_>,
@@ -423,6 +481,8 @@ mod tests {
             bias_instability: 0.6,
             random_walk: 0.05,
             window_s: 2.56,
+            bias_instability_dof: None,
+            random_walk_dof: None,
         };
         let time: Vec<f64> = vec![30.0, 60.0, 90.0, 300.0, 330.0, 600.0];
         let sigma: Vec<f64> = vec![1.0, 1.5, 1.0, 2.0, 1.0, 1.2];
@@ -532,6 +592,8 @@ mod tests {
             bias_instability: 0.8,
             random_walk: 0.02,
             window_s: 2.56,
+            bias_instability_dof: None,
+            random_walk_dof: None,
         };
         let fast = between_station_excess(
             &s,
@@ -620,6 +682,8 @@ mod tests {
             bias_instability: 0.8,
             random_walk: 0.02,
             window_s: 2.56,
+            bias_instability_dof: None,
+            random_walk_dof: None,
         };
         let fast = extra_covariance(
             &s,

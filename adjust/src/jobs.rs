@@ -203,6 +203,8 @@ pub(crate) fn coloured_of(
             bias_instability: n.bias_instability_counts,
             random_walk: n.random_walk_counts_sqrt_hz,
             window_s,
+            bias_instability_dof: n.bias_instability_dof,
+            random_walk_dof: n.random_walk_dof,
         })
         .filter(|c| c.bias_instability > 0.0 || c.random_walk > 0.0)
 }

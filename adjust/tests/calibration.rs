@@ -683,6 +683,8 @@ fn told_of(coloured: Option<fixtures::colour::ColouredNoise>) -> adjust::calibra
             bias_instability: c.bias_instability_bits,
             random_walk: c.random_walk_bits_per_sqrt_s,
             window_s: WINDOW_SAMPLES as f64 * SAMPLE_S,
+            bias_instability_dof: None,
+            random_walk_dof: None,
         }),
         ..adjust::calibrate::FitOptions::default()
     }

@@ -27,8 +27,23 @@ pub struct AllanPoint {
 
 /// Averaging factors 1, 2, 4, ... up to a tenth of the series' length (at least one).
 pub fn octave_factors(n: usize) -> Vec<usize> {
+    octave_factors_up_to(n / 10)
+}
+
+/// The factors a tilt-table's still intervals are analysed at (align's ADC noise): up to a
+/// quarter of the longest. The intervals are raw counts, so the longest averaging times
+/// keep a random walk's rise (a multi-position session's intervals, less their straight
+/// lines, stop at a tenth: the line takes most of a walk's power beyond it); the quarter
+/// tells a flicker floor from a walk over twice the taus a tenth reached (docs/model.md
+/// 6.2).
+pub fn still_interval_factors(n: usize) -> Vec<usize> {
+    octave_factors_up_to(n / 4)
+}
+
+/// Averaging factors 1, 2, 4, ... up to `largest` (at least one).
+fn octave_factors_up_to(largest: usize) -> Vec<usize> {
     let mut out = vec![1];
-    while out[out.len() - 1] * 2 <= (n / 10).max(1) {
+    while out[out.len() - 1] * 2 <= largest.max(1) {
         out.push(out[out.len() - 1] * 2);
     }
     out
@@ -55,25 +70,52 @@ fn phase(y: &[f64], tau0_s: f64) -> Vec<f64> {
 
 /// The overlapping Allan deviation pooled over several series of one sensor at one rate
 /// (e.g. the still intervals of a calibration): the second differences of every series
-/// long enough for a factor are summed, and so are their degrees of freedom. With one
-/// series it is [`overlapping`].
+/// long enough for a factor are summed. With one series it is [`overlapping`].
+///
+/// Its degrees of freedom are those of the pooled variance when the series' white levels
+/// differ (a tilt-table's stations read at different ADC noise): each series' variance at
+/// the factor is its own white level (from its first factor) over tau plus the pooled
+/// coloured part, and the pooled variance, a mean weighted by the series' terms, has
+/// `(sum n_i a_i)^2 / sum (n_i^2 a_i^2 / edf_i)` dof. With equal white levels and lengths
+/// that is the sum of the series' dof; with unequal ones less, as the noisiest series
+/// dominate the scatter of the pooled variance.
 pub fn pooled(series: &[&[f64]], tau0_s: f64, ms: &[usize]) -> Vec<AllanPoint> {
     let phases: Vec<Vec<f64>> = series.iter().map(|y| phase(y, tau0_s)).collect();
+    // Each series' white level N_i^2 (unit^2 s): its Allan variance at the first factor
+    // times tau0, where the coloured terms are nothing beside the white.
+    let white: Vec<f64> = phases
+        .iter()
+        .map(|x| {
+            let n = x.len().saturating_sub(2);
+            let sum = (0..n)
+                .map(|i| (x[i + 2] - 2.0 * x[i + 1] + x[i]).powi(2))
+                .sum::<f64>();
+            sum / (2.0 * tau0_s * n.max(1) as f64)
+        })
+        .collect();
     ms.iter()
         .filter(|&&m| m > 0)
         .filter_map(|&m| {
             let tau = m as f64 * tau0_s;
-            let (mut sum, mut terms, mut edf) = (0.0, 0usize, 0.0);
-            for x in phases.iter().filter(|x| x.len() > 2 * m + 1) {
+            let (mut sum, mut terms) = (0.0, 0usize);
+            // (terms, white level, dof) of each series long enough for m.
+            let mut used = Vec::new();
+            for (x, &w) in phases
+                .iter()
+                .zip(&white)
+                .filter(|(x, _)| x.len() > 2 * m + 1)
+            {
                 let n = x.len() - 2 * m;
                 sum += (0..n)
                     .map(|i| (x[i + 2 * m] - 2.0 * x[i + m] + x[i]).powi(2))
                     .sum::<f64>();
                 terms += n;
-                edf += edf_white_frequency(x.len(), m);
+                used.push((n as f64, w, edf_white_frequency(x.len(), m)));
             }
             (terms > 0).then(|| {
-                let adev = (sum / (2.0 * tau * tau * terms as f64)).sqrt();
+                let avar = sum / (2.0 * tau * tau * terms as f64);
+                let adev = avar.sqrt();
+                let edf = pooled_edf(&used, avar, tau);
                 AllanPoint {
                     tau_s: tau,
                     m,
@@ -84,6 +126,25 @@ pub fn pooled(series: &[&[f64]], tau0_s: f64, ms: &[usize]) -> Vec<AllanPoint> {
             })
         })
         .collect()
+}
+
+/// The dof of a pooled Allan variance `avar` at `tau` from its series' (terms, white level,
+/// dof): see [`pooled`].
+fn pooled_edf(used: &[(f64, f64, f64)], avar: f64, tau: f64) -> f64 {
+    let total: f64 = used.iter().map(|&(n, _, _)| n).sum();
+    let white_mean = used.iter().map(|&(n, w, _)| n * w).sum::<f64>() / total / tau;
+    let coloured = (avar - white_mean).max(0.0);
+    let (mut num, mut den) = (0.0, 0.0);
+    for &(n, w, e) in used {
+        let a = w / tau + coloured;
+        num += n * a;
+        den += n * n * a * a / e;
+    }
+    if den > 0.0 && num > 0.0 {
+        num * num / den
+    } else {
+        used.iter().map(|&(_, _, e)| e).sum()
+    }
 }
 
 /// Equivalent degrees of freedom of the overlapping Allan variance for white frequency
@@ -130,7 +191,11 @@ impl NoiseTerms {
 }
 
 /// Standard errors a fitted bias instability or random walk must exceed to be kept.
-const SIGNIFICANCE: f64 = 2.0;
+const SIGNIFICANCE: [f64; 3] = [0.0, 2.0, WALK_SIGNIFICANCE];
+/// Standard errors a random walk must exceed: more than the flicker, because adjust carries
+/// a random walk from the tens of seconds the curve reaches to the hours of a session, where
+/// one kept falsely (flicker read as a walk) weighs the stations a hundredfold wrong.
+const WALK_SIGNIFICANCE: f64 = 3.0;
 
 /// Overlap of the integer intervals [a, b) and [c, d).
 fn overlap(a: i64, b: i64, c: i64, d: i64) -> i64 {
@@ -176,21 +241,23 @@ pub fn white_covariance(points: &[AllanPoint], lengths: &[usize]) -> Vec<f64> {
             if ta == 0 || tb == 0 {
                 continue;
             }
+            // d_i (factor ma) and e_k (factor mb) at lag = i - k: the kernels' products,
+            // the same for every series, then each distinct length once, times its count.
+            let kernel: Vec<(i64, f64)> = ((-2 * ma + 1)..(2 * mb))
+                .map(|lag| (lag, kernel_product(ma, mb, lag) as f64))
+                .filter(|&(_, g)| g != 0.0)
+                .collect();
             let mut sum = 0.0;
-            for &n in lengths {
+            for (n, count) in distinct_lengths(lengths) {
                 let (na, nb) = (terms(ma, n), terms(mb, n));
                 if na == 0 || nb == 0 || n as i64 <= 2 * ma || n as i64 <= 2 * mb {
                     continue;
                 }
-                // d_i (factor ma) and e_k (factor mb) at lag = i - k.
-                for lag in (-2 * ma + 1)..(2 * mb) {
-                    let g = kernel_product(ma, mb, lag) as f64;
-                    if g == 0.0 {
-                        continue;
-                    }
-                    let pairs = overlap(0, na, lag, lag + nb) as f64;
-                    sum += 2.0 * g * g * pairs;
-                }
+                let series: f64 = kernel
+                    .iter()
+                    .map(|&(lag, g)| 2.0 * g * g * overlap(0, na, lag, lag + nb) as f64)
+                    .sum();
+                sum += series * count as f64;
             }
             let (tau_a, tau_b) = (points[a].tau_s, points[b].tau_s);
             let c =
@@ -202,24 +269,62 @@ pub fn white_covariance(points: &[AllanPoint], lengths: &[usize]) -> Vec<f64> {
     out
 }
 
+/// Each distinct length among `lengths`, with how many series have it.
+fn distinct_lengths(lengths: &[usize]) -> Vec<(usize, usize)> {
+    let mut sorted = lengths.to_vec();
+    sorted.sort_unstable();
+    let mut out: Vec<(usize, usize)> = Vec::new();
+    for n in sorted {
+        match out.last_mut() {
+            Some((m, count)) if *m == n => *count += 1,
+            _ => out.push((n, 1)),
+        }
+    }
+    out
+}
+
 /// Fits [`NoiseTerms`] to an Allan curve pooled over series of `lengths` samples by
 /// generalised least squares on the variance: the points' covariance is that of white
 /// counts at the fitted white level ([`white_covariance`]), so the test of whether the
 /// counts are white knows that neighbouring octaves share their samples. Every term is kept
 /// non-negative: a term that comes out negative is dropped and the rest refitted; so is a
 /// bias instability or random walk below [`SIGNIFICANCE`] standard errors (the white term
-/// always stays).
+/// always stays). When neither is significant beside the other, the random walk goes first:
+/// over the seconds a still interval's Allan curve reaches, flicker and a random walk look
+/// alike, and a random walk is what adjust carries over the whole session (its covariance
+/// grows with the time between windows), so it is kept only where it shows beside the
+/// flicker. [`fit_noise_levels`] also gives the dof of the coloured levels.
 pub fn fit_noise(points: &[AllanPoint], lengths: &[usize]) -> NoiseTerms {
+    fit_noise_levels(points, lengths).terms
+}
+
+/// [`NoiseTerms`] fitted, with the degrees of freedom of the coloured terms' squares.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FittedNoise {
+    /// The terms.
+    pub terms: NoiseTerms,
+    /// The dof of B^2, 2 (B^2 / se)^2 with se the generalised fit's (None: not kept).
+    pub bias_instability_dof: Option<f64>,
+    /// The dof of K^2, alike.
+    pub random_walk_dof: Option<f64>,
+}
+
+/// [`fit_noise`] with the dof of the coloured terms kept.
+pub fn fit_noise_levels(points: &[AllanPoint], lengths: &[usize]) -> FittedNoise {
     let points: Vec<AllanPoint> = points
         .iter()
         .filter(|p| p.adev.is_finite() && p.adev > 0.0)
         .cloned()
         .collect();
     if points.is_empty() {
-        return NoiseTerms {
-            white_density: 0.0,
-            bias_instability: 0.0,
-            random_walk: 0.0,
+        return FittedNoise {
+            terms: NoiseTerms {
+                white_density: 0.0,
+                bias_instability: 0.0,
+                random_walk: 0.0,
+            },
+            bias_instability_dof: None,
+            random_walk_dof: None,
         };
     }
     let v: Vec<f64> = points.iter().map(|q| q.adev * q.adev).collect();
@@ -253,21 +358,32 @@ pub fn fit_noise(points: &[AllanPoint], lengths: &[usize]) -> NoiseTerms {
         if let Some((_, &j)) = idx
             .iter()
             .enumerate()
-            .filter(|&(a, &j)| j > 0 && coef[j] < SIGNIFICANCE * se[a])
-            .min_by(|x, y| (coef[*x.1] / se[x.0]).total_cmp(&(coef[*y.1] / se[y.0])))
+            .filter(|&(a, &j)| j > 0 && coef[j] < SIGNIFICANCE[j] * se[a])
+            .max_by_key(|&(_, &j)| j)
         {
             active[j] = false;
             reweighted = 0;
             continue;
         }
-        return weighted_fit(&points, active);
+        let terms = weighted_fit(&points, active);
+        let dof = |j: usize, level: f64| {
+            let a = idx.iter().position(|&i| i == j)?;
+            (level > 0.0 && se[a] > 0.0).then(|| 2.0 * (coef[j] / se[a]).powi(2))
+        };
+        return FittedNoise {
+            terms,
+            bias_instability_dof: dof(1, terms.bias_instability),
+            random_walk_dof: dof(2, terms.random_walk),
+        };
     }
 }
 
-/// The three terms' shapes in the Allan variance at a point: N^2 / tau, the flicker
-/// floor, K^2 tau / 3.
+/// The three terms' shapes in the Allan variance at a point: N^2 / tau, the flicker of
+/// gravcal's model ([`crate::colour::Flicker`], the floor from about 2 s up and bending
+/// down below it), K^2 tau / 3.
 fn noise_basis(q: &AllanPoint) -> [f64; 3] {
-    [1.0 / q.tau_s, crate::colour::FLICKER_AVAR, q.tau_s / 3.0]
+    let flicker = crate::colour::Flicker::new(1.0).allan_variance(q.tau_s);
+    [1.0 / q.tau_s, flicker, q.tau_s / 3.0]
 }
 
 /// The points' correlation matrix as white counts give it ([`white_covariance`]).

@@ -56,6 +56,19 @@ impl Flicker {
         }
     }
 
+    /// The Allan variance of this flicker at averaging time `tau_s`: the flicker floor
+    /// (2 ln 2 / pi) B^2 from about 2 s up, less below, where the shortest processes bend it
+    /// down (about 0.2 of the floor at 0.1 s, 0.7 at 1 s). A fit of the Allan curve takes
+    /// this shape, so that the bend is not read as a random walk.
+    pub fn allan_variance(&self, tau_s: f64) -> f64 {
+        self.variance
+            * self
+                .time_constants_s
+                .iter()
+                .map(|&t| gauss_markov_avar(t, tau_s))
+                .sum::<f64>()
+    }
+
     /// Per time constant, the factors a mean over a window of `window_s` puts on its process's
     /// variance: (f, g), f for two such means whose windows do not overlap (their covariance
     /// is f variance exp(-|dt| / T), the exponential kept), g for one and the same window

@@ -320,7 +320,7 @@ pub(crate) fn add_to_still(
 }
 
 /// The ADC noise of every accelerometer: the Allan deviation of its counts pooled over the
-/// unbroken still intervals of all sessions (averaging factors in octaves up to a tenth of
+/// unbroken still intervals of all sessions (averaging factors in octaves up to a quarter of
 /// the longest), and the three terms fitted to it.
 pub(crate) fn adc_noise(ds: &Dataset, still: &[Vec<StillInterval>], tau0_s: f64) -> Vec<AdcNoise> {
     ds.manifest
@@ -336,9 +336,10 @@ pub(crate) fn adc_noise(ds: &Dataset, still: &[Vec<StillInterval>], tau0_s: f64)
                 .map(|iv| iv.counts[ch].as_slice())
                 .collect();
             let longest = series.iter().map(|s| s.len()).max()?;
-            let points = allan::pooled(&series, tau0_s, &allan::octave_factors(longest));
-            let fit =
-                allan::fit_noise(&points, &series.iter().map(|s| s.len()).collect::<Vec<_>>());
+            let points = allan::pooled(&series, tau0_s, &allan::still_interval_factors(longest));
+            let lengths: Vec<usize> = series.iter().map(|s| s.len()).collect();
+            let fitted = allan::fit_noise_levels(&points, &lengths);
+            let fit = fitted.terms;
             Some(AdcNoise {
                 accelerometer: acc.id.clone(),
                 still_intervals: series.len(),
@@ -347,6 +348,8 @@ pub(crate) fn adc_noise(ds: &Dataset, still: &[Vec<StillInterval>], tau0_s: f64)
                 white_density_counts_per_sqrt_hz: fit.white_density,
                 bias_instability_counts: fit.bias_instability,
                 random_walk_counts_sqrt_hz: fit.random_walk,
+                bias_instability_dof: fitted.bias_instability_dof,
+                random_walk_dof: fitted.random_walk_dof,
             })
         })
         .collect()

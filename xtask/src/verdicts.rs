@@ -10,12 +10,22 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 
 /// The tests that measure the rates: package, test binary, test.
-const MONTE_CARLOS: [(&str, &str, &str); 2] = [
+const MONTE_CARLOS: [(&str, &str, &str); 4] = [
     ("adjust", "calibration", "every_verdict_holds_its_rate"),
+    (
+        "adjust",
+        "replicas",
+        "the_pipelines_verdicts_hold_on_replicas_of_esgt_2005",
+    ),
     (
         "align",
         "noise_selection",
         "noise_terms_are_kept_at_their_stated_rate",
+    ),
+    (
+        "align",
+        "noise_selection",
+        "flicker_is_not_read_as_a_random_walk",
     ),
 ];
 

@@ -82,6 +82,13 @@ pub struct AdcNoise {
     pub bias_instability_counts: f64,
     /// Random walk K, counts * sqrt(Hz).
     pub random_walk_counts_sqrt_hz: f64,
+    /// Degrees of freedom of B^2 as the Allan curve determines it (absent: B not kept, or
+    /// a ledger written before it was recorded, when B is taken as known).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bias_instability_dof: Option<f64>,
+    /// Degrees of freedom of K^2, alike.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub random_walk_dof: Option<f64>,
 }
 
 /// Counts for one (session, accelerometer).
