@@ -6,12 +6,17 @@
 //! generated it; here align finds it from the still intervals, as it must on real data,
 //! so the rates hold the noise-term selection and the variance components' tests together.
 //!
-//! Held: the global test and each component's 5 % test over every fit (the fits of a
-//! replica share its noise: the se carries the design effect measured from the replicas),
-//! and flicker read as a random walk (a walk kept at ten times the simulator's) at most 1 %
-//! of the accelerometers. The global test and the theodolite's are nearly one statistic
-//! (both the station means' scatter about the fitted function; the global test's reference
-//! also holds the ADC's share), so they fail together.
+//! Held: the global test and the theodolite component's test over the thermal fits, whose
+//! model is the simulator's; the ADC component's over every fit (the within-station scatter
+//! it reads is the same whatever the model); each at 5 % (the fits of a replica share its
+//! noise: the se carries the design effect measured from the replicas); and flicker read as
+//! a random walk (a walk kept at ten times the simulator's) at most 1 % of the
+//! accelerometers. Printed, not held: the global and theodolite tests of the per-session
+//! linear fits, over a temperature moving by 10-20 mK that the linear model does not carry
+//! (adjust warns of it; a test that fails there more often than 5 % is detecting a real
+//! effect). The global test and the theodolite's are nearly one statistic (the station
+//! means' scatter about the fitted function; the global test's reference also holds the
+//! ADC's share), so they fail together.
 //!
 //! Replicas: a tenth of GRAVCAL_VERDICT_REPLICAS (each writes a dataset's logs and reads
 //! them: 200 in the default `cargo xtask verdicts`, about a minute), else 100 with
@@ -68,6 +73,43 @@ impl Count {
     }
 }
 
+/// The counts over the replicas: the global test and the theodolite's, apart for the fits
+/// whose model carries the temperature (thermal) and those that do not (linear, per
+/// session); the ADC's over every fit; the accelerometers whose flicker was read as a walk.
+#[derive(Default)]
+struct Tally {
+    global: [Count; 2],
+    theodolite: [Count; 2],
+    adc: Count,
+    walk: Count,
+}
+
+impl Tally {
+    /// One replica's fits: each test a trial, a failed one a hit.
+    fn add(&mut self, cal: &ingest::contract::calibration::Calibration) {
+        let (mut g, mut t, mut a) = ([(0, 0); 2], [(0, 0); 2], (0, 0));
+        for r in &cal.results {
+            let k = usize::from(r.model != "thermal");
+            g[k].0 += 1;
+            g[k].1 += u64::from(!r.global_test.passed);
+            for c in r
+                .variance_components
+                .iter()
+                .filter(|c| c.not_estimable.is_none())
+            {
+                let count = if c.group == "ADC" { &mut a } else { &mut t[k] };
+                count.0 += 1;
+                count.1 += u64::from(!c.passed);
+            }
+        }
+        for k in 0..2 {
+            self.global[k].add(g[k].0, g[k].1);
+            self.theodolite[k].add(t[k].0, t[k].1);
+        }
+        self.adc.add(a.0, a.1);
+    }
+}
+
 #[test]
 fn the_pipelines_verdicts_hold_on_replicas_of_esgt_2005() {
     let replicas: u64 = std::env::var("GRAVCAL_VERDICT_REPLICAS")
@@ -75,12 +117,7 @@ fn the_pipelines_verdicts_hold_on_replicas_of_esgt_2005() {
         .and_then(|v| v.parse::<u64>().ok())
         .map(|n| (n / 10).max(1))
         .unwrap_or_else(|| std::env::var("GRAVCAL_MONTE_CARLO").map_or(12, |_| 100));
-    let (mut theodolite, mut adc, mut global, mut walk) = (
-        Count::default(),
-        Count::default(),
-        Count::default(),
-        Count::default(),
-    );
+    let mut tally = Tally::default();
     for seed in FIRST_SEED..FIRST_SEED + replicas {
         let dir = tempfile::tempdir().expect("tempdir");
         let (dataset, out) = (dir.path().join("dataset"), dir.path().join("out"));
@@ -93,8 +130,7 @@ fn the_pipelines_verdicts_hold_on_replicas_of_esgt_2005() {
         };
         ingest::run_with(&dataset, &out, &opts).expect("ingest");
         let aligned = align::run(&dataset, &out).expect("align");
-        let cal = adjust::run(&dataset, &out).expect("adjust");
-        tally(&cal, &mut theodolite, &mut adc, &mut global);
+        tally.add(&adjust::run(&dataset, &out).expect("adjust"));
         let true_walk = truth
             .adc_noise
             .as_ref()
@@ -104,13 +140,21 @@ fn the_pipelines_verdicts_hold_on_replicas_of_esgt_2005() {
             .iter()
             .filter(|n| n.random_walk_counts_sqrt_hz > 10.0 * true_walk)
             .count();
-        walk.add(aligned.noise.len() as u64, read_as_walk as u64);
+        tally
+            .walk
+            .add(aligned.noise.len() as u64, read_as_walk as u64);
     }
     let held = [
-        global.rate("global test", Kind::FalseAlarm, 0.05),
-        theodolite.rate("theodolite variance component", Kind::FalseAlarm, 0.05),
-        adc.rate("ADC variance component", Kind::FalseAlarm, 0.05),
-        walk.rate(
+        tally.global[0].rate("global test, thermal fits", Kind::FalseAlarm, 0.05),
+        tally.theodolite[0].rate(
+            "theodolite variance component, thermal fits",
+            Kind::FalseAlarm,
+            0.05,
+        ),
+        tally
+            .adc
+            .rate("ADC variance component", Kind::FalseAlarm, 0.05),
+        tally.walk.rate(
             "noise terms, flicker read as a random walk (10x the truth)",
             Kind::FalseAlarmAtMost,
             0.01,
@@ -121,32 +165,17 @@ fn the_pipelines_verdicts_hold_on_replicas_of_esgt_2005() {
         .filter(|r| !r.report())
         .map(ToString::to_string)
         .collect();
-    assert!(failed.is_empty(), "{failed:#?}");
-}
-
-/// One replica's fits: each component test and global test counted as a trial, a failed
-/// one as a hit.
-fn tally(
-    cal: &ingest::contract::calibration::Calibration,
-    theodolite: &mut Count,
-    adc: &mut Count,
-    global: &mut Count,
-) {
-    let (mut t, mut a, mut g) = ((0, 0), (0, 0), (0, 0));
-    for r in &cal.results {
-        g.0 += 1;
-        g.1 += u64::from(!r.global_test.passed);
-        for c in r
-            .variance_components
-            .iter()
-            .filter(|c| c.not_estimable.is_none())
-        {
-            let count = if c.group == "ADC" { &mut a } else { &mut t };
-            count.0 += 1;
-            count.1 += u64::from(!c.passed);
-        }
+    for (verdict, c) in [
+        ("global test", &tally.global[1]),
+        ("theodolite variance component", &tally.theodolite[1]),
+    ] {
+        eprintln!(
+            "  {verdict}, per-session linear fits (not held: the temperature moves by 10-20 mK \
+             over a session, which they do not model): {} of {} failed ({:.4})",
+            c.hits,
+            c.trials,
+            c.hits as f64 / c.trials.max(1) as f64
+        );
     }
-    theodolite.add(t.0, t.1);
-    adc.add(a.0, a.1);
-    global.add(g.0, g.1);
+    assert!(failed.is_empty(), "{failed:#?}");
 }

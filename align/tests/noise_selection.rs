@@ -37,10 +37,10 @@ fn kept(replicas: usize, n: usize, len: usize, k: f64, rng: &mut Rng) -> u64 {
     count
 }
 
-/// White counts keep a coloured term in at most about 3 % of replicas (each term kept at
-/// 2 standard errors by a GLS that knows the Allan points' correlation, two one-sided tests
-/// whose joint level depends on the design: measured with 2000 replicas 0.027, 0.018,
-/// 0.023; with the Allan points taken as independent, 1000 replicas, 0.073, 0.057, 0.052,
+/// White counts keep a coloured term in at most about 3 % of replicas (a bias instability
+/// kept at 2 standard errors, a random walk at 3, by a GLS that knows the Allan points'
+/// correlation: one-sided tests whose joint level depends on the design: measured with 2000 replicas 0.018, 0.011,
+/// 0.0145; with the Allan points taken as independent, 1000 replicas, 0.073, 0.057, 0.052,
 /// rising with the design's length), within 3 Monte-Carlo standard errors of 3 %;
 /// on the replica's design a random walk of 0.5 counts sqrt(Hz) under 10 counts of white
 /// noise is found in at least 80 % of replicas. Printed for the record over shorter
