@@ -7,9 +7,11 @@
 //! so the rates hold the noise-term selection and the variance components' tests together.
 //!
 //! Held: the global test and the theodolite component's test over the thermal fits, whose
-//! model is the simulator's; the ADC component's over every fit (the within-station scatter
-//! it reads is the same whatever the model); each at 5 % (the fits of a replica share its
-//! noise: the se carries the design effect measured from the replicas); and flicker read as
+//! model is the simulator's, at 5 %; the ADC component's over every fit (the within-station
+//! scatter it reads is the same whatever the model), at most 5 %, since its reference takes
+//! align's estimate of the coloured levels as independent of the scatter (the fits of a
+//! replica share its noise: each se carries the design effect measured from the replicas);
+//! and flicker read as
 //! a random walk (a walk kept at ten times the simulator's) at most 1 % of the
 //! accelerometers. Printed, not held: the global and theodolite tests of the per-session
 //! linear fits, over a temperature moving by 10-20 mK that the linear model does not carry
@@ -151,9 +153,12 @@ fn the_pipelines_verdicts_hold_on_replicas_of_esgt_2005() {
             Kind::FalseAlarm,
             0.05,
         ),
+        // At most its level: its reference widens by the uncertainty of align's levels as
+        // though that were independent of the scatter it is compared with, where both come
+        // from the same stations' samples (docs/model.md 6.8).
         tally
             .adc
-            .rate("ADC variance component", Kind::FalseAlarm, 0.05),
+            .rate("ADC variance component", Kind::FalseAlarmAtMost, 0.05),
         tally.walk.rate(
             "noise terms, flicker read as a random walk (10x the truth)",
             Kind::FalseAlarmAtMost,
