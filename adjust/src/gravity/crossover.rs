@@ -20,7 +20,7 @@
 //! calibration's part is common to both passes (one calibration, the same specific force
 //! on a levelled platform) and cancels to first order, so it is left out.
 
-use super::navigation::longitude_step_deg;
+use super::navigation::{longitude_step_deg, longitude_wrapped_like};
 use ingest::contract::gravity_ledger::{Crossover, Pass};
 use ingest::time::utc_iso;
 use std::collections::{HashMap, HashSet};
@@ -277,8 +277,10 @@ fn crossover(
     let (first, second) = (pass(e, a, s), pass(e, b, u));
     Crossover {
         latitude_deg: point[1],
-        longitude_deg: e.longitude_deg[a]
-            + s * longitude_step_deg(e.longitude_deg[a], e.longitude_deg[a + 1]),
+        longitude_deg: longitude_wrapped_like(
+            e.longitude_deg[a] + s * longitude_step_deg(e.longitude_deg[a], e.longitude_deg[a + 1]),
+            e.longitude_deg[a],
+        ),
         angle_deg: plane.angle_deg(e, a, b),
         difference_mgal: second.filtered_mgal - first.filtered_mgal,
         sigma_mgal: sigma,
@@ -385,6 +387,26 @@ mod tests {
             (c.angle_deg - slope.atan().to_degrees()).abs() < 1e-3,
             "{c:?}"
         );
+    }
+
+    /// Two passes across the antimeridian, the file writing -180..180, crossing at
+    /// 180.000001 deg, between two epochs of the first pass (179.999993 and -179.999997):
+    /// the crossover's longitude is -179.999999, in the file's range (not 180.000001).
+    #[test]
+    fn a_crossover_on_the_antimeridian_is_in_the_files_range() {
+        let mut t = track(0.0);
+        let wrap = |lon: f64| (lon + 180.0).rem_euclid(360.0) - 180.0;
+        for k in 0..2000 {
+            t.lon[k] = wrap(179.99 + 3e-6 + 1e-5 * k as f64);
+            let lon = 180.01 + 3e-6 - 1e-5 * k as f64;
+            t.lon[2000 + k] = wrap(lon);
+            t.lat[2000 + k] = 43.0 + 1e-6 * (1000.2 - k as f64);
+        }
+        let names = ["s".to_owned()];
+        let found = crossovers(&epochs(&t, &names), 100.0, |_, _| None);
+        assert_eq!(found.len(), 1, "{found:?}");
+        let lon = found[0].longitude_deg;
+        assert!((lon + 179.999_999).abs() < 1e-7, "{lon}");
     }
 
     #[test]

@@ -12,6 +12,17 @@ pub fn longitude_step_deg(from_deg: f64, to_deg: f64) -> f64 {
     d - 360.0 * ((d + 180.0) / 360.0).floor()
 }
 
+/// `lon_deg` in the range `like_deg` is written in: [0, 360) when it is 180 or more (a file
+/// writing 0 to 360), [-180, 180) otherwise; so that a longitude interpolated across the
+/// antimeridian (or across 0) reads as the file's own do.
+pub fn longitude_wrapped_like(lon_deg: f64, like_deg: f64) -> f64 {
+    if like_deg >= 180.0 {
+        lon_deg.rem_euclid(360.0)
+    } else {
+        (lon_deg + 180.0).rem_euclid(360.0) - 180.0
+    }
+}
+
 /// Meridian and prime-vertical radii of curvature (R_M, R_N) at geodetic latitude, m.
 pub fn radii(e: &Ellipsoid, latitude_deg: f64) -> (f64, f64) {
     let s = latitude_deg.to_radians().sin();
@@ -58,6 +69,15 @@ pub fn coriolis_transport(
 mod tests {
     use super::super::normal::GRS80;
     use super::*;
+
+    /// Across the antimeridian in a -180..180 file, and across 0 in a 0..360 one.
+    #[test]
+    fn a_longitude_is_wrapped_into_its_files_range() {
+        assert!((longitude_wrapped_like(180.000_001, 179.99) + 179.999_999).abs() < 1e-9);
+        assert!((longitude_wrapped_like(-0.000_001, 359.99) - 359.999_999).abs() < 1e-9);
+        assert!((longitude_wrapped_like(5.01, 5.0) - 5.01).abs() < 1e-12);
+        assert!((longitude_wrapped_like(200.0, 200.0) - 200.0).abs() < 1e-12);
+    }
 
     /// The down component of the full vector is the Eotvos term, and at rest both vanish.
     #[test]
