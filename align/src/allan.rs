@@ -182,7 +182,17 @@ pub struct NoiseTerms {
 }
 
 impl NoiseTerms {
-    /// The Allan variance of the three terms at averaging time `tau_s`.
+    /// The Allan variance the fit ([`fit_noise`]) takes the terms to give at `tau_s`: the
+    /// flicker of gravcal's model ([`crate::colour::Flicker`]), which bends below the floor
+    /// under about 2 s; [`NoiseTerms::allan_variance`] elsewhere.
+    pub fn fitted_allan_variance(&self, tau_s: f64) -> f64 {
+        self.white_density.powi(2) / tau_s
+            + crate::colour::Flicker::new(self.bias_instability).allan_variance(tau_s)
+            + self.random_walk.powi(2) * tau_s / 3.0
+    }
+
+    /// The Allan variance of the three terms at averaging time `tau_s`, the flicker at its
+    /// floor.
     pub fn allan_variance(&self, tau_s: f64) -> f64 {
         self.white_density.powi(2) / tau_s
             + crate::colour::FLICKER_AVAR * self.bias_instability.powi(2)

@@ -189,7 +189,7 @@ fn allan_plot(n: &align_ledger::AdcNoise) -> Result<Plot, Error> {
         .map(|r| {
             (
                 r.tau_s.log10(),
-                terms.allan_variance(r.tau_s).sqrt().log10(),
+                terms.fitted_allan_variance(r.tau_s).sqrt().log10(),
             )
         })
         .collect();
@@ -220,18 +220,19 @@ pub(crate) fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
         "Overlapping Allan deviation of each accelerometer's counts, pooled over the still intervals (the platform at rest at a \
          station), with the white-noise density N, bias instability B and random walk K fitted to sigma^2(tau) = N^2/tau + \
          (2 ln 2/pi) B^2 + K^2 tau/3. For white noise the curve falls as tau^-1/2; it flattens with flicker and rises with a \
-         random walk. In SI units by the accelerometer's scale factor k, under Kalibr's imu.yaml names. A B or K below 2 \
-         standard errors of its fit is not determined by these curves and shows as such. When B or K is found, the sd of each \
+         random walk; the flicker is gravcal's model of it, flat from about 2 s and bending down below. In SI units by the \
+         accelerometer's scale factor k, under Kalibr's imu.yaml names. A B below 2 standard errors of its fit, or a K below 3 \
+         (a random walk is carried over the whole session, so it must show beside the flicker), is not determined by these \
+         curves and shows as such; a B found is given with the degrees of freedom of B^2, which the ADC component's test \
+         carries. When B or K is found, the sd of each \
          window mean includes their Allan variance at the window's length, and the adjustment propagates the noise's \
          correlation between stations and over the session into the parameters' sigmas (flicker modelled up to 5000 s)."
             .to_owned(),
     );
-    let determined = |x: f64| {
-        if x > 0.0 {
-            format!("{x:.4}")
-        } else {
-            "not determined".to_owned()
-        }
+    let with_dof = |x: f64, dof: Option<f64>| match (x > 0.0, dof) {
+        (true, Some(d)) => format!("{x:.4} (its square on {d:.0} dof)"),
+        (true, None) => format!("{x:.4}"),
+        (false, _) => "not determined".to_owned(),
     };
     let mut t = Table::new(&[
         "accelerometer",
@@ -255,8 +256,8 @@ pub(crate) fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
             n.still_intervals.to_string(),
             n.samples.to_string(),
             format!("{:.4}", n.white_density_counts_per_sqrt_hz),
-            determined(n.bias_instability_counts),
-            determined(n.random_walk_counts_sqrt_hz),
+            with_dof(n.bias_instability_counts, n.bias_instability_dof),
+            with_dof(n.random_walk_counts_sqrt_hz, n.random_walk_dof),
             si.map_or("-".into(), |k| {
                 format!("{:.3e}", k.accelerometer_noise_density)
             }),
