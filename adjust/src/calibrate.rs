@@ -859,7 +859,8 @@ fn estimate_components(
             }
         }
     }
-    let theodolite = components::theodolite_component(theta, (&apriori, &step), at_one);
+    let dof = components::theodolite_dof(&sol, &groups.station, &groups.dof);
+    let theodolite = components::theodolite_component(theta, (&apriori, dof), at_one);
     Ok((sol, vec![theodolite, adc]))
 }
 
