@@ -1162,7 +1162,8 @@ fn adc_component_when_the_noise_is_under_told() {
 /// the adjustment takes the temperatures as observations and its sigmas hold (sd/sigma and
 /// the Mahalanobis mean within 1 +/- 0.07, 3 se at 1000 replicas; the global test
 /// 2.9-7.1 %). The adjustment alone, at the a-priori weights: with the variance components
-/// estimated as well, the theodolite's on about 6 dof makes the sigmas of b and k 7-10 %
+/// estimated as well, the theodolite's on few dof (a quarter of the stations' redundancy:
+/// the temperatures take half of each station's variance) leaves the sigmas of b and k 5-7 %
 /// small (printed for the record, with the same temperatures taken as exact; docs/model.md
 /// 6.1).
 #[test]
