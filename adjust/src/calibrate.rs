@@ -843,9 +843,10 @@ fn estimate_components(
     // Whether the component is estimated is decided here, at its a-priori weight: its
     // degrees of freedom grow with its estimate, and deciding at the converged one kept the
     // high estimates and held the low ones at 1 (a 0.1 K thermometer's share left about 3
-    // dof, and the kept estimates averaged 1.7).
-    let apriori = step;
-    if apriori.mean >= components::MIN_COMPONENT_DOF {
+    // dof, and the kept estimates averaged 1.7). The dof are the estimate's own
+    // ([`components::theodolite_dof`]), not the form's.
+    let apriori_dof = components::theodolite_dof(&sol, &groups.station, &groups.dof);
+    if apriori_dof >= components::MIN_COMPONENT_DOF {
         for _ in 0..MAX_COMPONENT_ITERATIONS {
             // The theodolite's part of the form is what the coloured noise does not explain.
             let excess = groups.excess(&sol, coloured, true);
@@ -860,7 +861,7 @@ fn estimate_components(
         }
     }
     let dof = components::theodolite_dof(&sol, &groups.station, &groups.dof);
-    let theodolite = components::theodolite_component(theta, (&apriori, dof), at_one);
+    let theodolite = components::theodolite_component(theta, (apriori_dof, dof), at_one);
     Ok((sol, vec![theodolite, adc]))
 }
 

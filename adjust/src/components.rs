@@ -364,21 +364,20 @@ fn share_weighted_dof(stations: impl Iterator<Item = (f64, f64, f64)>) -> f64 {
     }
 }
 
-/// The theodolite component from its first step (`apriori`, at its a-priori weight, which
-/// decides whether it is estimated), its dof at the converged components
-/// ([`theodolite_dof`], which gives its sd) and its test at the a-priori weights (`at_one`).
+/// The theodolite component from its dof at the a-priori weights (`apriori_dof`, which
+/// decide whether it is estimated) and at the converged components (`dof`, which give its
+/// sd; both [`theodolite_dof`]) and its test at the a-priori weights (`at_one`).
 pub fn theodolite_component(
     estimate: f64,
-    (apriori, dof): (&ScaledChi2, f64),
+    (apriori_dof, dof): (f64, f64),
     at_one: ScaledChi2,
 ) -> Component {
-    if apriori.mean < MIN_COMPONENT_DOF {
+    if apriori_dof < MIN_COMPONENT_DOF {
         return Component::held(
             GROUPS[0],
             at_one,
             format!(
-                "the station means give it {:.1} degrees of freedom (fewer than {MIN_COMPONENT_DOF})",
-                apriori.mean
+                "the station means give it {apriori_dof:.1} degrees of freedom (fewer than {MIN_COMPONENT_DOF})"
             ),
         );
     }
