@@ -11,9 +11,8 @@
 //! scatter it reads is the same whatever the model), at most 5 %, since its reference takes
 //! align's estimate of the coloured levels as independent of the scatter (the fits of a
 //! replica share its noise: each se carries the design effect measured from the replicas);
-//! and flicker read as
-//! a random walk (a walk kept at ten times the simulator's) at most 1 % of the
-//! accelerometers. Printed, not held: the global and theodolite tests of the per-session
+//! and flicker read as a random walk (a walk kept at ten times the simulator's) at most 1 %
+//! of the accelerometers. Printed, not held: the global and theodolite tests of the per-session
 //! linear fits, over a temperature moving by 10-20 mK that the linear model does not carry
 //! (adjust warns of it; a test that fails there more often than 5 % is detecting a real
 //! effect). The global test and the theodolite's are nearly one statistic (the station
