@@ -8,6 +8,14 @@ use fixtures::rng::Rng;
 
 const TAU0_S: f64 = 0.032;
 
+/// Replicas: GRAVCAL_VERDICT_REPLICAS, else 1000 with GRAVCAL_MONTE_CARLO, else 200.
+fn replicas() -> usize {
+    std::env::var("GRAVCAL_VERDICT_REPLICAS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| std::env::var("GRAVCAL_MONTE_CARLO").map_or(200, |_| 1000))
+}
+
 /// `intervals` still intervals of `len` samples: white noise of sd 10 counts plus a random
 /// walk of `k` counts sqrt(Hz) running through them.
 fn intervals(intervals: usize, len: usize, k: f64, rng: &mut Rng) -> Vec<Vec<f64>> {
@@ -39,21 +47,18 @@ fn kept(replicas: usize, n: usize, len: usize, k: f64, rng: &mut Rng) -> u64 {
 
 /// White counts keep a coloured term in at most about 3 % of replicas (a bias instability
 /// kept at 2 standard errors, a random walk at 3, by a GLS that knows the Allan points'
-/// correlation: one-sided tests whose joint level depends on the design: measured with 2000 replicas 0.018, 0.011,
-/// 0.0145; with the Allan points taken as independent, 1000 replicas, 0.073, 0.057, 0.052,
-/// rising with the design's length), within 3 Monte-Carlo standard errors of 3 %;
+/// correlation: one-sided tests whose joint level depends on the design: measured with 2000
+/// replicas 0.018, 0.011, 0.0145; with the Allan points taken as independent, 1000
+/// replicas, 0.073, 0.057, 0.052, rising with the design's length), within 3 Monte-Carlo
+/// standard errors of 3 %;
 /// on the replica's design a random walk of 0.5 counts sqrt(Hz) under 10 counts of white
 /// noise is found in at least 80 % of replicas. Printed for the record over shorter
 /// designs, where the same walk is mostly out of reach. Each rate held is printed as the
-/// line `cargo xtask verdicts` gathers. Replicas: GRAVCAL_VERDICT_REPLICAS, else 1000 with
-/// GRAVCAL_MONTE_CARLO, else 200.
+/// line `cargo xtask verdicts` gathers. Replicas: [`replicas`].
 #[test]
 fn noise_terms_are_kept_at_their_stated_rate() {
     use fixtures::verdicts::{Kind, Rate};
-    let replicas: usize = std::env::var("GRAVCAL_VERDICT_REPLICAS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| std::env::var("GRAVCAL_MONTE_CARLO").map_or(200, |_| 1000));
+    let replicas = replicas();
     let mut rng = Rng::new(20_261_124, "noise-selection");
     let mut held = Vec::new();
     for (k, (label, n, len)) in [
@@ -127,14 +132,11 @@ fn flicker_intervals(intervals: usize, rng: &mut Rng) -> Vec<Vec<f64>> {
 /// Flicker is not read as a random walk: on esgt-2005's stations (and on its 13 of the day
 /// an accelerometer was disconnected), a random walk of ten times the simulator's is kept in
 /// at most 1 % of replicas, and the fit's dof of B^2 is what the replicas' scatter of B^2
-/// shows, within 30 % (docs/model.md 6.2). Replicas as the test above.
+/// shows, within 30 % (docs/model.md 6.2). Replicas: [`replicas`].
 #[test]
 fn flicker_is_not_read_as_a_random_walk() {
     use fixtures::verdicts::{Kind, Rate};
-    let replicas: usize = std::env::var("GRAVCAL_VERDICT_REPLICAS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| std::env::var("GRAVCAL_MONTE_CARLO").map_or(200, |_| 1000));
+    let replicas = replicas();
     let truth = fixtures::catalog::QA3000_COLOURED;
     let mut rng = Rng::new(20_261_127, "flicker-selection");
     let mut failed = Vec::new();
@@ -143,10 +145,14 @@ fn flicker_is_not_read_as_a_random_walk() {
         ("esgt-2005's 13 stations", 13),
     ] {
         let (mut walks, mut squares, mut dofs) = (0, Vec::new(), Vec::new());
+        // The pooled variance's dof at the first factor over the sum of its series' own.
+        let mut pooled_share = Vec::new();
         for _ in 0..replicas {
             let s = flicker_intervals(n, &mut rng);
             let series: Vec<&[f64]> = s.iter().map(Vec::as_slice).collect();
             let points = pooled(&series, TAU0_S, &still_interval_factors(2640));
+            let one = pooled(&series[..1], TAU0_S, &[1])[0].edf;
+            pooled_share.push(points[0].edf / (one * n as f64));
             let fit = fit_noise_levels(&points, &vec![2640; n]);
             walks += u64::from(fit.terms.random_walk > 10.0 * truth.random_walk_bits_per_sqrt_s);
             if let Some(d) = fit.bias_instability_dof {
@@ -172,6 +178,12 @@ fn flicker_is_not_read_as_a_random_walk() {
         let seen = 2.0 * mean * mean / var;
         dofs.sort_by(f64::total_cmp);
         let claimed = dofs[dofs.len() / 2];
+        pooled_share.sort_by(f64::total_cmp);
+        eprintln!(
+            "  {label}: the pooled Allan variance's dof at the first factor, median {:.2} of \
+             the sum of its stations' own (their white levels differ)",
+            pooled_share[pooled_share.len() / 2]
+        );
         eprintln!(
             "  {label}: B kept in {} of {replicas}, B mean {:.3} (the simulator's {:.3}); dof of \
              B^2: the fit's median {claimed:.1}, the replicas' scatter {seen:.1}",
