@@ -1494,7 +1494,8 @@ fn verdict_replicas() -> usize {
 /// default weights and components: the global test, the theodolite's and the ADC's
 /// variance-component tests and the w-test's false removals from the acceptance
 /// Monte-Carlo, which carries no blunder; the w-test's power from replicas with one reading
-/// moved by its MDB at the dof its test runs on. Each rate is printed as the line `cargo
+/// moved by its MDB at the dof its test runs on; and, as a control, the w-test's false
+/// removals on the same replicas weighed at their generating sigmas. Each rate is printed as the line `cargo
 /// xtask verdicts` gathers (with the noise-term selection's from align) and held to its
 /// rule ([`fixtures::verdicts::Rate::holds`]: a false alarm within 3 standard errors of
 /// its level, the power 0.8 +/- 0.1).
@@ -1518,6 +1519,22 @@ fn every_verdict_holds_its_rate() {
         let m = monte_carlo(replicas, Weights::Moderated, setup);
         assert!(m.failed.is_empty(), "{label}: {:?}", m.failed);
         rates.extend(m.counts.rates(label));
+        // The control: the same replicas (the same draws) weighed at their generating
+        // sigmas, Baarda's own setting, so that a w-test rate off its level is told apart
+        // into the test's and the estimated weights' part.
+        let control = monte_carlo(replicas, Weights::Generating, setup);
+        assert!(control.failed.is_empty(), "{label}: {:?}", control.failed);
+        rates.extend(
+            control
+                .counts
+                .rates(label)
+                .into_iter()
+                .filter(|r| r.verdict.starts_with("w-test"))
+                .map(|r| Rate {
+                    verdict: "w-test at the generating sigmas (control)".to_owned(),
+                    ..r
+                }),
+        );
         let s = snooping_monte_carlo(replicas, Weights::Moderated, Blunder::MdbAtItsDof, coloured);
         rates.push(Rate {
             verdict: "w-test (a reading moved by its MDB found)".to_owned(),
