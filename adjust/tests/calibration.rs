@@ -1495,10 +1495,10 @@ fn verdict_replicas() -> usize {
 /// variance-component tests and the w-test's false removals from the acceptance
 /// Monte-Carlo, which carries no blunder; the w-test's power from replicas with one reading
 /// moved by its MDB at the dof its test runs on; and, as a control, the w-test's false
-/// removals on the same replicas weighed at their generating sigmas. Each rate is printed as the line `cargo
-/// xtask verdicts` gathers (with the noise-term selection's from align) and held to its
-/// rule ([`fixtures::verdicts::Rate::holds`]: a false alarm within 3 standard errors of
-/// its level, the power 0.8 +/- 0.1).
+/// removals on the same replicas weighed at their generating sigmas. Each rate is printed
+/// as the line `cargo xtask verdicts` gathers (with the noise-term selection's from align)
+/// and held to its rule ([`fixtures::verdicts::Rate::holds`]: a false alarm within 3
+/// standard errors of its level, the power 0.8 +/- 0.1).
 #[test]
 fn every_verdict_holds_its_rate() {
     use fixtures::verdicts::{Kind, Rate};
