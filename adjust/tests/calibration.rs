@@ -1653,11 +1653,7 @@ fn per_session_study(replicas: usize, acc: usize, varied: Varied) -> ([f64; 2], 
                 }
             })
             .collect();
-        let design = vary_stations(design, varied, &mut rng);
-        let dz = study_readings(&design, varied, &mut rng);
-        let means = window_means(&design, None, &mut rng);
-        let obs = replica_obs(&design, &dz, &means, Weights::Moderated);
-        let Ok(f) = adjust::calibrate::calibrate(&obs, terms, truth.gravity_mgal) else {
+        let Some(f) = study_fit(design, varied, &mut rng, terms, truth.gravity_mgal) else {
             continue;
         };
         for j in 0..2 {
@@ -1694,6 +1690,22 @@ fn study_readings(design: &[McReading], varied: Varied, rng: &mut fixtures::rng:
             r.dz_true_rad + r.sigma_dz_rad * rng.normal() + blunder
         })
         .collect()
+}
+
+/// One study replica's fit: the stations varied, the readings and window means drawn
+/// (white ADC noise), moderated weights; None where the fit fails.
+fn study_fit(
+    design: Vec<McReading>,
+    varied: Varied,
+    rng: &mut fixtures::rng::Rng,
+    terms: adjust::model::Terms,
+    g_mgal: f64,
+) -> Option<adjust::calibrate::CalibrationSolution> {
+    let design = vary_stations(design, varied, rng);
+    let dz = study_readings(&design, varied, rng);
+    let means = window_means(&design, None, rng);
+    let obs = replica_obs(&design, &dz, &means, Weights::Moderated);
+    adjust::calibrate::calibrate(&obs, terms, g_mgal).ok()
 }
 
 /// The per-session design's stations as `varied` says: the theodolite's sds spread over a
@@ -1830,11 +1842,7 @@ fn thermal_study(replicas: usize, acc: usize, varied: Varied) -> ([f64; 4], f64)
                 }
             })
             .collect();
-        let design = vary_stations(design, varied, &mut rng);
-        let dz = study_readings(&design, varied, &mut rng);
-        let means = window_means(&design, None, &mut rng);
-        let obs = replica_obs(&design, &dz, &means, Weights::Moderated);
-        let Ok(f) = adjust::calibrate::calibrate(&obs, terms, truth.gravity_mgal) else {
+        let Some(f) = study_fit(design, varied, &mut rng, terms, truth.gravity_mgal) else {
             continue;
         };
         let tau = f.t_ref_c - truth.t_ref_c;
