@@ -76,6 +76,45 @@ macro_rules! delta_value {
 delta_value!(i32, u32, PACKERS_32);
 delta_value!(i64, u64, PACKERS_64);
 
+/// Appends `values` in Parquet's BYTE_STREAM_SPLIT encoding: eight streams, the k-th
+/// holding byte k (little-endian) of every value in order. Eight values at a time: their
+/// 8 x 8 bytes transposed in registers by three rounds of swapping blocks (4 x 4, 2 x 2,
+/// then single bytes), so that each stream is written a word at a time.
+pub fn put_byte_stream_split(values: &[f64], out: &mut Vec<u8>) {
+    let n = values.len();
+    let start = out.len();
+    out.resize(start + 8 * n, 0);
+    let streams = &mut out[start..];
+    let whole = n - n % 8;
+    for (block, chunk) in values[..whole].chunks_exact(8).enumerate() {
+        let mut r: [u64; 8] = std::array::from_fn(|i| chunk[i].to_bits());
+        for i in 0..4 {
+            let t = ((r[i] >> 32) ^ r[i + 4]) & 0x0000_0000_ffff_ffff;
+            r[i] ^= t << 32;
+            r[i + 4] ^= t;
+        }
+        for i in [0, 1, 4, 5] {
+            let t = ((r[i] >> 16) ^ r[i + 2]) & 0x0000_ffff_0000_ffff;
+            r[i] ^= t << 16;
+            r[i + 2] ^= t;
+        }
+        for i in [0, 2, 4, 6] {
+            let t = ((r[i] >> 8) ^ r[i + 1]) & 0x00ff_00ff_00ff_00ff;
+            r[i] ^= t << 8;
+            r[i + 1] ^= t;
+        }
+        for (k, word) in r.iter().enumerate() {
+            let at = k * n + 8 * block;
+            streams[at..at + 8].copy_from_slice(&word.to_le_bytes());
+        }
+    }
+    for (i, v) in values.iter().enumerate().skip(whole) {
+        for (k, b) in v.to_le_bytes().into_iter().enumerate() {
+            streams[k * n + i] = b;
+        }
+    }
+}
+
 /// Appends `v` as an unsigned LEB128 varint.
 fn put_varint(out: &mut Vec<u8>, mut v: u64) {
     while v >= 0x80 {
@@ -289,6 +328,26 @@ impl Hybrid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The transposition in registers is the format's byte k of value i at k n + i, after
+    /// what the buffer held, for every length around the block of eight.
+    #[test]
+    fn byte_stream_split_is_the_format() {
+        for n in 0..40 {
+            let values: Vec<f64> = (0..n)
+                .map(|i| f64::from_bits(0x0123_4567_89ab_cdefu64.rotate_left(7 * i as u32)))
+                .collect();
+            let mut out = vec![0xaa];
+            put_byte_stream_split(&values, &mut out);
+            let mut expected = vec![0xaa; 1 + 8 * n];
+            for (i, v) in values.iter().enumerate() {
+                for (k, b) in v.to_le_bytes().into_iter().enumerate() {
+                    expected[1 + k * n + i] = b;
+                }
+            }
+            assert_eq!(out, expected, "{n} values");
+        }
+    }
 
     #[test]
     fn varints_and_zigzag() {

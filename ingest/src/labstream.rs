@@ -21,73 +21,80 @@ use crate::contract::ingest_ledger::{FileLedger, LabStreamReport, reason};
 use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{digits, read_lines, strip_comment, text};
-use crate::table::{Encodings, TableWriter};
+use crate::rowgroup::{N, Spare, column, nullable, session_values, whole};
+use crate::table::{ColumnTableWriter, ColumnValues, Encodings};
 use crate::time::parse_seconds_ns;
 use crate::timegate::{Position, Sink, TimeGate};
-use arrow::array::{
-    ArrayRef, Float64Array, Int64Array, NullBufferBuilder, UInt16Array, UInt64Array,
-};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
+use std::thread::JoinHandle;
 
-/// Rows buffered before a batch goes to the table.
-const BATCH_ROWS: usize = 1 << 16;
-
-/// `lab.parquet`, written a batch at a time on a thread of its own (the batch's columns
-/// built, parquet-rs's encoding and zstd), while the caller parses the next lines.
+/// `lab.parquet`, written a row group at a time on a thread of its own (the readings'
+/// encoding and zstd), while the caller parses the next lines. The row group's columns are
+/// arrays filled in place, as the acceleration table's are (`streams`), their buffers
+/// coming back from the writer for the next row groups.
 pub struct LabWriter {
-    to_writer: Option<std::sync::mpsc::SyncSender<ToWriter>>,
-    writer: Option<std::thread::JoinHandle<Result<u64>>>,
-    rows: Rows,
+    to_writer: Option<SyncSender<ToWriter>>,
+    writer: Option<JoinHandle<Result<u64>>>,
+    spent: Receiver<Vec<ColumnValues>>,
+    spare: Spare,
+    rows: LabColumns,
 }
 
-/// Rows of the lab table, as the reader gives them: each reading's value (0 when null) and
-/// its validity apart, so a column of readings becomes an array without a copy, and a
-/// stream without `nan` without a validity buffer.
-struct Rows {
-    session: Vec<u16>,
-    time: Vec<i64>,
-    values: [Vec<f64>; 3],
-    valid: [NullBufferBuilder; 3],
-    line: Vec<u64>,
+/// Rows of the lab table not yet handed to the writer, all of one session: each reading's
+/// value (0 where null) and, per row, which readings are null (bit `k` for channel `k + 1`),
+/// worked into definition levels per row group only where a row group has a null.
+struct LabColumns {
+    len: usize,
+    session: u16,
+    time: Box<[i64; N]>,
+    values: [Box<[f64; N]>; 3],
+    nulls: Box<[u8; N]>,
+    line: Box<[i64; N]>,
 }
 
-impl Rows {
-    /// Room for a batch, so that no row moves the ones before it.
-    fn new() -> Self {
-        Rows {
-            session: Vec::with_capacity(BATCH_ROWS),
-            time: Vec::with_capacity(BATCH_ROWS),
-            values: std::array::from_fn(|_| Vec::with_capacity(BATCH_ROWS)),
-            valid: std::array::from_fn(|_| NullBufferBuilder::new(BATCH_ROWS)),
-            line: Vec::with_capacity(BATCH_ROWS),
-        }
-    }
+/// What the lab table's writer thread is told.
+enum ToWriter {
+    /// A row group: rows and columns.
+    RowGroup(usize, Vec<ColumnValues>),
+    /// Close the table and rename it into place.
+    Finish,
+}
 
-    /// The table's columns, in schema order.
-    fn columns(self) -> Vec<ArrayRef> {
-        let mut columns: Vec<ArrayRef> = vec![
-            Arc::new(UInt16Array::from(self.session)),
-            Arc::new(Int64Array::from(self.time)),
-        ];
-        for (c, mut valid) in self.values.into_iter().zip(self.valid) {
-            columns.push(Arc::new(Float64Array::new(c.into(), valid.finish())));
+/// The writer thread: writes row groups until told to finish, and hands their buffers back.
+/// If the sender goes away without `Finish` (a run that failed), the table is dropped and
+/// its partial file removed.
+fn write_lab(
+    mut table: ColumnTableWriter,
+    rx: Receiver<ToWriter>,
+    spent: Sender<Vec<ColumnValues>>,
+) -> Result<u64> {
+    for message in rx {
+        match message {
+            ToWriter::RowGroup(rows, columns) => {
+                table.write_row_group(rows, &columns)?;
+                // The reader may have gone; then the buffers are simply freed.
+                let _ = spent.send(columns);
+            }
+            ToWriter::Finish => return table.finish(),
         }
-        columns.push(Arc::new(UInt64Array::from(self.line)));
-        columns
     }
+    Ok(0)
 }
 
 impl LabWriter {
     /// Starts the table in `dir` for the dataset's `sessions`.
     pub fn create(dir: &Path, sessions: &[String]) -> Result<Self> {
-        let mut table = TableWriter::create(
+        let table = ColumnTableWriter::create(
             dir,
             tables::lab::FILE,
             tables::lab::schema(sessions),
-            // Chosen by measurement (`cargo xtask bench ingest`, docs/benchmarks.md): zstd
-            // on the readings' plain doubles was a fifth of the reader's CPU time.
+            // Chosen by measurement (`cargo xtask bench ingest`, docs/benchmarks.md): the
+            // session, time and line columns by ingest's own delta encoder; the readings
+            // split by byte stream, which lets zstd find what their high bytes share, and
+            // without min/max statistics (a tenth of their writing, and nobody filters on
+            // them).
             Encodings {
                 delta: &[tables::SESSION_INDEX, tables::lab::LINE],
                 byte_stream_split: &tables::lab::VALUES,
@@ -95,55 +102,91 @@ impl LabWriter {
                 ..Encodings::default()
             },
         )?;
-        let (to_writer, batches) = std::sync::mpsc::sync_channel::<ToWriter>(2);
+        // Two row groups queued keep both threads busy.
+        let (to_writer, rx) = sync_channel(2);
+        let (spent_tx, spent) = channel();
         // The table is renamed into place only when told to finish: a run that fails, or
         // drops the writer, leaves no lab.parquet behind (the partial file is removed).
-        let writer = std::thread::spawn(move || -> Result<u64> {
-            for message in batches {
-                match message {
-                    ToWriter::Batch(rows) => table.write(rows.columns())?,
-                    ToWriter::Finish => return table.finish(),
-                }
-            }
-            Ok(0)
-        });
+        let writer = std::thread::Builder::new()
+            .name("lab-writer".to_owned())
+            .spawn(move || write_lab(table, rx, spent_tx))
+            .map_err(|e| Error::io(dir, e))?;
         Ok(LabWriter {
             to_writer: Some(to_writer),
             writer: Some(writer),
-            rows: Rows::new(),
+            spent,
+            spare: Spare::default(),
+            rows: LabColumns {
+                len: 0,
+                session: 0,
+                time: whole(Vec::new()),
+                values: std::array::from_fn(|_| whole(Vec::new())),
+                nulls: whole(Vec::new()),
+                line: whole(Vec::new()),
+            },
         })
     }
 
-    fn push(
-        &mut self,
-        session: u16,
-        time_ns: i64,
-        values: [Option<f64>; 3],
-        line: u64,
-    ) -> Result<()> {
-        let rows = &mut self.rows;
-        rows.session.push(session);
-        rows.time.push(time_ns);
-        for ((c, valid), v) in rows.values.iter_mut().zip(&mut rows.valid).zip(values) {
-            c.push(v.unwrap_or(0.0));
-            valid.append(v.is_some());
+    /// One row: a sample of the session at `session` in the manifest, at `time_ns`.
+    #[inline(always)]
+    fn push(&mut self, session: u16, time_ns: i64, sample: &Sample) -> Result<()> {
+        if session != self.rows.session {
+            self.flush()?;
+            self.rows.session = session;
         }
-        rows.line.push(line);
-        if rows.time.len() >= BATCH_ROWS {
+        let r = &mut self.rows;
+        // Below N: the row group is handed on as soon as it is full.
+        let i = r.len;
+        r.time[i] = time_ns;
+        for (column, &value) in r.values.iter_mut().zip(&sample.readings.values) {
+            column[i] = value;
+        }
+        r.nulls[i] = sample.readings.nulls;
+        // A line number is far below 2^63.
+        r.line[i] = sample.line as i64;
+        r.len = i + 1;
+        if r.len >= N {
             self.flush()?;
         }
         Ok(())
     }
 
+    /// Hands the buffered rows to the writer as a row group.
+    #[inline(never)]
     fn flush(&mut self) -> Result<()> {
-        if self.rows.time.is_empty() {
+        let n = self.rows.len;
+        if n == 0 {
             return Ok(());
         }
-        let rows = std::mem::replace(&mut self.rows, Rows::new());
+        for columns in self.spent.try_iter() {
+            self.spare.keep(columns);
+        }
+        let (spare, rows) = (&mut self.spare, &mut self.rows);
+        let time = column(std::mem::replace(&mut rows.time, whole(spare.int64())), n);
+        let line = column(std::mem::replace(&mut rows.line, whole(spare.int64())), n);
+        let nulls = &rows.nulls[..n];
+        // Nearly always no reading of a row group is null: nothing to look at per row.
+        let any_null = nulls.iter().fold(0u8, |a, &s| a | s);
+        let mut columns = Vec::with_capacity(6);
+        columns.push(session_values(rows.session, n, spare.int32()));
+        columns.push(ColumnValues::Int64(time, None));
+        for (ch, values) in rows.values.iter_mut().enumerate() {
+            let values = column(std::mem::replace(values, whole(spare.double())), n);
+            let bit = 1u8 << ch;
+            let (values, levels) = if any_null & bit == 0 {
+                (values, None)
+            } else {
+                let valid: Vec<bool> = nulls.iter().map(|&s| s & bit == 0).collect();
+                nullable(values, &valid)
+            };
+            columns.push(ColumnValues::Double(values, levels));
+        }
+        columns.push(ColumnValues::Int64(line, None));
+        rows.len = 0;
         let sent = self
             .to_writer
             .as_ref()
-            .map(|w| w.send(ToWriter::Batch(Box::new(rows))));
+            .map(|w| w.send(ToWriter::RowGroup(n, columns)));
         if !matches!(sent, Some(Ok(()))) {
             // The writer stopped: its error says why.
             return self.join().map(|_| ());
@@ -154,7 +197,7 @@ impl LabWriter {
     /// Closes the channel and waits for the writer: the rows it wrote, or its error.
     fn join(&mut self) -> Result<u64> {
         self.to_writer = None;
-        match self.writer.take().map(std::thread::JoinHandle::join) {
+        match self.writer.take().map(JoinHandle::join) {
             Some(Ok(result)) => result,
             Some(Err(_)) => Err(Error::io(
                 Path::new(tables::lab::FILE),
@@ -190,14 +233,6 @@ impl Drop for LabWriter {
     }
 }
 
-/// What the lab table's writer thread is told.
-enum ToWriter {
-    /// A batch of rows.
-    Batch(Box<Rows>),
-    /// Close the table and rename it into place.
-    Finish,
-}
-
 /// How to read one stream.
 #[derive(Clone, Copy, Debug)]
 pub struct LabConfig {
@@ -223,6 +258,17 @@ const EXACT_POWERS: [f64; 23] = [
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
     1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
 ];
+
+/// 10^k, k = 0..=15: the scale of a fraction's digits without `pow`'s loop.
+const POWERS_OF_TEN: [i64; 16] = {
+    let mut p = [1i64; 16];
+    let mut k = 1;
+    while k < 16 {
+        p[k] = p[k - 1] * 10;
+        k += 1;
+    }
+    p
+};
 
 /// A plain decimal (sign, digits, a point, digits, an exponent) whose significant digits
 /// fit in 2^53 and whose power of ten is within 10^22, read as its exact integer times or
@@ -280,17 +326,17 @@ fn fast_decimal(field: &[u8]) -> Option<(f64, bool)> {
 /// the same line, bit for bit (the readings are Clinger's exact case of `str::parse`);
 /// None sends the line there, which also says what is wrong with it.
 #[inline]
-fn fast_line(line: &[u8]) -> Option<(i64, [Option<f64>; 3], usize)> {
+fn fast_line(line: &[u8]) -> Option<(i64, [f64; 3], usize)> {
     let mut p = 0;
     let mut ns = digits(line, &mut p, 10)?.checked_mul(1_000_000_000)?;
     if line.get(p) == Some(&b'.') {
         p += 1;
         let start = p;
         let frac = digits(line, &mut p, 9)?;
-        ns = ns.checked_add(frac * 10i64.pow(9 - (p - start) as u32))?;
+        ns = ns.checked_add(frac * POWERS_OF_TEN[9 - (p - start)])?;
     }
     let time_end = p;
-    let mut values = [None; 3];
+    let mut values = [0.0; 3];
     for value in &mut values {
         if !matches!(line.get(p), Some(b',' | b' ' | b'\t')) {
             return None;
@@ -306,7 +352,7 @@ fn fast_line(line: &[u8]) -> Option<(i64, [Option<f64>; 3], usize)> {
             let frac_start = p;
             let frac = digits(line, &mut p, 15 - (frac_start - 1 - start))?;
             decimals = p - frac_start;
-            mantissa = mantissa * 10i64.pow(decimals as u32) + frac;
+            mantissa = mantissa * POWERS_OF_TEN[decimals] + frac;
         }
         // A whole number (counts) needs no division, the slowest step of the line.
         let v = if decimals == 0 {
@@ -314,7 +360,7 @@ fn fast_line(line: &[u8]) -> Option<(i64, [Option<f64>; 3], usize)> {
         } else {
             mantissa as f64 / EXACT_POWERS[decimals]
         };
-        *value = Some(if negative { -v } else { v });
+        *value = if negative { -v } else { v };
     }
     (p == line.len()).then_some((ns, values, time_end))
 }
@@ -368,107 +414,176 @@ fn parse_line(
     Ok((time, values, scientific))
 }
 
-/// A line's line number and readings.
-type Sample = (u64, [Option<f64>; 3]);
+/// A line's three readings: their values (0 where null) and which are null (bit `k` for
+/// channel `k + 1`, a `nan` in the line).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Readings {
+    values: [f64; 3],
+    nulls: u8,
+}
 
-/// A run of samples sharing one time stamp: what the time gate judges as one record (the
+impl Readings {
+    /// Readings none of which is null.
+    fn all(values: [f64; 3]) -> Self {
+        Readings { values, nulls: 0 }
+    }
+
+    fn from_options(readings: [Option<f64>; 3]) -> Self {
+        let mut nulls = 0;
+        for (k, r) in readings.iter().enumerate() {
+            nulls |= u8::from(r.is_none()) << k;
+        }
+        Readings {
+            values: readings.map(|r| r.unwrap_or(0.0)),
+            nulls,
+        }
+    }
+
+    fn options(self) -> [Option<f64>; 3] {
+        std::array::from_fn(|k| (self.nulls >> k & 1 == 0).then_some(self.values[k]))
+    }
+}
+
+/// A line's sample: its line number and readings.
+#[derive(Clone, Copy, Debug)]
+struct Sample {
+    line: u64,
+    readings: Readings,
+}
+
+/// A run of lines sharing one time stamp, as the time gate judges it (one record: the
 /// stamps are what a lab logger writes; samples sharing one are spread once it is kept).
-struct Run {
-    stamp_ns: i64,
-    samples: Vec<Sample>,
+/// Its samples wait in [`RunSink::staged`].
+#[derive(Clone, Copy, Debug)]
+struct RunRef {
+    /// The line of its first sample.
+    first_line: u64,
+    /// Its samples.
+    len: usize,
 }
 
 /// The stream's side of the time gate: kept runs are spread and written, rejected ones
-/// counted line by line; the runs' buffers are reused.
+/// counted line by line.
 struct RunSink<'a> {
     config: &'a LabConfig,
     out: &'a mut LabWriter,
     ledger: &'a mut FileLedger,
-    /// The last run kept, waiting for the next kept stamp to spread its samples to.
-    pending: Option<Run>,
+    /// The samples of the runs offered to the gate and not yet written, in line order:
+    /// first the `pending` ones of the run kept last (waiting for the next kept stamp to
+    /// spread them to), then those of the runs the gate holds. Flat memory: the gate holds
+    /// a few runs at most.
+    staged: VecDeque<Sample>,
+    pending: usize,
+    /// The stamp of the run kept last.
+    pending_stamp: i64,
     accepted: u64,
     /// Samples whose stamp a sample before them had.
     shared: u64,
-    null_values: BTreeMap<String, u64>,
+    /// Readings given as `nan`, by channel.
+    nulls: [u64; 3],
     /// Intervals between consecutive written times, by length, of runs spread up to the
     /// next stamp (the last run, spread at the declared interval, measures nothing).
     intervals: Histogram,
     /// Steps between distinct kept stamps, by length.
     steps: Histogram,
     last_written: Option<i64>,
-    pool: Vec<Vec<Sample>>,
 }
 
 impl RunSink<'_> {
     /// Writes the pending run, its samples spread evenly from its stamp to `next` (or at
     /// the declared interval).
     fn write_pending(&mut self, next: Option<i64>) -> Result<()> {
-        let Some(mut run) = self.pending.take() else {
-            return Ok(());
+        let n = self.pending;
+        let stamp = self.pending_stamp;
+        let step = match next {
+            // One sample, the common case: no division.
+            _ if n <= 1 => 0,
+            Some(t) => (t - stamp) / n as i64,
+            None => self.config.interval_ns,
         };
-        let n = run.samples.len() as i64;
-        let step = next.map_or(self.config.interval_ns, |t| (t - run.stamp_ns) / n.max(1));
-        for (j, (line, values)) in run.samples.drain(..).enumerate() {
-            let t = run.stamp_ns + j as i64 * step;
+        for j in 0..n {
+            let Some(sample) = self.staged.pop_front() else {
+                break;
+            };
+            let t = stamp + j as i64 * step;
             if let Some(prev) = self.last_written
                 && (next.is_some() || j == 0)
             {
                 self.intervals.add(t - prev);
             }
             self.last_written = Some(t);
-            for (k, v) in values.iter().enumerate() {
-                if v.is_none() {
-                    *self
-                        .null_values
-                        .entry(format!("ch{} nan", k + 1))
-                        .or_default() += 1;
+            let nulls = sample.readings.nulls;
+            if nulls != 0 {
+                for (k, count) in self.nulls.iter_mut().enumerate() {
+                    *count += u64::from(nulls >> k & 1);
                 }
             }
-            self.out.push(self.config.session, t, values, line)?;
-            self.accepted += 1;
+            self.out.push(self.config.session, t, &sample)?;
         }
-        self.pool.push(run.samples);
+        self.accepted += n as u64;
+        self.pending = 0;
         Ok(())
     }
 
-    /// A buffer for the next run.
-    fn buffer(&mut self) -> Vec<Sample> {
-        self.pool.pop().unwrap_or_default()
+    /// Where `run`'s samples start in `staged`. The gate decides runs in the order they
+    /// were offered, so they follow the pending ones; looked up by line all the same.
+    fn find(&self, run: RunRef) -> usize {
+        if self.staged.get(self.pending).map(|s| s.line) == Some(run.first_line) {
+            return self.pending;
+        }
+        let undecided = self.staged.range(self.pending..);
+        self.pending + undecided.take_while(|s| s.line != run.first_line).count()
+    }
+
+    /// The null readings by channel, for the ledger.
+    fn null_counts(&self) -> BTreeMap<String, u64> {
+        (0..3)
+            .filter(|&k| self.nulls[k] > 0)
+            .map(|k| (format!("ch{} nan", k + 1), self.nulls[k]))
+            .collect()
     }
 }
 
-impl Sink<Vec<Sample>> for RunSink<'_> {
+impl Sink<RunRef> for RunSink<'_> {
     type Error = Error;
 
-    fn accept(&mut self, time_ns: i64, samples: Vec<Sample>) -> Result<()> {
-        if let Some(p) = &self.pending {
-            self.steps.add(time_ns - p.stamp_ns);
+    fn accept(&mut self, time_ns: i64, run: RunRef) -> Result<()> {
+        if self.pending > 0 {
+            self.steps.add(time_ns - self.pending_stamp);
         }
         self.write_pending(Some(time_ns))?;
-        self.pending = Some(Run {
-            stamp_ns: time_ns,
-            samples,
-        });
+        let at = self.find(run);
+        if at > 0 {
+            // Not reached: what came before the run was decided and written or removed.
+            self.staged.drain(..at);
+        }
+        self.pending = run.len;
+        self.pending_stamp = time_ns;
         Ok(())
     }
 
-    fn reject(&mut self, _: Position, why: &'static str, detail: String, mut samples: Vec<Sample>) {
+    fn reject(&mut self, _: Position, why: &'static str, detail: String, run: RunRef) {
+        let at = self.find(run);
         // The stamp of the run kept last (a duplicate's time is the last kept one): more
         // samples sharing it, split from it by a line out of place between them.
-        if why == reason::DUPLICATE
-            && let Some(p) = &mut self.pending
-        {
-            self.shared += samples.len() as u64;
-            p.samples.append(&mut samples);
-            self.pool.push(samples);
+        if why == reason::DUPLICATE && self.pending > 0 {
+            self.shared += run.len as u64;
+            if at != self.pending {
+                // Not reached: the lines between were decided and removed.
+                let moved: Vec<Sample> = self.staged.drain(at..at + run.len).collect();
+                for (k, s) in moved.into_iter().enumerate() {
+                    self.staged.insert(self.pending + k, s);
+                }
+            }
+            self.pending += run.len;
             return;
         }
         // Every line of the run is rejected, each under its own line number.
-        for (line, _) in samples.drain(..) {
+        let end = (at + run.len).min(self.staged.len());
+        for sample in self.staged.drain(at..end) {
             self.ledger
-                .reject(format!("line {line}"), why, detail.clone());
+                .reject(format!("line {}", sample.line), why, detail.clone());
         }
-        self.pool.push(samples);
     }
 }
 
@@ -523,7 +638,7 @@ fn median(h: &BTreeMap<i64, u64>) -> Option<i64> {
 }
 
 /// A data line: its GPS time (ns), its three values, and its time field as written.
-type DataLine<'l> = (i64, [Option<f64>; 3], &'l [u8]);
+type DataLine<'l> = (i64, Readings, &'l [u8]);
 
 /// What a "seconds" file's lines showed before any row is kept: the line classifier both
 /// the acceleration stream and a temperature log are read through.
@@ -619,7 +734,8 @@ impl<'c> Lines<'c> {
         if self.data_seen
             && let Some((rel, values, time_end)) = fast_line(raw)
         {
-            return Ok(self.judge(line_no, rel, values, &raw[..time_end], ledger));
+            let readings = Readings::all(values);
+            return Ok(self.judge(line_no, rel, readings, &raw[..time_end], ledger));
         }
         let line = strip_comment(raw);
         if line.is_empty() {
@@ -673,25 +789,25 @@ impl<'c> Lines<'c> {
             }
         };
         self.scientific += scientific;
-        Ok(self.judge(line_no, rel, values, fields[0], ledger))
+        let readings = Readings::from_options(values);
+        Ok(self.judge(line_no, rel, readings, fields[0], ledger))
     }
 
-    /// A parsed line judged: its GPS time, readings and time field, or None when it is
-    /// rejected into `ledger` (a reading outside the limits, a time outside the session).
-    fn judge<'l>(
+    /// Rejects a line for its first reading outside the limits; whether there was one.
+    #[cold]
+    fn reject_reading(
         &self,
         line_no: u64,
-        rel: i64,
         values: [Option<f64>; 3],
-        time_field: &'l [u8],
         ledger: &mut FileLedger,
-    ) -> Option<DataLine<'l>> {
+    ) -> bool {
         let l = self.limits;
-        if let Some((k, v)) = (0..3).find_map(|k| {
+        let outside = (0..3).find_map(|k| {
             values[k]
                 .filter(|v| !(l.lo..=l.hi).contains(v))
                 .map(|v| (k, v))
-        }) {
+        });
+        if let Some((k, v)) = outside {
             ledger.reject(
                 format!("line {line_no}"),
                 l.reason,
@@ -703,6 +819,28 @@ impl<'c> Lines<'c> {
                     l.hi
                 ),
             );
+        }
+        outside.is_some()
+    }
+
+    /// A parsed line judged: its GPS time, readings and time field, or None when it is
+    /// rejected into `ledger` (a reading outside the limits, a time outside the session).
+    #[inline(always)]
+    fn judge<'l>(
+        &self,
+        line_no: u64,
+        rel: i64,
+        readings: Readings,
+        time_field: &'l [u8],
+        ledger: &mut FileLedger,
+    ) -> Option<DataLine<'l>> {
+        let l = self.limits;
+        // One test of all three on the common path; a null reading (stored as 0) is looked
+        // at again, and passes, only off it.
+        let within = |v: &f64| (l.lo..=l.hi).contains(v);
+        if !readings.values.iter().fold(true, |all, v| all & within(v))
+            && self.reject_reading(line_no, readings.options(), ledger)
+        {
             return None;
         }
         let Some(t) = self.zero_gps_ns.checked_add(rel) else {
@@ -721,7 +859,7 @@ impl<'c> Lines<'c> {
             );
             return None;
         }
-        Some((t, values, time_field))
+        Some((t, readings, time_field))
     }
 }
 
@@ -738,61 +876,55 @@ pub fn read_lab(
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
 ) -> Result<Option<i64>> {
-    let mut gate: TimeGate<Vec<Sample>> = TimeGate::new(config.interval_ns, config.range_ns);
+    let mut gate: TimeGate<RunRef> = TimeGate::new(config.interval_ns, config.range_ns);
     let mut lines = Lines::new(path, ["t", "x", "y", "z"], &config, config.reading_limits);
     let mut sink = RunSink {
         config: &config,
         out,
         ledger,
-        pending: None,
+        staged: VecDeque::new(),
+        pending: 0,
+        pending_stamp: 0,
         accepted: 0,
         shared: 0,
-        null_values: BTreeMap::new(),
+        nulls: [0; 3],
         intervals: Histogram::default(),
         steps: Histogram::default(),
         last_written: None,
-        pool: Vec::new(),
     };
-    let mut run: Option<Run> = None;
+    // The run being read: its stamp, and the run as the gate will be offered it.
+    let mut open: Option<(i64, RunRef)> = None;
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
-        let Some((t, values, _)) = lines.data(line_no, raw, sink.ledger)? else {
+        let Some((t, readings, _)) = lines.data(line_no, raw, sink.ledger)? else {
             return Ok(());
         };
-        match &mut run {
-            Some(r) if t == r.stamp_ns => {
-                r.samples.push((line_no, values));
+        sink.staged.push_back(Sample {
+            line: line_no,
+            readings,
+        });
+        let next = RunRef {
+            first_line: line_no,
+            len: 1,
+        };
+        match &mut open {
+            Some((stamp, run)) if *stamp == t => {
+                run.len += 1;
                 sink.shared += 1;
-                return Ok(());
             }
-            Some(r) => {
-                let samples = std::mem::replace(&mut r.samples, sink.buffer());
-                gate.offer(r.stamp_ns, Position::Line(samples[0].0), samples, &mut sink)?;
-                r.stamp_ns = t;
-                r.samples.push((line_no, values));
+            Some((stamp, run)) => {
+                let (stamp, run) = (std::mem::replace(stamp, t), std::mem::replace(run, next));
+                gate.offer(stamp, Position::Line(run.first_line), run, &mut sink)?;
             }
-            None => {
-                let mut samples = sink.buffer();
-                samples.push((line_no, values));
-                run = Some(Run {
-                    stamp_ns: t,
-                    samples,
-                });
-            }
+            None => open = Some((t, next)),
         }
         Ok(())
     })?;
-    if let Some(r) = run
-        && !r.samples.is_empty()
-    {
-        gate.offer(
-            r.stamp_ns,
-            Position::Line(r.samples[0].0),
-            r.samples,
-            &mut sink,
-        )?;
+    if let Some((stamp, run)) = open {
+        gate.offer(stamp, Position::Line(run.first_line), run, &mut sink)?;
     }
     gate.finish(&mut sink)?;
     sink.write_pending(None)?;
+    let null_values = sink.null_counts();
     let report = LabStreamReport {
         comma_separated: lines.comma_separated,
         header: lines.header,
@@ -801,7 +933,7 @@ pub fn read_lab(
         stamp_step_ns: mode(&sink.steps.counts()),
         median_interval_ns: median(&sink.intervals.counts()),
     };
-    let (accepted, null_values) = (sink.accepted, sink.null_values);
+    let accepted = sink.accepted;
     ledger.sha256 = sha;
     ledger.bytes = bytes;
     ledger.accept("acceleration", accepted);
@@ -863,9 +995,10 @@ pub fn read_lab_temperature(
         last: None,
     };
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
-        let Some((t, celsius, _)) = lines.data(line_no, raw, sink.ledger)? else {
+        let Some((t, readings, _)) = lines.data(line_no, raw, sink.ledger)? else {
             return Ok(());
         };
+        let celsius = readings.options();
         gate.offer(t, Position::Line(line_no), celsius, &mut sink)
     })?;
     gate.finish(&mut sink)?;
@@ -1020,7 +1153,7 @@ mod tests {
                 taken += 1;
                 assert_eq!(t, want.0, "{line}");
                 let bits = |v: [Option<f64>; 3]| v.map(|x| x.map(f64::to_bits));
-                assert_eq!(bits(values), bits(want.1), "{line}");
+                assert_eq!(bits(values.map(Some)), bits(want.1), "{line}");
                 let time = line.split([',', ' ', '\t']).next().expect("time");
                 assert_eq!(&line.as_bytes()[..end], time.as_bytes());
             }

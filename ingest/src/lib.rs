@@ -35,6 +35,7 @@ pub mod time;
 pub mod timegate;
 
 mod probes;
+mod rowgroup;
 mod session;
 
 pub use probes::{cpu_seconds, peak_rss_kb, print_usage};

@@ -4,6 +4,7 @@
 use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::contract::tables;
 use crate::error::{Error, Result};
+use crate::rowgroup::{N, Spare, column, nullable, session_values, whole};
 use crate::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -33,9 +34,6 @@ impl<T: Default> Columns<T> {
     }
 }
 
-/// Rows of a stream row group.
-const N: usize = STREAM_ROWS_PER_GROUP;
-
 /// Acceleration samples not yet handed to the writer, as logged: which values are null
 /// follows from the status bits, worked out per row group in
 /// [`StreamWriter::flush_acceleration`] rather than per sample. The columns are arrays of a
@@ -48,23 +46,6 @@ struct AccelerationColumns {
     status: Box<[u8; N]>,
 }
 
-/// A row group's array from a buffer of a written one (or a new one); what it holds is
-/// overwritten before it is read.
-fn whole<T: Copy + Default>(mut v: Vec<T>) -> Box<[T; N]> {
-    // A buffer back from the writer holds N values already: nothing to fill.
-    v.resize(N, T::default());
-    v.into_boxed_slice()
-        .try_into()
-        .unwrap_or_else(|_| unreachable!("resized to N"))
-}
-
-/// The first `n` values of a row group's array, as a column.
-fn column<T>(values: Box<[T; N]>, n: usize) -> Vec<T> {
-    let mut v = (values as Box<[T]>).into_vec();
-    v.truncate(n);
-    v
-}
-
 impl AccelerationColumns {
     fn new() -> Self {
         AccelerationColumns {
@@ -74,29 +55,6 @@ impl AccelerationColumns {
             status: whole(Vec::new()),
         }
     }
-}
-
-/// A nullable column from all its values and their validity: the non-null values and the
-/// definition levels (none if every value is valid).
-fn nullable<T: Copy>(values: Vec<T>, valid: &[bool]) -> (Vec<T>, Option<Vec<i16>>) {
-    if valid.iter().all(|&v| v) {
-        return (values, None);
-    }
-    let levels = valid.iter().map(|&v| i16::from(v)).collect();
-    let kept = values
-        .into_iter()
-        .zip(valid)
-        .filter_map(|(x, &v)| v.then_some(x))
-        .collect();
-    (kept, Some(levels))
-}
-
-/// The session index of `n` rows, stored as Parquet INT32 (UInt16 in the Arrow schema), in
-/// `buf` (whatever it held).
-fn session_values(session: u16, n: usize, mut buf: Vec<i32>) -> ColumnValues {
-    buf.clear();
-    buf.resize(n, i32::from(session));
-    ColumnValues::Int32(buf, None)
 }
 
 /// Status bits, stored as Parquet INT32 (UInt8 in the Arrow schema), in `buf` (whatever it
@@ -172,47 +130,6 @@ pub struct StreamWriter {
     /// buffers for every row group cost a page fault per 4 KiB written to them.
     spent: Receiver<Vec<ColumnValues>>,
     spare: Spare,
-}
-
-/// Buffers of written row groups, as they came back, for the next ones.
-#[derive(Default)]
-struct Spare {
-    int32: Vec<Vec<i32>>,
-    int64: Vec<Vec<i64>>,
-}
-
-impl Spare {
-    /// At most this many buffers of each kind are kept: a row group's worth for each queued
-    /// and each written group.
-    const KEEP: usize = 24;
-
-    /// Keeps the buffers of a written row group, as they are (callers clear or overwrite).
-    fn keep(&mut self, columns: Vec<ColumnValues>) {
-        fn put<T>(pool: &mut Vec<Vec<T>>, v: Vec<T>) {
-            if pool.len() < Spare::KEEP && v.capacity() >= STREAM_ROWS_PER_GROUP {
-                pool.push(v);
-            }
-        }
-        for c in columns {
-            match c {
-                ColumnValues::Int32(v, _) => put(&mut self.int32, v),
-                ColumnValues::Int64(v, _) => put(&mut self.int64, v),
-                ColumnValues::Double(..) => {}
-            }
-        }
-    }
-
-    fn int32(&mut self) -> Vec<i32> {
-        self.int32
-            .pop()
-            .unwrap_or_else(|| Vec::with_capacity(STREAM_ROWS_PER_GROUP))
-    }
-
-    fn int64(&mut self) -> Vec<i64> {
-        self.int64
-            .pop()
-            .unwrap_or_else(|| Vec::with_capacity(STREAM_ROWS_PER_GROUP))
-    }
 }
 
 impl StreamWriter {

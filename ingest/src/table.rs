@@ -335,28 +335,34 @@ impl ColumnTableWriter {
     }
 }
 
-/// Rows per data page of the columns ingest delta-encodes itself (`encode_delta_column`):
-/// a multiple of the 128-value block, near parquet-rs's default of 20 000 rows.
+/// Rows per data page of the columns ingest encodes itself (`encode_own_pages`): a
+/// multiple of the delta encoding's 128-value block, near parquet-rs's default of 20 000
+/// rows.
 pub const DELTA_PAGE_ROWS: usize = 1 << 14;
 
 /// Encodes one column chunk into memory: its bytes and what closing its writer reported.
-/// Delta-encoded integer columns are encoded here ([`encode_delta_column`]), the others by
+/// Delta-encoded integer columns and byte-stream-split doubles without statistics are
+/// encoded here ([`encode_delta_column`], [`encode_split_column`]), the others by
 /// parquet-rs's column writers.
 fn encode_column(
     descr: ColumnDescPtr,
     props: WriterPropertiesPtr,
     values: &ColumnValues,
 ) -> parquet::errors::Result<(bytes::Bytes, ColumnCloseResult)> {
-    if own_delta(&descr, &props) {
-        match values {
-            ColumnValues::Int32(v, d) if descr.physical_type() == Type::INT32 => {
-                return encode_delta_column(&descr, &props, v, d.as_deref());
-            }
-            ColumnValues::Int64(v, d) if descr.physical_type() == Type::INT64 => {
-                return encode_delta_column(&descr, &props, v, d.as_deref());
-            }
-            _ => {}
+    let encoding = own_encoding(&descr, &props);
+    match (encoding, values, descr.physical_type()) {
+        (Some(Encoding::DELTA_BINARY_PACKED), ColumnValues::Int32(v, d), Type::INT32) => {
+            return encode_delta_column(&descr, &props, v, d.as_deref());
         }
+        (Some(Encoding::DELTA_BINARY_PACKED), ColumnValues::Int64(v, d), Type::INT64) => {
+            return encode_delta_column(&descr, &props, v, d.as_deref());
+        }
+        (Some(Encoding::BYTE_STREAM_SPLIT), ColumnValues::Double(v, d), Type::DOUBLE)
+            if props.statistics_enabled(descr.path()) == EnabledStatistics::None =>
+        {
+            return encode_split_column(&descr, &props, v, d.as_deref());
+        }
+        _ => {}
     }
     // parquet-rs wants a level per row of a nullable column, also where all are 1.
     let nullable = descr.max_def_level() > 0;
@@ -391,12 +397,11 @@ fn encode_column(
     Ok((sink.into_inner()?.into(), close))
 }
 
-/// Whether [`encode_delta_column`] writes this column: delta-encoded, flat (definition
-/// level at most 1), no dictionary or bloom filter, uncompressed or zstd, version 1 pages.
-fn own_delta(descr: &ColumnDescPtr, props: &WriterPropertiesPtr) -> bool {
+/// The column's encoding if ingest's own encoders may write it: flat (definition level at
+/// most 1), no dictionary or bloom filter, uncompressed or zstd, version 1 pages.
+fn own_encoding(descr: &ColumnDescPtr, props: &WriterPropertiesPtr) -> Option<Encoding> {
     let path = descr.path();
-    props.encoding(path) == Some(Encoding::DELTA_BINARY_PACKED)
-        && !props.dictionary_enabled(path)
+    let own = !props.dictionary_enabled(path)
         && props.bloom_filter_properties(path).is_none()
         && props.writer_version() == WriterVersion::PARQUET_1_0
         && descr.max_rep_level() == 0
@@ -404,7 +409,8 @@ fn own_delta(descr: &ColumnDescPtr, props: &WriterPropertiesPtr) -> bool {
         && matches!(
             props.compression(path),
             Compression::UNCOMPRESSED | Compression::ZSTD(_)
-        )
+        );
+    own.then(|| props.encoding(path)).flatten()
 }
 
 /// An integer column type [`encode_delta_column`] writes: its statistics and its plain bytes.
@@ -450,9 +456,69 @@ fn encode_delta_column<T: DeltaColumn>(
     values: &[T],
     levels: Option<&[i16]>,
 ) -> parquet::errors::Result<(bytes::Bytes, ColumnCloseResult)> {
+    let statistics = props.statistics_enabled(descr.path());
+    let mut bounds = PageBounds::<T>::new(descr, statistics);
+    let (bytes, mut close, nulls) = encode_own_pages(
+        descr,
+        props,
+        values.len(),
+        levels,
+        Encoding::DELTA_BINARY_PACKED,
+        |range, nulls, buf| {
+            let page_values = &values[range];
+            encoding::put_delta(page_values, buf);
+            bounds.page(page_values, nulls);
+        },
+    )?;
+    let (chunk, column_index) = bounds.finish()?;
+    if statistics != EnabledStatistics::None {
+        let metadata = close.metadata.into_builder();
+        close.metadata = metadata
+            .set_statistics(T::statistics(chunk, nulls))
+            .build()?;
+    }
+    close.column_index = column_index;
+    Ok((bytes, close))
+}
+
+/// Writes a DOUBLE column chunk without statistics as BYTE_STREAM_SPLIT pages, as
+/// [`encode_delta_column`] writes its pages: each page's values split into their eight
+/// bytes' streams ([`encoding::put_byte_stream_split`]), which lets zstd find what the
+/// values' high bytes share.
+fn encode_split_column(
+    descr: &ColumnDescPtr,
+    props: &WriterPropertiesPtr,
+    values: &[f64],
+    levels: Option<&[i16]>,
+) -> parquet::errors::Result<(bytes::Bytes, ColumnCloseResult)> {
+    let (bytes, close, _) = encode_own_pages(
+        descr,
+        props,
+        values.len(),
+        levels,
+        Encoding::BYTE_STREAM_SPLIT,
+        |range, _, buf| encoding::put_byte_stream_split(&values[range], buf),
+    )?;
+    Ok((bytes, close))
+}
+
+/// The pages of a column chunk of `values` values with definition `levels`, each page's
+/// values put by `put_values(range of the values, nulls in the page, buffer)` in
+/// `encoding`: version 1 data pages of [`DELTA_PAGE_ROWS`] rows, definition levels
+/// RLE-encoded, zstd-compressed if the column is, and the offset index. Returns the
+/// chunk's bytes, what closing it gives (metadata without statistics, no column index) and
+/// its nulls.
+fn encode_own_pages(
+    descr: &ColumnDescPtr,
+    props: &WriterPropertiesPtr,
+    values: usize,
+    levels: Option<&[i16]>,
+    encoding: Encoding,
+    mut put_values: impl FnMut(std::ops::Range<usize>, i64, &mut Vec<u8>),
+) -> parquet::errors::Result<(bytes::Bytes, ColumnCloseResult, u64)> {
     let path = descr.path();
     let nullable = descr.max_def_level() == 1;
-    let rows = checked_rows(nullable, values.len(), levels)?;
+    let rows = checked_rows(nullable, values, levels)?;
     let mut zstd = match props.compression(path) {
         Compression::ZSTD(level) => Some(
             zstd::bulk::Compressor::new(level.compression_level())
@@ -460,8 +526,6 @@ fn encode_delta_column<T: DeltaColumn>(
         ),
         _ => None,
     };
-    let statistics = props.statistics_enabled(path);
-    let mut bounds = PageBounds::<T>::new(descr, statistics);
     let mut offset_index = (!props.offset_index_disabled()).then(OffsetIndexBuilder::new);
     let mut sink = TrackedWrite::new(Vec::new());
     let mut pages = SerializedPageWriter::new(&mut sink);
@@ -473,10 +537,9 @@ fn encode_delta_column<T: DeltaColumn>(
         buf.clear();
         let page_levels = levels.map(|l| &l[first_row..first_row + page_rows]);
         let page_values = put_page_levels(page_levels, nullable, page_rows, &mut buf);
-        let page_values = &values[next_value..next_value + page_values];
-        next_value += page_values.len();
-        encoding::put_delta(page_values, &mut buf);
-        bounds.page(page_values, (page_rows - page_values.len()) as i64);
+        let range = next_value..next_value + page_values;
+        next_value += page_values;
+        put_values(range, (page_rows - page_values) as i64, &mut buf);
         let uncompressed_size = buf.len();
         let data = match zstd.as_mut() {
             Some(z) => z
@@ -487,7 +550,7 @@ fn encode_delta_column<T: DeltaColumn>(
         let page = Page::DataPage {
             buf: data.into(),
             num_values: page_rows as u32,
-            encoding: Encoding::DELTA_BINARY_PACKED,
+            encoding,
             def_level_encoding: Encoding::RLE,
             rep_level_encoding: Encoding::RLE,
             statistics: None,
@@ -503,18 +566,15 @@ fn encode_delta_column<T: DeltaColumn>(
         totals.pages += 1;
     }
     pages.close()?;
-    let (chunk, column_index) = bounds.finish()?;
-    let chunk_statistics = (statistics != EnabledStatistics::None)
-        .then(|| T::statistics(chunk, (rows - values.len()) as u64));
     let close = ColumnCloseResult {
         bytes_written: totals.written,
         rows_written: rows as u64,
-        metadata: delta_chunk_metadata(descr, props, &totals, rows, chunk_statistics)?,
+        metadata: own_chunk_metadata(descr, props, &totals, rows, encoding)?,
         bloom_filter: None,
-        column_index,
+        column_index: None,
         offset_index: offset_index.map(OffsetIndexBuilder::build),
     };
-    Ok((sink.into_inner()?.into(), close))
+    Ok((sink.into_inner()?.into(), close, (rows - values) as u64))
 }
 
 /// Puts a data page's definition levels into `buf` (`levels` the page's, or none: every
@@ -655,32 +715,29 @@ impl<T: DeltaColumn> PageBounds<T> {
     }
 }
 
-/// A delta-encoded column chunk's metadata: its encodings, sizes, rows and statistics.
-fn delta_chunk_metadata(
+/// The metadata of a column chunk ingest encoded itself: its encodings, sizes and rows.
+fn own_chunk_metadata(
     descr: &ColumnDescPtr,
     props: &WriterPropertiesPtr,
     totals: &ChunkTotals,
     rows: usize,
-    statistics: Option<Statistics>,
+    encoding: Encoding,
 ) -> parquet::errors::Result<ColumnChunkMetaData> {
-    let mut metadata = ColumnChunkMetaData::builder(descr.clone())
+    ColumnChunkMetaData::builder(descr.clone())
         .set_compression(props.compression(descr.path()))
         .set_encodings_mask(EncodingMask::new_from_encodings(
-            [Encoding::RLE, Encoding::DELTA_BINARY_PACKED].iter(),
+            [Encoding::RLE, encoding].iter(),
         ))
         .set_page_encoding_stats(vec![PageEncodingStats {
             page_type: PageType::DATA_PAGE,
-            encoding: Encoding::DELTA_BINARY_PACKED,
+            encoding,
             count: totals.pages,
         }])
         .set_total_compressed_size(totals.compressed as i64)
         .set_total_uncompressed_size(totals.uncompressed as i64)
         .set_num_values(rows as i64)
-        .set_data_page_offset(0);
-    if let Some(s) = statistics {
-        metadata = metadata.set_statistics(s);
-    }
-    metadata.build()
+        .set_data_page_offset(0)
+        .build()
 }
 
 /// A session column of `n` rows, dictionary-encoded.

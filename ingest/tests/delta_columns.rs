@@ -1,8 +1,9 @@
-//! The delta-encoded integer columns ingest encodes itself (`ingest::encoding`, written by
-//! `ColumnTableWriter`) read back through parquet-rs and Arrow as the values, nulls,
-//! statistics and page index that parquet-rs's own writer gives for the same data.
+//! The columns ingest encodes itself (`ingest::encoding`, written by `ColumnTableWriter`):
+//! delta-encoded integers and byte-stream-split doubles read back through parquet-rs and
+//! Arrow as the values, nulls, statistics and page index that parquet-rs's own writer gives
+//! for the same data.
 
-use arrow::array::{ArrayRef, Int32Array, Int64Array, RecordBatch};
+use arrow::array::{ArrayRef, Float64Array, Int32Array, Int64Array, RecordBatch};
 use arrow::datatypes::{DataType, Field, Schema, SchemaRef};
 use ingest::table::{ColumnTableWriter, ColumnValues, DELTA_PAGE_ROWS, Encodings};
 use parquet::arrow::ArrowWriter;
@@ -16,13 +17,15 @@ use proptest::prelude::*;
 use std::sync::Arc;
 
 /// Columns: t, i64 required, zstd, statistics; c, i32 nullable, uncompressed, no statistics;
-/// z, i32 nullable, zstd, statistics; w, i64 nullable, uncompressed, statistics.
+/// z, i32 nullable, zstd, statistics; w, i64 nullable, uncompressed, statistics; d, f64
+/// nullable, byte stream split, zstd, no statistics.
 fn schema() -> SchemaRef {
     Arc::new(Schema::new(vec![
         Field::new("t", DataType::Int64, false),
         Field::new("c", DataType::Int32, true),
         Field::new("z", DataType::Int32, true),
         Field::new("w", DataType::Int64, true),
+        Field::new("d", DataType::Float64, true),
     ]))
 }
 
@@ -39,6 +42,8 @@ fn reference_properties(group: usize) -> WriterProperties {
         b = b.set_column_compression(ColumnPath::from(c), Compression::UNCOMPRESSED);
     }
     b.set_column_statistics_enabled(ColumnPath::from("c"), EnabledStatistics::None)
+        .set_column_statistics_enabled(ColumnPath::from("d"), EnabledStatistics::None)
+        .set_column_encoding(ColumnPath::from("d"), Encoding::BYTE_STREAM_SPLIT)
         .build()
 }
 
@@ -55,6 +60,7 @@ struct Table {
     c: Vec<Option<i32>>,
     z: Vec<Option<i32>>,
     w: Vec<Option<i64>>,
+    d: Vec<Option<f64>>,
 }
 
 impl Table {
@@ -64,6 +70,7 @@ impl Table {
             Arc::new(Int32Array::from(self.c.clone())),
             Arc::new(Int32Array::from(self.z.clone())),
             Arc::new(Int64Array::from(self.w.clone())),
+            Arc::new(Float64Array::from(self.d.clone())),
         ];
         RecordBatch::try_new(schema(), columns).expect("batch")
     }
@@ -77,7 +84,8 @@ impl Table {
             Encodings {
                 delta: &DELTA,
                 uncompressed: &["c", "w"],
-                no_statistics: &["c"],
+                no_statistics: &["c", "d"],
+                byte_stream_split: &["d"],
                 ..Encodings::default()
             },
         )
@@ -88,6 +96,7 @@ impl Table {
             let (c, cl) = split(&self.c[start..end], false);
             let (z, zl) = split(&self.z[start..end], true);
             let (wv, wl) = split(&self.w[start..end], false);
+            let (d, dl) = split(&self.d[start..end], false);
             w.write_row_group(
                 end - start,
                 &[
@@ -95,6 +104,7 @@ impl Table {
                     ColumnValues::Int32(c, cl),
                     ColumnValues::Int32(z, zl),
                     ColumnValues::Int64(wv, wl),
+                    ColumnValues::Double(d, dl),
                 ],
             )
             .expect("row group");
@@ -178,6 +188,7 @@ fn check(table: &Table, group: usize) -> Result<(), TestCaseError> {
         // Column index: each page's min and max where statistics are on, none on c.
         let index = own_meta.page_index_for_row_group(g);
         prop_assert!(index.column_index(1).is_none(), "no statistics on c");
+        prop_assert!(index.column_index(4).is_none(), "no statistics on d");
         let Some(ColumnIndexMetaData::INT64(ti)) = index.column_index(0) else {
             return Err(TestCaseError::fail("t has an INT64 column index"));
         };
@@ -263,10 +274,12 @@ fn table(rows: usize, seed: u64, modes: [u8; 4], valid: [u8; 3]) -> Table {
     let c = rng.values(rows, modes[1]);
     let z = rng.values(rows, modes[2]);
     let w = rng.values(rows, modes[3]);
-    let (vc, vz, vw) = (
+    let d = rng.values(rows, modes[1]);
+    let (vc, vz, vw, vd) = (
         rng.valid(rows, valid[0]),
         rng.valid(rows, valid[1]),
         rng.valid(rows, valid[2]),
+        rng.valid(rows, valid[0]),
     );
     Table {
         t,
@@ -279,6 +292,11 @@ fn table(rows: usize, seed: u64, modes: [u8; 4], valid: [u8; 3]) -> Table {
             .map(|(&x, &v)| v.then(|| narrow(x)))
             .collect(),
         w: w.iter().zip(&vw).map(|(&x, &v)| v.then_some(x)).collect(),
+        // Doubles with every byte in play: counts, their thousandths and the extremes.
+        d: d.iter()
+            .zip(&vd)
+            .map(|(&x, &v)| v.then_some(x as f64 * 1e-3))
+            .collect(),
     }
 }
 
@@ -286,7 +304,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
     #[test]
-    fn own_delta_columns_read_back_as_parquet_rs_writes_them(
+    fn own_columns_read_back_as_parquet_rs_writes_them(
         rows in prop_oneof![1usize..300, 300usize..40_000],
         group in prop_oneof![Just(97usize), Just(DELTA_PAGE_ROWS), Just(50_000)],
         seed in any::<u64>(),

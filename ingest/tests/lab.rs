@@ -41,28 +41,40 @@ adc_csv = "raw/acc.txt"
 }
 
 fn table(out: &Path) -> (Vec<i64>, Vec<Option<f64>>) {
-    let f = std::fs::File::open(out.join("ingest").join(tables::lab::FILE)).expect("lab table");
     let mut times = Vec::new();
-    let mut x = Vec::new();
-    for b in ParquetRecordBatchReaderBuilder::try_new(f)
-        .expect("parquet")
-        .build()
-        .expect("reader")
-    {
-        let b = b.expect("batch");
+    for b in batches(out) {
         times.extend_from_slice(
             b.column_by_name(tables::TIME_GPS_NS)
                 .expect("time")
                 .as_primitive::<Int64Type>()
                 .values(),
         );
-        let v = b
-            .column_by_name(tables::lab::VALUES[0])
-            .expect("x")
-            .as_primitive::<Float64Type>();
-        x.extend((0..v.len()).map(|i| v.is_valid(i).then(|| v.value(i))));
     }
-    (times, x)
+    (times, readings(out, 0))
+}
+
+/// The lab table's batches.
+fn batches(out: &Path) -> Vec<arrow::array::RecordBatch> {
+    let f = std::fs::File::open(out.join("ingest").join(tables::lab::FILE)).expect("lab table");
+    ParquetRecordBatchReaderBuilder::try_new(f)
+        .expect("parquet")
+        .build()
+        .expect("reader")
+        .map(|b| b.expect("batch"))
+        .collect()
+}
+
+/// Channel `k + 1`'s readings in the lab table, None where null.
+fn readings(out: &Path, k: usize) -> Vec<Option<f64>> {
+    let mut values = Vec::new();
+    for b in batches(out) {
+        let v = b
+            .column_by_name(tables::lab::VALUES[k])
+            .expect("readings")
+            .as_primitive::<Float64Type>();
+        values.extend((0..v.len()).map(|i| v.is_valid(i).then(|| v.value(i))));
+    }
+    values
 }
 
 /// imu_tk's layout: `t x y z`, white space, no header, m/s^2 in scientific notation, times
@@ -155,6 +167,11 @@ fn comma_separated_unix_times_with_a_header() {
     assert_eq!(lab.samples_sharing_a_stamp, 0);
     assert_eq!(f.accepted, 400);
     assert_eq!(f.null_values.get("ch3 nan"), Some(&1));
+    // Stored as null in its row, and only there.
+    let z = readings(&out, 2);
+    assert_eq!(z.len(), 400);
+    assert!(z.iter().enumerate().all(|(i, v)| (i == 7) == v.is_none()));
+    assert!(readings(&out, 1).iter().all(|v| *v == Some(0.2)));
     // 1672887159 s Unix is 2023-01-05T02:52:39 UTC.
     let (times, _) = table(&out);
     let want = ingest::time::gps_ns(
