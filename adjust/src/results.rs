@@ -63,6 +63,8 @@ pub(crate) fn result_of(
         mean_temperature_c: f.mean_temperature_c,
         counts_range: range_of(f.residuals.iter().map(|r| job.obs[r.index].ng)),
         temperature_range_c: range_of(f.residuals.iter().map(|r| job.obs[r.index].temperature_c)),
+        // Set over the whole run, where a fit with temperature terms may know more.
+        thermal_sensitivity_limit_mgal_per_k: None,
         n_observations: f.residuals.len(),
         n_excluded: f.removed.len(),
         dof: f.dof,
@@ -257,11 +259,13 @@ pub(crate) const PSI_SIGMAS: f64 = 3.0;
 /// A temperature effect this large against sigma_b is named (docs/model.md 6.1).
 pub(crate) const THERMAL_NOTE_SIGMAS: f64 = 0.3;
 
-/// Each fit without temperature terms whose observations' temperature moved: when a fit
-/// of the same accelerometer with temperature terms gives its sensitivity dc/dT =
-/// b_t + k_t Ng, the largest change that movement makes over the fit's counts, against
-/// sigma_b, is a warning of what the model takes for noise it does not weigh (on
-/// esgt-2005's day 1, a few mK made the rms z of b 1.28-1.42 where 1.10 without it).
+/// Each fit without temperature terms whose observations' temperature moved: the thermal
+/// sensitivity at which that movement is an effect of [`THERMAL_NOTE_SIGMAS`] sigma of b
+/// (its limit). When a fit of the same accelerometer with temperature terms gives its
+/// sensitivity dc/dT = b_t + k_t Ng and the largest over the fit's counts is above the
+/// limit, a warning of what the model takes for noise it does not weigh (on esgt-2005's
+/// day 1, a few mK made the rms z of b 1.28-1.42 where 1.10 without it); when no fit gives
+/// it, a note that the limit is what the run cannot check.
 pub(crate) fn thermal_warnings(results: &mut [CalibrationResult]) {
     /// An accelerometer's thermal sensitivity from a fit with temperature terms.
     struct Sensitivity {
@@ -291,12 +295,28 @@ pub(crate) fn thermal_warnings(results: &mut [CalibrationResult]) {
         let Some(sigma_b) = r.parameters.iter().find(|p| p.name == "b").map(|p| p.sigma) else {
             continue;
         };
+        if t_hi <= t_lo {
+            continue;
+        }
+        let limit = THERMAL_NOTE_SIGMAS * sigma_b / (t_hi - t_lo);
+        r.thermal_sensitivity_limit_mgal_per_k = Some(limit);
         let Some(Sensitivity {
             model, b_t, k_t, ..
         }) = sensitivities
             .iter()
             .find(|s| s.accelerometer == r.accelerometer)
         else {
+            r.warnings.push(format!(
+                "the temperature moved by {:.1} mK over the observations (their range, a \
+                 thermometer's noise included) and this model has no temperature terms: a \
+                 thermal sensitivity |dc/dT| = |b_t + k_t Ng| above {limit:.1} mGal/K would \
+                 make that {THERMAL_NOTE_SIGMAS} sigma of b or more, which its sigmas do not \
+                 carry. With no fit of {} with temperature terms, this run cannot say whether \
+                 the sensitivity is above it: a model with `temperature = true` over sessions \
+                 at different temperatures can",
+                1e3 * (t_hi - t_lo),
+                r.accelerometer
+            ));
             continue;
         };
         let (lo, hi) = (b_t + k_t * n_lo, b_t + k_t * n_hi);
