@@ -118,7 +118,8 @@ pub(crate) fn components_section(st: &Stages<'_>) -> Section {
 }
 
 /// Every axis fit's parameters in a table of its own (what the model holds, the values,
-/// sigmas at the estimated components and a priori), its correlations on demand.
+/// sigmas at the estimated components and a priori), its correlations on demand, and its
+/// notes.
 pub(crate) fn parameters_section(st: &Stages<'_>) -> Section {
     let mut s = section("Parameters of every fit");
     s.text.push(
@@ -181,6 +182,16 @@ pub(crate) fn parameters_section(st: &Stages<'_>) -> Section {
             .push((s.tables.len(), format!("{what}: correlations"), c));
         s.tables.push((what, t));
     }
+    // Every fit's notes (estimability, what the model does not carry), whatever else the
+    // run fitted: this section is in every report with an axis fit.
+    for r in st.cal.results.iter() {
+        for w in &r.warnings {
+            s.text.push(format!(
+                "{} {} {}: {w}",
+                r.model, r.accelerometer, r.session
+            ));
+        }
+    }
     s
 }
 
@@ -240,14 +251,6 @@ pub(crate) fn extra_terms_section(st: &Stages<'_>) -> Section {
             .push("No model with terms beyond b and k was fitted.".to_owned());
     } else {
         s.tables.push(("Extra terms".to_owned(), extra));
-    }
-    for r in cal.results.iter().filter(|r| !r.warnings.is_empty()) {
-        for w in &r.warnings {
-            s.text.push(format!(
-                "{} {} {}: {w}",
-                r.model, r.accelerometer, r.session
-            ));
-        }
     }
     s
 }

@@ -169,6 +169,28 @@ fn the_misalignment_vector_is_shown() {
     assert!(section.contains("| 30.0"), "{section}");
 }
 
+/// A run of linear fits only (no section of extra terms) still shows each fit's notes: on
+/// lab-logger, the moving temperature no model of the run includes.
+#[test]
+fn every_fit_note_is_in_the_report() {
+    let out = pipeline(&fixtures::dataset_dir("lab-logger"));
+    let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("report.md");
+    assert!(
+        !md.contains("## Temperature, higher orders"),
+        "no extra terms"
+    );
+    let start = md.find("## Parameters of every fit").expect("the section");
+    let end = md[start + 3..]
+        .find("\n## ")
+        .map_or(md.len(), |e| start + 3 + e);
+    let section = &md[start..end];
+    assert!(
+        section.contains("linear acc1 table: the temperature moved by")
+            && section.contains("this run cannot say"),
+        "{section}"
+    );
+}
+
 /// The answer first (issue 27): report.md opens with the summary, which holds every fit of
 /// every model (each accelerometer's calibration with its sigmas) and the fits not made;
 /// sections about what the dataset does not have are left out, and the chain of custody
