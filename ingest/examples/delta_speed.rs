@@ -7,7 +7,7 @@
 //! ```
 //!
 //! Prints, per column, the best of five passes in ns per value and the encoded bits per
-//! value, encoding pages of `DELTA_PAGE_ROWS` values as ingest does.
+//! value, encoding pages of `OWN_PAGE_ROWS` values as ingest does.
 
 use arrow::array::{Array, Int32Array, Int64Array, RecordBatch};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
@@ -20,7 +20,7 @@ fn time<T: ingest::encoding::DeltaValue>(name: &str, values: &[T]) {
     for _ in 0..5 {
         let t0 = Instant::now();
         bytes = 0;
-        for page in values.chunks(ingest::table::DELTA_PAGE_ROWS) {
+        for page in values.chunks(ingest::table::OWN_PAGE_ROWS) {
             out.clear();
             ingest::encoding::put_delta(page, &mut out);
             bytes += out.len();

@@ -127,13 +127,16 @@ impl LabWriter {
         })
     }
 
-    /// One row: a sample of the session at `session` in the manifest, at `time_ns`.
+    /// Rows that follow belong to the session at `index` in the manifest.
+    fn start_session(&mut self, index: u16) -> Result<()> {
+        self.flush()?;
+        self.rows.session = index;
+        Ok(())
+    }
+
+    /// One row: a sample at `time_ns`.
     #[inline(always)]
-    fn push(&mut self, session: u16, time_ns: i64, sample: &Sample) -> Result<()> {
-        if session != self.rows.session {
-            self.flush()?;
-            self.rows.session = session;
-        }
+    fn push(&mut self, time_ns: i64, sample: &Sample) -> Result<()> {
         let r = &mut self.rows;
         // Below N: the row group is handed on as soon as it is full.
         let i = r.len;
@@ -518,19 +521,18 @@ impl RunSink<'_> {
                     *count += u64::from(nulls >> k & 1);
                 }
             }
-            self.out.push(self.config.session, t, &sample)?;
+            self.out.push(t, &sample)?;
         }
         self.accepted += n as u64;
         self.pending = 0;
         Ok(())
     }
 
-    /// Where `run`'s samples start in `staged`. The gate decides runs in the order they
-    /// were offered, so they follow the pending ones; looked up by line all the same.
+    /// Where `run`'s samples start in `staged`: right after the pending ones, since the
+    /// gate decides runs in the order they were offered, except one outside the session,
+    /// rejected at once (never offered here: [`Lines`] rejects those lines first), which
+    /// is looked up by line.
     fn find(&self, run: RunRef) -> usize {
-        if self.staged.get(self.pending).map(|s| s.line) == Some(run.first_line) {
-            return self.pending;
-        }
         let undecided = self.staged.range(self.pending..);
         self.pending + undecided.take_while(|s| s.line != run.first_line).count()
     }
@@ -552,11 +554,7 @@ impl Sink<RunRef> for RunSink<'_> {
             self.steps.add(time_ns - self.pending_stamp);
         }
         self.write_pending(Some(time_ns))?;
-        let at = self.find(run);
-        if at > 0 {
-            // Not reached: what came before the run was decided and written or removed.
-            self.staged.drain(..at);
-        }
+        debug_assert_eq!(self.find(run), 0, "runs are kept in the order offered");
         self.pending = run.len;
         self.pending_stamp = time_ns;
         Ok(())
@@ -567,14 +565,11 @@ impl Sink<RunRef> for RunSink<'_> {
         // The stamp of the run kept last (a duplicate's time is the last kept one): more
         // samples sharing it, split from it by a line out of place between them.
         if why == reason::DUPLICATE && self.pending > 0 {
+            debug_assert_eq!(
+                at, self.pending,
+                "the lines between were decided and removed"
+            );
             self.shared += run.len as u64;
-            if at != self.pending {
-                // Not reached: the lines between were decided and removed.
-                let moved: Vec<Sample> = self.staged.drain(at..at + run.len).collect();
-                for (k, s) in moved.into_iter().enumerate() {
-                    self.staged.insert(self.pending + k, s);
-                }
-            }
             self.pending += run.len;
             return;
         }
@@ -876,6 +871,7 @@ pub fn read_lab(
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
 ) -> Result<Option<i64>> {
+    out.start_session(config.session)?;
     let mut gate: TimeGate<RunRef> = TimeGate::new(config.interval_ns, config.range_ns);
     let mut lines = Lines::new(path, ["t", "x", "y", "z"], &config, config.reading_limits);
     let mut sink = RunSink {

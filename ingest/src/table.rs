@@ -338,7 +338,7 @@ impl ColumnTableWriter {
 /// Rows per data page of the columns ingest encodes itself (`encode_own_pages`): a
 /// multiple of the delta encoding's 128-value block, near parquet-rs's default of 20 000
 /// rows.
-pub const DELTA_PAGE_ROWS: usize = 1 << 14;
+pub const OWN_PAGE_ROWS: usize = 1 << 14;
 
 /// Encodes one column chunk into memory: its bytes and what closing its writer reported.
 /// Delta-encoded integer columns and byte-stream-split doubles without statistics are
@@ -446,7 +446,7 @@ fn ones(levels: &[i16]) -> usize {
 
 /// Writes a delta-encoded integer column chunk as parquet-rs's column writer would, with
 /// ingest's own encoders ([`crate::encoding`]): version 1 data pages of
-/// [`DELTA_PAGE_ROWS`] rows, definition levels RLE-encoded, values DELTA_BINARY_PACKED,
+/// [`OWN_PAGE_ROWS`] rows, definition levels RLE-encoded, values DELTA_BINARY_PACKED,
 /// zstd-compressed if the column is; the offset index; and, where statistics are enabled,
 /// the chunk's min, max and null count and a column index of each page's. Not written (they
 /// are optional): page header statistics and level histograms.
@@ -504,7 +504,7 @@ fn encode_split_column(
 
 /// The pages of a column chunk of `values` values with definition `levels`, each page's
 /// values put by `put_values(range of the values, nulls in the page, buffer)` in
-/// `encoding`: version 1 data pages of [`DELTA_PAGE_ROWS`] rows, definition levels
+/// `encoding`: version 1 data pages of [`OWN_PAGE_ROWS`] rows, definition levels
 /// RLE-encoded, zstd-compressed if the column is, and the offset index. Returns the
 /// chunk's bytes, what closing it gives (metadata without statistics, no column index) and
 /// its nulls.
@@ -532,8 +532,8 @@ fn encode_own_pages(
     let mut totals = ChunkTotals::default();
     let mut buf = Vec::new();
     let mut next_value = 0;
-    for first_row in (0..rows).step_by(DELTA_PAGE_ROWS) {
-        let page_rows = DELTA_PAGE_ROWS.min(rows - first_row);
+    for first_row in (0..rows).step_by(OWN_PAGE_ROWS) {
+        let page_rows = OWN_PAGE_ROWS.min(rows - first_row);
         buf.clear();
         let page_levels = levels.map(|l| &l[first_row..first_row + page_rows]);
         let page_values = put_page_levels(page_levels, nullable, page_rows, &mut buf);

@@ -5,7 +5,7 @@
 
 use arrow::array::{ArrayRef, Float64Array, Int32Array, Int64Array, RecordBatch};
 use arrow::datatypes::{DataType, Field, Schema, SchemaRef};
-use ingest::table::{ColumnTableWriter, ColumnValues, DELTA_PAGE_ROWS, Encodings};
+use ingest::table::{ColumnTableWriter, ColumnValues, Encodings, OWN_PAGE_ROWS};
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::{ArrowReaderOptions, ParquetRecordBatchReaderBuilder};
 use parquet::basic::{Compression, Encoding, ZstdLevel};
@@ -171,7 +171,7 @@ fn check(table: &Table, group: usize) -> Result<(), TestCaseError> {
                 a.encodings().collect::<Vec<_>>(),
                 b.encodings().collect::<Vec<_>>()
             );
-            // Pages of DELTA_PAGE_ROWS rows in the offset index.
+            // Pages of OWN_PAGE_ROWS rows in the offset index.
             let pages = own_meta.page_index_for_row_group(g);
             let firsts: Vec<i64> = pages
                 .page_locations(c)
@@ -180,7 +180,7 @@ fn check(table: &Table, group: usize) -> Result<(), TestCaseError> {
                 .map(|p| p.first_row_index)
                 .collect();
             let expected: Vec<i64> = (0..group_rows)
-                .step_by(DELTA_PAGE_ROWS)
+                .step_by(OWN_PAGE_ROWS)
                 .map(|r| r as i64)
                 .collect();
             prop_assert_eq!(firsts, expected);
@@ -197,8 +197,8 @@ fn check(table: &Table, group: usize) -> Result<(), TestCaseError> {
         };
         let (mut t_min, mut t_max, mut z_min, mut z_max) = (vec![], vec![], vec![], vec![]);
         let start = g * group;
-        for page in (0..group_rows).step_by(DELTA_PAGE_ROWS) {
-            let rows = start + page..start + (page + DELTA_PAGE_ROWS).min(group_rows);
+        for page in (0..group_rows).step_by(OWN_PAGE_ROWS) {
+            let rows = start + page..start + (page + OWN_PAGE_ROWS).min(group_rows);
             let t = &table.t[rows.clone()];
             t_min.push(t.iter().min());
             t_max.push(t.iter().max());
@@ -306,7 +306,7 @@ proptest! {
     #[test]
     fn own_columns_read_back_as_parquet_rs_writes_them(
         rows in prop_oneof![1usize..300, 300usize..40_000],
-        group in prop_oneof![Just(97usize), Just(DELTA_PAGE_ROWS), Just(50_000)],
+        group in prop_oneof![Just(97usize), Just(OWN_PAGE_ROWS), Just(50_000)],
         seed in any::<u64>(),
         modes in proptest::array::uniform4(0u8..4),
         valid in proptest::array::uniform3(0u8..4),
@@ -319,7 +319,7 @@ proptest! {
 #[test]
 fn counts_like_columns_over_several_pages() {
     for valid in 0..4 {
-        let t = table(3 * DELTA_PAGE_ROWS + 5, 7, [1, 1, 1, 1], [valid; 3]);
-        check(&t, 2 * DELTA_PAGE_ROWS + 1).expect("check");
+        let t = table(3 * OWN_PAGE_ROWS + 5, 7, [1, 1, 1, 1], [valid; 3]);
+        check(&t, 2 * OWN_PAGE_ROWS + 1).expect("check");
     }
 }

@@ -6,24 +6,16 @@ use arrow::datatypes::{Float64Type, Int32Type, Int64Type};
 use ingest::Options;
 use ingest::contract::ingest_ledger::IngestReport;
 use ingest::contract::ingest_ledger::reason;
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use sha2::Digest;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+
+mod common;
+use common::read_table;
 
 fn ingest(name: &str) -> (tempfile::TempDir, IngestReport) {
     let out = tempfile::tempdir().expect("tempdir");
     let report = ingest::run(&fixtures::dataset_dir(name), out.path()).expect("ingest succeeds");
     (out, report)
-}
-
-fn read_table(out: &Path, file: &str) -> Vec<RecordBatch> {
-    let f = std::fs::File::open(out.join("ingest").join(file)).expect("table exists");
-    ParquetRecordBatchReaderBuilder::try_new(f)
-        .expect("parquet")
-        .build()
-        .expect("reader")
-        .map(|b| b.expect("batch"))
-        .collect()
 }
 
 fn i64_col(batches: &[RecordBatch], name: &str) -> Vec<i64> {

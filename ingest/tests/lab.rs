@@ -8,9 +8,11 @@ use arrow::array::{Array, AsArray};
 use arrow::datatypes::{Float64Type, Int64Type};
 use ingest::contract::ingest_ledger::{IngestReport, reason};
 use ingest::contract::tables;
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::fmt::Write as _;
 use std::path::Path;
+
+mod common;
+use common::read_table;
 
 fn manifest(session: &str) -> String {
     format!(
@@ -42,7 +44,7 @@ adc_csv = "raw/acc.txt"
 
 fn table(out: &Path) -> (Vec<i64>, Vec<Option<f64>>) {
     let mut times = Vec::new();
-    for b in batches(out) {
+    for b in read_table(out, tables::lab::FILE) {
         times.extend_from_slice(
             b.column_by_name(tables::TIME_GPS_NS)
                 .expect("time")
@@ -53,21 +55,10 @@ fn table(out: &Path) -> (Vec<i64>, Vec<Option<f64>>) {
     (times, readings(out, 0))
 }
 
-/// The lab table's batches.
-fn batches(out: &Path) -> Vec<arrow::array::RecordBatch> {
-    let f = std::fs::File::open(out.join("ingest").join(tables::lab::FILE)).expect("lab table");
-    ParquetRecordBatchReaderBuilder::try_new(f)
-        .expect("parquet")
-        .build()
-        .expect("reader")
-        .map(|b| b.expect("batch"))
-        .collect()
-}
-
 /// Channel `k + 1`'s readings in the lab table, None where null.
 fn readings(out: &Path, k: usize) -> Vec<Option<f64>> {
     let mut values = Vec::new();
-    for b in batches(out) {
+    for b in read_table(out, tables::lab::FILE) {
         let v = b
             .column_by_name(tables::lab::VALUES[k])
             .expect("readings")
@@ -228,14 +219,8 @@ fn a_lab_temperature_log_in_the_seconds_layout() {
     assert_eq!(report.tables.get(tables::temperature::FILE), Some(&10));
     // The same times as the stream's: its second 3 is the stream's sample 600.
     let (acc_times, _) = table(&out);
-    let t = std::fs::File::open(out.join("ingest").join(tables::temperature::FILE)).expect("table");
-    let b = ParquetRecordBatchReaderBuilder::try_new(t)
-        .expect("parquet")
-        .build()
-        .expect("reader")
-        .next()
-        .expect("a batch")
-        .expect("batch");
+    let batches = read_table(&out, tables::temperature::FILE);
+    let b = batches.first().expect("a batch");
     let times = b
         .column_by_name(tables::TIME_GPS_NS)
         .expect("time")
