@@ -208,6 +208,12 @@ impl TableWriter {
             .map_err(|e| self.file.parquet_error(e))
     }
 
+    /// Ends the row group being written with the rows given so far: a table written in
+    /// parts then holds one part in memory, not a row group of [`ROWS_PER_GROUP`].
+    pub fn flush(&mut self) -> Result<()> {
+        self.writer.flush().map_err(|e| self.file.parquet_error(e))
+    }
+
     /// Closes the file and renames it to its final name; returns the rows written.
     pub fn finish(mut self) -> Result<u64> {
         self.file.commit(self.writer.into_inner())?;

@@ -401,6 +401,7 @@ fn gravity(
         },
         accelerometer: None,
         skip_bad_lines: false,
+        block_epochs: None,
     }
     .run(out)
 }

@@ -409,6 +409,7 @@ fn ci() -> Result<()> {
             out: None,
         },
         accelerometer: None,
+        block_epochs: None,
         skip_bad_lines: false,
     }
     .run(&scratch.join(lines))

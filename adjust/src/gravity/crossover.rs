@@ -58,6 +58,116 @@ pub struct Epochs<'a> {
 /// Slowest speed at which an epoch may take part, m/s.
 const MOVING_M_S: f64 = 1.0;
 
+/// One row of gravity.parquet as the crossover search sees it.
+#[derive(Clone, Copy, Debug)]
+pub struct Row {
+    /// The session's index into the names.
+    pub session: u16,
+    /// The stretch's number.
+    pub stretch: u32,
+    /// GPS ns.
+    pub time_gps_ns: i64,
+    /// Deg.
+    pub latitude_deg: f64,
+    /// Deg.
+    pub longitude_deg: f64,
+    /// m/s.
+    pub speed_m_s: f64,
+    /// mGal.
+    pub filtered_mgal: f64,
+    /// mGal.
+    pub sigma_mgal: f64,
+    /// mGal.
+    pub sigma_noise_mgal: f64,
+    /// mGal.
+    pub sigma_positions_mgal: f64,
+    /// mGal.
+    pub sigma_tie_mgal: f64,
+    /// gravity.parquet's flags.
+    pub flags: u8,
+}
+
+/// The rows the search keeps as the stage writes them, so that it does not hold the whole
+/// survey: of each run of rows that take part (moving, unflagged, on one stretch), one every
+/// `step` ([`step`]: a fiftieth of the filter's period, over which a straight line departs
+/// from a wave at the cut-off by 0.2 % of its amplitude), and the first row
+/// after a run, which ends it as it ends it in the rows themselves. About 90 bytes a kept
+/// row: 4 MB for a day of epochs with a 100 s filter.
+#[derive(Clone, Debug, Default)]
+pub struct Kept {
+    session: Vec<u16>,
+    stretch: Vec<u32>,
+    time: Vec<i64>,
+    floats: [Vec<f64>; 8],
+    flags: Vec<u8>,
+    /// Rows of the run taking part so far.
+    run: usize,
+}
+
+/// Rows kept per run of rows taking part: one every fiftieth of the filter's period.
+pub fn step(filter_s: f64, interval_s: f64) -> usize {
+    ((filter_s / interval_s / 50.0).floor() as usize).max(1)
+}
+
+impl Kept {
+    /// Offers the next row written, its epochs `step` rows per kept row.
+    pub fn push(&mut self, r: &Row, step: usize) {
+        let same_stretch =
+            self.session.last() == Some(&r.session) && self.stretch.last() == Some(&r.stretch);
+        if !same_stretch {
+            self.run = 0;
+        }
+        let takes_part = r.flags == 0 && r.speed_m_s > MOVING_M_S;
+        let keep = if takes_part {
+            let first = self.run.is_multiple_of(step.max(1));
+            self.run += 1;
+            first
+        } else {
+            std::mem::take(&mut self.run) > 0
+        };
+        if !keep {
+            return;
+        }
+        self.session.push(r.session);
+        self.stretch.push(r.stretch);
+        self.time.push(r.time_gps_ns);
+        let values = [
+            r.latitude_deg,
+            r.longitude_deg,
+            r.speed_m_s,
+            r.filtered_mgal,
+            r.sigma_mgal,
+            r.sigma_noise_mgal,
+            r.sigma_positions_mgal,
+            r.sigma_tie_mgal,
+        ];
+        for (dst, v) in self.floats.iter_mut().zip(values) {
+            dst.push(v);
+        }
+        self.flags.push(r.flags);
+    }
+
+    /// The rows kept, for [`crossovers`].
+    pub fn epochs<'a>(&'a self, names: &'a [String]) -> Epochs<'a> {
+        let f = &self.floats;
+        Epochs {
+            session: &self.session,
+            names,
+            stretch: &self.stretch,
+            time_gps_ns: &self.time,
+            latitude_deg: &f[0],
+            longitude_deg: &f[1],
+            speed_m_s: &f[2],
+            filtered_mgal: &f[3],
+            sigma_mgal: &f[4],
+            sigma_noise_mgal: &f[5],
+            sigma_positions_mgal: &f[6],
+            sigma_tie_mgal: &f[7],
+            flags: &self.flags,
+        }
+    }
+}
+
 /// The crossovers of `e`; `rate_sigma(session, stretch)` is the sigma of the drift's rate
 /// fitted on a stretch, mGal/h (none without one).
 pub fn crossovers(
@@ -423,5 +533,49 @@ mod tests {
             t.flags[k] = 2;
         }
         assert!(crossovers(&epochs(&t, &names), 100.0, |_, _| None).is_empty());
+    }
+
+    /// The rows kept a step apart find the crossover all rows find, at the same place and
+    /// with the same difference; a flagged row ends its run (kept, so that no segment spans
+    /// it), and the rows of another stretch start a run of their own.
+    #[test]
+    fn the_rows_kept_find_the_crossover_and_keep_the_runs_apart() {
+        let t = track(0.0);
+        let row = |k: usize| Row {
+            session: t.session[k],
+            stretch: t.stretch[k] + u32::from(k >= 3500),
+            time_gps_ns: t.time[k],
+            latitude_deg: t.lat[k],
+            longitude_deg: t.lon[k],
+            speed_m_s: t.speed[k],
+            filtered_mgal: t.value[k],
+            sigma_mgal: t.sigma[k],
+            sigma_noise_mgal: t.sigma[k],
+            sigma_positions_mgal: t.sigma[k],
+            sigma_tie_mgal: t.sigma[k],
+            flags: u8::from((500..510).contains(&k)),
+        };
+        let mut kept = Kept::default();
+        for k in 0..t.time.len() {
+            kept.push(&row(k), 10);
+        }
+        let names = ["s".to_owned()];
+        let e = kept.epochs(&names);
+        // Rows 0-499 (50 kept), the first of the ten flagged, rows 510-3499 as one run (299),
+        // and the second stretch's 500 (50).
+        assert_eq!(e.time_gps_ns.len(), 50 + 1 + 299 + 50);
+        assert_eq!(e.flags.iter().filter(|f| **f != 0).count(), 1);
+        let found = crossovers(&e, 100.0, |_, _| Some(0.5));
+        let all = crossovers(&epochs(&t, &names), 100.0, |_, _| Some(0.5));
+        assert_eq!(found.len(), 1, "{found:?}");
+        let (c, d) = (&found[0], &all[0]);
+        assert!((c.longitude_deg - d.longitude_deg).abs() < 1e-9, "{c:?}");
+        assert!((c.latitude_deg - d.latitude_deg).abs() < 1e-9, "{c:?}");
+        assert!(
+            (c.difference_mgal - d.difference_mgal).abs() < 1e-9,
+            "{c:?}"
+        );
+        assert_eq!(step(100.0, 0.1), 20);
+        assert_eq!(step(1.0, 0.1), 1);
     }
 }

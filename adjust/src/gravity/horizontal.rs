@@ -63,6 +63,25 @@ pub struct ReducedHorizontal {
     pub sigma_attitude_mgal: [Vec<f64>; 2],
 }
 
+impl ReducedHorizontal {
+    /// The epochs `range` alone.
+    pub(super) fn keep(&mut self, range: std::ops::Range<usize>) {
+        for pair in [
+            &mut self.disturbance_mgal,
+            &mut self.filtered_mgal,
+            &mut self.sigma_mgal,
+            &mut self.sigma_calibration_mgal,
+            &mut self.sigma_positions_mgal,
+            &mut self.sigma_noise_mgal,
+            &mut self.sigma_attitude_mgal,
+        ] {
+            for v in pair {
+                reduce::cut(v, range.clone());
+            }
+        }
+    }
+}
+
 /// The track's northing and easting, m, from its first epoch (see the module's text).
 fn northing_easting(s: &Stretch) -> [Vec<f64>; 2] {
     let n = s.time_gps_ns.len();

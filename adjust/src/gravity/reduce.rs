@@ -48,6 +48,54 @@ pub struct Stretch {
     pub noise_f_mgal: Vec<f64>,
 }
 
+/// `v` cut to `range`.
+pub(super) fn cut<T>(v: &mut Vec<T>, range: std::ops::Range<usize>) {
+    v.truncate(range.end);
+    v.drain(..range.start);
+}
+
+impl Stretch {
+    /// The epochs `range` alone (the calibration's gradients dropped).
+    pub(super) fn keep(&mut self, range: std::ops::Range<usize>) {
+        for v in [
+            &mut self.latitude_deg,
+            &mut self.longitude_deg,
+            &mut self.height_m,
+            &mut self.height_antenna_m,
+            &mut self.sd_up_m,
+            &mut self.f_down_mgal,
+            &mut self.sigma_f_mgal,
+            &mut self.sigma_attitude_mgal,
+            &mut self.noise_f_mgal,
+        ] {
+            cut(v, range.clone());
+        }
+        cut(&mut self.time_gps_ns, range);
+        self.calibration_tied = None;
+    }
+}
+
+impl Reduced {
+    /// The epochs `range` alone.
+    pub(super) fn keep(&mut self, range: std::ops::Range<usize>) {
+        for v in [
+            &mut self.disturbance_mgal,
+            &mut self.filtered_mgal,
+            &mut self.sigma_calibration_mgal,
+            &mut self.sigma_positions_mgal,
+            &mut self.sigma_noise_mgal,
+            &mut self.sigma_tie_mgal,
+            &mut self.sigma_attitude_mgal,
+            &mut self.sigma_mgal,
+            &mut self.speed_m_s,
+            &mut self.eotvos_mgal,
+            &mut self.normal_mgal,
+        ] {
+            cut(v, range.clone());
+        }
+    }
+}
+
 /// The calibration's error at each epoch as a linear function of the parameters' errors: for
 /// the down component once tied, the error at the epoch less the error at the tie; for
 /// north and east (never tied), the error at the epoch.
@@ -337,8 +385,21 @@ pub(super) fn padding(filter_s: f64, dt: f64) -> usize {
     (3.0 * filter_s / dt).ceil() as usize
 }
 
+/// The filter of a stretch of epochs `dt` apart: its sections, the padding at each end and
+/// the pivot's length ([`filter::filtfilt_pivoted`]) for a stretch of `n` epochs.
+fn filter_of(
+    filter_s: f64,
+    dt: f64,
+    n: usize,
+) -> Result<(Vec<filter::Section>, usize, usize), GravityError> {
+    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt)?;
+    let pivot = ((filter_s / dt).round() as usize).min(n);
+    Ok((sections, padding(filter_s, dt), pivot))
+}
+
 /// The down gravity disturbance along `s`, filtered with cut-off period `filter_s`, tied
-/// to `ties` (those inside the stretch).
+/// to `ties` (those inside the stretch): [`untied`], the ties' [`level`], then
+/// [`apply_level`].
 ///
 /// Sigmas, each of the filtered value, kept apart: the positions' (their white noise
 /// through the differentiator and the filter), the accelerometers' own noise (the epochs'
@@ -347,9 +408,25 @@ pub(super) fn padding(filter_s: f64, dt: f64) -> usize {
 /// error being one of the calibration's parameters carried through the same function) and
 /// the tie's (the drift line's sigma at the epoch).
 pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, GravityError> {
+    let mut r = untied(s, filter_s)?;
+    let mut points = Vec::new();
+    for tie in ties {
+        points.extend(tie_point(s, &r, tie, filter_s)?);
+    }
+    apply_level(s, &mut r, level(&points).as_ref(), filter_s)?;
+    Ok(r)
+}
+
+/// The reduction of `s` before any tie: every series of [`Reduced`] but the tie's sigma
+/// (zero) and the total sigma (filled in by [`apply_level`]), the calibration's sigma not
+/// yet relative to a tie. A window of a longer stretch reduced alone gives the stretch's
+/// own values wherever it reaches [`reach`] epochs beyond: the filter's row holds under
+/// 1e-9 of its norm past it, so what the window's ends are extended by does not reach
+/// there (the stage's blocks, docs/model.md 7).
+pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
     let n = s.time_gps_ns.len();
     let dt = interval_s(&s.time_gps_ns)?;
-    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt)?;
+    let (sections, pad, pivot) = filter_of(filter_s, dt, n)?;
     if (n as f64) * dt < filter_s {
         return Err(GravityError::TooShort {
             epochs: n,
@@ -358,60 +435,155 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
         });
     }
     let mut out = Reduced::default();
-    let mut raw = unfiltered(s, dt, &mut out);
-    let pad = padding(filter_s, dt);
-    let pivot = ((filter_s / dt).round() as usize).min(n);
-    let mut filtered = filtered(s, &sections, &out, (pad, pivot), dt);
+    out.disturbance_mgal = unfiltered(s, dt, &mut out);
+    out.filtered_mgal = filtered(s, &sections, &out, (pad, pivot), dt);
     let reach = reach(filter_s, dt);
     let heights: Vec<f64> = s.sd_up_m.iter().map(|sd| sd * 1e5).collect();
     out.sigma_positions_mgal = propagated_sd(&row(&sections, reach, Some(dt)), &heights);
     out.sigma_noise_mgal = scaled(&row(&sections, reach, None), &s.noise_f_mgal);
-    let random: Vec<f64> = (0..n)
-        .map(|k| out.sigma_positions_mgal[k].hypot(out.sigma_noise_mgal[k]))
-        .collect();
-    still(ties, s, dt)?;
-    let drift = tie(s, &filtered, &out.normal_mgal, ties, (&sections, dt, pad))?;
-    let t = &s.time_gps_ns;
-    let mut calibration = filter::filtfilt_pivoted(&sections, &s.sigma_f_mgal, pad, pivot);
+    out.sigma_calibration_mgal = filter::filtfilt_pivoted(&sections, &s.sigma_f_mgal, pad, pivot);
     out.sigma_tie_mgal = vec![0.0; n];
-    if let Some(d) = &drift {
-        let at_tie = nearest(t, d.reference_gps_ns).map_or(0.0, |k| calibration[k]);
-        let tied = s
-            .calibration_tied
-            .as_ref()
-            .map(|c| c.filtered_sigma(&sections, pad, pivot));
-        for k in 0..n {
-            let (c, sigma) = d.at(t[k]);
-            raw[k] -= c;
-            filtered[k] -= c;
-            out.sigma_tie_mgal[k] = sigma;
-            calibration[k] = match &tied {
-                Some(v) => v[k],
-                None => (calibration[k] - at_tie).abs(),
-            };
-        }
-    }
-    out.sigma_calibration_mgal = calibration;
     out.sigma_attitude_mgal = if s.sigma_attitude_mgal.iter().any(|v| *v > 0.0) {
         filter::filtfilt_pivoted(&sections, &s.sigma_attitude_mgal, pad, pivot)
     } else {
         vec![0.0; n]
     };
-    out.sigma_mgal = (0..n)
+    Ok(out)
+}
+
+/// What one tie says of the level: at the centre of its window, the filtered disturbance's
+/// mean over the window less the tie's g - gamma, the sd of that mean, and the
+/// (untied) calibration sigma at the epoch nearest the centre.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TiePoint {
+    /// The tie's centre, GPS ns.
+    pub time_gps_ns: i64,
+    /// The misfit, mGal.
+    pub misfit_mgal: f64,
+    /// Its sd, mGal.
+    pub sd_mgal: f64,
+    /// The untied calibration sigma at the epoch nearest the centre, mGal.
+    pub calibration_mgal: f64,
+}
+
+/// The level the ties fix on a stretch: the drift, and the calibration's sigma at its
+/// reference (which the tie takes away).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Level {
+    /// The drift fitted to the ties.
+    pub drift: Drift,
+    /// The untied calibration sigma at the drift's reference, mGal.
+    pub calibration_at_tie_mgal: f64,
+}
+
+/// `tie`'s point on `s` reduced untied into `r` (None where its window holds fewer than two
+/// of the stretch's epochs): its window must be still, and its gravity that of a place on
+/// the Earth (each refused otherwise, naming the tie).
+pub fn tie_point(
+    s: &Stretch,
+    r: &Reduced,
+    tie: &Tie,
+    filter_s: f64,
+) -> Result<Option<TiePoint>, GravityError> {
+    let t = &s.time_gps_ns;
+    let dt = interval_s(t)?;
+    still(tie, s, dt)?;
+    let half = (tie.duration_s * 0.5e9) as i64;
+    let idx: Vec<usize> = (0..t.len())
+        .filter(|&k| (t[k] - tie.time_gps_ns).abs() <= half)
+        .collect();
+    if idx.len() < 2 {
+        return Ok(None);
+    }
+    let n = idx.len() as f64;
+    let gamma = &r.normal_mgal;
+    let disturbance = idx.iter().map(|&k| tie.g_mgal - gamma[k]).sum::<f64>() / n;
+    if disturbance.abs() > MAX_DISTURBANCE_MGAL {
+        let k = idx[idx.len() / 2];
+        return Err(GravityError::Refused {
+            message: format!(
+                "the tie at {}: its {} mGal is {disturbance:.0} mGal from normal gravity \
+                 where the track is then ({:.5}, {:.5} deg, {:.1} m), beyond any \
+                 disturbance on the Earth ({MAX_DISTURBANCE_MGAL} mGal): is it this \
+                 place's gravity, and the trajectory's position?",
+                ingest::time::utc_iso(tie.time_gps_ns),
+                tie.g_mgal,
+                s.latitude_deg[k],
+                s.longitude_deg[k],
+                s.height_m[k]
+            ),
+        });
+    }
+    let mean = idx.iter().map(|&k| r.filtered_mgal[k]).sum::<f64>() / n - disturbance;
+    let (sections, pad, _) = filter_of(filter_s, dt, t.len())?;
+    let sd = window_mean_sd(s, &idx, (&sections, dt, pad));
+    let calibration = nearest(t, tie.time_gps_ns).map_or(0.0, |k| r.sigma_calibration_mgal[k]);
+    Ok(Some(TiePoint {
+        time_gps_ns: tie.time_gps_ns,
+        misfit_mgal: mean,
+        sd_mgal: sd,
+        calibration_mgal: calibration,
+    }))
+}
+
+/// The level of a stretch's tie points (in the ties' order; the first is the drift's
+/// reference): a constant with one, a weighted line in time with more; None without.
+pub fn level(points: &[TiePoint]) -> Option<Level> {
+    let line_points: Vec<(i64, f64, f64)> = points
+        .iter()
+        .map(|p| (p.time_gps_ns, p.misfit_mgal, p.sd_mgal))
+        .collect();
+    Some(Level {
+        drift: line(&line_points)?,
+        calibration_at_tie_mgal: points.first()?.calibration_mgal,
+    })
+}
+
+/// `r` (of `s`, reduced [`untied`]) tied to `level`: the drift removed from the
+/// disturbance before and after the filter, the tie's sigma at each epoch, the
+/// calibration's sigma relative to the tie (through `s.calibration_tied` where given; the
+/// difference of the sigmas otherwise); then the total sigma, the five in quadrature.
+pub fn apply_level(
+    s: &Stretch,
+    r: &mut Reduced,
+    level: Option<&Level>,
+    filter_s: f64,
+) -> Result<(), GravityError> {
+    let n = s.time_gps_ns.len();
+    if let Some(level) = level {
+        let d = &level.drift;
+        let tied = match &s.calibration_tied {
+            Some(c) => {
+                let (sections, pad, pivot) = filter_of(filter_s, interval_s(&s.time_gps_ns)?, n)?;
+                Some(c.filtered_sigma(&sections, pad, pivot))
+            }
+            None => None,
+        };
+        for k in 0..n {
+            let (c, sigma) = d.at(s.time_gps_ns[k]);
+            r.disturbance_mgal[k] -= c;
+            r.filtered_mgal[k] -= c;
+            r.sigma_tie_mgal[k] = sigma;
+            r.sigma_calibration_mgal[k] = match &tied {
+                Some(v) => v[k],
+                None => (r.sigma_calibration_mgal[k] - level.calibration_at_tie_mgal).abs(),
+            };
+        }
+        r.drift = Some(*d);
+    }
+    r.sigma_mgal = (0..n)
         .map(|k| {
             let parts = [
-                random[k],
-                out.sigma_calibration_mgal[k],
-                out.sigma_tie_mgal[k],
-                out.sigma_attitude_mgal[k],
+                r.sigma_positions_mgal[k],
+                r.sigma_noise_mgal[k],
+                r.sigma_calibration_mgal[k],
+                r.sigma_tie_mgal[k],
+                r.sigma_attitude_mgal[k],
             ];
             parts.iter().map(|v| v * v).sum::<f64>().sqrt()
         })
         .collect();
-    out.disturbance_mgal = raw;
-    out.filtered_mgal = filtered;
-    out.drift = drift;
-    Ok(out)
+    Ok(())
 }
 
 /// The median step between `times`, ns (None for fewer than two).
@@ -436,12 +608,12 @@ pub(super) fn displacement_ne_m(s: &Stretch, (a, b): (usize, usize), at: usize) 
 /// The speed below which a tie's window counts as still, m/s (its epochs' median).
 pub const STILL_M_S: f64 = 0.5;
 
-/// Every tie's window still: a tie at a time the vehicle moves (a time or a day mistyped)
+/// A tie's window still: a tie at a time the vehicle moves (a time or a day mistyped)
 /// would shift the whole stretch to the gravity of another place, so it is refused with
 /// its time and the speed. The speed at an epoch is taken from the positions 5 s either
 /// side (the epoch-to-epoch speed of a 20 Hz trajectory with 3 cm noise is 0.5 m/s of
 /// noise alone).
-fn still(ties: &[Tie], s: &Stretch, dt: f64) -> Result<(), GravityError> {
+fn still(tie: &Tie, s: &Stretch, dt: f64) -> Result<(), GravityError> {
     let t = &s.time_gps_ns;
     let n = t.len();
     let w = ((5.0 / dt).round() as usize).max(1);
@@ -450,28 +622,26 @@ fn still(ties: &[Tie], s: &Stretch, dt: f64) -> Result<(), GravityError> {
         let [north, east] = displacement_ne_m(s, (a, b), k);
         north.hypot(east) / ((b - a).max(1) as f64 * dt)
     };
-    for tie in ties {
-        let half = (tie.duration_s * 0.5e9) as i64;
-        let mut v: Vec<f64> = (0..n)
-            .filter(|&k| (t[k] - tie.time_gps_ns).abs() <= half)
-            .map(speed)
-            .collect();
-        if v.is_empty() {
-            continue;
-        }
-        v.sort_unstable_by(f64::total_cmp);
-        let median = v[v.len() / 2];
-        if median > STILL_M_S {
-            return Err(GravityError::Refused {
-                message: format!(
-                    "the tie at {}: the vehicle moves at {median:.1} m/s (the median over its \
-                     {} s window), where a tie's window must be still (below {STILL_M_S} \
-                     m/s): is its time right?",
-                    ingest::time::utc_iso(tie.time_gps_ns),
-                    tie.duration_s
-                ),
-            });
-        }
+    let half = (tie.duration_s * 0.5e9) as i64;
+    let mut v: Vec<f64> = (0..n)
+        .filter(|&k| (t[k] - tie.time_gps_ns).abs() <= half)
+        .map(speed)
+        .collect();
+    if v.is_empty() {
+        return Ok(());
+    }
+    v.sort_unstable_by(f64::total_cmp);
+    let median = v[v.len() / 2];
+    if median > STILL_M_S {
+        return Err(GravityError::Refused {
+            message: format!(
+                "the tie at {}: the vehicle moves at {median:.1} m/s (the median over its {} \
+                 s window), where a tie's window must be still (below {STILL_M_S} m/s): is \
+                 its time right?",
+                ingest::time::utc_iso(tie.time_gps_ns),
+                tie.duration_s
+            ),
+        });
     }
     Ok(())
 }
@@ -479,52 +649,6 @@ fn still(ties: &[Tie], s: &Stretch, dt: f64) -> Result<(), GravityError> {
 /// The epoch nearest `t0`, if any.
 fn nearest(t: &[i64], t0: i64) -> Option<usize> {
     (0..t.len()).min_by_key(|&k| (t[k] - t0).abs())
-}
-
-/// The drift fitted to the ties inside the stretch: at each, the filtered disturbance's
-/// mean over its still window against the tie's g - gamma (the filter passes a constant
-/// unchanged and removes the positions' noise, which the unfiltered values are dominated
-/// by), with the sd of that mean ([`window_mean_sd`]); a constant with one tie, a weighted
-/// line in time with more.
-fn tie(
-    s: &Stretch,
-    filtered: &[f64],
-    gamma: &[f64],
-    ties: &[Tie],
-    filter: (&[filter::Section], f64, usize),
-) -> Result<Option<Drift>, GravityError> {
-    let t = &s.time_gps_ns;
-    let mut points = Vec::new();
-    for tie in ties {
-        let half = (tie.duration_s * 0.5e9) as i64;
-        let idx: Vec<usize> = (0..t.len())
-            .filter(|&k| (t[k] - tie.time_gps_ns).abs() <= half)
-            .collect();
-        if idx.len() < 2 {
-            continue;
-        }
-        let n = idx.len() as f64;
-        let disturbance = idx.iter().map(|&k| tie.g_mgal - gamma[k]).sum::<f64>() / n;
-        if disturbance.abs() > MAX_DISTURBANCE_MGAL {
-            let k = idx[idx.len() / 2];
-            return Err(GravityError::Refused {
-                message: format!(
-                    "the tie at {}: its {} mGal is {disturbance:.0} mGal from normal gravity \
-                     where the track is then ({:.5}, {:.5} deg, {:.1} m), beyond any \
-                     disturbance on the Earth ({MAX_DISTURBANCE_MGAL} mGal): is it this \
-                     place's gravity, and the trajectory's position?",
-                    ingest::time::utc_iso(tie.time_gps_ns),
-                    tie.g_mgal,
-                    s.latitude_deg[k],
-                    s.longitude_deg[k],
-                    s.height_m[k]
-                ),
-            });
-        }
-        let mean = idx.iter().map(|&k| filtered[k]).sum::<f64>() / n - disturbance;
-        points.push((tie.time_gps_ns, mean, window_mean_sd(s, &idx, filter)));
-    }
-    Ok(line(&points))
 }
 
 /// The largest gravity disturbance a tie may claim, mGal: free-air disturbances on the
