@@ -160,6 +160,134 @@ impl Bin {
     }
 }
 
+/// The bytes of one [`Bin`] on disk: its sixteen sums, then its flags in a word.
+const BIN_BYTES: usize = 17 * 8;
+
+impl Bin {
+    fn to_bytes(self) -> [u8; BIN_BYTES] {
+        let mut out = [0u8; BIN_BYTES];
+        let values = [self.weight, self.value_weight, self.sum, self.sigma_sum]
+            .into_iter()
+            .chain(self.vector_sum)
+            .chain(self.covariance_sum)
+            .chain(self.nav_sum);
+        for (chunk, v) in out.chunks_exact_mut(8).zip(values) {
+            chunk.copy_from_slice(&v.to_le_bytes());
+        }
+        out[16 * 8] = self.flags;
+        out
+    }
+
+    fn from_bytes(b: &[u8]) -> Self {
+        let v = |i: usize| f64::from_le_bytes(b[i * 8..i * 8 + 8].try_into().expect("8 bytes"));
+        Bin {
+            weight: v(0),
+            value_weight: v(1),
+            sum: v(2),
+            sigma_sum: v(3),
+            vector_sum: [v(4), v(5), v(6)],
+            covariance_sum: [v(7), v(8), v(9), v(10), v(11), v(12)],
+            nav_sum: [v(13), v(14), v(15)],
+            flags: b[16 * 8],
+        }
+    }
+}
+
+/// One target's bins, written to an unnamed file in the output folder as they are
+/// completed (removed when closed, a crash included) and read back a range at a time: the
+/// reduction holds a block's bins, not the survey's (136 bytes an epoch on disk).
+pub struct SpilledBins {
+    file: std::fs::File,
+    len: usize,
+}
+
+/// Bins of epochs `start..` of a target, indexed by the epoch's index in the target.
+pub struct BinsAt {
+    /// The first epoch's index.
+    pub start: usize,
+    /// The bins.
+    pub bins: Vec<Bin>,
+}
+
+impl std::ops::Index<usize> for BinsAt {
+    type Output = Bin;
+    fn index(&self, k: usize) -> &Bin {
+        &self.bins[k - self.start]
+    }
+}
+
+impl SpilledBins {
+    /// The epochs it holds a bin for.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether it holds none.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The bins of epochs `range`.
+    pub fn read(&self, range: std::ops::Range<usize>) -> std::io::Result<BinsAt> {
+        use std::io::{Read, Seek, SeekFrom};
+        let mut bytes = vec![0u8; range.len() * BIN_BYTES];
+        let mut f = &self.file;
+        f.seek(SeekFrom::Start((range.start * BIN_BYTES) as u64))?;
+        f.read_exact(&mut bytes)?;
+        Ok(BinsAt {
+            start: range.start,
+            bins: bytes.chunks_exact(BIN_BYTES).map(Bin::from_bytes).collect(),
+        })
+    }
+}
+
+/// A target's bins being filled: those samples may still reach, the ones before written.
+struct Window {
+    /// Index of the first bin held.
+    base: usize,
+    bins: std::collections::VecDeque<Bin>,
+    out: std::io::BufWriter<std::fs::File>,
+}
+
+impl Window {
+    fn new(dir: &Path) -> std::io::Result<Self> {
+        Ok(Window {
+            base: 0,
+            bins: std::collections::VecDeque::new(),
+            out: std::io::BufWriter::new(tempfile::tempfile_in(dir)?),
+        })
+    }
+
+    /// Writes the bins before epoch `upto` (none from a sample before them can come).
+    fn complete(&mut self, upto: usize) -> std::io::Result<()> {
+        use std::io::Write;
+        while self.base < upto {
+            let bin = self.bins.pop_front().unwrap_or_default();
+            self.out.write_all(&bin.to_bytes())?;
+            self.base += 1;
+        }
+        Ok(())
+    }
+
+    /// The bin of epoch `k`, at or after the first held (None before it).
+    fn bin(&mut self, k: usize) -> Option<&mut Bin> {
+        let i = k.checked_sub(self.base)?;
+        if self.bins.len() <= i {
+            self.bins.resize(i + 1, Bin::default());
+        }
+        self.bins.get_mut(i)
+    }
+
+    /// Every bin of the `n` epochs written; the file to read them back.
+    fn finish(mut self, n: usize) -> std::io::Result<SpilledBins> {
+        use std::io::Write;
+        self.complete(n)?;
+        self.out.flush()?;
+        let file = self.out.into_inner().map_err(|e| e.into_error())?;
+        Ok(SpilledBins { file, len: n })
+    }
+}
+
 /// One session's epochs to fill: its index in the tables, its epoch times (increasing) and
 /// the median interval, and with attitude how to turn a sample into the navigation frame.
 pub struct Target<'a> {
@@ -268,24 +396,31 @@ impl ThirdDifferences {
 
 /// Per target, the bins of its epochs and its samples' white noise (mGal).
 pub struct Filled {
-    /// One bin per epoch.
-    pub bins: Vec<Vec<Bin>>,
+    /// One bin per epoch, on disk.
+    pub bins: Vec<SpilledBins>,
     /// The sd of one sample's f_D from its white noise, mGal.
     pub sample_sd_mgal: Vec<f64>,
 }
 
-/// Reads apply's table at `path` and returns one bin per epoch of each target; samples
-/// are `interval_ns` apart.
+/// Reads apply's table at `path` and returns one bin per epoch of each target, written
+/// into `dir` as they are completed ([`SpilledBins`]); samples are `interval_ns` apart.
 pub fn fill(
     path: &Path,
     force: &DownForce,
     targets: &[Target<'_>],
-    interval_ns: i64,
+    (interval_ns, dir): (i64, &Path),
 ) -> Result<Filled, GravityError> {
-    let mut bins: Vec<Vec<Bin>> = targets
+    let spill = |e: std::io::Error| GravityError::File {
+        path: dir.to_path_buf(),
+        message: format!("the epochs' sums written aside: {e}"),
+    };
+    let mut windows = targets
         .iter()
-        .map(|t| vec![Bin::default(); t.times.len()])
-        .collect();
+        .map(|_| Window::new(dir))
+        .collect::<std::io::Result<Vec<_>>>()
+        .map_err(spill)?;
+    let mut backwards: Option<i64> = None;
+    let mut io_error: Option<std::io::Error> = None;
     let mut noise = vec![ThirdDifferences::new(interval_ns); targets.len()];
     let (names, flags) = force.columns();
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
@@ -305,6 +440,19 @@ pub fn fill(
                 noise[ti].push(b.time_ns[i], down);
             }
             let near = epochs_of(t.times, t.interval_ns, b.time_ns[i]);
+            // Samples come in time within a session (ingest's time gate): an epoch an
+            // interval behind this sample is reached by no later one.
+            let done = t
+                .times
+                .partition_point(|&e| e + t.interval_ns <= b.time_ns[i]);
+            if let Err(e) = windows[ti].complete(done) {
+                let message = e.to_string();
+                io_error = Some(e);
+                return Err(align::Error::Table {
+                    path: dir.to_path_buf(),
+                    message,
+                });
+            }
             let nav = match (value, t.body_to_nav(b.time_ns[i], &near)) {
                 (Some(_), Some(c)) => {
                     let v = [values[0], values[1], values[2]].map(|x| x.unwrap_or(0.0));
@@ -313,7 +461,10 @@ pub fn fill(
                 _ => None,
             };
             for (k, w) in near.into_iter().flatten() {
-                let bin = &mut bins[ti][k];
+                let Some(bin) = windows[ti].bin(k) else {
+                    backwards.get_or_insert(b.time_ns[i]);
+                    continue;
+                };
                 bin.weight += w;
                 bin.flags |= b.flags[i];
                 if let Some((down, var)) = value {
@@ -338,10 +489,29 @@ pub fn fill(
         }
         Ok(())
     })
-    .map_err(|e| GravityError::File {
-        path: path.to_path_buf(),
-        message: format!("{e} (reading {TIME_GPS_NS} and the calibrated columns)"),
+    .map_err(|e| match io_error.take() {
+        Some(io) => spill(io),
+        None => GravityError::File {
+            path: path.to_path_buf(),
+            message: format!("{e} (reading {TIME_GPS_NS} and the calibrated columns)"),
+        },
     })?;
+    if let Some(t) = backwards {
+        return Err(GravityError::File {
+            path: path.to_path_buf(),
+            message: format!(
+                "a sample at {} comes after later ones of its session: the table is not in \
+                 time order (written by another version of apply?)",
+                ingest::time::utc_iso(t)
+            ),
+        });
+    }
+    let bins = windows
+        .into_iter()
+        .zip(targets)
+        .map(|(w, t)| w.finish(t.times.len()))
+        .collect::<std::io::Result<Vec<_>>>()
+        .map_err(spill)?;
     Ok(Filled {
         bins,
         sample_sd_mgal: noise.iter().map(ThirdDifferences::sd).collect(),

@@ -8,7 +8,7 @@
 use super::GravityError;
 use super::attitude::{self, Attitude, AttitudeAt};
 use super::crossover;
-use super::epochs::{self, Bin, DownForce, Target};
+use super::epochs::{self, BinsAt, DownForce, SpilledBins, Target};
 use super::horizontal::{self, Horizontal, ReducedHorizontal};
 use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
 use super::trajectory::{self, Trajectory};
@@ -91,12 +91,12 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
         })
         .collect();
     let interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
-    let filled = epochs::fill(&table, &force, &targets, interval_ns)?;
     let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| crate::Error::Io {
         path: dir.clone(),
         source: e,
     })?;
+    let filled = epochs::fill(&table, &force, &targets, (interval_ns, &dir))?;
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
     let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
@@ -318,28 +318,43 @@ fn triad_function(
 fn tie_gradient(
     f: &TriadFunction,
     track: &Track<'_>,
-    bins: &[Bin],
+    bins: &SpilledBins,
     (span, ctx): (Range<usize>, &Context<'_>),
     inside: &[(usize, Tie)],
-) -> Option<Vec<f64>> {
+) -> Result<Option<Vec<f64>>, GravityError> {
     let times = &track.times[span.clone()];
     let window = inside.iter().find_map(|(_, tie)| {
         let half = (tie.duration_s * 0.5e9) as i64;
-        let idx: Vec<usize> = (0..times.len())
-            .filter(|&i| (times[i] - tie.time_gps_ns).abs() <= half)
-            .collect();
-        (idx.len() >= 2).then_some(idx)
-    })?;
+        let lo = times.partition_point(|&t| t < tie.time_gps_ns - half);
+        let hi = times.partition_point(|&t| t <= tie.time_gps_ns + half);
+        (hi >= lo + 2).then_some(span.start + lo..span.start + hi)
+    });
+    let Some(window) = window else {
+        return Ok(None);
+    };
+    let at = bins
+        .read(window.clone())
+        .map_err(|e| spill_error(bins, e))?;
     let (mut reference, mut row_ref) = ([0.0; 3], [0.0; 3]);
-    for &i in &window {
-        let v = bins[span.start + i].mean_vector();
-        let m = down_row(track, span.start + i, ctx);
-        for k in 0..3 {
-            reference[k] += v[k] / window.len() as f64;
-            row_ref[k] += m[k] / window.len() as f64;
+    for k in window.clone() {
+        let v = at[k].mean_vector();
+        let m = down_row(track, k, ctx);
+        for i in 0..3 {
+            reference[i] += v[i] / window.len() as f64;
+            row_ref[i] += m[i] / window.len() as f64;
         }
     }
-    Some(f.gradient(f.readings_for(reference)?, row_ref))
+    Ok(f.readings_for(reference).map(|x| f.gradient(x, row_ref)))
+}
+
+/// The epochs' sums, written aside, could not be read back.
+fn spill_error(bins: &SpilledBins, e: std::io::Error) -> GravityError {
+    GravityError::Refused {
+        message: format!(
+            "the epochs' sums written aside ({} epochs) could not be read back: {e}",
+            bins.len()
+        ),
+    }
 }
 
 /// The down row at kept epoch `k`: C_b^n's with attitude, the mounting's without.
@@ -354,7 +369,7 @@ fn down_row(track: &Track<'_>, k: usize, ctx: &Context<'_>) -> [f64; 3] {
 fn calibration_gradient(
     f: &TriadFunction,
     track: &Track<'_>,
-    bins: &[Bin],
+    bins: &BinsAt,
     (range, ctx): (Range<usize>, &Context<'_>),
     at_tie: &[f64],
 ) -> Option<CalibrationGradient> {
@@ -682,7 +697,7 @@ fn body_to_nav(track: &Track<'_>, k: usize, mounting: &[[f64; 3]; 3]) -> Option<
 /// pushed; the session's summary.
 fn reduce_track(
     track: &Track<'_>,
-    bins: &[Bin],
+    bins: &SpilledBins,
     ctx: &Context<'_>,
     rows: &mut Rows,
     ties: &mut [TieUsed],
@@ -703,7 +718,13 @@ fn reduce_track(
         position_sd_given_m: given_sd_median(track),
         stretches: Vec::new(),
     };
-    let (spans, gaps) = stretches(&track.times, bins, interval, expected, &mut summary.dropped);
+    let (spans, gaps) = stretches(
+        &track.times,
+        bins,
+        (interval, expected),
+        &mut summary.dropped,
+    )
+    .map_err(|e| spill_error(bins, e))?;
     summary.gaps = gaps;
     for span in spans {
         let inside = ties_inside(ctx.ties, &track.times[span.clone()]);
@@ -771,7 +792,7 @@ fn margin(filter_s: f64, interval_s: f64) -> usize {
 /// filter's reach either side: every block then removes the same drift.
 fn reduce_stretch(
     track: &Track<'_>,
-    bins: &[Bin],
+    bins: &SpilledBins,
     (span, inside): (Range<usize>, &[(usize, Tie)]),
     ctx: &Context<'_>,
     number: u32,
@@ -785,9 +806,10 @@ fn reduce_stretch(
     let margin = margin(filter_s, interval_s);
     let block = ctx.block_epochs.unwrap_or(BLOCK_EPOCHS.max(4 * margin));
     let plan = blocks(span.len(), block, margin);
-    let at_tie = ctx
-        .triad
-        .and_then(|f| tie_gradient(f, track, bins, (span.clone(), ctx), inside));
+    let at_tie = match ctx.triad {
+        Some(f) => tie_gradient(f, track, bins, (span.clone(), ctx), inside)?,
+        None => None,
+    };
     let mut level = match plan.len() {
         1 => None,
         _ => Some(tie_level(track, bins, (span.clone(), inside), ctx, margin)?),
@@ -795,6 +817,7 @@ fn reduce_stretch(
     let (t0, t1) = (track.times[span.start], track.times[span.end - 1]);
     for (reduced, keep) in plan {
         let range = span.start + reduced.start..span.start + reduced.end;
+        let bins = &bins.read(range.clone()).map_err(|e| spill_error(bins, e))?;
         let mut s = stretch(track, bins, range.clone(), ctx);
         s.calibration_tied = ctx
             .triad
@@ -852,7 +875,7 @@ fn reduce_stretch(
 /// the window's values), its point taken there, the points fitted as one stretch's.
 fn tie_level(
     track: &Track<'_>,
-    bins: &[Bin],
+    bins: &SpilledBins,
     (span, inside): (Range<usize>, &[(usize, Tie)]),
     ctx: &Context<'_>,
     margin: usize,
@@ -865,7 +888,12 @@ fn tie_level(
         let hi = times.partition_point(|&t| t <= tie.time_gps_ns + half);
         let range =
             span.start + lo.saturating_sub(margin)..span.start + (hi + margin).min(times.len());
-        let s = stretch(track, bins, range, ctx);
+        let s = stretch(
+            track,
+            &bins.read(range.clone()).map_err(|e| spill_error(bins, e))?,
+            range,
+            ctx,
+        );
         let r = reduce::untied(&s, ctx.survey.filter_s)?;
         points.extend(reduce::tie_point(&s, &r, tie, ctx.survey.filter_s)?);
     }
@@ -923,16 +951,19 @@ fn ties_inside(ties: &[ResolvedTie], times: &[i64]) -> Vec<(usize, Tie)> {
 /// epochs), with the epochs dropped counted by reason, and the gaps that cut them.
 fn stretches(
     times: &[i64],
-    bins: &[Bin],
-    interval: i64,
-    expected: f64,
+    spilled: &SpilledBins,
+    (interval, expected): (i64, f64),
     dropped: &mut BTreeMap<String, u64>,
-) -> (Vec<Range<usize>>, u64) {
+) -> std::io::Result<(Vec<Range<usize>>, u64)> {
     let need = (0.5 * expected).max(1.0);
     let mut out = Vec::new();
     let mut gaps = 0;
     let mut start: Option<usize> = None;
+    let mut bins = spilled.read(0..0)?;
     for k in 0..=times.len() {
+        if k < times.len() && k >= bins.start + bins.bins.len() {
+            bins = spilled.read(k..(k + BLOCK_EPOCHS).min(times.len()))?;
+        }
         let valid = k < times.len() && bins[k].value_weight >= need;
         if k < times.len() && !valid {
             let reason = if bins[k].weight >= need {
@@ -955,12 +986,12 @@ fn stretches(
             start = Some(k);
         }
     }
-    (out, gaps)
+    Ok((out, gaps))
 }
 
 /// The reduction's input for the epochs `span` of `track`: with attitude, f_D from the
 /// triad's mean vector through C_b^n; levelled, the bins' own.
-fn stretch(track: &Track<'_>, bins: &[Bin], span: Range<usize>, ctx: &Context<'_>) -> Stretch {
+fn stretch(track: &Track<'_>, bins: &BinsAt, span: Range<usize>, ctx: &Context<'_>) -> Stretch {
     let mut s = Stretch::default();
     let t = &track.trajectory;
     for k in span {
@@ -998,7 +1029,7 @@ fn stretch(track: &Track<'_>, bins: &[Bin], span: Range<usize>, ctx: &Context<'_
 /// with a triad without temperature terms), the attitude's sigma, the positions' sds.
 fn horizontal_inputs(
     (track, att): (&Track<'_>, &[AttitudeAt]),
-    bins: &[Bin],
+    bins: &BinsAt,
     span: Range<usize>,
     ctx: &Context<'_>,
 ) -> Horizontal {
@@ -1063,7 +1094,7 @@ fn given_sd_median(track: &Track<'_>) -> Option<[f64; 3]> {
 /// stretch's ends (`t0`, `t1`), an attitude without sds.
 fn flags_of(
     s: &Stretch,
-    (bins, attitude): (&[Bin], Option<&[AttitudeAt]>),
+    (bins, attitude): (&BinsAt, Option<&[AttitudeAt]>),
     span: Range<usize>,
     (t0, t1): (i64, i64),
     (filter_s, r): (f64, &Reduced),
