@@ -13,10 +13,13 @@
 //!   period `filter_s`, against scipy.signal's `sosfiltfilt`;
 //! - [`trajectory`]: GNSS positions from RTKLIB's `.pos` or a CSV;
 //! - [`attitude`]: heading, pitch and roll from a CSV, onto the trajectory's epochs;
-//! - [`reduce`]: the down component along an evenly spaced stretch of track, free of I/O:
-//!   kinematic acceleration and velocities by central differences, the Eotvos term, normal
-//!   gravity, the filter with the stretch's ends extended consistently, ties and a drift,
-//!   the sigmas apart (`tests/gravity_reduce.rs`);
+//! - `spill`: per-epoch records written aside and read back a block at a time;
+//! - `track`: a session's track made ready (gated, attitude, lever arm, noise) with its
+//!   kept positions written aside, only their times held;
+//! - [`reduce`]: the down component along an evenly spaced stretch (or block) of track,
+//!   free of I/O: kinematic acceleration and velocities by central differences, the Eotvos
+//!   term, normal gravity, the filter with the stretch's ends extended consistently, ties
+//!   and a drift, the sigmas apart (`tests/gravity_reduce.rs`);
 //! - [`horizontal`]: north and east along a stretch with attitude, never tied, the
 //!   attitude's part of their sigma apart;
 //! - [`epochs`]: apply's calibrated samples brought onto the trajectory's epochs (with
@@ -35,7 +38,9 @@ pub mod horizontal;
 pub mod navigation;
 pub mod normal;
 pub mod reduce;
+mod spill;
 pub mod stage;
+mod track;
 pub mod trajectory;
 
 /// What can go wrong in the gravity stage.

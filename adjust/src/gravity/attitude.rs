@@ -209,29 +209,34 @@ impl Attitude {
     /// interpolated: outside the file's span, or between two attitude epochs more than
     /// twice their median interval apart.
     pub fn at(&self, times: &[i64]) -> Vec<Option<AttitudeAt>> {
+        let max_gap = self.max_gap_ns();
+        times.iter().map(|&x| self.at_time(x, max_gap)).collect()
+    }
+
+    /// The longest interval between attitude epochs interpolated across, ns: twice their
+    /// median interval.
+    pub fn max_gap_ns(&self) -> i64 {
+        2 * super::reduce::median_step_ns(&self.time_gps_ns).unwrap_or(0)
+    }
+
+    /// The attitude at `x`, or None where it cannot be interpolated ([`Attitude::at`]),
+    /// `max_gap` from [`Attitude::max_gap_ns`].
+    pub fn at_time(&self, x: i64, max_gap: i64) -> Option<AttitudeAt> {
         let t = &self.time_gps_ns;
-        let max_gap = 2 * super::reduce::median_step_ns(t).unwrap_or(0);
-        let mut k = 0;
-        times
-            .iter()
-            .map(|&x| {
-                while k + 1 < t.len() && t[k + 1] < x {
-                    k += 1;
-                }
-                if t.is_empty() || x < t[0] || x > t[t.len() - 1] {
-                    return None;
-                }
-                if t[k] == x {
-                    return Some(self.interpolated(k, k, 0.0));
-                }
-                let next = (k + 1).min(t.len() - 1);
-                if t[next] - t[k] > max_gap {
-                    return None;
-                }
-                let f = (x - t[k]) as f64 / (t[next] - t[k]) as f64;
-                Some(self.interpolated(k, next, f))
-            })
-            .collect()
+        if t.is_empty() || x < t[0] || x > t[t.len() - 1] {
+            return None;
+        }
+        // The last epoch before x (or the first).
+        let k = t.partition_point(|&a| a < x).saturating_sub(1);
+        if t[k] == x {
+            return Some(self.interpolated(k, k, 0.0));
+        }
+        let next = (k + 1).min(t.len() - 1);
+        if t[next] - t[k] > max_gap {
+            return None;
+        }
+        let f = (x - t[k]) as f64 / (t[next] - t[k]) as f64;
+        Some(self.interpolated(k, next, f))
     }
 
     fn interpolated(&self, a: usize, b: usize, f: f64) -> AttitudeAt {

@@ -21,6 +21,7 @@
 
 use super::GravityError;
 use super::attitude::{self, AttitudeAt};
+use super::spill::{Spill, SpillWriter};
 use ingest::contract::tables::{TIME_GPS_NS, applied};
 use std::path::Path;
 
@@ -160,46 +161,41 @@ impl Bin {
     }
 }
 
-/// The bytes of one [`Bin`] on disk: its sixteen sums, then its flags in a word.
-const BIN_BYTES: usize = 17 * 8;
+/// The doubles of one [`Bin`] written aside: its sixteen sums, then its flags.
+const BIN_WIDTH: usize = 17;
 
 impl Bin {
-    fn to_bytes(self) -> [u8; BIN_BYTES] {
-        let mut out = [0u8; BIN_BYTES];
+    fn to_record(self) -> [f64; BIN_WIDTH] {
+        let mut out = [0.0; BIN_WIDTH];
         let values = [self.weight, self.value_weight, self.sum, self.sigma_sum]
             .into_iter()
             .chain(self.vector_sum)
             .chain(self.covariance_sum)
-            .chain(self.nav_sum);
-        for (chunk, v) in out.chunks_exact_mut(8).zip(values) {
-            chunk.copy_from_slice(&v.to_le_bytes());
+            .chain(self.nav_sum)
+            .chain([f64::from(self.flags)]);
+        for (o, v) in out.iter_mut().zip(values) {
+            *o = v;
         }
-        out[16 * 8] = self.flags;
         out
     }
 
-    fn from_bytes(b: &[u8]) -> Self {
-        let v = |i: usize| f64::from_le_bytes(b[i * 8..i * 8 + 8].try_into().expect("8 bytes"));
+    fn from_record(v: &[f64]) -> Self {
         Bin {
-            weight: v(0),
-            value_weight: v(1),
-            sum: v(2),
-            sigma_sum: v(3),
-            vector_sum: [v(4), v(5), v(6)],
-            covariance_sum: [v(7), v(8), v(9), v(10), v(11), v(12)],
-            nav_sum: [v(13), v(14), v(15)],
-            flags: b[16 * 8],
+            weight: v[0],
+            value_weight: v[1],
+            sum: v[2],
+            sigma_sum: v[3],
+            vector_sum: [v[4], v[5], v[6]],
+            covariance_sum: [v[7], v[8], v[9], v[10], v[11], v[12]],
+            nav_sum: [v[13], v[14], v[15]],
+            flags: v[16] as u8,
         }
     }
 }
 
-/// One target's bins, written to an unnamed file in the output folder as they are
-/// completed (removed when closed, a crash included) and read back a range at a time: the
-/// reduction holds a block's bins, not the survey's (136 bytes an epoch on disk).
-pub struct SpilledBins {
-    file: std::fs::File,
-    len: usize,
-}
+/// One target's bins, written aside as they are completed ([`super::spill`]) and read
+/// back a range at a time: the reduction holds a block's bins, not the survey's.
+pub struct SpilledBins(Spill);
 
 /// Bins of epochs `start..` of a target, indexed by the epoch's index in the target.
 pub struct BinsAt {
@@ -219,24 +215,24 @@ impl std::ops::Index<usize> for BinsAt {
 impl SpilledBins {
     /// The epochs it holds a bin for.
     pub fn len(&self) -> usize {
-        self.len
+        self.0.len()
     }
 
     /// Whether it holds none.
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.0.len() == 0
     }
 
     /// The bins of epochs `range`.
     pub fn read(&self, range: std::ops::Range<usize>) -> std::io::Result<BinsAt> {
-        use std::io::{Read, Seek, SeekFrom};
-        let mut bytes = vec![0u8; range.len() * BIN_BYTES];
-        let mut f = &self.file;
-        f.seek(SeekFrom::Start((range.start * BIN_BYTES) as u64))?;
-        f.read_exact(&mut bytes)?;
         Ok(BinsAt {
             start: range.start,
-            bins: bytes.chunks_exact(BIN_BYTES).map(Bin::from_bytes).collect(),
+            bins: self
+                .0
+                .read(range)?
+                .chunks_exact(BIN_WIDTH)
+                .map(Bin::from_record)
+                .collect(),
         })
     }
 }
@@ -246,7 +242,7 @@ struct Window {
     /// Index of the first bin held.
     base: usize,
     bins: std::collections::VecDeque<Bin>,
-    out: std::io::BufWriter<std::fs::File>,
+    out: SpillWriter,
 }
 
 impl Window {
@@ -254,16 +250,15 @@ impl Window {
         Ok(Window {
             base: 0,
             bins: std::collections::VecDeque::new(),
-            out: std::io::BufWriter::new(tempfile::tempfile_in(dir)?),
+            out: SpillWriter::new(dir, BIN_WIDTH)?,
         })
     }
 
     /// Writes the bins before epoch `upto` (none from a sample before them can come).
     fn complete(&mut self, upto: usize) -> std::io::Result<()> {
-        use std::io::Write;
         while self.base < upto {
             let bin = self.bins.pop_front().unwrap_or_default();
-            self.out.write_all(&bin.to_bytes())?;
+            self.out.push(&bin.to_record())?;
             self.base += 1;
         }
         Ok(())
@@ -280,11 +275,8 @@ impl Window {
 
     /// Every bin of the `n` epochs written; the file to read them back.
     fn finish(mut self, n: usize) -> std::io::Result<SpilledBins> {
-        use std::io::Write;
         self.complete(n)?;
-        self.out.flush()?;
-        let file = self.out.into_inner().map_err(|e| e.into_error())?;
-        Ok(SpilledBins { file, len: n })
+        Ok(SpilledBins(self.out.finish()?))
     }
 }
 

@@ -6,23 +6,22 @@
 //! written. Every epoch of every trajectory is accounted for: written, or dropped by reason.
 
 use super::GravityError;
-use super::attitude::{self, Attitude, AttitudeAt};
+use super::attitude::{self, AttitudeAt};
 use super::crossover;
 use super::epochs::{self, BinsAt, DownForce, SpilledBins, Target};
 use super::horizontal::{self, Horizontal, ReducedHorizontal};
 use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
-use super::trajectory::{self, Trajectory};
+use super::track::{Track, read_tracks};
 use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
     Crossover, DriftFitted, FilterUsed, GravityReport, Input, LEDGER_FILE, LEDGER_FORMAT,
     NotReduced, STAGE_DIR, SessionGravity, StretchSummary, TieUsed, dropped,
 };
-use ingest::contract::manifest::{Dataset, ResolvedSession};
-use ingest::contract::survey::{ResolvedTie, SurveyConfig, TrajectoryFormat};
+use ingest::contract::manifest::Dataset;
+use ingest::contract::survey::{ResolvedTie, SurveyConfig};
 use ingest::contract::tables::{applied, gravity};
 use ingest::time::utc_iso;
-use ingest::timegate::{Position, TimeGate};
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::Path;
@@ -46,30 +45,6 @@ pub struct Options<'a> {
 /// reach either side: memory holds a block, not the survey.
 pub const BLOCK_EPOCHS: usize = 1 << 16;
 
-/// A survey session's trajectory, read and made ready: the accelerometers' positions (the
-/// lever arm applied: through the attitude where the session gives one, its down component
-/// alone on a levelled platform otherwise), epochs outside the session's days, whose time
-/// does not increase, or (with attitude) without an attitude dropped.
-struct Track<'a> {
-    index: u16,
-    session: &'a ResolvedSession,
-    trajectory: Trajectory,
-    /// The epochs kept, indices into `trajectory`.
-    times: Vec<i64>,
-    kept: Vec<usize>,
-    dropped: BTreeMap<String, u64>,
-    /// The antenna's heights as the trajectory gives them, m, per trajectory epoch.
-    antenna_height_m: Vec<f64>,
-    /// The attitude at each kept epoch, when the session gives it.
-    attitude: Option<Vec<AttitudeAt>>,
-    /// The trajectory's and attitude's lines set aside, as listed in the ledger.
-    bad_lines: Vec<String>,
-    /// The attitude's samples the time gate dropped, by reason.
-    attitude_dropped: BTreeMap<String, u64>,
-    /// The positions' white noise north, east, up from their third differences, m.
-    noise_neu_m: [f64; 3],
-}
-
 /// Runs the stage on `dataset` into `out`.
 pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityReport, GravityError> {
     let applied = crate::apply::stream::run(dataset, out, &opts.apply)?;
@@ -79,7 +54,12 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     let table = out.join(apply_ledger::STAGE_DIR).join(applied::FILE);
     let force = down_force(&applied, &survey, opts.accelerometer)?;
     let triad = triad_function(&applied, opts.apply.calibration)?;
-    let tracks = read_tracks(&ds, &survey, opts.skip_bad_lines)?;
+    let dir = out.join(STAGE_DIR);
+    std::fs::create_dir_all(&dir).map_err(|e| crate::Error::Io {
+        path: dir.clone(),
+        source: e,
+    })?;
+    let tracks = read_tracks(&ds, &survey, opts.skip_bad_lines, &dir)?;
     refuse_attitude_with_an_axis(&force, &tracks)?;
     let targets: Vec<Target<'_>> = tracks
         .iter()
@@ -91,11 +71,6 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
         })
         .collect();
     let interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
-    let dir = out.join(STAGE_DIR);
-    std::fs::create_dir_all(&dir).map_err(|e| crate::Error::Io {
-        path: dir.clone(),
-        source: e,
-    })?;
     let filled = epochs::fill(&table, &force, &targets, (interval_ns, &dir))?;
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
@@ -347,6 +322,24 @@ fn tie_gradient(
     Ok(f.readings_for(reference).map(|x| f.gradient(x, row_ref)))
 }
 
+/// A block's epochs read back: their sums and positions.
+struct Block {
+    bins: BinsAt,
+    positions: super::track::Positions,
+}
+
+/// The epochs `range` of `track` read back.
+fn block(
+    track: &Track<'_>,
+    bins: &SpilledBins,
+    range: Range<usize>,
+) -> Result<Block, GravityError> {
+    Ok(Block {
+        bins: bins.read(range.clone()).map_err(|e| spill_error(bins, e))?,
+        positions: track.positions(range)?,
+    })
+}
+
 /// The epochs' sums, written aside, could not be read back.
 fn spill_error(bins: &SpilledBins, e: std::io::Error) -> GravityError {
     GravityError::Refused {
@@ -445,222 +438,6 @@ fn describe(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> S
     }
 }
 
-/// Each survey session's trajectory read, in manifest order; none is an error.
-fn read_tracks<'a>(
-    ds: &'a Dataset,
-    survey: &SurveyConfig,
-    skip: bool,
-) -> Result<Vec<Track<'a>>, GravityError> {
-    let mut tracks = Vec::new();
-    for (index, s) in ds.sessions.iter().enumerate() {
-        let Some(src) = &s.trajectory else { continue };
-        let trajectory = match src.format {
-            TrajectoryFormat::Rtklib => trajectory::read_rtklib(&src.path, skip)?,
-            TrajectoryFormat::Csv => {
-                let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
-                trajectory::read_csv(&src.path, s.times.reader(form), skip)?
-            }
-        };
-        let attitude = match &src.attitude {
-            Some((path, form)) => Some(attitude::read_csv(
-                path,
-                s.times.reader(*form),
-                s.gps_range_ns(),
-                skip,
-            )?),
-            None => None,
-        };
-        let mut bad_lines = listed(ds, &src.path, &trajectory.bad_lines);
-        if let (Some(a), Some((path, _))) = (&attitude, &src.attitude) {
-            bad_lines.extend(listed(ds, path, &a.bad_lines));
-        }
-        let mut track = gated(index, s, trajectory, attitude.as_ref());
-        track.bad_lines = bad_lines;
-        track.attitude_dropped = attitude.map(|a| a.dropped).unwrap_or_default();
-        move_to_accelerometers(&mut track, survey.lever_arm_m);
-        track.noise_neu_m = position_noise_m(&track);
-        tracks.push(track);
-    }
-    if tracks.is_empty() {
-        return Err(GravityError::Refused {
-            message: format!(
-                "no survey session of {} has a `trajectory` (docs/formats.md 10): nothing to \
-                 reduce",
-                ds.manifest_path.display()
-            ),
-        });
-    }
-    Ok(tracks)
-}
-
-/// A file's lines set aside, as the ledger lists them (the first
-/// [`ingest::contract::ingest_ledger::MAX_LISTED`]).
-fn listed(ds: &Dataset, path: &Path, bad: &[super::BadLine]) -> Vec<String> {
-    let rel = path
-        .strip_prefix(&ds.dir)
-        .unwrap_or(path)
-        .display()
-        .to_string();
-    bad.iter()
-        .take(ingest::contract::ingest_ledger::MAX_LISTED)
-        .map(|b| format!("{rel}:{}: {}: {}", b.line, b.field, b.message))
-        .collect()
-}
-
-/// The trajectory's side of the time gate: the epochs kept (indices into the trajectory)
-/// and the others counted by the gravity ledger's reason.
-struct EpochSink {
-    kept: Vec<usize>,
-    times: Vec<i64>,
-    dropped: BTreeMap<String, u64>,
-}
-
-impl ingest::timegate::Sink<usize> for EpochSink {
-    type Error = std::convert::Infallible;
-
-    fn accept(&mut self, time_ns: i64, k: usize) -> Result<(), Self::Error> {
-        self.kept.push(k);
-        self.times.push(time_ns);
-        Ok(())
-    }
-
-    fn reject(&mut self, _: Position, why: &'static str, _: String, _: usize) {
-        use ingest::contract::ingest_ledger::reason;
-        let name = match why {
-            reason::OUTSIDE_SESSION => dropped::OUTSIDE_SESSION,
-            reason::TIME_OUTLIER => dropped::TIME_OUTLIER,
-            _ => dropped::NOT_INCREASING,
-        };
-        *self.dropped.entry(name.to_owned()).or_insert(0) += 1;
-    }
-}
-
-/// The track of session `index` with its epochs gated: through ingest's time gate (every
-/// log's: outside the session's days, a time that repeats or goes back, one that jumps
-/// away from its neighbours and back, each dropped alone, at the trajectory's median
-/// interval), then, with attitude, where none can be interpolated; each dropped epoch
-/// counted.
-fn gated<'a>(
-    index: usize,
-    s: &'a ResolvedSession,
-    trajectory: Trajectory,
-    attitude: Option<&Attitude>,
-) -> Track<'a> {
-    let mut sink = EpochSink {
-        kept: Vec::with_capacity(trajectory.time_gps_ns.len()),
-        times: Vec::with_capacity(trajectory.time_gps_ns.len()),
-        dropped: BTreeMap::new(),
-    };
-    if !trajectory.bad_lines.is_empty() {
-        sink.dropped.insert(
-            dropped::BAD_LINE.to_owned(),
-            trajectory.bad_lines.len() as u64,
-        );
-    }
-    let interval_ns = median_interval_ns(&trajectory.time_gps_ns);
-    let mut gate = TimeGate::new(interval_ns, s.gps_range_ns());
-    for (k, &t) in trajectory.time_gps_ns.iter().enumerate() {
-        let Ok(()) = gate.offer(t, Position::Line(k as u64), k, &mut sink);
-    }
-    let Ok(()) = gate.finish(&mut sink);
-    let EpochSink {
-        mut kept,
-        mut times,
-        mut dropped,
-    } = sink;
-    let mut count = |reason: &str| *dropped.entry(reason.to_owned()).or_insert(0) += 1;
-    let attitude = attitude.map(|a| {
-        let at = a.at(&times);
-        let (mut k2, mut t2, mut a2) = (Vec::new(), Vec::new(), Vec::new());
-        for ((k, t), a) in kept.iter().zip(&times).zip(at) {
-            match a {
-                Some(a) => {
-                    k2.push(*k);
-                    t2.push(*t);
-                    a2.push(a);
-                }
-                None => count(dropped::NO_ATTITUDE),
-            }
-        }
-        (kept, times) = (k2, t2);
-        a2
-    });
-    Track {
-        index: u16::try_from(index).unwrap_or(u16::MAX),
-        session: s,
-        antenna_height_m: trajectory.height_m.clone(),
-        trajectory,
-        times,
-        kept,
-        dropped,
-        attitude,
-        bad_lines: Vec::new(),
-        attitude_dropped: BTreeMap::new(),
-        noise_neu_m: [0.0; 3],
-    }
-}
-
-/// r_acc = r_ant + C_v^n l at each kept epoch: through the attitude where there is one;
-/// levelled without, where only the down component (a constant) can be applied.
-fn move_to_accelerometers(track: &mut Track<'_>, lever_arm_m: [f64; 3]) {
-    let t = &mut track.trajectory;
-    let Some(att) = &track.attitude else {
-        for h in &mut t.height_m {
-            *h -= lever_arm_m[2];
-        }
-        return;
-    };
-    for (a, &j) in att.iter().zip(&track.kept) {
-        let d = attitude::apply(&a.vehicle_to_nav(), lever_arm_m);
-        let (r_m, r_n) = super::navigation::radii(&super::normal::GRS80, t.latitude_deg[j]);
-        let h = t.height_m[j];
-        let lat = t.latitude_deg[j].to_radians();
-        t.latitude_deg[j] += (d[0] / (r_m + h)).to_degrees();
-        t.longitude_deg[j] += (d[1] / ((r_n + h) * lat.cos())).to_degrees();
-        t.height_m[j] -= d[2];
-    }
-}
-
-/// The kept positions' white noise north, east and up, m: their third differences, as the
-/// samples' ([`epochs::ThirdDifferences`]; a vehicle's motion is smooth at the epochs'
-/// rate, a swell's third difference at 10 Hz a hundredth of a cm), the angles turned into
-/// metres on a sphere of 6371 km (ample for a noise level).
-fn position_noise_m(track: &Track<'_>) -> [f64; 3] {
-    let t = &track.trajectory;
-    let interval = median_interval_ns(&track.times);
-    let mut d: [epochs::ThirdDifferences; 3] =
-        std::array::from_fn(|_| epochs::ThirdDifferences::new(interval));
-    // East summed step by step at each step's own latitude: a longitude times the cosine of
-    // the latitude carried the latitude's noise into east, in proportion to the longitude
-    // (2.4 cm east from 1 cm north at 180 deg).
-    let mut east = 0.0;
-    let mut last: Option<usize> = None;
-    for (&j, &time) in track.kept.iter().zip(&track.times) {
-        let lat = t.latitude_deg[j].to_radians();
-        if let Some(i) = last {
-            let mid = 0.5 * (lat + t.latitude_deg[i].to_radians());
-            east += super::navigation::longitude_step_deg(t.longitude_deg[i], t.longitude_deg[j])
-                .to_radians()
-                * 6.371e6
-                * mid.cos();
-        }
-        last = Some(j);
-        let ne = [lat * 6.371e6, east, t.height_m[j]];
-        for (d, v) in d.iter_mut().zip(ne) {
-            d.push(time, v);
-        }
-    }
-    d.map(|d| d.sd())
-}
-
-/// The positions' sds at trajectory epoch `j`, north, east, up, m: the larger of the
-/// file's (none counts as 0) and the positions' own white noise, so that a file whose sds
-/// are smaller than the scatter its positions show is not believed over them.
-fn position_sd_m(track: &Track<'_>, j: usize) -> [f64; 3] {
-    let given = track.trajectory.sd_neu_m[j].unwrap_or([0.0; 3]);
-    std::array::from_fn(|i| given[i].max(track.noise_neu_m[i]))
-}
-
 /// The median interval between `times`, ns (1 s for fewer than two).
 fn median_interval_ns(times: &[i64]) -> i64 {
     reduce::median_step_ns(times).unwrap_or(1_000_000_000)
@@ -707,7 +484,7 @@ fn reduce_track(
     filter_longer_than_epochs(track, interval, ctx.survey.filter_s)?;
     let mut summary = SessionGravity {
         id: track.session.session.id.clone(),
-        epochs_read: (track.trajectory.time_gps_ns.len() + track.trajectory.bad_lines.len()) as u64,
+        epochs_read: track.epochs_read,
         epochs_used: 0,
         dropped: track.dropped.clone(),
         flagged: BTreeMap::new(),
@@ -715,7 +492,7 @@ fn reduce_track(
         bad_lines: track.bad_lines.clone(),
         attitude_dropped: track.attitude_dropped.clone(),
         position_noise_m: track.noise_neu_m,
-        position_sd_given_m: given_sd_median(track),
+        position_sd_given_m: track.sd_given_median_m,
         stretches: Vec::new(),
     };
     let (spans, gaps) = stretches(
@@ -804,62 +581,27 @@ fn reduce_stretch(
         return Ok(None);
     }
     let margin = margin(filter_s, interval_s);
-    let block = ctx.block_epochs.unwrap_or(BLOCK_EPOCHS.max(4 * margin));
-    let plan = blocks(span.len(), block, margin);
-    let at_tie = match ctx.triad {
-        Some(f) => tie_gradient(f, track, bins, (span.clone(), ctx), inside)?,
-        None => None,
-    };
-    let mut level = match plan.len() {
-        1 => None,
-        _ => Some(tie_level(track, bins, (span.clone(), inside), ctx, margin)?),
-    };
-    let (t0, t1) = (track.times[span.start], track.times[span.end - 1]);
-    for (reduced, keep) in plan {
-        let range = span.start + reduced.start..span.start + reduced.end;
-        let bins = &bins.read(range.clone()).map_err(|e| spill_error(bins, e))?;
-        let mut s = stretch(track, bins, range.clone(), ctx);
-        s.calibration_tied = ctx
-            .triad
-            .zip(at_tie.as_deref())
-            .and_then(|(f, g)| calibration_gradient(f, track, bins, (range.clone(), ctx), g));
-        let mut r = match reduce::untied(&s, filter_s) {
-            Ok(r) => r,
-            Err(GravityError::TooShort { .. }) => return Ok(None),
-            Err(e) => return Err(e),
-        };
-        let level = match level {
-            Some(level) => level,
-            None => {
-                let mut points = Vec::new();
-                for (_, tie) in inside {
-                    points.extend(reduce::tie_point(&s, &r, tie, filter_s)?);
-                }
-                *level.insert(reduce::level(&points))
-            }
-        };
-        reduce::apply_level(&s, &mut r, level.as_ref(), filter_s)?;
-        // Its gradients (one series per parameter) served the reduction alone.
-        s.calibration_tied = None;
-        let mut h = match &track.attitude {
-            Some(att) => {
-                let inputs = horizontal_inputs((track, att), bins, range.clone(), ctx);
-                Some(horizontal::reduce_horizontal(&s, &inputs, filter_s)?)
-            }
+    let size = ctx.block_epochs.unwrap_or(BLOCK_EPOCHS.max(4 * margin));
+    let plan = blocks(span.len(), size, margin);
+    let mut st = Reducing {
+        at_tie: match ctx.triad {
+            Some(f) => tie_gradient(f, track, bins, (span.clone(), ctx), inside)?,
             None => None,
-        };
-        let mut flags = flags_of(&s, (bins, track.attitude.as_deref()), range, (t0, t1), {
-            (filter_s, &r)
-        });
+        },
+        level: match plan.len() {
+            1 => None,
+            _ => Some(tie_level(track, bins, (span.clone(), inside), ctx, margin)?),
+        },
+        ends: (track.times[span.start], track.times[span.end - 1]),
+        span,
+        inside,
+    };
+    for (reduced, keep) in plan {
         let cut = keep.start - reduced.start..keep.end - reduced.start;
-        s.keep(cut.clone());
-        r.keep(cut.clone());
-        if let Some(h) = &mut h {
-            h.keep(cut.clone());
-        }
-        flags.truncate(cut.end);
-        flags.drain(..cut.start);
-        numbers_only(&s, &r)?;
+        let Some((s, r, h, flags)) = reduce_block(track, bins, ctx, &mut st, (reduced, cut))?
+        else {
+            return Ok(None);
+        };
         for (name, n) in count_flags(&flags) {
             *summary.flagged.entry(name).or_insert(0) += n;
         }
@@ -867,7 +609,76 @@ fn reduce_stretch(
         let step = crossover::step(filter_s, interval_s);
         rows.push((track.index, number, step), (s, r, h), flags)?;
     }
-    Ok(Some(level.flatten().map(|l| l.drift)))
+    Ok(Some(st.level.flatten().map(|l| l.drift)))
+}
+
+/// A block reduced: the stretch's series, the reduction's, north and east's, the flags.
+type BlockRows = (Stretch, Reduced, Option<ReducedHorizontal>, Vec<u8>);
+
+/// A stretch being reduced: its epochs and ties, the calibration's gradient at its drift's
+/// reference, the level its ties fix (None until known), its first and last epochs' times.
+struct Reducing<'a> {
+    span: Range<usize>,
+    inside: &'a [(usize, Tie)],
+    at_tie: Option<Vec<f64>>,
+    level: Option<Option<reduce::Level>>,
+    ends: (i64, i64),
+}
+
+/// The epochs `reduced` (within the stretch) reduced and tied, cut to `cut` (within
+/// them): the stretch's series, the reduction's, north and east's with attitude, the
+/// flags; None when too short for the filter. The first block of a stretch of one block
+/// fixes the level from its own reduction.
+fn reduce_block(
+    track: &Track<'_>,
+    bins: &SpilledBins,
+    ctx: &Context<'_>,
+    st: &mut Reducing<'_>,
+    (reduced, cut): (Range<usize>, Range<usize>),
+) -> Result<Option<BlockRows>, GravityError> {
+    let filter_s = ctx.survey.filter_s;
+    let range = st.span.start + reduced.start..st.span.start + reduced.end;
+    let b = &block(track, bins, range.clone())?;
+    let mut s = stretch(track, b, range.clone(), ctx);
+    s.calibration_tied = ctx
+        .triad
+        .zip(st.at_tie.as_deref())
+        .and_then(|(f, g)| calibration_gradient(f, track, &b.bins, (range.clone(), ctx), g));
+    let mut r = match reduce::untied(&s, filter_s) {
+        Ok(r) => r,
+        Err(GravityError::TooShort { .. }) => return Ok(None),
+        Err(e) => return Err(e),
+    };
+    let level = match st.level {
+        Some(level) => level,
+        None => {
+            let mut points = Vec::new();
+            for (_, tie) in st.inside {
+                points.extend(reduce::tie_point(&s, &r, tie, filter_s)?);
+            }
+            *st.level.insert(reduce::level(&points))
+        }
+    };
+    reduce::apply_level(&s, &mut r, level.as_ref(), filter_s)?;
+    // Its gradients (one series per parameter) served the reduction alone.
+    s.calibration_tied = None;
+    let mut h = match &track.attitude {
+        Some(att) => {
+            let inputs = horizontal_inputs(att, b, range.clone(), ctx);
+            Some(horizontal::reduce_horizontal(&s, &inputs, filter_s)?)
+        }
+        None => None,
+    };
+    let attitude = track.attitude.as_deref();
+    let mut flags = flags_of(&s, (&b.bins, attitude), range, st.ends, (filter_s, &r));
+    s.keep(cut.clone());
+    r.keep(cut.clone());
+    if let Some(h) = &mut h {
+        h.keep(cut.clone());
+    }
+    reduce::cut(&mut flags, cut);
+    numbers_only(&s, &r)?;
+    Ok(Some((s, r, h, flags)))
 }
 
 /// The level the ties `inside` a stretch of several blocks fix: each tie's window reduced
@@ -888,12 +699,7 @@ fn tie_level(
         let hi = times.partition_point(|&t| t <= tie.time_gps_ns + half);
         let range =
             span.start + lo.saturating_sub(margin)..span.start + (hi + margin).min(times.len());
-        let s = stretch(
-            track,
-            &bins.read(range.clone()).map_err(|e| spill_error(bins, e))?,
-            range,
-            ctx,
-        );
+        let s = stretch(track, &block(track, bins, range.clone())?, range, ctx);
         let r = reduce::untied(&s, ctx.survey.filter_s)?;
         points.extend(reduce::tie_point(&s, &r, tie, ctx.survey.filter_s)?);
     }
@@ -991,17 +797,17 @@ fn stretches(
 
 /// The reduction's input for the epochs `span` of `track`: with attitude, f_D from the
 /// triad's mean vector through C_b^n; levelled, the bins' own.
-fn stretch(track: &Track<'_>, bins: &BinsAt, span: Range<usize>, ctx: &Context<'_>) -> Stretch {
+fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) -> Stretch {
     let mut s = Stretch::default();
-    let t = &track.trajectory;
+    let bins = &b.bins;
     for k in span {
-        let j = track.kept[k];
-        s.time_gps_ns.push(t.time_gps_ns[j]);
-        s.latitude_deg.push(t.latitude_deg[j]);
-        s.longitude_deg.push(t.longitude_deg[j]);
-        s.height_m.push(t.height_m[j]);
-        s.height_antenna_m.push(track.antenna_height_m[j]);
-        s.sd_up_m.push(position_sd_m(track, j)[2]);
+        let [lat, lon, h] = b.positions.llh(k);
+        s.time_gps_ns.push(track.times[k]);
+        s.latitude_deg.push(lat);
+        s.longitude_deg.push(lon);
+        s.height_m.push(h);
+        s.height_antenna_m.push(b.positions.antenna_height_m(k));
+        s.sd_up_m.push(b.positions.sd_m(k)[2]);
         match body_to_nav(track, k, &ctx.mounting) {
             Some(c) => {
                 let f = bins[k].mean_nav();
@@ -1028,11 +834,12 @@ fn stretch(track: &Track<'_>, bins: &BinsAt, span: Range<usize>, ctx: &Context<'
 /// force through C_b^n, its calibration sigma along each row (or the parameters' gradients
 /// with a triad without temperature terms), the attitude's sigma, the positions' sds.
 fn horizontal_inputs(
-    (track, att): (&Track<'_>, &[AttitudeAt]),
-    bins: &BinsAt,
+    att: &[AttitudeAt],
+    b: &Block,
     span: Range<usize>,
     ctx: &Context<'_>,
 ) -> Horizontal {
+    let bins = &b.bins;
     let mut h = Horizontal::default();
     let mut gradients: [Option<Vec<Vec<f64>>>; 2] = match ctx.triad {
         Some(f) => std::array::from_fn(|_| Some(vec![Vec::new(); f.covariance().len().isqrt()])),
@@ -1044,7 +851,7 @@ fn horizontal_inputs(
         let f = bins[k].mean_nav();
         let a = &att[k];
         let sigma_att = horizontal::attitude_sigma(a.hpr_rad[0], a.sd_rad, f);
-        let sd = position_sd_m(track, track.kept[k]);
+        let sd = b.positions.sd_m(k);
         let x = ctx.triad.and_then(|t| t.readings_for(v));
         for i in 0..2 {
             h.f_mgal[i].push(f[i]);
@@ -1070,24 +877,6 @@ fn horizontal_inputs(
         })
     });
     h
-}
-
-/// The median over the kept epochs of the trajectory's own sds north, east, up, m (None
-/// where it gives none).
-fn given_sd_median(track: &Track<'_>) -> Option<[f64; 3]> {
-    let sds: Vec<[f64; 3]> = track
-        .kept
-        .iter()
-        .filter_map(|&j| track.trajectory.sd_neu_m[j])
-        .collect();
-    if sds.is_empty() {
-        return None;
-    }
-    Some(std::array::from_fn(|i| {
-        let mut v: Vec<f64> = sds.iter().map(|s| s[i]).collect();
-        v.sort_unstable_by(f64::total_cmp);
-        v[v.len() / 2]
-    }))
 }
 
 /// Each epoch's flags: extrapolated calibration, turning, within a filter period of the

@@ -137,12 +137,28 @@ fn numbered_lines(
 /// aside instead of failing the file.
 pub fn read_rtklib(path: &Path, skip: bool) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
+    out.bad_lines = for_each_rtklib(path, skip, |line, t, llh, sd| {
+        out.push(t, llh, sd, line);
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Calls `f` with each epoch of RTKLIB's `.pos` solution file at `path` in file order (its
+/// line, time, position and sds); with `skip`, a line that breaks the format is set aside
+/// (returned) instead of failing the file.
+pub fn for_each_rtklib(
+    path: &Path,
+    skip: bool,
+    mut f: impl FnMut(u64, i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
+) -> Result<Vec<BadLine>, GravityError> {
+    let mut bad_lines = Vec::new();
     let mut scale: Option<TimeScale> = None;
     for (line_no, l) in numbered_lines(path)? {
         let l = match l {
             Ok(l) => l,
             Err(e) => {
-                set_aside(e, skip, &mut out.bad_lines)?;
+                set_aside(e, skip, &mut bad_lines)?;
                 continue;
             }
         };
@@ -169,11 +185,11 @@ pub fn read_rtklib(path: &Path, skip: bool) -> Result<Trajectory, GravityError> 
             continue;
         }
         match rtklib_line(path, line_no, t, scale) {
-            Ok((time, llh, sd)) => out.push(time, llh, Some(sd), line_no),
-            Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
+            Ok((time, llh, sd)) => f(line_no, time, llh, Some(sd))?,
+            Err(e) => set_aside(e, skip, &mut bad_lines)?,
         }
     }
-    Ok(out)
+    Ok(bad_lines)
 }
 
 /// One solution line of an RTKLIB file: time, position, sds.
@@ -220,16 +236,33 @@ fn rtklib_line(
 
 /// Reads a CSV trajectory whose times `time` reads; with `skip`, a line that breaks the
 /// format is set aside instead of failing the file.
-pub fn read_csv(path: &Path, mut time: TimeReader, skip: bool) -> Result<Trajectory, GravityError> {
+pub fn read_csv(path: &Path, time: TimeReader, skip: bool) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
-    for_each_csv_line(path, |line_no, fields| {
-        match fields.and_then(|f| csv_line(path, line_no, f, &mut time)) {
-            Ok((tns, llh, sd)) => out.push(tns, llh, sd, line_no),
-            Err(e) => set_aside(e, skip, &mut out.bad_lines)?,
-        }
+    out.bad_lines = for_each_csv(path, time, skip, |line, t, llh, sd| {
+        out.push(t, llh, sd, line);
         Ok(())
     })?;
     Ok(out)
+}
+
+/// Calls `f` with each epoch of a CSV trajectory whose times `time` reads, in file order
+/// (its line, time, position and sds if given); with `skip`, a line that breaks the format
+/// is set aside (returned) instead of failing the file.
+pub fn for_each_csv(
+    path: &Path,
+    mut time: TimeReader,
+    skip: bool,
+    mut f: impl FnMut(u64, i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
+) -> Result<Vec<BadLine>, GravityError> {
+    let mut bad_lines = Vec::new();
+    for_each_csv_line(path, |line_no, fields| {
+        match fields.and_then(|fl| csv_line(path, line_no, fl, &mut time)) {
+            Ok((tns, llh, sd)) => f(line_no, tns, llh, sd)?,
+            Err(e) => set_aside(e, skip, &mut bad_lines)?,
+        }
+        Ok(())
+    })?;
+    Ok(bad_lines)
 }
 
 /// Calls `f` with each data line of a CSV (a trajectory's, an attitude's): its number

@@ -1,0 +1,442 @@
+//! A survey session's track, made ready for the stage, without holding the trajectory: the
+//! file is read twice, once for its median interval (the time gate's nominal step), then
+//! each epoch through ingest's time gate; with attitude, the attitude is interpolated at
+//! each epoch kept (one without is dropped by name) and the lever arm applied through it
+//! (levelled, its down component). The kept epochs' positions and sds are written aside
+//! ([`super::spill`], 56 bytes an epoch) and read back a block at a time; only their times
+//! (8 bytes an epoch) and, with attitude, their attitude stay in memory. A third pass over
+//! what was written gives the positions' white noise and the median of the file's sds.
+
+use super::attitude::{self, Attitude, AttitudeAt};
+use super::epochs::ThirdDifferences;
+use super::spill::{Spill, SpillWriter};
+use super::trajectory;
+use super::{BadLine, GravityError};
+use ingest::contract::gravity_ledger::dropped;
+use ingest::contract::manifest::{Dataset, ResolvedSession};
+use ingest::contract::survey::{SurveyConfig, TrajectoryFormat};
+use ingest::timegate::{Position, TimeGate};
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::Path;
+
+/// A survey session's trajectory, read and made ready: the accelerometers' positions (the
+/// lever arm applied: through the attitude where the session gives one, its down component
+/// alone on a levelled platform otherwise), epochs outside the session's days, whose time
+/// does not increase, or (with attitude) without an attitude dropped.
+pub(super) struct Track<'a> {
+    pub index: u16,
+    pub session: &'a ResolvedSession,
+    /// The trajectory's epochs read, with the lines set aside.
+    pub epochs_read: u64,
+    /// The kept epochs' times, GPS ns, increasing.
+    pub times: Vec<i64>,
+    /// The kept epochs' positions, written aside ([`Positions`]).
+    positions: Spill,
+    pub dropped: BTreeMap<String, u64>,
+    /// The attitude at each kept epoch, when the session gives it.
+    pub attitude: Option<Vec<AttitudeAt>>,
+    /// The trajectory's and attitude's lines set aside, as listed in the ledger.
+    pub bad_lines: Vec<String>,
+    /// The attitude's samples the time gate dropped, by reason.
+    pub attitude_dropped: BTreeMap<String, u64>,
+    /// The positions' white noise north, east, up from their third differences, m.
+    pub noise_neu_m: [f64; 3],
+    /// The median over the kept epochs of the file's sds north, east, up (None where it
+    /// gives none), m.
+    pub sd_given_median_m: Option<[f64; 3]>,
+}
+
+/// Doubles a kept epoch is written aside as: latitude, longitude, height (moved to the
+/// accelerometers), the antenna's height, the file's sds north, east, up (NaN: none).
+const WIDTH: usize = 7;
+
+/// The kept epochs `start..` of a track, read back, indexed by the kept epoch's index.
+pub(super) struct Positions {
+    start: usize,
+    values: Vec<f64>,
+    noise_neu_m: [f64; 3],
+}
+
+impl Positions {
+    fn at(&self, k: usize, i: usize) -> f64 {
+        self.values[(k - self.start) * WIDTH + i]
+    }
+
+    /// Latitude, longitude (deg) and ellipsoidal height (m) of the accelerometers.
+    pub fn llh(&self, k: usize) -> [f64; 3] {
+        [self.at(k, 0), self.at(k, 1), self.at(k, 2)]
+    }
+
+    /// The antenna's height as the trajectory gives it, m.
+    pub fn antenna_height_m(&self, k: usize) -> f64 {
+        self.at(k, 3)
+    }
+
+    /// The positions' sds north, east, up, m: the larger of the file's (none counts as 0)
+    /// and the positions' own white noise, so that a file whose sds are smaller than the
+    /// scatter its positions show is not believed over them.
+    pub fn sd_m(&self, k: usize) -> [f64; 3] {
+        std::array::from_fn(|i| {
+            let given = self.at(k, 4 + i);
+            let given = if given.is_nan() { 0.0 } else { given };
+            given.max(self.noise_neu_m[i])
+        })
+    }
+}
+
+impl Track<'_> {
+    /// The kept epochs `range`, read back.
+    pub fn positions(&self, range: Range<usize>) -> Result<Positions, GravityError> {
+        let values = self.positions.read(range.clone()).map_err(|e| {
+            spill_error(
+                self.session,
+                format!("the kept epochs could not be read back: {e}"),
+            )
+        })?;
+        Ok(Positions {
+            start: range.start,
+            values,
+            noise_neu_m: self.noise_neu_m,
+        })
+    }
+}
+
+fn spill_error(s: &ResolvedSession, message: String) -> GravityError {
+    GravityError::Refused {
+        message: format!("session {}: {message}", s.session.id),
+    }
+}
+
+/// Each survey session's trajectory read, in manifest order, its kept epochs written into
+/// `dir`; none is an error.
+pub(super) fn read_tracks<'a>(
+    ds: &'a Dataset,
+    survey: &SurveyConfig,
+    skip: bool,
+    dir: &Path,
+) -> Result<Vec<Track<'a>>, GravityError> {
+    let mut tracks = Vec::new();
+    for (index, s) in ds.sessions.iter().enumerate() {
+        let Some(src) = &s.trajectory else { continue };
+        let attitude = match &src.attitude {
+            Some((path, form)) => Some(attitude::read_csv(
+                path,
+                s.times.reader(*form),
+                s.gps_range_ns(),
+                skip,
+            )?),
+            None => None,
+        };
+        let (mut track, bad) = gated(
+            (index, s),
+            attitude.as_ref(),
+            (survey.lever_arm_m, skip),
+            dir,
+        )?;
+        track.bad_lines = listed(ds, &src.path, &bad);
+        if let (Some(a), Some((path, _))) = (&attitude, &src.attitude) {
+            track.bad_lines.extend(listed(ds, path, &a.bad_lines));
+        }
+        track.attitude_dropped = attitude.map(|a| a.dropped).unwrap_or_default();
+        tracks.push(track);
+    }
+    if tracks.is_empty() {
+        return Err(GravityError::Refused {
+            message: format!(
+                "no survey session of {} has a `trajectory` (docs/formats.md 10): nothing to \
+                 reduce",
+                ds.manifest_path.display()
+            ),
+        });
+    }
+    Ok(tracks)
+}
+
+/// A file's lines set aside, as the ledger lists them (the first
+/// [`ingest::contract::ingest_ledger::MAX_LISTED`]).
+fn listed(ds: &Dataset, path: &Path, bad: &[BadLine]) -> Vec<String> {
+    let rel = path
+        .strip_prefix(&ds.dir)
+        .unwrap_or(path)
+        .display()
+        .to_string();
+    bad.iter()
+        .take(ingest::contract::ingest_ledger::MAX_LISTED)
+        .map(|b| format!("{rel}:{}: {}: {}", b.line, b.field, b.message))
+        .collect()
+}
+
+/// Calls `f` with each epoch of session `s`'s trajectory (time, position, sds); the lines
+/// set aside.
+fn each_epoch(
+    s: &ResolvedSession,
+    skip: bool,
+    mut f: impl FnMut(i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
+) -> Result<Vec<BadLine>, GravityError> {
+    let Some(src) = &s.trajectory else {
+        return Ok(Vec::new());
+    };
+    let g = |_: u64, t: i64, llh: [f64; 3], sd: Option<[f64; 3]>| f(t, llh, sd);
+    match src.format {
+        TrajectoryFormat::Rtklib => trajectory::for_each_rtklib(&src.path, skip, g),
+        TrajectoryFormat::Csv => {
+            let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
+            trajectory::for_each_csv(&src.path, s.times.reader(form), skip, g)
+        }
+    }
+}
+
+/// The median of a histogram of steps (None when empty).
+fn median_of(steps: &BTreeMap<i64, u64>) -> Option<i64> {
+    let n: u64 = steps.values().sum();
+    let mut seen = 0;
+    for (&d, &c) in steps {
+        seen += c;
+        if seen > n / 2 {
+            return Some(d);
+        }
+    }
+    None
+}
+
+/// The trajectory's side of the time gate: the epochs kept, the others counted by the
+/// gravity ledger's reason.
+struct EpochSink<'a> {
+    times: Vec<i64>,
+    out: SpillWriter,
+    dropped: BTreeMap<String, u64>,
+    attitude: Option<(&'a Attitude, i64, Vec<AttitudeAt>)>,
+    lever_arm_m: [f64; 3],
+}
+
+impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
+    type Error = std::io::Error;
+
+    fn accept(
+        &mut self,
+        time_ns: i64,
+        (llh, sd): ([f64; 3], Option<[f64; 3]>),
+    ) -> Result<(), Self::Error> {
+        let at = match &mut self.attitude {
+            None => None,
+            Some((a, max_gap, kept)) => match a.at_time(time_ns, *max_gap) {
+                Some(at) => {
+                    kept.push(at);
+                    Some(at)
+                }
+                None => {
+                    *self
+                        .dropped
+                        .entry(dropped::NO_ATTITUDE.to_owned())
+                        .or_insert(0) += 1;
+                    return Ok(());
+                }
+            },
+        };
+        let [lat, lon, h] = moved(llh, at.as_ref(), self.lever_arm_m);
+        let [sn, se, su] = sd.unwrap_or([f64::NAN; 3]);
+        self.times.push(time_ns);
+        self.out.push(&[lat, lon, h, llh[2], sn, se, su])
+    }
+
+    fn reject(
+        &mut self,
+        _: Position,
+        why: &'static str,
+        _: String,
+        _: ([f64; 3], Option<[f64; 3]>),
+    ) {
+        use ingest::contract::ingest_ledger::reason;
+        let name = match why {
+            reason::OUTSIDE_SESSION => dropped::OUTSIDE_SESSION,
+            reason::TIME_OUTLIER => dropped::TIME_OUTLIER,
+            _ => dropped::NOT_INCREASING,
+        };
+        *self.dropped.entry(name.to_owned()).or_insert(0) += 1;
+    }
+}
+
+/// The track of session `s` (the `index`-th), its trajectory streamed twice: the median
+/// interval between its epochs in file order, then each epoch through ingest's time gate
+/// (every log's: outside the session's days, a time that repeats or goes back, one that
+/// jumps away from its neighbours and back, each dropped alone, at that interval) and, with
+/// attitude, dropped where none can be interpolated; each dropped epoch counted, each kept
+/// moved by the lever arm and written aside into `dir`; the trajectory's lines set aside.
+fn gated<'a>(
+    (index, s): (usize, &'a ResolvedSession),
+    attitude: Option<&Attitude>,
+    (lever_arm_m, skip): ([f64; 3], bool),
+    dir: &Path,
+) -> Result<(Track<'a>, Vec<BadLine>), GravityError> {
+    let mut steps = BTreeMap::new();
+    let mut last: Option<i64> = None;
+    each_epoch(s, skip, |t, _, _| {
+        if let Some(p) = last.replace(t) {
+            *steps.entry(t - p).or_insert(0u64) += 1;
+        }
+        Ok(())
+    })?;
+    let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
+    let mut sink = EpochSink {
+        times: Vec::new(),
+        out: SpillWriter::new(dir, WIDTH).map_err(io)?,
+        dropped: BTreeMap::new(),
+        attitude: attitude.map(|a| (a, a.max_gap_ns(), Vec::new())),
+        lever_arm_m,
+    };
+    let interval_ns = median_of(&steps).unwrap_or(1_000_000_000);
+    let mut gate = TimeGate::new(interval_ns, s.gps_range_ns());
+    let mut read = 0u64;
+    let mut failed: Option<std::io::Error> = None;
+    let bad = each_epoch(s, skip, |t, llh, sd| {
+        let at = Position::Line(read);
+        read += 1;
+        if let Err(e) = gate.offer(t, at, (llh, sd), &mut sink) {
+            failed.get_or_insert(e);
+        }
+        Ok(())
+    })?;
+    if let Some(e) = failed {
+        return Err(io(e));
+    }
+    gate.finish(&mut sink).map_err(io)?;
+    let EpochSink {
+        times,
+        out,
+        mut dropped,
+        attitude,
+        ..
+    } = sink;
+    if !bad.is_empty() {
+        dropped.insert(dropped::BAD_LINE.to_owned(), bad.len() as u64);
+    }
+    let positions = out.finish().map_err(io)?;
+    let mut track = Track {
+        index: u16::try_from(index).unwrap_or(u16::MAX),
+        session: s,
+        epochs_read: read + bad.len() as u64,
+        times,
+        positions,
+        dropped,
+        attitude: attitude.map(|(_, _, kept)| kept),
+        bad_lines: Vec::new(),
+        attitude_dropped: BTreeMap::new(),
+        noise_neu_m: [0.0; 3],
+        sd_given_median_m: None,
+    };
+    (track.noise_neu_m, track.sd_given_median_m) = noise_and_sds(&track)?;
+    Ok((track, bad))
+}
+
+/// The accelerometers' position from the antenna's, r_acc = r_ant + C_v^n l: through the
+/// attitude where there is one; levelled without, where only the down component (a
+/// constant) can be applied.
+fn moved(llh: [f64; 3], attitude: Option<&AttitudeAt>, lever_arm_m: [f64; 3]) -> [f64; 3] {
+    let [lat, lon, h] = llh;
+    let Some(a) = attitude else {
+        return [lat, lon, h - lever_arm_m[2]];
+    };
+    let d = attitude::apply(&a.vehicle_to_nav(), lever_arm_m);
+    let (r_m, r_n) = super::navigation::radii(&super::normal::GRS80, lat);
+    let phi = lat.to_radians();
+    [
+        lat + (d[0] / (r_m + h)).to_degrees(),
+        lon + (d[1] / ((r_n + h) * phi.cos())).to_degrees(),
+        h - d[2],
+    ]
+}
+
+/// The kept positions' white noise north, east and up, m: their third differences, as the
+/// samples' ([`ThirdDifferences`]; a vehicle's motion is smooth at the epochs' rate, a
+/// swell's third difference at 10 Hz a hundredth of a cm), the angles turned into metres on
+/// a sphere of 6371 km (ample for a noise level), at the kept epochs' median interval; and
+/// the median over the kept epochs of the file's sds (None where it gives none).
+fn noise_and_sds(track: &Track<'_>) -> Result<([f64; 3], Option<[f64; 3]>), GravityError> {
+    let mut steps = BTreeMap::new();
+    for w in track.times.windows(2) {
+        *steps.entry(w[1] - w[0]).or_insert(0u64) += 1;
+    }
+    let interval = median_of(&steps).unwrap_or(1_000_000_000);
+    let mut d: [ThirdDifferences; 3] = std::array::from_fn(|_| ThirdDifferences::new(interval));
+    // The file's sds by their order (exact medians; as many entries as distinct values).
+    let mut sds: [BTreeMap<u64, u64>; 3] = Default::default();
+    // East summed step by step at each step's own latitude: a longitude times the cosine of
+    // the latitude carried the latitude's noise into east, in proportion to the longitude
+    // (2.4 cm east from 1 cm north at 180 deg).
+    let mut east = 0.0;
+    let mut last: Option<[f64; 2]> = None;
+    let n = track.times.len();
+    let mut start = 0;
+    while start < n {
+        let range = start..(start + super::stage::BLOCK_EPOCHS).min(n);
+        let p = track.positions(range.clone())?;
+        for k in range.clone() {
+            let [lat_deg, lon_deg, h] = p.llh(k);
+            let lat = lat_deg.to_radians();
+            if let Some([lat0, lon0]) = last {
+                let mid = 0.5 * (lat + lat0.to_radians());
+                east += super::navigation::longitude_step_deg(lon0, lon_deg).to_radians()
+                    * 6.371e6
+                    * mid.cos();
+            }
+            last = Some([lat_deg, lon_deg]);
+            let ne = [lat * 6.371e6, east, h];
+            for (d, v) in d.iter_mut().zip(ne) {
+                d.push(track.times[k], v);
+            }
+            for (i, map) in sds.iter_mut().enumerate() {
+                let v = p.at(k, 4 + i);
+                if !v.is_nan() {
+                    *map.entry(order_key(v)).or_insert(0) += 1;
+                }
+            }
+        }
+        start = range.end;
+    }
+    let median = |m: &BTreeMap<u64, u64>| {
+        let n: u64 = m.values().sum();
+        let mut seen = 0;
+        m.iter().find_map(|(&key, &c)| {
+            seen += c;
+            (seen > n / 2).then(|| from_order_key(key))
+        })
+    };
+    let given = sds
+        .iter()
+        .map(median)
+        .collect::<Option<Vec<f64>>>()
+        .map(|v| [v[0], v[1], v[2]]);
+    Ok((d.map(|d| d.sd()), given))
+}
+
+/// A key whose order is `v`'s (total order of doubles).
+fn order_key(v: f64) -> u64 {
+    let b = v.to_bits();
+    if b >> 63 == 1 { !b } else { b | 1 << 63 }
+}
+
+fn from_order_key(k: u64) -> f64 {
+    f64::from_bits(if k >> 63 == 1 { k & !(1 << 63) } else { !k })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The order key sorts doubles as they compare, and comes back to the same bits.
+    #[test]
+    fn order_keys_sort_as_the_values() {
+        let v = [-3.5, -0.0, 0.0, 1e-300, 0.01, 0.02, 7.0];
+        for w in v.windows(2) {
+            assert!(order_key(w[0]) < order_key(w[1]), "{w:?}");
+        }
+        assert!(
+            v.iter()
+                .all(|x| from_order_key(order_key(*x)).to_bits() == x.to_bits())
+        );
+        let steps = BTreeMap::from([(100, 3u64), (200, 1), (50, 1)]);
+        assert_eq!(median_of(&steps), Some(100));
+        assert_eq!(median_of(&BTreeMap::new()), None);
+    }
+}
