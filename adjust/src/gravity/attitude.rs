@@ -9,6 +9,7 @@
 //! attitude epochs no further apart than twice their median interval: an epoch outside
 //! that is not reduced (`no_attitude`).
 
+use super::spill::{Spill, SpillWriter};
 use super::trajectory::{bad, timed_fields};
 use super::{BadLine, GravityError, set_aside};
 use ingest::time::TimeReader;
@@ -74,69 +75,242 @@ pub fn apply(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
 }
 
 /// Reads an attitude CSV whose times `time` reads, its samples through the time gate for
-/// the session's `range_ns`. With `skip`, a line that breaks the format is set aside
-/// instead of failing the file.
+/// the session's `range_ns`, whole ([`read_spilled`], then read back). With `skip`, a line
+/// that breaks the format is set aside instead of failing the file.
 pub fn read_csv(
+    path: &Path,
+    time: TimeReader,
+    range_ns: (i64, i64),
+    skip: bool,
+) -> Result<Attitude, GravityError> {
+    let dir = tempfile::tempdir().map_err(|e| GravityError::File {
+        path: path.to_path_buf(),
+        message: format!("a folder to read it through: {e}"),
+    })?;
+    let s = read_spilled(path, time, range_ns, skip, dir.path())?;
+    let values = s.values.read(0..s.times.len()).map_err(|e| s.io(e))?;
+    let hpr_deg = values.chunks_exact(WIDTH).map(|v| [v[0], v[1], v[2]]);
+    let sd_deg = values.chunks_exact(WIDTH).map(sd_of);
+    Ok(Attitude {
+        hpr_deg: hpr_deg.collect(),
+        sd_deg: sd_deg.collect(),
+        time_gps_ns: s.times,
+        bad_lines: s.bad_lines,
+        dropped: s.dropped,
+    })
+}
+
+/// Doubles an attitude sample is written aside as: heading (unwrapped), pitch, roll, their
+/// sds (NaN: none), deg.
+const WIDTH: usize = 6;
+
+fn sd_of(v: &[f64]) -> Option<[f64; 3]> {
+    (!v[3].is_nan()).then(|| [v[3], v[4], v[5]])
+}
+
+/// An attitude file through the time gate, its samples written aside ([`super::spill`]),
+/// only their times held (8 bytes a sample); [`AttitudeCursor`] interpolates it.
+pub struct SpilledAttitude {
+    path: std::path::PathBuf,
+    /// The samples' times, GPS ns, increasing.
+    pub times: Vec<i64>,
+    values: Spill,
+    max_gap_ns: i64,
+    /// Lines set aside (`--skip-bad-lines`).
+    pub bad_lines: Vec<BadLine>,
+    /// Samples the time gate dropped, by ingest's reason.
+    pub dropped: BTreeMap<String, u64>,
+}
+
+impl SpilledAttitude {
+    fn io(&self, e: std::io::Error) -> GravityError {
+        GravityError::File {
+            path: self.path.clone(),
+            message: format!("its samples written aside: {e}"),
+        }
+    }
+}
+
+/// The samples kept by the time gate, written aside, and the others counted.
+struct Kept {
+    times: Vec<i64>,
+    out: SpillWriter,
+    /// The last kept heading, deg (unwrapped).
+    heading: Option<f64>,
+    dropped: BTreeMap<String, u64>,
+}
+
+impl Sink<([f64; 3], Option<[f64; 3]>)> for Kept {
+    type Error = std::io::Error;
+
+    fn accept(
+        &mut self,
+        time_ns: i64,
+        (hpr, sd): ([f64; 3], Option<[f64; 3]>),
+    ) -> Result<(), Self::Error> {
+        // The heading made continuous: each step taken as the shortest turn.
+        let h = match self.heading {
+            Some(last) => last + ((hpr[0] - last + 180.0).rem_euclid(360.0) - 180.0),
+            None => hpr[0],
+        };
+        self.heading = Some(h);
+        self.times.push(time_ns);
+        let [a, b, c] = sd.unwrap_or([f64::NAN; 3]);
+        self.out.push(&[h, hpr[1], hpr[2], a, b, c])
+    }
+
+    fn reject(
+        &mut self,
+        _: Position,
+        why: &'static str,
+        _: String,
+        _: ([f64; 3], Option<[f64; 3]>),
+    ) {
+        *self.dropped.entry(why.to_owned()).or_insert(0) += 1;
+    }
+}
+
+/// Reads an attitude CSV whose times `time` reads twice: its median interval, then its
+/// samples through ingest's time gate at that interval for the session's `range_ns`, the
+/// kept ones written into `dir`. With `skip`, a line that breaks the format is set aside
+/// instead of failing the file.
+pub fn read_spilled(
     path: &Path,
     mut time: TimeReader,
     range_ns: (i64, i64),
     skip: bool,
-) -> Result<Attitude, GravityError> {
-    let mut read = Attitude::default();
-    let mut lines = Vec::new();
+    dir: &Path,
+) -> Result<SpilledAttitude, GravityError> {
+    let mut steps: Vec<i64> = Vec::new();
+    let mut last: Option<i64> = None;
+    let mut first = time;
     super::trajectory::for_each_csv_line(path, |line, fields| {
-        match fields.and_then(|f| attitude_line(path, line, f, &mut time)) {
-            Ok((tns, hpr, sd)) => {
-                read.time_gps_ns.push(tns);
-                read.hpr_deg.push(hpr);
-                read.sd_deg.push(sd);
-                lines.push(line);
-            }
-            Err(e) => set_aside(e, skip, &mut read.bad_lines)?,
+        match fields.and_then(|f| attitude_line(path, line, f, &mut first)) {
+            Ok((t, _, _)) => steps.extend(last.replace(t).map(|p| t - p)),
+            Err(e) => set_aside(e, skip, &mut Vec::new())?,
         }
         Ok(())
     })?;
-    let mut out = gated(read, &lines, range_ns);
-    unwrap_heading(&mut out.hpr_deg);
-    Ok(out)
-}
-
-/// The samples kept by the time gate, and the others counted.
-struct Kept<'a> {
-    read: &'a Attitude,
-    out: Attitude,
-}
-
-impl Sink<usize> for Kept<'_> {
-    type Error = std::convert::Infallible;
-
-    fn accept(&mut self, time_ns: i64, k: usize) -> Result<(), Self::Error> {
-        self.out.time_gps_ns.push(time_ns);
-        self.out.hpr_deg.push(self.read.hpr_deg[k]);
-        self.out.sd_deg.push(self.read.sd_deg[k]);
-        Ok(())
-    }
-
-    fn reject(&mut self, _: Position, why: &'static str, _: String, _: usize) {
-        *self.out.dropped.entry(why.to_owned()).or_insert(0) += 1;
-    }
-}
-
-/// `read`'s samples through ingest's time gate at their median interval.
-fn gated(read: Attitude, lines: &[u64], range_ns: (i64, i64)) -> Attitude {
-    let interval_ns = super::reduce::median_step_ns(&read.time_gps_ns).unwrap_or(1_000_000_000);
-    let mut gate = TimeGate::new(interval_ns, range_ns);
-    let mut kept = Kept {
-        read: &read,
-        out: Attitude::default(),
+    let interval_ns = median(steps).unwrap_or(1_000_000_000);
+    let io = |e: std::io::Error| GravityError::File {
+        path: path.to_path_buf(),
+        message: format!("its samples written aside: {e}"),
     };
-    for (k, (&t, &line)) in read.time_gps_ns.iter().zip(lines).enumerate() {
-        let Ok(()) = gate.offer(t, Position::Line(line), k, &mut kept);
+    let mut kept = Kept {
+        times: Vec::new(),
+        out: SpillWriter::new(dir, WIDTH).map_err(io)?,
+        heading: None,
+        dropped: BTreeMap::new(),
+    };
+    let mut gate = TimeGate::new(interval_ns, range_ns);
+    let mut bad_lines = Vec::new();
+    let mut failed = None;
+    super::trajectory::for_each_csv_line(path, |line, fields| {
+        match fields.and_then(|f| attitude_line(path, line, f, &mut time)) {
+            Ok((t, hpr, sd)) => {
+                if let Err(e) = gate.offer(t, Position::Line(line), (hpr, sd), &mut kept) {
+                    failed.get_or_insert(e);
+                }
+            }
+            Err(e) => set_aside(e, skip, &mut bad_lines)?,
+        }
+        Ok(())
+    })?;
+    if let Some(e) = failed {
+        return Err(io(e));
     }
-    let Ok(()) = gate.finish(&mut kept);
-    let mut out = kept.out;
-    out.bad_lines = read.bad_lines;
-    out
+    gate.finish(&mut kept).map_err(io)?;
+    let Kept {
+        times,
+        out,
+        dropped,
+        ..
+    } = kept;
+    let max_gap_ns = 2 * median(times.windows(2).map(|w| w[1] - w[0]).collect()).unwrap_or(0);
+    Ok(SpilledAttitude {
+        path: path.to_path_buf(),
+        times,
+        values: out.finish().map_err(io)?,
+        max_gap_ns,
+        bad_lines,
+        dropped,
+    })
+}
+
+/// The median of `v` (the upper one of an even count; None when empty).
+fn median(mut v: Vec<i64>) -> Option<i64> {
+    v.sort_unstable();
+    v.get(v.len() / 2).copied()
+}
+
+/// The attitude of a [`SpilledAttitude`] at increasing times, its samples read back a
+/// block at a time.
+pub struct AttitudeCursor<'a> {
+    att: &'a SpilledAttitude,
+    start: usize,
+    values: Vec<f64>,
+}
+
+/// Samples read back at a time.
+const CURSOR_SAMPLES: usize = 1 << 14;
+
+impl<'a> AttitudeCursor<'a> {
+    /// A cursor at the start of `att`.
+    pub fn new(att: &'a SpilledAttitude) -> Self {
+        AttitudeCursor {
+            att,
+            start: 0,
+            values: Vec::new(),
+        }
+    }
+
+    /// Sample `k`'s values, reading its block back if it is not the one held.
+    fn sample(&mut self, k: usize) -> Result<[f64; WIDTH], GravityError> {
+        let held = self.values.len() / WIDTH;
+        if k < self.start || k >= self.start + held {
+            self.start = k.saturating_sub(1);
+            let end = (self.start + CURSOR_SAMPLES).min(self.att.times.len());
+            self.values = self
+                .att
+                .values
+                .read(self.start..end)
+                .map_err(|e| self.att.io(e))?;
+        }
+        let i = (k - self.start) * WIDTH;
+        Ok(std::array::from_fn(|j| self.values[i + j]))
+    }
+
+    /// The attitude at `x` ([`Attitude::at`]'s rule), None where it cannot be
+    /// interpolated.
+    pub fn at(&mut self, x: i64) -> Result<Option<AttitudeAt>, GravityError> {
+        let t = &self.att.times;
+        if t.is_empty() || x < t[0] || x > t[t.len() - 1] {
+            return Ok(None);
+        }
+        let k = t.partition_point(|&a| a < x).saturating_sub(1);
+        if t[k] == x {
+            let a = self.sample(k)?;
+            return Ok(Some(interpolated(&a, &a, 0.0)));
+        }
+        let next = (k + 1).min(t.len() - 1);
+        if t[next] - t[k] > self.att.max_gap_ns {
+            return Ok(None);
+        }
+        let f = (x - t[k]) as f64 / (t[next] - t[k]) as f64;
+        let (a, b) = (self.sample(k)?, self.sample(next)?);
+        Ok(Some(interpolated(&a, &b, f)))
+    }
+}
+
+/// The attitude a fraction `f` from sample `a` to `b` (each as written aside).
+fn interpolated(a: &[f64; WIDTH], b: &[f64; WIDTH], f: f64) -> AttitudeAt {
+    let (sa, sb) = (sd_of(a), sd_of(b));
+    let sd = |s: Option<[f64; 3]>| s.unwrap_or([0.0; 3]);
+    AttitudeAt {
+        hpr_rad: std::array::from_fn(|j| (a[j] + f * (b[j] - a[j])).to_radians()),
+        sd_rad: std::array::from_fn(|j| (sd(sa)[j] + f * (sd(sb)[j] - sd(sa)[j])).to_radians()),
+        sd_given: sa.is_some() && sb.is_some(),
+    }
 }
 
 /// One line: its time, heading, pitch and roll, and their sds if given.
@@ -196,14 +370,6 @@ fn sds(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
     Ok(out)
 }
 
-/// The heading made continuous: each step taken as the shortest turn.
-fn unwrap_heading(hpr: &mut [[f64; 3]]) {
-    for k in 1..hpr.len() {
-        let step = (hpr[k][0] - hpr[k - 1][0] + 180.0).rem_euclid(360.0) - 180.0;
-        hpr[k][0] = hpr[k - 1][0] + step;
-    }
-}
-
 impl Attitude {
     /// The attitude at each of `times` (increasing), or None where it cannot be
     /// interpolated: outside the file's span, or between two attitude epochs more than
@@ -240,16 +406,12 @@ impl Attitude {
     }
 
     fn interpolated(&self, a: usize, b: usize, f: f64) -> AttitudeAt {
-        let hpr = std::array::from_fn(|j| {
-            (self.hpr_deg[a][j] + f * (self.hpr_deg[b][j] - self.hpr_deg[a][j])).to_radians()
-        });
-        let sd = |k: usize| self.sd_deg[k].unwrap_or([0.0; 3]);
-        let sd_rad = std::array::from_fn(|j| (sd(a)[j] + f * (sd(b)[j] - sd(a)[j])).to_radians());
-        AttitudeAt {
-            hpr_rad: hpr,
-            sd_rad,
-            sd_given: self.sd_deg[a].is_some() && self.sd_deg[b].is_some(),
-        }
+        let sample = |k: usize| {
+            let [h, p, r] = self.hpr_deg[k];
+            let [x, y, z] = self.sd_deg[k].unwrap_or([f64::NAN; 3]);
+            [h, p, r, x, y, z]
+        };
+        interpolated(&sample(a), &sample(b), f)
     }
 }
 

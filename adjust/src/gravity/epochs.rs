@@ -20,7 +20,7 @@
 //! vertical axis pointing up (F = -f . u, so f_D = F).
 
 use super::GravityError;
-use super::attitude::{self, AttitudeAt};
+use super::attitude::{self, AttitudeAt, AttitudeCursor};
 use super::spill::{Spill, SpillWriter};
 use ingest::contract::tables::{TIME_GPS_NS, applied};
 use std::path::Path;
@@ -289,27 +289,76 @@ pub struct Target<'a> {
     pub times: &'a [i64],
     /// The median epoch interval, ns.
     pub interval_ns: i64,
-    /// With attitude: the attitude at each epoch, and C_b^v.
-    pub attitude: Option<(&'a [AttitudeAt], [[f64; 3]; 3])>,
+    /// With attitude: the attitude, read back as the samples come, and C_b^v.
+    attitude: Option<(AttitudeCursor<'a>, [[f64; 3]; 3])>,
+    /// The attitude at the last two epochs asked for (a sample's two epochs are its
+    /// neighbours', most of the time).
+    cached: [Option<(usize, AttitudeAt)>; 2],
 }
 
-impl Target<'_> {
+impl<'a> Target<'a> {
+    /// The epochs `times` (`interval_ns` apart) of session `session`, with `attitude` and
+    /// C_b^v where it has one.
+    pub fn new(
+        session: u16,
+        (times, interval_ns): (&'a [i64], i64),
+        attitude: Option<(AttitudeCursor<'a>, [[f64; 3]; 3])>,
+    ) -> Self {
+        Target {
+            session,
+            times,
+            interval_ns,
+            attitude,
+            cached: [None; 2],
+        }
+    }
+
+    /// The attitude at epoch `k` (every kept epoch has one: the track kept only those).
+    fn attitude_at(&mut self, k: usize) -> Result<AttitudeAt, GravityError> {
+        if let Some((_, a)) = self.cached.iter().flatten().find(|(j, _)| *j == k) {
+            return Ok(*a);
+        }
+        let t = self.times[k];
+        let a = match &mut self.attitude {
+            Some((cursor, _)) => cursor.at(t)?,
+            None => None,
+        };
+        let a = a.ok_or_else(|| GravityError::Refused {
+            message: format!(
+                "the attitude at {} cannot be interpolated again where it was when the \
+                 epoch was kept",
+                ingest::time::utc_iso(t)
+            ),
+        })?;
+        self.cached = [self.cached[1], Some((k, a))];
+        Ok(a)
+    }
+
     /// C_b^n at time `t` from the attitude at the epochs either side (linear in the angles
     /// between them; the one epoch's where there is one), None without attitude.
-    fn body_to_nav(&self, t: i64, epochs: &[Option<(usize, f64)>; 2]) -> Option<[[f64; 3]; 3]> {
-        let (att, mounting) = self.attitude?;
+    fn body_to_nav(
+        &mut self,
+        t: i64,
+        epochs: &[Option<(usize, f64)>; 2],
+    ) -> Result<Option<[[f64; 3]; 3]>, GravityError> {
+        let Some((_, mounting)) = &self.attitude else {
+            return Ok(None);
+        };
+        let mounting = *mounting;
         let hpr = match (epochs[0], epochs[1]) {
             (Some((a, _)), Some((b, _))) => {
+                let (x, y) = (self.attitude_at(a)?, self.attitude_at(b)?);
                 let f = (t - self.times[a]) as f64 / (self.times[b] - self.times[a]) as f64;
-                std::array::from_fn(|j| {
-                    att[a].hpr_rad[j] + f * (att[b].hpr_rad[j] - att[a].hpr_rad[j])
-                })
+                std::array::from_fn(|j| x.hpr_rad[j] + f * (y.hpr_rad[j] - x.hpr_rad[j]))
             }
-            (Some((a, _)), None) | (None, Some((a, _))) => att[a].hpr_rad,
-            (None, None) => return None,
+            (Some((a, _)), None) | (None, Some((a, _))) => self.attitude_at(a)?.hpr_rad,
+            (None, None) => return Ok(None),
         };
         let [h, p, r] = hpr;
-        Some(attitude::product(&attitude::rotation(h, p, r), &mounting))
+        Ok(Some(attitude::product(
+            &attitude::rotation(h, p, r),
+            &mounting,
+        )))
     }
 }
 
@@ -399,7 +448,7 @@ pub struct Filled {
 pub fn fill(
     path: &Path,
     force: &DownForce,
-    targets: &[Target<'_>],
+    targets: &mut [Target<'_>],
     (interval_ns, dir): (i64, &Path),
 ) -> Result<Filled, GravityError> {
     let spill = |e: std::io::Error| GravityError::File {
@@ -412,7 +461,7 @@ pub fn fill(
         .collect::<std::io::Result<Vec<_>>>()
         .map_err(spill)?;
     let mut backwards: Option<i64> = None;
-    let mut io_error: Option<std::io::Error> = None;
+    let mut failed: Option<GravityError> = None;
     let mut noise = vec![ThirdDifferences::new(interval_ns); targets.len()];
     let (names, flags) = force.columns();
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
@@ -423,7 +472,7 @@ pub fn fill(
             let Some(ti) = targets.iter().position(|t| t.session == b.session[i]) else {
                 continue;
             };
-            let t = &targets[ti];
+            let t = &mut targets[ti];
             for (v, c) in values.iter_mut().zip(&b.values) {
                 *v = c.is_valid(i).then(|| c.value(i));
             }
@@ -437,21 +486,28 @@ pub fn fill(
             let done = t
                 .times
                 .partition_point(|&e| e + t.interval_ns <= b.time_ns[i]);
-            if let Err(e) = windows[ti].complete(done) {
+            let mut stop = |e: GravityError| {
                 let message = e.to_string();
-                io_error = Some(e);
-                return Err(align::Error::Table {
+                failed = Some(e);
+                Err(align::Error::Table {
                     path: dir.to_path_buf(),
                     message,
-                });
-            }
-            let nav = match (value, t.body_to_nav(b.time_ns[i], &near)) {
-                (Some(_), Some(c)) => {
-                    let v = [values[0], values[1], values[2]].map(|x| x.unwrap_or(0.0));
-                    Some(attitude::apply(&c, v))
-                }
-                _ => None,
+                })
             };
+            if let Err(e) = windows[ti].complete(done) {
+                return stop(spill(e));
+            }
+            let to_nav = match value {
+                Some(_) => match t.body_to_nav(b.time_ns[i], &near) {
+                    Ok(c) => c,
+                    Err(e) => return stop(e),
+                },
+                None => None,
+            };
+            let nav = to_nav.map(|c| {
+                let v = [values[0], values[1], values[2]].map(|x| x.unwrap_or(0.0));
+                attitude::apply(&c, v)
+            });
             for (k, w) in near.into_iter().flatten() {
                 let Some(bin) = windows[ti].bin(k) else {
                     backwards.get_or_insert(b.time_ns[i]);
@@ -481,8 +537,8 @@ pub fn fill(
         }
         Ok(())
     })
-    .map_err(|e| match io_error.take() {
-        Some(io) => spill(io),
+    .map_err(|e| match failed.take() {
+        Some(e) => e,
         None => GravityError::File {
             path: path.to_path_buf(),
             message: format!("{e} (reading {TIME_GPS_NS} and the calibrated columns)"),

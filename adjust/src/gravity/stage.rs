@@ -6,7 +6,7 @@
 //! written. Every epoch of every trajectory is accounted for: written, or dropped by reason.
 
 use super::GravityError;
-use super::attitude::{self, AttitudeAt};
+use super::attitude::{self, AttitudeAt, AttitudeCursor};
 use super::crossover;
 use super::epochs::{self, BinsAt, DownForce, SpilledBins, Target};
 use super::horizontal::{self, Horizontal, ReducedHorizontal};
@@ -61,17 +61,16 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     })?;
     let tracks = read_tracks(&ds, &survey, opts.skip_bad_lines, &dir)?;
     refuse_attitude_with_an_axis(&force, &tracks)?;
-    let targets: Vec<Target<'_>> = tracks
+    let mut targets: Vec<Target<'_>> = tracks
         .iter()
-        .map(|t| Target {
-            session: t.index,
-            times: &t.times,
-            interval_ns: median_interval_ns(&t.times),
-            attitude: t.attitude.as_deref().map(|a| (a, mounting(&survey))),
+        .map(|t| {
+            let attitude = t.attitude.as_ref().map(AttitudeCursor::new);
+            let times = (&t.times[..], median_interval_ns(&t.times));
+            Target::new(t.index, times, attitude.map(|a| (a, mounting(&survey))))
         })
         .collect();
     let interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
-    let filled = epochs::fill(&table, &force, &targets, (interval_ns, &dir))?;
+    let filled = epochs::fill(&table, &force, &mut targets, (interval_ns, &dir))?;
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
     let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
@@ -307,13 +306,11 @@ fn tie_gradient(
     let Some(window) = window else {
         return Ok(None);
     };
-    let at = bins
-        .read(window.clone())
-        .map_err(|e| spill_error(bins, e))?;
+    let at = block(track, bins, window.clone())?;
     let (mut reference, mut row_ref) = ([0.0; 3], [0.0; 3]);
     for k in window.clone() {
-        let v = at[k].mean_vector();
-        let m = down_row(track, k, ctx);
+        let v = at.bins[k].mean_vector();
+        let m = down_row(&at, k, ctx);
         for i in 0..3 {
             reference[i] += v[i] / window.len() as f64;
             row_ref[i] += m[i] / window.len() as f64;
@@ -322,10 +319,18 @@ fn tie_gradient(
     Ok(f.readings_for(reference).map(|x| f.gradient(x, row_ref)))
 }
 
-/// A block's epochs read back: their sums and positions.
+/// A block's epochs read back: their sums, positions and attitude.
 struct Block {
     bins: BinsAt,
     positions: super::track::Positions,
+    attitude: Option<Vec<AttitudeAt>>,
+}
+
+impl Block {
+    /// The attitude at kept epoch `k` (None without attitude).
+    fn attitude(&self, k: usize) -> Option<AttitudeAt> {
+        Some(self.attitude.as_ref()?[k - self.bins.start])
+    }
 }
 
 /// The epochs `range` of `track` read back.
@@ -336,7 +341,8 @@ fn block(
 ) -> Result<Block, GravityError> {
     Ok(Block {
         bins: bins.read(range.clone()).map_err(|e| spill_error(bins, e))?,
-        positions: track.positions(range)?,
+        positions: track.positions(range.clone())?,
+        attitude: track.attitude_at(range)?,
     })
 }
 
@@ -351,8 +357,8 @@ fn spill_error(bins: &SpilledBins, e: std::io::Error) -> GravityError {
 }
 
 /// The down row at kept epoch `k`: C_b^n's with attitude, the mounting's without.
-fn down_row(track: &Track<'_>, k: usize, ctx: &Context<'_>) -> [f64; 3] {
-    body_to_nav(track, k, &ctx.mounting).map_or(ctx.mounting[2], |c| c[2])
+fn down_row(b: &Block, k: usize, ctx: &Context<'_>) -> [f64; 3] {
+    body_to_nav(b, k, &ctx.mounting).map_or(ctx.mounting[2], |c| c[2])
 }
 
 /// The calibration's error at each epoch of `range` less its error at the drift's
@@ -361,16 +367,15 @@ fn down_row(track: &Track<'_>, k: usize, ctx: &Context<'_>) -> [f64; 3] {
 /// back.
 fn calibration_gradient(
     f: &TriadFunction,
-    track: &Track<'_>,
-    bins: &BinsAt,
+    b: &Block,
     (range, ctx): (Range<usize>, &Context<'_>),
     at_tie: &[f64],
 ) -> Option<CalibrationGradient> {
     let mut gradient = vec![Vec::with_capacity(range.len()); at_tie.len()];
     for k in range {
         let g = f.gradient(
-            f.readings_for(bins[k].mean_vector())?,
-            down_row(track, k, ctx),
+            f.readings_for(b.bins[k].mean_vector())?,
+            down_row(b, k, ctx),
         );
         for ((series, g), g0) in gradient.iter_mut().zip(g).zip(at_tie) {
             series.push(g - g0);
@@ -464,10 +469,10 @@ fn mounting(survey: &SurveyConfig) -> [[f64; 3]; 3] {
     attitude::rotation(yaw, pitch, roll)
 }
 
-/// C_b^n at kept epoch `k` of a track with attitude: C_v^n C_b^v.
-fn body_to_nav(track: &Track<'_>, k: usize, mounting: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
-    let a = track.attitude.as_ref()?;
-    Some(attitude::product(&a[k].vehicle_to_nav(), mounting))
+/// C_b^n at kept epoch `k` of a block with attitude: C_v^n C_b^v.
+fn body_to_nav(b: &Block, k: usize, mounting: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let a = b.attitude(k)?;
+    Some(attitude::product(&a.vehicle_to_nav(), mounting))
 }
 
 /// One session reduced: its epochs checked, cut into stretches, each reduced and its rows
@@ -643,7 +648,7 @@ fn reduce_block(
     s.calibration_tied = ctx
         .triad
         .zip(st.at_tie.as_deref())
-        .and_then(|(f, g)| calibration_gradient(f, track, &b.bins, (range.clone(), ctx), g));
+        .and_then(|(f, g)| calibration_gradient(f, b, (range.clone(), ctx), g));
     let mut r = match reduce::untied(&s, filter_s) {
         Ok(r) => r,
         Err(GravityError::TooShort { .. }) => return Ok(None),
@@ -662,15 +667,14 @@ fn reduce_block(
     reduce::apply_level(&s, &mut r, level.as_ref(), filter_s)?;
     // Its gradients (one series per parameter) served the reduction alone.
     s.calibration_tied = None;
-    let mut h = match &track.attitude {
+    let mut h = match &b.attitude {
         Some(att) => {
-            let inputs = horizontal_inputs(att, b, range.clone(), ctx);
+            let inputs = horizontal_inputs((b, att), range.clone(), ctx);
             Some(horizontal::reduce_horizontal(&s, &inputs, filter_s)?)
         }
         None => None,
     };
-    let attitude = track.attitude.as_deref();
-    let mut flags = flags_of(&s, (&b.bins, attitude), range, st.ends, (filter_s, &r));
+    let mut flags = flags_of(&s, b, range, st.ends, (filter_s, &r));
     s.keep(cut.clone());
     r.keep(cut.clone());
     if let Some(h) = &mut h {
@@ -808,12 +812,12 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
         s.height_m.push(h);
         s.height_antenna_m.push(b.positions.antenna_height_m(k));
         s.sd_up_m.push(b.positions.sd_m(k)[2]);
-        match body_to_nav(track, k, &ctx.mounting) {
+        match body_to_nav(b, k, &ctx.mounting) {
             Some(c) => {
                 let f = bins[k].mean_nav();
                 s.f_down_mgal.push(f[2]);
                 s.sigma_f_mgal.push(bins[k].sigma_along(c[2]));
-                let a = track.attitude.as_ref().map(|a| a[k]);
+                let a = b.attitude(k);
                 let att = a.map_or(0.0, |a| {
                     horizontal::attitude_sigma(a.hpr_rad[0], a.sd_rad, f)[2]
                 });
@@ -834,8 +838,7 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
 /// force through C_b^n, its calibration sigma along each row (or the parameters' gradients
 /// with a triad without temperature terms), the attitude's sigma, the positions' sds.
 fn horizontal_inputs(
-    att: &[AttitudeAt],
-    b: &Block,
+    (b, att): (&Block, &[AttitudeAt]),
     span: Range<usize>,
     ctx: &Context<'_>,
 ) -> Horizontal {
@@ -846,10 +849,10 @@ fn horizontal_inputs(
         None => [None, None],
     };
     for k in span {
-        let c = attitude::product(&att[k].vehicle_to_nav(), &ctx.mounting);
+        let a = &att[k - b.bins.start];
+        let c = attitude::product(&a.vehicle_to_nav(), &ctx.mounting);
         let v = bins[k].mean_vector();
         let f = bins[k].mean_nav();
-        let a = &att[k];
         let sigma_att = horizontal::attitude_sigma(a.hpr_rad[0], a.sd_rad, f);
         let sd = b.positions.sd_m(k);
         let x = ctx.triad.and_then(|t| t.readings_for(v));
@@ -883,7 +886,7 @@ fn horizontal_inputs(
 /// stretch's ends (`t0`, `t1`), an attitude without sds.
 fn flags_of(
     s: &Stretch,
-    (bins, attitude): (&BinsAt, Option<&[AttitudeAt]>),
+    b: &Block,
     span: Range<usize>,
     (t0, t1): (i64, i64),
     (filter_s, r): (f64, &Reduced),
@@ -893,7 +896,7 @@ fn flags_of(
     span.enumerate()
         .map(|(i, k)| {
             let mut f = 0;
-            if bins[k].flags & (applied::COUNTS_OUT_OF_RANGE | applied::TEMPERATURE_OUT_OF_RANGE)
+            if b.bins[k].flags & (applied::COUNTS_OUT_OF_RANGE | applied::TEMPERATURE_OUT_OF_RANGE)
                 != 0
             {
                 f |= gravity::OUTSIDE_CALIBRATION;
@@ -905,7 +908,7 @@ fn flags_of(
             if t - t0 < edge_ns || t1 - t < edge_ns {
                 f |= gravity::EDGE;
             }
-            if attitude.is_some_and(|a| !a[k].sd_given) {
+            if b.attitude(k).is_some_and(|a| !a.sd_given) {
                 f |= gravity::ATTITUDE_SD_UNKNOWN;
             }
             f

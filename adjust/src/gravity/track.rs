@@ -7,7 +7,7 @@
 //! (8 bytes an epoch) and, with attitude, their attitude stay in memory. A third pass over
 //! what was written gives the positions' white noise and the median of the file's sds.
 
-use super::attitude::{self, Attitude, AttitudeAt};
+use super::attitude::{self, AttitudeAt, AttitudeCursor, SpilledAttitude};
 use super::epochs::ThirdDifferences;
 use super::spill::{Spill, SpillWriter};
 use super::trajectory;
@@ -34,8 +34,8 @@ pub(super) struct Track<'a> {
     /// The kept epochs' positions, written aside ([`Positions`]).
     positions: Spill,
     pub dropped: BTreeMap<String, u64>,
-    /// The attitude at each kept epoch, when the session gives it.
-    pub attitude: Option<Vec<AttitudeAt>>,
+    /// The session's attitude, when it gives one: every kept epoch has one there.
+    pub attitude: Option<SpilledAttitude>,
     /// The trajectory's and attitude's lines set aside, as listed in the ledger.
     pub bad_lines: Vec<String>,
     /// The attitude's samples the time gate dropped, by reason.
@@ -86,6 +86,31 @@ impl Positions {
 }
 
 impl Track<'_> {
+    /// The attitude at the kept epochs `range` (None without attitude).
+    pub fn attitude_at(
+        &self,
+        range: Range<usize>,
+    ) -> Result<Option<Vec<AttitudeAt>>, GravityError> {
+        let Some(a) = &self.attitude else {
+            return Ok(None);
+        };
+        let mut cursor = AttitudeCursor::new(a);
+        let mut out = Vec::with_capacity(range.len());
+        for &t in &self.times[range] {
+            out.push(cursor.at(t)?.ok_or_else(|| {
+                spill_error(
+                    self.session,
+                    format!(
+                        "the attitude at {} cannot be interpolated again where it was when \
+                         the epoch was kept",
+                        ingest::time::utc_iso(t)
+                    ),
+                )
+            })?);
+        }
+        Ok(Some(out))
+    }
+
     /// The kept epochs `range`, read back.
     pub fn positions(&self, range: Range<usize>) -> Result<Positions, GravityError> {
         let values = self.positions.read(range.clone()).map_err(|e| {
@@ -120,11 +145,12 @@ pub(super) fn read_tracks<'a>(
     for (index, s) in ds.sessions.iter().enumerate() {
         let Some(src) = &s.trajectory else { continue };
         let attitude = match &src.attitude {
-            Some((path, form)) => Some(attitude::read_csv(
+            Some((path, form)) => Some(attitude::read_spilled(
                 path,
                 s.times.reader(*form),
                 s.gps_range_ns(),
                 skip,
+                dir,
             )?),
             None => None,
         };
@@ -137,8 +163,9 @@ pub(super) fn read_tracks<'a>(
         track.bad_lines = listed(ds, &src.path, &bad);
         if let (Some(a), Some((path, _))) = (&attitude, &src.attitude) {
             track.bad_lines.extend(listed(ds, path, &a.bad_lines));
+            track.attitude_dropped = a.dropped.clone();
         }
-        track.attitude_dropped = attitude.map(|a| a.dropped).unwrap_or_default();
+        track.attitude = attitude;
         tracks.push(track);
     }
     if tracks.is_empty() {
@@ -203,15 +230,16 @@ fn median_of(steps: &BTreeMap<i64, u64>) -> Option<i64> {
 /// The trajectory's side of the time gate: the epochs kept, the others counted by the
 /// gravity ledger's reason.
 struct EpochSink<'a> {
+    session: &'a ResolvedSession,
     times: Vec<i64>,
     out: SpillWriter,
     dropped: BTreeMap<String, u64>,
-    attitude: Option<(&'a Attitude, i64, Vec<AttitudeAt>)>,
+    attitude: Option<AttitudeCursor<'a>>,
     lever_arm_m: [f64; 3],
 }
 
 impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
-    type Error = std::io::Error;
+    type Error = GravityError;
 
     fn accept(
         &mut self,
@@ -220,11 +248,8 @@ impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
     ) -> Result<(), Self::Error> {
         let at = match &mut self.attitude {
             None => None,
-            Some((a, max_gap, kept)) => match a.at_time(time_ns, *max_gap) {
-                Some(at) => {
-                    kept.push(at);
-                    Some(at)
-                }
+            Some(cursor) => match cursor.at(time_ns)? {
+                Some(at) => Some(at),
                 None => {
                     *self
                         .dropped
@@ -237,7 +262,9 @@ impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
         let [lat, lon, h] = moved(llh, at.as_ref(), self.lever_arm_m);
         let [sn, se, su] = sd.unwrap_or([f64::NAN; 3]);
         self.times.push(time_ns);
-        self.out.push(&[lat, lon, h, llh[2], sn, se, su])
+        self.out
+            .push(&[lat, lon, h, llh[2], sn, se, su])
+            .map_err(|e| spill_error(self.session, format!("its epochs written aside: {e}")))
     }
 
     fn reject(
@@ -265,7 +292,7 @@ impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
 /// moved by the lever arm and written aside into `dir`; the trajectory's lines set aside.
 fn gated<'a>(
     (index, s): (usize, &'a ResolvedSession),
-    attitude: Option<&Attitude>,
+    attitude: Option<&SpilledAttitude>,
     (lever_arm_m, skip): ([f64; 3], bool),
     dir: &Path,
 ) -> Result<(Track<'a>, Vec<BadLine>), GravityError> {
@@ -279,16 +306,17 @@ fn gated<'a>(
     })?;
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
     let mut sink = EpochSink {
+        session: s,
         times: Vec::new(),
         out: SpillWriter::new(dir, WIDTH).map_err(io)?,
         dropped: BTreeMap::new(),
-        attitude: attitude.map(|a| (a, a.max_gap_ns(), Vec::new())),
+        attitude: attitude.map(AttitudeCursor::new),
         lever_arm_m,
     };
     let interval_ns = median_of(&steps).unwrap_or(1_000_000_000);
     let mut gate = TimeGate::new(interval_ns, s.gps_range_ns());
     let mut read = 0u64;
-    let mut failed: Option<std::io::Error> = None;
+    let mut failed: Option<GravityError> = None;
     let bad = each_epoch(s, skip, |t, llh, sd| {
         let at = Position::Line(read);
         read += 1;
@@ -298,14 +326,13 @@ fn gated<'a>(
         Ok(())
     })?;
     if let Some(e) = failed {
-        return Err(io(e));
+        return Err(e);
     }
-    gate.finish(&mut sink).map_err(io)?;
+    gate.finish(&mut sink)?;
     let EpochSink {
         times,
         out,
         mut dropped,
-        attitude,
         ..
     } = sink;
     if !bad.is_empty() {
@@ -319,7 +346,7 @@ fn gated<'a>(
         times,
         positions,
         dropped,
-        attitude: attitude.map(|(_, _, kept)| kept),
+        attitude: None,
         bad_lines: Vec::new(),
         attitude_dropped: BTreeMap::new(),
         noise_neu_m: [0.0; 3],
