@@ -9,6 +9,7 @@
 //! attitude epochs no further apart than twice their median interval: an epoch outside
 //! that is not reduced (`no_attitude`).
 
+use super::reduce::Steps;
 use super::spill::{Spill, SpillWriter};
 use super::trajectory::{bad, timed_fields};
 use super::{BadLine, GravityError, set_aside};
@@ -181,17 +182,16 @@ pub fn read_spilled(
     skip: bool,
     dir: &Path,
 ) -> Result<SpilledAttitude, GravityError> {
-    let mut steps: Vec<i64> = Vec::new();
-    let mut last: Option<i64> = None;
+    let mut steps = Steps::default();
     let mut first = time;
     super::trajectory::for_each_csv_line(path, |line, fields| {
         match fields.and_then(|f| attitude_line(path, line, f, &mut first)) {
-            Ok((t, _, _)) => steps.extend(last.replace(t).map(|p| t - p)),
+            Ok((t, _, _)) => steps.push(t),
             Err(e) => set_aside(e, skip, &mut Vec::new())?,
         }
         Ok(())
     })?;
-    let interval_ns = median(steps).unwrap_or(1_000_000_000);
+    let interval_ns = steps.median().unwrap_or(1_000_000_000);
     let io = |e: std::io::Error| GravityError::File {
         path: path.to_path_buf(),
         message: format!("its samples written aside: {e}"),
@@ -226,7 +226,11 @@ pub fn read_spilled(
         dropped,
         ..
     } = kept;
-    let max_gap_ns = 2 * median(times.windows(2).map(|w| w[1] - w[0]).collect()).unwrap_or(0);
+    let mut kept_steps = Steps::default();
+    for &t in &times {
+        kept_steps.push(t);
+    }
+    let max_gap_ns = 2 * kept_steps.median().unwrap_or(0);
     Ok(SpilledAttitude {
         path: path.to_path_buf(),
         times,
@@ -235,12 +239,6 @@ pub fn read_spilled(
         bad_lines,
         dropped,
     })
-}
-
-/// The median of `v` (the upper one of an even count; None when empty).
-fn median(mut v: Vec<i64>) -> Option<i64> {
-    v.sort_unstable();
-    v.get(v.len() / 2).copied()
 }
 
 /// The attitude of a [`SpilledAttitude`] at increasing times, its samples read back a

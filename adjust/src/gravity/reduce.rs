@@ -586,6 +586,33 @@ pub fn apply_level(
     Ok(())
 }
 
+/// The steps between consecutive times, counted by value: their median without holding
+/// them ([`median_step_ns`]'s, for times that come one at a time).
+#[derive(Clone, Debug, Default)]
+pub(super) struct Steps {
+    last: Option<i64>,
+    counts: std::collections::BTreeMap<i64, u64>,
+}
+
+impl Steps {
+    /// The next time.
+    pub(super) fn push(&mut self, t: i64) {
+        if let Some(p) = self.last.replace(t) {
+            *self.counts.entry(t - p).or_insert(0) += 1;
+        }
+    }
+
+    /// The median step, ns (the upper one of an even count; None for fewer than two).
+    pub(super) fn median(&self) -> Option<i64> {
+        let n: u64 = self.counts.values().sum();
+        let mut seen = 0;
+        self.counts.iter().find_map(|(&d, &c)| {
+            seen += c;
+            (seen > n / 2).then_some(d)
+        })
+    }
+}
+
 /// The median step between `times`, ns (None for fewer than two).
 pub(super) fn median_step_ns(times: &[i64]) -> Option<i64> {
     let mut d: Vec<i64> = times.windows(2).map(|w| w[1] - w[0]).collect();

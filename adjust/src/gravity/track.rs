@@ -4,11 +4,14 @@
 //! each epoch kept (one without is dropped by name) and the lever arm applied through it
 //! (levelled, its down component). The kept epochs' positions and sds are written aside
 //! ([`super::spill`], 56 bytes an epoch) and read back a block at a time; only their times
-//! (8 bytes an epoch) and, with attitude, their attitude stay in memory. A third pass over
-//! what was written gives the positions' white noise and the median of the file's sds.
+//! (8 bytes an epoch) stay in memory; the attitude, written aside as it is read
+//! ([`super::attitude::read_spilled`]), is interpolated again wherever it is needed. A
+//! third pass over what was written gives the positions' white noise and the median of the
+//! file's sds.
 
 use super::attitude::{self, AttitudeAt, AttitudeCursor, SpilledAttitude};
 use super::epochs::ThirdDifferences;
+use super::reduce::Steps;
 use super::spill::{Spill, SpillWriter};
 use super::trajectory;
 use super::{BadLine, GravityError};
@@ -214,19 +217,6 @@ fn each_epoch(
     }
 }
 
-/// The median of a histogram of steps (None when empty).
-fn median_of(steps: &BTreeMap<i64, u64>) -> Option<i64> {
-    let n: u64 = steps.values().sum();
-    let mut seen = 0;
-    for (&d, &c) in steps {
-        seen += c;
-        if seen > n / 2 {
-            return Some(d);
-        }
-    }
-    None
-}
-
 /// The trajectory's side of the time gate: the epochs kept, the others counted by the
 /// gravity ledger's reason.
 struct EpochSink<'a> {
@@ -296,12 +286,9 @@ fn gated<'a>(
     (lever_arm_m, skip): ([f64; 3], bool),
     dir: &Path,
 ) -> Result<(Track<'a>, Vec<BadLine>), GravityError> {
-    let mut steps = BTreeMap::new();
-    let mut last: Option<i64> = None;
+    let mut steps = Steps::default();
     each_epoch(s, skip, |t, _, _| {
-        if let Some(p) = last.replace(t) {
-            *steps.entry(t - p).or_insert(0u64) += 1;
-        }
+        steps.push(t);
         Ok(())
     })?;
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
@@ -313,7 +300,7 @@ fn gated<'a>(
         attitude: attitude.map(AttitudeCursor::new),
         lever_arm_m,
     };
-    let interval_ns = median_of(&steps).unwrap_or(1_000_000_000);
+    let interval_ns = steps.median().unwrap_or(1_000_000_000);
     let mut gate = TimeGate::new(interval_ns, s.gps_range_ns());
     let mut read = 0u64;
     let mut failed: Option<GravityError> = None;
@@ -380,11 +367,11 @@ fn moved(llh: [f64; 3], attitude: Option<&AttitudeAt>, lever_arm_m: [f64; 3]) ->
 /// a sphere of 6371 km (ample for a noise level), at the kept epochs' median interval; and
 /// the median over the kept epochs of the file's sds (None where it gives none).
 fn noise_and_sds(track: &Track<'_>) -> Result<([f64; 3], Option<[f64; 3]>), GravityError> {
-    let mut steps = BTreeMap::new();
-    for w in track.times.windows(2) {
-        *steps.entry(w[1] - w[0]).or_insert(0u64) += 1;
+    let mut steps = Steps::default();
+    for &t in &track.times {
+        steps.push(t);
     }
-    let interval = median_of(&steps).unwrap_or(1_000_000_000);
+    let interval = steps.median().unwrap_or(1_000_000_000);
     let mut d: [ThirdDifferences; 3] = std::array::from_fn(|_| ThirdDifferences::new(interval));
     // The file's sds by their order (exact medians; as many entries as distinct values).
     let mut sds: [BTreeMap<u64, u64>; 3] = Default::default();
@@ -462,8 +449,13 @@ mod tests {
             v.iter()
                 .all(|x| from_order_key(order_key(*x)).to_bits() == x.to_bits())
         );
-        let steps = BTreeMap::from([(100, 3u64), (200, 1), (50, 1)]);
-        assert_eq!(median_of(&steps), Some(100));
-        assert_eq!(median_of(&BTreeMap::new()), None);
+        let times = [0, 50, 150, 250, 350, 550];
+        let mut steps = Steps::default();
+        for t in times {
+            steps.push(t);
+        }
+        assert_eq!(steps.median(), Some(100));
+        assert_eq!(steps.median(), super::super::reduce::median_step_ns(&times));
+        assert_eq!(Steps::default().median(), None);
     }
 }
