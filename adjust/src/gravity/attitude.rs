@@ -204,21 +204,15 @@ pub fn read_spilled(
     };
     let mut gate = TimeGate::new(interval_ns, range_ns);
     let mut bad_lines = Vec::new();
-    let mut failed = None;
     super::trajectory::for_each_csv_line(path, |line, fields| {
         match fields.and_then(|f| attitude_line(path, line, f, &mut time)) {
-            Ok((t, hpr, sd)) => {
-                if let Err(e) = gate.offer(t, Position::Line(line), (hpr, sd), &mut kept) {
-                    failed.get_or_insert(e);
-                }
-            }
+            Ok((t, hpr, sd)) => gate
+                .offer(t, Position::Line(line), (hpr, sd), &mut kept)
+                .map_err(io)?,
             Err(e) => set_aside(e, skip, &mut bad_lines)?,
         }
         Ok(())
     })?;
-    if let Some(e) = failed {
-        return Err(io(e));
-    }
     gate.finish(&mut kept).map_err(io)?;
     let Kept {
         times,

@@ -41,8 +41,8 @@ pub struct Options<'a> {
     pub block_epochs: Option<usize>,
 }
 
-/// Epochs a stretch is reduced in at a time by default, each with a margin of the filter's
-/// reach either side: memory holds a block, not the survey.
+/// Epochs a stretch is reduced in at a time by default, each with a margin of twelve filter
+/// periods either side ([`margin`]): memory holds a block, not the survey.
 pub const BLOCK_EPOCHS: usize = 1 << 16;
 
 /// Runs the stage on `dataset` into `out`.

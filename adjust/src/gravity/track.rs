@@ -303,18 +303,11 @@ fn gated<'a>(
     let interval_ns = steps.median().unwrap_or(1_000_000_000);
     let mut gate = TimeGate::new(interval_ns, s.gps_range_ns());
     let mut read = 0u64;
-    let mut failed: Option<GravityError> = None;
     let bad = each_epoch(s, skip, |t, llh, sd| {
         let at = Position::Line(read);
         read += 1;
-        if let Err(e) = gate.offer(t, at, (llh, sd), &mut sink) {
-            failed.get_or_insert(e);
-        }
-        Ok(())
+        gate.offer(t, at, (llh, sd), &mut sink)
     })?;
-    if let Some(e) = failed {
-        return Err(e);
-    }
     gate.finish(&mut sink)?;
     let EpochSink {
         times,
