@@ -420,9 +420,9 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
 /// The reduction of `s` before any tie: every series of [`Reduced`] but the tie's sigma
 /// (zero) and the total sigma (filled in by [`apply_level`]), the calibration's sigma not
 /// yet relative to a tie. A window of a longer stretch reduced alone gives the stretch's
-/// own values wherever it reaches [`reach`] epochs beyond: the filter's row holds under
-/// 1e-9 of its norm past it, so what the window's ends are extended by does not reach
-/// there (the stage's blocks, docs/model.md 7).
+/// own values wherever it extends twelve filter periods beyond: what its ends are extended
+/// by dies away with the filter's slowest pole, to 3e-13 there (the stage's blocks,
+/// docs/model.md 7).
 pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
     let n = s.time_gps_ns.len();
     let dt = interval_s(&s.time_gps_ns)?;
