@@ -272,8 +272,10 @@ impl<'a> AttitudeCursor<'a> {
         Ok(std::array::from_fn(|j| self.values[i + j]))
     }
 
-    /// The attitude at `x` ([`Attitude::at`]'s rule), None where it cannot be
-    /// interpolated.
+    /// The attitude at `x` (`x` increasing from call to call, for the block read back to
+    /// serve), linear between the samples either side (the heading unwrapped); None where
+    /// it cannot be interpolated: outside the file's span, or between two samples more than
+    /// twice their median interval apart.
     pub fn at(&mut self, x: i64) -> Result<Option<AttitudeAt>, GravityError> {
         let t = &self.att.times;
         if t.is_empty() || x < t[0] || x > t[t.len() - 1] {
@@ -362,51 +364,6 @@ fn sds(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
     Ok(out)
 }
 
-impl Attitude {
-    /// The attitude at each of `times` (increasing), or None where it cannot be
-    /// interpolated: outside the file's span, or between two attitude epochs more than
-    /// twice their median interval apart.
-    pub fn at(&self, times: &[i64]) -> Vec<Option<AttitudeAt>> {
-        let max_gap = self.max_gap_ns();
-        times.iter().map(|&x| self.at_time(x, max_gap)).collect()
-    }
-
-    /// The longest interval between attitude epochs interpolated across, ns: twice their
-    /// median interval.
-    pub fn max_gap_ns(&self) -> i64 {
-        2 * super::reduce::median_step_ns(&self.time_gps_ns).unwrap_or(0)
-    }
-
-    /// The attitude at `x`, or None where it cannot be interpolated ([`Attitude::at`]),
-    /// `max_gap` from [`Attitude::max_gap_ns`].
-    pub fn at_time(&self, x: i64, max_gap: i64) -> Option<AttitudeAt> {
-        let t = &self.time_gps_ns;
-        if t.is_empty() || x < t[0] || x > t[t.len() - 1] {
-            return None;
-        }
-        // The last epoch before x (or the first).
-        let k = t.partition_point(|&a| a < x).saturating_sub(1);
-        if t[k] == x {
-            return Some(self.interpolated(k, k, 0.0));
-        }
-        let next = (k + 1).min(t.len() - 1);
-        if t[next] - t[k] > max_gap {
-            return None;
-        }
-        let f = (x - t[k]) as f64 / (t[next] - t[k]) as f64;
-        Some(self.interpolated(k, next, f))
-    }
-
-    fn interpolated(&self, a: usize, b: usize, f: f64) -> AttitudeAt {
-        let sample = |k: usize| {
-            let [h, p, r] = self.hpr_deg[k];
-            let [x, y, z] = self.sd_deg[k].unwrap_or([f64::NAN; 3]);
-            [h, p, r, x, y, z]
-        };
-        interpolated(&sample(a), &sample(b), f)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -427,14 +384,20 @@ mod tests {
 
     #[test]
     fn headings_across_north_interpolate_the_short_way() {
-        let a = read(
-            "time,heading_deg,pitch_deg,roll_deg,sd_heading_deg,sd_pitch_deg,sd_roll_deg\n\
-             1773479523.0,359.0,1.0,-2.0,0.1,0.01,0.01\n\
-             1773479523.1,1.0,1.2,-2.2,0.1,0.01,0.01\n",
-        )
-        .expect("reads");
-        let t0 = a.time_gps_ns[0];
-        let at = a.at(&[t0 - 1, t0 + 50_000_000, t0 + 100_000_000, t0 + 100_000_001]);
+        let d = tempfile::tempdir().expect("tempdir");
+        let p = d.path().join("att.csv");
+        let text = "time,heading_deg,pitch_deg,roll_deg,sd_heading_deg,sd_pitch_deg,sd_roll_deg\n\
+                    1773479523.0,359.0,1.0,-2.0,0.1,0.01,0.01\n\
+                    1773479523.1,1.0,1.2,-2.2,0.1,0.01,0.01\n";
+        std::fs::write(&p, text).expect("write");
+        let reader = TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None);
+        let a = read_spilled(&p, reader, (i64::MIN, i64::MAX), false, d.path()).expect("reads");
+        let t0 = a.times[0];
+        let mut cursor = AttitudeCursor::new(&a);
+        let at: Vec<Option<AttitudeAt>> =
+            [t0 - 1, t0 + 50_000_000, t0 + 100_000_000, t0 + 100_000_001]
+                .map(|x| cursor.at(x).expect("read back"))
+                .to_vec();
         assert_eq!(at[0], None);
         assert_eq!(at[3], None);
         let mid = at[1].expect("inside");

@@ -586,8 +586,8 @@ pub fn apply_level(
     Ok(())
 }
 
-/// The steps between consecutive times, counted by value: their median without holding
-/// them ([`median_step_ns`]'s, for times that come one at a time).
+/// The steps between consecutive times, counted by value: their median (the sorted steps'
+/// element at half their count) without holding them, for times that come one at a time.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Steps {
     last: Option<i64>,
@@ -611,13 +611,6 @@ impl Steps {
             (seen > n / 2).then_some(d)
         })
     }
-}
-
-/// The median step between `times`, ns (None for fewer than two).
-pub(super) fn median_step_ns(times: &[i64]) -> Option<i64> {
-    let mut d: Vec<i64> = times.windows(2).map(|w| w[1] - w[0]).collect();
-    d.sort_unstable();
-    d.get(d.len() / 2).copied()
 }
 
 /// The track's displacement north and east from epoch `a` to `b`, m, on a sphere of

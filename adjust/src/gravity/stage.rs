@@ -65,7 +65,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
         .iter()
         .map(|t| {
             let attitude = t.attitude.as_ref().map(AttitudeCursor::new);
-            let times = (&t.times[..], median_interval_ns(&t.times));
+            let times = (&t.times[..], t.interval_ns);
             Target::new(t.index, times, attitude.map(|a| (a, mounting(&survey))))
         })
         .collect();
@@ -443,11 +443,6 @@ fn describe(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> S
     }
 }
 
-/// The median interval between `times`, ns (1 s for fewer than two).
-fn median_interval_ns(times: &[i64]) -> i64 {
-    reduce::median_step_ns(times).unwrap_or(1_000_000_000)
-}
-
 /// What every track's reduction shares.
 struct Context<'a> {
     survey: &'a SurveyConfig,
@@ -484,7 +479,7 @@ fn reduce_track(
     rows: &mut Rows,
     ties: &mut [TieUsed],
 ) -> Result<SessionGravity, GravityError> {
-    let interval = median_interval_ns(&track.times);
+    let interval = track.interval_ns;
     let expected = ctx.samples_per_s * interval as f64 * 1e-9;
     filter_longer_than_epochs(track, interval, ctx.survey.filter_s)?;
     let mut summary = SessionGravity {
@@ -581,7 +576,7 @@ fn reduce_stretch(
     (rows, summary): (&mut Rows, &mut SessionGravity),
 ) -> Result<Option<Option<reduce::Drift>>, GravityError> {
     let filter_s = ctx.survey.filter_s;
-    let interval_s = median_interval_ns(&track.times) as f64 * 1e-9;
+    let interval_s = track.interval_ns as f64 * 1e-9;
     if span.len() as f64 * interval_s < filter_s {
         return Ok(None);
     }

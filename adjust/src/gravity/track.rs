@@ -34,6 +34,8 @@ pub(super) struct Track<'a> {
     pub epochs_read: u64,
     /// The kept epochs' times, GPS ns, increasing.
     pub times: Vec<i64>,
+    /// Their median interval, ns (1 s for fewer than two).
+    pub interval_ns: i64,
     /// The kept epochs' positions, written aside ([`Positions`]).
     positions: Spill,
     pub dropped: BTreeMap<String, u64>,
@@ -329,9 +331,15 @@ fn gated<'a>(
         attitude: None,
         bad_lines: Vec::new(),
         attitude_dropped: BTreeMap::new(),
+        interval_ns: 1_000_000_000,
         noise_neu_m: [0.0; 3],
         sd_given_median_m: None,
     };
+    let mut steps = Steps::default();
+    for &t in &track.times {
+        steps.push(t);
+    }
+    track.interval_ns = steps.median().unwrap_or(1_000_000_000);
     (track.noise_neu_m, track.sd_given_median_m) = noise_and_sds(&track)?;
     Ok((track, bad))
 }
@@ -360,12 +368,8 @@ fn moved(llh: [f64; 3], attitude: Option<&AttitudeAt>, lever_arm_m: [f64; 3]) ->
 /// a sphere of 6371 km (ample for a noise level), at the kept epochs' median interval; and
 /// the median over the kept epochs of the file's sds (None where it gives none).
 fn noise_and_sds(track: &Track<'_>) -> Result<([f64; 3], Option<[f64; 3]>), GravityError> {
-    let mut steps = Steps::default();
-    for &t in &track.times {
-        steps.push(t);
-    }
-    let interval = steps.median().unwrap_or(1_000_000_000);
-    let mut d: [ThirdDifferences; 3] = std::array::from_fn(|_| ThirdDifferences::new(interval));
+    let mut d: [ThirdDifferences; 3] =
+        std::array::from_fn(|_| ThirdDifferences::new(track.interval_ns));
     // The file's sds by their order (exact medians; as many entries as distinct values).
     let mut sds: [BTreeMap<u64, u64>; 3] = Default::default();
     // East summed step by step at each step's own latitude: a longitude times the cosine of
@@ -448,7 +452,9 @@ mod tests {
             steps.push(t);
         }
         assert_eq!(steps.median(), Some(100));
-        assert_eq!(steps.median(), super::super::reduce::median_step_ns(&times));
+        let mut sorted: Vec<i64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+        sorted.sort_unstable();
+        assert_eq!(steps.median(), Some(sorted[sorted.len() / 2]));
         assert_eq!(Steps::default().median(), None);
     }
 }
