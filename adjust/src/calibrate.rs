@@ -155,6 +155,34 @@ pub struct CalibrationSolution {
     pub removed: Vec<Removal>,
     /// The observations used, with their residuals.
     pub residuals: Vec<Residual>,
+    /// A model without temperature terms: what a thermal sensitivity it does not include
+    /// moves each parameter by, per unit of b_t (mGal/degC) and of k_t (mGal/bit/degC),
+    /// the effect being `(b_t + k_t Ng) (T - mean_temperature_c)` at each observation
+    /// ([`CalibrationSolution::thermal_covariance`]). Empty with temperature terms.
+    pub thermal_gain: Vec<[f64; 2]>,
+}
+
+/// A thermal sensitivity dc/dT = b_t + k_t Ng (mGal/degC), as a fit with temperature terms
+/// estimated it: the size of what a model without them leaves in its parameters
+/// (docs/model.md 6.1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sensitivity {
+    /// b_t, mGal/degC.
+    pub b_t: f64,
+    /// k_t, mGal/bit/degC.
+    pub k_t: f64,
+}
+
+impl Sensitivity {
+    /// From a fit with temperature terms `terms` (None without them).
+    pub fn of(f: &CalibrationSolution, terms: Terms) -> Option<Self> {
+        let names = terms.names();
+        let at = |name: &str| names.iter().position(|n| n.name == name);
+        Some(Self {
+            b_t: f.values[at("b_t")?],
+            k_t: f.values[at("k_t")?],
+        })
+    }
 }
 
 impl CalibrationSolution {
@@ -189,6 +217,29 @@ impl CalibrationSolution {
     /// Whether the global test passed (two-sided, 5 %).
     pub fn global_test_passed(&self) -> bool {
         self.global_test.passed()
+    }
+    /// The covariance (row-major, counts) that a thermal sensitivity `s` this model does not
+    /// include adds to its parameters, taken as a consider parameter whose second moment is
+    /// the estimate's own (`s s^T`; its expectation is the truth's plus the estimate's
+    /// covariance): `G s s^T G^T` with G the [`thermal_gain`](Self::thermal_gain). Zero
+    /// with temperature terms.
+    pub fn thermal_covariance(&self, s: Sensitivity) -> Vec<f64> {
+        let m = self.values.len();
+        let shift: Vec<f64> = if self.thermal_gain.len() == m {
+            self.thermal_gain
+                .iter()
+                .map(|g| g[0] * s.b_t + g[1] * s.k_t)
+                .collect()
+        } else {
+            vec![0.0; m]
+        };
+        let mut out = vec![0.0; m * m];
+        for i in 0..m {
+            for j in 0..m {
+                out[i * m + j] = shift[i] * shift[j];
+            }
+        }
+        out
     }
 }
 
@@ -677,6 +728,12 @@ fn conclude(
     let excess = groups.excess(s, options.coloured.as_ref(), false);
     let (covariance, parameter_dof) =
         t_scaled(propagate(&map, &q, m), &weighted, &components, &map);
+    let mean_temperature_c = used.iter().map(|o| o.temperature_c).sum::<f64>() / used.len() as f64;
+    let thermal_gain = if model.terms.temperature {
+        Vec::new()
+    } else {
+        thermal_gain(&weighted, used, &map, mean_temperature_c)
+    };
     Ok(CalibrationSolution {
         values: apply(&map, &weighted.p),
         covariance,
@@ -687,12 +744,37 @@ fn conclude(
         dof: s.dof,
         iterations: s.iterations,
         t_ref_c: model.t_ref_c,
-        mean_temperature_c: used.iter().map(|o| o.temperature_c).sum::<f64>() / used.len() as f64,
+        mean_temperature_c,
         global_test: components::lack_of_fit(s, &groups.station, &groups.dof, excess),
         components,
         removed: Vec::new(),
         residuals,
+        thermal_gain,
     })
+}
+
+/// What a thermal effect `(b_t + k_t Ng_i) (T_i - mean_t)` the model does not include moves
+/// the parameters (in counts) by, per unit of b_t and of k_t: the effect adds to each
+/// observation's calibration value, so to its condition's misclosure, whose gain on the
+/// parameters is `Q_pp a_i / q_i` at the weights of `s`.
+fn thermal_gain(s: &gh::Solution<3>, used: &[&Obs], map: &[f64], mean_t: f64) -> Vec<[f64; 2]> {
+    let m = s.p.len();
+    let mut scaled = vec![[0.0; 2]; m];
+    for (i, o) in used.iter().enumerate() {
+        let dt = o.temperature_c - mean_t;
+        if dt == 0.0 || s.q_ww[i] <= 0.0 {
+            continue;
+        }
+        let effect = [dt, o.ng * dt];
+        for (g, qa) in scaled.iter_mut().zip(correlated::q_pp_a(s, i)) {
+            for c in 0..2 {
+                g[c] += qa / s.q_ww[i] * effect[c];
+            }
+        }
+    }
+    (0..m)
+        .map(|r| [0, 1].map(|c| (0..m).map(|j| map[r * m + j] * scaled[j][c]).sum()))
+        .collect()
 }
 
 /// The covariance at estimated components scaled to its parameters' t (docs/model.md 6.1):
@@ -911,6 +993,79 @@ mod tests {
 
     fn tilts(n: usize) -> Vec<f64> {
         (0..n).map(|i| 110.0 + (i % 8) as f64 * 4.0).collect()
+    }
+
+    /// The thermal gain is what an effect the model does not include moves its parameters
+    /// by: the same readings with and without a temperature effect about their mean
+    /// temperature, fitted without temperature terms, differ by the gain times (b_t, k_t) to
+    /// the adjustment's linearisation; with temperature terms there is no gain.
+    #[test]
+    fn the_thermal_gain_is_what_an_unmodelled_effect_moves() {
+        let plain = design(&tilts(40), None, 25.0);
+        let (b, k) = (-29_500.0, 0.243);
+        let sensitivity = Sensitivity {
+            b_t: 40.0,
+            k_t: 2e-4,
+        };
+        let temperature = |i: usize| 25.0 + 0.02 * (0.7 * i as f64).sin() + 0.0004 * i as f64;
+        let mean_t = (0..40).map(temperature).sum::<f64>() / 40.0;
+        let warm: Vec<Obs> = plain
+            .iter()
+            .enumerate()
+            .map(|(i, o)| {
+                let dt = temperature(i) - mean_t;
+                let noise = o.ng - (-G * o.dz_rad.cos() - b) / k;
+                Obs {
+                    ng: (-G * o.dz_rad.cos() - b - sensitivity.b_t * dt)
+                        / (k + sensitivity.k_t * dt)
+                        + noise,
+                    temperature_c: temperature(i),
+                    ..o.clone()
+                }
+            })
+            .collect();
+        let options = FitOptions {
+            snooping: Snooping::Off,
+            coloured: None,
+            components: false,
+        };
+        let linear = terms(1, false);
+        let before = calibrate_with(&plain, linear, G, &options).expect("fits");
+        let after = calibrate_with(&warm, linear, G, &options).expect("fits");
+        assert!((after.mean_temperature_c - mean_t).abs() < 1e-12);
+        let extra = after.thermal_covariance(sensitivity);
+        for j in 0..2 {
+            let moved = after.values[j] - before.values[j];
+            let predicted = extra[j * 2 + j].sqrt() * moved.signum();
+            let gain = after.thermal_gain[j][0] * sensitivity.b_t
+                + after.thermal_gain[j][1] * sensitivity.k_t;
+            assert!(
+                moved.abs() > 3.0 * after.sigma(j),
+                "parameter {j}: moved {moved}, sigma {}",
+                after.sigma(j)
+            );
+            assert!(
+                (moved - gain).abs() < 1e-3 * moved.abs(),
+                "parameter {j}: moved {moved}, gain {gain}"
+            );
+            assert!((predicted - gain).abs() < 1e-9 * gain.abs());
+        }
+        let two_sets: Vec<Obs> = warm
+            .iter()
+            .enumerate()
+            .map(|(i, o)| Obs {
+                temperature_c: o.temperature_c + 2.0 * (i % 2) as f64,
+                ..o.clone()
+            })
+            .collect();
+        let thermal = calibrate_with(&two_sets, terms(1, true), G, &options).expect("fits");
+        assert!(thermal.thermal_gain.is_empty());
+        assert!(
+            thermal
+                .thermal_covariance(sensitivity)
+                .iter()
+                .all(|&c| c == 0.0)
+        );
     }
 
     #[test]

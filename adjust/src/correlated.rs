@@ -117,7 +117,7 @@ pub fn extra_covariance(s: &Solution<3>, at: Timeline<'_>, noise: &ColouredAdc) 
 
 /// Q_pp a_i: the parameters' cofactor matrix times condition `i`'s design row, the part of
 /// its gain the weights and the counts' partial then scale.
-fn q_pp_a(s: &Solution<3>, i: usize) -> Vec<f64> {
+pub(crate) fn q_pp_a(s: &Solution<3>, i: usize) -> Vec<f64> {
     let m = s.p.len();
     (0..m)
         .map(|r| {

@@ -130,11 +130,13 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let (jobs, mut skipped) = plan_jobs(&ds, &models, &used, &align_report);
     let outcomes: Vec<_> = jobs.par_iter().map(|job| fit_job(job, g)).collect();
     let mut results = Vec::new();
+    let mut fits = Vec::new();
     let mut residual_rows = Vec::new();
     for (job, outcome) in jobs.iter().zip(&outcomes) {
         match outcome {
             Ok((r, f)) => {
                 results.push(r.clone());
+                fits.push(f);
                 residual_rows.extend(residual_rows_of(job, f));
             }
             Err(e) => skipped.push(Skipped {
@@ -149,7 +151,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
             }),
         }
     }
-    thermal_warnings(&mut results);
+    thermal_effects(&mut results, &fits);
     let adc_noise = kalibr_noise(&align_report, &results);
     let (triad, triad_skipped) = triad_fits::fit_all(&ds, &models, &align_report);
     skipped.extend(triad_skipped);

@@ -97,13 +97,13 @@ fn replica_recovers_the_truth() {
     let linear: Vec<&CalibrationResult> =
         c.results.iter().filter(|r| r.model == "linear").collect();
     assert_eq!(linear.len(), 5);
-    // The linear fits of acc1 and acc3, whose temperature moved within the day, say what
-    // that does with the thermal model's sensitivity (docs/model.md 6.1); acc2 has no
-    // thermal model to say it with, and the thermal fits carry the temperature.
+    // The linear fits of acc1 and acc3, whose temperature moved within the day, carry the
+    // thermal model's sensitivity and say so (docs/model.md 6.1); acc2 has no thermal model
+    // to say it with, and the thermal fits carry the temperature.
     let moved = |r: &&CalibrationResult| {
         r.warnings
             .iter()
-            .any(|w| w.contains("temperature moved") && w.contains("prefer"))
+            .any(|w| w.contains("temperature moved") && w.contains("consider parameter"))
     };
     let warned: Vec<(&str, &str)> = c
         .results
@@ -122,13 +122,16 @@ fn replica_recovers_the_truth() {
         "{:?}",
         c.results.iter().map(|r| &r.warnings).collect::<Vec<_>>()
     );
-    // Every linear fit gives the sensitivity at which its temperature's movement is 0.3
-    // sigma of b; acc2's, with no thermal fit to compare it with, says it cannot tell.
+    // A linear fit with no thermal fit to take the sensitivity from (acc2) gives the
+    // sensitivity at which its temperature's movement is 0.3 sigma of b, and says it cannot
+    // tell.
     for r in &linear {
         let [lo, hi] = r.temperature_range_c.expect("temperatures");
         let limit = 0.3 * param(r, "b").1 / (hi - lo);
-        let given = r.thermal_sensitivity_limit_mgal_per_k.expect("a limit");
-        assert!((given - limit).abs() < 1e-9 * limit, "{given} {limit}");
+        match r.thermal_sensitivity_limit_mgal_per_k {
+            Some(given) => assert!((given - limit).abs() < 1e-9 * limit, "{given} {limit}"),
+            None => assert!(moved(r), "{:?}", r.warnings),
+        }
         let unknown = r.warnings.iter().any(|w| {
             w.contains(&format!(
                 "no fit of {} with temperature terms",
@@ -1734,11 +1737,21 @@ fn study_fit(
     terms: adjust::model::Terms,
     g_mgal: f64,
 ) -> Option<adjust::calibrate::CalibrationSolution> {
+    let obs = study_obs(design, varied, rng);
+    adjust::calibrate::calibrate(&obs, terms, g_mgal).ok()
+}
+
+/// One study replica's observations: the stations varied, the readings and window means
+/// drawn (white ADC noise), moderated weights.
+fn study_obs(
+    design: Vec<McReading>,
+    varied: Varied,
+    rng: &mut fixtures::rng::Rng,
+) -> Vec<adjust::calibrate::Obs> {
     let design = vary_stations(design, varied, rng);
     let dz = study_readings(&design, varied, rng);
     let means = window_means(&design, None, rng);
-    let obs = replica_obs(&design, &dz, &means, Weights::Moderated);
-    adjust::calibrate::calibrate(&obs, terms, g_mgal).ok()
+    replica_obs(&design, &dz, &means, Weights::Moderated)
 }
 
 /// The per-session design's stations as `varied` says: the theodolite's sds spread over a
@@ -1835,46 +1848,9 @@ fn thermal_study(replicas: usize, acc: usize, varied: Varied) -> ([f64; 4], f64)
         temperature: true,
         misalignment: adjust::model::Misalignment::None,
     };
-    let t0 = truth.reading[0].time_gps_ns;
     let (mut z2, mut rejected, mut n) = ([0.0; 4], 0, 0);
     for _ in 0..replicas {
-        // The wander, from 0 at each session's first reading.
-        let (mut wander, mut last): (f64, Option<(&str, f64)>) = (0.0, None);
-        let design: Vec<McReading> = truth
-            .reading
-            .iter()
-            .map(|r| {
-                let time_s = (r.time_gps_ns - t0) as f64 * 1e-9;
-                match last {
-                    Some((session, last_s)) if session == r.session => {
-                        if matches!(varied, Varied::Wander | Varied::All) {
-                            wander += WANDER_C_PER_SQRT_S * (time_s - last_s).sqrt() * rng.normal();
-                        }
-                    }
-                    _ => wander = 0.0,
-                }
-                last = Some((r.session.as_str(), time_s));
-                let temperature_c = r.temperature_c[acc] + wander;
-                let t = temperature_c - truth.t_ref_c;
-                let key = (r.session.as_str(), r.station.as_str());
-                if !keys.contains(&key) {
-                    keys.push(key);
-                }
-                let g = truth.gravity_mgal + r.tide_mgal;
-                McReading {
-                    station: keys.iter().position(|k| *k == key).unwrap_or(0),
-                    session: usize::from(r.session != truth.reading[0].session),
-                    dz_true_rad: r.dz_true_rad,
-                    sigma_dz_rad: r.sigma_dz_rad,
-                    ng_true: (-g * r.dz_true_rad.cos() - a.b_mgal - a.b_t_mgal_per_c * t)
-                        / (a.k_mgal_per_bit + a.k_t_mgal_per_bit_per_c * t),
-                    sigma_sample_bits: r.sigma_sample_bits[acc],
-                    temperature_c,
-                    tide_mgal: r.tide_mgal,
-                    time_s,
-                }
-            })
-            .collect();
+        let design = both_days_design(&truth, acc, varied, &mut rng, &mut keys);
         let Some(f) = study_fit(design, varied, &mut rng, terms, truth.gravity_mgal) else {
             continue;
         };
@@ -1896,6 +1872,141 @@ fn thermal_study(replicas: usize, acc: usize, varied: Varied) -> ([f64; 4], f64)
         z2.map(|s| (s / n).sqrt()),
         f64::from(u32::try_from(rejected).unwrap_or(u32::MAX)) / n,
     )
+}
+
+/// Both days of esgt-2005 for accelerometer `acc` as the studies draw them: the counts from
+/// the truth at each reading's temperature, the wander (`varied`) added to the temperature
+/// from 0 at each session's first reading and read by an exact thermometer; stations keyed
+/// by (session, station) in `keys`, kept across replicas.
+fn both_days_design<'t>(
+    truth: &'t Truth,
+    acc: usize,
+    varied: Varied,
+    rng: &mut fixtures::rng::Rng,
+    keys: &mut Vec<(&'t str, &'t str)>,
+) -> Vec<McReading> {
+    let a = &truth.accelerometer[acc];
+    let t0 = truth.reading[0].time_gps_ns;
+    // The wander, from 0 at each session's first reading.
+    let (mut wander, mut last): (f64, Option<(&str, f64)>) = (0.0, None);
+    truth
+        .reading
+        .iter()
+        .map(|r| {
+            let time_s = (r.time_gps_ns - t0) as f64 * 1e-9;
+            match last {
+                Some((session, last_s)) if session == r.session => {
+                    if matches!(varied, Varied::Wander | Varied::All) {
+                        wander += WANDER_C_PER_SQRT_S * (time_s - last_s).sqrt() * rng.normal();
+                    }
+                }
+                _ => wander = 0.0,
+            }
+            last = Some((r.session.as_str(), time_s));
+            let temperature_c = r.temperature_c[acc] + wander;
+            let t = temperature_c - truth.t_ref_c;
+            let key = (r.session.as_str(), r.station.as_str());
+            if !keys.contains(&key) {
+                keys.push(key);
+            }
+            let g = truth.gravity_mgal + r.tide_mgal;
+            McReading {
+                station: keys.iter().position(|k| *k == key).unwrap_or(0),
+                session: usize::from(r.session != truth.reading[0].session),
+                dz_true_rad: r.dz_true_rad,
+                sigma_dz_rad: r.sigma_dz_rad,
+                ng_true: (-g * r.dz_true_rad.cos() - a.b_mgal - a.b_t_mgal_per_c * t)
+                    / (a.k_mgal_per_bit + a.k_t_mgal_per_bit_per_c * t),
+                sigma_sample_bits: r.sigma_sample_bits[acc],
+                temperature_c,
+                tide_mgal: r.tide_mgal,
+                time_s,
+            }
+        })
+        .collect()
+}
+
+/// rms of (estimate - truth) / sigma for b and k over `replicas` per-session linear fits of
+/// esgt-2005's day 1 for accelerometer `acc` (0-based): with the sigmas as the fit gives
+/// them, and widened by the thermal sensitivity that the same replica's fit with temperature
+/// terms over both days estimates (the consider covariance adjust adds in a run that has
+/// both, docs/model.md 6.1). The truth is b and k at the linear fit's mean temperature, the
+/// temperature its b and k are given at.
+fn per_session_with_thermal_study(replicas: usize, acc: usize, varied: Varied) -> [[f64; 2]; 2] {
+    use adjust::calibrate::{Sensitivity, calibrate};
+    let truth = fixtures::read_truth(&fixtures::dataset_dir("esgt-2005")).expect("truth");
+    let a = &truth.accelerometer[acc];
+    let mut keys: Vec<(&str, &str)> = Vec::new();
+    let mut rng = fixtures::rng::Rng::new(20_261_128, "per-session with thermal study");
+    let terms = |temperature| adjust::model::Terms {
+        order: 1,
+        temperature,
+        misalignment: adjust::model::Misalignment::None,
+    };
+    let g = truth.gravity_mgal;
+    let (mut plain, mut widened, mut n) = ([0.0; 2], [0.0; 2], 0);
+    for _ in 0..replicas {
+        let design = both_days_design(&truth, acc, varied, &mut rng, &mut keys);
+        let obs = study_obs(design, varied, &mut rng);
+        let day1: Vec<adjust::calibrate::Obs> =
+            obs.iter().filter(|o| o.session == 0).cloned().collect();
+        let (Ok(thermal), Ok(f)) = (
+            calibrate(&obs, terms(true), g),
+            calibrate(&day1, terms(false), g),
+        ) else {
+            continue;
+        };
+        let sensitivity = Sensitivity::of(&thermal, terms(true)).expect("temperature terms");
+        let extra = f.thermal_covariance(sensitivity);
+        let tau = f.mean_temperature_c - truth.t_ref_c;
+        let want = [
+            a.b_mgal + a.b_t_mgal_per_c * tau,
+            a.k_mgal_per_bit + a.k_t_mgal_per_bit_per_c * tau,
+        ];
+        for j in 0..2 {
+            let e2 = (f.values[j] - want[j]).powi(2);
+            plain[j] += e2 / f.sigma(j).powi(2);
+            widened[j] += e2 / (f.sigma(j).powi(2) + extra[j * 2 + j]);
+        }
+        n += 1;
+    }
+    let n = f64::from(u32::try_from(n).unwrap_or(u32::MAX));
+    [plain, widened].map(|z2| z2.map(|s| (s / n).sqrt()))
+}
+
+/// A per-session linear fit over a moving temperature carries the thermal sensitivity that a
+/// fit with temperature terms in the same run measures (docs/model.md 6.1): 300 replicas of
+/// both days of esgt-2005 each, the linear fit on day 1 widened by the thermal fit's
+/// sensitivity over both days. Asserted: the rms z of b and k within 0.07 of 1 (the issue's
+/// bound) as simulated, with the 5 mK wander, and with everything of the independent
+/// simulation together; printed beside the rms z without it. For acc1; all three with
+/// GRAVCAL_MONTE_CARLO.
+#[test]
+fn per_session_fits_carry_the_measured_sensitivity() {
+    let replicas = 300;
+    let accelerometers = if std::env::var("GRAVCAL_MONTE_CARLO").is_ok() {
+        3
+    } else {
+        1
+    };
+    for acc in 0..accelerometers {
+        for varied in [Varied::AsSimulated, Varied::Wander, Varied::All] {
+            let [plain, widened] = per_session_with_thermal_study(replicas, acc, varied);
+            eprintln!(
+                "per-session linear fit, acc{} day1, {varied:?}, {replicas} replicas: rms z b {:.3}, k {:.3} as fitted; {:.3}, {:.3} with the thermal fit's sensitivity",
+                acc + 1,
+                plain[0],
+                plain[1],
+                widened[0],
+                widened[1]
+            );
+            assert!(
+                widened.iter().all(|z| (z - 1.0).abs() < 0.07),
+                "acc{} {varied:?}: {widened:?}",
+                acc + 1
+            );
+        }
+    }
 }
 
 /// The model with temperature terms carries what the per-session linear fits cannot

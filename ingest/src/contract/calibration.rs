@@ -293,10 +293,11 @@ pub struct CalibrationResult {
     /// Least and greatest temperature the fit used, degC.
     #[serde(default)]
     pub temperature_range_c: Option<[f64; 2]>,
-    /// For a fit without temperature terms whose temperature moved: the thermal
-    /// sensitivity |dc/dT| = |b_t + k_t Ng| (mGal/K) at which that movement (the range of
-    /// its observations' temperatures) is an effect of 0.3 sigma of b, the size at which a
-    /// known sensitivity is warned of (docs/model.md 6.1). Its data cannot say whether the
+    /// For a fit without temperature terms whose temperature moved, when no fit of the
+    /// run with temperature terms measured the accelerometer's sensitivity (which its
+    /// sigmas would then carry): the thermal sensitivity |dc/dT| = |b_t + k_t Ng| (mGal/K)
+    /// at which that movement (the range of its observations' temperatures) is an effect
+    /// of 0.3 sigma of b (docs/model.md 6.1). Its data cannot say whether the
     /// accelerometer's sensitivity is above it; a fit with temperature terms can.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thermal_sensitivity_limit_mgal_per_k: Option<f64>,
