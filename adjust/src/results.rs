@@ -256,8 +256,16 @@ pub fn misalignment_vector(f: &calibrate::CalibrationSolution, terms: Terms) -> 
 /// theta must exceed this many sds for its direction psi to be given.
 pub(crate) const PSI_SIGMAS: f64 = 3.0;
 
-/// A temperature effect this large against sigma_b is named (docs/model.md 6.1).
+/// A fit without temperature terms, and no sensitivity measured, names the sensitivity at
+/// which its temperature's movement is this many sigma of b (docs/model.md 6.1).
 pub(crate) const THERMAL_NOTE_SIGMAS: f64 = 0.3;
+
+/// An accelerometer's thermal sensitivity from a fit with temperature terms.
+struct Measured {
+    accelerometer: String,
+    model: String,
+    sensitivity: calibrate::Sensitivity,
+}
 
 /// Each fit without temperature terms whose observations' temperature moved, `fits[i]` the
 /// solution of `results[i]`. When a fit of the same accelerometer with temperature terms
@@ -272,12 +280,6 @@ pub(crate) fn thermal_effects(
     results: &mut [CalibrationResult],
     fits: &[&calibrate::CalibrationSolution],
 ) {
-    /// An accelerometer's thermal sensitivity from a fit with temperature terms.
-    struct Measured {
-        accelerometer: String,
-        model: String,
-        sensitivity: calibrate::Sensitivity,
-    }
     let measured: Vec<Measured> = results
         .iter()
         .filter(|r| r.temperature)
@@ -294,70 +296,80 @@ pub(crate) fn thermal_effects(
         })
         .collect();
     for (r, f) in results.iter_mut().zip(fits).filter(|(r, _)| !r.temperature) {
-        let (Some([t_lo, t_hi]), Some([n_lo, n_hi])) = (r.temperature_range_c, r.counts_range)
-        else {
+        let Some([t_lo, t_hi]) = r.temperature_range_c.filter(|[lo, hi]| hi > lo) else {
             continue;
         };
-        let Some(sigma_b) = r.parameters.iter().find(|p| p.name == "b").map(|p| p.sigma) else {
-            continue;
-        };
-        if t_hi <= t_lo {
-            continue;
+        match measured.iter().find(|m| m.accelerometer == r.accelerometer) {
+            Some(m) => carry_sensitivity(r, f, m, 1e3 * (t_hi - t_lo)),
+            None => name_the_limit(r, t_hi - t_lo),
         }
-        let moved_mk = 1e3 * (t_hi - t_lo);
-        let Some(m) = measured.iter().find(|m| m.accelerometer == r.accelerometer) else {
-            let limit = THERMAL_NOTE_SIGMAS * sigma_b / (t_hi - t_lo);
-            r.thermal_sensitivity_limit_mgal_per_k = Some(limit);
-            r.warnings.push(format!(
-                "the temperature moved by {moved_mk:.1} mK over the observations (their range, a \
-                 thermometer's noise included) and this model has no temperature terms: a \
-                 thermal sensitivity |dc/dT| = |b_t + k_t Ng| above {limit:.1} mGal/K would \
-                 make that {THERMAL_NOTE_SIGMAS} sigma of b or more, which its sigmas do not \
-                 carry. With no fit of {} with temperature terms, this run cannot say whether \
-                 the sensitivity is above it: a model with `temperature = true` over sessions \
-                 at different temperatures can",
-                r.accelerometer
-            ));
-            continue;
-        };
-        let s = m.sensitivity;
-        let (lo, hi) = (s.b_t + s.k_t * n_lo, s.b_t + s.k_t * n_hi);
-        let before: Vec<f64> = r.parameters.iter().map(|p| p.sigma).collect();
-        widen(
-            &mut r.parameters,
-            &mut r.correlation,
-            &f.thermal_covariance(s),
-        );
-        let grew: Vec<String> = r
-            .parameters
-            .iter()
-            .zip(&before)
-            .map(|(p, was)| {
-                format!(
-                    "{}'s sigma {} to {} {}",
-                    p.name,
-                    three(*was),
-                    three(p.sigma),
-                    p.unit
-                )
-            })
-            .collect();
-        r.warnings.push(format!(
-            "the temperature moved by {moved_mk:.1} mK over the observations (their range, a \
-             thermometer's noise included); model {} gives this accelerometer dc/dT = b_t + \
-             k_t Ng of {:.0} to {:.0} mGal/K over these counts, an effect this model, without \
-             temperature terms, does not include: its sigmas carry that sensitivity as a \
-             consider parameter ({}). b and k are at the observations' mean temperature, \
-             {:.3} degC; {} gives them at any temperature, and a session at a steadier \
-             temperature narrows them",
-            m.model,
-            lo.min(hi),
-            lo.max(hi),
-            grew.join(", "),
-            r.mean_temperature_c,
-            m.model
-        ));
     }
+}
+
+/// A fit without temperature terms whose temperature moved by `moved_k`, and no fit of the
+/// run that measured its accelerometer's sensitivity: the limit and the note that the run
+/// cannot check it.
+fn name_the_limit(r: &mut CalibrationResult, moved_k: f64) {
+    let Some(sigma_b) = r.parameters.iter().find(|p| p.name == "b").map(|p| p.sigma) else {
+        return;
+    };
+    let limit = THERMAL_NOTE_SIGMAS * sigma_b / moved_k;
+    r.thermal_sensitivity_limit_mgal_per_k = Some(limit);
+    r.warnings.push(format!(
+        "the temperature moved by {:.1} mK over the observations (their range, a \
+         thermometer's noise included) and this model has no temperature terms: a \
+         thermal sensitivity |dc/dT| = |b_t + k_t Ng| above {limit:.1} mGal/K would \
+         make that {THERMAL_NOTE_SIGMAS} sigma of b or more, which its sigmas do not \
+         carry. With no fit of {} with temperature terms, this run cannot say whether \
+         the sensitivity is above it: a model with `temperature = true` over sessions \
+         at different temperatures can",
+        1e3 * moved_k,
+        r.accelerometer
+    ));
+}
+
+/// A fit without temperature terms (solution `f`) whose temperature moved by `moved_mk`:
+/// its covariance widened by the sensitivity `m` measured, and a note of each sigma before
+/// and after.
+fn carry_sensitivity(
+    r: &mut CalibrationResult,
+    f: &calibrate::CalibrationSolution,
+    m: &Measured,
+    moved_mk: f64,
+) {
+    let s = m.sensitivity;
+    let [n_lo, n_hi] = r.counts_range.unwrap_or([0.0; 2]);
+    let (lo, hi) = (s.b_t + s.k_t * n_lo, s.b_t + s.k_t * n_hi);
+    let before: Vec<f64> = r.parameters.iter().map(|p| p.sigma).collect();
+    widen(
+        &mut r.parameters,
+        &mut r.correlation,
+        &f.thermal_covariance(s),
+    );
+    let grew: Vec<String> = r
+        .parameters
+        .iter()
+        .zip(&before)
+        .map(|(p, was)| {
+            let (was, now) = (three(*was), three(p.sigma));
+            format!("{}'s sigma {was} to {now} {}", p.name, p.unit)
+        })
+        .collect();
+    r.warnings.push(format!(
+        "the temperature moved by {moved_mk:.1} mK over the observations (their range, a \
+         thermometer's noise included); model {} gives this accelerometer dc/dT = b_t + \
+         k_t Ng of {:.0} to {:.0} mGal/K over these counts, an effect this model, without \
+         temperature terms, does not include: its sigmas carry that sensitivity as a \
+         consider parameter ({}). b and k are at the observations' mean temperature, \
+         {:.3} degC; {} gives them at any temperature, and a session at a steadier \
+         temperature narrows them",
+        m.model,
+        lo.min(hi),
+        lo.max(hi),
+        grew.join(", "),
+        r.mean_temperature_c,
+        m.model
+    ));
 }
 
 /// `x` to three significant digits, in scientific notation when below 0.01.
