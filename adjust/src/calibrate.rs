@@ -620,7 +620,11 @@ fn misclosure_excess(s: &gh::Solution<3>, used: &[&Obs], noise: &ColouredAdc) ->
 /// variance (Welch-Satterthwaite; the temperature's variance is taken as known), returned
 /// as the standard normal quantile of the same tail probability, so that one critical value
 /// ([`W_CRITICAL`]) holds alpha whatever the dof. With both sds known the t is the normal
-/// and w is Baarda's own.
+/// and w is Baarda's own. The shares that weigh the dofs are the fitted variances', not
+/// the left-out one's: the left-out variance is the t's denominator, and its shares taken
+/// from it made the dof largest (the tail lightest) exactly when it came out small by
+/// chance: on esgt-2005's design at the stations' own sds, 1.067 alpha beyond 3.29 before,
+/// 0.972 with the fitted shares (`the_w_statistic_holds_its_tail`, docs/model.md 6.8).
 /// `coloured`: what the coloured ADC noise adds to each misclosure's variance
 /// ([`correlated::misclosure_excess`]), known as the window means' variance is.
 fn left_out_w_tests(s: &gh::Solution<3>, used: &[&Obs], coloured: Option<&[f64]>) -> Vec<f64> {
@@ -651,11 +655,16 @@ fn left_out_w_tests(s: &gh::Solution<3>, used: &[&Obs], coloured: Option<&[f64]>
                 dof.filter(|d| d.is_finite() && *d > 0.0)
                     .map(|d| part * part / d)
             };
-            let parts = [share(q_dz, dof), share(s.q_parts[i][1], o.sigma_ng_dof)];
+            let q_dz_fitted = s.q_parts[i][0] * o.sigma_dz_rad.powi(2) / fitted;
+            let parts = [
+                share(q_dz_fitted, dof),
+                share(s.q_parts[i][1], o.sigma_ng_dof),
+            ];
             if parts.iter().all(Option::is_none) {
                 return w;
             }
-            let nu = q * q / parts.iter().flatten().sum::<f64>();
+            let q_fitted = q - q_dz + q_dz_fitted;
+            let nu = q_fitted * q_fitted / parts.iter().flatten().sum::<f64>();
             let tail = StudentsT::new(0.0, 1.0, nu).map_or(f64::NAN, |t| t.cdf(-w.abs()));
             if tail.is_finite() && tail > 0.0 {
                 -normal.inverse_cdf(tail) * w.signum()
