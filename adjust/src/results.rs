@@ -272,7 +272,7 @@ struct Measured {
 /// gives its sensitivity dc/dT = b_t + k_t Ng, the fit's covariance takes that sensitivity
 /// as a consider parameter ([`calibrate::CalibrationSolution::thermal_covariance`]) and a
 /// note says by how much its sigmas grew: on esgt-2005's day 1, 300 replicas, rms z of b
-/// and k 1.13-1.47 without it and 0.96-1.01 with it (docs/model.md 6.1). When no fit gives
+/// and k 1.13-1.47 without it and 0.95-1.01 with it (docs/model.md 6.1). When no fit gives
 /// it, the fit gets the sensitivity at which that movement is an effect of
 /// [`THERMAL_NOTE_SIGMAS`] sigma of b (its limit) and a note that the limit is what the run
 /// cannot check.
