@@ -22,7 +22,7 @@ use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{digits, read_lines, strip_comment, text};
 use crate::rowgroup::{N, Spare, column, nullable, session_values, whole};
-use crate::table::{ColumnTableWriter, ColumnValues, Encodings};
+use crate::table::{ColumnTableWriter, ColumnValues, Encodings, Written};
 use crate::time::parse_seconds_ns;
 use crate::timegate::{Position, Sink, TimeGate};
 use std::collections::{BTreeMap, VecDeque};
@@ -36,7 +36,7 @@ use std::thread::JoinHandle;
 /// coming back from the writer for the next row groups.
 pub struct LabWriter {
     to_writer: Option<SyncSender<ToWriter>>,
-    writer: Option<JoinHandle<Result<u64>>>,
+    writer: Option<JoinHandle<Result<Written>>>,
     spent: Receiver<Vec<ColumnValues>>,
     spare: Spare,
     rows: LabColumns,
@@ -69,7 +69,7 @@ fn write_lab(
     mut table: ColumnTableWriter,
     rx: Receiver<ToWriter>,
     spent: Sender<Vec<ColumnValues>>,
-) -> Result<u64> {
+) -> Result<Written> {
     for message in rx {
         match message {
             ToWriter::RowGroup(rows, columns) => {
@@ -77,10 +77,13 @@ fn write_lab(
                 // The reader may have gone; then the buffers are simply freed.
                 let _ = spent.send(columns);
             }
-            ToWriter::Finish => return table.finish(),
+            ToWriter::Finish => return table.finish_hashed(),
         }
     }
-    Ok(0)
+    Err(Error::io(
+        Path::new(tables::lab::FILE),
+        std::io::Error::other("ingest stopped before the lab table was complete"),
+    ))
 }
 
 impl LabWriter {
@@ -101,7 +104,8 @@ impl LabWriter {
                 no_statistics: &tables::lab::VALUES,
                 ..Encodings::default()
             },
-        )?;
+        )?
+        .one_column_at_a_time();
         // Two row groups queued keep both threads busy.
         let (to_writer, rx) = sync_channel(2);
         let (spent_tx, spent) = channel();
@@ -198,7 +202,7 @@ impl LabWriter {
     }
 
     /// Closes the channel and waits for the writer: the rows it wrote, or its error.
-    fn join(&mut self) -> Result<u64> {
+    fn join(&mut self) -> Result<Written> {
         self.to_writer = None;
         match self.writer.take().map(JoinHandle::join) {
             Some(Ok(result)) => result,
@@ -213,8 +217,8 @@ impl LabWriter {
         }
     }
 
-    /// Writes what is buffered and closes the table; returns its rows.
-    pub fn finish(mut self) -> Result<u64> {
+    /// Writes what is buffered and closes the table; returns its rows and SHA-256.
+    pub fn finish(mut self) -> Result<Written> {
         self.flush()?;
         if let Some(w) = &self.to_writer {
             // A failed send means the writer stopped; join says why.

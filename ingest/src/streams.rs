@@ -5,7 +5,7 @@ use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::rowgroup::{N, Spare, column, nullable, session_values, whole};
-use crate::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP};
+use crate::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP, Written};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
@@ -96,7 +96,7 @@ fn write_tables(
     mut temperature: ColumnTableWriter,
     rx: Receiver<Message>,
     spent: Sender<Vec<ColumnValues>>,
-) -> Result<(u64, u64)> {
+) -> Result<(Written, Written)> {
     for m in rx {
         match m {
             Message::Acceleration(rows, cols) => {
@@ -105,7 +105,9 @@ fn write_tables(
                 let _ = spent.send(cols);
             }
             Message::Temperature(rows, cols) => temperature.write_row_group(rows, &cols)?,
-            Message::Finish => return Ok((acceleration.finish()?, temperature.finish()?)),
+            Message::Finish => {
+                return Ok((acceleration.finish_hashed()?, temperature.finish_hashed()?));
+            }
         }
     }
     Err(Error::io(
@@ -118,7 +120,7 @@ fn write_tables(
 pub struct StreamWriter {
     /// Batches go to a thread that encodes and compresses them (the second core).
     to_writer: Option<SyncSender<Message>>,
-    writer: Option<JoinHandle<Result<(u64, u64)>>>,
+    writer: Option<JoinHandle<Result<(Written, Written)>>>,
     session: u16,
     stats: SessionStats,
     /// Per channel: acceleration values null because not connected, because over range;
@@ -157,13 +159,15 @@ impl StreamWriter {
                 uncompressed: &tables::acceleration::COUNTS,
                 no_statistics: &tables::acceleration::COUNTS,
             },
-        )?;
+        )?
+        .one_column_at_a_time();
         let temperature = ColumnTableWriter::create(
             dir,
             tables::temperature::FILE,
             tables::temperature::schema(sessions),
             Encodings::default(),
-        )?;
+        )?
+        .one_column_at_a_time();
         // Two row groups queued keep both threads busy.
         let (tx, rx) = sync_channel(2);
         let (spent_tx, spent) = channel();
@@ -354,7 +358,7 @@ impl StreamWriter {
         }
     }
 
-    fn join(&mut self) -> Result<(u64, u64)> {
+    fn join(&mut self) -> Result<(Written, Written)> {
         self.to_writer = None;
         match self.writer.take().map(JoinHandle::join) {
             Some(Ok(r)) => r,
@@ -387,9 +391,9 @@ impl StreamWriter {
 pub struct Closing(StreamWriter);
 
 impl Closing {
-    /// Waits until both tables are renamed into place; returns (acceleration rows,
-    /// temperature rows).
-    pub fn wait(mut self) -> Result<(u64, u64)> {
+    /// Waits until both tables are renamed into place; returns (acceleration, temperature),
+    /// each its rows and SHA-256.
+    pub fn wait(mut self) -> Result<(Written, Written)> {
         self.0.join()
     }
 }

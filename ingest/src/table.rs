@@ -215,9 +215,15 @@ impl TableWriter {
     }
 
     /// Closes the file and renames it to its final name; returns the rows written.
-    pub fn finish(mut self) -> Result<u64> {
-        self.file.commit(self.writer.into_inner())?;
-        Ok(self.rows)
+    pub fn finish(self) -> Result<u64> {
+        self.finish_hashed().map(|(rows, _)| rows)
+    }
+
+    /// [`TableWriter::finish`], also returning the SHA-256 of the file (hashed as it was
+    /// written, not read back).
+    pub fn finish_hashed(mut self) -> Result<Written> {
+        let sha256 = self.file.commit(self.writer.into_inner())?;
+        Ok((self.rows, sha256))
     }
 }
 
@@ -235,6 +241,10 @@ pub enum ColumnValues {
     Double(Vec<f64>, Option<Vec<i16>>),
 }
 
+/// A table closed and renamed into place: its rows and the SHA-256 of its bytes (hex),
+/// hashed as they were written.
+pub type Written = (u64, String);
+
 /// A Parquet table written a row group at a time from [`ColumnValues`]. The Arrow schema is
 /// stored in the file as `ArrowWriter` stores it, so Arrow readers see the same types.
 pub struct ColumnTableWriter {
@@ -242,6 +252,9 @@ pub struct ColumnTableWriter {
     writer: SerializedFileWriter<BufWriter<HashingFile>>,
     rows: u64,
     groups: u64,
+    /// Whether a row group's columns are encoded on the rayon pool (or one after another on
+    /// the caller's thread, [`ColumnTableWriter::one_column_at_a_time`]).
+    parallel: bool,
 }
 
 /// Row groups between syncs of what is written so far: the sync before the rename then
@@ -266,7 +279,18 @@ impl ColumnTableWriter {
             writer,
             rows: 0,
             groups: 0,
+            parallel: true,
         })
+    }
+
+    /// Encodes each row group's columns one after another on the thread that writes it,
+    /// not on the rayon pool: for a writer with a thread of its own beside a parser that
+    /// sets the run's pace on two cores (ingest's), where the pool's two workers waking and
+    /// spinning for every row group take the parser's core (`cargo xtask bench ingest`,
+    /// docs/benchmarks.md).
+    pub fn one_column_at_a_time(mut self) -> Self {
+        self.parallel = false;
+        self
     }
 
     /// Writes one row group of `rows` rows; `columns` in schema order. A group of no rows is
@@ -286,14 +310,15 @@ impl ColumnTableWriter {
             return Ok(());
         }
         let props = w.properties().clone();
-        let encoded = columns
-            .par_iter()
-            .enumerate()
-            .map(|(index, values)| {
-                encode_column(schema.column(index), props.clone(), values)
-                    .map_err(|e| ParquetError::General(format!("column {index}: {e}")))
-            })
-            .collect::<Vec<_>>();
+        let encode = |(index, values): (usize, &ColumnValues)| {
+            encode_column(schema.column(index), props.clone(), values)
+                .map_err(|e| ParquetError::General(format!("column {index}: {e}")))
+        };
+        let encoded: Vec<_> = if self.parallel {
+            columns.par_iter().enumerate().map(encode).collect()
+        } else {
+            columns.iter().enumerate().map(encode).collect()
+        };
         // Every column checked before the row group is opened: an error leaves the file as
         // it was, ready for the next row group.
         let encoded = encoded
@@ -335,7 +360,7 @@ impl ColumnTableWriter {
 
     /// [`ColumnTableWriter::finish`], also returning the SHA-256 of the file (hashed as it
     /// was written, not read back).
-    pub fn finish_hashed(mut self) -> Result<(u64, String)> {
+    pub fn finish_hashed(mut self) -> Result<Written> {
         let sha256 = self.file.commit(self.writer.into_inner())?;
         Ok((self.rows, sha256))
     }

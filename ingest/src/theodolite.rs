@@ -214,8 +214,8 @@ impl TheodoliteWriter {
         self.table.write(cols)
     }
 
-    /// Closes and renames the table; returns its rows.
-    pub fn finish(self) -> Result<u64> {
-        self.table.finish()
+    /// Closes and renames the table; returns its rows and SHA-256.
+    pub fn finish(self) -> Result<crate::table::Written> {
+        self.table.finish_hashed()
     }
 }

@@ -269,6 +269,37 @@ fn outputs_are_deterministic() {
     }
 }
 
+/// The custody's outputs are the four tables, each with the hash of its bytes on disk (the
+/// writers hash what they write; nothing is read back): a stream, a lab stream and a
+/// multi-session dataset.
+#[test]
+fn custody_holds_the_tables_hashes_as_on_disk() {
+    for name in ["damaged-log", "lab-logger", "roll-sessions"] {
+        let (out, report) = ingest(name);
+        let outputs = &report.custody.outputs;
+        let mut paths: Vec<&str> = outputs.iter().map(|f| f.path.as_str()).collect();
+        paths.sort_unstable();
+        assert_eq!(
+            paths,
+            [
+                "ingest/acceleration.parquet",
+                "ingest/lab.parquet",
+                "ingest/temperature.parquet",
+                "ingest/theodolite.parquet"
+            ],
+            "{name}"
+        );
+        for f in outputs {
+            let bytes = std::fs::read(out.path().join(&f.path)).expect("table");
+            let on_disk: String = sha2::Sha256::digest(&bytes)
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect();
+            assert_eq!(f.sha256, on_disk, "{name}: {}", f.path);
+        }
+    }
+}
+
 fn copy_dataset(name: &str) -> tempfile::TempDir {
     let dst = tempfile::tempdir().expect("tempdir");
     fixtures::copy_dataset(name, dst.path(), |m| m).expect("copy");
