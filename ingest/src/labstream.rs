@@ -499,6 +499,7 @@ struct RunSink<'a> {
 impl RunSink<'_> {
     /// Writes the pending run, its samples spread evenly from its stamp to `next` (or at
     /// the declared interval).
+    #[inline(always)]
     fn write_pending(&mut self, next: Option<i64>) -> Result<()> {
         let n = self.pending;
         let stamp = self.pending_stamp;
@@ -553,6 +554,7 @@ impl RunSink<'_> {
 impl Sink<RunRef> for RunSink<'_> {
     type Error = Error;
 
+    #[inline(always)]
     fn accept(&mut self, time_ns: i64, run: RunRef) -> Result<()> {
         if self.pending > 0 {
             self.steps.add(time_ns - self.pending_stamp);
