@@ -157,6 +157,7 @@ impl StreamWriter {
                     tables::STATUS,
                 ],
                 uncompressed: &tables::acceleration::COUNTS,
+                lz4: &[],
                 no_statistics: &tables::acceleration::COUNTS,
             },
         )?

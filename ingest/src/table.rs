@@ -147,6 +147,10 @@ pub struct Encodings<'a> {
     /// Columns left uncompressed: delta-encoded noisy counts, which zstd shrinks by 2% at
     /// a quarter of their encoding time (`examples/encodings.rs`).
     pub uncompressed: &'a [&'a str],
+    /// Columns compressed with LZ4 (Parquet's LZ4_RAW) instead of zstd: where zstd's time
+    /// is what a run waits for and the table is an intermediate one (the lab table's
+    /// readings). Only for the columns ingest encodes itself (delta, byte stream split).
+    pub lz4: &'a [&'a str],
     /// Columns without min/max statistics: raw counts, on which nobody filters, where
     /// computing them is a tenth of the writing.
     pub no_statistics: &'a [&'a str],
@@ -174,6 +178,9 @@ fn properties(enc: Encodings<'_>) -> WriterProperties {
     }
     for c in enc.uncompressed {
         b = b.set_column_compression(ColumnPath::from(*c), Compression::UNCOMPRESSED);
+    }
+    for c in enc.lz4 {
+        b = b.set_column_compression(ColumnPath::from(*c), Compression::LZ4_RAW);
     }
     for c in enc.no_statistics {
         b = b.set_column_statistics_enabled(ColumnPath::from(*c), EnabledStatistics::None);
@@ -429,7 +436,7 @@ fn encode_column(
 }
 
 /// The column's encoding if ingest's own encoders may write it: flat (definition level at
-/// most 1), no dictionary or bloom filter, uncompressed or zstd, version 1 pages.
+/// most 1), no dictionary or bloom filter, uncompressed, zstd or LZ4_RAW, version 1 pages.
 fn own_encoding(descr: &ColumnDescPtr, props: &WriterPropertiesPtr) -> Option<Encoding> {
     let path = descr.path();
     let own = !props.dictionary_enabled(path)
@@ -439,7 +446,7 @@ fn own_encoding(descr: &ColumnDescPtr, props: &WriterPropertiesPtr) -> Option<En
         && descr.max_def_level() <= 1
         && matches!(
             props.compression(path),
-            Compression::UNCOMPRESSED | Compression::ZSTD(_)
+            Compression::UNCOMPRESSED | Compression::ZSTD(_) | Compression::LZ4_RAW
         );
     own.then(|| props.encoding(path)).flatten()
 }
@@ -550,13 +557,7 @@ fn encode_own_pages(
     let path = descr.path();
     let nullable = descr.max_def_level() == 1;
     let rows = checked_rows(nullable, values, levels)?;
-    let mut zstd = match props.compression(path) {
-        Compression::ZSTD(level) => Some(
-            zstd::bulk::Compressor::new(level.compression_level())
-                .map_err(|e| ParquetError::External(Box::new(e)))?,
-        ),
-        _ => None,
-    };
+    let mut codec = PageCodec::of(props.compression(path))?;
     let mut offset_index = (!props.offset_index_disabled()).then(OffsetIndexBuilder::new);
     let mut sink = TrackedWrite::new(Vec::new());
     let mut pages = SerializedPageWriter::new(&mut sink);
@@ -572,12 +573,7 @@ fn encode_own_pages(
         next_value += page_values;
         put_values(range, (page_rows - page_values) as i64, &mut buf);
         let uncompressed_size = buf.len();
-        let data = match zstd.as_mut() {
-            Some(z) => z
-                .compress(&buf)
-                .map_err(|e| ParquetError::External(Box::new(e)))?,
-            None => std::mem::take(&mut buf),
-        };
+        let data = codec.compress(&mut buf)?;
         let page = Page::DataPage {
             buf: data.into(),
             num_values: page_rows as u32,
@@ -606,6 +602,40 @@ fn encode_own_pages(
         offset_index: offset_index.map(OffsetIndexBuilder::build),
     };
     Ok((sink.into_inner()?.into(), close, (rows - values) as u64))
+}
+
+/// How the pages ingest encodes itself are compressed ([`own_encoding`] admits no other).
+enum PageCodec {
+    None,
+    Zstd(zstd::bulk::Compressor<'static>),
+    /// LZ4's block format, which is Parquet's LZ4_RAW.
+    Lz4,
+}
+
+impl PageCodec {
+    fn of(compression: Compression) -> parquet::errors::Result<Self> {
+        match compression {
+            Compression::UNCOMPRESSED => Ok(PageCodec::None),
+            Compression::ZSTD(level) => zstd::bulk::Compressor::new(level.compression_level())
+                .map(PageCodec::Zstd)
+                .map_err(|e| ParquetError::External(Box::new(e))),
+            Compression::LZ4_RAW => Ok(PageCodec::Lz4),
+            other => Err(ParquetError::NYI(format!(
+                "{other} for a column ingest encodes itself"
+            ))),
+        }
+    }
+
+    /// The page's bytes compressed (taken from `buf` when not compressed).
+    fn compress(&mut self, buf: &mut Vec<u8>) -> parquet::errors::Result<Vec<u8>> {
+        match self {
+            PageCodec::None => Ok(std::mem::take(buf)),
+            PageCodec::Zstd(z) => z
+                .compress(buf)
+                .map_err(|e| ParquetError::External(Box::new(e))),
+            PageCodec::Lz4 => Ok(lz4_flex::block::compress(buf)),
+        }
+    }
 }
 
 /// Puts a data page's definition levels into `buf` (`levels` the page's, or none: every

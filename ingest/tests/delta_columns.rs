@@ -17,7 +17,7 @@ use proptest::prelude::*;
 use std::sync::Arc;
 
 /// Columns: t, i64 required, zstd, statistics; c, i32 nullable, uncompressed, no statistics;
-/// z, i32 nullable, zstd, statistics; w, i64 nullable, uncompressed, statistics; d, f64
+/// z, i32 nullable, zstd, statistics; w, i64 nullable, LZ4_RAW, statistics; d, f64
 /// nullable, byte stream split, zstd, no statistics.
 fn schema() -> SchemaRef {
     Arc::new(Schema::new(vec![
@@ -33,15 +33,14 @@ const DELTA: [&str; 4] = ["t", "c", "z", "w"];
 
 /// The same columns as parquet-rs's own writer would encode them, in row groups of `group`.
 fn reference_properties(group: usize) -> WriterProperties {
-    let mut b = WriterProperties::builder()
+    let b = WriterProperties::builder()
         .set_max_row_group_row_count(Some(group))
         .set_compression(Compression::ZSTD(ZstdLevel::try_new(1).expect("level")))
         .set_dictionary_enabled(false)
         .set_encoding(Encoding::DELTA_BINARY_PACKED);
-    for c in ["c", "w"] {
-        b = b.set_column_compression(ColumnPath::from(c), Compression::UNCOMPRESSED);
-    }
-    b.set_column_statistics_enabled(ColumnPath::from("c"), EnabledStatistics::None)
+    b.set_column_compression(ColumnPath::from("c"), Compression::UNCOMPRESSED)
+        .set_column_compression(ColumnPath::from("w"), Compression::LZ4_RAW)
+        .set_column_statistics_enabled(ColumnPath::from("c"), EnabledStatistics::None)
         .set_column_statistics_enabled(ColumnPath::from("d"), EnabledStatistics::None)
         .set_column_encoding(ColumnPath::from("d"), Encoding::BYTE_STREAM_SPLIT)
         .build()
@@ -83,7 +82,8 @@ impl Table {
             schema(),
             Encodings {
                 delta: &DELTA,
-                uncompressed: &["c", "w"],
+                uncompressed: &["c"],
+                lz4: &["w"],
                 no_statistics: &["c", "d"],
                 byte_stream_split: &["d"],
                 ..Encodings::default()

@@ -270,3 +270,72 @@ fn lab_manifest_errors_name_the_key() {
         assert!(e.to_string().contains(key), "{key}: {e}");
     }
 }
+
+#[path = "../../align/tests/peers/mod.rs"]
+mod peers;
+
+/// DuckDB (an independent Parquet reader) reads the lab table of the lab-logger fixture
+/// (two lab streams, decimals in m/s^2) as parquet-rs does, bit for bit, from readings
+/// compressed with LZ4_RAW.
+#[test]
+fn duckdb_reads_the_lab_table_as_written() {
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    let out = tempfile::tempdir().expect("tempdir");
+    ingest::run(&fixtures::dataset_dir("lab-logger"), out.path()).expect("ingest");
+    let mut ours = Vec::new();
+    for b in read_table(out.path(), tables::lab::FILE) {
+        let column = |name: &str| b.column_by_name(name).expect("column").clone();
+        let session = column(tables::SESSION_INDEX);
+        let session = session.as_primitive::<arrow::datatypes::UInt16Type>();
+        let time = column(tables::TIME_GPS_NS);
+        let time = time.as_primitive::<Int64Type>();
+        let line = column(tables::lab::LINE);
+        let line = line.as_primitive::<arrow::datatypes::UInt64Type>();
+        let values: Vec<_> = tables::lab::VALUES.iter().map(|v| column(v)).collect();
+        for i in 0..b.num_rows() {
+            let mut row = format!("{} {} {}", session.value(i), time.value(i), line.value(i));
+            for v in &values {
+                let v = v.as_primitive::<Float64Type>();
+                match v.is_valid(i) {
+                    true => write!(row, " {}", v.value(i).to_bits() as i64).expect("write"),
+                    false => row.push_str(" null"),
+                }
+            }
+            ours.push(row);
+        }
+    }
+    ours.sort();
+    let script = r#"
+import duckdb, struct, sys
+t = sys.argv[1]
+codecs = {c for (c,) in duckdb.sql(
+    f"select distinct compression from parquet_metadata('{t}') where path_in_schema like 'value_ch%'"
+).fetchall()}
+print("codecs", " ".join(sorted(codecs)))
+bits = lambda v: "null" if v is None else str(struct.unpack("<q", struct.pack("<d", v))[0])
+for s, tm, ln, *vs in duckdb.sql(
+    f"select session_index, time_gps_ns, line, value_ch1, value_ch2, value_ch3 from read_parquet('{t}')"
+).fetchall():
+    print(s, tm, ln, *map(bits, vs))
+"#;
+    let table = out.path().join("ingest").join(tables::lab::FILE);
+    let o = std::process::Command::new(&py)
+        .arg("-c")
+        .arg(script)
+        .arg(&table)
+        .output()
+        .expect("python");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8(o.stdout).expect("utf-8");
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("codecs LZ4_RAW"));
+    let mut theirs: Vec<String> = lines.map(str::to_owned).collect();
+    theirs.sort();
+    assert!(ours.len() > 10_000, "{} rows", ours.len());
+    assert_eq!(ours.len(), theirs.len());
+    for (a, b) in ours.iter().zip(&theirs) {
+        assert_eq!(a, b);
+    }
+}
