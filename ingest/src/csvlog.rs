@@ -176,8 +176,7 @@ fn counts_fast(line: &[u8], mut p: usize) -> Option<([i32; 3], u8)> {
 /// reads them. `None` sends the line to [`parse_row_timed`], which also explains what is
 /// wrong.
 fn parse_adc_timed_fast(line: &[u8], time: &mut TimeReader) -> Option<Row> {
-    let comma = memchr::memchr(b',', line)?;
-    let time_ns = time.read(&[&line[..comma]]).ok()?;
+    let (time_ns, comma) = time.read_leading_fast(line)?;
     let (counts, status) = counts_fast(line, comma)?;
     Some(Row::Adc {
         time_ns,
@@ -593,13 +592,16 @@ mod tests {
     #[test]
     fn timed_fast_path_agrees_with_the_general_parser() {
         use crate::contract::manifest::TimeScale;
-        let cases: [(TimeForm, &[u8], bool); 12] = [
+        let cases: [(TimeForm, &[u8], bool); 15] = [
             (
                 TimeForm::Iso,
                 b"2026-03-14T09:12:03Z,1534211,,-8388608",
                 true,
             ),
             (TimeForm::Iso, b"2026-03-14T09:12:03.125Z,1,2,3", true),
+            (TimeForm::Iso, b"2026-03-14T09:12:03.123456789Z,1,2,3", true),
+            (TimeForm::Iso, b"2026-03-14T09:12:03.5,1,2,3", true),
+            (TimeForm::Iso, b"2026-03-14T09:12:03Z1,2,3", false),
             (TimeForm::Iso, b"2026-03-14 09:12:03.125,1,2,3", true),
             (TimeForm::Iso, b"2026-03-14T09:12:03+01:00,1,2,3", true),
             (TimeForm::Iso, b"2026-03-14T09:12:03Z, 1,2,3", false),

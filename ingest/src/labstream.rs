@@ -20,7 +20,7 @@
 use crate::contract::ingest_ledger::{FileLedger, LabStreamReport, reason};
 use crate::contract::tables;
 use crate::error::{Error, Result};
-use crate::lines::{digits, read_lines, strip_comment, text};
+use crate::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
 use crate::rowgroup::{N, Spare, column, nullable, session_values, whole};
 use crate::table::{ColumnTableWriter, ColumnValues, Encodings, Written};
 use crate::time::parse_seconds_ns;
@@ -267,17 +267,6 @@ const EXACT_POWERS: [f64; 23] = [
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
     1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
 ];
-
-/// 10^k, k = 0..=15: the scale of a fraction's digits without `pow`'s loop.
-const POWERS_OF_TEN: [i64; 16] = {
-    let mut p = [1i64; 16];
-    let mut k = 1;
-    while k < 16 {
-        p[k] = p[k - 1] * 10;
-        k += 1;
-    }
-    p
-};
 
 /// A plain decimal (sign, digits, a point, digits, an exponent) whose significant digits
 /// fit in 2^53 and whose power of ten is within 10^22, read as its exact integer times or

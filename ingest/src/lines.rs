@@ -170,6 +170,17 @@ pub fn strip_comment(line: &[u8]) -> &[u8] {
     line.trim_ascii()
 }
 
+/// 10^k, k = 0..=15: the scale of a fraction's digits without `pow`'s loop.
+pub(crate) const POWERS_OF_TEN: [i64; 16] = {
+    let mut p = [1i64; 16];
+    let mut k = 1;
+    while k < 16 {
+        p[k] = p[k - 1] * 10;
+        k += 1;
+    }
+    p
+};
+
 /// The run of ASCII digits at `line[*p..]` as a number, if it has 1 to `max_digits` (at most
 /// 18, which an i64 holds) digits; moves `p` past it. Eight bytes are looked at together:
 /// which are digits from two additions whose top bits mark the bytes out of `0x30..=0x39`,

@@ -114,43 +114,43 @@ impl TimeReader {
     /// time of day. A leap second is inserted at the end of a UTC day, so it never lies
     /// between a UTC midnight and a time of day below 23:59:60. Anything else (an offset,
     /// a leap second, a malformed time) is `None`, left to the general parser.
-    #[inline]
-    fn iso_fast(&mut self, b: &[u8]) -> Option<i64> {
-        let (body, zulu) = match b.last()? {
-            b'Z' | b'z' => (&b[..b.len() - 1], true),
-            _ => (b, false),
-        };
-        if body.len() < 19
-            || !matches!(body[10], b'T' | b' ')
-            || body[13] != b':'
-            || body[16] != b':'
+    #[inline(always)]
+    fn iso_fast(&mut self, field: &[u8]) -> Option<i64> {
+        self.iso_fast_prefix(field)
+            .and_then(|(t, end)| (end == field.len()).then_some(t))
+    }
+
+    /// [`Self::iso_fast`] of the time at the start of `line`: the time and where it ends
+    /// (its fraction's digits and a `Z`), so that a reader of the line needs no search for
+    /// the field's end.
+    #[inline(always)]
+    fn iso_fast_prefix(&mut self, line: &[u8]) -> Option<(i64, usize)> {
+        if line.len() < 19
+            || !matches!(line[10], b'T' | b' ')
+            || line[13] != b':'
+            || line[16] != b':'
         {
             return None;
         }
         let two = |i: usize| -> Option<i64> {
-            let (a, c) = (body[i].wrapping_sub(b'0'), body[i + 1].wrapping_sub(b'0'));
+            let (a, c) = (line[i].wrapping_sub(b'0'), line[i + 1].wrapping_sub(b'0'));
             (a < 10 && c < 10).then(|| i64::from(a) * 10 + i64::from(c))
         };
         let (h, m, sec) = (two(11)?, two(14)?, two(17)?);
         if h > 23 || m > 59 || sec > 59 {
             return None;
         }
+        let mut p = 19;
         let mut nanos = 0i64;
-        if body.len() > 19 {
-            let frac = &body[20..];
-            if body[19] != b'.' || frac.is_empty() || frac.len() > 9 {
-                return None;
-            }
-            for &c in frac {
-                let d = c.wrapping_sub(b'0');
-                if d >= 10 {
-                    return None;
-                }
-                nanos = nanos * 10 + i64::from(d);
-            }
-            nanos *= 10i64.pow(9 - frac.len() as u32);
+        if line.get(p) == Some(&b'.') {
+            // The fraction's digits eight at a time ([`crate::lines::digits`]).
+            p += 1;
+            let frac = crate::lines::digits(line, &mut p, 9)?;
+            nanos = frac * crate::lines::POWERS_OF_TEN[9 - (p - 20)];
         }
-        let date: [u8; 10] = body[..10].try_into().ok()?;
+        let zulu = matches!(line.get(p), Some(b'Z' | b'z'));
+        p += usize::from(zulu);
+        let date: [u8; 10] = line[..10].try_into().ok()?;
         let midnight = match self.iso_day {
             Some((d, z, ns)) if d == date && z == zulu => ns,
             _ => {
@@ -161,7 +161,41 @@ impl TimeReader {
                 ns
             }
         };
-        Some(midnight + ((h * 60 + m) * 60 + sec) * 1_000_000_000 + nanos)
+        Some((
+            midnight + ((h * 60 + m) * 60 + sec) * 1_000_000_000 + nanos,
+            p,
+        ))
+    }
+
+    /// The time at the start of a line whose form is one field followed by a comma, on the
+    /// common path and without an error to explain: the time and where its field ends (at
+    /// the comma). None sends the caller to [`Self::read`], which says what is wrong. An
+    /// ISO time is read without a search for the comma ([`Self::iso_fast_prefix`]).
+    #[inline(always)]
+    pub(crate) fn read_leading_fast(&mut self, line: &[u8]) -> Option<(i64, usize)> {
+        if self.form == TimeForm::Iso
+            && let Some((t, end)) = self.iso_fast_prefix(line)
+            && line.get(end) == Some(&b',')
+        {
+            return Some((t, end));
+        }
+        let comma = memchr::memchr(b',', line)?;
+        Some((self.read_one_fast(&line[..comma])?, comma))
+    }
+
+    /// [`Self::read`] of a form written as one field, on its common path and without an
+    /// error to explain: None sends the caller to [`Self::read`], which says what is wrong.
+    #[inline(always)]
+    pub(crate) fn read_one_fast(&mut self, field: &[u8]) -> Option<i64> {
+        match self.form {
+            TimeForm::Iso => match self.iso_fast(field) {
+                Some(t) => Some(t),
+                None => self.iso_calendar(field).ok(),
+            },
+            TimeForm::UnixS => self.unix(field).ok(),
+            TimeForm::S => self.since_start(field).ok(),
+            TimeForm::GpsWeekTow => None,
+        }
     }
 
     /// The GPS time (ns) of a time written as `fields` (as many as the form takes): Err with
@@ -178,9 +212,14 @@ impl TimeReader {
     /// An ISO 8601 time: the common case on [`Self::iso_fast`], the rest (an offset, a leap
     /// second, an error to explain) through the calendar.
     fn iso(&mut self, field: &[u8]) -> Result<i64, (&'static str, String)> {
-        if let Some(t) = self.iso_fast(field) {
-            return Ok(t);
+        match self.iso_fast(field) {
+            Some(t) => Ok(t),
+            None => self.iso_calendar(field),
         }
+    }
+
+    /// Any ISO 8601 time, through the calendar.
+    fn iso_calendar(&self, field: &[u8]) -> Result<i64, (&'static str, String)> {
         let s = std::str::from_utf8(field).map_err(|_| ("time", "not UTF-8".to_owned()))?;
         let (c, offset_min) = parse_iso(s).map_err(|m| ("time", m))?;
         let scale = if offset_min.is_some() {
@@ -641,6 +680,58 @@ mod tests {
         ] {
             assert!(parse_calendar(bad).is_err(), "{bad}");
         }
+    }
+
+    /// The ISO fast path reads what the calendar reads: every length of fraction, `Z` or
+    /// none, `T` or a space, across a midnight it keeps; and it leaves the rest (no
+    /// fraction digit, ten of them, a stray byte, a leap second, an offset) to it.
+    #[test]
+    fn iso_fast_path_agrees_with_the_calendar() {
+        let mut taken = 0;
+        for scale in [TimeScale::Utc, TimeScale::Gpst] {
+            let mut r = TimeReader::new(TimeForm::Iso, scale, None);
+            let mut fields: Vec<String> = Vec::new();
+            for day in ["2016-12-31", "2017-01-01", "2026-03-14"] {
+                for (sep, zone) in [("T", "Z"), (" ", ""), ("T", "")] {
+                    for frac in [
+                        "",
+                        ".1",
+                        ".12",
+                        ".123",
+                        ".1234",
+                        ".12345",
+                        ".123456",
+                        ".1234567",
+                        ".12345678",
+                        ".123456789",
+                        ".1234567891",
+                        ".",
+                        ".12a",
+                        "x",
+                    ] {
+                        fields.push(format!("{day}{sep}23:59:59{frac}{zone}"));
+                        fields.push(format!("{day}{sep}00:00:07{frac}{zone}"));
+                    }
+                }
+                fields.push(format!("{day}T23:59:60Z"));
+                fields.push(format!("{day}T09:12:03+01:00"));
+            }
+            for f in &fields {
+                let general = r.iso_calendar(f.as_bytes()).ok();
+                match r.iso_fast(f.as_bytes()) {
+                    Some(t) => {
+                        taken += 1;
+                        assert_eq!(Some(t), general, "{f} in {scale:?}");
+                    }
+                    None => {
+                        let plain = f.len() >= 19 && !f.contains(['.', 'x', '+']);
+                        assert!(!plain || f.contains(":60"), "{f} declined");
+                    }
+                }
+                assert_eq!(r.read_one_fast(f.as_bytes()), general, "{f} in {scale:?}");
+            }
+        }
+        assert!(taken > 200, "{taken} taken");
     }
 
     #[test]
