@@ -22,7 +22,7 @@ use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
 use crate::rowgroup::{N, Spare, column, nullable, session_values, whole};
-use crate::table::{ColumnTableWriter, ColumnValues, Encodings, Written};
+use crate::table::{ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Written};
 use crate::time::parse_seconds_ns;
 use crate::timegate::{Position, Sink, TimeGate};
 use std::collections::{BTreeMap, VecDeque};
@@ -107,7 +107,8 @@ impl LabWriter {
                 ..Encodings::default()
             },
         )?
-        .one_column_at_a_time();
+        .one_column_at_a_time()
+        .sync_every(INGEST_GROUPS_PER_SYNC);
         // Two row groups queued keep both threads busy.
         let (to_writer, rx) = sync_channel(2);
         let (spent_tx, spent) = channel();

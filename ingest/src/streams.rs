@@ -5,7 +5,10 @@ use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::rowgroup::{N, Spare, column, nullable, session_values, whole};
-use crate::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP, Written};
+use crate::table::{
+    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, STREAM_ROWS_PER_GROUP,
+    Written,
+};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
@@ -161,14 +164,16 @@ impl StreamWriter {
                 no_statistics: &tables::acceleration::COUNTS,
             },
         )?
-        .one_column_at_a_time();
+        .one_column_at_a_time()
+        .sync_every(INGEST_GROUPS_PER_SYNC);
         let temperature = ColumnTableWriter::create(
             dir,
             tables::temperature::FILE,
             tables::temperature::schema(sessions),
             Encodings::default(),
         )?
-        .one_column_at_a_time();
+        .one_column_at_a_time()
+        .sync_every(INGEST_GROUPS_PER_SYNC);
         // Two row groups queued keep both threads busy.
         let (tx, rx) = sync_channel(2);
         let (spent_tx, spent) = channel();

@@ -262,15 +262,23 @@ pub struct ColumnTableWriter {
     /// Whether a row group's columns are encoded on the rayon pool (or one after another on
     /// the caller's thread, [`ColumnTableWriter::one_column_at_a_time`]).
     parallel: bool,
+    /// Row groups between syncs ([`GROUPS_PER_SYNC`], or [`ColumnTableWriter::sync_every`]).
+    groups_per_sync: u64,
 }
 
 /// Row groups between syncs of what is written so far, on the writer's thread while the
 /// reader goes on: the sync before the rename then waits only for the rest (on the 250 Hz
 /// day about 2 ms where it had been 35-60 ms for the whole 68 MB; `strace -f -T -e
-/// trace=fsync,fdatasync`). Four (half an hour of 250 Hz samples in the stream tables)
-/// rather than sixteen: a two-hour log, which had one sync of everything at the end, ran
-/// 0.011-0.014 s (5-6 %) faster, the 250 Hz day no slower (docs/benchmarks.md).
-const GROUPS_PER_SYNC: u64 = 4;
+/// trace=fsync,fdatasync`). Ingest's tables sync more often
+/// ([`ColumnTableWriter::sync_every`]).
+const GROUPS_PER_SYNC: u64 = 16;
+
+/// Row groups between syncs of ingest's stream and lab tables: 4 (35 minutes of 250 Hz
+/// samples) rather than [`GROUPS_PER_SYNC`]. A two-hour log, which had had one sync of
+/// everything at the end, ran 0.011-0.014 s (5-6 %) faster, the 250 Hz day no slower;
+/// apply's 192 MB table, synced every 4 of its row groups, ran slower (2.47 against 2.08 s
+/// on the 6 h log), so apply keeps the default (docs/benchmarks.md).
+pub(crate) const INGEST_GROUPS_PER_SYNC: u64 = 4;
 
 impl ColumnTableWriter {
     /// Starts `dir/file` (written as `dir/.file.partial` until
@@ -290,7 +298,15 @@ impl ColumnTableWriter {
             rows: 0,
             groups: 0,
             parallel: true,
+            groups_per_sync: GROUPS_PER_SYNC,
         })
+    }
+
+    /// Syncs what is written every `groups` row groups (at least 1) instead of every
+    /// [`GROUPS_PER_SYNC`] (ingest's tables: [`INGEST_GROUPS_PER_SYNC`]).
+    pub fn sync_every(mut self, groups: u64) -> Self {
+        self.groups_per_sync = groups.max(1);
+        self
     }
 
     /// Encodes each row group's columns one after another on the thread that writes it,
@@ -352,7 +368,7 @@ impl ColumnTableWriter {
         group.close().map_err(parquet_error)?;
         self.rows += rows as u64;
         self.groups += 1;
-        if self.groups.is_multiple_of(GROUPS_PER_SYNC) {
+        if self.groups.is_multiple_of(self.groups_per_sync) {
             w.flush().map_err(|e| Error::io(&self.file.tmp, e))?;
             w.inner()
                 .get_ref()
