@@ -31,9 +31,9 @@ use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
 use std::thread::JoinHandle;
 
 /// `lab.parquet`, written a row group at a time on a thread of its own (the readings'
-/// encoding and zstd), while the caller parses the next lines. The row group's columns are
-/// arrays filled in place, as the acceleration table's are (`streams`), their buffers
-/// coming back from the writer for the next row groups.
+/// encoding and compression), while the caller parses the next lines. The row group's
+/// columns are arrays filled in place, as the acceleration table's are (`streams`), their
+/// buffers coming back from the writer for the next row groups.
 pub struct LabWriter {
     to_writer: Option<SyncSender<ToWriter>>,
     writer: Option<JoinHandle<Result<Written>>>,
@@ -96,9 +96,9 @@ impl LabWriter {
             // Chosen by measurement (`cargo xtask bench ingest`, docs/benchmarks.md): the
             // session, time and line columns by ingest's own delta encoder; the readings
             // split by byte stream, which lets a compressor find what their high bytes
-            // share, compressed with LZ4 (zstd's time was a sixth of the run's CPU, for a
-            // table a quarter smaller), and without min/max statistics (a tenth of their
-            // writing, and nobody filters on them).
+            // share, compressed with LZ4 (zstd cost 9 % more of the run's CPU, for a table
+            // 27 % smaller), and without min/max statistics (a tenth of their writing, and
+            // nobody filters on them).
             Encodings {
                 delta: &[tables::SESSION_INDEX, tables::lab::LINE],
                 byte_stream_split: &tables::lab::VALUES,
