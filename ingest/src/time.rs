@@ -188,10 +188,7 @@ impl TimeReader {
     #[inline(always)]
     pub(crate) fn read_one_fast(&mut self, field: &[u8]) -> Option<i64> {
         match self.form {
-            TimeForm::Iso => match self.iso_fast(field) {
-                Some(t) => Some(t),
-                None => self.iso_calendar(field).ok(),
-            },
+            TimeForm::Iso => self.iso(field).ok(),
             TimeForm::UnixS => self.unix(field).ok(),
             TimeForm::S => self.since_start(field).ok(),
             TimeForm::GpsWeekTow => None,

@@ -290,11 +290,8 @@ fn custody_holds_the_tables_hashes_as_on_disk() {
             "{name}"
         );
         for f in outputs {
-            let bytes = std::fs::read(out.path().join(&f.path)).expect("table");
-            let on_disk: String = sha2::Sha256::digest(&bytes)
-                .iter()
-                .map(|b| format!("{b:02x}"))
-                .collect();
+            let on_disk =
+                ingest::contract::custody::sha256_file(&out.path().join(&f.path)).expect("table");
             assert_eq!(f.sha256, on_disk, "{name}: {}", f.path);
         }
     }
