@@ -33,11 +33,13 @@
 pub mod attitude;
 pub mod crossover;
 pub mod epochs;
+pub mod errors;
 pub mod filter;
 pub mod horizontal;
 pub mod navigation;
 pub mod normal;
 pub mod reduce;
+pub mod spectrum;
 mod spill;
 pub mod stage;
 mod track;

@@ -124,6 +124,11 @@ pub struct SpilledAttitude {
 }
 
 impl SpilledAttitude {
+    /// The samples' median interval, s.
+    pub fn interval_s(&self) -> f64 {
+        self.max_gap_ns as f64 * 0.5e-9
+    }
+
     fn io(&self, e: std::io::Error) -> GravityError {
         GravityError::File {
             path: self.path.clone(),

@@ -21,6 +21,7 @@
 
 use super::GravityError;
 use super::attitude::{self, AttitudeAt, AttitudeCursor};
+use super::spectrum::SpectralFloor;
 use super::spill::{Spill, SpillWriter};
 use ingest::contract::tables::{TIME_GPS_NS, applied};
 use std::path::Path;
@@ -439,7 +440,8 @@ impl ThirdDifferences {
 pub struct Filled {
     /// One bin per epoch, on disk.
     pub bins: Vec<SpilledBins>,
-    /// The sd of one sample's f_D from its white noise, mGal.
+    /// The sd of one sample's f_D from its white noise (the floor of its spectrum,
+    /// [`super::spectrum`]), mGal.
     pub sample_sd_mgal: Vec<f64>,
 }
 
@@ -462,7 +464,7 @@ pub fn fill(
         .map_err(spill)?;
     let mut backwards: Option<i64> = None;
     let mut failed: Option<GravityError> = None;
-    let mut noise = vec![ThirdDifferences::new(interval_ns); targets.len()];
+    let mut noise = vec![SpectralFloor::new(interval_ns); targets.len()];
     let (names, flags) = force.columns();
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut values = vec![None; refs.len()];
@@ -562,7 +564,7 @@ pub fn fill(
         .map_err(spill)?;
     Ok(Filled {
         bins,
-        sample_sd_mgal: noise.iter().map(ThirdDifferences::sd).collect(),
+        sample_sd_mgal: noise.iter().map(SpectralFloor::sd).collect(),
     })
 }
 

@@ -18,11 +18,11 @@
 //! carried through their covariance where the triad has no temperature terms, the filtered
 //! sigma otherwise); and the attitude's: a tilt error eps turns the specific force, delta f =
 //! eps x f, so that its north part is f_D eps_E - f_E eps_heading, first order in the tilt (1
-//! mrad is about 980 mGal). Attitude errors of a multi-antenna GNSS or an INS are slow, so
-//! they are taken as correlated over the filter's length: the filter does not reduce them
-//! (for white attitude noise this overstates the sigma by the filter's white-noise gain).
+//! mrad is about 980 mGal), carried through the filter as the manifest declares the
+//! attitude's errors to behave: white, correlated or systematic ([`super::errors`]).
 
 use super::GravityError;
+use super::errors;
 use super::filter;
 use super::navigation::{coriolis_transport, longitude_step_deg, radii};
 use super::normal::GRS80;
@@ -38,10 +38,15 @@ pub struct Horizontal {
     pub sigma_calibration_mgal: [Vec<f64>; 2],
     /// The calibration's error as gradients by the parameters, where they can be formed.
     pub calibration: [Option<CalibrationGradient>; 2],
-    /// The attitude's sigma of each, mGal.
-    pub sigma_attitude_mgal: [Vec<f64>; 2],
-    /// The positions' sds north and east, m (0 where unknown).
+    /// The effect on each of a one-sd error of the heading, the pitch and the roll, signed
+    /// ([`errors::attitude_effects`]), mGal.
+    pub attitude_effects_mgal: [Vec<[f64; 3]>; 2],
+    /// The positions' white sds north and east, m (0 where unknown; as the down
+    /// component's `sd_up_m`).
     pub sd_m: [Vec<f64>; 2],
+    /// The file's sds north and east where declared correlated or systematic, m (empty when
+    /// white).
+    pub sd_declared_m: [Vec<f64>; 2],
 }
 
 /// North and east reduced, indexed [north, east].
@@ -160,13 +165,24 @@ pub fn reduce_horizontal(
         out.filtered_mgal[c] = f;
         let sd: Vec<f64> = h.sd_m[c].iter().map(|sd| sd * 1e5).collect();
         out.sigma_positions_mgal[c] = reduce::propagated_sd(&positions_row, &sd);
+        if let Some(model) = s.position_errors {
+            let declared: Vec<f64> = h.sd_declared_m[c].iter().map(|sd| sd * 1e5).collect();
+            let part = errors::position_sigma(&positions_row, &declared, model, dt, 0.0);
+            for (v, p) in out.sigma_positions_mgal[c].iter_mut().zip(part) {
+                *v = v.hypot(p);
+            }
+        }
         out.sigma_noise_mgal[c] = reduce::scaled(&noise_row, &s.noise_f_mgal);
         out.sigma_calibration_mgal[c] = match &h.calibration[c] {
             Some(g) => g.filtered_sigma(&sections, pad, pivot),
             None => filter::filtfilt_pivoted(&sections, &h.sigma_calibration_mgal[c], pad, pivot),
         };
-        out.sigma_attitude_mgal[c] =
-            filter::filtfilt_pivoted(&sections, &h.sigma_attitude_mgal[c], pad, pivot);
+        out.sigma_attitude_mgal[c] = errors::attitude_sigma(
+            &h.attitude_effects_mgal[c],
+            s.attitude_errors,
+            (&sections, pad, pivot),
+            (dt, filter_s),
+        );
         out.sigma_mgal[c] = (0..n)
             .map(|k| {
                 [
@@ -185,50 +201,9 @@ pub fn reduce_horizontal(
     Ok(out)
 }
 
-/// The attitude's sigma of the specific force north, east and down, mGal, at heading
-/// `heading` (rad) with sds of heading, pitch and roll `sd` (rad), for the specific force `f`
-/// (N, E, D, mGal): the tilt errors turned into the navigation frame, eps_N = cos(h) d_roll -
-/// sin(h) d_pitch, eps_E = sin(h) d_roll + cos(h) d_pitch, eps_D = d_heading, and
-/// delta f = eps x f. Down is first order only in the horizontal specific force (a turn's
-/// centripetal acceleration: 0.17 m/s^2 at 5 m/s on 150 m times 0.1 mrad is 1.7 mGal); its
-/// second-order part, g eps^2 / 2, is 0.005 mGal at 0.1 mrad and left out.
-pub fn attitude_sigma(heading: f64, sd: [f64; 3], f: [f64; 3]) -> [f64; 3] {
-    let (sh, ch) = heading.sin_cos();
-    let [s_head, s_pitch, s_roll] = sd;
-    let var_n = (ch * s_roll).powi(2) + (sh * s_pitch).powi(2);
-    let var_e = (sh * s_roll).powi(2) + (ch * s_pitch).powi(2);
-    let north = f[2] * f[2] * var_e + f[1] * f[1] * s_head * s_head;
-    let east = f[2] * f[2] * var_n + f[0] * f[0] * s_head * s_head;
-    let down = f[1] * f[1] * var_n + f[0] * f[0] * var_e;
-    [north.sqrt(), east.sqrt(), down.sqrt()]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A level, still platform: 0.1 mrad of pitch heading north tilts the force north by
-    /// g 1e-4 (98 mGal); the heading's error acts only on a horizontal force.
-    #[test]
-    fn a_tilt_error_turns_gravity_into_the_horizontal() {
-        let g = 980_000.0;
-        let [n, e, d] = attitude_sigma(0.0, [1e-3, 1e-4, 0.0], [0.0, 0.0, -g]);
-        assert!(
-            (n - 98.0).abs() < 1e-9 && e.abs() < 1e-9 && d == 0.0,
-            "{n} {e} {d}"
-        );
-        let [n, e, _] = attitude_sigma(
-            std::f64::consts::FRAC_PI_2,
-            [0.0, 1e-4, 0.0],
-            [0.0, 0.0, -g],
-        );
-        assert!(n.abs() < 1e-9 && (e - 98.0).abs() < 1e-9, "{n} {e}");
-        let [n, e, _] = attitude_sigma(0.0, [1e-3, 0.0, 0.0], [0.0, 1000.0, 0.0]);
-        assert!((n - 1.0).abs() < 1e-9 && e.abs() < 1e-9, "{n} {e}");
-        // Turning: a centripetal 16 700 mGal east, 0.1 mrad of roll heading north: 1.67 down.
-        let [_, _, d] = attitude_sigma(0.0, [0.0, 0.0, 1e-4], [0.0, 16_700.0, -g]);
-        assert!((d - 1.67).abs() < 1e-9, "{d}");
-    }
 
     /// Northing and easting along a parallel going east at 10 m/s: the easting grows by
     /// 10 m an epoch, the northing stays, and the second difference is zero.

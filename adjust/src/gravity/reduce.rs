@@ -14,7 +14,9 @@
 //! [`super::horizontal`]'s).
 
 use super::GravityError;
+use super::errors::{self, AttitudeErrors};
 use super::filter;
+use ingest::contract::survey::ErrorModel;
 use super::navigation::{eotvos_down, longitude_step_deg, radii};
 use super::normal::GRS80;
 
@@ -31,14 +33,24 @@ pub struct Stretch {
     pub height_m: Vec<f64>,
     /// The antenna's, as the trajectory gives it, m (written out, not used here).
     pub height_antenna_m: Vec<f64>,
-    /// The positions' sd up, m (0 where unknown).
+    /// The positions' white sd up, m (0 where unknown): the larger of the file's and the
+    /// heights' own white noise when the file's sds are declared white, the own noise alone
+    /// otherwise.
     pub sd_up_m: Vec<f64>,
+    /// The file's sd up where it is declared correlated or systematic (`position_errors`),
+    /// m; empty when white.
+    pub sd_up_declared_m: Vec<f64>,
+    /// The model of `sd_up_declared_m`'s errors.
+    pub position_errors: Option<ErrorModel>,
     /// Specific force down at each epoch, mGal (about -g at rest).
     pub f_down_mgal: Vec<f64>,
     /// Its sigma from the calibration's covariance, mGal.
     pub sigma_f_mgal: Vec<f64>,
-    /// Its sigma from the attitude's errors (0 without attitude), mGal.
-    pub sigma_attitude_mgal: Vec<f64>,
+    /// The effect on it of a one-sd error of the heading, the pitch and the roll, signed
+    /// ([`errors::attitude_effects`]; 0 without attitude), mGal.
+    pub attitude_effects_mgal: Vec<[f64; 3]>,
+    /// How the attitude's errors behave over time.
+    pub attitude_errors: AttitudeErrors,
     /// Where a tie will fix the level: how the calibration's error at each epoch less its
     /// error at the first tie (what the tie does not take away) depends on the parameters;
     /// None: taken as the difference of the sigmas (exact when one parameter dominates).
@@ -65,11 +77,14 @@ impl Stretch {
             &mut self.sd_up_m,
             &mut self.f_down_mgal,
             &mut self.sigma_f_mgal,
-            &mut self.sigma_attitude_mgal,
             &mut self.noise_f_mgal,
         ] {
             cut(v, range.clone());
         }
+        if !self.sd_up_declared_m.is_empty() {
+            cut(&mut self.sd_up_declared_m, range.clone());
+        }
+        cut(&mut self.attitude_effects_mgal, range.clone());
         cut(&mut self.time_gps_ns, range);
         self.calibration_tied = None;
     }
@@ -380,6 +395,10 @@ fn filtered(
     f
 }
 
+/// Normal gravity's change with height, per mGal of height error (a height error in mGal is
+/// 1e5 times the error in m): 0.3086 mGal/m times 1e-5 m/mGal.
+const FREE_AIR_PER_MGAL: f64 = 0.3086e-5;
+
 /// The padding at each end of a stretch: three filter periods, or the stretch.
 pub(super) fn padding(filter_s: f64, dt: f64) -> usize {
     (3.0 * filter_s / dt).ceil() as usize
@@ -439,12 +458,25 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
     out.filtered_mgal = filtered(s, &sections, &out, (pad, pivot), dt);
     let reach = reach(filter_s, dt);
     let heights: Vec<f64> = s.sd_up_m.iter().map(|sd| sd * 1e5).collect();
-    out.sigma_positions_mgal = propagated_sd(&row(&sections, reach, Some(dt)), &heights);
+    let positions_row = row(&sections, reach, Some(dt));
+    out.sigma_positions_mgal = propagated_sd(&positions_row, &heights);
+    if let Some(model) = s.position_errors {
+        let declared: Vec<f64> = s.sd_up_declared_m.iter().map(|sd| sd * 1e5).collect();
+        let part = errors::position_sigma(&positions_row, &declared, model, dt, FREE_AIR_PER_MGAL);
+        for (v, p) in out.sigma_positions_mgal.iter_mut().zip(part) {
+            *v = v.hypot(p);
+        }
+    }
     out.sigma_noise_mgal = scaled(&row(&sections, reach, None), &s.noise_f_mgal);
     out.sigma_calibration_mgal = filter::filtfilt_pivoted(&sections, &s.sigma_f_mgal, pad, pivot);
     out.sigma_tie_mgal = vec![0.0; n];
-    out.sigma_attitude_mgal = if s.sigma_attitude_mgal.iter().any(|v| *v > 0.0) {
-        filter::filtfilt_pivoted(&sections, &s.sigma_attitude_mgal, pad, pivot)
+    out.sigma_attitude_mgal = if s.attitude_effects_mgal.iter().flatten().any(|v| *v != 0.0) {
+        errors::attitude_sigma(
+            &s.attitude_effects_mgal,
+            s.attitude_errors,
+            (&sections, pad, pivot),
+            (dt, filter_s),
+        )
     } else {
         vec![0.0; n]
     };

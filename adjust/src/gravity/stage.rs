@@ -9,6 +9,7 @@ use super::GravityError;
 use super::attitude::{self, AttitudeAt, AttitudeCursor};
 use super::crossover;
 use super::epochs::{self, BinsAt, DownForce, SpilledBins, Target};
+use super::errors::{self, AttitudeErrors};
 use super::horizontal::{self, Horizontal, ReducedHorizontal};
 use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
 use super::track::{Track, read_tracks};
@@ -19,7 +20,7 @@ use ingest::contract::gravity_ledger::{
     NotReduced, STAGE_DIR, SessionGravity, StretchSummary, TieUsed, dropped,
 };
 use ingest::contract::manifest::Dataset;
-use ingest::contract::survey::{ResolvedTie, SurveyConfig};
+use ingest::contract::survey::{ErrorModel, ResolvedTie, SurveyConfig};
 use ingest::contract::tables::{applied, gravity};
 use ingest::time::utc_iso;
 use std::collections::BTreeMap;
@@ -797,7 +798,14 @@ fn stretches(
 /// The reduction's input for the epochs `span` of `track`: with attitude, f_D from the
 /// triad's mean vector through C_b^n; levelled, the bins' own.
 fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) -> Stretch {
-    let mut s = Stretch::default();
+    let mut s = Stretch {
+        attitude_errors: AttitudeErrors {
+            model: ctx.survey.attitude_error_model(),
+            interval_s: track.attitude.as_ref().map_or(0.0, |a| a.interval_s()),
+        },
+        position_errors: declared(ctx.survey.position_error_model()),
+        ..Stretch::default()
+    };
     let bins = &b.bins;
     for k in span {
         let [lat, lon, h] = b.positions.llh(k);
@@ -806,27 +814,47 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
         s.longitude_deg.push(lon);
         s.height_m.push(h);
         s.height_antenna_m.push(b.positions.antenna_height_m(k));
-        s.sd_up_m.push(b.positions.sd_m(k)[2]);
+        let [white, given] = position_sds(&b.positions, k, s.position_errors);
+        s.sd_up_m.push(white[2]);
+        if s.position_errors.is_some() {
+            s.sd_up_declared_m.push(given[2]);
+        }
         match body_to_nav(b, k, &ctx.mounting) {
             Some(c) => {
                 let f = bins[k].mean_nav();
                 s.f_down_mgal.push(f[2]);
                 s.sigma_f_mgal.push(bins[k].sigma_along(c[2]));
                 let a = b.attitude(k);
-                let att = a.map_or(0.0, |a| {
-                    horizontal::attitude_sigma(a.hpr_rad[0], a.sd_rad, f)[2]
+                let effects = a.map_or([0.0; 3], |a| {
+                    errors::attitude_effects(a.hpr_rad[0], a.sd_rad, f)[2]
                 });
-                s.sigma_attitude_mgal.push(att);
+                s.attitude_effects_mgal.push(effects);
             }
             None => {
                 s.f_down_mgal.push(bins[k].mean());
                 s.sigma_f_mgal.push(bins[k].sigma_calibration());
-                s.sigma_attitude_mgal.push(0.0);
+                s.attitude_effects_mgal.push([0.0; 3]);
             }
         }
         s.noise_f_mgal.push(bins[k].noise(ctx.sample_sd_mgal));
     }
     s
+}
+
+/// The positions' error model where it is not white (None when white: the file's sds then
+/// join the white part).
+fn declared(model: ErrorModel) -> Option<ErrorModel> {
+    (model != ErrorModel::White).then_some(model)
+}
+
+/// Epoch `k`'s sds north, east, up: the white part (the larger of the file's and the
+/// positions' own white noise when the file's are white, the own noise alone otherwise) and
+/// the file's, m.
+fn position_sds(p: &super::track::Positions, k: usize, model: Option<ErrorModel>) -> [[f64; 3]; 2] {
+    match model {
+        None => [p.sd_m(k), [0.0; 3]],
+        Some(_) => [p.noise_m(), p.sd_given_m(k)],
+    }
 }
 
 /// North and east's inputs for the epochs `span` of a track with attitude: the specific
@@ -848,14 +876,18 @@ fn horizontal_inputs(
         let c = attitude::product(&a.vehicle_to_nav(), &ctx.mounting);
         let v = bins[k].mean_vector();
         let f = bins[k].mean_nav();
-        let sigma_att = horizontal::attitude_sigma(a.hpr_rad[0], a.sd_rad, f);
-        let sd = b.positions.sd_m(k);
+        let effects = errors::attitude_effects(a.hpr_rad[0], a.sd_rad, f);
+        let model = declared(ctx.survey.position_error_model());
+        let [sd, given] = position_sds(&b.positions, k, model);
         let x = ctx.triad.and_then(|t| t.readings_for(v));
         for i in 0..2 {
             h.f_mgal[i].push(f[i]);
             h.sigma_calibration_mgal[i].push(bins[k].sigma_along(c[i]));
-            h.sigma_attitude_mgal[i].push(sigma_att[i]);
+            h.attitude_effects_mgal[i].push(effects[i]);
             h.sd_m[i].push(sd[i]);
+            if model.is_some() {
+                h.sd_declared_m[i].push(given[i]);
+            }
             if let (Some(series), Some(t)) = (&mut gradients[i], ctx.triad) {
                 match x {
                     Some(x) => {

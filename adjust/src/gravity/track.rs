@@ -82,11 +82,21 @@ impl Positions {
     /// and the positions' own white noise, so that a file whose sds are smaller than the
     /// scatter its positions show is not believed over them.
     pub fn sd_m(&self, k: usize) -> [f64; 3] {
+        let given = self.sd_given_m(k);
+        std::array::from_fn(|i| given[i].max(self.noise_neu_m[i]))
+    }
+
+    /// The file's sds north, east, up at kept epoch `k`, m (none counts as 0).
+    pub fn sd_given_m(&self, k: usize) -> [f64; 3] {
         std::array::from_fn(|i| {
             let given = self.at(k, 4 + i);
-            let given = if given.is_nan() { 0.0 } else { given };
-            given.max(self.noise_neu_m[i])
+            if given.is_nan() { 0.0 } else { given }
         })
+    }
+
+    /// The positions' own white noise north, east, up, m (from their third differences).
+    pub fn noise_m(&self) -> [f64; 3] {
+        self.noise_neu_m
     }
 }
 

@@ -32,8 +32,92 @@ pub struct SurveyConfig {
     /// The low-pass filter's cut-off period, s: its zero-phase amplitude response is 0.5 at
     /// 1 / filter_s.
     pub filter_s: f64,
+    /// What the attitude file's sds say over time (docs/formats.md 10.2): its errors are
+    /// white, correlated or systematic.
+    pub attitude_errors: ErrorKind,
+    /// With `attitude_errors = "correlated"`: the first-order Gauss-Markov correlation
+    /// time, s (default [`DEFAULT_ATTITUDE_CORRELATION_S`]).
+    pub attitude_correlation_s: Option<f64>,
+    /// What the trajectory's sds say over time (docs/formats.md 10.1).
+    pub position_errors: ErrorKind,
+    /// With `position_errors = "correlated"`: the correlation time, s (no default: a
+    /// position's correlation depends on the solution).
+    pub position_correlation_s: Option<f64>,
     /// Static ties at known gravity.
     pub tie: Vec<TieDecl>,
+}
+
+/// How the errors an input's sds state behave over time (docs/model.md 7, "Error models").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+pub enum ErrorKind {
+    /// Independent from one sample to the next: the filter averages them down.
+    #[serde(rename = "white")]
+    White,
+    /// A first-order Gauss-Markov process with the declared correlation time: the filter
+    /// averages them down only over times longer than it.
+    #[serde(rename = "correlated")]
+    Correlated,
+    /// One error over a stretch: the filter does not reduce it.
+    #[serde(rename = "systematic")]
+    Systematic,
+}
+
+impl ErrorKind {
+    /// Its name in the manifest.
+    pub fn name(self) -> &'static str {
+        match self {
+            ErrorKind::White => "white",
+            ErrorKind::Correlated => "correlated",
+            ErrorKind::Systematic => "systematic",
+        }
+    }
+}
+
+/// The attitude's error model when none is declared: correlated over five minutes, since
+/// an INS's or a GNSS/INS's attitude errors wander over minutes (a multi-antenna GNSS
+/// attitude alone is close to white: declare it).
+pub const DEFAULT_ATTITUDE_CORRELATION_S: f64 = 300.0;
+
+/// An error model resolved: its kind and, correlated, its correlation time.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ErrorModel {
+    /// Independent per sample.
+    White,
+    /// First-order Gauss-Markov.
+    Correlated {
+        /// Its correlation time, s.
+        correlation_s: f64,
+    },
+    /// Constant over a stretch.
+    Systematic,
+}
+
+impl SurveyConfig {
+    /// The attitude's error model as declared (or by default).
+    pub fn attitude_error_model(&self) -> ErrorModel {
+        resolved(
+            self.attitude_errors,
+            self.attitude_correlation_s
+                .unwrap_or(DEFAULT_ATTITUDE_CORRELATION_S),
+        )
+    }
+
+    /// The positions' error model as declared (or by default: white).
+    pub fn position_error_model(&self) -> ErrorModel {
+        resolved(
+            self.position_errors,
+            self.position_correlation_s.unwrap_or(f64::NAN),
+        )
+    }
+}
+
+fn resolved(kind: ErrorKind, correlation_s: f64) -> ErrorModel {
+    match kind {
+        ErrorKind::White => ErrorModel::White,
+        ErrorKind::Correlated => ErrorModel::Correlated { correlation_s },
+        ErrorKind::Systematic => ErrorModel::Systematic,
+    }
 }
 
 impl Default for SurveyConfig {
@@ -42,6 +126,10 @@ impl Default for SurveyConfig {
             lever_arm_m: [0.0; 3],
             mounting_deg: [0.0; 3],
             filter_s: 100.0,
+            attitude_errors: ErrorKind::Correlated,
+            attitude_correlation_s: None,
+            position_errors: ErrorKind::White,
+            position_correlation_s: None,
             tie: Vec::new(),
         }
     }
@@ -221,6 +309,16 @@ pub fn check(
             format!("{f} is out of range [1, 100000] s"),
         ));
     }
+    error_model(
+        ("attitude", survey.attitude_errors, survey.attitude_correlation_s),
+        true,
+        err,
+    )?;
+    error_model(
+        ("position", survey.position_errors, survey.position_correlation_s),
+        false,
+        err,
+    )?;
     let ties: Vec<ResolvedTie> = survey
         .tie
         .iter()
@@ -229,6 +327,38 @@ pub fn check(
         .collect::<Result<_>>()?;
     no_overlap(&ties, err)?;
     Ok(ties)
+}
+
+/// An error model's keys: a correlation time only with `"correlated"`, in (0, 1e6] s, and
+/// required there unless it has a default.
+fn error_model(
+    (what, kind, correlation_s): (&str, ErrorKind, Option<f64>),
+    has_default: bool,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<()> {
+    let key = format!("survey.{what}_correlation_s");
+    match (kind, correlation_s) {
+        (ErrorKind::Correlated, Some(c)) if !(c.is_finite() && c > 0.0 && c <= 1e6) => Err(err(
+            key,
+            format!("{c} is not a correlation time in s within (0, 1000000]"),
+        )),
+        (ErrorKind::Correlated, None) if !has_default => Err(err(
+            key,
+            format!(
+                "missing: survey.{what}_errors = \"correlated\" needs the errors' correlation \
+                 time in s"
+            ),
+        )),
+        (ErrorKind::White | ErrorKind::Systematic, Some(_)) => Err(err(
+            key,
+            format!(
+                "a correlation time goes with survey.{what}_errors = \"correlated\" only \
+                 (it is \"{}\")",
+                kind.name()
+            ),
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// Two ties whose still windows overlap would count the same epochs twice (a tie repeated

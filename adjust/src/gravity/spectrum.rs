@@ -1,0 +1,256 @@
+//! A series' white noise measured where vehicle motion is not (docs/model.md 7, "The
+//! accelerometers' noise"): the level of its spectrum's floor above the motion band.
+//!
+//! The samples are cut into runs of [`SEGMENT`] consecutive values (a gap starts a new
+//! run); each is detrended, Hann-windowed and transformed, so that its periodogram
+//! |X_k|^2 / sum w^2 has the expectation sigma^2 at every frequency for white noise of sd
+//! sigma. The upper band, from an eighth of the sampling rate to 0.4 of it (clear of the
+//! motion below, and of an anti-alias filter's roll-off at the Nyquist frequency), is split
+//! into [`BANDS`] bands, each segment's mean periodogram kept per band. A band's level is
+//! the mean over the segments of those within four times its median (a knock or a jerk does
+//! not pass for noise); the floor is the mean of the bands within three standard errors of
+//! the lowest, so that a band a swell's harmonic or an engine's vibration raises is left
+//! out and white noise is measured in all of them. A swell at 10 s sampled at 1 Hz lies at
+//! 0.1 Hz, under the band's 0.125 Hz; the third differences this replaces kept a quarter
+//! of its amplitude (docs/model.md 7).
+//!
+//! Its limit: noise that is not white, rising toward low frequencies, is measured at its
+//! level above fs/8, not in the filter's pass band; and a record shorter than one segment
+//! falls back on the third differences.
+
+/// Samples per segment.
+pub const SEGMENT: usize = 256;
+/// Bands the upper band is split into.
+pub const BANDS: usize = 5;
+
+/// The floor of a series' spectrum, built as the series streams past.
+#[derive(Clone, Debug, Default)]
+pub struct SpectralFloor {
+    interval_ns: i64,
+    run: Vec<f64>,
+    last_t: Option<i64>,
+    /// Per segment, its mean periodogram in each band.
+    segments: Vec<[f64; BANDS]>,
+    /// Third differences, for a record shorter than a segment.
+    fallback: super::epochs::ThirdDifferences,
+}
+
+impl SpectralFloor {
+    /// For values `interval_ns` apart (a longer step starts a new run).
+    pub fn new(interval_ns: i64) -> Self {
+        SpectralFloor {
+            interval_ns,
+            run: Vec::with_capacity(SEGMENT),
+            fallback: super::epochs::ThirdDifferences::new(interval_ns),
+            ..SpectralFloor::default()
+        }
+    }
+
+    /// The next value, at `t` ns.
+    pub fn push(&mut self, t: i64, v: f64) {
+        if self
+            .last_t
+            .is_some_and(|p| (t - p - self.interval_ns).abs() * 2 > self.interval_ns)
+        {
+            self.run.clear();
+        }
+        self.last_t = Some(t);
+        self.fallback.push(t, v);
+        self.run.push(v);
+        if self.run.len() == SEGMENT {
+            self.segments.push(band_means(&self.run));
+            self.run.clear();
+        }
+    }
+
+    /// The white noise's sd (0 before any value).
+    pub fn sd(&self) -> f64 {
+        if self.segments.is_empty() {
+            return self.fallback.sd();
+        }
+        let levels: Vec<(f64, f64)> = (0..BANDS).map(|b| self.band_level(b)).collect();
+        let (low, low_se) = levels
+            .iter()
+            .copied()
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .unwrap_or((0.0, 0.0));
+        let kept: Vec<f64> = levels
+            .iter()
+            .filter(|(v, se)| v - low <= 3.0 * se.hypot(low_se))
+            .map(|(v, _)| *v)
+            .collect();
+        (kept.iter().sum::<f64>() / kept.len() as f64).sqrt()
+    }
+
+    /// Band `b`'s level over the segments (those within four times its median) and its
+    /// standard error.
+    fn band_level(&self, b: usize) -> (f64, f64) {
+        let mut v: Vec<f64> = self.segments.iter().map(|s| s[b]).collect();
+        v.sort_by(f64::total_cmp);
+        let median = v[v.len() / 2];
+        let kept: Vec<f64> = v.into_iter().filter(|x| *x <= 4.0 * median).collect();
+        let n = kept.len() as f64;
+        let mean = kept.iter().sum::<f64>() / n;
+        let se = if kept.len() >= 3 {
+            let var = kept.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+            (var / n).sqrt()
+        } else {
+            // A band's mean over its bins: about bins / 1.5 independent chi-square(2) / 2
+            // values (the Hann window correlates neighbouring bins).
+            let bins = (band_range(0).len() as f64 / 1.5).max(1.0);
+            mean / (bins * n).sqrt()
+        };
+        (mean, se)
+    }
+}
+
+/// The bins of band `b` (of a [`SEGMENT`]-sample periodogram).
+fn band_range(b: usize) -> std::ops::Range<usize> {
+    let (lo, hi) = (SEGMENT / 8, SEGMENT * 2 / 5);
+    let width = (hi - lo) / BANDS;
+    lo + b * width..lo + (b + 1) * width
+}
+
+/// One segment's mean periodogram in each band.
+fn band_means(x: &[f64]) -> [f64; BANDS] {
+    let n = x.len();
+    // Detrended (a least-squares line), Hann-windowed.
+    let mid = (n as f64 - 1.0) / 2.0;
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let sxx: f64 = (0..n).map(|i| (i as f64 - mid).powi(2)).sum();
+    let slope = x
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (i as f64 - mid) * (v - mean))
+        .sum::<f64>()
+        / sxx;
+    let mut re = vec![0.0; n];
+    let mut im = vec![0.0; n];
+    let mut sum_w2 = 0.0;
+    for (i, v) in x.iter().enumerate() {
+        let w = 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n as f64).cos();
+        re[i] = w * (v - mean - slope * (i as f64 - mid));
+        sum_w2 += w * w;
+    }
+    fft(&mut re, &mut im);
+    std::array::from_fn(|b| {
+        let r = band_range(b);
+        let len = r.len() as f64;
+        r.map(|k| (re[k] * re[k] + im[k] * im[k]) / sum_w2)
+            .sum::<f64>()
+            / len
+    })
+}
+
+/// The discrete Fourier transform in place, X_k = sum_j x_j exp(-2 pi i j k / n), n a power
+/// of two (iterative radix 2).
+pub fn fft(re: &mut [f64], im: &mut [f64]) {
+    let n = re.len();
+    debug_assert!(n.is_power_of_two() && im.len() == n);
+    let mut j = 0;
+    for i in 1..n {
+        let mut bit = n >> 1;
+        while j & bit != 0 {
+            j ^= bit;
+            bit >>= 1;
+        }
+        j |= bit;
+        if i < j {
+            re.swap(i, j);
+            im.swap(i, j);
+        }
+    }
+    let mut len = 2;
+    while len <= n {
+        let angle = -std::f64::consts::TAU / len as f64;
+        for start in (0..n).step_by(len) {
+            for k in 0..len / 2 {
+                let (s, c) = (angle * k as f64).sin_cos();
+                let (a, b) = (start + k, start + k + len / 2);
+                let tr = re[b] * c - im[b] * s;
+                let ti = re[b] * s + im[b] * c;
+                re[b] = re[a] - tr;
+                im[b] = im[a] - ti;
+                re[a] += tr;
+                im[a] += ti;
+            }
+        }
+        len <<= 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Normal(u64);
+    impl Normal {
+        fn next(&mut self) -> f64 {
+            let mut u = || {
+                self.0 = self
+                    .0
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (u1, u2) = (u(), u());
+            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        }
+    }
+
+    #[test]
+    fn the_transform_is_the_sum() {
+        let x: Vec<f64> = (0..16).map(|i| ((i * 7) % 5) as f64 - 1.3).collect();
+        let (mut re, mut im) = (x.clone(), vec![0.0; 16]);
+        fft(&mut re, &mut im);
+        for k in 0..16 {
+            let (mut r, mut i) = (0.0, 0.0);
+            for (j, v) in x.iter().enumerate() {
+                let a = -std::f64::consts::TAU * (j * k) as f64 / 16.0;
+                r += v * a.cos();
+                i += v * a.sin();
+            }
+            assert!((re[k] - r).abs() < 1e-12 && (im[k] - i).abs() < 1e-12, "{k}");
+        }
+    }
+
+    /// White noise alone, and the same under a swell of 600 times its sd at 10 s sampled at
+    /// 1 Hz (the marine meter's record): both measure the noise within a few percent, where
+    /// the third differences read the swell.
+    #[test]
+    fn a_swell_does_not_pass_for_noise() {
+        for (seconds, tol) in [(1001usize, 0.15), (20_000, 0.03)] {
+            let mut rng = Normal(5);
+            let (mut quiet, mut swell) = (SpectralFloor::new(1_000_000_000), SpectralFloor::new(1_000_000_000));
+            let mut third = super::super::epochs::ThirdDifferences::new(1_000_000_000);
+            for k in 0..seconds {
+                let t = k as i64 * 1_000_000_000;
+                let e = 2.0 * rng.next();
+                let s = 1200.0 * (std::f64::consts::TAU * k as f64 / 10.0 + 0.3).sin()
+                    + 400.0 * (std::f64::consts::TAU * k as f64 / 13.0).sin();
+                quiet.push(t, e);
+                swell.push(t, e + s);
+                third.push(t, e + s);
+            }
+            for (name, f) in [("quiet", &quiet), ("swell", &swell)] {
+                assert!((f.sd() / 2.0 - 1.0).abs() < tol, "{seconds} s {name}: {}", f.sd());
+            }
+            assert!(third.sd() > 20.0, "third differences {}", third.sd());
+        }
+    }
+
+    /// A knock (one segment a thousand times louder) and a vibration in one band do not
+    /// raise the floor.
+    #[test]
+    fn a_knock_and_a_vibration_are_left_out() {
+        let mut rng = Normal(9);
+        let mut f = SpectralFloor::new(10);
+        for k in 0..100_000usize {
+            let knock = if (50_000..50_200).contains(&k) { 1000.0 } else { 0.0 };
+            // At 0.35 of the sampling rate, in the last band.
+            let vibration = 30.0 * (std::f64::consts::TAU * 0.35 * k as f64).sin();
+            f.push(k as i64 * 10, rng.next() * (1.0 + knock) + vibration);
+        }
+        assert!((f.sd() - 1.0).abs() < 0.03, "{}", f.sd());
+    }
+}
