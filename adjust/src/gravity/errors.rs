@@ -72,45 +72,95 @@ pub fn attitude_sigma(
     b: &[[f64; 3]],
     errors: AttitudeErrors,
     (sections, pad, pivot): (&[filter::Section], usize, usize),
-    (dt, filter_s): (f64, f64),
+    (first_epoch, dt, filter_s): (i64, f64, f64),
 ) -> Vec<f64> {
     let n = b.len();
-    let angle = |a: usize| -> Vec<f64> { b.iter().map(|v| v[a]).collect() };
-    match errors.model {
-        ErrorModel::Systematic => {
-            let mut var = vec![0.0; n];
-            for a in 0..3 {
-                let x = angle(a);
-                if x.iter().all(|v| *v == 0.0) {
-                    continue;
-                }
-                let y = filter::filtfilt_pivoted(sections, &x, pad, pivot);
-                for (v, y) in var.iter_mut().zip(y) {
-                    *v += y * y;
-                }
-            }
-            var.into_iter().map(f64::sqrt).collect()
-        }
+    let angles: Vec<Vec<f64>> = (0..3)
+        .map(|a| b.iter().map(|v| v[a]).collect::<Vec<f64>>())
+        .filter(|x| x.iter().any(|v| *v != 0.0))
+        .collect();
+    // Each angle's effect filtered: what a systematic error leaves, exactly at every epoch.
+    let systematic: Vec<Vec<f64>> = angles
+        .iter()
+        .map(|x| filter::filtfilt_pivoted(sections, x, pad, pivot))
+        .collect();
+    let squares = |k: usize| systematic.iter().map(|y| y[k] * y[k]).sum::<f64>();
+    let grid = Grid {
+        n,
+        first_epoch,
+        step: step(filter_s, dt),
+    };
+    let var: Vec<f64> = match errors.model {
+        ErrorModel::Systematic => (0..n).map(squares).collect(),
         ErrorModel::White => {
             let row = trimmed_row(sections, dt, filter_s);
             let v: Vec<f64> = b.iter().map(|e| e.iter().map(|x| x * x).sum()).collect();
-            let ratio = (errors.interval_s / dt).max(f64::MIN_POSITIVE);
-            sampled(n, step(filter_s, dt), |k| ratio * white_form(&row, &v, k))
+            let ratio = errors.interval_s / dt;
+            grid.interpolated(|k| ratio * white_form(&row, &v, k))
         }
         ErrorModel::Correlated { correlation_s } => {
+            // The form less the systematic part is interpolated, the systematic part added
+            // at every epoch: where a slowly correlated error's filtered effect changes sign
+            // its variance has a parabola's minimum that an interpolation of the whole
+            // would fill in.
             let row = trimmed_row(sections, dt, filter_s);
             let rho = (-dt / correlation_s).exp();
-            let series: Vec<Vec<f64>> = (0..3)
-                .map(angle)
-                .filter(|x| x.iter().any(|v| *v != 0.0))
-                .collect();
-            sampled(n, step(filter_s, dt), |k| {
-                series
+            let rest = grid.interpolated(|k| {
+                angles
                     .iter()
-                    .map(|x| markov_form(&row, x, rho, k))
+                    .map(|x| markov_form(&row, x, rho, k) - markov_form(&row, x, 1.0, k))
                     .sum()
-            })
+            });
+            (0..n).map(|k| squares(k) + rest[k]).collect()
         }
+    };
+    var.into_iter().map(|v| v.max(0.0).sqrt()).collect()
+}
+
+/// The number of the first of `time_gps_ns`'s epochs, `dt` s apart, counted from GPS zero.
+pub fn epoch_number(time_gps_ns: &[i64], dt: f64) -> i64 {
+    time_gps_ns
+        .first()
+        .map_or(0, |t| (*t as f64 / (dt * 1e9)).round() as i64)
+}
+
+/// The epochs at which a slowly changing variance is computed exactly: every `step`-th of
+/// the survey's epoch count from GPS zero (so that a stretch reduced in blocks meets the
+/// same epochs as whole), and each end.
+struct Grid {
+    n: usize,
+    first_epoch: i64,
+    step: usize,
+}
+
+impl Grid {
+    /// `f` at the grid's epochs, linearly interpolated between.
+    fn interpolated(&self, f: impl Fn(usize) -> f64) -> Vec<f64> {
+        let (n, step) = (self.n, self.step as i64);
+        let mut out = vec![0.0; n];
+        if n == 0 {
+            return out;
+        }
+        let mut at: Vec<usize> = vec![0];
+        let first = (step - self.first_epoch.rem_euclid(step)) % step;
+        at.extend((first as usize..n).step_by(self.step).filter(|&k| k > 0));
+        if at.last() != Some(&(n - 1)) {
+            at.push(n - 1);
+        }
+        let vals: Vec<f64> = at.iter().map(|&k| f(k)).collect();
+        for w in 0..at.len() {
+            let (k0, v0) = (at[w], vals[w]);
+            let (k1, v1) = if w + 1 < at.len() {
+                (at[w + 1], vals[w + 1])
+            } else {
+                (k0 + 1, v0)
+            };
+            for k in k0..k1.min(n) {
+                let f = (k - k0) as f64 / (k1 - k0) as f64;
+                out[k] = v0 + f * (v1 - v0);
+            }
+        }
+        out
     }
 }
 
@@ -155,37 +205,11 @@ fn trimmed_row(sections: &[filter::Section], dt: f64, filter_s: f64) -> Vec<f64>
     full[mid - keep..=mid + keep].to_vec()
 }
 
-/// How many epochs apart the variance is computed exactly (and linearly interpolated
+/// How many epochs apart a variance is computed exactly (and linearly interpolated
 /// between): a twentieth of the filter period, over which it changes by little (the row
 /// spans eighty of them).
 fn step(filter_s: f64, dt: f64) -> usize {
     ((filter_s / dt / 20.0).floor() as usize).max(1)
-}
-
-/// `var(k)` at every `step`-th epoch and the last, linearly interpolated between, as sds.
-fn sampled(n: usize, step: usize, var: impl Fn(usize) -> f64) -> Vec<f64> {
-    let mut out = vec![0.0; n];
-    if n == 0 {
-        return out;
-    }
-    let mut at: Vec<usize> = (0..n).step_by(step).collect();
-    if at.last() != Some(&(n - 1)) {
-        at.push(n - 1);
-    }
-    let vals: Vec<f64> = at.iter().map(|&k| var(k).max(0.0)).collect();
-    for w in 0..at.len() {
-        let (k0, v0) = (at[w], vals[w]);
-        let (k1, v1) = if w + 1 < at.len() {
-            (at[w + 1], vals[w + 1])
-        } else {
-            (k0 + 1, v0)
-        };
-        for k in k0..k1.min(n) {
-            let f = (k - k0) as f64 / (k1 - k0) as f64;
-            out[k] = (v0 + f * (v1 - v0)).sqrt();
-        }
-    }
-    out
 }
 
 /// The input's index at row position `i` for output epoch `k`: beyond the stretch's ends,
@@ -278,7 +302,7 @@ mod tests {
                 interval_s: dt,
             };
             let want =
-                attitude_sigma(&b, errors, (&sections, 0, 1), (dt, filter_s))[n / 2];
+                attitude_sigma(&b, errors, (&sections, 0, 1), (0, dt, filter_s))[n / 2];
             let runs = 1500;
             let mut sum2 = 0.0;
             for _ in 0..runs {
@@ -322,7 +346,7 @@ mod tests {
                     interval_s,
                 },
                 (&sections, 0, 1),
-                (dt, filter_s),
+                (0, dt, filter_s),
             )[500]
         };
         assert!((sd(1.0) / sd(0.1) - 10f64.sqrt()).abs() < 1e-9);

@@ -181,7 +181,7 @@ pub fn reduce_horizontal(
             &h.attitude_effects_mgal[c],
             s.attitude_errors,
             (&sections, pad, pivot),
-            (dt, filter_s),
+            (errors::epoch_number(&s.time_gps_ns, dt), dt, filter_s),
         );
         out.sigma_mgal[c] = (0..n)
             .map(|k| {

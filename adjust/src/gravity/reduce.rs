@@ -475,7 +475,7 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
             &s.attitude_effects_mgal,
             s.attitude_errors,
             (&sections, pad, pivot),
-            (dt, filter_s),
+            (errors::epoch_number(&s.time_gps_ns, dt), dt, filter_s),
         )
     } else {
         vec![0.0; n]
