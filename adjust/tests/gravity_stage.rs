@@ -1170,3 +1170,134 @@ fn a_stretch_in_blocks_is_the_stretch_whole() {
     }
     println!("largest difference: {} ({:.3e})", worst.0, worst.1);
 }
+
+/// The rms of error / sigma of down, north and east over the epochs not at an edge, of
+/// replica `seed` of `plan` reduced under `dir`.
+fn component_z(dir: &Path, plan: fixtures::survey_lines::LinesPlan, seed: u64) -> [f64; 3] {
+    let (_, dataset, out) = replica(dir, plan, seed);
+    let r = args(&dataset).run(&out).expect("gravity");
+    let (_, down) = scores(&dataset, &out, r.filter.filter_s);
+    let [north, east] = horizontal_scores(&dataset, &out, r.filter.filter_s);
+    std::fs::remove_dir_all(&dataset).expect("replica removed");
+    std::fs::remove_dir_all(&out).expect("output removed");
+    [down, north[1], east[1]]
+}
+
+/// `plan` with its attitude file's errors of `errors` (white: 0.1 mrad of roll and pitch, 1
+/// mrad of heading, per 10 Hz sample).
+fn with_attitude_errors(
+    plan: fixtures::survey_lines::LinesPlan,
+    errors: fixtures::survey_lines::SimErrors,
+) -> fixtures::survey_lines::LinesPlan {
+    let mut p = plan;
+    if let Some(a) = p.attitude.as_mut() {
+        a.errors = errors;
+    }
+    p
+}
+
+/// White attitude errors (0.1 mrad per 10 Hz sample, declared white): the filter averages
+/// them down, and the sigma of north and east says so (one survey holds about 24 filter
+/// periods of independent errors, so one replica can be checked).
+#[test]
+fn white_attitude_errors_are_averaged_by_the_filter() {
+    use fixtures::survey_lines::{SimErrors, attitude_plan};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let [down, north, east] = component_z(
+        dir.path(),
+        with_attitude_errors(attitude_plan(), SimErrors::White),
+        1,
+    );
+    eprintln!("white attitude errors: rms z down {down:.3}, north {north:.3}, east {east:.3}");
+    for (name, z) in [("down", down), ("north", north), ("east", east)] {
+        assert!((0.7..1.3).contains(&z), "{name}: rms z {z}");
+    }
+}
+
+/// The boat and the aircraft with attitude, each error model of the attitude in turn,
+/// declared as simulated (white, correlated over 10 minutes, a bias): the rms of error /
+/// sigma of down, north and east pooled over 50 surveys each.
+#[cfg(gravcal_monte_carlo)]
+#[test]
+fn monte_carlo_of_each_attitude_error_model() {
+    use fixtures::survey_lines::{SimErrors, aircraft_attitude_plan, attitude_plan};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let surveys: u64 = std::env::var("GRAVCAL_SURVEYS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(50);
+    let mut failures = Vec::new();
+    for (vehicle, plan) in [("boat", attitude_plan()), ("aircraft", aircraft_attitude_plan())] {
+        for errors in [SimErrors::White, SimErrors::Correlated, SimErrors::Systematic] {
+            let plan = with_attitude_errors(plan.clone(), errors);
+            let mut z2 = [0.0; 3];
+            for seed in 1..=surveys {
+                let z = component_z(dir.path(), plan.clone(), seed);
+                for c in 0..3 {
+                    z2[c] += z[c] * z[c] / surveys as f64;
+                }
+            }
+            let z = z2.map(f64::sqrt);
+            eprintln!(
+                "{vehicle}, {errors:?} attitude errors, {surveys} surveys: pooled rms z down \
+                 {:.3}, north {:.3}, east {:.3}",
+                z[0], z[1], z[2]
+            );
+            for (name, z) in ["down", "north", "east"].into_iter().zip(z) {
+                if !(0.8..1.2).contains(&z) {
+                    failures.push(format!("{vehicle} {errors:?} {name}: {z:.3}"));
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:?}");
+}
+
+/// The median of column `name` of gravity.parquet over the epochs not at an edge.
+fn median_column(out: &Path, name: &str) -> f64 {
+    let path = out.join("gravity").join(gravity::FILE);
+    let mut v = Vec::new();
+    align::read::float_batches(&path, &[name], gravity::FLAGS, 1 << 16, |b| {
+        for i in 0..b.time_ns.len() {
+            if b.flags[i] & gravity::EDGE == 0 {
+                v.push(b.values[0].value(i));
+            }
+        }
+        Ok(())
+    })
+    .expect("gravity.parquet");
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// A 1 Hz marine platform record under a 10 s swell of about 600 mGal sd: the noise part of
+/// the sigma is what the same record without swell gives (the swell lies below the band the
+/// noise is measured in), and the error is within its sigma.
+#[test]
+fn a_swell_at_1_hz_does_not_pass_for_noise() {
+    use fixtures::survey_lines::platform_plan;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut noise = Vec::new();
+    for swell in [false, true] {
+        let dataset = dir.path().join(format!("platform-{swell}"));
+        fixtures::survey_lines::write_survey_lines(&platform_plan(swell), &dataset)
+            .expect("survey");
+        let out = dir.path().join(format!("out-{swell}"));
+        let r = args(&dataset).run(&out).expect("gravity");
+        let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+        let n = median_column(&out, "sigma_noise_mgal");
+        eprintln!(
+            "1 Hz platform, swell {swell}: rms error {rms:.3} mGal, rms z {z:.3}, noise part \
+             {n:.4} mGal, sigma {:.4}",
+            median_column(&out, "sigma_down_mgal")
+        );
+        assert!((0.8..1.2).contains(&z), "swell {swell}: rms z {z}");
+        noise.push(n);
+    }
+    assert!(
+        noise[1] < 1.1 * noise[0],
+        "the noise part with a swell {} against {} without",
+        noise[1],
+        noise[0]
+    );
+}
