@@ -1301,3 +1301,4 @@ fn a_swell_at_1_hz_does_not_pass_for_noise() {
         noise[0]
     );
 }
+

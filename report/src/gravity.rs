@@ -130,8 +130,8 @@ fn summary(r: &GravityReport) -> String {
          calibration of {} (model {}, {}; sha256 {}) applied, the specific force down formed \
          as follows: {}. Zero-phase {} with a cut-off period of {} s: a resolution (half \
          wavelength) of {:.0} m at the median speed of {:.1} m/s. Epochs within one filter \
-         period of a stretch's ends are flagged edge, and the filtered values there lean on \
-         the padding.",
+         period of a stretch's ends are flagged edge and given no filtered value (NaN): \
+         there it would lean on how the series is extended past the end.",
         c.dataset,
         c.model,
         c.session,
@@ -379,6 +379,10 @@ fn read(path: &Path) -> Result<Vec<Epoch>, Error> {
     align::read::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {
         for i in 0..b.time_ns.len() {
             let v = |k: usize| b.values[k].value(i);
+            // Within a filter period of a stretch's ends no filtered value is given.
+            if v(2).is_nan() {
+                continue;
+            }
             out.push(Epoch {
                 session: b.session[i],
                 time_ns: b.time_ns[i],

@@ -613,6 +613,49 @@ fn reduce_stretch(
     Ok(Some(st.level.flatten().map(|l| l.drift)))
 }
 
+/// The filtered values and their sigmas withheld (NaN) at the epochs flagged `edge`: within
+/// a filter period of a stretch's ends the value leans on how the series is extended past
+/// the end, which nothing in the data fixes (docs/model.md 7, "The ends of a stretch"), so
+/// no value is given there rather than one whose sigma cannot say what the extension does.
+/// The unfiltered values stay; the ties and crossovers were taken before.
+fn withhold_edges(
+    mut r: Reduced,
+    mut h: Option<ReducedHorizontal>,
+    flags: &[u8],
+) -> (Reduced, Option<ReducedHorizontal>) {
+    for (k, f) in flags.iter().enumerate() {
+        if f & gravity::EDGE == 0 {
+            continue;
+        }
+        for v in [
+            &mut r.filtered_mgal,
+            &mut r.sigma_mgal,
+            &mut r.sigma_calibration_mgal,
+            &mut r.sigma_positions_mgal,
+            &mut r.sigma_noise_mgal,
+            &mut r.sigma_tie_mgal,
+            &mut r.sigma_attitude_mgal,
+        ] {
+            v[k] = f64::NAN;
+        }
+        if let Some(h) = &mut h {
+            for pair in [
+                &mut h.filtered_mgal,
+                &mut h.sigma_mgal,
+                &mut h.sigma_calibration_mgal,
+                &mut h.sigma_positions_mgal,
+                &mut h.sigma_noise_mgal,
+                &mut h.sigma_attitude_mgal,
+            ] {
+                for v in pair {
+                    v[k] = f64::NAN;
+                }
+            }
+        }
+    }
+    (r, h)
+}
+
 /// A block reduced: the stretch's series, the reduction's, north and east's, the flags.
 type BlockRows = (Stretch, Reduced, Option<ReducedHorizontal>, Vec<u8>);
 
@@ -1088,6 +1131,7 @@ impl Rows {
                 step,
             );
         }
+        let (r, h) = withhold_edges(r, h, &flags);
         self.speeds.extend(r.speed_m_s.iter().step_by(step.max(1)));
         self.session.extend(std::iter::repeat_n(session, n));
         append(&mut self.time, s.time_gps_ns);
