@@ -16,7 +16,8 @@ use super::track::{Track, read_tracks};
 use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
-    Crossover, DriftFitted, FilterUsed, GravityReport, Input, LEDGER_FILE, LEDGER_FORMAT,
+    Crossover, DriftFitted, ErrorModelsUsed, FilterUsed, GravityReport, Input, LEDGER_FILE,
+    LEDGER_FORMAT,
     NotReduced, STAGE_DIR, SessionGravity, StretchSummary, TieUsed, dropped,
 };
 use ingest::contract::manifest::Dataset;
@@ -100,6 +101,10 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
         lever_arm_m: survey.lever_arm_m,
         mounting_deg: survey.mounting_deg,
         filter,
+        error_models: ErrorModelsUsed {
+            attitude: survey.attitude_error_model(),
+            positions: survey.position_error_model(),
+        },
         sessions,
         ties,
         crossovers,

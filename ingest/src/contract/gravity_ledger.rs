@@ -12,7 +12,17 @@ pub const STAGE_DIR: &str = "gravity";
 /// The ledger's file name.
 pub const LEDGER_FILE: &str = "gravity.json";
 /// The ledger's format tag.
-pub const LEDGER_FORMAT: &str = "gravcal-gravity/1";
+pub const LEDGER_FORMAT: &str = "gravcal-gravity/2";
+
+/// The error models the sigmas were propagated with.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ErrorModelsUsed {
+    /// The attitude's (used only where a session has an attitude).
+    pub attitude: crate::contract::survey::ErrorModel,
+    /// The positions'.
+    pub positions: crate::contract::survey::ErrorModel,
+}
 
 /// Why an epoch of a trajectory was not used.
 pub mod dropped {
@@ -207,6 +217,9 @@ pub struct GravityReport {
     pub mounting_deg: [f64; 3],
     /// The filter.
     pub filter: FilterUsed,
+    /// How the inputs' errors were taken to behave over time (`[survey] attitude_errors`,
+    /// `position_errors`; docs/formats.md 10).
+    pub error_models: ErrorModelsUsed,
     /// Per session.
     pub sessions: Vec<SessionGravity>,
     /// The ties.
