@@ -218,24 +218,7 @@ impl TimeReader {
     /// Any ISO 8601 time, through the calendar.
     fn iso_calendar(&self, field: &[u8]) -> Result<i64, (&'static str, String)> {
         let s = std::str::from_utf8(field).map_err(|_| ("time", "not UTF-8".to_owned()))?;
-        let (c, offset_min) = parse_iso(s).map_err(|m| ("time", m))?;
-        let scale = if offset_min.is_some() {
-            TimeScale::Utc
-        } else {
-            self.scale
-        };
-        let t = if c.second == 60 {
-            leap_second(c, scale).map_err(|m| ("time", format!("`{s}`: {m}")))?
-        } else {
-            gps_ns(c, scale)
-        }
-        .ok_or_else(|| {
-            (
-                "time",
-                format!("`{s}` is before the GPS epoch (1980-01-06)"),
-            )
-        })?;
-        Ok(t - i64::from(offset_min.unwrap_or(0)) * 60_000_000_000)
+        iso_gps_ns(s, self.scale).map_err(|m| ("time", m))
     }
 
     /// Unix seconds: GPS minus Unix time worked out once a UTC day.
@@ -517,6 +500,26 @@ pub fn utc_iso(gps_ns: i64) -> String {
         "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{:03}Z",
         ns / 1_000_000
     )
+}
+
+/// An ISO 8601 time as GPS ns: in UTC where it carries `Z` or an offset, in `scale`
+/// otherwise, UTC's leap second 23:59:60 where one was inserted. The one path every time
+/// gravcal reads in ISO goes through: the logs' and the manifest's (a session's `start`, a
+/// tie's `time`).
+pub fn iso_gps_ns(s: &str, scale: TimeScale) -> Result<i64, String> {
+    let (c, offset_min) = parse_iso(s)?;
+    let scale = if offset_min.is_some() {
+        TimeScale::Utc
+    } else {
+        scale
+    };
+    let t = if c.second == 60 {
+        leap_second(c, scale).map_err(|m| format!("`{s}`: {m}"))?
+    } else {
+        gps_ns(c, scale)
+    }
+    .ok_or_else(|| format!("`{s}` is before the GPS epoch (1980-01-06)"))?;
+    Ok(t - i64::from(offset_min.unwrap_or(0)) * 60_000_000_000)
 }
 
 /// The GPS time of second 60 of a minute, as written (`c.second == 60`): only UTC's

@@ -415,6 +415,62 @@ fn numbers_only(s: &Stretch, r: &Reduced) -> Result<(), GravityError> {
     }
 }
 
+/// The largest gravity disturbance down on the Earth is a few hundred mGal: a filtered value
+/// beyond this (away from a stretch's ends) is no place's, mGal.
+pub const DISTURBANCE_BOUND_MGAL: f64 = 1000.0;
+/// A tie's level (the offset between the calibrated specific force and the ties) beyond
+/// this is not a calibration's error but a setup's, mGal.
+pub const OFFSET_BOUND_MGAL: f64 = 1000.0;
+/// A drift between ties beyond this is not an accelerometer's, mGal/h.
+pub const DRIFT_BOUND_MGAL_PER_H: f64 = 100.0;
+
+/// The results checked where they are formed (docs/formats.md 10): a tied level, a drift
+/// or a filtered disturbance down beyond its bound is refused, naming the stretch and what
+/// would make it so, rather than written with a sigma that cannot say so.
+fn plausible(
+    s: &Stretch,
+    r: &Reduced,
+    flags: &[u8],
+    drift: Option<&reduce::Drift>,
+    (track, number): (&Track<'_>, u32),
+) -> Result<(), GravityError> {
+    let id = &track.session.session.id;
+    let causes = "a mounting_deg, lever arm or attitude that is not the instrument's, a \
+                  calibration of other accelerometers, or a tie's g_mgal mistyped";
+    let refuse = |what: String| {
+        Err(GravityError::Refused {
+            message: format!("session {id}, stretch {number}: {what}; likely {causes}"),
+        })
+    };
+    if let Some(d) = drift {
+        if d.offset_mgal.abs() > OFFSET_BOUND_MGAL {
+            return refuse(format!(
+                "the ties' level is {:.3} mGal, beyond +/-{OFFSET_BOUND_MGAL} mGal",
+                d.offset_mgal
+            ));
+        }
+        if d.rate_mgal_per_h.abs() > DRIFT_BOUND_MGAL_PER_H {
+            return refuse(format!(
+                "the drift between the ties is {:.3} mGal/h, beyond +/-{DRIFT_BOUND_MGAL_PER_H} \
+                 mGal/h",
+                d.rate_mgal_per_h
+            ));
+        }
+    }
+    let worst = (0..s.time_gps_ns.len())
+        .filter(|&k| flags[k] & gravity::EDGE == 0)
+        .max_by(|&a, &b| r.filtered_mgal[a].abs().total_cmp(&r.filtered_mgal[b].abs()));
+    match worst {
+        Some(k) if r.filtered_mgal[k].abs() > DISTURBANCE_BOUND_MGAL => refuse(format!(
+            "at {} the filtered disturbance down is {:.3} mGal, beyond \
+             +/-{DISTURBANCE_BOUND_MGAL} mGal",
+            utc_iso(s.time_gps_ns[k]),
+            r.filtered_mgal[k]
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// For gravity.json: how f_D was formed.
 fn describe(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> String {
     let with: Vec<&str> = tracks
@@ -587,7 +643,10 @@ fn reduce_stretch(
         return Ok(None);
     }
     let margin = margin(filter_s, interval_s);
-    let size = ctx.block_epochs.unwrap_or(BLOCK_EPOCHS.max(4 * margin));
+    let size = match ctx.block_epochs {
+        Some(b) => sensible_block(b, filter_s, track)?,
+        None => BLOCK_EPOCHS.max(4 * margin),
+    };
     let plan = blocks(span.len(), size, margin);
     let mut st = Reducing {
         at_tie: match ctx.triad {
@@ -604,7 +663,7 @@ fn reduce_stretch(
     };
     for (reduced, keep) in plan {
         let cut = keep.start - reduced.start..keep.end - reduced.start;
-        let Some((s, r, h, flags)) = reduce_block(track, bins, ctx, &mut st, (reduced, cut))?
+        let Some((s, r, h, flags)) = reduce_block(track, bins, ctx, &mut st, (reduced, cut), number)?
         else {
             return Ok(None);
         };
@@ -661,6 +720,24 @@ fn withhold_edges(
     (r, h)
 }
 
+/// `--block-epochs` checked against the filter: each block is reduced with twelve filter
+/// periods of margin either side, so a block shorter than one filter period costs over 25
+/// times its own epochs (a block of one epoch took 446 s where the default took 0.3 s);
+/// refused naming the option, the session's interval and the least it takes.
+fn sensible_block(block: usize, filter_s: f64, track: &Track<'_>) -> Result<usize, GravityError> {
+    let least = (filter_s / (track.interval_ns as f64 * 1e-9)).ceil() as usize;
+    if block >= least {
+        return Ok(block);
+    }
+    Err(GravityError::Refused {
+        message: format!(
+            "--block-epochs {block} is shorter than one filter period of session {}'s epochs              ({filter_s} s at an epoch every {} s: {least} epochs): each block is reduced with              twelve filter periods of margin either side; give at least {least}",
+            track.session.session.id,
+            track.interval_ns as f64 * 1e-9
+        ),
+    })
+}
+
 /// A block reduced: the stretch's series, the reduction's, north and east's, the flags.
 type BlockRows = (Stretch, Reduced, Option<ReducedHorizontal>, Vec<u8>);
 
@@ -684,6 +761,7 @@ fn reduce_block(
     ctx: &Context<'_>,
     st: &mut Reducing<'_>,
     (reduced, cut): (Range<usize>, Range<usize>),
+    number: u32,
 ) -> Result<Option<BlockRows>, GravityError> {
     let filter_s = ctx.survey.filter_s;
     let range = st.span.start + reduced.start..st.span.start + reduced.end;
@@ -726,6 +804,7 @@ fn reduce_block(
     }
     reduce::cut(&mut flags, cut);
     numbers_only(&s, &r)?;
+    plausible(&s, &r, &flags, level.as_ref().map(|l| &l.drift), (track, number))?;
     Ok(Some((s, r, h, flags)))
 }
 
@@ -1290,6 +1369,8 @@ pub struct GravityArgs {
     pub skip_bad_lines: bool,
     /// Epochs of a stretch reduced at a time (default 65536, or four times the filter's
     /// reach where it is longer); the result is the same to 1e-6 mGal, the memory a block's.
+    /// At least one filter period of epochs (each block is reduced with twelve periods of
+    /// margin either side): fewer is refused.
     #[arg(long)]
     pub block_epochs: Option<usize>,
 }
@@ -1372,14 +1453,30 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
     }
 }
 
+/// An error model in words.
+fn describe_model(m: ErrorModel) -> String {
+    match m {
+        ErrorModel::White => "white".to_owned(),
+        ErrorModel::Correlated { correlation_s } => format!("correlated over {correlation_s} s"),
+        ErrorModel::Systematic => "systematic".to_owned(),
+    }
+}
+
 /// A few lines: per session the epochs used and dropped, the stretches and their ties, the
-/// filter's resolution.
+/// filter's resolution, the error models.
 pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
     let f = &r.filter;
     let _ = writeln!(
         w,
         "gravity: {} rows; filter {} s, resolution {:.0} m at {:.1} m/s",
         r.rows_written, f.filter_s, f.resolution_m, f.median_speed_m_s
+    );
+    let m = &r.error_models;
+    let _ = writeln!(
+        w,
+        "gravity: errors taken as: positions {}, attitude {} (docs/formats.md 10)",
+        describe_model(m.positions),
+        describe_model(m.attitude)
     );
     for s in &r.sessions {
         print_session(s, w);

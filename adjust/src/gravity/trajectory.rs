@@ -153,7 +153,7 @@ pub fn for_each_rtklib(
     mut f: impl FnMut(u64, i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
     let mut bad_lines = Vec::new();
-    let mut scale: Option<TimeScale> = None;
+    let mut scale: Option<Scale> = None;
     for (line_no, l) in numbered_lines(path)? {
         let l = match l {
             Ok(l) => l,
@@ -173,11 +173,7 @@ pub fn for_each_rtklib(
                 });
             }
             if h.contains("latitude") {
-                scale = Some(if h.contains("UTC") {
-                    TimeScale::Utc
-                } else {
-                    TimeScale::Gpst
-                });
+                scale = Some(header_scale(path, line_no, h)?);
             }
             continue;
         }
@@ -192,14 +188,48 @@ pub fn for_each_rtklib(
     Ok(bad_lines)
 }
 
+/// The time system an RTKLIB file writes its times in (`out-timesys`), from its column
+/// header's first word: GPST, UTC, JST (UTC + 9 h, RTKLIB's `jst`) or TAI.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Scale {
+    scale: TimeScale,
+    /// The ISO offset of its calendar times from UTC (`+09:00` for JST), where not UTC.
+    zone: Option<&'static str>,
+    name: &'static str,
+}
+
+/// The time system of RTKLIB's column header `h` (its `%` stripped), or an error naming the
+/// file, the line and the word it does not know.
+fn header_scale(path: &Path, line_no: u64, h: &str) -> Result<Scale, GravityError> {
+    let word = h.split_whitespace().next().unwrap_or("");
+    let (scale, zone, name) = match word {
+        "GPST" => (TimeScale::Gpst, None, "GPST"),
+        "UTC" => (TimeScale::Utc, None, "UTC"),
+        "JST" => (TimeScale::Utc, Some("+09:00"), "JST"),
+        "TAI" => (TimeScale::Tai, None, "TAI"),
+        other => {
+            return Err(bad(
+                path,
+                line_no,
+                "header",
+                format!(
+                    "the column header names the time system `{other}`: gravcal reads GPST, \
+                     UTC, JST and TAI"
+                ),
+            ));
+        }
+    };
+    Ok(Scale { scale, zone, name })
+}
+
 /// One solution line of an RTKLIB file: time, position, sds.
 fn rtklib_line(
     path: &Path,
     line_no: u64,
     t: &str,
-    scale: Option<TimeScale>,
+    scale: Option<Scale>,
 ) -> Result<(i64, [f64; 3], [f64; 3]), GravityError> {
-    let Some(scale) = scale else {
+    let Some(Scale { scale, zone, name }) = scale else {
         return Err(bad(
             path,
             line_no,
@@ -223,8 +253,15 @@ fn rtklib_line(
         ));
     }
     let time = if f[0].contains('/') {
-        let iso = format!("{}T{}", f[0].replace('/', "-"), f[1]);
+        let iso = format!("{}T{}{}", f[0].replace('/', "-"), f[1], zone.unwrap_or(""));
         TimeReader::new(TimeForm::Iso, scale, None).read(&[iso.as_bytes()])
+    } else if zone.is_some() {
+        return Err(bad(
+            path,
+            line_no,
+            "time",
+            format!("GPS week and seconds in {name}: a week counts GPS time, never {name}"),
+        ));
     } else {
         TimeReader::new(TimeForm::GpsWeekTow, scale, None).read(&[f[0].as_bytes(), f[1].as_bytes()])
     }
@@ -369,6 +406,31 @@ mod tests {
         assert_eq!(t.time_gps_ns[1] - t.time_gps_ns[0], 100_000_000);
         assert_eq!(t.sd_neu_m[0], Some([0.004, 0.003, 0.009]));
         assert!((t.height_m[0] - 60.123).abs() < 1e-12);
+    }
+
+    /// The same instant written in each time system RTKLIB's `out-timesys` offers is read as
+    /// one GPS time: JST nine hours ahead of UTC, UTC 18 s behind GPST in 2026, TAI 19 s
+    /// ahead of GPST; a time system gravcal does not know is named.
+    #[test]
+    fn every_time_system_of_the_header_is_read_or_named() {
+        let header = |word: &str| HEADER.replace("%  GPST ", &format!("%  {word} "));
+        let rest = "   48.0166    0.1576   60.1230   1   9   0.004   0.003   0.009   0.001  \
+                    -0.001   0.002   0.00    0.0";
+        let mut times = Vec::new();
+        for (word, time) in [
+            ("GPST", "2026/03/14 09:12:21.500"),
+            ("UTC", "2026/03/14 09:12:03.500"),
+            ("JST", "2026/03/14 18:12:03.500"),
+            ("TAI", "2026/03/14 09:12:40.500"),
+        ] {
+            let (_d, p) = write(&format!("{}{time}{rest}\n", header(word)));
+            let t = read_rtklib(&p, false).unwrap_or_else(|e| panic!("{word}: {e}"));
+            times.push(t.time_gps_ns[0]);
+        }
+        assert!(times.iter().all(|t| *t == times[0]), "{times:?}");
+        let (_d, p) = write(&format!("{}2026/03/14 09:12:03.500{rest}\n", header("LOCAL")));
+        let e = read_rtklib(&p, false).expect_err("unknown").to_string();
+        assert!(e.contains("t.pos:2: header") && e.contains("`LOCAL`"), "{e}");
     }
 
     /// A byte-order mark and CRLF line ends (a Windows editor's) are read as any file; a

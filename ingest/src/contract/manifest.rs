@@ -803,19 +803,8 @@ fn start_gps_ns(
         )),
         (None, false) => Ok(None),
         (Some(start), true) => {
-            let (c, offset) = crate::time::parse_iso(start).map_err(|m| err(key("start"), m))?;
-            let scale = if offset.is_some() {
-                TimeScale::Utc
-            } else {
-                scale
-            };
-            let t = crate::time::gps_ns(c, scale).ok_or_else(|| {
-                err(
-                    key("start"),
-                    format!("`{start}` is before the GPS epoch (1980-01-06)"),
-                )
-            })?;
-            Ok(Some(t - i64::from(offset.unwrap_or(0)) * 60_000_000_000))
+            let t = crate::time::iso_gps_ns(start, scale).map_err(|m| err(key("start"), m))?;
+            Ok(Some(t))
         }
     }
 }

@@ -384,13 +384,8 @@ fn no_overlap(ties: &[ResolvedTie], err: &impl Fn(String, String) -> Error) -> R
 /// Tie `k` resolved.
 fn tie(k: usize, t: &TieDecl, err: &impl Fn(String, String) -> Error) -> Result<ResolvedTie> {
     let key = |f: &str| format!("survey.tie[{k}].{f}");
-    let (c, offset) = crate::time::parse_iso(&t.time).map_err(|m| err(key("time"), m))?;
-    let gps = crate::time::gps_ns(c, TimeScale::Utc).ok_or_else(|| {
-        err(
-            key("time"),
-            format!("`{}` is before the GPS epoch (1980-01-06)", t.time),
-        )
-    })?;
+    let gps =
+        crate::time::iso_gps_ns(&t.time, TimeScale::Utc).map_err(|m| err(key("time"), m))?;
     if !(t.duration_s.is_finite() && (1.0..=86_400.0).contains(&t.duration_s)) {
         return Err(err(
             key("duration_s"),
@@ -407,8 +402,88 @@ fn tie(k: usize, t: &TieDecl, err: &impl Fn(String, String) -> Error) -> Result<
         ));
     }
     Ok(ResolvedTie {
-        time_gps_ns: gps - i64::from(offset.unwrap_or(0)) * 60_000_000_000,
+        time_gps_ns: gps,
         duration_s: t.duration_s,
         g_mgal: t.g_mgal,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tie at UTC's leap second 23:59:60 lies between 23:59:59 and the next day's
+    /// midnight, through the same leap-second-aware path the logs' times take (it was read
+    /// a second early).
+    #[test]
+    fn a_tie_at_the_leap_second_is_read_in_its_place() {
+        let at = |time: &str| {
+            let t = TieDecl {
+                time: time.to_owned(),
+                duration_s: 60.0,
+                g_mgal: 980_000.0,
+            };
+            tie(0, &t, &|k, m| Error::Manifest {
+                path: "dataset.toml".into(),
+                key: k,
+                message: m,
+            })
+            .expect("tie")
+            .time_gps_ns
+        };
+        let before = at("2016-12-31T23:59:59Z");
+        let leap = at("2016-12-31T23:59:60Z");
+        let after = at("2017-01-01T00:00:00Z");
+        assert_eq!(leap - before, 1_000_000_000);
+        assert_eq!(after - leap, 1_000_000_000);
+        assert_eq!(at("2017-01-01T09:00:00+09:00"), after);
+    }
+
+    /// The error models' keys: a correlation time only with "correlated", the positions'
+    /// required there, the attitude's defaulted.
+    #[test]
+    fn error_models_are_checked_by_key() {
+        let err = |k: String, m: String| Error::Manifest {
+            path: "dataset.toml".into(),
+            key: k,
+            message: m,
+        };
+        let check = |a: (ErrorKind, Option<f64>), p: (ErrorKind, Option<f64>)| {
+            let s = SurveyConfig {
+                attitude_errors: a.0,
+                attitude_correlation_s: a.1,
+                position_errors: p.0,
+                position_correlation_s: p.1,
+                ..SurveyConfig::default()
+            };
+            super::check(&s, true, &err).map(|_| s)
+        };
+        let s = check((ErrorKind::Correlated, None), (ErrorKind::White, None)).expect("defaults");
+        assert_eq!(
+            s.attitude_error_model(),
+            ErrorModel::Correlated {
+                correlation_s: DEFAULT_ATTITUDE_CORRELATION_S
+            }
+        );
+        for (a, p, key) in [
+            (
+                (ErrorKind::White, Some(10.0)),
+                (ErrorKind::White, None),
+                "survey.attitude_correlation_s",
+            ),
+            (
+                (ErrorKind::Correlated, None),
+                (ErrorKind::Correlated, None),
+                "survey.position_correlation_s",
+            ),
+            (
+                (ErrorKind::Correlated, Some(-1.0)),
+                (ErrorKind::White, None),
+                "survey.attitude_correlation_s",
+            ),
+        ] {
+            let e = check(a, p).expect_err("refused").to_string();
+            assert!(e.contains(key), "{e}");
+        }
+    }
 }

@@ -478,7 +478,7 @@ pub mod applied {
 /// | speed_m_s | float64 | speed over ground, m/s |
 /// | eotvos_mgal, normal_mgal | float64 | the Eotvos term and normal gravity, mGal |
 /// | down_mgal | float64 | the gravity disturbance down, unfiltered (ties applied), mGal |
-/// | down_filtered_mgal | float64 | the same after the low-pass filter, mGal |
+/// | down_filtered_mgal | float64 | the same after the low-pass filter, mGal; NaN within a filter period of its stretch's ends (flag 4), as its sigma and parts, north's and east's |
 /// | sigma_down_mgal | float64 | the filtered value's sigma: the five below in quadrature, mGal |
 /// | sigma_calibration_mgal, sigma_positions_mgal, sigma_noise_mgal, sigma_tie_mgal, sigma_attitude_mgal | float64 | its parts, mGal (the attitude's 0 without attitude) |
 /// | height_antenna_m | float64 | the antenna's height as the trajectory gives it, m |
