@@ -438,3 +438,24 @@ fn theodolite_errors_and_dates() {
     assert_eq!(f.rejected.get(reason::OUTSIDE_SESSION), Some(&1));
     assert_eq!(f.rejections[0].at, "line 4");
 }
+
+/// A triad model with two accelerometers declared is refused naming the model's key (its
+/// third axis was fitted from the undeclared channel 3, a calibration apply then refused).
+#[test]
+fn a_triad_model_needs_three_accelerometers_declared() {
+    let dst = tempfile::tempdir().expect("tempdir");
+    fixtures::copy_dataset("triad-multipos", dst.path(), |m| {
+        let third = m.rfind("[[instrument.accelerometer]]").expect("three declared");
+        let end = m[third..].find("\n\n").map_or(m.len(), |e| third + e + 2);
+        format!("{}{}", &m[..third], &m[end..])
+    })
+    .expect("copy");
+    let out = tempfile::tempdir().expect("tempdir");
+    let e = ingest::run(dst.path(), out.path())
+        .expect_err("two accelerometers")
+        .to_string();
+    assert!(
+        e.contains("adjust.model[0].kind") && e.contains("declares 2"),
+        "{e}"
+    );
+}

@@ -63,7 +63,12 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
                 .strip_prefix(&ds.dir)
                 .map(Path::to_path_buf)
                 .unwrap_or_else(|_| path.clone());
-            let left_out = trim(&path, &copy.join(&rel), binary)?;
+            // A log outside the dataset is read where it is (the copied manifest names it
+            // there); only what lies inside is trimmed into the scratch copy.
+            let left_out = match in_copy(copy, &ds.dir, &path) {
+                Some(to) => trim(&path, &to, binary)?,
+                None => 0,
+            };
             peeked.push(Peeked {
                 rel,
                 left_out,
@@ -75,8 +80,14 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
         if let Some(src) = &s.trajectory {
             let attitude = src.attitude.as_ref().map(|(p, _)| p);
             for path in std::iter::once(&src.path).chain(attitude) {
-                let rel = path.strip_prefix(&ds.dir).unwrap_or(path);
-                std::fs::copy(path, copy.join(rel))
+                let Some(to) = in_copy(copy, &ds.dir, path) else {
+                    continue;
+                };
+                if let Some(dir) = to.parent() {
+                    std::fs::create_dir_all(dir)
+                        .with_context(|| format!("creating {}", dir.display()))?;
+                }
+                std::fs::copy(path, &to)
                     .with_context(|| format!("copying {}", path.display()))?;
             }
         }
@@ -235,6 +246,16 @@ fn logs(s: &ResolvedSession) -> Vec<(PathBuf, bool, String)> {
     };
     out.extend(s.theodolite.iter().map(|p| text(p, t.theodolite)));
     out
+}
+
+/// Where a log at `path` goes in the scratch copy `copy` of the dataset `dir`: the same
+/// place relative to it, in any subfolder; None for a path outside the dataset (or leading
+/// out of it by `..`), which is never copied onto (a copy of a file onto itself empties it).
+fn in_copy(copy: &Path, dir: &Path, path: &Path) -> Option<std::path::PathBuf> {
+    let rel = path.strip_prefix(dir).ok()?;
+    rel.components()
+        .all(|c| matches!(c, std::path::Component::Normal(_)))
+        .then(|| copy.join(rel))
 }
 
 /// Writes `to`: `from` with its middle left out as the module says; returns the lines

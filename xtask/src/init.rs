@@ -75,9 +75,12 @@ struct Found {
 /// Writes `<dataset>/dataset.toml` from `<dataset>/raw/`; returns its path.
 pub fn run(dataset: &Path) -> Result<PathBuf> {
     let manifest = dataset.join("dataset.toml");
-    if manifest.exists() {
+    // Anything there, a link whose target is missing included, is refused: the draft is
+    // created new (never written through a link to a file elsewhere).
+    if manifest.symlink_metadata().is_ok() {
         bail!(
-            "{} exists: init never overwrites a manifest (move it away to draft a new one)",
+            "{} exists: init never overwrites a manifest nor writes through a link (move it \
+             away to draft a new one)",
             manifest.display()
         );
     }
@@ -103,8 +106,20 @@ pub fn run(dataset: &Path) -> Result<PathBuf> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "dataset".to_owned());
     let text = draft(&name, &found);
-    std::fs::write(&manifest, text).with_context(|| format!("writing {}", manifest.display()))?;
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&manifest)
+        .with_context(|| format!("creating {} (new)", manifest.display()))?;
+    std::io::Write::write_all(&mut file, text.as_bytes())
+        .with_context(|| format!("writing {}", manifest.display()))?;
     Ok(manifest)
+}
+
+/// `s` as a TOML basic string, quoted and escaped by the toml crate's serializer (a log
+/// named `my "lab".txt` made a draft that was not TOML).
+fn q(s: &str) -> String {
+    toml::Value::String(s.to_owned()).to_string()
 }
 
 /// A file's layout, time form, span, rate and channels from its head and tail.
@@ -537,8 +552,10 @@ fn draft(name: &str, found: &[Found]) -> String {
         "# Draft written by `cargo xtask init` from the logs in raw/ (docs/formats.md 9.3).\n\
          # Every {FILL} must be replaced before the manifest validates; `cargo xtask check`\n\
          # then reads every log's head and tail.\n\
-         name = \"{name}\"\n\
-         description = \"{name}: drafted by cargo xtask init\"\n"
+         name = {}\n\
+         description = {}\n",
+        q(&name),
+        q(&format!("{name}: drafted by cargo xtask init"))
     );
     site(&mut t);
     instrument(&mut t, found);
@@ -672,7 +689,7 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
     let get = |l: Layout| files.iter().copied().find(|f| f.layout == l);
     let theodolite = get(Layout::Theodolite);
     let temperature = get(Layout::TemperatureCsv);
-    let _ = writeln!(t, "[[session]]\nid = \"{id}\"");
+    let _ = writeln!(t, "[[session]]\nid = {}", q(id));
     list_files(t, files);
     let _ = writeln!(t, "date = {}", date(files));
     let lab = get(Layout::LabStream);
@@ -685,8 +702,8 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
     if let Some(x) = temperature {
         let _ = writeln!(
             t,
-            "temperature_csv = \"{}\"\ntemperature_time = \"{}\"",
-            x.rel,
+            "temperature_csv = {}\ntemperature_time = \"{}\"",
+            q(&x.rel),
             x.time.unwrap_or(TimeForm::GpsWeekTow).name()
         );
     }
@@ -755,13 +772,13 @@ fn acquisition_keys(
     counts: Option<&Found>,
 ) {
     if let Some(b) = binary {
-        let _ = writeln!(t, "acquisition = \"{}\"", b.rel);
+        let _ = writeln!(t, "acquisition = {}", q(&b.rel));
     } else if let Some(l) = lab {
         let form = l.time.unwrap_or(TimeForm::S);
         let _ = writeln!(
             t,
-            "adc_csv = \"{}\"\nadc_format = \"seconds\"\nadc_time = \"{}\"",
-            l.rel,
+            "adc_csv = {}\nadc_format = \"seconds\"\nadc_time = \"{}\"",
+            q(&l.rel),
             form.name()
         );
         if form == TimeForm::S {
@@ -773,8 +790,8 @@ fn acquisition_keys(
     } else if let Some(c) = counts {
         let _ = writeln!(
             t,
-            "adc_csv = \"{}\"\nadc_time = \"{}\"",
-            c.rel,
+            "adc_csv = {}\nadc_time = \"{}\"",
+            q(&c.rel),
             c.time.unwrap_or(TimeForm::GpsWeekTow).name()
         );
     }
@@ -803,8 +820,8 @@ fn trajectory_keys(t: &mut String, tr: &Found, attitude: Option<&Found>) {
     };
     let _ = writeln!(
         t,
-        "trajectory = \"{}\"\ntrajectory_format = \"{format}\"",
-        tr.rel
+        "trajectory = {}\ntrajectory_format = \"{format}\"",
+        q(&tr.rel)
     );
     if let Some(form) = tr.time {
         let _ = writeln!(t, "trajectory_time = \"{}\"", form.name());
@@ -813,8 +830,8 @@ fn trajectory_keys(t: &mut String, tr: &Found, attitude: Option<&Found>) {
         let form = a.time.unwrap_or(TimeForm::Iso);
         let _ = writeln!(
             t,
-            "attitude = \"{}\"\nattitude_time = \"{}\"",
-            a.rel,
+            "attitude = {}\nattitude_time = \"{}\"",
+            q(&a.rel),
             form.name()
         );
     }
@@ -874,7 +891,7 @@ fn theodolite_keys(t: &mut String, th: &Found) {
     };
     let _ = writeln!(
         t,
-        "theodolite = \"{}\"\ntheodolite_time = \"iso\"\ntime_scale = {scale}\ntheodolite_unit = {unit}",
-        th.rel
+        "theodolite = {}\ntheodolite_time = \"iso\"\ntime_scale = {scale}\ntheodolite_unit = {unit}",
+        q(&th.rel)
     );
 }

@@ -93,3 +93,44 @@ fn an_empty_lab_stream_is_refused_without_naming_the_scratch_copy() {
     );
     assert!(!out.contains("gravcal-check-"), "{out}");
 }
+
+/// A trajectory in a subfolder of the dataset checks as `gravity` reads it (check failed
+/// copying it into its scratch copy), and a trajectory outside the dataset is read where it
+/// is, never copied onto.
+#[test]
+fn a_trajectory_in_a_subfolder_or_outside_checks() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("lines");
+    fixtures::copy_dataset(fixtures::survey_lines::SURVEY_LINES, &ds, |m| {
+        m.replace("trajectory = \"raw/lines.pos\"", "trajectory = \"gnss/lines.pos\"")
+    })
+    .expect("copy");
+    std::fs::create_dir_all(ds.join("gnss")).expect("gnss/");
+    std::fs::rename(ds.join("raw/lines.pos"), ds.join("gnss/lines.pos")).expect("move");
+    let o = check(&ds);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(text.contains("gnss/lines.pos"), "{text}");
+    let outside = dir.path().join("elsewhere.pos");
+    std::fs::rename(ds.join("gnss/lines.pos"), &outside).expect("move");
+    let before = std::fs::metadata(&outside).expect("outside").len();
+    let manifest = std::fs::read_to_string(ds.join("dataset.toml")).expect("manifest");
+    let toml_path = toml::Value::String(outside.display().to_string()).to_string();
+    std::fs::write(
+        ds.join("dataset.toml"),
+        manifest.replace("\"gnss/lines.pos\"", &toml_path),
+    )
+    .expect("manifest");
+    let o = check(&ds);
+    assert!(
+        o.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(std::fs::metadata(&outside).expect("outside").len(), before);
+}

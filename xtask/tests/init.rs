@@ -385,3 +385,44 @@ fn what_is_not_a_log_is_left_out_with_its_reason() {
     assert_eq!(draft.matches("[[session]]").count(), 1, "{draft}");
     assert!(draft.contains("adc_csv = \"raw/lab.txt\""), "{draft}");
 }
+
+/// Hostile names and paths (issue 50): a log named with quotes gives a draft that is TOML
+/// (its strings written by the toml crate's serializer), and a `dataset.toml` that is a link
+/// to a missing file is refused, nothing created through it.
+#[test]
+fn a_quoted_name_is_escaped_and_a_dangling_link_is_not_written_through() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("quoted");
+    fixtures::survey_lines::write_survey_lines(&fixtures::survey_lines::plan(), &ds)
+        .expect("survey");
+    std::fs::remove_file(ds.join("dataset.toml")).expect("remove");
+    for ext in ["txt", "pos"] {
+        std::fs::rename(
+            ds.join(format!("raw/lines.{ext}")),
+            ds.join(format!("raw/my \"lines\".{ext}")),
+        )
+        .expect("rename");
+    }
+    let o = xtask(&["init", ds.to_str().expect("utf-8")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let draft = std::fs::read_to_string(ds.join("dataset.toml")).expect("draft");
+    let parsed: Value = toml::from_str(&draft).unwrap_or_else(|e| panic!("{e}\n{draft}"));
+    let session = &parsed["session"][0];
+    assert_eq!(session["id"].as_str(), Some("my \"lines\""), "{draft}");
+    assert_eq!(
+        session["trajectory"].as_str(),
+        Some("raw/my \"lines\".pos"),
+        "{draft}"
+    );
+    #[cfg(unix)]
+    {
+        let elsewhere = dir.path().join("elsewhere.toml");
+        std::fs::remove_file(ds.join("dataset.toml")).expect("remove");
+        std::os::unix::fs::symlink(&elsewhere, ds.join("dataset.toml")).expect("link");
+        let o = xtask(&["init", ds.to_str().expect("utf-8")]);
+        assert!(!o.status.success(), "a dangling link was written through");
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert!(said.contains("dataset.toml exists"), "{said}");
+        assert!(!elsewhere.exists(), "a file was created through the link");
+    }
+}

@@ -1204,6 +1204,17 @@ fn check_models(m: &Manifest, err: &impl Fn(String, String) -> Error) -> Result<
         names
             .insert(&model.name, "name")
             .map_err(|e| err(format!("{key}.name"), e))?;
+        let declared = m.instrument.accelerometer.len();
+        if model.kind == ModelKind::Triad && declared != 3 {
+            return Err(err(
+                format!("{key}.kind"),
+                format!(
+                    "a triad model calibrates three accelerometers together (channels x, y, \
+                     z), and [[instrument.accelerometer]] declares {declared}: declare the \
+                     three, or fit \"axis\" models"
+                ),
+            ));
+        }
     }
     for (i, s) in m.session.iter().enumerate() {
         if !s.roll_deg.is_finite() {
