@@ -938,7 +938,7 @@ fn a_thermal_triad_is_applied_at_its_temperatures() {
 /// levelled with its axis vertical and reduced as the vertical axis pointing up (f_D = F):
 /// eight boat replicas with other noise, pooled. The swell takes F past -g, where no tilt
 /// table reaches: those epochs are flagged as outside the calibration and kept. Naming the
-/// wrong axis (acc1, horizontal) is a gross failure.
+/// wrong axis (acc1, horizontal) is refused.
 #[test]
 fn a_vertical_axis_calibrated_on_a_tilt_table_is_recovered_within_its_sigmas() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -978,10 +978,14 @@ fn a_vertical_axis_calibrated_on_a_tilt_table_is_recovered_within_its_sigmas() {
         sum_e2 += rms * rms;
         n += 1.0;
         if seed == 1 {
+            // The horizontal axis taken as the vertical reads no gravity: its level is
+            // refused (it was written, a million mGal off).
             let wrong = dir.path().join("out-wrong");
-            let r = axis(&dataset, "acc1").run(&wrong).expect("gravity");
-            let (rms_wrong, _) = scores(&dataset, &wrong, r.filter.filter_s);
-            assert!(rms_wrong > 100.0 * rms, "{rms_wrong} mGal");
+            let e = axis(&dataset, "acc1")
+                .run(&wrong)
+                .expect_err("refused")
+                .to_string();
+            assert!(e.contains("the ties' level") && e.contains("beyond"), "{e}");
         }
     }
     let (z, rms) = ((sum_z2 / n).sqrt(), (sum_e2 / n).sqrt());
@@ -1386,4 +1390,81 @@ fn a_block_shorter_than_the_filter_is_refused() {
             "{e}"
         );
     }
+}
+
+/// survey-lines with its trajectory's lines `lines` (0-based among the solution lines)
+/// edited by `edit` (the fields of the line), reduced: the report and the output folder.
+fn with_positions_edited(
+    dir: &Path,
+    lines: std::ops::Range<usize>,
+    edit: impl Fn(&mut Vec<String>),
+) -> (PathBuf, PathBuf, Result<GravityReport, adjust::gravity::GravityError>) {
+    let dataset = dir.join("lines");
+    fixtures::copy_dataset(fixtures::survey_lines::SURVEY_LINES, &dataset, |m| m).expect("copy");
+    std::fs::copy(
+        fixtures::dataset_dir(fixtures::survey_lines::SURVEY_LINES).join("truth.csv"),
+        dataset.join("truth.csv"),
+    )
+    .expect("truth.csv");
+    let pos = dataset.join("raw/lines.pos");
+    let text = std::fs::read_to_string(&pos).expect("pos");
+    let mut solution = 0;
+    let mut out = String::new();
+    for l in text.lines() {
+        if l.starts_with('%') {
+            out += l;
+        } else {
+            if lines.contains(&solution) {
+                let mut f: Vec<String> = l.split_whitespace().map(str::to_owned).collect();
+                edit(&mut f);
+                out += &f.join("   ");
+            } else {
+                out += l;
+            }
+            solution += 1;
+        }
+        out.push('\n');
+    }
+    std::fs::write(&pos, out).expect("pos");
+    let out = dir.join("out");
+    let r = args(&dataset).run(&out);
+    (dataset, out, r)
+}
+
+/// A position outlier among the trajectory's epochs (issue 50): one epoch 0.45 deg (50 km)
+/// north with an sd of 1 cm, or 50 m high, was used as it was (11 337 epochs wrong by more
+/// than 5 sigma, a crossover of +126 mGal). Now it is replaced by its neighbours'
+/// prediction and flagged `position_outlier`, and the survey is within its sigmas; three in
+/// a row replace two and drop the third, which cuts the track.
+#[test]
+fn a_position_outlier_is_replaced_and_counted() {
+    for (what, field, by) in [("50 km north", 2usize, 0.45), ("50 m high", 4, 50.0)] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (dataset, out, r) = with_positions_edited(dir.path(), 12_000..12_001, |f| {
+            let v: f64 = f[field].parse().expect("number");
+            f[field] = format!("{:.9}", v + by);
+        });
+        let r = r.unwrap_or_else(|e| panic!("{what}: {e}"));
+        let s = &r.sessions[0];
+        assert_eq!(
+            s.flagged.get("position_outlier"),
+            Some(&1),
+            "{what}: {:?}",
+            s.flagged
+        );
+        assert_eq!(s.stretches.len(), 1, "{what}");
+        let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+        eprintln!("{what}: rms error {rms:.3} mGal, rms z {z:.3}");
+        assert!(z < 1.3 && rms < 0.3, "{what}: rms {rms} mGal, z {z}");
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (_, _, r) = with_positions_edited(dir.path(), 12_000..12_003, |f| {
+        let v: f64 = f[4].parse().expect("number");
+        f[4] = format!("{:.4}", v + 50.0);
+    });
+    let r = r.expect("three in a row");
+    let s = &r.sessions[0];
+    assert_eq!(s.flagged.get("position_outlier"), Some(&2), "{:?}", s.flagged);
+    assert_eq!(s.dropped.get("position_outlier"), Some(&1), "{:?}", s.dropped);
+    assert_eq!(s.stretches.len(), 2, "the dropped epoch cuts the track");
 }

@@ -421,8 +421,9 @@ pub const DISTURBANCE_BOUND_MGAL: f64 = 1000.0;
 /// A tie's level (the offset between the calibrated specific force and the ties) beyond
 /// this is not a calibration's error but a setup's, mGal.
 pub const OFFSET_BOUND_MGAL: f64 = 1000.0;
-/// A drift between ties beyond this is not an accelerometer's, mGal/h.
-pub const DRIFT_BOUND_MGAL_PER_H: f64 = 100.0;
+/// A drift between ties beyond this is not an accelerometer's, mGal/h (a triad without
+/// temperature terms warming by 3 degC an hour drifts by 440 mGal/h).
+pub const DRIFT_BOUND_MGAL_PER_H: f64 = 2000.0;
 
 /// The results checked where they are formed (docs/formats.md 10): a tied level, a drift
 /// or a filtered disturbance down beyond its bound is refused, naming the stretch and what
@@ -796,7 +797,7 @@ fn reduce_block(
         }
         None => None,
     };
-    let mut flags = flags_of(&s, b, range, st.ends, (filter_s, &r));
+    let mut flags = flags_of(&s, b, range, st.ends, (filter_s, &r), &track.replaced);
     s.keep(cut.clone());
     r.keep(cut.clone());
     if let Some(h) = &mut h {
@@ -1037,13 +1038,15 @@ fn horizontal_inputs(
 }
 
 /// Each epoch's flags: extrapolated calibration, turning, within a filter period of the
-/// stretch's ends (`t0`, `t1`), an attitude without sds.
+/// stretch's ends (`t0`, `t1`), an attitude without sds, a position `replaced` as an
+/// outlier.
 fn flags_of(
     s: &Stretch,
     b: &Block,
     span: Range<usize>,
     (t0, t1): (i64, i64),
     (filter_s, r): (f64, &Reduced),
+    replaced: &[usize],
 ) -> Vec<u8> {
     let turning = turning(s, &r.speed_m_s);
     let edge_ns = (filter_s * 1e9) as i64;
@@ -1064,6 +1067,9 @@ fn flags_of(
             }
             if b.attitude(k).is_some_and(|a| !a.sd_given) {
                 f |= gravity::ATTITUDE_SD_UNKNOWN;
+            }
+            if replaced.binary_search(&k).is_ok() {
+                f |= gravity::POSITION_OUTLIER;
             }
             f
         })

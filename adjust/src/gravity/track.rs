@@ -50,6 +50,9 @@ pub(super) struct Track<'a> {
     /// The median over the kept epochs of the file's sds north, east, up (None where it
     /// gives none), m.
     pub sd_given_median_m: Option<[f64; 3]>,
+    /// The kept epochs whose position was an outlier, replaced by its neighbours'
+    /// prediction ([`screen`]), increasing.
+    pub replaced: Vec<usize>,
 }
 
 /// Doubles a kept epoch is written aside as: latitude, longitude, height (moved to the
@@ -344,6 +347,7 @@ fn gated<'a>(
         interval_ns: 1_000_000_000,
         noise_neu_m: [0.0; 3],
         sd_given_median_m: None,
+        replaced: Vec::new(),
     };
     let mut steps = Steps::default();
     for &t in &track.times {
@@ -351,6 +355,7 @@ fn gated<'a>(
     }
     track.interval_ns = steps.median().unwrap_or(1_000_000_000);
     (track.noise_neu_m, track.sd_given_median_m) = noise_and_sds(&track)?;
+    screen(&mut track, dir)?;
     Ok((track, bad))
 }
 
@@ -429,6 +434,139 @@ fn noise_and_sds(track: &Track<'_>) -> Result<([f64; 3], Option<[f64; 3]>), Grav
         .collect::<Option<Vec<f64>>>()
         .map(|v| [v[0], v[1], v[2]]);
     Ok((d.map(|d| d.sd()), given))
+}
+
+/// The outlier test's level, in sds of the difference between a position and its
+/// prediction: a Gaussian error passes it but for 6e-7 of epochs per axis, and both
+/// predictions must fail it.
+const OUTLIER_SDS: f64 = 5.0;
+/// The longest step a prediction reaches over, in epoch intervals: past it (a gap) an epoch
+/// is not tested.
+const PREDICTION_REACH: f64 = 5.0;
+
+/// A kept epoch's record and time, for [`screen`].
+type Record = (i64, [f64; WIDTH]);
+
+/// Every kept position tested against its neighbours (docs/formats.md 10.1): the quadratic
+/// through the three before it (as corrected), extrapolated to its time, and the one
+/// through the three after it, back. An epoch both predictions reject (by more than
+/// [`OUTLIER_SDS`] sds of the difference, on any axis, the sd the larger of the file's and
+/// the positions' own noise, at least 1 mm) is an outlier: the first two of a run are
+/// replaced by the forward prediction with its sd and listed in `track.replaced`
+/// (flagged `position_outlier`), the third on dropped and counted as `position_outlier`,
+/// cutting the track. A vehicle's own motion passes: where the track turns, the prediction
+/// from the side it has turned to holds (the curvature steps, the position does not).
+fn screen(track: &mut Track<'_>, dir: &Path) -> Result<(), GravityError> {
+    let n = track.times.len();
+    let io = |e: std::io::Error| spill_error(track.session, format!("its epochs screened: {e}"));
+    let mut out = SpillWriter::new(dir, WIDTH).map_err(io)?;
+    let mut times = Vec::with_capacity(n);
+    let mut history: Vec<Record> = Vec::new();
+    let (mut run, mut dropped) = (0usize, 0u64);
+    let mut replaced = Vec::new();
+    let mut block = (0..0, Vec::new());
+    let interval = track.interval_ns as f64;
+    let noise = track.noise_neu_m;
+    let record = |k: usize, block: &mut (Range<usize>, Vec<f64>)| -> Result<Record, GravityError> {
+        if !block.0.contains(&k) {
+            let range = k..(k + super::stage::BLOCK_EPOCHS).min(n);
+            block.1 = track.positions(range.clone())?.values;
+            block.0 = range;
+        }
+        let at = (k - block.0.start) * WIDTH;
+        Ok((track.times[k], std::array::from_fn(|i| block.1[at + i])))
+    };
+    for k in 0..n {
+        let this = record(k, &mut block)?;
+        let ahead: Vec<Record> = (k + 1..(k + 4).min(n))
+            .map(|j| record(j, &mut block))
+            .collect::<Result<_, _>>()?;
+        let last3 = &history[history.len().saturating_sub(3)..];
+        let sigma = |r: &Record| -> [f64; 3] {
+            std::array::from_fn(|i| {
+                let given = r.1[4 + i];
+                (if given.is_nan() { 0.0 } else { given })
+                    .max(noise[i])
+                    .max(1e-3)
+            })
+        };
+        let forward = predict(last3, this.0, interval);
+        let backward = predict(&ahead, this.0, interval);
+        let rejects = |p: &Option<([f64; 4], f64)>| {
+            p.as_ref()
+                .is_some_and(|(v, gain)| departs(&this.1, v, sigma(&this), *gain))
+        };
+        let outlier = forward.is_some() && rejects(&forward) && (backward.is_none() || rejects(&backward));
+        if !outlier {
+            run = 0;
+            out.push(&this.1).map_err(io)?;
+            times.push(this.0);
+            history.push(this);
+        } else if run < 2 {
+            run += 1;
+            let (v, gain) = forward.unwrap_or(([0.0; 4], 1.0));
+            let s = sigma(&this).map(|x| x * gain);
+            let r = [v[0], v[1], v[2], v[3], s[0], s[1], s[2]];
+            out.push(&r).map_err(io)?;
+            replaced.push(times.len());
+            times.push(this.0);
+            history.push((this.0, r));
+        } else {
+            run += 1;
+            dropped += 1;
+        }
+        if history.len() > 3 {
+            history.remove(0);
+        }
+    }
+    let positions = out.finish().map_err(io)?;
+    track.positions = positions;
+    track.times = times;
+    track.replaced = replaced;
+    if dropped > 0 {
+        *track
+            .dropped
+            .entry(dropped::POSITION_OUTLIER.to_owned())
+            .or_insert(0) += dropped;
+    }
+    Ok(())
+}
+
+/// The quadratic through `points` (three, in time order, or fewer: None) at time `t`:
+/// latitude, longitude (unwrapped from the first point's), height, the antenna's height,
+/// and sqrt(1 + sum of the weights squared), the sd of a position less the prediction in
+/// units of one position's sd; None beyond [`PREDICTION_REACH`] intervals of the nearest.
+fn predict(points: &[Record], t: i64, interval: f64) -> Option<([f64; 4], f64)> {
+    let [a, b, c] = points else { return None };
+    let nearest = [a.0, b.0, c.0].iter().map(|s| (t - s).abs()).min()?;
+    if nearest as f64 > PREDICTION_REACH * interval {
+        return None;
+    }
+    let x = [a.0, b.0, c.0].map(|s| (s - t) as f64 / interval);
+    // Lagrange weights at 0.
+    let w = [
+        x[1] * x[2] / ((x[0] - x[1]) * (x[0] - x[2])),
+        x[0] * x[2] / ((x[1] - x[0]) * (x[1] - x[2])),
+        x[0] * x[1] / ((x[2] - x[0]) * (x[2] - x[1])),
+    ];
+    let lon0 = a.1[1];
+    let unwrapped = |r: &Record| lon0 + super::navigation::longitude_step_deg(lon0, r.1[1]);
+    let p: [[f64; 4]; 3] = [a, b, c].map(|r| [r.1[0], unwrapped(r), r.1[2], r.1[3]]);
+    let v = std::array::from_fn(|i| w[0] * p[0][i] + w[1] * p[1][i] + w[2] * p[2][i]);
+    let gain = (1.0 + w.iter().map(|x| x * x).sum::<f64>()).sqrt();
+    Some((v, gain))
+}
+
+/// Whether position `r` (latitude, longitude, height) lies further from the prediction `v`
+/// than [`OUTLIER_SDS`] times `gain` times its sd `sigma` (north, east, up, m) on any axis.
+fn departs(r: &[f64; WIDTH], v: &[f64; 4], sigma: [f64; 3], gain: f64) -> bool {
+    let lat = r[0].to_radians();
+    let d = [
+        (r[0] - v[0]).to_radians() * 6.371e6,
+        super::navigation::longitude_step_deg(v[1], r[1]).to_radians() * 6.371e6 * lat.cos(),
+        r[2] - v[2],
+    ];
+    (0..3).any(|i| d[i].abs() > OUTLIER_SDS * gain * sigma[i])
 }
 
 /// A key whose order is `v`'s (total order of doubles).

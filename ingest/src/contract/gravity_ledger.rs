@@ -45,6 +45,10 @@ pub mod dropped {
     /// The session gives an attitude, and none can be interpolated at the epoch (outside
     /// the attitude file's span, or in a gap of it).
     pub const NO_ATTITUDE: &str = "no_attitude";
+    /// Its position failed the outlier test against its neighbours' prediction as the
+    /// third or later of a run (one or two in a row are replaced by the prediction and
+    /// flagged `position_outlier` instead).
+    pub const POSITION_OUTLIER: &str = "position_outlier";
 }
 
 /// A file read, with its hash.

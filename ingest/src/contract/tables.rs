@@ -500,14 +500,18 @@ pub mod gravity {
     /// attitude parts) are null, not known; down's attitude part is taken as 0 (it is
     /// second order but in turns).
     pub const ATTITUDE_SD_UNKNOWN: u8 = 8;
+    /// The epoch's position failed the outlier test against its neighbours: it was
+    /// replaced by their prediction, with the prediction's sd (docs/formats.md 10.1).
+    pub const POSITION_OUTLIER: u8 = 16;
     /// The course rate above which an epoch is flagged [`TURN`], deg/s.
     pub const TURN_DEG_PER_S: f64 = 0.5;
     /// Every flag with its name in gravity.json, in bit order.
-    pub const FLAG_NAMES: [(u8, &str); 4] = [
+    pub const FLAG_NAMES: [(u8, &str); 5] = [
         (OUTSIDE_CALIBRATION, "outside_calibration"),
         (TURN, "turn"),
         (EDGE, "edge"),
         (ATTITUDE_SD_UNKNOWN, "attitude_sd_unknown"),
+        (POSITION_OUTLIER, "position_outlier"),
     ];
     /// The columns of [`HORIZONTAL`] null where [`ATTITUDE_SD_UNKNOWN`] is set.
     pub const NEEDS_ATTITUDE_SD: [&str; 4] = [
