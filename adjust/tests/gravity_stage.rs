@@ -1236,8 +1236,15 @@ fn monte_carlo_of_each_attitude_error_model() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(50);
     let mut failures = Vec::new();
-    for (vehicle, plan) in [("boat", attitude_plan()), ("aircraft", aircraft_attitude_plan())] {
-        for errors in [SimErrors::White, SimErrors::Correlated, SimErrors::Systematic] {
+    for (vehicle, plan) in [
+        ("boat", attitude_plan()),
+        ("aircraft", aircraft_attitude_plan()),
+    ] {
+        for errors in [
+            SimErrors::White,
+            SimErrors::Correlated,
+            SimErrors::Systematic,
+        ] {
             let plan = with_attitude_errors(plan.clone(), errors);
             let mut z2 = [0.0; 3];
             for seed in 1..=surveys {
@@ -1341,7 +1348,6 @@ fn a_swell_at_1_hz_does_not_pass_for_noise() {
     );
 }
 
-
 /// A strapdown record at 250 Hz under the boat's heave (0.15 m at 8 s: about 6500 mGal sd
 /// of vertical acceleration) against the same record without it: the noise part is the
 /// triad's noise either way, and the error within its sigma.
@@ -1398,7 +1404,11 @@ fn with_positions_edited(
     dir: &Path,
     lines: std::ops::Range<usize>,
     edit: impl Fn(&mut Vec<String>),
-) -> (PathBuf, PathBuf, Result<GravityReport, adjust::gravity::GravityError>) {
+) -> (
+    PathBuf,
+    PathBuf,
+    Result<GravityReport, adjust::gravity::GravityError>,
+) {
     let dataset = dir.join("lines");
     fixtures::copy_dataset(fixtures::survey_lines::SURVEY_LINES, &dataset, |m| m).expect("copy");
     std::fs::copy(
@@ -1464,7 +1474,17 @@ fn a_position_outlier_is_replaced_and_counted() {
     });
     let r = r.expect("three in a row");
     let s = &r.sessions[0];
-    assert_eq!(s.flagged.get("position_outlier"), Some(&2), "{:?}", s.flagged);
-    assert_eq!(s.dropped.get("position_outlier"), Some(&1), "{:?}", s.dropped);
+    assert_eq!(
+        s.flagged.get("position_outlier"),
+        Some(&2),
+        "{:?}",
+        s.flagged
+    );
+    assert_eq!(
+        s.dropped.get("position_outlier"),
+        Some(&1),
+        "{:?}",
+        s.dropped
+    );
     assert_eq!(s.stretches.len(), 2, "the dropped epoch cuts the track");
 }

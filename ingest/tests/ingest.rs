@@ -445,7 +445,9 @@ fn theodolite_errors_and_dates() {
 fn a_triad_model_needs_three_accelerometers_declared() {
     let dst = tempfile::tempdir().expect("tempdir");
     fixtures::copy_dataset("triad-multipos", dst.path(), |m| {
-        let third = m.rfind("[[instrument.accelerometer]]").expect("three declared");
+        let third = m
+            .rfind("[[instrument.accelerometer]]")
+            .expect("three declared");
         let end = m[third..].find("\n\n").map_or(m.len(), |e| third + e + 2);
         format!("{}{}", &m[..third], &m[end..])
     })

@@ -87,8 +87,7 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
                     std::fs::create_dir_all(dir)
                         .with_context(|| format!("creating {}", dir.display()))?;
                 }
-                std::fs::copy(path, &to)
-                    .with_context(|| format!("copying {}", path.display()))?;
+                std::fs::copy(path, &to).with_context(|| format!("copying {}", path.display()))?;
             }
         }
     }

@@ -102,7 +102,10 @@ fn a_trajectory_in_a_subfolder_or_outside_checks() {
     let dir = tempfile::tempdir().expect("tempdir");
     let ds = dir.path().join("lines");
     fixtures::copy_dataset(fixtures::survey_lines::SURVEY_LINES, &ds, |m| {
-        m.replace("trajectory = \"raw/lines.pos\"", "trajectory = \"gnss/lines.pos\"")
+        m.replace(
+            "trajectory = \"raw/lines.pos\"",
+            "trajectory = \"gnss/lines.pos\"",
+        )
     })
     .expect("copy");
     std::fs::create_dir_all(ds.join("gnss")).expect("gnss/");

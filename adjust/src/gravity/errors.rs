@@ -171,7 +171,13 @@ impl Grid {
 /// each epoch); systematic, nothing through the second difference (a constant position
 /// has no acceleration), and `free_air` times the sd for the height's part in normal
 /// gravity (0.3086 mGal/m times 1e-5 per mGal of height error, down; 0 north and east).
-pub fn position_sigma(row: &[f64], sd: &[f64], model: ErrorModel, dt: f64, free_air: f64) -> Vec<f64> {
+pub fn position_sigma(
+    row: &[f64],
+    sd: &[f64],
+    model: ErrorModel,
+    dt: f64,
+    free_air: f64,
+) -> Vec<f64> {
     match model {
         ErrorModel::White => vec![0.0; sd.len()],
         ErrorModel::Systematic => sd.iter().map(|s| s * free_air).collect(),
@@ -301,8 +307,7 @@ mod tests {
                 model,
                 interval_s: dt,
             };
-            let want =
-                attitude_sigma(&b, errors, (&sections, 0, 1), (0, dt, filter_s))[n / 2];
+            let want = attitude_sigma(&b, errors, (&sections, 0, 1), (0, dt, filter_s))[n / 2];
             let runs = 1500;
             let mut sum2 = 0.0;
             for _ in 0..runs {

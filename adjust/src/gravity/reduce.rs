@@ -16,9 +16,9 @@
 use super::GravityError;
 use super::errors::{self, AttitudeErrors};
 use super::filter;
-use ingest::contract::survey::ErrorModel;
 use super::navigation::{eotvos_down, longitude_step_deg, radii};
 use super::normal::GRS80;
+use ingest::contract::survey::ErrorModel;
 
 /// One stretch of track: evenly spaced epochs and what was measured at them.
 #[derive(Clone, Debug, Default)]

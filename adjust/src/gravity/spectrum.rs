@@ -210,7 +210,10 @@ mod tests {
                 r += v * a.cos();
                 i += v * a.sin();
             }
-            assert!((re[k] - r).abs() < 1e-12 && (im[k] - i).abs() < 1e-12, "{k}");
+            assert!(
+                (re[k] - r).abs() < 1e-12 && (im[k] - i).abs() < 1e-12,
+                "{k}"
+            );
         }
     }
 
@@ -221,7 +224,10 @@ mod tests {
     fn a_swell_does_not_pass_for_noise() {
         for (seconds, tol) in [(1001usize, 0.15), (20_000, 0.03)] {
             let mut rng = Normal(5);
-            let (mut quiet, mut swell) = (SpectralFloor::new(1_000_000_000), SpectralFloor::new(1_000_000_000));
+            let (mut quiet, mut swell) = (
+                SpectralFloor::new(1_000_000_000),
+                SpectralFloor::new(1_000_000_000),
+            );
             let mut third = super::super::epochs::ThirdDifferences::new(1_000_000_000);
             for k in 0..seconds {
                 let t = k as i64 * 1_000_000_000;
@@ -233,7 +239,11 @@ mod tests {
                 third.push(t, e + s);
             }
             for (name, f) in [("quiet", &quiet), ("swell", &swell)] {
-                assert!((f.sd() / 2.0 - 1.0).abs() < tol, "{seconds} s {name}: {}", f.sd());
+                assert!(
+                    (f.sd() / 2.0 - 1.0).abs() < tol,
+                    "{seconds} s {name}: {}",
+                    f.sd()
+                );
             }
             assert!(third.sd() > 20.0, "third differences {}", third.sd());
         }
@@ -246,7 +256,11 @@ mod tests {
         let mut rng = Normal(9);
         let mut f = SpectralFloor::new(10);
         for k in 0..100_000usize {
-            let knock = if (50_000..50_200).contains(&k) { 1000.0 } else { 0.0 };
+            let knock = if (50_000..50_200).contains(&k) {
+                1000.0
+            } else {
+                0.0
+            };
             // At 0.35 of the sampling rate, in the last band.
             let vibration = 30.0 * (std::f64::consts::TAU * 0.35 * k as f64).sin();
             f.push(k as i64 * 10, rng.next() * (1.0 + knock) + vibration);

@@ -17,8 +17,7 @@ use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
     Crossover, DriftFitted, ErrorModelsUsed, FilterUsed, GravityReport, Input, LEDGER_FILE,
-    LEDGER_FORMAT,
-    NotReduced, STAGE_DIR, SessionGravity, StretchSummary, TieUsed, dropped,
+    LEDGER_FORMAT, NotReduced, STAGE_DIR, SessionGravity, StretchSummary, TieUsed, dropped,
 };
 use ingest::contract::manifest::Dataset;
 use ingest::contract::survey::{ErrorModel, ResolvedTie, SurveyConfig};
@@ -460,7 +459,11 @@ fn plausible(
     }
     let worst = (0..s.time_gps_ns.len())
         .filter(|&k| flags[k] & gravity::EDGE == 0)
-        .max_by(|&a, &b| r.filtered_mgal[a].abs().total_cmp(&r.filtered_mgal[b].abs()));
+        .max_by(|&a, &b| {
+            r.filtered_mgal[a]
+                .abs()
+                .total_cmp(&r.filtered_mgal[b].abs())
+        });
     match worst {
         Some(k) if r.filtered_mgal[k].abs() > DISTURBANCE_BOUND_MGAL => refuse(format!(
             "at {} the filtered disturbance down is {:.3} mGal, beyond \
@@ -664,7 +667,8 @@ fn reduce_stretch(
     };
     for (reduced, keep) in plan {
         let cut = keep.start - reduced.start..keep.end - reduced.start;
-        let Some((s, r, h, flags)) = reduce_block(track, bins, ctx, &mut st, (reduced, cut), number)?
+        let Some((s, r, h, flags)) =
+            reduce_block(track, bins, ctx, &mut st, (reduced, cut), number)?
         else {
             return Ok(None);
         };
@@ -805,7 +809,13 @@ fn reduce_block(
     }
     reduce::cut(&mut flags, cut);
     numbers_only(&s, &r)?;
-    plausible(&s, &r, &flags, level.as_ref().map(|l| &l.drift), (track, number))?;
+    plausible(
+        &s,
+        &r,
+        &flags,
+        level.as_ref().map(|l| &l.drift),
+        (track, number),
+    )?;
     Ok(Some((s, r, h, flags)))
 }
 

@@ -496,7 +496,8 @@ fn screen(track: &mut Track<'_>, dir: &Path) -> Result<(), GravityError> {
             p.as_ref()
                 .is_some_and(|(v, gain)| departs(&this.1, v, sigma(&this), *gain))
         };
-        let outlier = forward.is_some() && rejects(&forward) && (backward.is_none() || rejects(&backward));
+        let outlier =
+            forward.is_some() && rejects(&forward) && (backward.is_none() || rejects(&backward));
         if !outlier {
             run = 0;
             out.push(&this.1).map_err(io)?;

@@ -428,9 +428,15 @@ mod tests {
             times.push(t.time_gps_ns[0]);
         }
         assert!(times.iter().all(|t| *t == times[0]), "{times:?}");
-        let (_d, p) = write(&format!("{}2026/03/14 09:12:03.500{rest}\n", header("LOCAL")));
+        let (_d, p) = write(&format!(
+            "{}2026/03/14 09:12:03.500{rest}\n",
+            header("LOCAL")
+        ));
         let e = read_rtklib(&p, false).expect_err("unknown").to_string();
-        assert!(e.contains("t.pos:2: header") && e.contains("`LOCAL`"), "{e}");
+        assert!(
+            e.contains("t.pos:2: header") && e.contains("`LOCAL`"),
+            "{e}"
+        );
     }
 
     /// A byte-order mark and CRLF line ends (a Windows editor's) are read as any file; a

@@ -310,12 +310,20 @@ pub fn check(
         ));
     }
     error_model(
-        ("attitude", survey.attitude_errors, survey.attitude_correlation_s),
+        (
+            "attitude",
+            survey.attitude_errors,
+            survey.attitude_correlation_s,
+        ),
         true,
         err,
     )?;
     error_model(
-        ("position", survey.position_errors, survey.position_correlation_s),
+        (
+            "position",
+            survey.position_errors,
+            survey.position_correlation_s,
+        ),
         false,
         err,
     )?;
@@ -384,8 +392,7 @@ fn no_overlap(ties: &[ResolvedTie], err: &impl Fn(String, String) -> Error) -> R
 /// Tie `k` resolved.
 fn tie(k: usize, t: &TieDecl, err: &impl Fn(String, String) -> Error) -> Result<ResolvedTie> {
     let key = |f: &str| format!("survey.tie[{k}].{f}");
-    let gps =
-        crate::time::iso_gps_ns(&t.time, TimeScale::Utc).map_err(|m| err(key("time"), m))?;
+    let gps = crate::time::iso_gps_ns(&t.time, TimeScale::Utc).map_err(|m| err(key("time"), m))?;
     if !(t.duration_s.is_finite() && (1.0..=86_400.0).contains(&t.duration_s)) {
         return Err(err(
             key("duration_s"),
