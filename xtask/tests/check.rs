@@ -95,8 +95,8 @@ fn an_empty_lab_stream_is_refused_without_naming_the_scratch_copy() {
 }
 
 /// A trajectory in a subfolder of the dataset checks as `gravity` reads it (check failed
-/// copying it into its scratch copy), and a trajectory outside the dataset is read where it
-/// is, never copied onto.
+/// copying it into its scratch copy); one outside the dataset is refused by key, the file
+/// untouched.
 #[test]
 fn a_trajectory_in_a_subfolder_or_outside_checks() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -129,11 +129,15 @@ fn a_trajectory_in_a_subfolder_or_outside_checks() {
     )
     .expect("manifest");
     let o = check(&ds);
-    assert!(
-        o.status.success(),
+    let said = format!(
         "{}{}",
         String::from_utf8_lossy(&o.stdout),
         String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!o.status.success(), "a trajectory outside the dataset checked");
+    assert!(
+        said.contains("session[0].trajectory") && said.contains("outside the dataset"),
+        "{said}"
     );
     assert_eq!(std::fs::metadata(&outside).expect("outside").len(), before);
 }
