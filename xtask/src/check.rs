@@ -250,7 +250,7 @@ fn logs(s: &ResolvedSession) -> Vec<(PathBuf, bool, String)> {
 /// Where a log at `path` goes in the scratch copy `copy` of the dataset `dir`: the same
 /// place relative to it, in any subfolder; None for a path outside the dataset (or leading
 /// out of it by `..`), which is never copied onto (a copy of a file onto itself empties it).
-fn in_copy(copy: &Path, dir: &Path, path: &Path) -> Option<std::path::PathBuf> {
+fn in_copy(copy: &Path, dir: &Path, path: &Path) -> Option<PathBuf> {
     let rel = path.strip_prefix(dir).ok()?;
     rel.components()
         .all(|c| matches!(c, std::path::Component::Normal(_)))

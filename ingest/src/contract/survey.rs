@@ -455,7 +455,7 @@ mod tests {
             key: k,
             message: m,
         };
-        let check = |a: (ErrorKind, Option<f64>), p: (ErrorKind, Option<f64>)| {
+        let checked = |a: (ErrorKind, Option<f64>), p: (ErrorKind, Option<f64>)| {
             let s = SurveyConfig {
                 attitude_errors: a.0,
                 attitude_correlation_s: a.1,
@@ -463,9 +463,9 @@ mod tests {
                 position_correlation_s: p.1,
                 ..SurveyConfig::default()
             };
-            super::check(&s, true, &err).map(|_| s)
+            check(&s, true, &err).map(|_| s)
         };
-        let s = check((ErrorKind::Correlated, None), (ErrorKind::White, None)).expect("defaults");
+        let s = checked((ErrorKind::Correlated, None), (ErrorKind::White, None)).expect("defaults");
         assert_eq!(
             s.attitude_error_model(),
             ErrorModel::Correlated {
@@ -489,7 +489,7 @@ mod tests {
                 "survey.attitude_correlation_s",
             ),
         ] {
-            let e = check(a, p).expect_err("refused").to_string();
+            let e = checked(a, p).expect_err("refused").to_string();
             assert!(e.contains(key), "{e}");
         }
     }
