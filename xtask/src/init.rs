@@ -554,7 +554,7 @@ fn draft(name: &str, found: &[Found]) -> String {
          # then reads every log's head and tail.\n\
          name = {}\n\
          description = {}\n",
-        q(&name),
+        q(name),
         q(&format!("{name}: drafted by cargo xtask init"))
     );
     site(&mut t);

@@ -134,7 +134,10 @@ fn a_trajectory_in_a_subfolder_or_outside_checks() {
         String::from_utf8_lossy(&o.stdout),
         String::from_utf8_lossy(&o.stderr)
     );
-    assert!(!o.status.success(), "a trajectory outside the dataset checked");
+    assert!(
+        !o.status.success(),
+        "a trajectory outside the dataset checked"
+    );
     assert!(
         said.contains("session[0].trajectory") && said.contains("outside the dataset"),
         "{said}"

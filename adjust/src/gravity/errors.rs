@@ -328,7 +328,7 @@ mod tests {
                 let y = filter::filtfilt_pivoted(&sections, &x, 0, 1);
                 sum2 += y[n / 2].powi(2);
             }
-            let got = (sum2 / runs as f64).sqrt();
+            let got = (sum2 / f64::from(runs)).sqrt();
             assert!(
                 (got / want - 1.0).abs() < 0.06,
                 "{model:?}: Monte-Carlo {got}, propagated {want}"

@@ -200,7 +200,7 @@ mod tests {
 
     #[test]
     fn the_transform_is_the_sum() {
-        let x: Vec<f64> = (0..16).map(|i| ((i * 7) % 5) as f64 - 1.3).collect();
+        let x: Vec<f64> = (0..16).map(|i| f64::from((i * 7) % 5) - 1.3).collect();
         let (mut re, mut im) = (x.clone(), vec![0.0; 16]);
         fft(&mut re, &mut im);
         for k in 0..16 {
