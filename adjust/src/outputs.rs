@@ -58,13 +58,12 @@ pub(crate) fn write_outputs(
                 t.model, t.session
             ),
         })?;
-        let tmp = dir.join(format!(".{file}.partial"));
-        std::fs::write(&tmp, triad_fits::calib_text(t))
-            .and_then(|()| std::fs::rename(&tmp, &path))
-            .map_err(|e| Error::Io {
+        ingest::write_atomically(&path, triad_fits::calib_text(t).as_bytes()).map_err(|e| {
+            Error::Io {
                 path: path.clone(),
                 source: e,
-            })?;
+            }
+        })?;
         outputs.push(folders.record(Root::Out, &format!("{STAGE_DIR}/{file}"))?);
     }
     calibration.custody = Custody { inputs, outputs };

@@ -84,16 +84,40 @@ pub fn remove_stale(path: &Path) -> Result<()> {
     }
 }
 
-/// Writes `value` as pretty JSON to `path`, under a temporary name first.
-pub fn write_json_atomically<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    let json = serde_json::to_string_pretty(value).map_err(|e| Error::io(path, e.into()))?;
+/// Creates `path` new for writing, never through what is there: whatever the name holds
+/// (a file a killed run left, or a link, to anywhere) is removed first, not followed, and the
+/// file is created exclusively (O_EXCL: a link planted in between fails it). Every stage
+/// writes its outputs under a temporary name this way, then renames it into place (a
+/// rename replaces a link at the final name, never writes through it).
+pub fn create_new(path: &Path) -> std::io::Result<std::fs::File> {
+    if path.symlink_metadata().is_ok() {
+        std::fs::remove_file(path)?;
+    }
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+}
+
+/// Writes `bytes` to `path` under a temporary name created new ([`create_new`]), then
+/// renames it into place.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let tmp = path.with_file_name(format!(".{name}.partial"));
-    std::fs::write(&tmp, json + "\n").map_err(|e| Error::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    let mut f = create_new(&tmp)?;
+    f.write_all(bytes)?;
+    drop(f);
+    std::fs::rename(&tmp, path)
+}
+
+/// Writes `value` as pretty JSON to `path`, under a temporary name first.
+pub fn write_json_atomically<T: Serialize>(path: &Path, value: &T) -> Result<()> {
+    let json = serde_json::to_string_pretty(value).map_err(|e| Error::io(path, e.into()))?;
+    write_atomically(path, (json + "\n").as_bytes()).map_err(|e| Error::io(path, e))
 }
 
 /// Ingests `dataset` into `out/ingest/` with default options.

@@ -61,7 +61,7 @@ impl PartialFile {
     fn create(dir: &Path, file: &str) -> Result<(Self, BufWriter<HashingFile>)> {
         let tmp = dir.join(format!(".{file}.partial"));
         let f = HashingFile {
-            file: File::create(&tmp).map_err(|e| Error::io(&tmp, e))?,
+            file: crate::create_new(&tmp).map_err(|e| Error::io(&tmp, e))?,
             hasher: sha2::Sha256::default(),
         };
         let partial = PartialFile {

@@ -461,3 +461,45 @@ fn a_triad_model_needs_three_accelerometers_declared() {
         "{e}"
     );
 }
+
+/// No output is written through a link (issue 50): links planted in OUT at every name ingest
+/// writes, final and temporary, pointing outside, leave their targets untouched, and the
+/// outputs are files of their own.
+#[cfg(unix)]
+#[test]
+fn outputs_are_never_written_through_a_link() {
+    let ds = fixtures::dataset_dir("gon-gpst");
+    let first = tempfile::tempdir().expect("tempdir");
+    ingest::run(&ds, first.path()).expect("ingest");
+    let names: Vec<String> = std::fs::read_dir(first.path().join("ingest"))
+        .expect("ingest/")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().any(|n| n.ends_with(".parquet")), "{names:?}");
+    let out = tempfile::tempdir().expect("tempdir");
+    let victims = tempfile::tempdir().expect("tempdir");
+    std::fs::create_dir_all(out.path().join("ingest")).expect("ingest/");
+    let mut planted = Vec::new();
+    for (k, name) in names.iter().enumerate() {
+        for link in [name.clone(), format!(".{name}.partial")] {
+            let victim = victims.path().join(format!("victim-{k}-{}", link.len()));
+            std::fs::write(&victim, "untouched").expect("victim");
+            std::os::unix::fs::symlink(&victim, out.path().join("ingest").join(&link))
+                .expect("link");
+            planted.push(victim);
+        }
+    }
+    ingest::run(&ds, out.path()).expect("ingest over the links");
+    for v in &planted {
+        assert_eq!(
+            std::fs::read_to_string(v).expect("victim"),
+            "untouched",
+            "{}",
+            v.display()
+        );
+    }
+    for name in &names {
+        let meta = std::fs::symlink_metadata(out.path().join("ingest").join(name)).expect("out");
+        assert!(meta.file_type().is_file(), "{name} is still a link");
+    }
+}

@@ -182,16 +182,7 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
 }
 
 fn write_atomically(path: &Path, text: &str) -> Result<(), Error> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.partial"));
-    std::fs::write(&tmp, text).map_err(|e| Error::Io {
-        path: tmp.clone(),
-        source: e,
-    })?;
-    std::fs::rename(&tmp, path).map_err(|e| Error::Io {
+    ingest::write_atomically(path, text.as_bytes()).map_err(|e| Error::Io {
         path: path.to_path_buf(),
         source: e,
     })
