@@ -1392,7 +1392,9 @@ fn a_block_shorter_than_the_filter_is_refused() {
         a.block_epochs = Some(block);
         let e = a.run(dir.path()).expect_err("refused").to_string();
         assert!(
-            e.contains(&format!("--block-epochs {block}")) && e.contains("at least 1000"),
+            e.contains(&format!("--block-epochs {block}"))
+                && e.contains("at least 1000")
+                && !e.contains("  "),
             "{e}"
         );
     }

@@ -736,7 +736,9 @@ fn sensible_block(block: usize, filter_s: f64, track: &Track<'_>) -> Result<usiz
     }
     Err(GravityError::Refused {
         message: format!(
-            "--block-epochs {block} is shorter than one filter period of session {}'s epochs              ({filter_s} s at an epoch every {} s: {least} epochs): each block is reduced with              twelve filter periods of margin either side; give at least {least}",
+            "--block-epochs {block} is shorter than one filter period of session {}'s epochs \
+             ({filter_s} s at an epoch every {} s: {least} epochs): each block is reduced with \
+             twelve filter periods of margin either side; give at least {least}",
             track.session.session.id,
             track.interval_ns as f64 * 1e-9
         ),
