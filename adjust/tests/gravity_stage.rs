@@ -1183,13 +1183,22 @@ fn a_stretch_in_blocks_is_the_stretch_whole() {
 /// The rms of error / sigma of down, north and east over the epochs not at an edge, of
 /// replica `seed` of `plan` reduced under `dir`.
 fn component_z(dir: &Path, plan: fixtures::survey_lines::LinesPlan, seed: u64) -> [f64; 3] {
+    component_scores(dir, plan, seed).0
+}
+
+/// [`component_z`], and the median attitude part of north's and east's sigmas, mGal.
+fn component_scores(
+    dir: &Path,
+    plan: fixtures::survey_lines::LinesPlan,
+    seed: u64,
+) -> ([f64; 3], [f64; 2]) {
     let (_, dataset, out) = replica(dir, plan, seed);
     let r = args(&dataset).run(&out).expect("gravity");
     let (_, down) = scores(&dataset, &out, r.filter.filter_s);
     let [north, east] = horizontal_scores(&dataset, &out, r.filter.filter_s);
     std::fs::remove_dir_all(&dataset).expect("replica removed");
     std::fs::remove_dir_all(&out).expect("output removed");
-    [down, north[1], east[1]]
+    ([down, north[1], east[1]], [north[3], east[3]])
 }
 
 /// `plan` with its attitude file's errors of `errors` (white: 0.1 mrad of roll and pitch, 1
@@ -1212,12 +1221,20 @@ fn with_attitude_errors(
 fn white_attitude_errors_are_averaged_by_the_filter() {
     use fixtures::survey_lines::{SimErrors, attitude_plan};
     let dir = tempfile::tempdir().expect("tempdir");
-    let [down, north, east] = component_z(
+    let ([down, north, east], [att_north, att_east]) = component_scores(
         dir.path(),
         with_attitude_errors(attitude_plan(), SimErrors::White),
         1,
     );
-    eprintln!("white attitude errors: rms z down {down:.3}, north {north:.3}, east {east:.3}");
+    eprintln!(
+        "white attitude errors: rms z down {down:.3}, north {north:.3}, east {east:.3}; the \
+         attitude's part of the sigma north {att_north:.2}, east {att_east:.2} mGal (median)"
+    );
+    // Held over the filter, 0.1 mrad is 98 mGal north; white, the filter averages it down.
+    assert!(
+        att_north < 10.0 && att_east < 10.0,
+        "{att_north} {att_east}"
+    );
     for (name, z) in [("down", down), ("north", north), ("east", east)] {
         assert!((0.7..1.3).contains(&z), "{name}: rms z {z}");
     }
