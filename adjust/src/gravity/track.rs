@@ -454,9 +454,9 @@ type Record = (i64, [f64; WIDTH]);
 /// the positions' own noise, at least 1 mm) is an outlier: the first two of a run are
 /// replaced by the forward prediction with its sd and listed in `track.replaced`
 /// (flagged `position_outlier`), the third and later dropped and counted as
-/// `position_outlier`,
-/// cutting the track. A vehicle's own motion passes: where the track turns, the prediction
-/// from the side it has turned to holds (the curvature steps, the position does not).
+/// `position_outlier`, cutting the track. A vehicle's own motion passes: where the track
+/// turns, the prediction from the side it has turned to holds (the curvature steps, the
+/// position does not).
 fn screen(track: &mut Track<'_>, dir: &Path) -> Result<(), GravityError> {
     let n = track.times.len();
     let io = |e: std::io::Error| spill_error(track.session, format!("its epochs screened: {e}"));
