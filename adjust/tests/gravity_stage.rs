@@ -1181,12 +1181,8 @@ fn a_stretch_in_blocks_is_the_stretch_whole() {
 }
 
 /// The rms of error / sigma of down, north and east over the epochs not at an edge, of
-/// replica `seed` of `plan` reduced under `dir`.
-fn component_z(dir: &Path, plan: fixtures::survey_lines::LinesPlan, seed: u64) -> [f64; 3] {
-    component_scores(dir, plan, seed).0
-}
-
-/// [`component_z`], and the median attitude part of north's and east's sigmas, mGal.
+/// replica `seed` of `plan` reduced under `dir`, and the median attitude part of north's
+/// and east's sigmas, mGal.
 fn component_scores(
     dir: &Path,
     plan: fixtures::survey_lines::LinesPlan,
@@ -1248,10 +1244,7 @@ fn white_attitude_errors_are_averaged_by_the_filter() {
 fn monte_carlo_of_each_attitude_error_model() {
     use fixtures::survey_lines::{SimErrors, aircraft_attitude_plan, attitude_plan};
     let dir = tempfile::tempdir().expect("tempdir");
-    let surveys: u64 = std::env::var("GRAVCAL_SURVEYS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(50);
+    let surveys = surveys();
     let mut failures = Vec::new();
     for (vehicle, plan) in [
         ("boat", attitude_plan()),
@@ -1265,7 +1258,7 @@ fn monte_carlo_of_each_attitude_error_model() {
             let plan = with_attitude_errors(plan.clone(), errors);
             let mut z2 = [0.0; 3];
             for seed in 1..=surveys {
-                let z = component_z(dir.path(), plan.clone(), seed);
+                let z = component_scores(dir.path(), plan.clone(), seed).0;
                 for c in 0..3 {
                     z2[c] += z[c] * z[c] / surveys as f64;
                 }
@@ -1286,6 +1279,15 @@ fn monte_carlo_of_each_attitude_error_model() {
     assert!(failures.is_empty(), "{failures:?}");
 }
 
+/// Surveys per Monte-Carlo: `GRAVCAL_SURVEYS`, or 50.
+#[cfg(gravcal_monte_carlo)]
+fn surveys() -> u64 {
+    std::env::var("GRAVCAL_SURVEYS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(50)
+}
+
 /// The levelled boat with its positions' errors correlated (a Gauss-Markov of 1 cm
 /// horizontal and 2 cm vertical over 30 s, declared so): the rms of error / sigma of down
 /// pooled over 50 surveys; and the boat at 250 Hz with its heave, whose noise part is what
@@ -1294,10 +1296,7 @@ fn monte_carlo_of_each_attitude_error_model() {
 #[test]
 fn monte_carlo_of_correlated_positions() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let surveys: u64 = std::env::var("GRAVCAL_SURVEYS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(50);
+    let surveys = surveys();
     let plan = fixtures::survey_lines::LinesPlan {
         position_correlation_s: Some(30.0),
         ..fixtures::survey_lines::plan()

@@ -79,11 +79,15 @@ pub fn attitude_sigma(
         .map(|a| b.iter().map(|v| v[a]).collect::<Vec<f64>>())
         .filter(|x| x.iter().any(|v| *v != 0.0))
         .collect();
-    // Each angle's effect filtered: what a systematic error leaves, exactly at every epoch.
-    let systematic: Vec<Vec<f64>> = angles
-        .iter()
-        .map(|x| filter::filtfilt_pivoted(sections, x, pad, pivot))
-        .collect();
+    // Each angle's effect filtered: what a systematic error leaves, exactly at every epoch
+    // (white errors need none of it).
+    let systematic: Vec<Vec<f64>> = match errors.model {
+        ErrorModel::White => Vec::new(),
+        _ => angles
+            .iter()
+            .map(|x| filter::filtfilt_pivoted(sections, x, pad, pivot))
+            .collect(),
+    };
     let squares = |k: usize| systematic.iter().map(|y| y[k] * y[k]).sum::<f64>();
     let grid = Grid {
         n,

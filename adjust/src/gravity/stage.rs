@@ -1011,13 +1011,13 @@ fn horizontal_inputs(
         Some(f) => std::array::from_fn(|_| Some(vec![Vec::new(); f.covariance().len().isqrt()])),
         None => [None, None],
     };
+    let model = declared(ctx.survey.position_error_model());
     for k in span {
         let a = &att[k - b.bins.start];
         let c = attitude::product(&a.vehicle_to_nav(), &ctx.mounting);
         let v = bins[k].mean_vector();
         let f = bins[k].mean_nav();
         let effects = errors::attitude_effects(a.hpr_rad[0], a.sd_rad, f);
-        let model = declared(ctx.survey.position_error_model());
         let [sd, given] = position_sds(&b.positions, k, model);
         let x = ctx.triad.and_then(|t| t.readings_for(v));
         for i in 0..2 {
