@@ -1364,6 +1364,82 @@ fn a_swell_at_1_hz_does_not_pass_for_noise() {
     );
 }
 
+/// The 1 Hz platform record as a meter that filters its own output writes it (each axis
+/// smoothed four times by [1/4, 1/2, 1/4], as shipgrav's real DGS record falls across the
+/// upper band): the stage refuses to guess its noise and names the key; with the noise
+/// declared, the sigmas carry it (twice the declared, twice the noise part) and
+/// gravity.json says where it came from and why the record gave none.
+#[test]
+fn a_record_its_meter_filtered_needs_its_noise_declared() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("filtered");
+    let plan = fixtures::survey_lines::platform_plan(true);
+    fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+    let stream = dataset.join("raw/lines.txt");
+    let text = std::fs::read_to_string(&stream).expect("stream");
+    let (head, rest): (Vec<&str>, Vec<&str>) = text
+        .lines()
+        .partition(|l| l.starts_with('#') || l.starts_with('t'));
+    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); 4];
+    for l in &rest {
+        for (c, v) in l.split(',').enumerate() {
+            cols[c].push(v.parse().expect("value"));
+        }
+    }
+    for col in &mut cols[1..] {
+        for _ in 0..4 {
+            let x = col.clone();
+            for i in 1..x.len() - 1 {
+                col[i] = 0.25 * x[i - 1] + 0.5 * x[i] + 0.25 * x[i + 1];
+            }
+        }
+    }
+    let mut out_text = head.join("\n") + "\n";
+    for i in 0..cols[0].len() {
+        out_text += &format!(
+            "{:.3},{:.1},{:.1},{:.1}\n",
+            cols[0][i], cols[1][i], cols[2][i], cols[3][i]
+        );
+    }
+    std::fs::write(&stream, out_text).expect("filtered stream");
+    let e = args(&dataset)
+        .run(&dir.path().join("refused"))
+        .expect_err("refused")
+        .to_string();
+    assert!(
+        e.contains("session lines")
+            && e.contains("survey.sample_noise_mgal")
+            && e.contains("no two bands"),
+        "{e}"
+    );
+    let manifest = dataset.join("dataset.toml");
+    let toml = std::fs::read_to_string(&manifest).expect("manifest");
+    let mut noise = Vec::new();
+    for declared in [1.0, 2.0] {
+        let with = toml.replace(
+            "[survey]\n",
+            &format!("[survey]\nsample_noise_mgal = {declared}\n"),
+        );
+        assert_ne!(with, toml);
+        std::fs::write(&manifest, with).expect("manifest");
+        let out = dir.path().join(format!("declared-{declared}"));
+        let r = args(&dataset).run(&out).expect("gravity");
+        let s = &r.sessions[0];
+        assert!(
+            (s.sample_noise_mgal - declared).abs() < 1e-12,
+            "{}",
+            s.sample_noise_mgal
+        );
+        assert!(
+            s.sample_noise_from.starts_with("declared") && s.sample_noise_from.contains("no floor"),
+            "{}",
+            s.sample_noise_from
+        );
+        noise.push(median_column(&out, "sigma_noise_mgal"));
+    }
+    assert!((noise[1] / noise[0] - 2.0).abs() < 1e-6, "{noise:?}");
+}
+
 /// A strapdown record at 250 Hz under the boat's heave (0.15 m at 8 s: about 6500 mGal sd
 /// of vertical acceleration) against the same record without it: the noise part is the
 /// triad's noise either way, and the error within its sigma.

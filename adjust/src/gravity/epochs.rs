@@ -21,7 +21,7 @@
 
 use super::GravityError;
 use super::attitude::{self, AttitudeAt, AttitudeCursor};
-use super::spectrum::SpectralFloor;
+use super::spectrum::{Floor, SpectralFloor};
 use super::spill::{Spill, SpillWriter};
 use ingest::contract::tables::{TIME_GPS_NS, applied};
 use std::path::Path;
@@ -440,9 +440,9 @@ impl ThirdDifferences {
 pub struct Filled {
     /// One bin per epoch, on disk.
     pub bins: Vec<SpilledBins>,
-    /// The sd of one sample's f_D from its white noise (the floor of its spectrum,
-    /// [`super::spectrum`]), mGal.
-    pub sample_sd_mgal: Vec<f64>,
+    /// What each target's samples of f_D say of their white noise, mGal (the floor of
+    /// their spectrum, [`super::spectrum`]).
+    pub floors: Vec<Floor>,
 }
 
 /// Reads apply's table at `path` and returns one bin per epoch of each target, written
@@ -564,7 +564,7 @@ pub fn fill(
         .map_err(spill)?;
     Ok(Filled {
         bins,
-        sample_sd_mgal: noise.iter().map(SpectralFloor::sd).collect(),
+        floors: noise.iter().map(SpectralFloor::floor).collect(),
     })
 }
 

@@ -16,12 +16,44 @@
 //!
 //! Its limit: noise that is not white, rising toward low frequencies, is measured at its
 //! level above fs/8, not in the filter's pass band; and a record shorter than one segment
-//! falls back on the third differences.
+//! falls back on the third differences. A floor needs two bands that agree: where no two
+//! do (the spectrum of a meter's own filtered output falls by orders of magnitude toward
+//! the Nyquist frequency: shipgrav's DGS test record from 695 to 0.04 mGal between 0.15 and
+//! 0.37 Hz), the record cannot say its noise, and [`Floor::NotFlat`] says so.
 
 /// Samples per segment.
 pub const SEGMENT: usize = 256;
 /// Bands the upper band is split into.
 pub const BANDS: usize = 5;
+
+/// What a record's spectrum says of its white noise.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Floor {
+    /// The sd per sample, from two or more bands that agree.
+    Measured(f64),
+    /// The sd per sample from the third differences: a record shorter than a segment.
+    ThirdDifferences(f64),
+    /// No two bands agree: the spectrum falls (or rises) across the upper band, as a record
+    /// an instrument has filtered before writing it does, and its level at 0.4 fs says
+    /// nothing of the noise the survey's filter passes. Each band's level as an sd per
+    /// sample, from fs/8 up, and the segments averaged.
+    NotFlat {
+        /// The bands' levels, sd per sample.
+        band_sd: Vec<f64>,
+        /// Segments of [`SEGMENT`] samples averaged.
+        segments: usize,
+    },
+}
+
+impl Floor {
+    /// The sd per sample, where the record gives one.
+    pub fn sd(&self) -> Option<f64> {
+        match self {
+            Floor::Measured(v) | Floor::ThirdDifferences(v) => Some(*v),
+            Floor::NotFlat { .. } => None,
+        }
+    }
+}
 
 /// The floor of a series' spectrum, built as the series streams past.
 #[derive(Clone, Debug, Default)]
@@ -63,10 +95,10 @@ impl SpectralFloor {
         }
     }
 
-    /// The white noise's sd (0 before any value).
-    pub fn sd(&self) -> f64 {
+    /// The white noise's sd (0 before any value), or why the record cannot give it.
+    pub fn floor(&self) -> Floor {
         if self.segments.is_empty() {
-            return self.fallback.sd();
+            return Floor::ThirdDifferences(self.fallback.sd());
         }
         let levels: Vec<(f64, f64)> = (0..BANDS).map(|b| self.band_level(b)).collect();
         let (low, low_se) = levels
@@ -79,11 +111,17 @@ impl SpectralFloor {
             .filter(|(v, se)| v - low <= 3.0 * se.hypot(low_se))
             .map(|(v, _)| *v)
             .collect();
-        (kept.iter().sum::<f64>() / kept.len() as f64).sqrt()
+        if kept.len() < 2 {
+            return Floor::NotFlat {
+                band_sd: levels.iter().map(|(v, _)| v.sqrt()).collect(),
+                segments: self.segments.len(),
+            };
+        }
+        Floor::Measured((kept.iter().sum::<f64>() / kept.len() as f64).sqrt())
     }
 
-    /// Band `b`'s level over the segments (those within four times its median) and its
-    /// standard error.
+    /// Band `b`'s level over the segments (those within four times its median) and the
+    /// standard error white noise at that level would give it.
     fn band_level(&self, b: usize) -> (f64, f64) {
         let mut v: Vec<f64> = self.segments.iter().map(|s| s[b]).collect();
         v.sort_by(f64::total_cmp);
@@ -91,15 +129,13 @@ impl SpectralFloor {
         let kept: Vec<f64> = v.into_iter().filter(|x| *x <= 4.0 * median).collect();
         let n = kept.len() as f64;
         let mean = kept.iter().sum::<f64>() / n;
-        let se = if kept.len() >= 3 {
-            let var = kept.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
-            (var / n).sqrt()
-        } else {
-            // A band's mean over its bins: about bins / 1.5 independent chi-square(2) / 2
-            // values (the Hann window correlates neighbouring bins).
-            let bins = (band_range(0).len() as f64 / 1.5).max(1.0);
-            mean / (bins * n).sqrt()
-        };
+        // The standard error white noise at this level would give: a band's mean over its
+        // bins is about bins / 1.5 independent chi-square(2) / 2 values (the Hann window
+        // correlates neighbouring bins). Not the segments' own scatter: over the three
+        // segments of a 1000 s record a swell's band scatters so much that it passed for
+        // agreeing with the floor.
+        let bins = (band_range(0).len() as f64 / 1.5).max(1.0);
+        let se = mean / (bins * n).sqrt();
         (mean, se)
     }
 }
@@ -239,10 +275,10 @@ mod tests {
                 third.push(t, e + s);
             }
             for (name, f) in [("quiet", &quiet), ("swell", &swell)] {
+                let floor = f.floor();
                 assert!(
-                    (f.sd() / 2.0 - 1.0).abs() < tol,
-                    "{seconds} s {name}: {}",
-                    f.sd()
+                    matches!(floor, Floor::Measured(v) if (v / 2.0 - 1.0).abs() < tol),
+                    "{seconds} s {name}: {floor:?}"
                 );
             }
             assert!(third.sd() > 20.0, "third differences {}", third.sd());
@@ -265,6 +301,65 @@ mod tests {
             let vibration = 30.0 * (std::f64::consts::TAU * 0.35 * k as f64).sin();
             f.push(k as i64 * 10, rng.next() * (1.0 + knock) + vibration);
         }
-        assert!((f.sd() - 1.0).abs() < 0.03, "{}", f.sd());
+        let floor = f.floor();
+        assert!(
+            matches!(floor, Floor::Measured(v) if (v - 1.0).abs() < 0.03),
+            "{floor:?}"
+        );
+    }
+
+    /// A real record (shipgrav's DGS AT1M test file, fixtures/real/shipgrav-dgs): the
+    /// meter's own filter makes its 1 Hz spectrum fall by orders of magnitude across the
+    /// upper band, so no floor is measured, where the third differences read its swell (the
+    /// 6.65 mGal of noise the 100 s filter was said to pass) and the lowest band alone
+    /// would claim almost none. The same swell-free fall filtered white noise shows, and
+    /// white noise added back under it gives its floor again.
+    #[test]
+    fn a_record_its_meter_filtered_has_no_floor() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../fixtures/real/shipgrav-dgs/DGStest_laptop.dat"
+        );
+        let text = std::fs::read_to_string(path).expect(path);
+        let rgrav: Vec<f64> = text
+            .lines()
+            .map(|l| {
+                l.split(',')
+                    .nth(1)
+                    .expect("column 2")
+                    .trim()
+                    .parse()
+                    .expect("mGal")
+            })
+            .collect();
+        assert_eq!(rgrav.len(), 1001);
+        let (mut real, mut with_noise) = (
+            SpectralFloor::new(1_000_000_000),
+            SpectralFloor::new(1_000_000_000),
+        );
+        let mut third = super::super::epochs::ThirdDifferences::new(1_000_000_000);
+        let mut rng = Normal(3);
+        for (k, v) in rgrav.iter().enumerate() {
+            let t = k as i64 * 1_000_000_000;
+            real.push(t, *v);
+            third.push(t, *v);
+            with_noise.push(t, v + 10.0 * rng.next());
+        }
+        let floor = real.floor();
+        let Floor::NotFlat { band_sd, segments } = &floor else {
+            panic!("the DGS record's floor: {floor:?}")
+        };
+        eprintln!(
+            "DGS record: bands' sd {band_sd:.3?} mGal over {segments} segments; third \
+             differences {:.1} mGal",
+            third.sd()
+        );
+        assert!(band_sd[0] > 100.0 * band_sd[BANDS - 1], "{band_sd:?}");
+        assert!(third.sd() > 20.0, "{}", third.sd());
+        let floor = with_noise.floor();
+        assert!(
+            matches!(floor, Floor::Measured(v) if (v / 10.0 - 1.0).abs() < 0.3),
+            "10 mGal of white noise under the record: {floor:?}"
+        );
     }
 }

@@ -12,6 +12,7 @@ use super::epochs::{self, BinsAt, DownForce, SpilledBins, Target};
 use super::errors::{self, AttitudeErrors};
 use super::horizontal::{self, Horizontal, ReducedHorizontal};
 use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
+use super::spectrum::{self, Floor};
 use super::track::{Track, read_tracks};
 use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
@@ -76,12 +77,17 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     ingest::remove_stale(&ledger_path)?;
     let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let with_horizontal = tracks.iter().any(|t| t.attitude.is_some());
+    let noise = tracks
+        .iter()
+        .zip(&filled.floors)
+        .map(|(t, f)| sample_noise(f, survey.sample_noise_mgal, &t.session.session.id))
+        .collect::<Result<Vec<_>, _>>()?;
     let mut rows = Rows::create(&dir, &names, with_horizontal)?;
     let ctx = |k: usize| Context {
         survey: &survey,
         ties: &ds.ties,
         samples_per_s: ds.manifest.instrument.sample_rate_hz,
-        sample_sd_mgal: filled.sample_sd_mgal[k],
+        sample_noise: &noise[k],
         triad: triad.as_ref(),
         mounting: mounting(&survey),
         block_epochs: opts.block_epochs,
@@ -509,12 +515,71 @@ fn describe(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> S
     }
 }
 
+/// The white noise of one sample of f_D the sigmas carry, and where it comes from.
+struct SampleNoise {
+    sd_mgal: f64,
+    from: String,
+}
+
+/// A session's sample noise: `[survey] sample_noise_mgal` where declared, else the record's
+/// spectral floor; a record without a floor and no noise declared is refused (its noise
+/// cannot be measured from it, and any number the stage chose would be a guess).
+fn sample_noise(
+    floor: &Floor,
+    declared: Option<f64>,
+    session: &str,
+) -> Result<SampleNoise, GravityError> {
+    let bands = |band_sd: &[f64], segments: usize| {
+        let b: Vec<String> = band_sd.iter().map(|v| format!("{v:.3}")).collect();
+        format!(
+            "its spectrum from an eighth to 0.4 of the sampling rate, in {} bands, is {} mGal \
+             per sample (over {segments} segments of {} samples), with no two bands alike",
+            band_sd.len(),
+            b.join(", "),
+            spectrum::SEGMENT
+        )
+    };
+    let measured = match floor {
+        Floor::Measured(v) => format!("the record's spectral floor, {v:.4} mGal"),
+        Floor::ThirdDifferences(v) => format!(
+            "the record's third differences, {v:.4} mGal (shorter than {} samples)",
+            spectrum::SEGMENT
+        ),
+        Floor::NotFlat { band_sd, segments } => {
+            format!("the record has no floor: {}", bands(band_sd, *segments))
+        }
+    };
+    match (declared, floor.sd()) {
+        (Some(v), _) => Ok(SampleNoise {
+            sd_mgal: v,
+            from: format!("declared (survey.sample_noise_mgal); {measured}"),
+        }),
+        (None, Some(v)) => Ok(SampleNoise {
+            sd_mgal: v,
+            from: measured,
+        }),
+        (None, None) => Err(GravityError::Refused {
+            message: format!(
+                "session {session}: the noise of its specific force cannot be measured from \
+                 the record: {}. A meter that filters its output before writing it does \
+                 this; declare the noise of one sample at the stream's rate as \
+                 survey.sample_noise_mgal (the maker's figure, or the sd of a still record's \
+                 samples)",
+                match floor {
+                    Floor::NotFlat { band_sd, segments } => bands(band_sd, *segments),
+                    _ => String::new(),
+                }
+            ),
+        }),
+    }
+}
+
 /// What every track's reduction shares.
 struct Context<'a> {
     survey: &'a SurveyConfig,
     ties: &'a [ResolvedTie],
     samples_per_s: f64,
-    sample_sd_mgal: f64,
+    sample_noise: &'a SampleNoise,
     /// A triad model without temperature terms: the calibration's error from the
     /// parameters.
     triad: Option<&'a TriadFunction>,
@@ -559,6 +624,8 @@ fn reduce_track(
         attitude_dropped: track.attitude_dropped.clone(),
         position_noise_m: track.noise_neu_m,
         position_sd_given_m: track.sd_given_median_m,
+        sample_noise_mgal: ctx.sample_noise.sd_mgal,
+        sample_noise_from: ctx.sample_noise.from.clone(),
         stretches: Vec::new(),
     };
     let (spans, gaps) = stretches(
@@ -976,7 +1043,7 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
                 s.attitude_effects_mgal.push([0.0; 3]);
             }
         }
-        s.noise_f_mgal.push(bins[k].noise(ctx.sample_sd_mgal));
+        s.noise_f_mgal.push(bins[k].noise(ctx.sample_noise.sd_mgal));
     }
     s
 }
@@ -1440,6 +1507,11 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
         "gravity: {}: positions' white noise north, east, up {n:.2}, {e:.2}, {u:.2} cm \
          (their third differences); {given}",
         s.id
+    );
+    let _ = writeln!(
+        w,
+        "gravity: {}: a sample's noise {:.4} mGal, from {}",
+        s.id, s.sample_noise_mgal, s.sample_noise_from
     );
     for b in &s.bad_lines {
         let _ = writeln!(w, "gravity: {}: set aside: {b}", s.id);

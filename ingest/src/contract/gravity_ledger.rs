@@ -137,6 +137,14 @@ pub struct SessionGravity {
     /// none), to be read beside `position_noise_m`.
     #[serde(default)]
     pub position_sd_given_m: Option<[f64; 3]>,
+    /// The white noise of one sample of f_D the sigmas carry, mGal.
+    #[serde(default)]
+    pub sample_noise_mgal: f64,
+    /// Where [`SessionGravity::sample_noise_mgal`] comes from: the record's spectral floor,
+    /// its third differences (a record shorter than a segment), or `[survey]
+    /// sample_noise_mgal` (with the record's own floor beside it, or why it has none).
+    #[serde(default)]
+    pub sample_noise_from: String,
     /// The stretches.
     pub stretches: Vec<StretchSummary>,
 }

@@ -43,6 +43,11 @@ pub struct SurveyConfig {
     /// With `position_errors = "correlated"`: the correlation time, s (no default: a
     /// position's correlation depends on the solution).
     pub position_correlation_s: Option<f64>,
+    /// The white noise of one sample of the specific force down, mGal at the stream's rate,
+    /// as the instrument's maker or the user's own still record states it: taken instead of
+    /// the record's spectral floor (docs/model.md 7), and needed where the record has none
+    /// (a meter that filters its own output before writing it).
+    pub sample_noise_mgal: Option<f64>,
     /// Static ties at known gravity.
     pub tie: Vec<TieDecl>,
 }
@@ -130,6 +135,7 @@ impl Default for SurveyConfig {
             attitude_correlation_s: None,
             position_errors: ErrorKind::White,
             position_correlation_s: None,
+            sample_noise_mgal: None,
             tie: Vec::new(),
         }
     }
@@ -327,6 +333,14 @@ pub fn check(
         false,
         err,
     )?;
+    if let Some(v) = survey.sample_noise_mgal
+        && !(v.is_finite() && v > 0.0 && v <= 1e5)
+    {
+        return Err(err(
+            "survey.sample_noise_mgal".to_owned(),
+            format!("{v} is not a sample's noise in mGal within (0, 100000]"),
+        ));
+    }
     let ties: Vec<ResolvedTie> = survey
         .tie
         .iter()
@@ -491,6 +505,14 @@ mod tests {
         ] {
             let e = checked(a, p).expect_err("refused").to_string();
             assert!(e.contains(key), "{e}");
+        }
+        for v in [0.0, -1.0, f64::NAN, 2e5] {
+            let s = SurveyConfig {
+                sample_noise_mgal: Some(v),
+                ..SurveyConfig::default()
+            };
+            let e = check(&s, true, &err).expect_err("refused").to_string();
+            assert!(e.contains("survey.sample_noise_mgal"), "{v}: {e}");
         }
     }
 }
