@@ -1,0 +1,210 @@
+//! A real hand-held MEMS recording calibrated by imu_tk, with imu_tk's own result
+//! (fixtures/real/imu-tk-7251, SOURCE.md there): the positions imu_tk's detector finds and
+//! the positions gravcal uses, and gravcal's T, K, B beside imu_tk's.
+//!
+//! `cargo test -p adjust --test real_imu_tk -- --nocapture` prints both detectors'
+//! intervals and every parameter's difference in gravcal's sigmas.
+
+use ingest::contract::align_ledger::AlignReport;
+use ingest::contract::calibration::Calibration;
+use ingest::contract::manifest::TimeScale;
+use std::path::{Path, PathBuf};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/real/imu-tk-7251")
+        .join(name)
+}
+
+/// The recording's time and accelerometer counts (columns 1, 5, 6, 7).
+fn samples() -> Vec<(f64, [f64; 3])> {
+    let text = std::fs::read_to_string(fixture("7251imu.txt")).expect("7251imu.txt");
+    text.lines()
+        .map(|l| {
+            let f: Vec<f64> = l
+                .split_whitespace()
+                .map(|v| v.parse().expect("number"))
+                .collect();
+            (f[0], [f[4], f[5], f[6]])
+        })
+        .collect()
+}
+
+/// imu_tk's own detector (src/filters.cpp `staticIntervalsDetector`, src/calibration.cpp
+/// `calibrateAcc`): the norm of the three axes' variances over a 101-sample window against
+/// `mult` times the norm of the first 50 s's variances; intervals of 100 samples or more
+/// (`extractIntervalsSamples`), as (start, end) times.
+fn imu_tk_intervals(s: &[(f64, [f64; 3])], mult: f64) -> Vec<(f64, f64)> {
+    let variance = |r: &[(f64, [f64; 3])]| -> [f64; 3] {
+        let n = r.len() as f64;
+        std::array::from_fn(|a| {
+            let m = r.iter().map(|x| x.1[a]).sum::<f64>() / n;
+            r.iter().map(|x| (x.1[a] - m).powi(2)).sum::<f64>() / (n - 1.0)
+        })
+    };
+    let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let init = s.iter().take_while(|x| x.0 < s[0].0 + 50.0).count();
+    let threshold = mult * norm(variance(&s[..init]));
+    let h = 50;
+    let mut intervals = Vec::new();
+    let mut start: Option<usize> = None;
+    for i in h..s.len() - h {
+        let still = norm(variance(&s[i - h..=i + h])) < threshold;
+        match (start, still) {
+            (None, true) => start = Some(i),
+            (Some(a), false) => {
+                intervals.push((a, i - 1));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(a) = start {
+        intervals.push((a, s.len() - h - 1));
+    }
+    intervals
+        .into_iter()
+        .filter(|(a, b)| b - a + 1 >= 100)
+        .map(|(a, b)| (s[a].0, s[b].0))
+        .collect()
+}
+
+/// imu_tk's result (test_imu_acc.calib: T, K, B) as gravcal's parameters: a_yz = -T01,
+/// a_zy = T02, a_zx = -T12; K in m/s^2 per count times 1e5 in mGal per count.
+fn imu_tk_result() -> [(&'static str, f64); 9] {
+    let text = std::fs::read_to_string(fixture("test_imu_acc.calib")).expect("calib");
+    let v: Vec<f64> = text
+        .split_whitespace()
+        .map(|x| x.parse().expect("number"))
+        .collect();
+    assert_eq!(v.len(), 21, "T, K, B");
+    [
+        ("a_yz", -v[1]),
+        ("a_zy", v[2]),
+        ("a_zx", -v[5]),
+        ("s_x", v[9] * 1e5),
+        ("s_y", v[13] * 1e5),
+        ("s_z", v[17] * 1e5),
+        ("b_x", v[18]),
+        ("b_y", v[19]),
+        ("b_z", v[20]),
+    ]
+}
+
+const MANIFEST: &str = r#"name = "imu-tk-7251"
+description = "ouabout/imu_tk's hand-held MEMS recording (fixtures/real/imu-tk-7251)"
+
+[site]
+g_abs_mgal = 980000.0          # imu_tk's run took g = 9.8 m/s^2
+gradient_mgal_per_m = 0.0
+
+[instrument]
+sample_rate_hz = 200
+
+[[instrument.accelerometer]]
+id = "x"
+channel = 1
+serial = "7251 x"
+
+[[instrument.accelerometer]]
+id = "y"
+channel = 2
+serial = "7251 y"
+
+[[instrument.accelerometer]]
+id = "z"
+channel = 3
+serial = "7251 z"
+
+[[session]]
+id = "lab"
+date = "2017-10-25"
+kind = "multi-position"
+adc_format = "seconds"
+adc_csv = "raw/acc.txt"
+start = "2017-10-25T00:00:00"
+
+[[adjust.model]]
+name = "triad"
+kind = "triad"
+"#;
+
+/// The share of the intervals imu_tk's detector finds, at every multiple it tries, that
+/// hold a position gravcal uses (the interval's middle inside one), at least 75 % (issue 47
+/// asks for 90 %: not yet held); T, K, B printed beside imu_tk's, their differences in
+/// gravcal's sigmas (issue 47 asks for within 3: not yet held, see docs/triad.md).
+#[test]
+fn the_positions_imu_tk_finds_are_used() {
+    let s = samples();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("imu-tk-7251");
+    std::fs::create_dir_all(dataset.join("raw")).expect("raw");
+    let stream: String = s
+        .iter()
+        .map(|(t, a)| format!("{t:.6} {} {} {}\n", a[0], a[1], a[2]))
+        .collect();
+    std::fs::write(dataset.join("raw/acc.txt"), stream).expect("stream");
+    std::fs::write(dataset.join("dataset.toml"), MANIFEST).expect("manifest");
+    let out = dir.path().join("out");
+    ingest::run(&dataset, &out).expect("ingest");
+    align::run(&dataset, &out).expect("align");
+    adjust::run(&dataset, &out).expect("adjust");
+    let aligned: AlignReport = ingest::read_json(&out.join("align/align.json")).expect("align");
+    let cal: Calibration =
+        ingest::read_json(&out.join("adjust/calibration.json")).expect("calibration");
+    let t0 = ingest::time::iso_gps_ns("2017-10-25T00:00:00", TimeScale::Utc).expect("start");
+    let secs = |ns: i64| (ns - t0) as f64 * 1e-9;
+    let triad = &cal.triad[0];
+    let used: Vec<(f64, f64)> = aligned.multi_position[0]
+        .positions
+        .iter()
+        .filter(|p| {
+            !triad
+                .positions
+                .iter()
+                .any(|q| q.removed && q.start_gps_ns == p.start_gps_ns)
+        })
+        .map(|p| (secs(p.start_gps_ns), secs(p.end_gps_ns)))
+        .collect();
+    eprintln!(
+        "gravcal: {} positions found, {} used: {:.1?}",
+        aligned.multi_position[0].positions.len(),
+        used.len(),
+        used
+    );
+    let mut shares = Vec::new();
+    for mult in 2..=10 {
+        let theirs = imu_tk_intervals(&s, f64::from(mult));
+        let missed: Vec<&(f64, f64)> = theirs
+            .iter()
+            .filter(|(a, b)| {
+                let mid = 0.5 * (a + b);
+                !used.iter().any(|(c, d)| (*c..=*d).contains(&mid))
+            })
+            .collect();
+        let share = 1.0 - missed.len() as f64 / theirs.len() as f64;
+        eprintln!(
+            "imu_tk at {mult} x: {} intervals, {:.0} % used by gravcal; missed {missed:.1?}",
+            theirs.len(),
+            100.0 * share
+        );
+        shares.push(share);
+    }
+    // Issue 47 asks for 90 %; this recording gives 79-86 % today (docs/triad.md, "A real
+    // recording"): the guard keeps what holds from getting worse.
+    let worst = shares.iter().copied().fold(1.0, f64::min);
+    assert!(worst >= 0.75, "{shares:?}");
+    for (name, theirs) in imu_tk_result() {
+        let p = triad
+            .parameters
+            .iter()
+            .find(|p| p.name == name)
+            .expect("parameter");
+        eprintln!(
+            "{name}: gravcal {:.6e} +/- {:.2e}, imu_tk {theirs:.6e}: {:+.2} sigma",
+            p.value,
+            p.sigma,
+            (theirs - p.value) / p.sigma
+        );
+    }
+}
