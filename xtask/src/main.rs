@@ -362,19 +362,43 @@ fn peers_venv() -> Result<()> {
     Ok(())
 }
 
+/// `cargo xtask ci`: what CI runs (.ci/run), each phase timed.
 fn ci() -> Result<()> {
-    cargo(&["fmt", "--all", "--", "--check"])?;
-    cargo(&[
-        "clippy",
-        "--workspace",
-        "--all-targets",
-        "--",
-        "-D",
-        "warnings",
-    ])?;
-    peers_venv()?;
-    cargo(&["test", "--workspace"])?;
-    fixtures_check()?;
+    let start = std::time::Instant::now();
+    timed("fmt", || cargo(&["fmt", "--all", "--", "--check"]))?;
+    timed("clippy", || {
+        cargo(&[
+            "clippy",
+            "--workspace",
+            "--all-targets",
+            "--",
+            "-D",
+            "warnings",
+        ])
+    })?;
+    timed("peers' venv", peers_venv)?;
+    timed("tests", || cargo(&["test", "--workspace"]))?;
+    timed("fixtures check", fixtures_check)?;
+    timed("pipeline, apply and gravity on the fixtures", ci_pipelines)?;
+    timed("benchmarks on small sizes", bench_smoke)?;
+    eprintln!("ci: every phase passed in {:.0} s", start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// One phase of `cargo xtask ci`, its time printed when it ends, passed or failed.
+fn timed(name: &str, phase: impl FnOnce() -> Result<()>) -> Result<()> {
+    let start = std::time::Instant::now();
+    let result = phase();
+    eprintln!(
+        "ci: {name}: {} in {:.0} s",
+        if result.is_ok() { "passed" } else { "FAILED" },
+        start.elapsed().as_secs_f64()
+    );
+    result
+}
+
+/// The pipeline on every fixture, and the README's apply and gravity commands.
+fn ci_pipelines() -> Result<()> {
     let scratch = std::env::temp_dir().join(format!("gravcal-ci-{}", std::process::id()));
     for name in fixtures::catalog::ALL {
         let args = DatasetArgs {
@@ -429,7 +453,7 @@ fn ci() -> Result<()> {
     let gravity = gravity?;
     adjust::gravity::stage::print_summary(&gravity, &mut std::io::stderr());
     eprintln!("gravity on {lines}: ok");
-    bench_smoke()
+    Ok(())
 }
 
 /// Every benchmark once on a small size, without the peers, so that none can break unseen
