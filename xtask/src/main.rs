@@ -381,7 +381,10 @@ fn ci() -> Result<()> {
     timed("fixtures check", fixtures_check)?;
     timed("pipeline, apply and gravity on the fixtures", ci_pipelines)?;
     timed("benchmarks on small sizes", bench_smoke)?;
-    eprintln!("ci: every phase passed in {:.0} s", start.elapsed().as_secs_f64());
+    eprintln!(
+        "ci: every phase passed in {:.0} s",
+        start.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
