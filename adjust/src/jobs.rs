@@ -18,6 +18,7 @@ pub fn models(declared: &[ModelDecl], session_mean_temperatures: &[f64]) -> Vec<
         per: Per::Session,
         temperature: false,
         misalignment: Misalignment::None,
+        position_floor: Default::default(),
     }];
     let (lo, hi) = session_mean_temperatures
         .iter()
@@ -32,6 +33,7 @@ pub fn models(declared: &[ModelDecl], session_mean_temperatures: &[f64]) -> Vec<
             per: Per::All,
             temperature: true,
             misalignment: Misalignment::None,
+            position_floor: Default::default(),
         });
     }
     v

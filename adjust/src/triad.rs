@@ -24,6 +24,7 @@
 
 use crate::calibrate::W_CRITICAL;
 use crate::gh::{self, Conditions, GhError};
+pub use ingest::contract::manifest::PositionFloor;
 
 /// The linear model's parameter names, in order: the three non-orthogonality angles (rad),
 /// the scales, the biases. [`TriadModel::names`] appends the others.
@@ -192,20 +193,20 @@ fn calibrated(p: &[f64], x: [f64; 3]) -> [f64; 3] {
     TriadModel::LINEAR.evaluate(&p[..9], x, [0.0; 3], None).0
 }
 
-struct TriadConditions<'a> {
+struct TriadConditions {
     model: TriadModel,
-    positions: &'a [Position],
     t_ref_c: f64,
 }
 
-impl Conditions<6> for TriadConditions<'_> {
+impl Conditions<7> for TriadConditions {
     fn n_params(&self) -> usize {
         self.model.n_params()
     }
 
     /// Observations `l`: the three means, then the three temperatures (taken as t_ref, and
-    /// so ignored, without temperature terms).
-    fn eval(&self, i: usize, p: &[f64], l: [f64; 6], a: &mut [f64]) -> (f64, [f64; 6]) {
+    /// so ignored, without temperature terms), then the position's gravity (its sd the
+    /// position floor: what the block's placement adds beyond the samples' scatter).
+    fn eval(&self, _i: usize, p: &[f64], l: [f64; 7], a: &mut [f64]) -> (f64, [f64; 7]) {
         let n = self.model.n_params();
         let x = [l[0], l[1], l[2]];
         let tau = [l[3], l[4], l[5]].map(|t| t - self.t_ref_c);
@@ -220,23 +221,23 @@ impl Conditions<6> for TriadConditions<'_> {
         // T's column j is da/dx_j over du_j/dx_j; the temperature moves u_j by its slope.
         let slopes = self.model.tau_slopes(p, x, tau);
         let t = [[1.0, -p[0], p[1]], [0.0, 1.0, -p[2]], [0.0, 0.0, 1.0]];
-        let bl = std::array::from_fn(|j| {
-            if j < 3 {
-                (0..3).map(|r| e[r] * dadx[r][j]).sum::<f64>()
-            } else {
-                (0..3).map(|r| e[r] * t[r][j - 3]).sum::<f64>() * slopes[j - 3]
-            }
+        let bl = std::array::from_fn(|j| match j {
+            0..3 => (0..3).map(|r| e[r] * dadx[r][j]).sum::<f64>(),
+            3..6 => (0..3).map(|r| e[r] * t[r][j - 3]).sum::<f64>() * slopes[j - 3],
+            _ => -1.0,
         });
-        (norm - self.positions[i].g_mgal, bl)
+        (norm - l[6], bl)
     }
 }
 
-/// The six observations of each position, and their sds: the means, then the temperatures
-/// (t_ref, sd 0, without temperature terms or a temperature; sd 0 when it has none).
+/// The seven observations of each position, and their sds: the means, then the
+/// temperatures (t_ref, sd 0, without temperature terms or a temperature; sd 0 when it has
+/// none), then gravity with the position floor's sd `floor_mgal`.
 fn position_observations(
     positions: &[Position],
     t_ref_c: Option<f64>,
-) -> (Vec<[f64; 6]>, Vec<[f64; 6]>) {
+    floor_mgal: f64,
+) -> (Vec<[f64; 7]>, Vec<[f64; 7]>) {
     positions
         .iter()
         .map(|q| {
@@ -244,8 +245,10 @@ fn position_observations(
                 (Some(_), Some(t)) => (t, q.temperature_sd_c.unwrap_or([0.0; 3])),
                 _ => ([t_ref_c.unwrap_or(0.0); 3], [0.0; 3]),
             };
-            let l = [q.mean[0], q.mean[1], q.mean[2], t[0], t[1], t[2]];
-            let s = [q.sigma[0], q.sigma[1], q.sigma[2], sd[0], sd[1], sd[2]];
+            let l = [q.mean[0], q.mean[1], q.mean[2], t[0], t[1], t[2], q.g_mgal];
+            let s = [
+                q.sigma[0], q.sigma[1], q.sigma[2], sd[0], sd[1], sd[2], floor_mgal,
+            ];
             (l, s)
         })
         .unzip()
@@ -258,11 +261,11 @@ pub struct TriadSolution {
     pub model: TriadModel,
     /// The parameters of [`TriadModel::names`].
     pub values: Vec<f64>,
-    /// Their covariance at the a-priori sigmas of the means, row-major n x n.
+    /// Their covariance at the a-priori sigmas of the means (and the floor), row-major n x n.
     pub covariance: Vec<f64>,
     /// The temperature tau is counted from, degC (with temperature terms).
     pub t_ref_c: Option<f64>,
-    /// sqrt(v^T P v / dof).
+    /// sqrt(v^T P v / dof): the fit's, or with an estimated floor the positions' own sigmas'.
     pub sigma0: f64,
     /// v^T P v.
     pub vtpv: f64,
@@ -277,6 +280,20 @@ pub struct TriadSolution {
     pub removed: Vec<(usize, f64)>,
     /// Iterations of the final adjustment.
     pub iterations: usize,
+    /// The parameters' sds at the positions' own sigmas (no floor).
+    pub sigma_apriori: Vec<f64>,
+    /// The position floor used, if any.
+    pub floor: Option<FloorUsed>,
+}
+
+/// The position floor a triad fit used (docs/model.md 6.5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloorUsed {
+    /// The sd added to each position's gravity, mGal.
+    pub mgal: f64,
+    /// Estimated: the floors at which v^T P v (at the positions' own sigmas plus the floor)
+    /// reaches its chi-square's 97.5 % and 2.5 % points, a 95 % interval; none when declared.
+    pub interval_mgal: Option<[f64; 2]>,
 }
 
 impl TriadSolution {
@@ -335,6 +352,12 @@ pub enum TriadError {
         /// Smallest over largest eigenvalue of the directions' scatter.
         spread: f64,
     },
+    /// No position floor up to 1e9 mGal brings the fit's v^T P v to its dof.
+    #[error(
+        "no position floor up to 1e9 mGal makes the positions agree with the model: they are \
+         not static positions of this triad"
+    )]
+    NoFloor,
     /// The adjustment could not determine a parameter.
     #[error("parameter {name} is not estimable from these positions")]
     NotEstimable {
@@ -453,14 +476,13 @@ fn reference_temperature(positions: &[Position]) -> Result<f64, TriadError> {
 fn adjust_positions(
     model: TriadModel,
     positions: &[Position],
-    t_ref_c: Option<f64>,
+    (t_ref_c, floor_mgal): (Option<f64>, f64),
     start: &[f64],
-) -> Result<gh::Solution<6>, TriadError> {
-    let (l, sigma) = position_observations(positions, t_ref_c);
+) -> Result<gh::Solution<7>, TriadError> {
+    let (l, sigma) = position_observations(positions, t_ref_c, floor_mgal);
     gh::solve(
         &TriadConditions {
             model,
-            positions,
             t_ref_c: t_ref_c.unwrap_or(0.0),
         },
         &l,
@@ -476,10 +498,22 @@ fn adjust_positions(
     })
 }
 
+/// Calibrates the triad `model` from `positions` with no position floor: see
+/// [`calibrate_with_floor`].
+pub fn calibrate(model: TriadModel, positions: &[Position]) -> Result<TriadSolution, TriadError> {
+    calibrate_with_floor(model, positions, PositionFloor::None)
+}
+
 /// Calibrates the triad `model` from `positions`: the adjustment, then data snooping (the
 /// position with the largest |w| above 3.29 removed and the adjustment repeated, at most a
-/// tenth of the positions), then the global test.
-pub fn calibrate(model: TriadModel, positions: &[Position]) -> Result<TriadSolution, TriadError> {
+/// tenth of the positions), then the global test. With `floor` each position's gravity is
+/// an observation with the floor's sd (declared, or estimated at each step so that
+/// v^T P v equals its degrees of freedom when the positions scatter beyond their sigmas).
+pub fn calibrate_with_floor(
+    model: TriadModel,
+    positions: &[Position],
+    floor: PositionFloor,
+) -> Result<TriadSolution, TriadError> {
     let needed = model.min_positions();
     if positions.len() < needed {
         return Err(TriadError::TooFewPositions {
@@ -501,7 +535,16 @@ pub fn calibrate(model: TriadModel, positions: &[Position]) -> Result<TriadSolut
     let mut start = p0;
     loop {
         let kept: Vec<Position> = used.iter().map(|&i| positions[i]).collect();
-        let s = adjust_positions(model, &kept, t_ref_c, &start)?;
+        let fit = |f: f64, start: &[f64]| adjust_positions(model, &kept, (t_ref_c, f), start);
+        let floor_mgal = match floor {
+            PositionFloor::None => 0.0,
+            PositionFloor::Mgal(v) => v,
+            PositionFloor::Estimate => {
+                let dof = fit(0.0, &start)?.dof as f64;
+                floor_for(&|f| fit(f, &start).map(|s| s.vtpv), dof)?
+            }
+        };
+        let s = fit(floor_mgal, &start)?;
         let worst = s
             .w_test
             .iter()
@@ -518,20 +561,39 @@ pub fn calibrate(model: TriadModel, positions: &[Position]) -> Result<TriadSolut
             start = s.p;
             continue;
         }
-        let dof = s.dof;
+        // The test of the weights: the fit's own, or with an estimated floor the positions'
+        // sigmas alone (the floor makes v^T P v its dof by construction).
+        let tested = match floor {
+            PositionFloor::Estimate => fit(0.0, &s.p)?,
+            _ => s.clone(),
+        };
+        let dof = tested.dof;
         let chi2 =
             statrs::distribution::ChiSquared::new(dof.max(1) as f64).expect("dof is positive");
-        let (lo, hi) = (
-            statrs::distribution::ContinuousCDF::inverse_cdf(&chi2, 0.025),
-            statrs::distribution::ContinuousCDF::inverse_cdf(&chi2, 0.975),
-        );
+        let quantile = |q: f64| statrs::distribution::ContinuousCDF::inverse_cdf(&chi2, q);
+        let (lo, hi) = (quantile(0.025), quantile(0.975));
+        let floor_used = match floor {
+            PositionFloor::None => None,
+            PositionFloor::Mgal(v) => Some(FloorUsed {
+                mgal: v,
+                interval_mgal: None,
+            }),
+            PositionFloor::Estimate => {
+                let vtpv = |f| fit(f, &s.p).map(|s| s.vtpv);
+                Some(FloorUsed {
+                    mgal: floor_mgal,
+                    interval_mgal: Some([floor_for(&vtpv, hi)?, floor_for(&vtpv, lo)?]),
+                })
+            }
+        };
+        let n = s.p.len();
         return Ok(TriadSolution {
             model,
             t_ref_c,
-            sigma0: s.sigma0(),
-            vtpv: s.vtpv,
+            sigma0: tested.sigma0(),
+            vtpv: tested.vtpv,
             dof,
-            global_test: (lo, hi, (lo..=hi).contains(&s.vtpv)),
+            global_test: (lo, hi, (lo..=hi).contains(&tested.vtpv)),
             residuals: used
                 .iter()
                 .enumerate()
@@ -539,10 +601,42 @@ pub fn calibrate(model: TriadModel, positions: &[Position]) -> Result<TriadSolut
                 .collect(),
             removed,
             iterations: s.iterations,
+            sigma_apriori: (0..n)
+                .map(|j| tested.q_pp[j * n + j].max(0.0).sqrt())
+                .collect(),
+            floor: floor_used,
             covariance: s.q_pp,
             values: s.p,
         });
     }
+}
+
+/// The smallest floor f >= 0 at which `vtpv(f)` (decreasing in f) is at most `target`: 0
+/// when it already is, else by bisection to a part in 1e6.
+fn floor_for(
+    vtpv: &dyn Fn(f64) -> Result<f64, TriadError>,
+    target: f64,
+) -> Result<f64, TriadError> {
+    if vtpv(0.0)? <= target {
+        return Ok(0.0);
+    }
+    let mut hi = 1.0;
+    while vtpv(hi)? > target {
+        hi *= 4.0;
+        if hi > 1e9 {
+            return Err(TriadError::NoFloor);
+        }
+    }
+    let mut lo = 0.0;
+    while hi - lo > 1e-6 * hi {
+        let mid = 0.5 * (lo + hi);
+        if vtpv(mid)? > target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Ok(hi)
 }
 
 #[cfg(test)]
@@ -565,7 +659,6 @@ mod tests {
                 let model = TriadModel { order, temperature };
                 let c = TriadConditions {
                     model,
-                    positions: &q,
                     t_ref_c: 30.0,
                 };
                 let mut p = vec![2e-3, -1e-3, 3e-3, 0.243, 0.242, 0.2435, 1.2e5, 1.4e5, 9.0e4];
@@ -578,13 +671,13 @@ mod tests {
                         _ => 2e-5,
                     });
                 }
-                let (l, _) = position_observations(&q, Some(30.0));
+                let (l, _) = position_observations(&q, Some(30.0), 0.0);
                 check_derivatives(&c, &p, &names, l[0]);
             }
         }
     }
 
-    fn check_derivatives(c: &TriadConditions, p: &[f64], names: &[&str], x: [f64; 6]) {
+    fn check_derivatives(c: &TriadConditions, p: &[f64], names: &[&str], x: [f64; 7]) {
         let n = p.len();
         let mut a = vec![0.0; n];
         let (_, b) = c.eval(0, p, x, &mut a);
@@ -605,9 +698,13 @@ mod tests {
                 a[j]
             );
         }
-        // The readings by one unit, the temperatures by 1 mK.
-        for j in 0..6 {
-            let h = if j < 3 { 1.0 } else { 1e-3 };
+        // The readings by one unit, the temperatures by 1 mK, gravity by 1 mGal.
+        for j in 0..7 {
+            let h = if j == 3 || j == 4 || j == 5 {
+                1e-3
+            } else {
+                1.0
+            };
             let mut up = x;
             up[j] += h;
             let mut down = x;
@@ -622,10 +719,11 @@ mod tests {
             );
         }
         if !c.model.temperature {
-            assert_eq!(&b[3..], &[0.0; 3]);
+            assert_eq!(&b[3..6], &[0.0; 3]);
         } else {
-            assert!(b[3..].iter().all(|d| d.abs() > 1.0), "{b:?}");
+            assert!(b[3..6].iter().all(|d| d.abs() > 1.0), "{b:?}");
         }
+        assert!((b[6] + 1.0).abs() < 1e-12, "{b:?}");
     }
 
     #[test]

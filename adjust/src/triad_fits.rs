@@ -6,7 +6,8 @@
 use crate::triad::{self, Position, TriadModel, TriadSolution};
 use ingest::contract::align_ledger::{AlignReport, MultiPosition, StaticPosition};
 use ingest::contract::calibration::{
-    ALL_SESSIONS, FitScope, GlobalTest, Parameter, Skipped, TRIAD, TriadPosition, TriadResult,
+    ALL_SESSIONS, FitScope, GlobalTest, Parameter, PositionFloorUsed, Skipped, TRIAD,
+    TriadPosition, TriadResult,
 };
 use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
 
@@ -63,7 +64,7 @@ pub fn fit_all(
                     temperature_sd_c: p.temperature_sd_c,
                 })
                 .collect();
-            match triad::calibrate(kind, &positions) {
+            match triad::calibrate_with_floor(kind, &positions, model.position_floor) {
                 Ok(s) => {
                     let mut r = result(ds, model, scope.id(), &rows, &positions, &s);
                     r.positions_without_temperature = total - rows.len();
@@ -104,8 +105,8 @@ fn result(
             unit: unit_of(name, unit),
             value: s.values[j],
             sigma: s.sigma(j),
-            sigma_apriori: s.sigma(j),
-            dof: None,
+            sigma_apriori: s.sigma_apriori[j],
+            dof: s.floor.and_then(|f| f.interval_mgal).map(|_| s.dof as f64),
         })
         .collect();
     let correlation = (0..n)
@@ -161,6 +162,16 @@ fn result(
         positions_without_temperature: 0,
         calib_file: calib_file(&model.name, session, s),
         readings_range: Some(readings_range),
+        position_floor: s.floor.map(|f| PositionFloorUsed {
+            mgal: f.mgal,
+            how: if f.interval_mgal.is_some() {
+                "estimated"
+            } else {
+                "declared"
+            }
+            .to_owned(),
+            interval_mgal: f.interval_mgal,
+        }),
     }
 }
 
@@ -185,8 +196,11 @@ fn median_temperature_sd(used: &[usize], positions: &[Position]) -> Option<[f64;
 /// should not take it for a calibration.
 fn calib_file(model: &str, session: &str, s: &TriadSolution) -> Option<String> {
     let (lo, _, passed) = s.global_test;
+    // An estimated floor takes up what the positions' own sigmas do not explain: the test
+    // then judged those sigmas, not the model with its floor.
+    let estimated = s.floor.is_some_and(|f| f.interval_mgal.is_some());
     (s.model == TriadModel::LINEAR).then(|| {
-        let rejected = if passed || s.vtpv < lo {
+        let rejected = if passed || s.vtpv < lo || estimated {
             ""
         } else {
             "-REJECTED"

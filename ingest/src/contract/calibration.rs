@@ -429,6 +429,23 @@ pub struct TriadResult {
     /// calibrates (an application outside it is flagged).
     #[serde(default)]
     pub readings_range: Option<[[f64; 2]; 3]>,
+    /// The position floor (the manifest's `position_floor`): the sd added to each
+    /// position's gravity beyond its samples' scatter; none without one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position_floor: Option<PositionFloorUsed>,
+}
+
+/// The position floor a triad fit used (docs/model.md 6.5).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct PositionFloorUsed {
+    /// The sd added to each position's gravity, mGal.
+    pub mgal: f64,
+    /// `"declared"` or `"estimated"`.
+    pub how: String,
+    /// Estimated: its 95 % interval, mGal (the floors at which the fit's v^T P v reaches
+    /// its chi-square's 97.5 % and 2.5 % points).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval_mgal: Option<[f64; 2]>,
 }
 
 fn order_one() -> u8 {

@@ -477,6 +477,50 @@ pub struct ModelDecl {
     /// the vector (theta_x, theta_y) over sessions at different rolls (docs/formats.md 8.2).
     #[serde(default)]
     pub misalignment: Misalignment,
+    /// A triad model's error of each position beyond its own scatter (docs/formats.md 8.4):
+    /// none (default), a number in mGal, or `"estimate"`.
+    #[serde(default, skip_serializing_if = "PositionFloor::is_none")]
+    pub position_floor: PositionFloor,
+}
+
+/// What a triad fit adds to each position's variance beyond its samples' scatter (a block
+/// placed by hand does not return the same mean twice: docs/model.md 6.5): nothing, a
+/// declared sd in mGal, or one estimated from the positions' residuals.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub enum PositionFloor {
+    /// Each position's sigma is its scatter's (default).
+    #[default]
+    None,
+    /// A declared sd, mGal, added in quadrature to every position's.
+    Mgal(f64),
+    /// Estimated when the positions scatter beyond their sigmas (the fit's sigma0 above 1).
+    Estimate,
+}
+
+impl PositionFloor {
+    /// Whether none is added.
+    pub fn is_none(&self) -> bool {
+        *self == PositionFloor::None
+    }
+}
+
+impl<'de> Deserialize<'de> for PositionFloor {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Number(f64),
+            Name(String),
+        }
+        match Raw::deserialize(d)? {
+            Raw::Number(v) => Ok(PositionFloor::Mgal(v)),
+            Raw::Name(n) if n == "estimate" => Ok(PositionFloor::Estimate),
+            Raw::Name(n) if n == "none" => Ok(PositionFloor::None),
+            Raw::Name(n) => Err(serde::de::Error::custom(format!(
+                "`{n}` is not \"none\", \"estimate\" or a number of mGal"
+            ))),
+        }
+    }
 }
 
 impl ModelDecl {
@@ -486,6 +530,23 @@ impl ModelDecl {
         check_name(&self.name, &[]).map_err(|e| ("name", e))?;
         if !(1..=3).contains(&self.order) {
             return Err(("order", format!("{} is out of range [1, 3]", self.order)));
+        }
+        match (self.kind, self.position_floor) {
+            (ModelKind::Axis, f) if !f.is_none() => {
+                return Err((
+                    "position_floor",
+                    "a position floor belongs to a triad model (an axis model's readings are \
+                     weighed by its variance components)"
+                        .to_owned(),
+                ));
+            }
+            (_, PositionFloor::Mgal(v)) if !(v.is_finite() && v > 0.0 && v <= 1e6) => {
+                return Err((
+                    "position_floor",
+                    format!("{v} is not a sd in mGal within (0, 1000000]"),
+                ));
+            }
+            _ => {}
         }
         if self.kind == ModelKind::Triad && self.misalignment != Misalignment::None {
             return Err((
