@@ -109,7 +109,7 @@ fn print_triad(t: &ingest::contract::calibration::TriadResult, w: &mut impl std:
         .collect();
     let _ = writeln!(
         w,
-        "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed{}, global test {}; {}",
+        "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed{}, global test {}{}; {}",
         t.model,
         t.session,
         p.join(", "),
@@ -120,15 +120,13 @@ fn print_triad(t: &ingest::contract::calibration::TriadResult, w: &mut impl std:
             n => format!(", {n} without temperature left out"),
         },
         t.global_test.verdict(),
+        t.floor_clause(),
         t.calib_file.as_ref().map_or_else(
             || "no imu_tk file (its layout has no higher orders or temperature terms)".to_owned(),
             |f| format!("wrote {f}")
         )
     );
-    if let Some(advice) = t
-        .global_test
-        .advice(&format!("triad {} {}", t.model, t.session), true)
-    {
+    if let Some(advice) = t.advice() {
         let _ = writeln!(w, "adjust: {advice}");
     }
 }

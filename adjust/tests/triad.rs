@@ -484,6 +484,81 @@ fn monte_carlo_of_hand_held_recordings() {
     }
 }
 
+/// Hand-held recordings whose every placement offsets the readings (150 counts per axis,
+/// about 2.5 times a position mean's own sigma: what a block set down by hand does not
+/// return to), fitted twice in one run: without a position floor the sigmas are too small
+/// (rms z well above 1, the global test failing), with `position_floor = "estimate"` the
+/// rms of (estimate - truth) / sigma is 1 within 3 standard errors per parameter (60
+/// replicas here; `GRAVCAL_MONTE_CARLO=1` runs 400).
+#[test]
+fn monte_carlo_of_an_estimated_position_floor() {
+    let replicas: u64 = if std::env::var("GRAVCAL_MONTE_CARLO").is_ok() {
+        400
+    } else {
+        60
+    };
+    let (mut with, mut without) = ([0.0; 9], [0.0; 9]);
+    let (mut floors, mut rejected) = (Vec::new(), 0u64);
+    for k in 0..replicas {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let dataset = dir.path().join("placed");
+        let plan = fixtures::triad::MultiPosPlan {
+            placement_sd: 150.0,
+            ..fixtures::triad::hand_held(45, 30.0, 9_000 + k)
+        };
+        let truth = fixtures::triad::write_multipos(&plan, &dataset).expect("write");
+        let manifest = dataset.join("dataset.toml");
+        let text = std::fs::read_to_string(&manifest).expect("manifest");
+        std::fs::write(
+            &manifest,
+            format!(
+                "{text}\n[[adjust.model]]\nname = \"floor\"\nkind = \"triad\"\n\
+                 position_floor = \"estimate\"\n"
+            ),
+        )
+        .expect("manifest");
+        let c = pipeline(&dataset, &dir.path().join("out"));
+        let fit = |name: &str| {
+            c.triad
+                .iter()
+                .find(|t| t.model == name)
+                .unwrap_or_else(|| panic!("replica {k}: {name}: {:?}", c.skipped))
+                .clone()
+        };
+        let (plain, floored) = (fit("triad"), fit("floor"));
+        rejected += u64::from(!plain.global_test.passed);
+        floors.push(floored.position_floor.as_ref().expect("estimated").mgal);
+        for (sums, r) in [(&mut without, &plain), (&mut with, &floored)] {
+            for (j, p) in r.parameters.iter().enumerate() {
+                sums[j] += ((p.value - truth.parameters[j]) / p.sigma).powi(2);
+            }
+        }
+    }
+    let n = replicas as f64;
+    let rms = |s: &[f64; 9]| s.map(|v| (v / n).sqrt());
+    let (with, without) = (rms(&with), rms(&without));
+    floors.sort_by(f64::total_cmp);
+    eprintln!(
+        "placement 150 counts, {replicas} replicas: rms z without a floor {without:.2?} \
+         (global test rejecting {:.0} %), with the floor estimated {with:.3?}; median floor \
+         {:.1} mGal",
+        100.0 * rejected as f64 / n,
+        floors[floors.len() / 2]
+    );
+    let se = 1.0 / (2.0 * n).sqrt();
+    for (name, z) in NAMES.iter().zip(with) {
+        assert!(
+            (z - 1.0).abs() < 3.0 * se,
+            "{name}: rms z {z} with the floor"
+        );
+    }
+    let worst = without.iter().copied().fold(0.0, f64::max);
+    assert!(
+        worst > 1.5,
+        "without a floor the sigmas should fail: {without:?}"
+    );
+}
+
 /// `replicas` hand-held recordings with `tremor` rad through the pipeline: per parameter
 /// the rms of (estimate - truth) / sigma, the global test's rejection rate, and the fewest
 /// positions a replica used.

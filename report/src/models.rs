@@ -133,10 +133,7 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
             ]);
         }
         s.text.push(triad_summary(r));
-        if let Some(advice) = r
-            .global_test
-            .advice(&format!("triad {} {}", r.model, r.session), true)
-        {
+        if let Some(advice) = r.advice() {
             s.text.push(advice);
         }
         s.tables
@@ -151,7 +148,7 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
 fn triad_summary(r: &calibration::TriadResult) -> String {
     let removed = r.positions.iter().filter(|p| p.removed).count();
     format!(
-        "Model {} ({}): {} positions used, {removed} removed{}; sigma0 {:.3} on {} dof, global test {} ([{:.1}, {:.1}] for {:.1}); \
+        "Model {} ({}): {} positions used, {removed} removed{}; sigma0 {:.3} on {} dof, global test {} ([{:.1}, {:.1}] for {:.1}){}; \
          {}. The last three rows are 90 deg minus the angle between each pair of sensitive axes.",
         r.model,
         r.session,
@@ -166,6 +163,7 @@ fn triad_summary(r: &calibration::TriadResult) -> String {
         r.global_test.lower,
         r.global_test.upper,
         r.global_test.statistic,
+        r.floor_clause(),
         match (r.order, r.t_ref_c) {
             (1, None) => String::new(),
             (o, t) => format!(

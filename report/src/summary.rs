@@ -100,12 +100,19 @@ fn calibrations_table(cal: &Calibration) -> Table {
     }
     for r in &cal.triad {
         let removed = r.positions.iter().filter(|p| p.removed).count();
-        t.rows.push(summary_row(
+        let mut row = summary_row(
             [&r.model, "triad (x, y, z)", &r.session],
             (&r.parameters, None),
             (&r.global_test, r.sigma0),
             format!("{} positions / {removed}", r.positions_used),
-        ));
+        );
+        if let (Some(f), Some(cell)) = (r.estimated_floor(), row.last_mut()) {
+            *cell = format!(
+                "sigmas include a position floor of {:.3e} mGal: see below",
+                f.mgal
+            );
+        }
+        t.rows.push(row);
     }
     t
 }
@@ -143,10 +150,7 @@ fn global_test_advice(cal: &Calibration) -> Vec<String> {
             false,
         )
     });
-    let triad = cal.triad.iter().filter_map(|r| {
-        r.global_test
-            .advice(&format!("triad {} {}", r.model, r.session), true)
-    });
+    let triad = cal.triad.iter().filter_map(|r| r.advice());
     axis.chain(triad).collect()
 }
 

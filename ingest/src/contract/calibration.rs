@@ -435,6 +435,45 @@ pub struct TriadResult {
     pub position_floor: Option<PositionFloorUsed>,
 }
 
+impl TriadResult {
+    /// The floor, when it was estimated: then the global test judged the positions' own
+    /// sigmas, and the floor took up what they did not explain.
+    pub fn estimated_floor(&self) -> Option<&PositionFloorUsed> {
+        self.position_floor
+            .as_ref()
+            .filter(|f| f.how == "estimated")
+    }
+
+    /// What the fit's global test means: with an estimated floor, the floor and its
+    /// interval; else the test's own advice when it failed.
+    pub fn advice(&self) -> Option<String> {
+        let subject = format!("triad {} {}", self.model, self.session);
+        let Some(f) = self.estimated_floor() else {
+            return self.global_test.advice(&subject, true);
+        };
+        let interval = f.interval_mgal.map_or(String::new(), |[a, b]| {
+            format!(" (95 %: {a:.3e} to {b:.3e})")
+        });
+        Some(format!(
+            "{subject}: the positions scatter beyond their own sigmas (sigma0 {:.3} at those; \
+             global test {}), so a position floor of {:.3e} mGal{interval} was estimated and \
+             added to every position: the sigmas include it. A block placed by hand does this; \
+             so does a model too small (a higher order, temperature terms), which a floor \
+             would hide: look at the residuals beside the directions (the report plots both)",
+            self.sigma0,
+            self.global_test.verdict(),
+            f.mgal
+        ))
+    }
+
+    /// `, position floor <mGal> <how>`, or nothing without one: for a fit's line.
+    pub fn floor_clause(&self) -> String {
+        self.position_floor.as_ref().map_or(String::new(), |f| {
+            format!(", position floor {:.3e} mGal {}", f.mgal, f.how)
+        })
+    }
+}
+
 /// The position floor a triad fit used (docs/model.md 6.5).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct PositionFloorUsed {
