@@ -76,7 +76,9 @@ fn imu_tk_intervals(s: &[(f64, [f64; 3])], mult: f64) -> Vec<(f64, f64)> {
 fn imu_tk_choice(s: &[(f64, [f64; 3])]) -> (u32, Vec<(f64, f64)>, Vec<f64>) {
     use adjust::triad::{Position, PositionFloor, TriadModel, calibrate_with_floor};
     let floor = 1e5;
-    let mut best: Option<(f64, u32, Vec<(f64, f64)>, Vec<f64>)> = None;
+    // (cost, multiple, intervals, parameters)
+    type Choice = (f64, u32, Vec<(f64, f64)>, Vec<f64>);
+    let mut best: Option<Choice> = None;
     for mult in 2..=10 {
         let intervals = imu_tk_intervals(s, f64::from(mult));
         let positions: Vec<Position> = intervals
