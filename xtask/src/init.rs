@@ -723,7 +723,7 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
         theodolite_keys(t, th);
         let _ = writeln!(
             t,
-            "# roll_deg = 0.0                # the block's roll about the vertical, deg (docs/formats.md 8.2)"
+            "# roll_deg = 0.0                # the block's turn about its mirror axis, deg (docs/formats.md 8.2)"
         );
     } else {
         let _ = writeln!(
