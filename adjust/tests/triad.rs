@@ -452,6 +452,63 @@ fn a_hand_held_recording_calibrates() {
     assert!(r.global_test.passed, "{:?}", r.global_test);
 }
 
+/// A hand-held recording as a consumer IMU's logger writes it: 10 ms stamps at 200 Hz (two
+/// samples a stamp) and each axis holding its last value a quarter of the time (the real
+/// recording issue 47 describes repeats 20-27 %): every position long enough is found and
+/// the triad calibrates within its sigmas.
+#[test]
+fn held_samples_and_shared_stamps_calibrate() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("held");
+    let plan = fixtures::triad::MultiPosPlan {
+        held_fraction: 0.25,
+        tremor_rad: 0.0,
+        ..fixtures::triad::hand_held(45, 30.0, 20_261_128)
+    };
+    let truth = fixtures::triad::write_multipos(&plan, &dataset).expect("write");
+    let text = std::fs::read_to_string(dataset.join("raw/lab.txt")).expect("stream");
+    let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split(' ').collect()).collect();
+    let repeats = rows.windows(2).filter(|w| w[0][1] == w[1][1]).count();
+    let share = repeats as f64 / (rows.len() - 1) as f64;
+    assert!((0.2..0.3).contains(&share), "x repeats {share}");
+    let c = pipeline(&dataset, &dir.path().join("out"));
+    let r = &c.triad[0];
+    eprintln!(
+        "held 25 %: x repeats {:.1} %, {} positions used, sigma0 {:.3}, {:?}",
+        100.0 * share,
+        r.positions_used,
+        r.sigma0,
+        r.global_test
+    );
+    assert!(r.positions_used >= 40, "{} positions", r.positions_used);
+    within_sigmas(r, &truth.parameters);
+    // `GRAVCAL_MONTE_CARLO=1`: 200 such recordings, the rms of (estimate - truth) / sigma
+    // per parameter printed, not asserted: it is 0.74-0.85 (the sigmas a third too large;
+    // docs/triad.md, issue 47 left open), where the same recordings without held samples
+    // give 1 (`monte_carlo_of_hand_held_recordings`).
+    if std::env::var("GRAVCAL_MONTE_CARLO").is_err() {
+        return;
+    }
+    let replicas = 200u64;
+    let mut sum_z2 = [0.0; 9];
+    for k in 0..replicas {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let dataset = dir.path().join("held");
+        let plan = fixtures::triad::MultiPosPlan {
+            held_fraction: 0.25,
+            tremor_rad: 0.0,
+            ..fixtures::triad::hand_held(45, 30.0, 11_000 + k)
+        };
+        let truth = fixtures::triad::write_multipos(&plan, &dataset).expect("write");
+        let c = pipeline(&dataset, &dir.path().join("out"));
+        for (j, p) in c.triad[0].parameters.iter().enumerate() {
+            sum_z2[j] += ((p.value - truth.parameters[j]) / p.sigma).powi(2);
+        }
+    }
+    let rms = sum_z2.map(|s| (s / replicas as f64).sqrt());
+    eprintln!("held 25 %, {replicas} replicas: rms z {rms:.3?} (1 expected; not yet held)");
+}
+
 /// Monte-Carlo of hand-held recordings through the whole pipeline (write the stream, ingest,
 /// detect, adjust): each replica a new recording (new directions, holds and noise) of 45
 /// positions held 1-4 s with a hand's drift. Per parameter the rms of (estimate - truth) /
