@@ -1435,3 +1435,54 @@ impl Dataset {
             .find(|a| a.channel == channel)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model(toml_text: &str) -> std::result::Result<ModelDecl, String> {
+        let m: ModelDecl = toml::from_str(toml_text).map_err(|e| e.to_string())?;
+        m.check().map_err(|(k, e)| format!("{k}: {e}"))?;
+        Ok(m)
+    }
+
+    /// `position_floor`: a number of mGal, "estimate" or "none", on a triad model only; a
+    /// floor out of range, another word, or a floor on an axis model is refused by key.
+    #[test]
+    fn a_position_floor_is_read_and_checked() {
+        let triad = "name = \"t\"\nkind = \"triad\"\n";
+        for (v, want) in [
+            ("400.0", PositionFloor::Mgal(400.0)),
+            ("\"estimate\"", PositionFloor::Estimate),
+            ("\"none\"", PositionFloor::None),
+        ] {
+            let m = model(&format!("{triad}position_floor = {v}\n")).expect(v);
+            assert_eq!(m.position_floor, want);
+        }
+        assert_eq!(
+            model(triad).expect("default").position_floor,
+            PositionFloor::None
+        );
+        for (text, says) in [
+            (
+                format!("{triad}position_floor = -1.0\n"),
+                "position_floor: -1",
+            ),
+            (
+                format!("{triad}position_floor = 0.0\n"),
+                "position_floor: 0",
+            ),
+            (
+                format!("{triad}position_floor = \"guess\"\n"),
+                "`guess` is not",
+            ),
+            (
+                "name = \"a\"\nposition_floor = \"estimate\"\n".to_owned(),
+                "position_floor: a position floor belongs to a triad model",
+            ),
+        ] {
+            let e = model(&text).expect_err(&text);
+            assert!(e.contains(says), "{text}: {e}");
+        }
+    }
+}
