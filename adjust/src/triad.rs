@@ -540,7 +540,8 @@ pub fn calibrate_with_floor(
             PositionFloor::None => 0.0,
             PositionFloor::Mgal(v) => v,
             PositionFloor::Estimate => {
-                let dof = fit(0.0, &start)?.dof as f64;
+                // One condition a position: the dof are the positions less the parameters.
+                let dof = (kept.len() - model.n_params()) as f64;
                 floor_for(&|f| fit(f, &start).map(|s| s.vtpv), dof)?
             }
         };

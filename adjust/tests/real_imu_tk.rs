@@ -69,34 +69,25 @@ fn imu_tk_intervals(s: &[(f64, [f64; 3])], mult: f64) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// imu_tk's choice among the multiples: the one whose intervals' means (equally weighted,
-/// `enableAccUseMeans(true)`) fit with the smallest sum of squared |a| - g. Each fit is
-/// gravcal's own adjustment with a floor so large (1e5 mGal) that every position weighs the
-/// same and none is removed; v^T P v times the floor squared is that sum.
-fn imu_tk_choice(s: &[(f64, [f64; 3])]) -> (u32, Vec<(f64, f64)>, Vec<f64>) {
+/// imu_tk's choice among the multiples, given each multiple's intervals (`by_multiple[i]`
+/// for multiple i + 2): the one whose intervals' means (equally weighted,
+/// `enableAccUseMeans(true)`) fit with the smallest sum of squared |a| - g, and that fit's
+/// parameters. Each fit is gravcal's own adjustment with a floor so large (1e5 mGal) that
+/// every position weighs the same and none is removed; v^T P v times the floor squared is
+/// that sum.
+fn imu_tk_choice(s: &[(f64, [f64; 3])], by_multiple: &[Vec<(f64, f64)>]) -> (usize, Vec<f64>) {
     use adjust::triad::{Position, PositionFloor, TriadModel, calibrate_with_floor};
     let floor = 1e5;
-    // (cost, multiple, intervals, parameters)
-    type Choice = (f64, u32, Vec<(f64, f64)>, Vec<f64>);
-    let mut best: Option<Choice> = None;
-    for mult in 2..=10 {
-        let intervals = imu_tk_intervals(s, f64::from(mult));
+    let mut best: Option<(f64, usize, Vec<f64>)> = None;
+    for (i, intervals) in by_multiple.iter().enumerate() {
         let positions: Vec<Position> = intervals
             .iter()
-            .map(|(a, b)| {
-                let inside: Vec<&[f64; 3]> = s
-                    .iter()
-                    .filter(|x| (*a..=*b).contains(&x.0))
-                    .map(|x| &x.1)
-                    .collect();
-                let n = inside.len() as f64;
-                Position {
-                    mean: std::array::from_fn(|k| inside.iter().map(|x| x[k]).sum::<f64>() / n),
-                    sigma: [1e-3; 3],
-                    g_mgal: 980_000.0,
-                    temperature_c: None,
-                    temperature_sd_c: None,
-                }
+            .map(|&span| Position {
+                mean: stats(s, span).0,
+                sigma: [1e-3; 3],
+                g_mgal: 980_000.0,
+                temperature_c: None,
+                temperature_sd_c: None,
             })
             .collect();
         let fit = calibrate_with_floor(TriadModel::LINEAR, &positions, PositionFloor::Mgal(floor))
@@ -104,16 +95,31 @@ fn imu_tk_choice(s: &[(f64, [f64; 3])]) -> (u32, Vec<(f64, f64)>, Vec<f64>) {
         assert!(fit.removed.is_empty());
         let cost = fit.vtpv * floor * floor;
         eprintln!(
-            "imu_tk at {mult} x: {} intervals, sum of squared |a| - g {:.4e} mGal^2",
-            intervals.len(),
-            cost
+            "imu_tk at {} x: {} intervals, sum of squared |a| - g {cost:.4e} mGal^2",
+            i + 2,
+            intervals.len()
         );
         if best.as_ref().is_none_or(|b| cost < b.0) {
-            best = Some((cost, mult, intervals, fit.values));
+            best = Some((cost, i, fit.values));
         }
     }
-    let (_, mult, intervals, values) = best.expect("a multiple");
-    (mult, intervals, values)
+    let (_, i, values) = best.expect("a multiple");
+    (i, values)
+}
+
+/// The mean and sd of each axis over the samples from `a` to `b` s.
+fn stats(s: &[(f64, [f64; 3])], (a, b): (f64, f64)) -> ([f64; 3], [f64; 3]) {
+    let inside: Vec<&[f64; 3]> = s
+        .iter()
+        .filter(|x| (a..=b).contains(&x.0))
+        .map(|x| &x.1)
+        .collect();
+    let n = inside.len() as f64;
+    let mean: [f64; 3] = std::array::from_fn(|k| inside.iter().map(|x| x[k]).sum::<f64>() / n);
+    let sd = std::array::from_fn(|k| {
+        (inside.iter().map(|x| (x[k] - mean[k]).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+    });
+    (mean, sd)
 }
 
 /// imu_tk's result (test_imu_acc.calib: T, K, B) as gravcal's parameters: a_yz = -T01,
@@ -222,10 +228,12 @@ fn the_positions_imu_tk_finds_are_used() {
         used.len(),
         used
     );
-    let (chosen, _, replayed) = imu_tk_choice(&s);
+    let by_multiple: Vec<Vec<(f64, f64)>> = (2..=10)
+        .map(|mult| imu_tk_intervals(&s, f64::from(mult)))
+        .collect();
+    let (chosen, replayed) = imu_tk_choice(&s, &by_multiple);
     let mut shares = Vec::new();
-    for mult in 2..=10 {
-        let theirs = imu_tk_intervals(&s, f64::from(mult));
+    for (i, theirs) in by_multiple.iter().enumerate() {
         let missed: Vec<&(f64, f64)> = theirs
             .iter()
             .filter(|(a, b)| {
@@ -239,15 +247,32 @@ fn the_positions_imu_tk_finds_are_used() {
             .collect();
         let share = 1.0 - missed.len() as f64 / theirs.len() as f64;
         eprintln!(
-            "imu_tk at {mult} x: {} intervals, {:.0} % used by gravcal; missed {missed:.1?}",
+            "imu_tk at {} x: {} intervals, {:.0} % used by gravcal; missed {missed:.1?}",
+            i + 2,
             theirs.len(),
             100.0 * share
         );
+        if i == chosen {
+            // How still what gravcal did not take was, beside the positions it took.
+            let mut used_sd: Vec<[f64; 3]> = used.iter().map(|&span| stats(&s, span).1).collect();
+            let median: [f64; 3] = std::array::from_fn(|k| {
+                used_sd.sort_by(|x, y| x[k].total_cmp(&y[k]));
+                used_sd[used_sd.len() / 2][k]
+            });
+            for &&span in &missed {
+                eprintln!(
+                    "missed {span:.1?}: sd per axis {:.1?} counts; median over gravcal's \
+                     positions {median:.1?}",
+                    stats(&s, span).1
+                );
+            }
+        }
         shares.push(share);
     }
-    let share = shares[chosen as usize - 2];
+    let share = shares[chosen];
     eprintln!(
-        "imu_tk's choice: {chosen} x, {:.0} % of its intervals used",
+        "imu_tk's choice: {} x, {:.0} % of its intervals used",
+        chosen + 2,
         100.0 * share
     );
     assert!(share >= 0.9, "{shares:?}");

@@ -472,6 +472,15 @@ fn held_samples_and_shared_stamps_calibrate() {
     let share = repeats as f64 / (rows.len() - 1) as f64;
     assert!((0.2..0.3).contains(&share), "x repeats {share}");
     let c = pipeline(&dataset, &dir.path().join("out"));
+    let a = ingest::contract::align_ledger::AlignReport::load(&dir.path().join("out/align"))
+        .expect("align");
+    for n in &a.multi_position[0].noise {
+        eprintln!(
+            "held 25 %: channel {}: bias instability {:.2} times the white density",
+            n.channel,
+            n.bias_instability / n.white_density_per_sqrt_hz
+        );
+    }
     let r = &c.triad[0];
     eprintln!(
         "held 25 %: x repeats {:.1} %, {} positions used, sigma0 {:.3}, {:?}",
@@ -489,24 +498,13 @@ fn held_samples_and_shared_stamps_calibrate() {
     if std::env::var("GRAVCAL_MONTE_CARLO").is_err() {
         return;
     }
-    let replicas = 200u64;
-    let mut sum_z2 = [0.0; 9];
-    for k in 0..replicas {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let dataset = dir.path().join("held");
-        let plan = fixtures::triad::MultiPosPlan {
+    hand_held_monte_carlo(200, "a quarter held (1 expected; not yet held)", |k| {
+        fixtures::triad::MultiPosPlan {
             held_fraction: 0.25,
             tremor_rad: 0.0,
             ..fixtures::triad::hand_held(45, 30.0, 11_000 + k)
-        };
-        let truth = fixtures::triad::write_multipos(&plan, &dataset).expect("write");
-        let c = pipeline(&dataset, &dir.path().join("out"));
-        for (j, p) in c.triad[0].parameters.iter().enumerate() {
-            sum_z2[j] += ((p.value - truth.parameters[j]) / p.sigma).powi(2);
         }
-    }
-    let rms = sum_z2.map(|s| (s / replicas as f64).sqrt());
-    eprintln!("held 25 %, {replicas} replicas: rms z {rms:.3?} (1 expected; not yet held)");
+    });
 }
 
 /// Monte-Carlo of hand-held recordings through the whole pipeline (write the stream, ingest,
@@ -520,7 +518,7 @@ fn held_samples_and_shared_stamps_calibrate() {
 fn monte_carlo_of_hand_held_recordings() {
     let full = std::env::var("GRAVCAL_MONTE_CARLO").is_ok();
     let replicas: u64 = if full { 400 } else { 100 };
-    let (rms, rate, fewest) = hand_held_monte_carlo(replicas, 0.0);
+    let (rms, rate, fewest) = hand_held_monte_carlo(replicas, "no tremor", with_tremor(0.0));
     let n = replicas as f64;
     let se = 1.0 / (2.0 * n).sqrt();
     for (name, r) in NAMES.iter().zip(&rms) {
@@ -537,7 +535,7 @@ fn monte_carlo_of_hand_held_recordings() {
     // the safe side: a periodic wobble averages out of a mean faster than the white noise
     // the scatter about a line takes it for. Printed for the record, not asserted.
     if full {
-        hand_held_monte_carlo(replicas, 2e-4);
+        hand_held_monte_carlo(replicas, "tremor 2e-4 rad", with_tremor(2e-4));
     }
 }
 
@@ -631,20 +629,20 @@ fn monte_carlo_of_an_estimated_position_floor() {
     );
 }
 
-/// `replicas` hand-held recordings with `tremor` rad through the pipeline: per parameter
-/// the rms of (estimate - truth) / sigma, the global test's rejection rate, and the fewest
-/// positions a replica used.
-fn hand_held_monte_carlo(replicas: u64, tremor: f64) -> (Vec<f64>, f64, usize) {
+/// `replicas` hand-held recordings (replica k's plan from `plan(k)`) through the pipeline:
+/// per parameter the rms of (estimate - truth) / sigma, the global test's rejection rate,
+/// and the fewest positions a replica used; printed under `label`.
+fn hand_held_monte_carlo(
+    replicas: u64,
+    label: &str,
+    plan: impl Fn(u64) -> fixtures::triad::MultiPosPlan,
+) -> (Vec<f64>, f64, usize) {
     let mut sum_z2 = [0.0; 9];
     let (mut rejected, mut fewest) = (0u64, usize::MAX);
     for k in 0..replicas {
         let dir = tempfile::tempdir().expect("tempdir");
         let dataset = dir.path().join("hand-held");
-        let plan = fixtures::triad::MultiPosPlan {
-            tremor_rad: tremor,
-            ..fixtures::triad::hand_held(45, 30.0, 7_000 + k)
-        };
-        let truth = fixtures::triad::write_multipos(&plan, &dataset).expect("write");
+        let truth = fixtures::triad::write_multipos(&plan(k), &dataset).expect("write");
         let c = pipeline(&dataset, &dir.path().join("out"));
         let r = c
             .triad
@@ -661,8 +659,8 @@ fn hand_held_monte_carlo(replicas: u64, tremor: f64) -> (Vec<f64>, f64, usize) {
     let rms: Vec<f64> = sum_z2.iter().map(|s| (s / n).sqrt()).collect();
     let rate = rejected as f64 / n;
     eprintln!(
-        "hand-held monte carlo, {replicas} replicas, tremor {tremor} rad: rms z {}; global \
-         test rejects {:.1} %; fewest positions used {fewest}",
+        "hand-held monte carlo, {replicas} replicas, {label}: rms z {}; global test rejects \
+         {:.1} %; fewest positions used {fewest}",
         NAMES
             .iter()
             .zip(&rms)
@@ -672,6 +670,14 @@ fn hand_held_monte_carlo(replicas: u64, tremor: f64) -> (Vec<f64>, f64, usize) {
         100.0 * rate
     );
     (rms, rate, fewest)
+}
+
+/// The hand-held plan of replica `k` with a hand's `tremor`, rad.
+fn with_tremor(tremor: f64) -> impl Fn(u64) -> fixtures::triad::MultiPosPlan {
+    move |k| fixtures::triad::MultiPosPlan {
+        tremor_rad: tremor,
+        ..fixtures::triad::hand_held(45, 30.0, 7_000 + k)
+    }
 }
 
 /// A 5 s quiet start (the detector measures its reference over the first 10 s, so the

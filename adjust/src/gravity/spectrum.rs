@@ -45,16 +45,6 @@ pub enum Floor {
     },
 }
 
-impl Floor {
-    /// The sd per sample, where the record gives one.
-    pub fn sd(&self) -> Option<f64> {
-        match self {
-            Floor::Measured(v) | Floor::ThirdDifferences(v) => Some(*v),
-            Floor::NotFlat { .. } => None,
-        }
-    }
-}
-
 /// The floor of a series' spectrum, built as the series streams past.
 #[derive(Clone, Debug, Default)]
 pub struct SpectralFloor {

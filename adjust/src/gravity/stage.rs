@@ -549,26 +549,23 @@ fn sample_noise(
             format!("the record has no floor: {}", bands(band_sd, *segments))
         }
     };
-    match (declared, floor.sd()) {
+    match (declared, floor) {
         (Some(v), _) => Ok(SampleNoise {
             sd_mgal: v,
             from: format!("declared (survey.sample_noise_mgal); {measured}"),
         }),
-        (None, Some(v)) => Ok(SampleNoise {
-            sd_mgal: v,
+        (None, Floor::Measured(v) | Floor::ThirdDifferences(v)) => Ok(SampleNoise {
+            sd_mgal: *v,
             from: measured,
         }),
-        (None, None) => Err(GravityError::Refused {
+        (None, Floor::NotFlat { band_sd, segments }) => Err(GravityError::Refused {
             message: format!(
                 "session {session}: the noise of its specific force cannot be measured from \
                  the record: {}. A meter that filters its output before writing it does \
                  this; declare the noise of one sample at the stream's rate as \
                  survey.sample_noise_mgal (the maker's figure, or the sd of a still record's \
                  samples)",
-                match floor {
-                    Floor::NotFlat { band_sd, segments } => bands(band_sd, *segments),
-                    _ => String::new(),
-                }
+                bands(band_sd, *segments)
             ),
         }),
     }
