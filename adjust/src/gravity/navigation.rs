@@ -12,6 +12,17 @@ pub fn longitude_step_deg(from_deg: f64, to_deg: f64) -> f64 {
     d - 360.0 * ((d + 180.0) / 360.0).floor()
 }
 
+/// The step north and east from `from` to `to` (latitude, longitude, deg), m, on a sphere of
+/// 6371 km at latitude `at_deg`: ample over the few seconds between neighbouring epochs
+/// (a speed, a course, an outlier's distance from its prediction).
+pub fn step_ne_m(from: [f64; 2], to: [f64; 2], at_deg: f64) -> [f64; 2] {
+    let r = 6.371e6;
+    [
+        (to[0] - from[0]).to_radians() * r,
+        longitude_step_deg(from[1], to[1]).to_radians() * r * at_deg.to_radians().cos(),
+    ]
+}
+
 /// `lon_deg` in the range `like_deg` is written in: [0, 360) when it is 180 or more (a file
 /// writing 0 to 360), [-180, 180) otherwise; so that a longitude interpolated across the
 /// antimeridian (or across 0) reads as the file's own do.

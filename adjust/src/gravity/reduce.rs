@@ -645,16 +645,11 @@ impl Steps {
     }
 }
 
-/// The track's displacement north and east from epoch `a` to `b`, m, on a sphere of
-/// 6371 km at epoch `at`'s latitude (ample for a speed or a course over a few seconds).
+/// The track's displacement north and east from epoch `a` to `b`, m, at epoch `at`'s
+/// latitude ([`super::navigation::step_ne_m`]).
 pub(super) fn displacement_ne_m(s: &Stretch, (a, b): (usize, usize), at: usize) -> [f64; 2] {
-    let r = 6.371e6;
-    [
-        (s.latitude_deg[b] - s.latitude_deg[a]).to_radians() * r,
-        longitude_step_deg(s.longitude_deg[a], s.longitude_deg[b]).to_radians()
-            * r
-            * s.latitude_deg[at].to_radians().cos(),
-    ]
+    let point = |k: usize| [s.latitude_deg[k], s.longitude_deg[k]];
+    super::navigation::step_ne_m(point(a), point(b), s.latitude_deg[at])
 }
 
 /// The speed below which a tie's window counts as still, m/s (its epochs' median).

@@ -562,12 +562,8 @@ fn predict(points: &[Record], t: i64, interval: f64) -> Option<([f64; 4], f64)> 
 /// Whether position `r` (latitude, longitude, height) lies further from the prediction `v`
 /// than [`OUTLIER_SDS`] times `gain` times its sd `sigma` (north, east, up, m) on any axis.
 fn departs(r: &[f64; WIDTH], v: &[f64; 4], sigma: [f64; 3], gain: f64) -> bool {
-    let lat = r[0].to_radians();
-    let d = [
-        (r[0] - v[0]).to_radians() * 6.371e6,
-        super::navigation::longitude_step_deg(v[1], r[1]).to_radians() * 6.371e6 * lat.cos(),
-        r[2] - v[2],
-    ];
+    let [north, east] = super::navigation::step_ne_m([v[0], v[1]], [r[0], r[1]], r[0]);
+    let d = [north, east, r[2] - v[2]];
     (0..3).any(|i| d[i].abs() > OUTLIER_SDS * gain * sigma[i])
 }
 
