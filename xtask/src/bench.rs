@@ -413,33 +413,50 @@ fn warm(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// The stage binaries the benchmarks time, built in release once for all of them: one
-/// `cargo build` of the three packages, so that every benchmark shares one feature set
-/// (built one package at a time, arrow and parquet were compiled twice on a clean
-/// machine, about 5 minutes of CI).
+/// The stage binaries the benchmarks time, built once for all of them: one `cargo build` of
+/// the three packages, so that every benchmark shares one feature set (built one package at
+/// a time, arrow and parquet were compiled twice on a clean machine, about 5 minutes of CI).
 const STAGE_PACKAGES: [&str; 3] = ["ingest", "align", "adjust"];
 
-/// Builds [`STAGE_PACKAGES`] in release.
-pub(crate) fn release_build(root: &Path) -> Result<()> {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
-    let mut args = vec!["build", "--release"];
-    for p in STAGE_PACKAGES {
-        args.extend(["-p", p]);
+/// Which build of the stage binaries a benchmark runs.
+#[derive(Clone, Copy, Debug)]
+pub enum Build {
+    /// `cargo build --release`: what `cargo xtask bench` times and docs/benchmarks.md quotes.
+    Release,
+    /// The dev profile's binaries, which `cargo test --workspace` has already built with the
+    /// same feature set (ingest/Cargo.toml): `cargo xtask ci`'s run on small sizes checks that
+    /// every benchmark runs and agrees with its peer, not its speed, and a release build
+    /// compiled arrow, parquet and faer a third time on a clean machine.
+    Dev,
+}
+
+impl Build {
+    /// Builds [`STAGE_PACKAGES`] in this profile; the folder holding their binaries.
+    pub(crate) fn stage_binaries(self, root: &Path) -> Result<PathBuf> {
+        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+        let (flag, folder) = match self {
+            Build::Release => (Some("--release"), "release"),
+            Build::Dev => (None, "debug"),
+        };
+        let mut args: Vec<&str> = std::iter::once("build").chain(flag).collect();
+        for p in STAGE_PACKAGES {
+            args.extend(["-p", p]);
+        }
+        if !Command::new(&cargo)
+            .args(&args)
+            .current_dir(root)
+            .status()?
+            .success()
+        {
+            bail!("{folder} build of {} failed", STAGE_PACKAGES.join(", "));
+        }
+        Ok(root.join("target").join(folder))
     }
-    if !Command::new(&cargo)
-        .args(&args)
-        .current_dir(root)
-        .status()?
-        .success()
-    {
-        bail!("release build of {} failed", STAGE_PACKAGES.join(", "));
-    }
-    Ok(())
 }
 
 /// Runs the align benchmark: `stations` x `readings` readings 3.2 s apart at 31.25 Hz.
-pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
-    release_build(root)?;
+pub fn align(root: &Path, stations: usize, readings: usize, build: Build) -> Result<()> {
+    let bins = build.stage_binaries(root)?;
     let data = root.join("target/bench-data");
     let scenario = fixtures::catalog::bench_dense(stations, readings);
     let dataset = data.join(&scenario.name);
@@ -449,12 +466,12 @@ pub fn align(root: &Path, stations: usize, readings: usize) -> Result<()> {
     }
     let out = data.join("out-align");
     let _ = std::fs::remove_dir_all(&out);
-    ingest_once(&root.join("target/release/gravcal-ingest"), &dataset, &out)?;
+    ingest_once(&bins.join("gravcal-ingest"), &dataset, &out)?;
     let ledger = ingest::contract::ingest_ledger::IngestReport::load(&out.join("ingest"))?;
     let samples: u64 = ledger.sessions.iter().map(|s| s.acceleration_samples).sum();
     let readings_n: u64 = ledger.sessions.iter().map(|s| s.readings).sum();
     let (r, _) = best_of(3, || {
-        stage_once(&root.join("target/release/gravcal-align"), &dataset, &out)
+        stage_once(&bins.join("gravcal-align"), &dataset, &out)
     })?;
     let observations =
         ingest::contract::align_ledger::AlignReport::load(&out.join("align"))?.observations;
@@ -493,9 +510,8 @@ fn adjust_observations(n: usize, g: f64) -> String {
 
 /// Runs the ingest benchmark; `hours` scales the logs (31.25 Hz for 2x hours, 250 Hz for
 /// hours); each program runs `runs` times.
-pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
-    release_build(root)?;
-    let bin = root.join("target/release/gravcal-ingest");
+pub fn ingest(root: &Path, hours: f64, peers: bool, runs: usize, build: Build) -> Result<()> {
+    let bin = build.stage_binaries(root)?.join("gravcal-ingest");
     let data = root.join("target/bench-data");
     let py = if peers {
         Some(venv_python(root)?)
@@ -614,14 +630,14 @@ print(json.dumps({"seconds": dt, "which": which, "k": 1 / slope, "b": -intercept
 "##;
 
 /// Runs the adjust benchmark: `n` observations of the linear model, gravcal against scipy's ODR.
-pub fn adjust(root: &Path, n: usize, peers: bool) -> Result<()> {
-    release_build(root)?;
+pub fn adjust(root: &Path, n: usize, peers: bool, build: Build) -> Result<()> {
+    let bins = build.stage_binaries(root)?;
     let data = root.join("target/bench-data");
     std::fs::create_dir_all(&data)?;
     let csv = data.join(format!("adjust-{n}.csv"));
     let g = 980_855.7;
     std::fs::write(&csv, adjust_observations(n, g))?;
-    let run = Command::new(root.join("target/release/gravcal-adjust"))
+    let run = Command::new(bins.join("gravcal-adjust"))
         .args(["bench-fit", "--input"])
         .arg(&csv)
         .args(["--g-mgal", &g.to_string()])

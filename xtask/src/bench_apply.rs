@@ -8,6 +8,7 @@
 //! its sigma from the 4 x 4 covariance, the range flags, and writes zstd Parquet. Two log
 //! lengths (`hours` and a quarter of it) show whether peak memory grows with the log.
 
+use super::bench::Build;
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -142,9 +143,8 @@ fn polars_once(
 }
 
 /// The apply benchmark on `hours` and `hours / 4` of the 250 Hz log.
-pub fn apply(root: &Path, hours: f64, peers: bool, runs: usize) -> Result<()> {
-    super::bench::release_build(root)?;
-    let bin = root.join("target/release/gravcal-apply");
+pub fn apply(root: &Path, hours: f64, peers: bool, runs: usize, build: Build) -> Result<()> {
+    let bin = build.stage_binaries(root)?.join("gravcal-apply");
     let data = root.join("target/bench-data");
     std::fs::create_dir_all(&data)?;
     let cal = calibration(&data)?;

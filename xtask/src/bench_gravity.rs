@@ -5,6 +5,7 @@
 //! down, each sample turned into the navigation frame). Measured, never asserted. No peer
 //! does this (docs/model.md 7).
 
+use super::bench::Build;
 use anyhow::{Context, Result, bail};
 use std::path::{Path, PathBuf};
 
@@ -25,9 +26,8 @@ fn calibration(dir: &Path) -> Result<PathBuf> {
 }
 
 /// The gravity benchmark on `hours` and `hours / 4`.
-pub fn gravity(root: &Path, hours: f64, runs: usize) -> Result<()> {
-    super::bench::release_build(root)?;
-    let bin = root.join("target/release/gravcal-gravity");
+pub fn gravity(root: &Path, hours: f64, runs: usize, build: Build) -> Result<()> {
+    let bin = build.stage_binaries(root)?.join("gravcal-gravity");
     let data = root.join("target/bench-data");
     std::fs::create_dir_all(&data)?;
     let cal = calibration(&data)?;

@@ -378,6 +378,7 @@ fn ci() -> Result<()> {
     })?;
     timed("peers' venv", peers_venv)?;
     timed("tests", || cargo(&["test", "--workspace"]))?;
+    timed("one feature set", one_feature_set)?;
     timed("fixtures check", fixtures_check)?;
     timed("pipeline, apply and gravity on the fixtures", ci_pipelines)?;
     timed("benchmarks on small sizes", bench_smoke)?;
@@ -386,6 +387,53 @@ fn ci() -> Result<()> {
         start.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// Fails when a build of the stage binaries and xtask, after `cargo test --workspace`,
+/// compiles a registry crate again: the normal and the test build's feature sets have
+/// drifted apart (ingest/Cargo.toml says why they must not), and a clean machine compiles
+/// arrow, parquet and faer twice. The crates compiled anew are named.
+fn one_feature_set() -> Result<()> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
+    let mut args = vec!["build", "--message-format=json", "-p", "xtask"];
+    for p in ["ingest", "align", "adjust", "report"] {
+        args.extend(["-p", p]);
+    }
+    eprintln!("$ cargo {}", args.join(" "));
+    let out = Command::new(&cargo)
+        .args(&args)
+        .current_dir(workspace_root())
+        .output()
+        .context("running cargo build")?;
+    if !out.status.success() {
+        bail!(
+            "cargo build failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let rebuilt = recompiled_registry_crates(&String::from_utf8_lossy(&out.stdout))?;
+    if !rebuilt.is_empty() {
+        bail!(
+            "a build after the tests compiled {} again: their features differ between a build and a test build; ask for the test build's features in ingest/Cargo.toml",
+            rebuilt.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// The registry crates a `cargo build --message-format=json` compiled rather than found
+/// fresh.
+fn recompiled_registry_crates(messages: &str) -> Result<Vec<String>> {
+    let mut rebuilt = Vec::new();
+    for line in messages.lines().filter(|l| l.starts_with('{')) {
+        let m: serde_json::Value = serde_json::from_str(line).context("cargo's JSON message")?;
+        let id = m["package_id"].as_str().unwrap_or_default();
+        if m["reason"] == "compiler-artifact" && m["fresh"] == false && id.starts_with("registry+")
+        {
+            rebuilt.push(id.rsplit('#').next().unwrap_or(id).to_owned());
+        }
+    }
+    Ok(rebuilt)
 }
 
 /// One phase of `cargo xtask ci`, its time printed when it ends, passed or failed.
@@ -464,11 +512,12 @@ fn ci_pipelines() -> Result<()> {
 /// `cargo xtask bench` measures.
 fn bench_smoke() -> Result<()> {
     let root = workspace_root();
-    bench::ingest(&root, 0.05, false, 1).context("bench ingest on a small log")?;
-    bench::align(&root, 5, 10).context("bench align on a small dataset")?;
-    bench::adjust(&root, 20_000, false).context("bench adjust on 20 000 observations")?;
-    bench_apply::apply(&root, 0.05, false, 1).context("bench apply on a small log")?;
-    bench_gravity::gravity(&root, 0.4, 1).context("bench gravity on a short survey")?;
+    let dev = bench::Build::Dev;
+    bench::ingest(&root, 0.05, false, 1, dev).context("bench ingest on a small log")?;
+    bench::align(&root, 5, 10, dev).context("bench align on a small dataset")?;
+    bench::adjust(&root, 20_000, false, dev).context("bench adjust on 20 000 observations")?;
+    bench_apply::apply(&root, 0.05, false, 1, dev).context("bench apply on a small log")?;
+    bench_gravity::gravity(&root, 0.4, 1, dev).context("bench gravity on a short survey")?;
     eprintln!("benchmarks on small sizes: ok");
     Ok(())
 }
@@ -618,12 +667,13 @@ fn plan_command(plan: &Path, json: bool) -> Result<()> {
 /// `cargo xtask bench`: one stage's benchmark.
 fn bench_command(a: &BenchArgs) -> Result<()> {
     let root = workspace_root();
+    let release = bench::Build::Release;
     match a.what.as_str() {
-        "ingest" => bench::ingest(&root, a.hours, !a.no_peers, a.runs.max(1)),
-        "align" => bench::align(&root, a.stations, a.readings),
-        "adjust" => bench::adjust(&root, a.observations, !a.no_peers),
-        "apply" => bench_apply::apply(&root, a.hours, !a.no_peers, a.runs.max(1)),
-        "gravity" => bench_gravity::gravity(&root, a.hours, a.runs.max(1)),
+        "ingest" => bench::ingest(&root, a.hours, !a.no_peers, a.runs.max(1), release),
+        "align" => bench::align(&root, a.stations, a.readings, release),
+        "adjust" => bench::adjust(&root, a.observations, !a.no_peers, release),
+        "apply" => bench_apply::apply(&root, a.hours, !a.no_peers, a.runs.max(1), release),
+        "gravity" => bench_gravity::gravity(&root, a.hours, a.runs.max(1), release),
         "smoke" => bench_smoke(),
         other => bail!(
             "no benchmark `{other}`: there are ingest, align, adjust, apply, gravity (and \
@@ -649,5 +699,28 @@ fn main() -> ExitCode {
             eprintln!("xtask: error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::recompiled_registry_crates;
+
+    /// Only a registry crate compiled anew counts: one found fresh, a workspace crate
+    /// compiled anew and cargo's other messages do not.
+    #[test]
+    fn a_registry_crate_compiled_again_is_named() {
+        let messages = [
+            r#"{"reason":"compiler-artifact","package_id":"registry+https://github.com/rust-lang/crates.io-index#arrow-array@60.1.0","fresh":false}"#,
+            r#"{"reason":"compiler-artifact","package_id":"registry+https://github.com/rust-lang/crates.io-index#faer@0.24.0","fresh":true}"#,
+            r#"{"reason":"compiler-artifact","package_id":"path+file:///w/ingest#0.1.0","fresh":false}"#,
+            r#"{"reason":"build-finished","success":true}"#,
+            "   Compiling arrow-array v60.1.0",
+        ]
+        .join("\n");
+        assert_eq!(
+            recompiled_registry_crates(&messages).expect("cargo's messages"),
+            ["arrow-array@60.1.0"]
+        );
     }
 }
