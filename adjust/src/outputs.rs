@@ -102,11 +102,7 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
 /// file; and what a failed global test means.
 fn print_triad(t: &ingest::contract::calibration::TriadResult, w: &mut impl std::io::Write) {
     let removed = t.positions.iter().filter(|p| p.removed).count();
-    let p: Vec<String> = t
-        .parameters
-        .iter()
-        .map(|p| format!("{} = {:.6e} +/- {:.1e}", p.name, p.value, p.sigma))
-        .collect();
+    let p: Vec<String> = t.parameters.iter().map(Parameter::with_sigma).collect();
     let _ = writeln!(
         w,
         "adjust: triad {} {}: {}; sigma0 {:.3}, {} positions, {removed} removed{}, global test {}{}; {}",
@@ -134,11 +130,7 @@ fn print_triad(t: &ingest::contract::calibration::TriadResult, w: &mut impl std:
 /// An axis fit's line: its parameters, sigma0, observations, the global test; what a failed
 /// global test means, and the fit's warnings.
 fn print_fit(r: &CalibrationResult, w: &mut impl std::io::Write) {
-    let p: Vec<String> = r
-        .parameters
-        .iter()
-        .map(|p| format!("{} = {:.6e} +/- {:.2e}", p.name, p.value, p.sigma))
-        .collect();
+    let p: Vec<String> = r.parameters.iter().map(Parameter::with_sigma).collect();
     let _ = writeln!(
         w,
         "adjust: {} {} {}: {}; sigma0 {:.3}, {} obs, {} removed, global test {}",

@@ -358,25 +358,28 @@ fn carry_sensitivity(
     r.warnings.push(format!(
         "the temperature moved by {moved_mk:.1} mK over the observations (their range, a \
          thermometer's noise included); model {} gives this accelerometer dc/dT = b_t + \
-         k_t Ng of {:.0} to {:.0} mGal/K over these counts, an effect this model, without \
+         k_t Ng of {} to {} mGal/K over these counts, an effect this model, without \
          temperature terms, does not include: its sigmas carry that sensitivity as a \
          consider parameter ({}). b and k are at the observations' mean temperature, \
          {:.3} degC; {} gives them at any temperature, and a session at a steadier \
          temperature narrows them",
         m.model,
-        lo.min(hi),
-        lo.max(hi),
+        three(lo.min(hi)),
+        three(lo.max(hi)),
         grew.join(", "),
         r.mean_temperature_c,
         m.model
     ));
 }
 
-/// `x` to three significant digits, in scientific notation when below 0.01.
+/// `x` to three significant digits, in scientific notation when below 0.01 (no "-0").
 fn three(x: f64) -> String {
     if x.abs() >= 0.01 || x == 0.0 {
         let decimals = 2 - x.abs().log10().floor().clamp(-2.0, 2.0) as i32;
-        format!("{x:.*}", decimals.max(0) as usize)
+        ingest::contract::precision::without_negative_zero(format!(
+            "{x:.*}",
+            decimals.max(0) as usize
+        ))
     } else {
         format!("{x:.2e}")
     }

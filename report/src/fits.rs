@@ -3,6 +3,7 @@
 //! and data snooping.
 
 use super::*;
+use ingest::contract::precision::{rounded_to_sigma, two_digits};
 
 /// Results in the form of the paper's Table 1.
 pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
@@ -13,8 +14,7 @@ pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
         "Per session and accelerometer, order 1 without temperature terms. Sigmas from the estimated variance components \
          (next section) and a priori (every component 1). sigma0 is sqrt(v^T P v / r) at the a-priori weights; the global \
          test is of the station means' scatter about the fitted function (the between-station part of v^T P v) against its \
-         scaled chi-square, since the weights were estimated from the readings within the stations. b and k are strongly anti-correlated because the counts are far from zero: \
-         use them together, with their correlation."
+         scaled chi-square, since the weights were estimated from the readings within the stations."
             .to_owned(),
     );
     let mut t1 = Table::new(&[
@@ -25,9 +25,9 @@ pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
         "b (mGal)",
         "k (mGal/kbit)",
         "sigma b (mGal)",
-        "sigma k (mGal/Mbit)",
-        "a priori sigma b",
-        "a priori sigma k",
+        "sigma k (mGal/kbit)",
+        "a priori sigma b (mGal)",
+        "a priori sigma k (mGal/kbit)",
         "corr(b,k)",
         "sigma0",
         "removed",
@@ -41,18 +41,21 @@ pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
         let (Some(b), Some(k)) = (param(r, "b"), param(r, "k")) else {
             continue;
         };
+        // One unit per quantity: k, its sigma and its a-priori sigma in mGal/kbit.
+        let (b_value, b_sigma) = rounded_to_sigma(b.value, b.sigma);
+        let (k_value, k_sigma) = rounded_to_sigma(k.value * 1e3, k.sigma * 1e3);
         t1.rows.push(vec![
             r.session.clone(),
             format!("{} ({})", r.accelerometer, r.model),
             r.n_observations.to_string(),
             format!("{:.2}", r.mean_temperature_c),
-            format!("{:.2}", b.value),
-            format!("{:.5}", k.value * 1e3),
-            format!("{:.3}", b.sigma),
-            format!("{:.3}", k.sigma * 1e6),
-            format!("{:.3}", b.sigma_apriori),
-            format!("{:.3}", k.sigma_apriori * 1e6),
-            format!("{:.5}", r.correlation[0][1]),
+            b_value,
+            k_value,
+            b_sigma,
+            k_sigma,
+            two_digits(b.sigma_apriori),
+            two_digits(k.sigma_apriori * 1e3),
+            format!("{:.2}", r.correlation[0][1]),
             format!("{:.3}", r.sigma0),
             r.n_excluded.to_string(),
             format!(
@@ -64,8 +67,35 @@ pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
             ),
         ]);
     }
+    s.text.extend(correlation_sentence(&t1));
     s.tables.push(("Table 1".to_owned(), t1));
     s
+}
+
+/// What Table 1's corr(b, k) column says, from its values: strongly (anti-)correlated only
+/// when every row is beyond 0.9, else their range.
+fn correlation_sentence(t1: &Table) -> Option<String> {
+    let column = t1.header.iter().position(|h| h == "corr(b,k)")?;
+    let corr: Vec<f64> = t1
+        .rows
+        .iter()
+        .filter_map(|r| r[column].parse().ok())
+        .collect();
+    let lo = corr.iter().copied().reduce(f64::min)?;
+    let hi = corr.iter().copied().reduce(f64::max)?;
+    let range = if corr.len() == 1 {
+        format!("{lo:.2}")
+    } else {
+        format!("{lo:.2} to {hi:.2}")
+    };
+    Some(if hi < -0.9 || lo > 0.9 {
+        format!(
+            "b and k are strongly {}correlated (corr(b, k) {range}) because the counts are far from zero: use them together, with their correlation.",
+            if hi < 0.0 { "anti-" } else { "" }
+        )
+    } else {
+        format!("corr(b, k) is {range}: use b and k with their correlation where it is far from 0.")
+    })
 }
 
 /// Variance components per fit: which observation group was mis-weighted, and by how much.
@@ -139,12 +169,13 @@ pub(crate) fn parameters_section(st: &Stages<'_>) -> Section {
             "unit",
         ]);
         for p in &r.parameters {
+            let (value, sigma) = rounded_to_sigma(p.value, p.sigma);
             t.rows.push(vec![
                 p.name.clone(),
-                format!("{:.9e}", p.value),
-                format!("{:.3e}", p.sigma),
+                value,
+                sigma,
                 p.dof.map_or_else(|| "-".to_owned(), |d| format!("{d:.1}")),
-                format!("{:.3e}", p.sigma_apriori),
+                two_digits(p.sigma_apriori),
                 p.unit.clone(),
             ]);
         }
@@ -237,8 +268,8 @@ pub(crate) fn extra_terms_section(st: &Stages<'_>) -> Section {
                     .map(|t| format!("{t:.2}"))
                     .unwrap_or_else(|| "-".into()),
                 p.name.clone(),
-                format!("{:.6e}", p.value),
-                format!("{:.3e}", p.sigma),
+                rounded_to_sigma(p.value, p.sigma).0,
+                rounded_to_sigma(p.value, p.sigma).1,
                 p.unit.clone(),
                 format!("{t:.2}"),
                 format!("{crit:.3}"),

@@ -125,12 +125,9 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
     for r in &st.cal.triad {
         let mut t = Table::new(&["parameter", "value", "sigma", "unit"]);
         for p in r.parameters.iter().chain(&r.non_orthogonality_mrad) {
-            t.rows.push(vec![
-                p.name.clone(),
-                format!("{:.9e}", p.value),
-                format!("{:.2e}", p.sigma),
-                p.unit.clone(),
-            ]);
+            let (value, sigma) = ingest::contract::precision::rounded_to_sigma(p.value, p.sigma);
+            t.rows
+                .push(vec![p.name.clone(), value, sigma, p.unit.clone()]);
         }
         s.text.push(triad_summary(r));
         if let Some(advice) = r.advice() {

@@ -14,14 +14,6 @@ pub(crate) fn verdict(test: &calibration::GlobalTest) -> &'static str {
     }
 }
 
-/// A fitted parameter as `value +/- sigma unit`.
-pub(crate) fn with_sigma(p: &Parameter) -> String {
-    format!(
-        "{} = {:.6e} +/- {:.2e} {}",
-        p.name, p.value, p.sigma, p.unit
-    )
-}
-
 /// The answer: every accelerometer's calibration of every model, with its sigmas, sigma0,
 /// the global test, the observations used and removed, and a one-line verdict; then what
 /// was not fitted and why.
@@ -126,7 +118,7 @@ fn summary_row(
 ) -> Vec<String> {
     let calibration = parameters
         .iter()
-        .map(with_sigma)
+        .map(Parameter::with_sigma)
         .collect::<Vec<_>>()
         .join("; ")
         + &t_ref.map_or(String::new(), |t| format!(" (at t_ref {t:.2} degC)"));

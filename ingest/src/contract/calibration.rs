@@ -116,6 +116,20 @@ pub struct Parameter {
     pub dof: Option<f64>,
 }
 
+impl Parameter {
+    /// `name = value +/- sigma unit`, to the sigma's precision (GUM 7.2.6,
+    /// [`crate::contract::precision`]): what the console and the report print.
+    pub fn with_sigma(&self) -> String {
+        let line = format!(
+            "{} = {} {}",
+            self.name,
+            crate::contract::precision::value_with_sigma(self.value, self.sigma),
+            self.unit
+        );
+        line.trim_end().to_owned()
+    }
+}
+
 /// A variance component: the factor the data put on one observation group's a-priori
 /// variances, and the test of whether it is 1.
 #[derive(Clone, Debug, Serialize, Deserialize)]
