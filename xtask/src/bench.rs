@@ -418,6 +418,12 @@ fn warm(dir: &Path) -> Result<()> {
 /// a time, arrow and parquet were compiled twice on a clean machine, about 5 minutes of CI).
 const STAGE_PACKAGES: [&str; 3] = ["ingest", "align", "adjust"];
 
+/// The packages a dev build of the stage binaries names: the stages and xtask, whose
+/// dependencies are the whole workspace, so that the build resolves the features the test
+/// build did (a dev build of the three stages alone resolved some differently and compiled
+/// arrow, parquet and faer again on a clean machine). `cargo xtask ci` checks it.
+pub(crate) const DEV_PACKAGES: [&str; 4] = ["xtask", "ingest", "align", "adjust"];
+
 /// Which build of the stage binaries a benchmark runs.
 #[derive(Clone, Copy, Debug)]
 pub enum Build {
@@ -431,15 +437,16 @@ pub enum Build {
 }
 
 impl Build {
-    /// Builds [`STAGE_PACKAGES`] in this profile; the folder holding their binaries.
+    /// Builds the stage binaries in this profile ([`STAGE_PACKAGES`], or [`DEV_PACKAGES`]);
+    /// the folder holding them.
     pub(crate) fn stage_binaries(self, root: &Path) -> Result<PathBuf> {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
-        let (flag, folder) = match self {
-            Build::Release => (Some("--release"), "release"),
-            Build::Dev => (None, "debug"),
+        let (flag, folder, packages) = match self {
+            Build::Release => (Some("--release"), "release", &STAGE_PACKAGES[..]),
+            Build::Dev => (None, "debug", &DEV_PACKAGES[..]),
         };
         let mut args: Vec<&str> = std::iter::once("build").chain(flag).collect();
-        for p in STAGE_PACKAGES {
+        for p in packages {
             args.extend(["-p", p]);
         }
         if !Command::new(&cargo)
@@ -448,7 +455,7 @@ impl Build {
             .status()?
             .success()
         {
-            bail!("{folder} build of {} failed", STAGE_PACKAGES.join(", "));
+            bail!("{folder} build of {} failed", packages.join(", "));
         }
         Ok(root.join("target").join(folder))
     }
