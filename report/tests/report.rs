@@ -226,6 +226,7 @@ fn the_summary_comes_first_and_only_what_applies_follows() {
         assert!(summary.contains(&row), "{row}");
     }
     assert!(summary.contains("| thermal | acc2 | all | parameter b_t is not estimable"));
+    printed_to_their_sigmas(summary, &c);
     let start = summary.find("**Calibrations**").expect("the table");
     insta::assert_snapshot!("esgt_2005_summary", summary[start..].trim());
 
@@ -251,6 +252,41 @@ fn the_summary_comes_first_and_only_what_applies_follows() {
         let out = pipeline(&fixtures::dataset_dir(name));
         let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("report.md");
         insta::assert_snapshot!(format!("{name}_summary"), summary_of(&md));
+    }
+}
+
+/// Every parameter of every fit in the summary, read back as printed (`name = value +/-
+/// sigma`), is within 0.2 of its sigma of calibration.json's value, and its sigma within
+/// 5 % (issue 49: a value copied from the report costs at most a fifth of a sigma).
+fn printed_to_their_sigmas(summary: &str, c: &ingest::contract::calibration::Calibration) {
+    for r in &c.results {
+        let start = format!("| {} | {} | {} | ", r.model, r.accelerometer, r.session);
+        let row = summary
+            .lines()
+            .find(|l| l.starts_with(&start))
+            .unwrap_or_else(|| panic!("{start}"));
+        for p in &r.parameters {
+            let at = row.find(&format!(" {} = ", p.name)).expect(&p.name) + p.name.len() + 4;
+            let mut words = row[at..].split_whitespace();
+            let value: f64 = words.next().and_then(|v| v.parse().ok()).expect("a value");
+            assert_eq!(words.next(), Some("+/-"), "{row}");
+            let sigma: f64 = words
+                .next()
+                .and_then(|v| v.trim_end_matches([';', ',']).parse().ok())
+                .expect("a sigma");
+            assert!(
+                (value - p.value).abs() <= 0.2 * p.sigma,
+                "{start}{}: printed {value}, fitted {} +/- {}",
+                p.name,
+                p.value,
+                p.sigma
+            );
+            assert!(
+                (sigma / p.sigma - 1.0).abs() <= 0.05,
+                "{start}{}: {sigma}",
+                p.name
+            );
+        }
     }
 }
 
