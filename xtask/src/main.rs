@@ -390,9 +390,10 @@ fn ci() -> Result<()> {
 }
 
 /// Fails when the dev build of the stage binaries the benchmarks run ([`bench::Build::Dev`])
-/// and xtask, after `cargo test --workspace`, compiles a registry crate again: the normal and the test build's feature sets have
-/// drifted apart (ingest/Cargo.toml says why they must not), and a clean machine compiles
-/// arrow, parquet and faer twice. The crates compiled anew are named.
+/// and xtask, after `cargo test --workspace`, compiles a registry crate again: the normal
+/// and the test build's feature sets have drifted apart (ingest/Cargo.toml says why they
+/// must not), and a clean machine compiles arrow, parquet and faer twice. The crates
+/// compiled anew are named.
 fn one_feature_set() -> Result<()> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_owned());
     let mut args = vec!["build", "--message-format=json"];

@@ -1,7 +1,7 @@
 //! A value with its sigma, printed to the sigma's precision (GUM, JCGM 100:2008, 7.2.6): the
 //! sigma to two significant digits, the value to the same decimal place. Every stage that
 //! prints a fitted parameter (the console, the report, report.md) prints it through here,
-//! so that a value copied from any of them is within 0.05 sigma of the fit's, and no digit
+//! so that a value copied from any of them is within 0.053 sigma of the fit's, and no digit
 //! beyond the sigma's second is printed.
 
 /// The decimal place of a sigma's second significant digit (the value's last digit is at
@@ -68,7 +68,6 @@ pub fn two_digits(sigma: f64) -> String {
 /// "-0.00" (a negative value rounded to zero) as "0.00": a sign the digits do not carry.
 pub fn without_negative_zero(s: String) -> String {
     match s.strip_prefix('-') {
-        Some(rest) if rest.chars().all(|c| matches!(c, '0' | '.')) => rest.to_owned(),
         Some(rest)
             if rest
                 .split('e')
@@ -115,11 +114,13 @@ mod tests {
         assert_eq!(two_digits(0.012_34), "0.012");
         assert_eq!(two_digits(3.55e-8), "3.6e-8");
         assert_eq!(two_digits(2.46e-4), "0.00025");
+        assert_eq!(without_negative_zero("-0.0e-3".into()), "0.0e-3");
+        assert_eq!(without_negative_zero("-0.01".into()), "-0.01");
     }
 
-    /// Whatever the scale, the printed value is within 0.053 sigma of the value (half a unit of the
-    /// second digit of a sigma rounded up by at most 5 %), and the
-    /// sigma within 2.5 % of the sigma: never a digit short, at most one beyond.
+    /// Whatever the scale, the printed value is within 0.053 sigma of the value (half a unit
+    /// of the second digit of a sigma rounded up by at most 5 %), and the printed sigma
+    /// within 5 % of the sigma (two digits of 1.05 are 1.1).
     #[test]
     fn a_printed_value_is_within_a_twentieth_of_its_sigma() {
         let mut x = 0.123_456_789_f64;
