@@ -1,11 +1,11 @@
 //! Reading align's observations and writing the adjust stage's outputs.
 
 use crate::Error;
-use arrow::array::{
-    Array, ArrayRef, AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, StringArray,
-    UInt32Array,
+use arrow_array::types::{Float64Type, Int32Type, Int64Type, UInt32Type};
+use arrow_array::{
+    Array, ArrayRef, BooleanArray, Float64Array, Int64Array, RecordBatch, StringArray, UInt32Array,
+    cast::AsArray,
 };
-use arrow::datatypes::{Float64Type, Int32Type, Int64Type, UInt32Type};
 use ingest::contract::tables::{self, observations as col};
 use ingest::table::dictionary_column;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;

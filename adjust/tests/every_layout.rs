@@ -5,8 +5,8 @@
 
 use adjust::apply::select::Choice;
 use adjust::apply::stream::{Options, run};
-use arrow::array::{Array, AsArray};
-use arrow::datatypes::Float64Type;
+use arrow_array::types::Float64Type;
+use arrow_array::{Array, cast::AsArray};
 use ingest::contract::calibration::Calibration;
 use ingest::contract::tables::applied;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;

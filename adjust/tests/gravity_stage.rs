@@ -291,7 +291,7 @@ fn horizontal_scores(dataset: &Path, out: &Path, filter_s: f64) -> [[f64; 4]; 2]
     ];
     let (mut time, mut values, mut flags) = (Vec::new(), vec![Vec::new(); 6], Vec::new());
     align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
-        use arrow::array::Array;
+        use arrow_array::Array;
         for i in 0..b.time_ns.len() {
             time.push(b.time_ns[i] as f64 * 1e-9);
             for (c, v) in values.iter_mut().enumerate() {
@@ -414,7 +414,7 @@ fn without_attitude_sds_north_and_east_have_no_sigma() {
     ];
     let mut counts = [0usize; 4];
     align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
-        use arrow::array::Array;
+        use arrow_array::Array;
         for (c, v) in b.values.iter().enumerate() {
             counts[c] += v.len() - v.null_count();
         }
@@ -1064,10 +1064,49 @@ fn a_survey_across_the_antimeridian_reduces_as_at_home() {
     assert!((east - 0.01).abs() < 5e-4, "{east}");
 }
 
+/// A column as doubles: a number as its value, a name (dictionary) as its length, null as
+/// NaN.
+// One `as` for every integer type the macro meets, i64 among them (no `From`).
+#[allow(clippy::cast_lossless)]
+fn as_doubles(c: &dyn arrow_array::Array) -> Vec<f64> {
+    use arrow_array::cast::AsArray;
+    use arrow_array::types::{Float64Type, Int64Type, UInt8Type, UInt16Type, UInt32Type};
+    use arrow_schema::DataType;
+    macro_rules! numbers {
+        ($t:ty) => {
+            c.as_primitive::<$t>()
+                .iter()
+                .map(|v| v.map_or(f64::NAN, |v| v as f64))
+                .collect()
+        };
+    }
+    match c.data_type() {
+        DataType::Float64 => numbers!(Float64Type),
+        DataType::Int64 => numbers!(Int64Type),
+        DataType::UInt32 => numbers!(UInt32Type),
+        DataType::UInt16 => numbers!(UInt16Type),
+        DataType::UInt8 => numbers!(UInt8Type),
+        DataType::Dictionary(_, _) => {
+            let d = c.as_any_dictionary();
+            let names = d.values().as_string::<i32>();
+            d.normalized_keys()
+                .into_iter()
+                .enumerate()
+                .map(|(i, k)| {
+                    if c.is_null(i) {
+                        f64::NAN
+                    } else {
+                        names.value(k).len() as f64
+                    }
+                })
+                .collect()
+        }
+        other => panic!("gravity.parquet holds a column of {other}"),
+    }
+}
+
 /// Every column of gravity.parquet in `out`, as doubles (null as NaN), by name.
 fn all_columns(out: &Path) -> Vec<(String, Vec<f64>)> {
-    use arrow::array::{Array, AsArray};
-    use arrow::datatypes::DataType;
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
     let f = std::fs::File::open(out.join("gravity").join(gravity::FILE)).expect("table");
     let reader = ParquetRecordBatchReaderBuilder::try_new(f)
@@ -1077,26 +1116,11 @@ fn all_columns(out: &Path) -> Vec<(String, Vec<f64>)> {
     let mut columns: Vec<(String, Vec<f64>)> = Vec::new();
     for batch in reader {
         let batch = batch.expect("batch");
-        let cast =
-            |c: &dyn Array| arrow::compute::cast(c, &DataType::Float64).expect("cast to doubles");
         for (i, field) in batch.schema().fields().iter().enumerate() {
-            let c = batch.column(i);
-            let c = match c.data_type() {
-                DataType::Dictionary(_, _) => arrow::compute::cast(c, &DataType::Utf8)
-                    .map(|u| {
-                        let u = u.as_string::<i32>().clone();
-                        std::sync::Arc::new(arrow::array::Float64Array::from_iter(
-                            u.iter().map(|s| s.map(|s| s.len() as f64)),
-                        )) as arrow::array::ArrayRef
-                    })
-                    .expect("names"),
-                _ => cast(c.as_ref()),
-            };
-            let c = c.as_primitive::<arrow::datatypes::Float64Type>();
-            let values = (0..c.len()).map(|k| if c.is_null(k) { f64::NAN } else { c.value(k) });
+            let values = as_doubles(batch.column(i).as_ref());
             match columns.iter_mut().find(|(n, _)| n == field.name()) {
                 Some((_, v)) => v.extend(values),
-                None => columns.push((field.name().clone(), values.collect())),
+                None => columns.push((field.name().clone(), values)),
             }
         }
     }

@@ -4,8 +4,8 @@
 //! triad too, and the tilt-table day's linear model applied to the drive (a lab stream)
 //! gives the true specific force at every still attitude within its sigma.
 
-use arrow::array::{Array, AsArray};
-use arrow::datatypes::{Float64Type, Int64Type};
+use arrow_array::types::{Float64Type, Int64Type};
+use arrow_array::{Array, cast::AsArray};
 use fixtures::lab::LabTruth;
 use ingest::contract::tables::{self, applied};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;

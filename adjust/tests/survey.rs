@@ -8,8 +8,8 @@
 
 use adjust::apply::select::Choice;
 use adjust::apply::stream::{Options, run};
-use arrow::array::{Array, AsArray};
-use arrow::datatypes::{Float64Type, Int64Type, UInt8Type};
+use arrow_array::types::{Float64Type, Int64Type, UInt8Type};
+use arrow_array::{Array, cast::AsArray};
 use ingest::contract::apply_ledger::ApplyReport;
 use ingest::contract::tables::{self, applied};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;

@@ -926,8 +926,8 @@ fn applied_z(
     out: &std::path::Path,
     truth: &fixtures::triad::MultiPosTruth,
 ) -> (ingest::contract::apply_ledger::ApplyReport, Vec<[f64; 3]>) {
-    use arrow::array::{Array, AsArray};
-    use arrow::datatypes::{Float64Type, Int64Type};
+    use arrow_array::types::{Float64Type, Int64Type};
+    use arrow_array::{Array, cast::AsArray};
     use ingest::contract::tables::applied::TRIAD_COLUMNS;
     let cal = out.join("adjust/calibration.json");
     let report = adjust::apply::stream::run(

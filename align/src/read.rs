@@ -1,10 +1,9 @@
 //! Reading ingest's tables and writing the observations table.
 
 use crate::{Error, Observation, Result};
-use arrow::array::{Array, ArrayRef, AsArray, RecordBatch, StringArray};
-use arrow::datatypes::{
-    DataType, Float64Type, Int32Type, Int64Type, UInt8Type, UInt16Type, UInt32Type,
-};
+use arrow_array::types::{Float64Type, Int32Type, Int64Type, UInt8Type, UInt16Type, UInt32Type};
+use arrow_array::{Array, ArrayRef, RecordBatch, StringArray, cast::AsArray};
+use arrow_schema::DataType;
 use ingest::contract::manifest::AngleUnit;
 use ingest::contract::tables;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
@@ -204,7 +203,7 @@ pub struct AccelerationBatch<'a> {
     /// GPS time per row, ns.
     pub time_ns: &'a [i64],
     /// Counts of channels 1..3.
-    pub counts: [&'a arrow::array::Int32Array; 3],
+    pub counts: [&'a arrow_array::Int32Array; 3],
     /// Status bits per row.
     pub status: &'a [u8],
 }
@@ -293,7 +292,7 @@ pub struct LabBatch<'a> {
     /// GPS time per row, ns.
     pub time_ns: &'a [i64],
     /// Readings of channels 1..3.
-    pub values: [&'a arrow::array::Float64Array; 3],
+    pub values: [&'a arrow_array::Float64Array; 3],
 }
 
 /// Streams the lab table in file order, a batch of `batch_rows` rows at a time.
@@ -330,7 +329,7 @@ pub struct FloatBatch<'a> {
     /// GPS time per row, ns.
     pub time_ns: &'a [i64],
     /// The columns asked for, in the order asked.
-    pub values: Vec<&'a arrow::array::Float64Array>,
+    pub values: Vec<&'a arrow_array::Float64Array>,
     /// The flags column.
     pub flags: &'a [u8],
 }
@@ -379,7 +378,7 @@ pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8
 
 /// Writes `observations.parquet` into `dir`; returns the rows written.
 pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
-    use arrow::array::{Float64Array, Int64Array, UInt8Array, UInt32Array};
+    use arrow_array::{Float64Array, Int64Array, UInt8Array, UInt32Array};
     let mut table = ingest::table::TableWriter::create(
         dir,
         tables::observations::FILE,

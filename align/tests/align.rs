@@ -1,8 +1,8 @@
 //! Align at its boundary: ingest's folder in, observations out, checked against the
 //! simulator's truth.
 
-use arrow::array::{Array, AsArray, RecordBatch};
-use arrow::datatypes::{Float64Type, Int32Type, Int64Type, UInt32Type};
+use arrow_array::types::{Float64Type, Int32Type, Int64Type, UInt32Type};
+use arrow_array::{Array, RecordBatch, cast::AsArray};
 use fixtures::write::Truth;
 use ingest::contract::tables::{self, observations as col};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
@@ -81,7 +81,7 @@ fn observations(out: &Path) -> Vec<Obs> {
             .expect("excluded")
             .as_string::<i32>()
             .clone();
-        let opt = |a: &arrow::array::Float64Array, i: usize| a.is_valid(i).then(|| a.value(i));
+        let opt = |a: &arrow_array::Float64Array, i: usize| a.is_valid(i).then(|| a.value(i));
         for i in 0..b.num_rows() {
             v.push(Obs {
                 session: dict(tables::SESSION, i),

@@ -9,7 +9,7 @@
 //! Prints, per column, the best of five passes in ns per value and the encoded bits per
 //! value, encoding pages of `OWN_PAGE_ROWS` values as ingest does.
 
-use arrow::array::{Array, Int32Array, Int64Array, RecordBatch};
+use arrow_array::{Array, Int32Array, Int64Array, RecordBatch};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::time::Instant;
 

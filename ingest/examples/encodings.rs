@@ -12,7 +12,7 @@
 //! Prints, per column, encoding and compression, the best of three writes to memory and the
 //! bytes written.
 
-use arrow::array::RecordBatch;
+use arrow_array::RecordBatch;
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::basic::{Compression, Encoding, ZstdLevel};

@@ -69,7 +69,7 @@ pub enum Error {
         /// The table's file.
         path: PathBuf,
         /// The underlying error.
-        source: arrow::error::ArrowError,
+        source: arrow_schema::ArrowError,
     },
 }
 

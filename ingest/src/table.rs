@@ -14,8 +14,9 @@
 
 use crate::encoding::{self, DeltaValue};
 use crate::error::{Error, Result};
-use arrow::array::{ArrayRef, DictionaryArray, Int32Array, RecordBatch, StringArray};
-use arrow::datatypes::{Int32Type, SchemaRef};
+use arrow_array::types::Int32Type;
+use arrow_array::{ArrayRef, DictionaryArray, Int32Array, RecordBatch, StringArray};
+use arrow_schema::SchemaRef;
 use parquet::arrow::{ArrowSchemaConverter, ArrowWriter, add_encoded_arrow_schema_to_metadata};
 use parquet::basic::{
     BoundaryOrder, Compression, Encoding, EncodingMask, PageType, Type, ZstdLevel,
@@ -853,8 +854,8 @@ pub fn dictionary_column<'a>(values: impl Iterator<Item = &'a str>) -> ArrayRef 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use arrow::array::{Array, Float64Array, Int64Array, UInt8Array, UInt16Array};
-    use arrow::datatypes::{DataType, Field, Schema};
+    use arrow_array::{Array, Float64Array, Int64Array, UInt8Array, UInt16Array};
+    use arrow_schema::{DataType, Field, Schema};
     use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
     fn schema() -> SchemaRef {
@@ -866,7 +867,7 @@ mod tests {
                 Field::new("x", DataType::Float64, true),
                 Field::new("b", DataType::UInt8, false),
             ],
-            arrow::datatypes::Metadata::new().with("k", "v"),
+            arrow_schema::Metadata::new().with("k", "v"),
         ))
     }
 
@@ -913,7 +914,8 @@ mod tests {
         );
         let reader = builder.build().expect("build");
         let batches: Vec<_> = reader.map(|b| b.expect("batch")).collect();
-        let batch = arrow::compute::concat_batches(&batches[0].schema(), &batches).expect("concat");
+        let batch =
+            arrow_select::concat::concat_batches(&batches[0].schema(), &batches).expect("concat");
         assert_eq!(batch.schema().fields(), schema().fields());
         let col = |i: usize| batch.column(i).clone();
         assert_eq!(

@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 use crate::lines::{read_lines, strip_comment};
 use crate::table::{TableWriter, session_column};
 use crate::time::TimeReader;
-use arrow::array::{ArrayRef, Float64Array, Int64Array, StringArray, UInt32Array};
+use arrow_array::{ArrayRef, Float64Array, Int64Array, StringArray, UInt32Array};
 use std::path::Path;
 use std::sync::Arc;
 

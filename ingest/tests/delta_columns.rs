@@ -3,8 +3,8 @@
 //! Arrow as the values, nulls, statistics and page index that parquet-rs's own writer gives
 //! for the same data.
 
-use arrow::array::{ArrayRef, Float64Array, Int32Array, Int64Array, RecordBatch};
-use arrow::datatypes::{DataType, Field, Schema, SchemaRef};
+use arrow_array::{ArrayRef, Float64Array, Int32Array, Int64Array, RecordBatch};
+use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use ingest::table::{ColumnTableWriter, ColumnValues, Encodings, OWN_PAGE_ROWS};
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::{ArrowReaderOptions, ParquetRecordBatchReaderBuilder};
@@ -139,7 +139,7 @@ fn read(path: &std::path::Path) -> (RecordBatch, Arc<ParquetMetaData>) {
         .expect("build")
         .map(|b| b.expect("batch"))
         .collect();
-    let batch = arrow::compute::concat_batches(&schema(), &batches).expect("concat");
+    let batch = arrow_select::concat::concat_batches(&schema(), &batches).expect("concat");
     (batch, metadata)
 }
 

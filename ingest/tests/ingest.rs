@@ -1,8 +1,8 @@
 //! Ingest at its boundary: datasets in, Parquet tables and ledger out, checked against the
 //! simulator's truth.
 
-use arrow::array::{AsArray, RecordBatch};
-use arrow::datatypes::{Float64Type, Int32Type, Int64Type};
+use arrow_array::types::{Float64Type, Int32Type, Int64Type};
+use arrow_array::{RecordBatch, cast::AsArray};
 use ingest::Options;
 use ingest::contract::ingest_ledger::IngestReport;
 use ingest::contract::ingest_ledger::reason;

@@ -4,8 +4,8 @@
 //! what was found reported; a line going back in time rejected alone; manifest errors
 //! naming the key; a temperature log in the same layout.
 
-use arrow::array::{Array, AsArray};
-use arrow::datatypes::{Float64Type, Int64Type};
+use arrow_array::types::{Float64Type, Int64Type};
+use arrow_array::{Array, cast::AsArray};
 use ingest::contract::ingest_ledger::{IngestReport, reason};
 use ingest::contract::tables;
 use std::fmt::Write as _;
@@ -288,11 +288,11 @@ fn duckdb_reads_the_lab_table_as_written() {
     for b in read_table(out.path(), tables::lab::FILE) {
         let column = |name: &str| b.column_by_name(name).expect("column").clone();
         let session = column(tables::SESSION_INDEX);
-        let session = session.as_primitive::<arrow::datatypes::UInt16Type>();
+        let session = session.as_primitive::<arrow_array::types::UInt16Type>();
         let time = column(tables::TIME_GPS_NS);
         let time = time.as_primitive::<Int64Type>();
         let line = column(tables::lab::LINE);
-        let line = line.as_primitive::<arrow::datatypes::UInt64Type>();
+        let line = line.as_primitive::<arrow_array::types::UInt64Type>();
         let values: Vec<_> = tables::lab::VALUES.iter().map(|v| column(v)).collect();
         for i in 0..b.num_rows() {
             let mut row = format!("{} {} {}", session.value(i), time.value(i), line.value(i));

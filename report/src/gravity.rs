@@ -290,7 +290,7 @@ fn disturbance(ds: &Dataset, epochs: &[Epoch]) -> Table {
 /// range of the filtered values, the median sigma and its parts; None when no session has
 /// them.
 fn horizontal(ds: &Dataset, path: &Path) -> Result<Option<Table>, Error> {
-    use arrow::array::Array;
+    use arrow_array::Array;
     let names = gravity::HORIZONTAL;
     // Per session, per column, the values of the rows that have them.
     let mut per: std::collections::BTreeMap<u16, Vec<Vec<f64>>> = Default::default();

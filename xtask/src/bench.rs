@@ -40,6 +40,39 @@ print(json.dumps({"rows": t.num_rows,
                   "sums": {n: int(pc.sum(t[n]).as_py() or 0) for n in t.column_names}}))
 "##;
 
+/// The non-null values of an integer column (the acceleration table's types), widened to
+/// i64 as pyarrow's sum widens them.
+fn integers(column: &dyn arrow_array::Array) -> Result<Box<dyn Iterator<Item = i64> + '_>> {
+    use arrow_array::cast::AsArray;
+    use arrow_array::types::{Int32Type, Int64Type, UInt8Type, UInt16Type};
+    use arrow_schema::DataType;
+    Ok(match column.data_type() {
+        DataType::Int64 => Box::new(column.as_primitive::<Int64Type>().iter().flatten()),
+        DataType::Int32 => Box::new(
+            column
+                .as_primitive::<Int32Type>()
+                .iter()
+                .flatten()
+                .map(i64::from),
+        ),
+        DataType::UInt16 => Box::new(
+            column
+                .as_primitive::<UInt16Type>()
+                .iter()
+                .flatten()
+                .map(i64::from),
+        ),
+        DataType::UInt8 => Box::new(
+            column
+                .as_primitive::<UInt8Type>()
+                .iter()
+                .flatten()
+                .map(i64::from),
+        ),
+        other => bail!("a column of {other} in the acceleration table"),
+    })
+}
+
 /// Checks that pyarrow (Arrow C++, an independent reader) decodes the acceleration table
 /// ingest wrote into `out` to the rows ingest counted and the sums of the values it stored.
 fn pyarrow_reads(py: &Path, script: &Path, out: &Path) -> Result<()> {
@@ -77,13 +110,10 @@ fn pyarrow_reads(py: &Path, script: &Path, out: &Path) -> Result<()> {
     for batch in reader {
         let batch = batch?;
         for (field, column) in batch.schema().fields().iter().zip(batch.columns()) {
-            let column = arrow::compute::cast(column, &arrow::datatypes::DataType::Int64)?;
-            let column = column
-                .as_any()
-                .downcast_ref::<arrow::array::Int64Array>()
-                .context("cast to Int64")?;
             let sum = sums.entry(field.name().clone()).or_default();
-            *sum = column.iter().flatten().fold(*sum, i64::wrapping_add);
+            *sum = integers(column.as_ref())
+                .with_context(|| format!("column {}", field.name()))?
+                .fold(*sum, i64::wrapping_add);
         }
     }
     for (name, sum) in &sums {

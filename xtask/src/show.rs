@@ -6,9 +6,15 @@
 //! to the SHA-256 that ledger recorded: a table changed since is said to be so on stderr
 //! before its rows, and the command then fails, as the next stage would refuse it.
 
-use anyhow::{Context, Result};
-use arrow::array::RecordBatch;
-use arrow::util::display::{ArrayFormatter, FormatOptions};
+use anyhow::{Context, Result, bail};
+use arrow_array::Array;
+use arrow_array::RecordBatch;
+use arrow_array::cast::AsArray;
+use arrow_array::types::{
+    Float32Type, Float64Type, Int8Type, Int16Type, Int32Type, Int64Type, UInt8Type, UInt16Type,
+    UInt32Type, UInt64Type,
+};
+use arrow_schema::DataType;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::io::Write;
 use std::path::Path;
@@ -195,16 +201,68 @@ fn write_aligned(out: &mut impl Write, names: &[String], lines: &[Vec<String>]) 
 
 /// The first `take` rows of `batch` as text, a row at a time.
 fn format_batch(batch: &RecordBatch, take: usize) -> Result<Vec<Vec<String>>> {
-    let options = FormatOptions::default().with_null("");
-    let formatters = batch
+    let columns = batch
         .columns()
         .iter()
-        .map(|c| ArrayFormatter::try_new(c.as_ref(), &options))
-        .collect::<std::result::Result<Vec<_>, _>>()
-        .context("formatting a column")?;
+        .zip(batch.schema().fields())
+        .map(|(c, field)| {
+            column_text(c.as_ref(), take)
+                .with_context(|| format!("formatting column {}", field.name()))
+        })
+        .collect::<Result<Vec<_>>>()?;
     Ok((0..take)
-        .map(|i| formatters.iter().map(|f| f.value(i).to_string()).collect())
+        .map(|i| columns.iter().map(|c| c[i].clone()).collect())
         .collect())
+}
+
+/// The first `take` cells of `column` as text: a null empty, a float in Rust's shortest
+/// form that reads back to the same bits (`-2.0`, `1e-7`), a dictionary's cell as its
+/// value. A type gravcal's tables do not use is refused by name.
+fn column_text(column: &dyn Array, take: usize) -> Result<Vec<String>> {
+    macro_rules! cells {
+        ($array:expr, $fmt:literal) => {{
+            let a = $array;
+            (0..take)
+                .map(|i| {
+                    if a.is_null(i) {
+                        String::new()
+                    } else {
+                        format!($fmt, a.value(i))
+                    }
+                })
+                .collect()
+        }};
+    }
+    Ok(match column.data_type() {
+        DataType::Float64 => cells!(column.as_primitive::<Float64Type>(), "{:?}"),
+        DataType::Float32 => cells!(column.as_primitive::<Float32Type>(), "{:?}"),
+        DataType::Int8 => cells!(column.as_primitive::<Int8Type>(), "{}"),
+        DataType::Int16 => cells!(column.as_primitive::<Int16Type>(), "{}"),
+        DataType::Int32 => cells!(column.as_primitive::<Int32Type>(), "{}"),
+        DataType::Int64 => cells!(column.as_primitive::<Int64Type>(), "{}"),
+        DataType::UInt8 => cells!(column.as_primitive::<UInt8Type>(), "{}"),
+        DataType::UInt16 => cells!(column.as_primitive::<UInt16Type>(), "{}"),
+        DataType::UInt32 => cells!(column.as_primitive::<UInt32Type>(), "{}"),
+        DataType::UInt64 => cells!(column.as_primitive::<UInt64Type>(), "{}"),
+        DataType::Boolean => cells!(column.as_boolean(), "{}"),
+        DataType::Utf8 => cells!(column.as_string::<i32>(), "{}"),
+        DataType::LargeUtf8 => cells!(column.as_string::<i64>(), "{}"),
+        DataType::Dictionary(_, _) => {
+            let dictionary = column.as_any_dictionary();
+            let values = column_text(dictionary.values().as_ref(), dictionary.values().len())?;
+            let keys = dictionary.normalized_keys();
+            (0..take)
+                .map(|i| {
+                    if column.is_null(i) {
+                        String::new()
+                    } else {
+                        values[keys[i]].clone()
+                    }
+                })
+                .collect()
+        }
+        other => bail!("no text form for a column of {other}"),
+    })
 }
 
 /// A CSV field, quoted when it holds a comma, a quote or a line break.
@@ -219,7 +277,7 @@ fn quote(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use arrow::array::{Float64Array, StringArray};
+    use arrow_array::{Float64Array, StringArray};
     use std::sync::Arc;
 
     /// `batch` written to `path` by parquet-rs.

@@ -15,7 +15,7 @@ use super::select::{Choice, Selection, Target, select};
 use crate::Error;
 use align::read::{self, AccelerationBatch, Temperatures};
 use align::window::Interpolator;
-use arrow::array::Array;
+use arrow_array::Array;
 use ingest::contract::apply_ledger::{
     AppliedAccelerometer, ApplyReport, CalibrationUsed, LEDGER_FILE, LEDGER_FORMAT, STAGE_DIR,
 };

@@ -11,7 +11,7 @@ use crate::Error;
 use crate::triad::{MAX_PARAMS, TriadModel};
 use align::read::{self, Temperatures};
 use align::window::Interpolator;
-use arrow::array::Array;
+use arrow_array::Array;
 use ingest::contract::calibration::TriadResult;
 use ingest::contract::status;
 use ingest::contract::tables::{self, applied};

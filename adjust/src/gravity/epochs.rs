@@ -469,7 +469,7 @@ pub fn fill(
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut values = vec![None; refs.len()];
     align::read::float_batches(path, &refs, &flags, 1 << 17, |b| {
-        use arrow::array::Array;
+        use arrow_array::Array;
         for i in 0..b.time_ns.len() {
             let Some(ti) = targets.iter().position(|t| t.session == b.session[i]) else {
                 continue;

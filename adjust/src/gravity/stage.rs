@@ -1382,7 +1382,7 @@ impl Rows {
 
     /// Writes the rows gathered as one row group.
     fn write(&mut self) -> Result<(), GravityError> {
-        use arrow::array::{
+        use arrow_array::{
             ArrayRef, Float64Array, Int64Array, UInt8Array, UInt16Array, UInt32Array,
         };
         use std::sync::Arc;
@@ -1406,8 +1406,8 @@ impl Rows {
             .collect();
         let valid = self.with_horizontal.then(|| {
             (
-                arrow::buffer::NullBuffer::from(horizontal_valid),
-                arrow::buffer::NullBuffer::from(sd_known),
+                arrow_buffer::NullBuffer::from(horizontal_valid),
+                arrow_buffer::NullBuffer::from(sd_known),
             )
         });
         for (f, name) in self.horizontal.iter_mut().zip(gravity::HORIZONTAL) {

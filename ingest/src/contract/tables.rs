@@ -23,7 +23,7 @@
 //! carry the session as an index rather than a string: a string per sample costs more to
 //! write than the sample itself.
 
-use arrow::datatypes::{DataType, Field, Schema, SchemaRef};
+use arrow_schema::{DataType, Field, Schema, SchemaRef};
 use std::sync::Arc;
 
 /// Session id column (all tables).
@@ -41,7 +41,7 @@ fn with_sessions(fields: Vec<Field>, sessions: &[String]) -> SchemaRef {
     let ids = serde_json::to_string(sessions).expect("strings serialise");
     Arc::new(Schema::new_with_metadata(
         fields,
-        arrow::datatypes::Metadata::new().with(SESSIONS_METADATA, ids),
+        arrow_schema::Metadata::new().with(SESSIONS_METADATA, ids),
     ))
 }
 

@@ -1,6 +1,6 @@
 //! What the integration tests share: reading a table ingest wrote.
 
-use arrow::array::RecordBatch;
+use arrow_array::RecordBatch;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::path::Path;
 
