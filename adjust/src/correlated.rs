@@ -9,7 +9,7 @@
 //! separable in time order. Sessions are independent. No I/O.
 
 use crate::gh::Solution;
-use align::colour::Flicker;
+use align::colour::{Flicker, WindowedFlicker};
 
 /// The coloured ADC noise of one accelerometer, in counts.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -224,6 +224,7 @@ pub fn between_station_excess(
     let firsts = at.session_starts();
     let members = station_members(station);
     let flicker = Flicker::new(noise.bias_instability);
+    let windows = flicker.windowed(noise.window_s);
     let mut total = 0.0;
     for (j, obs) in members.iter().enumerate() {
         if obs.is_empty() {
@@ -242,7 +243,7 @@ pub fn between_station_excess(
         let mut local = 0.0;
         for &a in obs {
             for &b in obs {
-                let c = pair_covariance(&flicker, noise, (time_s[a], time_s[b], first), a == b);
+                let c = pair_covariance(&windows, noise, (time_s[a], time_s[b], first), a == b);
                 local += w[a] * bng[a] * c * bng[b] * w[b];
             }
         }
@@ -317,11 +318,12 @@ pub fn misclosure_excess(s: &Solution<3>, at: Timeline<'_>, noise: &ColouredAdc)
     let Timeline { time_s, session } = at;
     let firsts = at.session_starts();
     let flicker = Flicker::new(noise.bias_instability);
+    let windows = flicker.windowed(noise.window_s);
     (0..n)
         .map(|i| {
             let a = &s.a[i * m..(i + 1) * m];
             let t = time_s[i];
-            let own = pair_covariance(&flicker, noise, (t, t, firsts[session[i]]), true);
+            let own = pair_covariance(&windows, noise, (t, t, firsts[session[i]]), true);
             let hs: f64 = a.iter().zip(&y[i]).map(|(a, y)| a * y).sum::<f64>() * bng[i];
             let hsh: f64 = (0..m)
                 .map(|r| (0..m).map(|c| a[r] * gsg[r * m + c] * a[c]).sum::<f64>())
@@ -412,6 +414,7 @@ fn scatter_excess(
     let firsts = at.session_starts();
     let members = station_members(station);
     let flicker = Flicker::new(noise.bias_instability);
+    let windows = flicker.windowed(noise.window_s);
     let mut total = Excess::default();
     for obs in members.iter().filter(|o| o.len() > 1) {
         let first = firsts[session[obs[0]]];
@@ -422,7 +425,7 @@ fn scatter_excess(
         let mut s = vec![0.0; m * m];
         for (a, &ia) in obs.iter().enumerate() {
             for (b, &ib) in obs.iter().enumerate() {
-                let c = pair_covariance(&flicker, noise, (time_s[ia], time_s[ib], first), a == b);
+                let c = pair_covariance(&windows, noise, (time_s[ia], time_s[ib], first), a == b);
                 s[a * m + b] = c + if a == b { 1.0 / w[a] } else { 0.0 };
             }
         }
@@ -451,13 +454,13 @@ fn scatter_excess(
 /// variance of the flicker's fastest processes, which the points' covariance would count as
 /// scatter between a station's windows.
 fn pair_covariance(
-    flicker: &Flicker,
+    windows: &WindowedFlicker<'_>,
     noise: &ColouredAdc,
     (ta, tb, first): (f64, f64, f64),
     same: bool,
 ) -> f64 {
     let k2 = noise.random_walk.powi(2);
-    let c = flicker.window_covariance(ta - tb, noise.window_s) + k2 * (ta.min(tb) - first);
+    let c = windows.covariance(ta - tb) + k2 * (ta.min(tb) - first);
     // A window's mean of the random walk has K^2 (t - first - w / 6) of variance (t its
     // centre); two windows apart covary by K^2 (the earlier centre - first).
     if same {
@@ -496,10 +499,11 @@ mod tests {
         assert!(excess.mean > 0.5 && excess.variance > 1.0, "{excess:?}");
         // S and its Cholesky factor.
         let flicker = Flicker::new(noise.bias_instability);
+        let windows = flicker.windowed(noise.window_s);
         let mut s = vec![0.0; m * m];
         for a in 0..m {
             for b in 0..m {
-                let c = pair_covariance(&flicker, &noise, (time[a], time[b], time[0]), a == b);
+                let c = pair_covariance(&windows, &noise, (time[a], time[b], time[0]), a == b);
                 s[a * m + b] = c + if a == b { sigma[a].powi(2) } else { 0.0 };
             }
         }
@@ -606,8 +610,9 @@ mod tests {
             &noise,
         );
         let flicker = Flicker::new(noise.bias_instability);
+        let windows = flicker.windowed(noise.window_s);
         let cov = |i: usize, j: usize| {
-            let c = pair_covariance(&flicker, &noise, (time[i], time[j], 0.0), i == j);
+            let c = pair_covariance(&windows, &noise, (time[i], time[j], 0.0), i == j);
             c * s.b[i][1] * s.b[j][1]
         };
         // R[i][k] = delta_ik - a_i^T Q a_k w_k.
@@ -694,6 +699,7 @@ mod tests {
             &noise,
         );
         let flicker = Flicker::new(noise.bias_instability);
+        let windows = flicker.windowed(noise.window_s);
         let gain = |i: usize| -> Vec<f64> {
             let f = -s.b[i][1] / s.q_ww[i];
             (0..m)
@@ -717,7 +723,7 @@ mod tests {
                     .filter(|(_, s)| **s == session[i])
                     .map(|(t, _)| *t)
                     .fold(f64::INFINITY, f64::min);
-                let c = pair_covariance(&flicker, &noise, (time[i], time[j], t0), i == j);
+                let c = pair_covariance(&windows, &noise, (time[i], time[j], t0), i == j);
                 let (gi, gj) = (gain(i), gain(j));
                 for r in 0..m {
                     for q in 0..m {

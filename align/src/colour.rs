@@ -33,6 +33,50 @@ fn gauss_markov_avar(t: f64, tau: f64) -> f64 {
     (2.0 * x - 3.0 + 4.0 * (-x).exp() - (-2.0 * x).exp()) / (x * x)
 }
 
+/// The covariances of means over windows of one length ([`Flicker::windowed`]).
+#[derive(Clone, Debug)]
+pub struct WindowedFlicker<'a> {
+    flicker: &'a Flicker,
+    window_s: f64,
+    /// [`Flicker::window_factors`] at `window_s`.
+    factors: Vec<(f64, f64)>,
+}
+
+impl WindowedFlicker<'_> {
+    /// Covariance of two means over the windows whose centres are `dt_s` apart
+    /// ([`Flicker::window_covariance`]).
+    pub fn covariance(&self, dt_s: f64) -> f64 {
+        let (flicker, window_s) = (self.flicker, self.window_s);
+        let dt = dt_s.abs();
+        if window_s <= 0.0 {
+            return flicker.covariance(dt);
+        }
+        if dt == 0.0 || dt >= window_s {
+            return flicker
+                .time_constants_s
+                .iter()
+                .zip(&self.factors)
+                .map(|(&t, &(f, g))| {
+                    flicker.variance * if dt == 0.0 { g } else { f * (-dt / t).exp() }
+                })
+                .sum();
+        }
+        flicker.lag_averaged(dt, window_s, 400)
+    }
+}
+
+/// The factor two means over windows of x time constants that do not overlap put on their
+/// process's covariance ([`Flicker::window_factors`]' f).
+fn apart_factor(x: f64) -> f64 {
+    (2.0 * x.cosh() - 2.0) / (x * x)
+}
+
+/// The factor the mean over a window of x time constants puts on its process's variance
+/// ([`Flicker::window_factors`]' g).
+fn same_factor(x: f64) -> f64 {
+    2.0 * (x - 1.0 + (-x).exp()) / (x * x)
+}
+
 impl Flicker {
     /// The processes of bias instability `b` (unit of the series).
     pub fn new(b: f64) -> Self {
@@ -76,12 +120,7 @@ impl Flicker {
     pub fn window_factors(&self, window_s: f64) -> Vec<(f64, f64)> {
         self.time_constants_s
             .iter()
-            .map(|&t| {
-                let x = window_s / t;
-                let f = (2.0 * x.cosh() - 2.0) / (x * x);
-                let g = 2.0 * (x - 1.0 + (-x).exp()) / (x * x);
-                (f, g)
-            })
+            .map(|&t| (apart_factor(window_s / t), same_factor(window_s / t)))
             .collect()
     }
 
@@ -89,19 +128,18 @@ impl Flicker {
     /// the point covariance averaged over both windows, in closed form when they do not
     /// overlap or are one, by Simpson's rule over the lag when they overlap.
     pub fn window_covariance(&self, dt_s: f64, window_s: f64) -> f64 {
-        let dt = dt_s.abs();
-        if window_s <= 0.0 {
-            return self.covariance(dt);
+        self.windowed(window_s).covariance(dt_s)
+    }
+
+    /// [`Flicker::window_covariance`] for many pairs of windows of one length `window_s`:
+    /// each time constant's factors computed once (the adjustment's Monte-Carlos ask for
+    /// every pair of windows, and the factors' cosh and exp were most of their time).
+    pub fn windowed(&self, window_s: f64) -> WindowedFlicker<'_> {
+        WindowedFlicker {
+            flicker: self,
+            window_s,
+            factors: self.window_factors(window_s),
         }
-        if dt == 0.0 || dt >= window_s {
-            return self
-                .time_constants_s
-                .iter()
-                .zip(self.window_factors(window_s))
-                .map(|(&t, (f, g))| self.variance * if dt == 0.0 { g } else { f * (-dt / t).exp() })
-                .sum();
-        }
-        self.lag_averaged(dt, window_s, 400)
     }
 
     /// (1 / w^2) integral over r in [-w, w] of (w - |r|) C(dt + r), the point covariance
