@@ -27,6 +27,7 @@ pub mod window;
 mod observe;
 mod positions;
 mod stations;
+mod units;
 
 pub use observe::print_summary;
 use observe::*;
@@ -69,6 +70,15 @@ pub enum Error {
         path: PathBuf,
         /// The underlying error.
         source: parquet::errors::ParquetError,
+    },
+    /// A session's theodolite readings fit another unit than the manifest declares
+    /// (align/src/units.rs).
+    #[error("session `{session}`: {message}")]
+    TheodoliteUnit {
+        /// The session.
+        session: String,
+        /// The declared unit, the one the readings suggest and each accelerometer's misfits.
+        message: String,
     },
 }
 
@@ -176,6 +186,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
             &mut formed,
         );
     }
+    units::check(&ds, &formed.observations)?;
     formed.multi_position = multi_positions(&ds, &setup, &ingest_dir, &temperatures)?;
     write_outputs(&ds, out, setup, formed)
 }

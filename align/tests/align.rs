@@ -235,6 +235,33 @@ fn leap_second_slip_is_caught() {
     );
 }
 
+/// A theodolite log declared in a unit its readings do not fit stops align with the session,
+/// the manifest key and the unit they fit (issue 49): esgt-2005's degrees declared gon, and
+/// gon-gpst's gon declared degrees. As declared, both pass (every other test here).
+#[test]
+fn a_theodolite_unit_the_readings_do_not_fit_is_named() {
+    for (dataset, declared, wrong, suggested) in [
+        ("esgt-2005", "theodolite_unit = \"deg\"", "gon", "deg"),
+        ("gon-gpst", "theodolite_unit = \"gon\"", "deg", "gon"),
+    ] {
+        let ds = tempfile::tempdir().expect("tempdir");
+        fixtures::copy_dataset(dataset, ds.path(), |m| {
+            m.replace(declared, &format!("theodolite_unit = \"{wrong}\""))
+        })
+        .expect("copy");
+        let out = tempfile::tempdir().expect("tempdir");
+        ingest::run(ds.path(), out.path()).expect("ingest");
+        let e = align::run(ds.path(), out.path())
+            .expect_err("a wrong unit is refused")
+            .to_string();
+        assert!(
+            e.contains(&format!("declared `theodolite_unit = \"{wrong}\"`"))
+                && e.ends_with(&format!("Set `theodolite_unit = \"{suggested}\"`")),
+            "{dataset}: {e}"
+        );
+    }
+}
+
 /// The generator's logger gap and over-range knock exclude exactly the readings whose windows
 /// they hit, with the right reasons.
 #[test]
