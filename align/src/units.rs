@@ -12,9 +12,9 @@
 //! ten degrees or more: gon read as degrees is the same curve stretched by 0.9. A unit is
 //! plausible for an accelerometer when the fit misses by less than [`FLOOR`] of the counts'
 //! sd and its beta is within [`BETA_MAX_DEG`]. Each accelerometer of a tilt-table session
-//! with at least [`MIN_READINGS`] readings is fitted in every unit; when the declared unit
-//! is plausible for none of them and one other unit for all of them, align stops and names
-//! the session, the manifest key and that unit.
+//! with at least [`MIN_READINGS`] readings at [`MIN_STATIONS`] stations is fitted in every
+//! unit; when the declared unit is plausible for none of them and one other unit for all of
+//! them, align stops and names the session, the manifest key and that unit.
 
 use crate::{Error, Observation, Result};
 use faer::prelude::*;
@@ -22,11 +22,14 @@ use ingest::contract::manifest::{AngleUnit, Dataset};
 
 /// Readings an accelerometer needs before its fit is asked about the unit.
 pub const MIN_READINGS: usize = 8;
+/// Stations (distinct tilts) it needs as well: three parameters fit three tilts exactly in
+/// any unit, so a unit is told from another only from a fourth on.
+pub const MIN_STATIONS: usize = 4;
 /// The largest rms misfit, as a fraction of the counts' sd, of a plausible unit: the
 /// QA3000's second-order and cross-axis terms leave well under 1e-3 (esgt-2005: 1.5e-4).
 pub const FLOOR: f64 = 0.01;
 /// The largest misalignment in the plane of the turn of a plausible unit, degrees: a mounted
-/// accelerometer's is a fraction of a degree (esgt-2005's fits: under 0.1).
+/// accelerometer's is a fraction of a degree (gon-gpst's, in gon: 0.00).
 pub const BETA_MAX_DEG: f64 = 3.0;
 
 /// The units a theodolite log may be declared in.
@@ -39,12 +42,18 @@ pub(crate) fn check(ds: &Dataset, observations: &[Observation]) -> Result<()> {
         let declared = s.session.theodolite_unit;
         let mut verdicts = Vec::new();
         for acc in &ds.manifest.instrument.accelerometer {
-            let (values, counts): (Vec<f64>, Vec<f64>) = observations
+            let used: Vec<&Observation> = observations
                 .iter()
                 .filter(|o| o.session == s.session.id && o.accelerometer == acc.id)
+                .filter(|o| o.ng.is_some())
+                .collect();
+            let stations: std::collections::BTreeSet<&str> =
+                used.iter().map(|o| o.station.as_str()).collect();
+            let (values, counts): (Vec<f64>, Vec<f64>) = used
+                .iter()
                 .filter_map(|o| Some((o.dz_rad / declared.to_rad(1.0), o.ng?)))
                 .unzip();
-            if values.len() >= MIN_READINGS {
+            if values.len() >= MIN_READINGS && stations.len() >= MIN_STATIONS {
                 verdicts.push((acc.id.as_str(), fits(&values, &counts)));
             }
         }

@@ -46,29 +46,16 @@ fn integers(column: &dyn arrow_array::Array) -> Result<Box<dyn Iterator<Item = i
     use arrow_array::cast::AsArray;
     use arrow_array::types::{Int32Type, Int64Type, UInt8Type, UInt16Type};
     use arrow_schema::DataType;
+    macro_rules! widened {
+        ($t:ty) => {
+            Box::new(column.as_primitive::<$t>().iter().flatten().map(i64::from))
+        };
+    }
     Ok(match column.data_type() {
-        DataType::Int64 => Box::new(column.as_primitive::<Int64Type>().iter().flatten()),
-        DataType::Int32 => Box::new(
-            column
-                .as_primitive::<Int32Type>()
-                .iter()
-                .flatten()
-                .map(i64::from),
-        ),
-        DataType::UInt16 => Box::new(
-            column
-                .as_primitive::<UInt16Type>()
-                .iter()
-                .flatten()
-                .map(i64::from),
-        ),
-        DataType::UInt8 => Box::new(
-            column
-                .as_primitive::<UInt8Type>()
-                .iter()
-                .flatten()
-                .map(i64::from),
-        ),
+        DataType::Int64 => widened!(Int64Type),
+        DataType::Int32 => widened!(Int32Type),
+        DataType::UInt16 => widened!(UInt16Type),
+        DataType::UInt8 => widened!(UInt8Type),
         other => bail!("a column of {other} in the acceleration table"),
     })
 }

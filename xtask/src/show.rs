@@ -334,6 +334,48 @@ mod tests {
         assert!(text.contains("1 more rows"), "{text}");
     }
 
+    /// Every type gravcal's tables hold prints as its value: integers, a boolean, a float
+    /// in its shortest round-trip form, a dictionary's name by its key, a null empty; a
+    /// type they do not hold is refused by name.
+    #[test]
+    fn cells_of_every_type_gravcal_writes() {
+        use arrow_array::types::Int32Type;
+        use arrow_array::{BooleanArray, DictionaryArray, Int64Array, UInt16Array};
+        let names: DictionaryArray<Int32Type> =
+            vec![Some("b"), None, Some("a")].into_iter().collect();
+        let columns: Vec<(arrow_array::ArrayRef, [&str; 3])> = vec![
+            (
+                Arc::new(Int64Array::from(vec![Some(-3), None, Some(7)])),
+                ["-3", "", "7"],
+            ),
+            (
+                Arc::new(UInt16Array::from(vec![1, 2, 65535])),
+                ["1", "2", "65535"],
+            ),
+            (
+                Arc::new(BooleanArray::from(vec![Some(true), Some(false), None])),
+                ["true", "false", ""],
+            ),
+            (
+                Arc::new(Float64Array::from(vec![1e-7, 0.1, 3.0])),
+                ["1e-7", "0.1", "3.0"],
+            ),
+            (Arc::new(names), ["b", "", "a"]),
+        ];
+        for (column, want) in columns {
+            assert_eq!(
+                column_text(column.as_ref(), 3).expect("text"),
+                want,
+                "{column:?}"
+            );
+        }
+        let dates = arrow_array::Date32Array::from(vec![1]);
+        let e = column_text(&dates, 1)
+            .expect_err("no text form")
+            .to_string();
+        assert!(e.contains("Date32"), "{e}");
+    }
+
     /// A table listed by the ledger beside it is held to the SHA-256 recorded there: shown
     /// when it matches, shown and refused when its bytes changed; a table no ledger lists is
     /// shown as it is.
