@@ -1479,8 +1479,8 @@ fn replica_obs(
 /// the power at Baarda's known-sigma MDB, which a test on estimated variances cannot reach.
 #[test]
 fn snooping_holds_its_level() {
-    let full = std::env::var("GRAVCAL_MONTE_CARLO").is_ok();
-    let replicas = if full { 1000 } else { 200 };
+    let full = full_studies();
+    let replicas = replicas_of(200, 1000);
     let mut checked = Vec::new();
     for (label, weights) in [
         ("generating sigmas", Weights::Generating),
@@ -1726,22 +1726,20 @@ fn b_and_k_at(a: &fixtures::scenario::Accelerometer, tau: f64) -> [f64; 2] {
 /// How many of esgt-2005's accelerometers a study runs: acc1 in CI, all three with
 /// GRAVCAL_MONTE_CARLO (their z hardly differ).
 fn studied_accelerometers() -> usize {
-    if std::env::var("GRAVCAL_MONTE_CARLO").is_ok() {
-        3
-    } else {
-        1
-    }
+    if full_studies() { 3 } else { 1 }
+}
+
+/// Whether GRAVCAL_MONTE_CARLO asks for the studies' full counts (the runs docs/model.md
+/// and docs/choices.md quote) rather than CI's subset.
+fn full_studies() -> bool {
+    std::env::var("GRAVCAL_MONTE_CARLO").is_ok()
 }
 
 /// Replicas of a study whose figures docs/model.md quotes: `full` with GRAVCAL_MONTE_CARLO
 /// set (the run the figures come from), `ci` without (CI's subset, the same random streams'
 /// first replicas).
 fn replicas_of(ci: usize, full: usize) -> usize {
-    if std::env::var("GRAVCAL_MONTE_CARLO").is_ok() {
-        full
-    } else {
-        ci
-    }
+    if full_studies() { full } else { ci }
 }
 
 /// The bound on an rms z (or an sd ratio) over `replicas`: the issues' 0.07, or 3 standard

@@ -42,17 +42,14 @@ pub(crate) fn check(ds: &Dataset, observations: &[Observation]) -> Result<()> {
         let declared = s.session.theodolite_unit;
         let mut verdicts = Vec::new();
         for acc in &ds.manifest.instrument.accelerometer {
-            let used: Vec<&Observation> = observations
+            // (station, logged value, counts) of each reading with counts.
+            let used: Vec<(&str, f64, f64)> = observations
                 .iter()
                 .filter(|o| o.session == s.session.id && o.accelerometer == acc.id)
-                .filter(|o| o.ng.is_some())
+                .filter_map(|o| Some((o.station.as_str(), o.dz_rad / declared.to_rad(1.0), o.ng?)))
                 .collect();
-            let stations: std::collections::BTreeSet<&str> =
-                used.iter().map(|o| o.station.as_str()).collect();
-            let (values, counts): (Vec<f64>, Vec<f64>) = used
-                .iter()
-                .filter_map(|o| Some((o.dz_rad / declared.to_rad(1.0), o.ng?)))
-                .unzip();
+            let stations: std::collections::BTreeSet<&str> = used.iter().map(|u| u.0).collect();
+            let (values, counts): (Vec<f64>, Vec<f64>) = used.iter().map(|u| (u.1, u.2)).unzip();
             if values.len() >= MIN_READINGS && stations.len() >= MIN_STATIONS {
                 verdicts.push((acc.id.as_str(), fits(&values, &counts)));
             }
@@ -96,12 +93,7 @@ fn fits(values: &[f64], counts: &[f64]) -> [Fit; 3] {
         });
         let y = Mat::<f64>::from_fn(n, 1, |i, _| counts[i] - mean);
         let p = design.qr().solve_lstsq(&y);
-        let rss: f64 = (0..n)
-            .map(|i| {
-                let fit: f64 = (0..3).map(|j| design[(i, j)] * p[(j, 0)]).sum();
-                (y[(i, 0)] - fit).powi(2)
-            })
-            .sum();
+        let rss = (&y - &design * &p).squared_norm_l2();
         Fit {
             misfit: (rss / n as f64).sqrt() / sd,
             beta_deg: (-p[(2, 0)] / p[(1, 0)]).atan().to_degrees(),
