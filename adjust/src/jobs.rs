@@ -128,6 +128,21 @@ pub(crate) fn plan_jobs<'a>(
                     .copied()
                     .filter(|o| o.accelerometer == acc.id && scope.covers(&o.session))
                     .collect();
+                let untempered = obs.iter().find(|o| o.temperature_c.is_none());
+                if let Some(o) = untempered.filter(|_| model.temperature) {
+                    skipped.push(Skipped {
+                        accelerometer: acc.id.clone(),
+                        session: scope.id().to_owned(),
+                        model: model.name.clone(),
+                        reason: format!(
+                            "not estimable: its temperature terms need a temperature at every \
+                             reading, and session {} declares no thermometer \
+                             (thermometers = \"none\")",
+                            o.session
+                        ),
+                    });
+                    continue;
+                }
                 jobs.push(Job {
                     model,
                     accelerometer: acc.id.clone(),

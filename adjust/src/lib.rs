@@ -117,10 +117,10 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let used: Vec<&io::ObservationRow> = rows
         .iter()
         .filter(|o| {
-            o.excluded.is_none()
-                && o.ng.is_some()
-                && o.sigma_ng.is_some()
-                && o.temperature_c.is_some()
+            // A reading without a temperature is used only where its session declares no
+            // thermometer (align excludes it otherwise), and then only by models without
+            // temperature terms (plan_jobs).
+            o.excluded.is_none() && o.ng.is_some() && o.sigma_ng.is_some()
         })
         .collect();
     let models = models(

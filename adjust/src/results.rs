@@ -60,7 +60,11 @@ pub(crate) fn result_of(
         temperature: job.model.temperature,
         misalignment: terms.misalignment.any(),
         t_ref_c: job.model.temperature.then_some(f.t_ref_c),
-        mean_temperature_c: f.mean_temperature_c,
+        mean_temperature_c: job
+            .obs
+            .iter()
+            .all(|o| o.temperature_c.is_some())
+            .then_some(f.mean_temperature_c),
         counts_range: range_of(f.residuals.iter().map(|r| job.obs[r.index].ng)),
         temperature_range_c: range_of(f.residuals.iter().map(|r| job.obs[r.index].temperature_c)),
         // Set over the whole run, where a fit with temperature terms may know more.
@@ -367,7 +371,7 @@ fn carry_sensitivity(
         three(lo.min(hi)),
         three(lo.max(hi)),
         grew.join(", "),
-        r.mean_temperature_c,
+        f.mean_temperature_c,
         m.model
     ));
 }

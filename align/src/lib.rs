@@ -41,7 +41,7 @@ use ingest::contract::align_ledger::{
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ingest_ledger;
 use ingest::contract::manifest::{
-    self, AlignConfig, Dataset, Location, ReadingUnit, SessionKind, SigmaDzMethod,
+    self, AlignConfig, Dataset, Location, ReadingUnit, SessionKind, SigmaDzMethod, Thermometers,
 };
 use ingest::contract::{status, tables};
 use std::collections::BTreeMap;

@@ -53,7 +53,7 @@ impl Setup {
         &self,
         w: &WindowSums,
         stats: Option<WindowStats>,
-        has_temperatures: bool,
+        thermometer: Thermometer,
         temperature: Option<f64>,
     ) -> Option<&'static str> {
         if w.not_connected > 0 {
@@ -62,9 +62,9 @@ impl Setup {
             Some(reason::SATURATED)
         } else if f64::from(w.rows) < self.cfg.min_window_fill * self.expected || stats.is_none() {
             Some(reason::WINDOW_UNDERFILLED)
-        } else if !has_temperatures {
+        } else if thermometer == Thermometer::Silent {
             Some(reason::NO_TEMPERATURE)
-        } else if temperature.is_none() {
+        } else if thermometer == Thermometer::Logged && temperature.is_none() {
             Some(reason::TEMPERATURE_GAP)
         } else if stats.is_some_and(|s| s.drift_t.abs() > DRIFT_T_LIMIT) {
             Some(reason::WINDOW_DRIFT)
@@ -72,6 +72,18 @@ impl Setup {
             None
         }
     }
+}
+
+/// What a session's temperature log gives an accelerometer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Thermometer {
+    /// The session declares none (`thermometers = "none"`): its observations carry no
+    /// temperature, and none is missing.
+    Declared,
+    /// One is expected, and its log has no sample for the channel.
+    Silent,
+    /// Its log has samples for the channel.
+    Logged,
 }
 
 /// What the sessions gave: observations and their counts.
@@ -125,6 +137,10 @@ pub(crate) fn observe_session<'t>(
     formed: &mut Formed,
 ) {
     let sigma = station_sigmas(pending, setup.fallback_sigma_rad, setup.cfg.sigma_dz);
+    let declared_none = ds
+        .sessions
+        .iter()
+        .any(|s| s.session.id == id && s.session.thermometers == Thermometers::None);
     for acc in &ds.manifest.instrument.accelerometer {
         let ch = usize::from(acc.channel) - 1;
         if never.contains(&acc.channel) {
@@ -158,8 +174,14 @@ pub(crate) fn observe_session<'t>(
             let time = p.reading.time_gps_ns;
             let (temperature, sigma_temperature_c) =
                 reading_temperature(temps, time, setup.max_gap_ns, thermometer_sd);
-            let has_temperatures = temps.is_some_and(|(t, _)| !t.is_empty());
-            let excluded = setup.exclusion(w, stats, has_temperatures, temperature.map(|(v, _)| v));
+            let thermometer = if declared_none {
+                Thermometer::Declared
+            } else if temps.is_some_and(|(t, _)| !t.is_empty()) {
+                Thermometer::Logged
+            } else {
+                Thermometer::Silent
+            };
+            let excluded = setup.exclusion(w, stats, thermometer, temperature.map(|(v, _)| v));
             match excluded {
                 Some(r) => *c.excluded.entry(r.to_owned()).or_default() += 1,
                 None => c.used += 1,

@@ -7,6 +7,7 @@
 //! as over range (saturated).
 
 use crate::contract::ingest_ledger::{FileLedger, reason};
+use crate::contract::manifest::ValueColumns;
 use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::error::{Error, Result};
 use crate::lines::{digits, read_lines, strip_comment, text};
@@ -36,11 +37,26 @@ pub enum CsvKind {
 }
 
 impl CsvKind {
-    fn header(self) -> [&'static str; 5] {
+    /// The name of a value column holding channel `ch` (0-based).
+    fn value_name(self, ch: usize) -> &'static str {
         match self {
-            CsvKind::Adc => ["gps_week", "tow_s", "c1", "c2", "c3"],
-            CsvKind::Temperature => ["gps_week", "tow_s", "t1", "t2", "t3"],
+            CsvKind::Adc => ["c1", "c2", "c3"][ch],
+            CsvKind::Temperature => ["t1", "t2", "t3"][ch],
         }
+    }
+
+    /// The names of the value columns of `columns`.
+    fn value_names(self, columns: &ValueColumns) -> Vec<&'static str> {
+        (0..columns.width)
+            .map(|k| self.value_name(columns.channel_of(k)))
+            .collect()
+    }
+
+    /// The GPS week + tow header of a log laid out as `columns`.
+    fn header(self, columns: &ValueColumns) -> Vec<&'static str> {
+        let mut names = vec!["gps_week", "tow_s"];
+        names.extend(self.value_names(columns));
+        names
     }
 }
 
@@ -114,7 +130,7 @@ enum Row {
 /// One pass over a plain ADC line (`week,sec.frac,int,int,int` with no spaces, empty fields
 /// allowed for counts). `None` sends the line to [`parse_row_general`], which also explains
 /// what is wrong.
-fn parse_adc_fast(line: &[u8]) -> Option<Row> {
+fn parse_adc_fast(line: &[u8], columns: &ValueColumns) -> Option<Row> {
     let mut p = 0usize;
     let uint = |p: &mut usize, max_digits: usize| digits(line, p, max_digits);
     let week = uint(&mut p, 4)?;
@@ -132,7 +148,7 @@ fn parse_adc_fast(line: &[u8]) -> Option<Row> {
     if tow >= NS_PER_WEEK {
         return None;
     }
-    let (counts, status) = counts_fast(line, p)?;
+    let (counts, status) = counts_fast(line, p, columns)?;
     Some(Row::Adc {
         time_ns: week * NS_PER_WEEK + tow,
         counts,
@@ -140,18 +156,17 @@ fn parse_adc_fast(line: &[u8]) -> Option<Row> {
     })
 }
 
-/// The ADC line's three counts from `line[p..]` (each after a comma, an empty field for a
-/// channel not connected) and their status, in one pass; None unless the line ends there.
+/// The ADC line's counts from `line[p..]` (each after a comma, an empty field for a
+/// channel not connected), one per value column of `columns`, placed on their channels with
+/// their status, in one pass; None unless the line ends there.
 #[inline]
-fn counts_fast(line: &[u8], mut p: usize) -> Option<([i32; 3], u8)> {
+fn counts_fast(line: &[u8], mut p: usize, columns: &ValueColumns) -> Option<([i32; 3], u8)> {
     let n = line.len();
-    let mut counts = [0i32; 3];
-    let mut status = 0u8;
-    for ch in 0..3 {
+    let mut values = [None; 3];
+    for value in values.iter_mut().take(columns.width) {
         (line.get(p) == Some(&b',')).then_some(())?;
         p += 1;
         if p == n || line[p] == b',' {
-            status |= not_connected_bit(ch);
             continue;
         }
         let neg = line[p] == b'-';
@@ -163,21 +178,43 @@ fn counts_fast(line: &[u8], mut p: usize) -> Option<([i32; 3], u8)> {
         if !(COUNT_MIN..=COUNT_MAX).contains(&v) {
             return None;
         }
-        if v == COUNT_MIN || v == COUNT_MAX {
-            status |= over_range_bit(ch);
-        }
-        counts[ch] = v as i32;
+        *value = Some(v as i32);
     }
-    (p == n).then_some((counts, status))
+    (p == n).then(|| counts_on_channels(values, columns))
+}
+
+/// The counts of the value columns `values` on their channels, and their status: a channel
+/// without a column or whose field is empty not connected, a count at either end of the
+/// 24-bit range over range.
+#[inline]
+fn counts_on_channels(values: [Option<i32>; 3], columns: &ValueColumns) -> ([i32; 3], u8) {
+    let mut counts = [0i32; 3];
+    let mut status = 0u8;
+    for ch in 0..3 {
+        match columns.column_of[ch].and_then(|k| values[k]) {
+            None => status |= not_connected_bit(ch),
+            Some(v) => {
+                if i64::from(v) == COUNT_MIN || i64::from(v) == COUNT_MAX {
+                    status |= over_range_bit(ch);
+                }
+                counts[ch] = v;
+            }
+        }
+    }
+    (counts, status)
 }
 
 /// One pass over a plain ADC line whose time is one field in another form (`time,int,int,int`,
 /// no spaces around the counts): the time through `time`, the counts as [`parse_adc_fast`]
 /// reads them. `None` sends the line to [`parse_row_timed`], which also explains what is
 /// wrong.
-fn parse_adc_timed_fast(line: &[u8], time: &mut TimeReader) -> Option<Row> {
+fn parse_adc_timed_fast(
+    line: &[u8],
+    time: &mut TimeReader,
+    columns: &ValueColumns,
+) -> Option<Row> {
     let (time_ns, comma) = time.read_leading_fast(line)?;
-    let (counts, status) = counts_fast(line, comma)?;
+    let (counts, status) = counts_fast(line, comma, columns)?;
     Some(Row::Adc {
         time_ns,
         counts,
@@ -185,33 +222,36 @@ fn parse_adc_timed_fast(line: &[u8], time: &mut TimeReader) -> Option<Row> {
     })
 }
 
-fn parse_row(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
+fn parse_row(kind: CsvKind, line: &[u8], columns: &ValueColumns) -> Result<Row, Bad> {
     if kind == CsvKind::Adc
-        && let Some(row) = parse_adc_fast(line)
+        && let Some(row) = parse_adc_fast(line, columns)
     {
         return Ok(row);
     }
-    parse_row_general(kind, line)
+    parse_row_general(kind, line, columns)
 }
 
-fn parse_row_general(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
-    let names = kind.header();
+fn parse_row_general(kind: CsvKind, line: &[u8], columns: &ValueColumns) -> Result<Row, Bad> {
+    let expected = 2 + columns.width;
     let mut fields = [&line[..0]; 5];
     let mut n = 0;
     for f in line.split(|&c| c == b',') {
-        if n == 5 {
+        if n == expected {
             return Err(bad(
                 "line",
-                format!("more than 5 fields in `{}`", text(line)),
+                format!("more than {expected} fields in `{}`", text(line)),
             ));
         }
         fields[n] = f.trim_ascii();
         n += 1;
     }
-    if n < 5 {
+    if n < expected {
         return Err(bad(
             "line",
-            format!("{n} fields, expected 5 ({})", names.join(",")),
+            format!(
+                "{n} fields, expected {expected} ({})",
+                kind.header(columns).join(",")
+            ),
         ));
     }
     let week = parse_int(fields[0])
@@ -236,33 +276,32 @@ fn parse_row_general(kind: CsvKind, line: &[u8]) -> Result<Row, Bad> {
                 ),
             )
         })?;
-    row_of(kind, week * NS_PER_WEEK + tow, &fields[2..5])
+    row_of(kind, week * NS_PER_WEEK + tow, &fields[2..], columns)
 }
 
-/// A row at `time_ns` from its three value fields (names as the GPS-week header's).
-fn row_of(kind: CsvKind, time_ns: i64, fields: &[&[u8]]) -> Result<Row, Bad> {
-    let names = &kind.header()[2..];
-    let mut status = 0u8;
+/// A row at `time_ns` from its value fields, one per column of `columns` (named as the
+/// GPS-week header's), placed on their channels.
+fn row_of(
+    kind: CsvKind,
+    time_ns: i64,
+    fields: &[&[u8]],
+    columns: &ValueColumns,
+) -> Result<Row, Bad> {
+    let fields = &fields[..columns.width];
+    let name = |k: usize| kind.value_name(columns.channel_of(k));
     match kind {
         CsvKind::Adc => {
-            let mut counts = [0i32; 3];
-            for ch in 0..3 {
-                let f = fields[ch];
-                if f.is_empty() {
-                    status |= not_connected_bit(ch);
-                    continue;
-                }
+            let mut values = [None; 3];
+            for (k, f) in fields.iter().enumerate().filter(|(_, f)| !f.is_empty()) {
                 let v = parse_int(f).ok_or_else(|| {
-                    bad(names[ch], format!("`{}` is not an integer count", text(f)))
+                    bad(name(k), format!("`{}` is not an integer count", text(f)))
                 })?;
                 if !(COUNT_MIN..=COUNT_MAX).contains(&v) {
-                    return Err(bad(names[ch], format!("{v} is outside the 24-bit range")));
+                    return Err(bad(name(k), format!("{v} is outside the 24-bit range")));
                 }
-                if v == COUNT_MIN || v == COUNT_MAX {
-                    status |= over_range_bit(ch);
-                }
-                counts[ch] = v as i32;
+                values[k] = Some(v as i32);
             }
+            let (counts, status) = counts_on_channels(values, columns);
             Ok(Row::Adc {
                 time_ns,
                 counts,
@@ -270,25 +309,28 @@ fn row_of(kind: CsvKind, time_ns: i64, fields: &[&[u8]]) -> Result<Row, Bad> {
             })
         }
         CsvKind::Temperature => {
-            let mut celsius = [None; 3];
-            for ch in 0..3 {
-                let f = fields[ch];
-                if f.is_empty() {
-                    status |= not_connected_bit(ch);
-                    continue;
-                }
+            let mut values = [None; 3];
+            for (k, f) in fields.iter().enumerate().filter(|(_, f)| !f.is_empty()) {
                 let v: f64 = std::str::from_utf8(f)
                     .ok()
                     .and_then(|s| s.parse().ok())
                     .filter(|v: &f64| v.is_finite())
                     .ok_or_else(|| {
                         bad(
-                            names[ch],
+                            name(k),
                             format!("`{}` is not a temperature in degC", text(f)),
                         )
                     })?;
-                celsius[ch] = Some(v);
+                values[k] = Some(v);
             }
+            let mut status = 0u8;
+            let celsius = std::array::from_fn(|ch| {
+                let v = columns.column_of[ch].and_then(|k| values[k]);
+                if v.is_none() {
+                    status |= not_connected_bit(ch);
+                }
+                v
+            });
             Ok(Row::Temperature {
                 time_ns,
                 celsius,
@@ -300,7 +342,12 @@ fn row_of(kind: CsvKind, time_ns: i64, fields: &[&[u8]]) -> Result<Row, Bad> {
 
 /// A row of a log whose time is one field in another form than GPS week + tow
 /// (docs/formats.md 9.1): `time,v1,v2,v3`.
-fn parse_row_timed(kind: CsvKind, line: &[u8], time: &mut TimeReader) -> Result<Row, Bad> {
+fn parse_row_timed(
+    kind: CsvKind,
+    line: &[u8],
+    time: &mut TimeReader,
+    columns: &ValueColumns,
+) -> Result<Row, Bad> {
     // Up to five fields without allocating (a fifth only to say there are too many).
     let mut buf: [&[u8]; 5] = [&[]; 5];
     let mut count = 0;
@@ -311,20 +358,21 @@ fn parse_row_timed(kind: CsvKind, line: &[u8], time: &mut TimeReader) -> Result<
         count += 1;
     }
     let fields = &buf[..count.min(buf.len())];
-    if count != 4 {
+    if count != 1 + columns.width {
         return Err(bad(
             "line",
             format!(
-                "{count} fields, expected 4 (a time in the form \"{}\", then {})",
+                "{count} fields, expected {} (a time in the form \"{}\", then {})",
+                1 + columns.width,
                 time.form.name(),
-                kind.header()[2..].join(",")
+                kind.value_names(columns).join(",")
             ),
         ));
     }
     let t = time
         .read(&fields[..1])
         .map_err(|(field, message)| bad(field, message))?;
-    row_of(kind, t, &fields[1..])
+    row_of(kind, t, &fields[1..], columns)
 }
 
 /// Where the time gate's verdicts on CSV rows go.
@@ -367,6 +415,8 @@ pub struct CsvConfig {
     pub range_ns: (i64, i64),
     /// How the log writes its times.
     pub time: TimeReader,
+    /// Which channels its value columns hold.
+    pub columns: ValueColumns,
 }
 
 /// A CSV log's lines as they are read: the header (required in GPS week + tow, optional and
@@ -376,6 +426,7 @@ struct CsvLines<'p> {
     kind: CsvKind,
     skip_bad_lines: bool,
     time: TimeReader,
+    columns: ValueColumns,
     gps_week_tow: bool,
     header_seen: bool,
     /// Comment, blank and header lines.
@@ -396,8 +447,8 @@ impl CsvLines<'_> {
             self.gps_week_tow,
         ) {
             (false, _) => None,
-            (true, true) => parse_adc_fast(raw),
-            (true, false) => parse_adc_timed_fast(raw, &mut self.time),
+            (true, true) => parse_adc_fast(raw, &self.columns),
+            (true, false) => parse_adc_timed_fast(raw, &mut self.time, &self.columns),
         };
         let line = if fast.is_some() {
             raw
@@ -410,8 +461,8 @@ impl CsvLines<'_> {
         }
         let parsed = match fast {
             Some(row) => Ok(row),
-            None if self.gps_week_tow => parse_row(self.kind, line),
-            None => parse_row_timed(self.kind, line, &mut self.time),
+            None if self.gps_week_tow => parse_row(self.kind, line, &self.columns),
+            None => parse_row_timed(self.kind, line, &mut self.time, &self.columns),
         };
         let row = match parsed {
             Ok(r) => r,
@@ -434,7 +485,7 @@ impl CsvLines<'_> {
             ledger.reject(
                 format!("line {line_no}"),
                 reason::TEMPERATURE_OUT_OF_RANGE,
-                format!("{}: {v} degC", self.kind.header()[2 + ch]),
+                format!("{}: {v} degC", self.kind.value_name(ch)),
             );
             return Ok(None);
         }
@@ -453,18 +504,21 @@ impl CsvLines<'_> {
                 return Ok(false);
             }
             let n = fields().count();
-            if n != 4 {
+            let expected = 1 + self.columns.width;
+            if n != expected {
                 let message = format!(
-                    "`{}`: {n} names, expected 4 (the time, then one per channel)",
-                    text(line)
+                    "`{}`: {n} names, expected {expected} (the time, then one per value column: \
+                     {}; the session's adc_columns and thermometers say which)",
+                    text(line),
+                    self.kind.value_names(&self.columns).join(",")
                 );
                 return Err(self.error(line_no, "header", message));
             }
             return Ok(true);
         }
-        let names = self.kind.header();
+        let names = self.kind.header(&self.columns);
         let got: Vec<&[u8]> = fields().collect();
-        if got.len() != 5 || got.iter().zip(names).any(|(g, n)| *g != n.as_bytes()) {
+        if got.len() != names.len() || got.iter().zip(&names).any(|(g, n)| *g != n.as_bytes()) {
             let message = format!("`{}`, expected `{}`", text(line), names.join(","));
             return Err(self.error(line_no, "header", message));
         }
@@ -504,6 +558,7 @@ pub fn read_csv(
         kind,
         skip_bad_lines: config.skip_bad_lines,
         time: config.time,
+        columns: config.columns,
         gps_week_tow: config.time.form == TimeForm::GpsWeekTow,
         header_seen: false,
         other: 0,
@@ -518,7 +573,7 @@ pub fn read_csv(
     })?;
     gate.finish(&mut sink)?;
     if !lines.header_seen {
-        let message = format!("no header line `{}`", kind.header().join(","));
+        let message = format!("no header line `{}`", kind.header(&lines.columns).join(","));
         return Err(lines.error(1, "header", message));
     }
     let RowSink { streams, ledger } = sink;
@@ -560,8 +615,8 @@ mod tests {
             b"1308,1.0,1,2,3x",
         ];
         for line in lines {
-            let fast = parse_adc_fast(line);
-            let general = parse_row_general(CsvKind::Adc, line);
+            let fast = parse_adc_fast(line, &ValueColumns::EVERY_CHANNEL);
+            let general = parse_row_general(CsvKind::Adc, line, &ValueColumns::EVERY_CHANNEL);
             match (fast, general) {
                 (
                     Some(Row::Adc {
@@ -584,7 +639,7 @@ mod tests {
                 (None, _) => {}
             }
         }
-        assert!(parse_adc_fast(b"1308,295200.032,1534211,,-8388608").is_some());
+        assert!(parse_adc_fast(b"1308,295200.032,1534211,,-8388608", &ValueColumns::EVERY_CHANNEL).is_some());
     }
 
     /// The fast path of a log in another time form agrees with the general parser on every
@@ -616,7 +671,7 @@ mod tests {
         for (form, line, taken) in cases {
             let mut fast = TimeReader::new(form, TimeScale::Utc, Some(1_000_000_000_000));
             let mut general = fast;
-            let got = parse_adc_timed_fast(line, &mut fast);
+            let got = parse_adc_timed_fast(line, &mut fast, &ValueColumns::EVERY_CHANNEL);
             assert_eq!(got.is_some(), taken, "{}", text(line));
             if let Some(Row::Adc {
                 time_ns,
@@ -628,7 +683,7 @@ mod tests {
                     time_ns: t,
                     counts: c,
                     status: s,
-                }) = parse_row_timed(CsvKind::Adc, line, &mut general)
+                }) = parse_row_timed(CsvKind::Adc, line, &mut general, &ValueColumns::EVERY_CHANNEL)
                 else {
                     panic!("the general parser rejects {}", text(line));
                 };
@@ -657,7 +712,7 @@ mod tests {
 
     #[test]
     fn rows_parse_and_fail_by_field() {
-        match parse_row(CsvKind::Adc, b"1308,295200.032,1534211,,-8388608") {
+        match parse_row(CsvKind::Adc, b"1308,295200.032,1534211,,-8388608", &ValueColumns::EVERY_CHANNEL) {
             Ok(Row::Adc {
                 time_ns,
                 counts,
@@ -677,14 +732,60 @@ mod tests {
             (b"1308,1.0,1,2.5,3", "c2"),
             (b"1308,1.0,1,2,8388608", "c3"),
         ] {
-            match parse_row(CsvKind::Adc, line) {
+            match parse_row(CsvKind::Adc, line, &ValueColumns::EVERY_CHANNEL) {
                 Err(b) => assert_eq!(b.field, field, "{}", text(line)),
                 Ok(_) => panic!("{} should not parse", text(line)),
             }
         }
         assert!(matches!(
-            parse_row(CsvKind::Temperature, b"1308,1.0,24.812,,nan"),
+            parse_row(CsvKind::Temperature, b"1308,1.0,24.812,,nan", &ValueColumns::EVERY_CHANNEL),
             Err(Bad { field: "t3", .. })
         ));
+    }
+
+    /// A log of fewer value columns than channels (docs/formats.md 9.4): each column lands
+    /// on its channel, a channel without one is not connected, one thermometer's column is
+    /// every listed channel's temperature, and a line of the wrong width names the width.
+    #[test]
+    fn value_columns_land_on_their_channels() {
+        let two = ValueColumns {
+            width: 2,
+            column_of: [None, Some(1), Some(0)],
+        };
+        let line = b"1308,295200.032,-12,8388607";
+        for row in [
+            parse_adc_fast(line, &two),
+            parse_row_general(CsvKind::Adc, line, &two).ok(),
+        ] {
+            match row {
+                Some(Row::Adc { counts, status, .. }) => {
+                    assert_eq!(counts, [0, 8_388_607, -12]);
+                    assert_eq!(status, not_connected_bit(0) | over_range_bit(1));
+                }
+                _ => panic!("two columns read"),
+            }
+        }
+        assert!(matches!(
+            parse_row(CsvKind::Adc, b"1308,295200.032,1,2,3", &two),
+            Err(Bad { field: "line", .. })
+        ));
+        let one = ValueColumns {
+            width: 1,
+            column_of: [Some(0), Some(0), None],
+        };
+        match parse_row(CsvKind::Temperature, b"1308,1.0,24.5", &one) {
+            Ok(Row::Temperature {
+                celsius, status, ..
+            }) => {
+                assert_eq!(celsius, [Some(24.5), Some(24.5), None]);
+                assert_eq!(status, not_connected_bit(2));
+            }
+            _ => panic!("one thermometer read"),
+        }
+        match parse_row(CsvKind::Temperature, b"1308,1.0,24.5,24.6", &one) {
+            Err(b) => assert!(b.message.contains("more than 3"), "{}", b.message),
+            Ok(_) => panic!("a second column is not the one thermometer's"),
+        }
+        assert_eq!(CsvKind::Temperature.header(&one), ["gps_week", "tow_s", "t1"]);
     }
 }

@@ -185,25 +185,34 @@ pub(crate) fn read_acquisition(
             Ok(interval)
         }
         Acquisition::Csv { adc, temperature } => {
-            let csv = |kind, form, interval_ns| csvlog::CsvConfig {
+            let csv = |kind, form, interval_ns, columns| csvlog::CsvConfig {
                 kind,
                 skip_bad_lines: opts.skip_bad_lines,
                 interval_ns,
                 range_ns: s.gps_range_ns(),
                 time: s.times.reader(form),
+                columns,
             };
             let interval = file.read(adc, "adc_csv", "lines", |ledger, pb| {
-                let config = csv(csvlog::CsvKind::Adc, s.times.adc, acceleration_interval_ns);
+                let config = csv(
+                    csvlog::CsvKind::Adc,
+                    s.times.adc,
+                    acceleration_interval_ns,
+                    s.columns.adc,
+                );
                 csvlog::read_csv(adc, config, &mut out.streams, ledger, pb)
             })?;
-            file.read(temperature, "temperature_csv", "lines", |ledger, pb| {
-                let config = csv(
-                    csvlog::CsvKind::Temperature,
-                    s.times.temperature,
-                    gcb::TEMPERATURE_INTERVAL_NS,
-                );
-                csvlog::read_csv(temperature, config, &mut out.streams, ledger, pb)
-            })?;
+            if let Some(temperature) = temperature {
+                file.read(temperature, "temperature_csv", "lines", |ledger, pb| {
+                    let config = csv(
+                        csvlog::CsvKind::Temperature,
+                        s.times.temperature,
+                        gcb::TEMPERATURE_INTERVAL_NS,
+                        s.columns.temperature,
+                    );
+                    csvlog::read_csv(temperature, config, &mut out.streams, ledger, pb)
+                })?;
+            }
             Ok(interval)
         }
     }

@@ -362,6 +362,17 @@ fn manifest_errors_name_the_key_and_file() {
             "sample_rate_hz = 31.25\nthermometer_sd_c = -0.002\n",
             "instrument.thermometer_sd_c",
         ),
+        // The binary log's frames hold three channels and their temperatures.
+        (
+            "theodolite_unit = \"gon\"",
+            "theodolite_unit = \"gon\"\nadc_columns = [1, 2]",
+            "session[0].adc_columns",
+        ),
+        (
+            "theodolite_unit = \"gon\"",
+            "theodolite_unit = \"gon\"\nthermometers = \"one\"",
+            "session[0].thermometers",
+        ),
     ];
     for (from, to, key) in cases {
         let msg = error_with_manifest(|t| {
@@ -371,6 +382,50 @@ fn manifest_errors_name_the_key_and_file() {
         assert!(msg.contains("dataset.toml"), "{msg}");
         assert!(msg.contains(key), "expected `{key}` in: {msg}");
     }
+}
+
+/// A counts CSV's value columns and thermometers (docs/formats.md 9.4) are checked by key:
+/// channels out of range or twice, a temperature log beside `thermometers = "none"`, and
+/// none without it where one is expected; and a log whose header is not the declared
+/// columns' is refused naming its line and the header expected.
+#[test]
+fn value_columns_and_thermometers_are_checked_by_key() {
+    let first = "adc_csv = \"raw/day1_adc.csv\"";
+    for (to, key, says) in [
+        ("adc_columns = [1, 4]", "session[0].adc_columns", "channel 4"),
+        ("adc_columns = [2, 2]", "session[0].adc_columns", "twice"),
+        ("adc_columns = []", "session[0].adc_columns", "0 channels"),
+        ("thermometers = \"none\"", "session[0].temperature_csv", "give one"),
+        ("thermometers = \"some\"", "line 37", "expected one of `each`, `one`, `none`"),
+    ] {
+        let ds = copy_dataset("esgt-2005-csv");
+        let path = ds.path().join("dataset.toml");
+        let text = std::fs::read_to_string(&path).expect("manifest");
+        std::fs::write(&path, text.replacen(first, &format!("{first}\n{to}"), 1)).expect("w");
+        let out = tempfile::tempdir().expect("tempdir");
+        let e = ingest::run(ds.path(), out.path())
+            .expect_err(to)
+            .to_string();
+        assert!(e.contains(key) && e.contains(says), "{to}: {e}");
+    }
+    let ds = copy_dataset("esgt-2005-csv");
+    let path = ds.path().join("dataset.toml");
+    let text = std::fs::read_to_string(&path).expect("manifest");
+    let text = text.replacen("temperature_csv = \"raw/day1_temp.csv\"", "", 1);
+    std::fs::write(&path, &text).expect("w");
+    let out = tempfile::tempdir().expect("tempdir");
+    let e = ingest::run(ds.path(), out.path()).expect_err("no thermometer").to_string();
+    assert!(e.contains("session[0].temperature_csv") && e.contains("thermometers = \"none\""), "{e}");
+    std::fs::write(
+        &path,
+        text.replacen(first, &format!("{first}\nadc_columns = [1, 3]\nthermometers = \"none\""), 1),
+    )
+    .expect("w");
+    let e = ingest::run(ds.path(), out.path()).expect_err("three columns").to_string();
+    assert!(
+        e.contains("day1_adc.csv:2: header") && e.contains("expected `gps_week,tow_s,c1,c3`"),
+        "{e}"
+    );
 }
 
 /// A malformed CSV line stops the run with file, line and field, or is counted when skipping;

@@ -48,7 +48,8 @@ pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
             r.session.clone(),
             format!("{} ({})", r.accelerometer, r.model),
             r.n_observations.to_string(),
-            format!("{:.2}", r.mean_temperature_c),
+            r.mean_temperature_c
+                .map_or("no thermometer".to_owned(), |t| format!("{t:.2}")),
             b_value,
             k_value,
             b_sigma,

@@ -304,7 +304,7 @@ fn trend_plot(
         .iter()
         .filter_map(|r| {
             let p = param(r, name)?;
-            Some((r.mean_temperature_c, p.value, p.sigma))
+            Some((r.mean_temperature_c?, p.value, p.sigma))
         })
         .collect();
     let line = temperature_line(thermal, name, slope, t_ref, &at);

@@ -231,7 +231,9 @@ fn logs(s: &ResolvedSession) -> Vec<(PathBuf, bool, String)> {
             "binary frames, GPS time (10-bit week + tow)".to_owned(),
         )],
         Acquisition::Csv { adc, temperature } => {
-            vec![text(adc, t.adc), text(temperature, t.temperature)]
+            let mut v = vec![text(adc, t.adc)];
+            v.extend(temperature.iter().map(|p| text(p, t.temperature)));
+            v
         }
         Acquisition::Lab {
             stream,

@@ -698,7 +698,8 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
         .copied()
         .find(|f| matches!(f.layout, Layout::Trajectory(_)));
     let _ = writeln!(t, "kind = {}", kind(theodolite.is_some(), track.is_some()));
-    acquisition_keys(t, get(Layout::Binary), lab, get(Layout::CountsCsv));
+    let binary = get(Layout::Binary);
+    acquisition_keys(t, binary, lab, get(Layout::CountsCsv));
     if let Some(x) = temperature {
         let _ = writeln!(
             t,
@@ -706,6 +707,9 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
             q(&x.rel),
             x.time.unwrap_or(TimeForm::GpsWeekTow).name()
         );
+    }
+    if let (None, None, Some(counts)) = (binary, lab, get(Layout::CountsCsv)) {
+        column_keys(t, counts, temperature);
     }
     match (track, get(Layout::Attitude)) {
         (Some(tr), attitude) => trajectory_keys(t, tr, attitude),
@@ -737,6 +741,58 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
         "# days = 2                      # UTC days the session spans from its date\n"
     );
     theodolite.is_none() && lab.is_some() && track.is_none()
+}
+
+/// The channels of a counts CSV's value columns and the session's thermometers
+/// (docs/formats.md 9.4): 1 to 3 count columns are channels 1, 2, ... in order; a
+/// temperature log of as many columns has a thermometer each, of one column one for all,
+/// and none is a session without a thermometer.
+fn column_keys(t: &mut String, counts: &Found, temperature: Option<&Found>) {
+    let n = counts.channels;
+    match n {
+        3 => {}
+        1..=3 => {
+            let list: Vec<String> = (1..=n).map(|c| c.to_string()).collect();
+            let _ = writeln!(
+                t,
+                "adc_columns = [{}]            # {}'s {n} count column(s) are these channels",
+                list.join(", "),
+                counts.rel
+            );
+        }
+        _ => {
+            let _ = writeln!(
+                t,
+                "adc_columns = {FILL}          # {}'s {n} count columns: gravcal reads 1 to 3 \
+                 channels; list the instrument channels they hold, e.g. [1, 2, 3]",
+                counts.rel
+            );
+        }
+    }
+    match temperature.map(|x| x.channels) {
+        None => {
+            let _ = writeln!(
+                t,
+                "thermometers = \"none\"          # no temperature log: models without temperature \
+                 terms only"
+            );
+        }
+        Some(m) if m == n => {}
+        Some(1) => {
+            let _ = writeln!(
+                t,
+                "thermometers = \"one\"           # one temperature column for {n} count columns: \
+                 every accelerometer's temperature"
+            );
+        }
+        Some(m) => {
+            let _ = writeln!(
+                t,
+                "thermometers = {FILL}          # \"each\" | \"one\" | \"none\": the temperature \
+                 log has {m} columns, the counts log {n}"
+            );
+        }
+    }
 }
 
 /// A comment line per file: its layout, time form, channels, rate and span.

@@ -426,3 +426,96 @@ fn a_quoted_name_is_escaped_and_a_dangling_link_is_not_written_through() {
         assert!(!elsewhere.exists(), "a file was created through the link");
     }
 }
+
+/// The first line `key = "FILL IN"` of `draft` set to `value`.
+fn fill_mark(draft: &mut String, key: &str, value: &str) {
+    let mark = format!("{key} = \"FILL IN\"");
+    let at = draft
+        .find(&mark)
+        .unwrap_or_else(|| panic!("the draft marks {key}:\n{draft}"));
+    let end = at + draft[at..].find('\n').expect("line end");
+    draft.replace_range(at..end, &format!("{key} = {value}"));
+}
+
+/// Issue 49's user, in one attempt: a second laboratory's logs as its logger writes them
+/// (two count columns in ISO local time, one box thermometer in Unix seconds, a theodolite
+/// log in gon that does not say so), drafted by init, filled with what only the user knows
+/// (the benchmark's gravity and the theodolite's unit), check passes and the pipeline
+/// calibrates both accelerometers within 4 sigma of the truth. The same log declared in
+/// degrees is refused, naming the key.
+#[test]
+fn a_second_labs_logs_as_written_calibrate_in_one_attempt() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("second-lab");
+    let truth = fixtures::lab::write_second_lab(&ds).expect("the second lab's logs");
+    let ds_arg = ds.to_str().expect("utf-8");
+    let o = xtask(&["init", ds_arg]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut draft = std::fs::read_to_string(ds.join("dataset.toml")).expect("draft");
+    for line in ["adc_columns = [1, 2]", "thermometers = \"one\""] {
+        assert!(draft.contains(line), "the draft says {line}:\n{draft}");
+    }
+    fill_mark(&mut draft, "g_abs_mgal", &truth.gravity_mgal.to_string());
+    let declared_deg = draft.replacen("theodolite_unit = \"FILL IN\"", "theodolite_unit = \"deg\"", 1);
+    fill_mark(&mut draft, "theodolite_unit", "\"gon\"");
+    assert!(!draft.contains("= \"FILL IN\""), "every mark filled:\n{draft}");
+    std::fs::write(ds.join("dataset.toml"), &draft).expect("write");
+    let check = xtask(&["check", ds_arg]);
+    assert!(
+        check.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&check.stdout),
+        String::from_utf8_lossy(&check.stderr)
+    );
+    let out = dir.path().join("out");
+    let cal = calibrate(&ds, &out);
+    let day = truth.session.first().expect("the day");
+    let mut fitted = 0;
+    for c in day.calibration.iter().filter(|c| c.accelerometer != "acc3") {
+        let r = cal
+            .results
+            .iter()
+            .find(|r| r.accelerometer == c.accelerometer && r.model == "linear")
+            .unwrap_or_else(|| panic!("{} fitted: {:?}", c.accelerometer, cal.skipped));
+        for (name, t) in [("b", c.b_mgal), ("k", c.k_mgal_per_bit)] {
+            let p = r.parameters.iter().find(|p| p.name == name).expect("param");
+            let z = (p.value - t) / p.sigma;
+            assert!(z.abs() < 4.0, "{} {name}: {} vs {t}, z {z:.2}", c.accelerometer, p.value);
+        }
+        fitted += 1;
+    }
+    assert_eq!(fitted, 2, "both accelerometers");
+
+    std::fs::write(ds.join("dataset.toml"), &declared_deg).expect("write");
+    ingest::run(&ds, &out).expect("ingest");
+    let e = align::run(&ds, &out).expect_err("gon declared deg");
+    assert!(
+        e.to_string().contains("theodolite_unit") && e.to_string().contains("gon"),
+        "{e}"
+    );
+
+    // Without its thermometer: the linear model as before, a thermal one named.
+    let none: String = draft
+        .lines()
+        .filter(|l| !l.starts_with("temperature_"))
+        .map(|l| l.replace("thermometers = \"one\"", "thermometers = \"none\""))
+        .collect::<Vec<_>>()
+        .join("\n")
+        + "\n[[adjust.model]]\nname = \"linear\"\n\n[[adjust.model]]\nname = \"thermal\"\n\
+           temperature = true\nper = \"all\"\n";
+    std::fs::write(ds.join("dataset.toml"), &none).expect("write");
+    let bare = calibrate(&ds, &dir.path().join("bare"));
+    for r in bare.results.iter().filter(|r| r.model == "linear") {
+        let before = cal
+            .results
+            .iter()
+            .find(|c| c.model == "linear" && c.accelerometer == r.accelerometer)
+            .expect("fitted with the thermometer");
+        let (b0, b1) = (&before.parameters[0], &r.parameters[0]);
+        assert!((b0.value - b1.value).abs() < 1e-6 * b0.sigma, "{b0:?} {b1:?}");
+    }
+    assert_eq!(bare.results.iter().filter(|r| r.model == "linear").count(), 2);
+    let named: Vec<_> = bare.skipped.iter().filter(|s| s.model == "thermal").collect();
+    assert_eq!(named.len(), 2, "{:?}", bare.skipped);
+    assert!(named.iter().all(|s| s.reason.contains("thermometers = \"none\"")));
+}

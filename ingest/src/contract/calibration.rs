@@ -298,8 +298,10 @@ pub struct CalibrationResult {
     pub misalignment: bool,
     /// Reference temperature of b and k (temperature models), degC.
     pub t_ref_c: Option<f64>,
-    /// Mean temperature of the observations used, degC.
-    pub mean_temperature_c: f64,
+    /// Mean temperature of the observations used, degC (absent when they carry none: a
+    /// session without a thermometer).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_temperature_c: Option<f64>,
     /// Least and greatest window mean of counts the fit used: the range it calibrates (an
     /// application outside it is flagged, docs/model.md 6.7).
     #[serde(default)]

@@ -408,6 +408,82 @@ pub struct Session {
     /// How the attitude file writes its times.
     #[serde(default)]
     pub attitude_time: Option<TimeForm>,
+    /// The instrument channels (1..=3) the counts CSV's value columns hold, in their order
+    /// (docs/formats.md 9.4); default `[1, 2, 3]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adc_columns: Option<Vec<u8>>,
+    /// The session's thermometers: one per accelerometer (default), one for all, or none.
+    #[serde(default, skip_serializing_if = "Thermometers::is_each")]
+    pub thermometers: Thermometers,
+}
+
+/// A session's thermometers (docs/formats.md 9.4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Thermometers {
+    /// One per accelerometer: the temperature log has a value column for each of the
+    /// counts log's, the same channels in the same order.
+    #[default]
+    Each,
+    /// One for all: the temperature log's single value column is the temperature of every
+    /// accelerometer the counts log holds.
+    One,
+    /// None: no temperature log. Observations carry no temperature, and a model with
+    /// temperature terms is named as not estimable.
+    None,
+}
+
+impl Thermometers {
+    /// The default: one per accelerometer.
+    pub fn is_each(&self) -> bool {
+        *self == Thermometers::Each
+    }
+
+    /// The name as in the manifest.
+    pub fn name(self) -> &'static str {
+        match self {
+            Thermometers::Each => "each",
+            Thermometers::One => "one",
+            Thermometers::None => "none",
+        }
+    }
+}
+
+/// Which instrument channels a text log's value columns hold: `width` columns after the
+/// time, and for each channel the column it is read from (None: the log has none for it,
+/// and the channel is stored as not connected). One column may feed several channels (one
+/// thermometer for all).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ValueColumns {
+    /// Value columns after the time, 1..=3.
+    pub width: usize,
+    /// Channel `ch` (0-based) is read from column `column_of[ch]`.
+    pub column_of: [Option<usize>; 3],
+}
+
+impl ValueColumns {
+    /// Three columns, channels 1, 2 and 3 in order: the layout of docs/formats.md 4.
+    pub const EVERY_CHANNEL: ValueColumns = ValueColumns {
+        width: 3,
+        column_of: [Some(0), Some(1), Some(2)],
+    };
+
+    /// The channel (0-based) column `k` is named after: the first it feeds.
+    pub fn channel_of(&self, k: usize) -> usize {
+        self.column_of
+            .iter()
+            .position(|c| *c == Some(k))
+            .unwrap_or(k)
+    }
+}
+
+/// How a session's counts and temperature logs lay out their channels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LogColumns {
+    /// The counts log's (or lab stream's).
+    pub adc: ValueColumns,
+    /// The temperature log's.
+    pub temperature: ValueColumns,
 }
 
 /// How each text log of a session writes its times, resolved (docs/formats.md 9.1).
@@ -644,8 +720,8 @@ pub enum Acquisition {
     Csv {
         /// ADC counts.
         adc: PathBuf,
-        /// Temperatures.
-        temperature: PathBuf,
+        /// Temperatures (none when the session declares `thermometers = "none"`).
+        temperature: Option<PathBuf>,
     },
 }
 
@@ -666,6 +742,8 @@ pub struct ResolvedSession {
     pub times: SessionTimes,
     /// A survey session's trajectory.
     pub trajectory: Option<crate::contract::survey::TrajectorySource>,
+    /// The channels of its text logs' value columns.
+    pub columns: LogColumns,
 }
 
 /// A validated dataset: the manifest, its folder, and its sessions resolved.
@@ -1123,7 +1201,9 @@ fn resolve_session(
     let theodolite = theodolite_log(i, s, file, err)?;
     check_session_keys(i, s, err)?;
     let trajectory = crate::contract::survey::trajectory(i, s, file, err)?;
+    let columns = log_columns(i, s, err)?;
     Ok(ResolvedSession {
+        columns,
         trajectory,
         times,
         session: s.clone(),
@@ -1134,6 +1214,84 @@ fn resolve_session(
     })
 }
 
+/// The channels of session `i`'s value columns (docs/formats.md 9.4): `adc_columns` for the
+/// counts CSV, and the temperature log's after `thermometers`. The binary log and the lab
+/// stream hold three channels a record.
+fn log_columns(
+    i: usize,
+    s: &Session,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<LogColumns> {
+    let key = |k: &str| format!("session[{i}].{k}");
+    let counts_csv = s.acquisition.is_none() && s.adc_format == AdcFormat::Gps;
+    let channels = match &s.adc_columns {
+        None => vec![1, 2, 3],
+        Some(_) if !counts_csv => {
+            return Err(err(
+                key("adc_columns"),
+                "describes a counts CSV (`adc_csv` in counts): the binary log and a lab \
+                 stream hold three channels a record"
+                    .to_owned(),
+            ));
+        }
+        Some(c) => c.clone(),
+    };
+    if channels.is_empty() || channels.len() > 3 {
+        return Err(err(
+            key("adc_columns"),
+            format!("{} channels: give 1 to 3", channels.len()),
+        ));
+    }
+    let mut column_of = [None; 3];
+    for (k, &c) in channels.iter().enumerate() {
+        if !(1..=3).contains(&c) {
+            return Err(err(
+                key("adc_columns"),
+                format!("channel {c} is out of range [1, 3]"),
+            ));
+        }
+        if column_of[usize::from(c) - 1].replace(k).is_some() {
+            return Err(err(
+                key("adc_columns"),
+                format!("channel {c} is given twice"),
+            ));
+        }
+    }
+    let adc = ValueColumns {
+        width: channels.len(),
+        column_of,
+    };
+    if s.acquisition.is_some() && !s.thermometers.is_each() {
+        return Err(err(
+            key("thermometers"),
+            "describes text logs: the binary log's frames carry a temperature per channel"
+                .to_owned(),
+        ));
+    }
+    if s.thermometers == Thermometers::None && s.temperature_csv.is_some() {
+        return Err(err(
+            key("temperature_csv"),
+            "given, and thermometers = \"none\": give one of them".into(),
+        ));
+    }
+    if s.thermometers == Thermometers::One && !counts_csv {
+        return Err(err(
+            key("thermometers"),
+            "\"one\" describes the temperature CSV of a counts CSV: the binary log and a \
+             lab stream's temperature log hold a temperature per channel"
+                .to_owned(),
+        ));
+    }
+    let temperature = match s.thermometers {
+        Thermometers::One => ValueColumns {
+            width: 1,
+            column_of: column_of.map(|c| c.map(|_| 0)),
+        },
+        Thermometers::Each | Thermometers::None => adc,
+    };
+    Ok(LogColumns { adc, temperature })
+}
+
 /// Session `i`'s acquisition in counts: the binary log, or the CSV pair.
 fn counts_acquisition(
     i: usize,
@@ -1141,18 +1299,24 @@ fn counts_acquisition(
     file: &impl Fn(String, &str) -> Result<PathBuf>,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<Acquisition> {
+    let none = s.thermometers == Thermometers::None;
     Ok(match (&s.acquisition, &s.adc_csv, &s.temperature_csv) {
         (Some(a), None, None) => Acquisition::Binary(file(format!("session[{i}].acquisition"), a)?),
-        (None, Some(a), Some(t)) => Acquisition::Csv {
-            adc: file(format!("session[{i}].adc_csv"), a)?,
-            temperature: file(format!("session[{i}].temperature_csv"), t)?,
-        },
-        (None, Some(_), None) => {
+        (None, Some(_), None) if !none => {
             return Err(err(
                 format!("session[{i}].temperature_csv"),
-                "adc_csv needs temperature_csv".into(),
+                "adc_csv needs temperature_csv (or thermometers = \"none\" for a session \
+                 without a thermometer)"
+                    .into(),
             ));
         }
+        (None, Some(a), t) => Acquisition::Csv {
+            adc: file(format!("session[{i}].adc_csv"), a)?,
+            temperature: t
+                .as_ref()
+                .map(|t| file(format!("session[{i}].temperature_csv"), t))
+                .transpose()?,
+        },
         (None, None, Some(_)) => {
             return Err(err(
                 format!("session[{i}].adc_csv"),
