@@ -164,6 +164,7 @@ pub(crate) fn read_acquisition(
             stream,
             temperature,
             zero_gps_ns,
+            temperature_zero_gps_ns,
         } => {
             let config = labstream::LabConfig {
                 session: out.session,
@@ -177,6 +178,10 @@ pub(crate) fn read_acquisition(
                 labstream::read_lab(stream, config, &mut out.lab, ledger, pb)
             })?;
             if let Some(path) = temperature {
+                let config = labstream::LabConfig {
+                    zero_gps_ns: *temperature_zero_gps_ns,
+                    ..config
+                };
                 file.read(path, "temperature_csv", "lines", |ledger, pb| {
                     let t = gcb::TEMPERATURE_INTERVAL_NS;
                     labstream::read_lab_temperature(path, config, t, &mut out.streams, ledger, pb)

@@ -428,6 +428,45 @@ fn value_columns_and_thermometers_are_checked_by_key() {
     );
 }
 
+/// A lab stream's temperature log may count its seconds otherwise than the stream (9.1):
+/// the drive's log rewritten in seconds since a `start` gives the same temperature table
+/// as in Unix seconds; a calendar time there is refused by key.
+#[test]
+fn a_lab_temperature_log_counts_its_own_seconds() {
+    let unix = copy_dataset("lab-logger");
+    let relative = copy_dataset("lab-logger");
+    let log = relative.path().join("raw/drive_temp.txt");
+    let text = std::fs::read_to_string(&log).expect("log");
+    // 2026-03-16T10:00:00Z, the drive's first temperature, in Unix seconds.
+    let zero = 1_773_655_200.0;
+    let rewritten: Vec<String> = text
+        .lines()
+        .map(|l| match l.split_once(' ') {
+            Some((t, rest)) if t.parse::<f64>().is_ok() => {
+                format!("{:.3} {rest}", t.parse::<f64>().expect("t") - zero)
+            }
+            _ => l.to_owned(),
+        })
+        .collect();
+    std::fs::write(&log, rewritten.join("\n") + "\n").expect("write");
+    let manifest = relative.path().join("dataset.toml");
+    let m = std::fs::read_to_string(&manifest).expect("manifest");
+    let drive = "temperature_csv = \"raw/drive_temp.txt\"";
+    let declared = format!("{drive}\ntemperature_time = \"s\"\nstart = \"2026-03-16T10:00:00Z\"");
+    std::fs::write(&manifest, m.replacen(drive, &declared, 1)).expect("write");
+    let table = |ds: &std::path::Path| {
+        let out = tempfile::tempdir().expect("tempdir");
+        ingest::run(ds, out.path()).expect("ingest");
+        std::fs::read(out.path().join("ingest/temperature.parquet")).expect("table")
+    };
+    assert!(table(unix.path()) == table(relative.path()), "the same temperatures");
+    let iso = format!("{drive}\ntemperature_time = \"iso\"");
+    std::fs::write(&manifest, m.replacen(drive, &iso, 1)).expect("write");
+    let out = tempfile::tempdir().expect("tempdir");
+    let e = ingest::run(relative.path(), out.path()).expect_err("iso").to_string();
+    assert!(e.contains("session[2].temperature_time") && e.contains("\"unix_s\""), "{e}");
+}
+
 /// A malformed CSV line stops the run with file, line and field, or is counted when skipping;
 /// either way no partial table and no ledger is left.
 #[test]

@@ -715,6 +715,8 @@ pub enum Acquisition {
         temperature: Option<PathBuf>,
         /// GPS time of its time 0, ns: the session's `start`, or the Unix epoch.
         zero_gps_ns: i64,
+        /// The temperature log's, which may count its seconds otherwise (9.1).
+        temperature_zero_gps_ns: i64,
     },
     /// The CSV pair.
     Csv {
@@ -785,8 +787,9 @@ impl ResolvedSession {
 /// path and the GPS time of its time 0: `start` in the session's time scale, or for Unix
 /// times the Unix epoch with the leap seconds of the session's date (a leap second inside
 /// a session would shift the rest of it by a second: none is expected in a lab day).
-/// A `temperature_csv` beside it is read in the same layout (`t T1 T2 T3`, degC, times as
-/// the stream's).
+/// A `temperature_csv` beside it is read in the same layout (`t T1 T2 T3`, degC), its times
+/// in seconds as `temperature_time` says (by default as the stream's), from a time 0 of
+/// its own.
 fn lab_acquisition(
     i: usize,
     s: &Session,
@@ -808,7 +811,7 @@ fn lab_acquisition(
         ));
     };
     let stream = file(format!("session[{i}].adc_csv"), stream)?;
-    let zero_gps_ns = match (times.adc, times.start_gps_ns) {
+    let zero_of = |form: TimeForm| match (form, times.start_gps_ns) {
         (TimeForm::S, Some(start)) => start,
         // Unix times: the epoch, with the leap seconds of the session's date.
         _ => midnight - crate::time::days_from_civil(date) * 86_400_000_000_000,
@@ -821,7 +824,8 @@ fn lab_acquisition(
     Ok(Acquisition::Lab {
         stream,
         temperature,
-        zero_gps_ns,
+        zero_gps_ns: zero_of(times.adc),
+        temperature_zero_gps_ns: zero_of(times.temperature),
     })
 }
 
@@ -886,18 +890,18 @@ fn log_time_forms(
                 ),
             ));
         }
-        if let Some(t) = s.temperature_time.filter(|t| *t != adc) {
+        let temperature = s.temperature_time.unwrap_or(adc);
+        if !matches!(temperature, TimeForm::S | TimeForm::UnixS) {
             return Err(err(
                 key("temperature_time"),
                 format!(
                     "\"{}\": a lab session's temperature log is read in its stream's layout, \
-                     times \"{}\"",
-                    t.name(),
-                    adc.name()
+                     which writes seconds: \"s\" (since `start`) or \"unix_s\"",
+                    temperature.name()
                 ),
             ));
         }
-        return Ok((adc, adc));
+        return Ok((adc, temperature));
     }
     if s.acquisition.is_some() {
         if let Some(k) = [
