@@ -20,6 +20,7 @@ pub mod gravity;
 pub mod io;
 pub mod model;
 pub mod plan;
+pub mod repeatability;
 pub mod triad;
 pub mod triad_fits;
 
@@ -155,6 +156,11 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let adc_noise = kalibr_noise(&align_report, &results);
     let (triad, triad_skipped) = triad_fits::fit_all(&ds, &models, &align_report);
     skipped.extend(triad_skipped);
+    let repeatability = repeatability::of_results(&results, &|name| {
+        models
+            .iter()
+            .any(|m| m.name == name && m.per == Per::Session)
+    });
     let calibration = Calibration {
         format: CALIBRATION_FORMAT.to_owned(),
         dataset: ds.manifest.name.clone(),
@@ -176,6 +182,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         custody: Custody::default(),
         adc_noise,
         earth_tide: earth_tide_note(&used),
+        repeatability,
     };
     write_outputs(&ds, out, calibration, &residual_rows)
 }

@@ -89,6 +89,9 @@ pub fn print_summary(c: &Calibration, w: &mut impl std::io::Write) {
     if let Some(advice) = c.component_advice() {
         let _ = writeln!(w, "adjust: {advice}");
     }
+    for r in &c.repeatability {
+        let _ = writeln!(w, "adjust: {}", r.sentence());
+    }
     for s in &c.skipped {
         let _ = writeln!(
             w,

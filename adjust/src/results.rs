@@ -42,6 +42,42 @@ pub(crate) fn multiple_correlation(c: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
+/// A thermal model whose temperatures differ mostly between two sessions: its b_t and k_t
+/// cannot tell a temperature effect from a change of b or k between the days (MODEL 6.9).
+fn two_day_confounding(job: &Job<'_>) -> Option<String> {
+    let mut sessions: Vec<(&str, Vec<f64>)> = Vec::new();
+    for o in &job.obs {
+        let t = o.temperature_c?;
+        match sessions.iter_mut().find(|(s, _)| *s == o.session) {
+            Some((_, v)) => v.push(t),
+            None => sessions.push((&o.session, vec![t])),
+        }
+    }
+    let [(a, ta), (b, tb)] = &sessions[..] else {
+        return None;
+    };
+    let range = |v: &[f64]| {
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+                (lo.min(t), hi.max(t))
+            });
+        hi - lo
+    };
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let between = (mean(ta) - mean(tb)).abs();
+    let within = range(ta).max(range(tb));
+    (within < between / 2.0).then(|| {
+        format!(
+            "b_t and k_t rest mostly on two sessions' temperatures ({a} and {b}, their means \
+             {between:.2} degC apart, the temperature moving at most {within:.2} degC within \
+             either): a change of b or k between the days that is not a temperature effect \
+             would be read as one. A third session at another temperature, or one whose \
+             temperature moves, tells them apart"
+        )
+    })
+}
+
 pub(crate) fn result_of(
     job: &Job<'_>,
     f: &calibrate::CalibrationSolution,
@@ -52,6 +88,9 @@ pub(crate) fn result_of(
     let correlation = f.correlation();
     let mut warnings: Vec<String> = note.into_iter().collect();
     warnings.extend(barely_estimable(&terms, &correlation));
+    if terms.temperature {
+        warnings.extend(two_day_confounding(job));
+    }
     CalibrationResult {
         accelerometer: job.accelerometer.clone(),
         session: job.scope.id().to_owned(),

@@ -580,6 +580,7 @@ enum Weights {
 }
 
 /// One reading of the acceptance design.
+#[derive(Clone)]
 struct McReading {
     station: usize,
     session: usize,
@@ -1651,53 +1652,12 @@ fn per_session_study(replicas: usize, acc: usize, varied: Varied) -> ([f64; 2], 
         })
         .collect();
     let mean_t = day.iter().map(|r| r.temperature_c[acc]).sum::<f64>() / day.len() as f64;
-    let t0 = day[0].time_gps_ns;
-    let mut keys: Vec<&str> = Vec::new();
     let mut rng = fixtures::rng::Rng::new(20_261_126, "per-session study");
-    let terms = adjust::model::Terms {
-        order: 1,
-        temperature: false,
-        misalignment: adjust::model::Misalignment::None,
-    };
     let want = b_and_k_at(a, mean_t - truth.t_ref_c);
     let (mut z2, mut rejected, mut n, mut dof) = ([0.0; 2], 0, 0, 0.0);
     for _ in 0..replicas {
-        // The wander: a random walk of variance (5 mK)^2 per 50 minutes, from 0.
-        let mut wander = 0.0;
-        let mut last_s = 0.0;
-        let design: Vec<McReading> = day
-            .iter()
-            .map(|r| {
-                let time_s = (r.time_gps_ns - t0) as f64 * 1e-9;
-                if matches!(varied, Varied::Wander | Varied::All) {
-                    wander += WANDER_C_PER_SQRT_S * (time_s - last_s).sqrt() * rng.normal();
-                }
-                last_s = time_s;
-                let t = match varied {
-                    Varied::AsSimulated | Varied::Wander | Varied::All => {
-                        r.temperature_c[acc] + wander
-                    }
-                    _ => mean_t,
-                } - truth.t_ref_c;
-                if !keys.contains(&r.station.as_str()) {
-                    keys.push(&r.station);
-                }
-                let g = truth.gravity_mgal + r.tide_mgal;
-                McReading {
-                    station: keys.iter().position(|k| *k == r.station).unwrap_or(0),
-                    session: 0,
-                    dz_true_rad: r.dz_true_rad,
-                    sigma_dz_rad: r.sigma_dz_rad,
-                    ng_true: (-g * r.dz_true_rad.cos() - a.b_mgal - a.b_t_mgal_per_c * t)
-                        / (a.k_mgal_per_bit + a.k_t_mgal_per_bit_per_c * t),
-                    sigma_sample_bits: r.sigma_sample_bits[acc],
-                    temperature_c: r.temperature_c[acc],
-                    tide_mgal: r.tide_mgal,
-                    time_s,
-                }
-            })
-            .collect();
-        let Some(f) = study_fit(design, varied, &mut rng, terms, truth.gravity_mgal) else {
+        let design = day_design(&truth, &day, acc, varied, &mut rng);
+        let Some(f) = study_fit(design, varied, &mut rng, LINEAR, truth.gravity_mgal) else {
             continue;
         };
         for j in 0..2 {
@@ -1713,6 +1673,119 @@ fn per_session_study(replicas: usize, acc: usize, varied: Varied) -> ([f64; 2], 
         f64::from(u32::try_from(rejected).unwrap_or(u32::MAX)) / n,
         dof / n,
     )
+}
+
+/// A linear model without temperature terms or misalignment.
+const LINEAR: adjust::model::Terms = adjust::model::Terms {
+    order: 1,
+    temperature: false,
+    misalignment: adjust::model::Misalignment::None,
+};
+
+/// One replica's design of the day's readings `day` for accelerometer `acc` (0-based):
+/// each reading's true counts at its temperature as `varied` says (as simulated, plus the
+/// wander where it asks for it, drawn from `rng`; or held at the day's mean).
+fn day_design(
+    truth: &Truth,
+    day: &[&fixtures::write::ReadingTruth],
+    acc: usize,
+    varied: Varied,
+    rng: &mut fixtures::rng::Rng,
+) -> Vec<McReading> {
+    let a = &truth.accelerometer[acc];
+    let mean_t = day.iter().map(|r| r.temperature_c[acc]).sum::<f64>() / day.len() as f64;
+    let t0 = day[0].time_gps_ns;
+    let mut keys: Vec<&str> = Vec::new();
+    // The wander: a random walk of variance (5 mK)^2 per 50 minutes, from 0.
+    let mut wander = 0.0;
+    let mut last_s = 0.0;
+    day.iter()
+        .map(|r| {
+            let time_s = (r.time_gps_ns - t0) as f64 * 1e-9;
+            if matches!(varied, Varied::Wander | Varied::All) {
+                wander += WANDER_C_PER_SQRT_S * (time_s - last_s).sqrt() * rng.normal();
+            }
+            last_s = time_s;
+            let t = match varied {
+                Varied::AsSimulated | Varied::Wander | Varied::All => r.temperature_c[acc] + wander,
+                _ => mean_t,
+            } - truth.t_ref_c;
+            if !keys.contains(&r.station.as_str()) {
+                keys.push(&r.station);
+            }
+            let g = truth.gravity_mgal + r.tide_mgal;
+            McReading {
+                station: keys.iter().position(|k| *k == r.station).unwrap_or(0),
+                session: 0,
+                dz_true_rad: r.dz_true_rad,
+                sigma_dz_rad: r.sigma_dz_rad,
+                ng_true: (-g * r.dz_true_rad.cos() - a.b_mgal - a.b_t_mgal_per_c * t)
+                    / (a.k_mgal_per_bit + a.k_t_mgal_per_bit_per_c * t),
+                sigma_sample_bits: r.sigma_sample_bits[acc],
+                temperature_c: r.temperature_c[acc],
+                tide_mgal: r.tide_mgal,
+                time_s,
+            }
+        })
+        .collect()
+}
+
+/// The repeatability test's false alarms (docs/model.md 6.9): esgt-2005's day 1 for acc1,
+/// its temperature held, fitted twice from independent draws (two sessions of one truth),
+/// the homogeneity test of their (b, k) at the fits' sigmas; its rejections at the 5 %
+/// level, printed as `cargo xtask verdicts` gathers them and held to 3 standard errors.
+/// Replicas: [`verdict_replicas`] pairs.
+#[test]
+fn repeatability_holds_its_level() {
+    use fixtures::verdicts::{Kind, Rate};
+    let truth = fixtures::read_truth(&fixtures::dataset_dir("esgt-2005")).expect("truth");
+    let day: Vec<&fixtures::write::ReadingTruth> = truth
+        .reading
+        .iter()
+        .filter(|r| r.session == "day1")
+        .collect();
+    let mut rng = fixtures::rng::Rng::new(20_261_129, "repeatability study");
+    let design = day_design(&truth, &day, 0, Varied::ConstantTemperature, &mut rng);
+    let replicas = verdict_replicas();
+    let (mut trials, mut hits) = (0u64, 0u64);
+    for _ in 0..replicas {
+        let estimates: Option<Vec<adjust::repeatability::Estimate>> = (0..2)
+            .map(|_| {
+                let f = study_fit(
+                    design.clone(),
+                    Varied::ConstantTemperature,
+                    &mut rng,
+                    LINEAR,
+                    truth.gravity_mgal,
+                )?;
+                let c = f.correlation();
+                Some(adjust::repeatability::Estimate::new(
+                    [f.values[0], f.values[1]],
+                    [f.sigma(0), f.sigma(1)],
+                    c[0][1],
+                ))
+            })
+            .collect();
+        let Some(h) = estimates.and_then(|e| adjust::repeatability::homogeneity(&e)) else {
+            continue;
+        };
+        trials += 1;
+        hits += u64::from(!h.passed());
+    }
+    assert!(
+        trials as usize >= replicas * 9 / 10,
+        "{trials} of {replicas} fitted"
+    );
+    let rate = Rate {
+        verdict: "repeatability of b and k between sessions".to_owned(),
+        replicas: "two sessions of one truth (esgt-2005 day 1, acc1, temperature held)".to_owned(),
+        kind: Kind::FalseAlarm,
+        nominal: adjust::repeatability::LEVEL,
+        trials,
+        hits,
+        design_effect: 1.0,
+    };
+    assert!(rate.report(), "{rate}");
 }
 
 /// The truth's b and k of accelerometer `a` at `tau` degC from its reference temperature.

@@ -208,11 +208,7 @@ fn counts_on_channels(values: [Option<i32>; 3], columns: &ValueColumns) -> ([i32
 /// no spaces around the counts): the time through `time`, the counts as [`parse_adc_fast`]
 /// reads them. `None` sends the line to [`parse_row_timed`], which also explains what is
 /// wrong.
-fn parse_adc_timed_fast(
-    line: &[u8],
-    time: &mut TimeReader,
-    columns: &ValueColumns,
-) -> Option<Row> {
+fn parse_adc_timed_fast(line: &[u8], time: &mut TimeReader, columns: &ValueColumns) -> Option<Row> {
     let (time_ns, comma) = time.read_leading_fast(line)?;
     let (counts, status) = counts_fast(line, comma, columns)?;
     Some(Row::Adc {
@@ -639,7 +635,13 @@ mod tests {
                 (None, _) => {}
             }
         }
-        assert!(parse_adc_fast(b"1308,295200.032,1534211,,-8388608", &ValueColumns::EVERY_CHANNEL).is_some());
+        assert!(
+            parse_adc_fast(
+                b"1308,295200.032,1534211,,-8388608",
+                &ValueColumns::EVERY_CHANNEL
+            )
+            .is_some()
+        );
     }
 
     /// The fast path of a log in another time form agrees with the general parser on every
@@ -683,7 +685,12 @@ mod tests {
                     time_ns: t,
                     counts: c,
                     status: s,
-                }) = parse_row_timed(CsvKind::Adc, line, &mut general, &ValueColumns::EVERY_CHANNEL)
+                }) = parse_row_timed(
+                    CsvKind::Adc,
+                    line,
+                    &mut general,
+                    &ValueColumns::EVERY_CHANNEL,
+                )
                 else {
                     panic!("the general parser rejects {}", text(line));
                 };
@@ -712,7 +719,11 @@ mod tests {
 
     #[test]
     fn rows_parse_and_fail_by_field() {
-        match parse_row(CsvKind::Adc, b"1308,295200.032,1534211,,-8388608", &ValueColumns::EVERY_CHANNEL) {
+        match parse_row(
+            CsvKind::Adc,
+            b"1308,295200.032,1534211,,-8388608",
+            &ValueColumns::EVERY_CHANNEL,
+        ) {
             Ok(Row::Adc {
                 time_ns,
                 counts,
@@ -738,7 +749,11 @@ mod tests {
             }
         }
         assert!(matches!(
-            parse_row(CsvKind::Temperature, b"1308,1.0,24.812,,nan", &ValueColumns::EVERY_CHANNEL),
+            parse_row(
+                CsvKind::Temperature,
+                b"1308,1.0,24.812,,nan",
+                &ValueColumns::EVERY_CHANNEL
+            ),
             Err(Bad { field: "t3", .. })
         ));
     }
@@ -786,6 +801,9 @@ mod tests {
             Err(b) => assert!(b.message.contains("more than 3"), "{}", b.message),
             Ok(_) => panic!("a second column is not the one thermometer's"),
         }
-        assert_eq!(CsvKind::Temperature.header(&one), ["gps_week", "tow_s", "t1"]);
+        assert_eq!(
+            CsvKind::Temperature.header(&one),
+            ["gps_week", "tow_s", "t1"]
+        );
     }
 }

@@ -392,11 +392,23 @@ fn manifest_errors_name_the_key_and_file() {
 fn value_columns_and_thermometers_are_checked_by_key() {
     let first = "adc_csv = \"raw/day1_adc.csv\"";
     for (to, key, says) in [
-        ("adc_columns = [1, 4]", "session[0].adc_columns", "channel 4"),
+        (
+            "adc_columns = [1, 4]",
+            "session[0].adc_columns",
+            "channel 4",
+        ),
         ("adc_columns = [2, 2]", "session[0].adc_columns", "twice"),
         ("adc_columns = []", "session[0].adc_columns", "0 channels"),
-        ("thermometers = \"none\"", "session[0].temperature_csv", "give one"),
-        ("thermometers = \"some\"", "line 37", "expected one of `each`, `one`, `none`"),
+        (
+            "thermometers = \"none\"",
+            "session[0].temperature_csv",
+            "give one",
+        ),
+        (
+            "thermometers = \"some\"",
+            "line 37",
+            "expected one of `each`, `one`, `none`",
+        ),
     ] {
         let ds = copy_dataset("esgt-2005-csv");
         let path = ds.path().join("dataset.toml");
@@ -414,14 +426,25 @@ fn value_columns_and_thermometers_are_checked_by_key() {
     let text = text.replacen("temperature_csv = \"raw/day1_temp.csv\"", "", 1);
     std::fs::write(&path, &text).expect("w");
     let out = tempfile::tempdir().expect("tempdir");
-    let e = ingest::run(ds.path(), out.path()).expect_err("no thermometer").to_string();
-    assert!(e.contains("session[0].temperature_csv") && e.contains("thermometers = \"none\""), "{e}");
+    let e = ingest::run(ds.path(), out.path())
+        .expect_err("no thermometer")
+        .to_string();
+    assert!(
+        e.contains("session[0].temperature_csv") && e.contains("thermometers = \"none\""),
+        "{e}"
+    );
     std::fs::write(
         &path,
-        text.replacen(first, &format!("{first}\nadc_columns = [1, 3]\nthermometers = \"none\""), 1),
+        text.replacen(
+            first,
+            &format!("{first}\nadc_columns = [1, 3]\nthermometers = \"none\""),
+            1,
+        ),
     )
     .expect("w");
-    let e = ingest::run(ds.path(), out.path()).expect_err("three columns").to_string();
+    let e = ingest::run(ds.path(), out.path())
+        .expect_err("three columns")
+        .to_string();
     assert!(
         e.contains("day1_adc.csv:2: header") && e.contains("expected `gps_week,tow_s,c1,c3`"),
         "{e}"
@@ -459,12 +482,20 @@ fn a_lab_temperature_log_counts_its_own_seconds() {
         ingest::run(ds, out.path()).expect("ingest");
         std::fs::read(out.path().join("ingest/temperature.parquet")).expect("table")
     };
-    assert!(table(unix.path()) == table(relative.path()), "the same temperatures");
+    assert!(
+        table(unix.path()) == table(relative.path()),
+        "the same temperatures"
+    );
     let iso = format!("{drive}\ntemperature_time = \"iso\"");
     std::fs::write(&manifest, m.replacen(drive, &iso, 1)).expect("write");
     let out = tempfile::tempdir().expect("tempdir");
-    let e = ingest::run(relative.path(), out.path()).expect_err("iso").to_string();
-    assert!(e.contains("session[2].temperature_time") && e.contains("\"unix_s\""), "{e}");
+    let e = ingest::run(relative.path(), out.path())
+        .expect_err("iso")
+        .to_string();
+    assert!(
+        e.contains("session[2].temperature_time") && e.contains("\"unix_s\""),
+        "{e}"
+    );
 }
 
 /// A malformed CSV line stops the run with file, line and field, or is counted when skipping;

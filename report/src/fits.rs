@@ -323,3 +323,36 @@ pub(crate) fn snooping_section(st: &Stages<'_>) -> Section {
     s.tables.push(("Removed observations".to_owned(), removed));
     s
 }
+
+/// Whether b and k repeat between the sessions of each model fitted per session
+/// (docs/model.md 6.9): the homogeneity test's table and its sentences.
+pub(crate) fn repeatability_section(st: &Stages<'_>) -> Section {
+    let mut s = section("Repeatability between sessions");
+    s.text.push(format!(
+        "For each model fitted one session at a time, the sessions' (b, k) are tested for one common value at their sigmas and correlation: chi-square on 2 (sessions - 1) dof, a change reported below p = {}. The test's false-alarm rate on two sessions of one truth is measured by `cargo xtask verdicts` (docs/model.md 6.9).",
+        adjust::repeatability::LEVEL,
+    ));
+    let mut t = Table::new(&[
+        "model",
+        "accelerometer",
+        "sessions",
+        "chi-square",
+        "dof",
+        "p",
+        "b and k",
+    ]);
+    for r in &st.cal.repeatability {
+        t.rows.push(vec![
+            r.model.clone(),
+            r.accelerometer.clone(),
+            r.sessions.join(", "),
+            format!("{:.2}", r.statistic),
+            r.dof.to_string(),
+            r.p_text(),
+            if r.passed { "repeat" } else { "CHANGED" }.to_owned(),
+        ]);
+        s.text.push(r.sentence());
+    }
+    s.tables.push(("Repeatability".to_owned(), t));
+    s
+}

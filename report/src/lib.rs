@@ -172,6 +172,9 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
     if axis {
         sections.push(snooping_section(&st));
     }
+    if !st.cal.repeatability.is_empty() {
+        sections.push(repeatability_section(&st));
+    }
     sections.push(ledger_section(&st));
     if axis {
         sections.push(plots_section(&st)?);

@@ -10,8 +10,9 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 
 /// The tests that measure the rates: package, test binary, test.
-const MONTE_CARLOS: [(&str, &str, &str); 4] = [
+const MONTE_CARLOS: [(&str, &str, &str); 5] = [
     ("adjust", "calibration", "every_verdict_holds_its_rate"),
+    ("adjust", "calibration", "repeatability_holds_its_level"),
     (
         "adjust",
         "replicas",

@@ -456,9 +456,16 @@ fn a_second_labs_logs_as_written_calibrate_in_one_attempt() {
         assert!(draft.contains(line), "the draft says {line}:\n{draft}");
     }
     fill_mark(&mut draft, "g_abs_mgal", &truth.gravity_mgal.to_string());
-    let declared_deg = draft.replacen("theodolite_unit = \"FILL IN\"", "theodolite_unit = \"deg\"", 1);
+    let declared_deg = draft.replacen(
+        "theodolite_unit = \"FILL IN\"",
+        "theodolite_unit = \"deg\"",
+        1,
+    );
     fill_mark(&mut draft, "theodolite_unit", "\"gon\"");
-    assert!(!draft.contains("= \"FILL IN\""), "every mark filled:\n{draft}");
+    assert!(
+        !draft.contains("= \"FILL IN\""),
+        "every mark filled:\n{draft}"
+    );
     std::fs::write(ds.join("dataset.toml"), &draft).expect("write");
     let check = xtask(&["check", ds_arg]);
     assert!(
@@ -480,7 +487,12 @@ fn a_second_labs_logs_as_written_calibrate_in_one_attempt() {
         for (name, t) in [("b", c.b_mgal), ("k", c.k_mgal_per_bit)] {
             let p = r.parameters.iter().find(|p| p.name == name).expect("param");
             let z = (p.value - t) / p.sigma;
-            assert!(z.abs() < 4.0, "{} {name}: {} vs {t}, z {z:.2}", c.accelerometer, p.value);
+            assert!(
+                z.abs() < 4.0,
+                "{} {name}: {} vs {t}, z {z:.2}",
+                c.accelerometer,
+                p.value
+            );
         }
         fitted += 1;
     }
@@ -512,10 +524,24 @@ fn a_second_labs_logs_as_written_calibrate_in_one_attempt() {
             .find(|c| c.model == "linear" && c.accelerometer == r.accelerometer)
             .expect("fitted with the thermometer");
         let (b0, b1) = (&before.parameters[0], &r.parameters[0]);
-        assert!((b0.value - b1.value).abs() < 1e-6 * b0.sigma, "{b0:?} {b1:?}");
+        assert!(
+            (b0.value - b1.value).abs() < 1e-6 * b0.sigma,
+            "{b0:?} {b1:?}"
+        );
     }
-    assert_eq!(bare.results.iter().filter(|r| r.model == "linear").count(), 2);
-    let named: Vec<_> = bare.skipped.iter().filter(|s| s.model == "thermal").collect();
+    assert_eq!(
+        bare.results.iter().filter(|r| r.model == "linear").count(),
+        2
+    );
+    let named: Vec<_> = bare
+        .skipped
+        .iter()
+        .filter(|s| s.model == "thermal")
+        .collect();
     assert_eq!(named.len(), 2, "{:?}", bare.skipped);
-    assert!(named.iter().all(|s| s.reason.contains("thermometers = \"none\"")));
+    assert!(
+        named
+            .iter()
+            .all(|s| s.reason.contains("thermometers = \"none\""))
+    );
 }

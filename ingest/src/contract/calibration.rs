@@ -544,6 +544,105 @@ pub struct KalibrNoise {
     pub bias_instability: Option<f64>,
 }
 
+/// Whether b and k of one accelerometer repeat between the sessions a model was fitted to
+/// one at a time (docs/model.md 6.9): the homogeneity test of their (b, k) at their sigmas.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Repeatability {
+    /// The model, fitted per session.
+    pub model: String,
+    /// Accelerometer id.
+    pub accelerometer: String,
+    /// The sessions, as fitted.
+    pub sessions: Vec<String>,
+    /// Each session's mean temperature, degC (null without a thermometer).
+    pub mean_temperatures_c: Vec<Option<f64>>,
+    /// Each session's b, mGal.
+    pub b_mgal: Vec<f64>,
+    /// Its sigma.
+    pub sigma_b_mgal: Vec<f64>,
+    /// sum (x_i - x)' C_i^-1 (x_i - x) over the sessions' (b, k) about their weighted mean.
+    pub statistic: f64,
+    /// Its degrees of freedom, 2 (sessions - 1).
+    pub dof: u32,
+    /// The chi-square upper tail at the statistic.
+    pub p_value: f64,
+    /// b and k repeat at the 5 % level.
+    pub passed: bool,
+}
+
+impl Repeatability {
+    /// The verdict in a sentence, for the console and the report: each session's b with
+    /// its sigma (and its mean temperature), and what a change may be.
+    pub fn sentence(&self) -> String {
+        let b: Vec<String> = self
+            .sessions
+            .iter()
+            .zip(self.b_mgal.iter().zip(&self.sigma_b_mgal))
+            .zip(&self.mean_temperatures_c)
+            .map(|((s, (b, sb)), t)| {
+                let at = t.map_or(String::new(), |t| format!(" at {t:.2} degC"));
+                format!(
+                    "{} mGal in {s}{at}",
+                    crate::contract::precision::value_with_sigma(*b, *sb)
+                )
+            })
+            .collect();
+        let test = format!(
+            "chi-square {:.2} on {} dof, p {}",
+            self.statistic,
+            self.dof,
+            self.p_text()
+        );
+        let temperatures: Vec<f64> = self.mean_temperatures_c.iter().flatten().copied().collect();
+        let spread = temperatures
+            .iter()
+            .fold(f64::NEG_INFINITY, |a, &t| a.max(t))
+            - temperatures.iter().fold(f64::INFINITY, |a, &t| a.min(t));
+        if self.passed {
+            format!(
+                "{} {}: b and k repeat between sessions {} ({test}; b {})",
+                self.model,
+                self.accelerometer,
+                self.sessions.join(", "),
+                b.join(", ")
+            )
+        } else {
+            format!(
+                "{} {}: b and k differ between sessions {} beyond their sigmas ({test}; b {}): {}",
+                self.model,
+                self.accelerometer,
+                self.sessions.join(", "),
+                b.join(", "),
+                if spread > 0.1 {
+                    format!(
+                        "the sessions' mean temperatures differ by {spread:.2} degC, so a \
+                         temperature effect (a model with temperature terms) or a change of the \
+                         instrument between them"
+                    )
+                } else {
+                    "a change of the instrument between them (their temperatures hardly \
+                     differ), or sigmas too small"
+                        .to_owned()
+                }
+            )
+        }
+    }
+}
+
+impl Repeatability {
+    /// The p-value to three decimals, or two significant digits below 0.001.
+    pub fn p_text(&self) -> String {
+        let p = self.p_value;
+        if p >= 0.001 {
+            format!("{p:.3}")
+        } else if p >= 1e-99 {
+            format!("{p:.1e}")
+        } else {
+            "below 1e-99".to_owned()
+        }
+    }
+}
+
 /// `calibration.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Calibration {
@@ -585,6 +684,10 @@ pub struct Calibration {
     /// Whether the body tide was applied to g per observation, and its range; or why not.
     #[serde(default)]
     pub earth_tide: String,
+    /// Whether b and k repeat between sessions, per model fitted per session and
+    /// accelerometer with two or more sessions.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub repeatability: Vec<Repeatability>,
 }
 
 /// The stage's folder in OUT.
