@@ -218,3 +218,89 @@ fn a_counts_log_with_another_reading_unit_is_refused() {
         "{e}"
     );
 }
+
+/// A reading unit the scale factors do not fit is named (issue 49): esgt-2005-csv's two
+/// days written as lab streams in m/s^2 (each count through one affine map, as a logger
+/// converting with a nominal scale would), declared "m/s^2", calibrate with no word on the
+/// unit; declared "mGal", every fit's warnings say k is 1e5 times too large and that the
+/// readings look like m/s^2, naming the key.
+#[test]
+fn a_reading_unit_the_scale_factors_do_not_fit_is_named() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("esgt");
+    let declare = |unit: &str| {
+        let text =
+            std::fs::read_to_string(fixtures::dataset_dir("esgt-2005-csv").join("dataset.toml"))
+                .expect("manifest");
+        let mut m = text.replace(
+            "full_scale_g = 2.0",
+            &format!("full_scale_g = 2.0\nreading_unit = \"{unit}\""),
+        );
+        for day in ["day1", "day2"] {
+            m = m.replace(
+                &format!("adc_csv = \"raw/{day}_adc.csv\"\ntemperature_csv = \"raw/{day}_temp.csv\""),
+                &format!(
+                    "adc_csv = \"raw/{day}_lab.txt\"\ntemperature_csv = \"raw/{day}_lab_temp.txt\"\n\
+                     adc_format = \"seconds\"\ntime_unit = \"unix_s\""
+                ),
+            );
+        }
+        assert_eq!(
+            m.matches("adc_format = \"seconds\"").count(),
+            2,
+            "both days rewritten"
+        );
+        m
+    };
+    fixtures::copy_dataset("esgt-2005-csv", &ds, |_| declare("m/s^2")).expect("copy");
+    // A lab stream's values through `f`, an empty field (not connected) as nan.
+    let mapped = |text: &str, f: &dyn Fn(f64) -> String| -> String {
+        to_lab_stream(text)
+            .lines()
+            .map(|l| match l.split_once(',') {
+                Some((t, v)) if !l.starts_with('#') => {
+                    let values: Vec<String> = v
+                        .split(',')
+                        .map(|c| c.parse::<f64>().map_or("nan".to_owned(), f))
+                        .collect();
+                    format!("{t},{}\n", values.join(","))
+                }
+                _ => format!("{l}\n"),
+            })
+            .collect()
+    };
+    for day in ["day1", "day2"] {
+        let raw = ds.join("raw");
+        let read = |name: String| std::fs::read_to_string(raw.join(name)).expect("read");
+        let in_si = mapped(&read(format!("{day}_adc.csv")), &|c| {
+            format!("{:.7}", (0.243 * c - 29_500.0) * 1e-5)
+        });
+        std::fs::write(raw.join(format!("{day}_lab.txt")), in_si).expect("write");
+        let temps = mapped(&read(format!("{day}_temp.csv")), &|t| t.to_string());
+        std::fs::write(raw.join(format!("{day}_lab_temp.txt")), temps).expect("write");
+    }
+    let warned = |c: &Calibration| {
+        c.results
+            .iter()
+            .filter(|r| {
+                r.warnings
+                    .iter()
+                    .any(|w| w.contains("instrument.reading_unit"))
+            })
+            .count()
+    };
+    let out = tempfile::tempdir().expect("t");
+    let right = calibrate(&ds, out.path());
+    assert!(!right.results.is_empty());
+    assert_eq!(warned(&right), 0, "m/s^2 declared m/s^2");
+    std::fs::write(ds.join("dataset.toml"), declare("mGal")).expect("write");
+    let out = tempfile::tempdir().expect("t");
+    let wrong = calibrate(&ds, out.path());
+    assert_eq!(warned(&wrong), wrong.results.len(), "m/s^2 declared mGal");
+    let note = wrong.results[0]
+        .warnings
+        .iter()
+        .find(|w| w.contains("reading_unit"))
+        .expect("note");
+    assert!(note.contains("look like \"m/s^2\""), "{note}");
+}
