@@ -303,6 +303,7 @@ pub(crate) fn snooping_section(st: &Stages<'_>) -> Section {
         "session",
         "station",
         "line",
+        "time (UTC)",
         "GPS week / tow (s)",
         "w",
     ]);
@@ -315,6 +316,7 @@ pub(crate) fn snooping_section(st: &Stages<'_>) -> Section {
                 x.session.clone(),
                 x.station.clone(),
                 x.line.to_string(),
+                ingest::time::utc_iso(x.time_gps_ns),
                 gps(x.time_gps_ns),
                 format!("{:.2}", x.w),
             ]);
