@@ -157,7 +157,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     for r in &mut results {
         let k = r.parameters.iter().find(|p| p.name == "k").map(|p| p.value);
         r.warnings
-            .extend(k.and_then(|k| results::reading_unit_warning(unit, k)));
+            .extend(k.and_then(|k| reading_unit_warning(unit, k)));
     }
     let adc_noise = kalibr_noise(&align_report, &results);
     let (triad, triad_skipped) = triad_fits::fit_all(&ds, &models, &align_report);

@@ -118,6 +118,12 @@ pub(crate) fn session_positions(
     for ((i, j), (mean, white, samples)) in kept {
         let (t0, t1) = (data.time_ns[i], data.time_ns[j - 1]);
         let duration_s = (j - i) as f64 / rate;
+        // The samples' scatter over sqrt(n) is the mean's sd only for independent samples;
+        // held ones (a positive lag-one correlation) widen it.
+        let white: [f64; 3] = std::array::from_fn(|k| {
+            let rho = noise[k].as_ref().and_then(|n| n.lag_one);
+            white[k] * statics::held_variance_factor(rho).sqrt()
+        });
         let sigma = std::array::from_fn(|k| {
             let coloured = noise[k]
                 .as_ref()
@@ -200,6 +206,7 @@ pub(crate) fn static_noise(
                 white_density_per_sqrt_hz: n.terms.white_density,
                 bias_instability: n.terms.bias_instability,
                 random_walk_sqrt_hz: n.terms.random_walk,
+                lag_one_correlation: n.lag_one,
             })
         })
         .collect()

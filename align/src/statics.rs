@@ -418,6 +418,9 @@ pub struct AxisNoise {
     pub intervals: usize,
     /// Samples in them.
     pub samples: usize,
+    /// The samples' lag-one autocorrelation, when significantly above 0 ([`lag_one`]): a
+    /// logger that holds its last value (issue 47). The curve then starts beyond its reach.
+    pub lag_one: Option<f64>,
 }
 
 impl AxisNoise {
@@ -448,8 +451,18 @@ pub fn noise(series: &Series, intervals: &[(usize, usize)], tau0_s: f64) -> [Opt
             .collect();
         let longest = residuals.iter().map(Vec::len).max()?;
         let slices: Vec<&[f64]> = residuals.iter().map(Vec::as_slice).collect();
-        let points = crate::allan::pooled(&slices, tau0_s, &crate::allan::octave_factors(longest));
+        let lag_one = lag_one(&slices);
+        // Held samples correlate their neighbours as rho^lag: the curve starts where that
+        // has fallen below 5 %, beyond which the samples' means scatter as white noise
+        // of the inflated level (a bias instability read into the first octaves is none).
+        let first = lag_one.map_or(1, |r| (0.05f64.ln() / r.ln()).ceil().max(1.0) as usize);
+        let factors: Vec<usize> = crate::allan::octave_factors(longest)
+            .into_iter()
+            .filter(|&m| m >= first)
+            .collect();
+        let points = crate::allan::pooled(&slices, tau0_s, &factors);
         Some(AxisNoise {
+            lag_one,
             terms: crate::allan::fit_noise(
                 &points,
                 &slices.iter().map(|s| s.len()).collect::<Vec<_>>(),
@@ -459,6 +472,27 @@ pub fn noise(series: &Series, intervals: &[(usize, usize)], tau0_s: f64) -> [Opt
             samples: slices.iter().map(|s| s.len()).sum(),
         })
     })
+}
+
+/// The lag-one autocorrelation of the `residuals` pooled (sum r_t r_t+1 over sum r_t^2),
+/// when it is above 3 / sqrt(samples), where white noise puts it with odds of about 1 in
+/// 700, and below 0.9 (beyond, the samples are too few to say what the noise is).
+pub fn lag_one(residuals: &[&[f64]]) -> Option<f64> {
+    let (mut lagged, mut squares, mut n) = (0.0, 0.0, 0usize);
+    for r in residuals {
+        lagged += r.windows(2).map(|w| w[0] * w[1]).sum::<f64>();
+        squares += r.iter().map(|x| x * x).sum::<f64>();
+        n += r.len();
+    }
+    let rho = lagged / squares;
+    (rho > 3.0 / (n as f64).sqrt() && rho < 0.9).then_some(rho)
+}
+
+/// The factor by which samples of lag-one autocorrelation `rho` (each neighbour's rho^lag,
+/// as held samples give) multiply the variance of a long mean against white samples:
+/// (1 + rho) / (1 - rho).
+pub fn held_variance_factor(rho: Option<f64>) -> f64 {
+    rho.map_or(1.0, |r| (1.0 + r) / (1.0 - r))
 }
 
 /// `y` less its least-squares line in the sample index.

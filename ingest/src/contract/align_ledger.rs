@@ -233,6 +233,11 @@ pub struct StaticNoise {
     pub bias_instability: f64,
     /// Random walk K, unit * sqrt(Hz) (0 when not significant).
     pub random_walk_sqrt_hz: f64,
+    /// The samples' lag-one autocorrelation where significantly above 0 (a logger holding
+    /// its last value): the positions' white sigmas are widened by sqrt((1 + rho) /
+    /// (1 - rho)) and the Allan curve starts where rho^lag is below 5 % (docs/triad.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lag_one_correlation: Option<f64>,
 }
 
 /// One static position: the three mean readings over its interval.
