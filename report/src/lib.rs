@@ -105,6 +105,8 @@ fn custody_table(
 /// What the report is built from: the stage outputs, their chain of custody checked.
 struct Stages<'a> {
     ds: &'a Dataset,
+    /// The stages' output folder (for the tables the report reads on demand).
+    out: &'a Path,
     cal: Calibration,
     ingest_report: IngestReport,
     align_report: AlignReport,
@@ -116,6 +118,7 @@ struct Stages<'a> {
 pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
     let st = Stages {
         ds,
+        out,
         cal: Calibration::load_verified(ds, out)?,
         ingest_report: IngestReport::load(&out.join(ingest_ledger::STAGE_DIR))?,
         align_report: AlignReport::load(&out.join(align_ledger::STAGE_DIR))?,

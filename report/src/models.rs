@@ -2,6 +2,8 @@
 //! vector and the triad.
 
 use super::*;
+use arrow_array::Array;
+use ingest::contract::align_ledger::MultiPosition;
 
 /// Radius of the 95 % error ellipse of a 2-D normal, in sds: sqrt of chi-square(2)'s 95 %.
 pub(crate) const ELLIPSE_95: f64 = 2.447_746_830_680_816;
@@ -122,6 +124,9 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
          those fit."
             .to_owned(),
     );
+    for mp in &st.align_report.multi_position {
+        s.plots.extend(stillness_plot(st, mp)?);
+    }
     for r in &st.cal.triad {
         let mut t = Table::new(&["parameter", "value", "sigma", "unit"]);
         for p in r.parameters.iter().chain(&r.non_orthogonality_mrad) {
@@ -138,6 +143,80 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
         s.plots.extend(triad_plots(r)?);
     }
     Ok(s)
+}
+
+/// Time bins of a stillness plot.
+const STILLNESS_BINS: usize = 800;
+
+/// Multi-position session `mp`'s stream as its norm over time (least and greatest per
+/// time bin, read from ingest's lab table) with the positions align used shaded; None for
+/// a session without samples in the table.
+fn stillness_plot(st: &Stages<'_>, mp: &MultiPosition) -> Result<Option<Plot>, Error> {
+    let Some(w) = st
+        .ds
+        .sessions
+        .iter()
+        .position(|s| s.session.id == mp.session)
+    else {
+        return Ok(None);
+    };
+    let w = u16::try_from(w).unwrap_or(u16::MAX);
+    let mut norms: Vec<(i64, f64)> = Vec::new();
+    align::read::lab_batches(&st.out.join(ingest_ledger::STAGE_DIR), 1 << 16, |b| {
+        for i in (0..b.session.len()).filter(|&i| b.session[i] == w) {
+            let v = b.values.map(|c| c.is_valid(i).then(|| c.value(i)));
+            if let [Some(x), Some(y), Some(z)] = v {
+                norms.push((b.time_ns[i], (x * x + y * y + z * z).sqrt()));
+            }
+        }
+        Ok(())
+    })?;
+    let (Some(&(t0, _)), Some(&(t1, _))) = (norms.first(), norms.last()) else {
+        return Ok(None);
+    };
+    let seconds = |t: i64| (t - t0) as f64 * 1e-9;
+    let width = (seconds(t1) / STILLNESS_BINS as f64).max(1e-9);
+    // (bin, least, greatest), bins in time order.
+    let mut bins: Vec<(u64, f64, f64)> = Vec::new();
+    for &(t, n) in &norms {
+        let bin = (seconds(t) / width).floor() as u64;
+        match bins.last_mut() {
+            Some(e) if e.0 == bin => {
+                e.1 = e.1.min(n);
+                e.2 = e.2.max(n);
+            }
+            _ => bins.push((bin, n, n)),
+        }
+    }
+    let envelope: Vec<(f64, f64, f64)> = bins
+        .iter()
+        .map(|&(bin, lo, hi)| ((bin as f64 + 0.5) * width, lo, hi))
+        .collect();
+    let used: Vec<(f64, f64)> = mp
+        .positions
+        .iter()
+        .map(|p| (seconds(p.start_gps_ns), seconds(p.end_gps_ns)))
+        .collect();
+    let plot = format!("positions-{}-norm", mp.session);
+    let title = format!(
+        "{}: the norm of the readings, {} positions used of {} found",
+        mp.session, mp.used, mp.found
+    );
+    let y_label = format!(
+        "|reading| ({})",
+        st.ds.manifest.instrument.reading_unit.name()
+    );
+    let svg = plots::stillness(&plots::Stillness {
+        title: &title,
+        y_label: &y_label,
+        envelope: &envelope,
+        used: &used,
+    })
+    .map_err(|message| Error::Plot {
+        name: plot.clone(),
+        message,
+    })?;
+    Ok(Some((format!("{plot}.svg"), svg)))
 }
 
 /// A triad fit in a sentence: positions used and removed, sigma0, the global test, the

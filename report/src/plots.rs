@@ -10,6 +10,8 @@ pub const BLUE_CB: RGBColor = RGBColor(0, 114, 178);
 pub const VERMILLION: RGBColor = RGBColor(213, 94, 0);
 /// Orange.
 pub const ORANGE: RGBColor = RGBColor(230, 159, 0);
+/// Bluish green.
+pub const BLUISH_GREEN: RGBColor = RGBColor(0, 158, 115);
 
 /// A legend entry's mark.
 #[derive(Clone, Copy)]
@@ -491,6 +493,72 @@ pub fn profile(p: &Profile<'_>) -> Result<String, String> {
         Ok(vec![
             (Mark::Line(BLUE_CB), "filtered".to_owned()),
             (Mark::Band(BLUE_CB), "its 1-sigma band".to_owned()),
+        ])
+    })
+}
+
+/// A stream's norm over time with the still intervals found shaded: what a person looking
+/// at the recording would call positions, beside what the detector used.
+pub struct Stillness<'a> {
+    /// Title.
+    pub title: &'a str,
+    /// y axis label with unit.
+    pub y_label: &'a str,
+    /// Per time bin (s from the first sample), the least and greatest norm in it.
+    pub envelope: &'a [(f64, f64, f64)],
+    /// The intervals used as positions, (start, end) s.
+    pub used: &'a [(f64, f64)],
+}
+
+/// Draws `p` as an SVG document.
+pub fn stillness(p: &Stillness<'_>) -> Result<String, String> {
+    let frame = Frame {
+        size: (720, 320),
+        title: p.title,
+        axes: ("time from the session's first sample (s)", p.y_label),
+        y_label_area: 72,
+        x: range(p.envelope.iter().map(|q| q.0)),
+        y: range(p.envelope.iter().flat_map(|q| [q.1, q.2])),
+    };
+    let (y0, y1) = frame.y;
+    framed(&frame, None, |chart| {
+        chart
+            .draw_series(
+                p.used.iter().map(|&(a, b)| {
+                    Rectangle::new([(a, y0), (b, y1)], BLUISH_GREEN.mix(0.25).filled())
+                }),
+            )
+            .map_err(|e| e.to_string())?;
+        let band: Vec<(f64, f64)> = p
+            .envelope
+            .iter()
+            .map(|q| (q.0, q.2))
+            .chain(p.envelope.iter().rev().map(|q| (q.0, q.1)))
+            .collect();
+        chart
+            .draw_series(std::iter::once(Polygon::new(band, BLUE_CB.filled())))
+            .map_err(|e| e.to_string())?;
+        // A still bin's least and greatest nearly meet: its line keeps it in sight.
+        for edge in [
+            |q: &(f64, f64, f64)| (q.0, q.1),
+            |q: &(f64, f64, f64)| (q.0, q.2),
+        ] {
+            chart
+                .draw_series(LineSeries::new(
+                    p.envelope.iter().map(edge),
+                    BLUE_CB.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?;
+        }
+        Ok(vec![
+            (
+                Mark::Line(BLUE_CB),
+                "the norm (least to greatest per bin)".to_owned(),
+            ),
+            (
+                Mark::Band(BLUISH_GREEN),
+                format!("{} positions used", p.used.len()),
+            ),
         ])
     })
 }

@@ -247,6 +247,18 @@ fn the_summary_comes_first_and_only_what_applies_follows() {
         );
     }
     assert!(md.contains("| triad | triad (x, y, z) | lab | a_yz = "));
+    // The stream's norm with the positions used shaded (issue 47), one band per position.
+    let a = ingest::contract::align_ledger::AlignReport::load(&out.path().join("align"))
+        .expect("align.json");
+    let used = a.multi_position[0].positions.len();
+    let svg = std::fs::read_to_string(out.path().join("report/plots/positions-lab-norm.svg"))
+        .expect("the norm's plot");
+    assert!(
+        svg.contains(&format!("{used} positions used")),
+        "its legend"
+    );
+    let shaded = svg.matches("fill=\"#009E73\"").count();
+    assert_eq!(shaded, used + 1, "a band per position, and the legend's");
     insta::assert_snapshot!("triad_multipos_summary", summary_of(&md));
     for name in ["roll-sessions", "survey"] {
         let out = pipeline(&fixtures::dataset_dir(name));
