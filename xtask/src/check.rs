@@ -261,7 +261,7 @@ fn in_copy(copy: &Path, dir: &Path, path: &Path) -> Option<PathBuf> {
 
 /// Writes `to`: `from` with its middle left out as the module says; returns the lines
 /// (text) or bytes (binary) left out.
-fn trim(from: &Path, to: &Path, binary: bool) -> Result<u64> {
+pub(crate) fn trim(from: &Path, to: &Path, binary: bool) -> Result<u64> {
     use std::io::Read;
     if let Some(dir) = to.parent() {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

@@ -105,7 +105,23 @@ pub fn run(dataset: &Path) -> Result<PathBuf> {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "dataset".to_owned());
-    let text = draft(&name, &found);
+    let mut text = draft(&name, &found);
+    let logs: Vec<(PathBuf, bool)> = found
+        .iter()
+        .map(|f| (dataset.join(&f.rel), f.layout == Layout::Binary))
+        .collect();
+    let findings = crate::preflight::findings(dataset, &logs, &text)?;
+    if !findings.is_empty() {
+        let mut said = String::from(
+            "# What `cargo xtask check` says of these logs as drafted (every \"FILL IN\"\n\
+             # stood in for):\n",
+        );
+        for line in &findings {
+            eprintln!("init: check: {line}");
+            said.push_str(&format!("#   {line}\n"));
+        }
+        text = said + &text;
+    }
     let mut file = std::fs::OpenOptions::new()
         .write(true)
         .create_new(true)

@@ -6,6 +6,7 @@ mod bench_apply;
 mod bench_gravity;
 mod check;
 mod init;
+mod preflight;
 mod show;
 mod verdicts;
 

@@ -451,6 +451,11 @@ fn a_second_labs_logs_as_written_calibrate_in_one_attempt() {
     let ds_arg = ds.to_str().expect("utf-8");
     let o = xtask(&["init", ds_arg]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !stderr.contains("init: check:"),
+        "check reads the draft: {stderr}"
+    );
     let mut draft = std::fs::read_to_string(ds.join("dataset.toml")).expect("draft");
     for line in ["adc_columns = [1, 2]", "thermometers = \"one\""] {
         assert!(draft.contains(line), "the draft says {line}:\n{draft}");
@@ -544,4 +549,45 @@ fn a_second_labs_logs_as_written_calibrate_in_one_attempt() {
             .iter()
             .all(|s| s.reason.contains("thermometers = \"none\""))
     );
+}
+
+/// What check would refuse, init says (issue 49): esgt-2005-csv's logs with day 2's counts
+/// logged at half the rate. The draft takes the first log's rate; init reads the logs as
+/// check does, with its "FILL IN" stood in for, and names day 2's rate on stderr and at the
+/// draft's head (the second lab's logs, which check reads, draw no such word:
+/// `a_second_labs_logs_as_written_calibrate_in_one_attempt`).
+#[test]
+fn what_check_would_refuse_init_says() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("two-rates");
+    fixtures::copy_dataset("esgt-2005-csv", &ds, |m| m).expect("copy");
+    std::fs::remove_file(ds.join("dataset.toml")).expect("rm");
+    let adc = ds.join("raw/day2_adc.csv");
+    let text = std::fs::read_to_string(&adc).expect("log");
+    let halved: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(i, l)| l.starts_with('#') || l.starts_with("gps_week") || i % 2 == 0)
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(&adc, halved.join("\n") + "\n").expect("write");
+    let o = xtask(&["init", ds.to_str().expect("utf-8")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let said = stderr
+        .lines()
+        .find(|l| l.starts_with("init: check: "))
+        .unwrap_or_else(|| panic!("init says what check refuses: {stderr}"));
+    assert!(
+        said.contains("session day2")
+            && said.contains("15.6250 Hz")
+            && said.contains("sample_rate_hz"),
+        "{said}"
+    );
+    let draft = std::fs::read_to_string(ds.join("dataset.toml")).expect("draft");
+    assert!(
+        draft.starts_with("# What `cargo xtask check` says"),
+        "{draft}"
+    );
+    assert!(draft.contains("15.6250 Hz"), "{draft}");
 }
