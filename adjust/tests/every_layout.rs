@@ -304,3 +304,72 @@ fn a_reading_unit_the_scale_factors_do_not_fit_is_named() {
         .expect("note");
     assert!(note.contains("look like \"m/s^2\""), "{note}");
 }
+
+/// A lab stream of fewer channels and one thermometer (docs/formats.md 9.4): day 1 written
+/// with channels 1 and 2 only and its temperature log with one column (channel 1's),
+/// declared `adc_columns = [1, 2]` and `thermometers = "one"`, gives acc1's and acc2's
+/// linear fits of the full stream to the last digit, and acc3 named as not connected.
+#[test]
+fn a_lab_stream_of_two_channels_and_one_thermometer_calibrates_them() {
+    let (_a, full) = esgt_csv(true, false);
+    let (_b, two) = esgt_csv(true, false);
+    let keep = |text: &str, n: usize| -> String {
+        text.lines()
+            .map(|l| {
+                if l.starts_with('#') {
+                    format!("{l}\n")
+                } else {
+                    let f: Vec<&str> = l.split(',').collect();
+                    format!("{}\n", f[..=n].join(","))
+                }
+            })
+            .collect()
+    };
+    for (file, n) in [("day1_lab.txt", 2), ("day1_lab_temp.txt", 1)] {
+        let path = two.join("raw").join(file);
+        let text = std::fs::read_to_string(&path).expect("read");
+        std::fs::write(&path, keep(&text, n)).expect("write");
+    }
+    let manifest = two.join("dataset.toml");
+    let m = std::fs::read_to_string(&manifest).expect("manifest");
+    let declared = m.replacen(
+        "adc_format = \"seconds\"",
+        "adc_format = \"seconds\"\nadc_columns = [1, 2]\nthermometers = \"one\"",
+        1,
+    );
+    assert_ne!(declared, m);
+    std::fs::write(&manifest, declared).expect("write");
+    let (oa, ob) = (
+        tempfile::tempdir().expect("t"),
+        tempfile::tempdir().expect("t"),
+    );
+    let x = calibrate(&full, oa.path());
+    let y = calibrate(&two, ob.path());
+    let linear = |c: &Calibration, acc: &str| {
+        c.results
+            .iter()
+            .find(|r| r.session == "day1" && r.model == "linear" && r.accelerometer == acc)
+            .cloned()
+    };
+    for acc in ["acc1", "acc2"] {
+        let (p, q) = (
+            linear(&x, acc).expect("full"),
+            linear(&y, acc).expect("two"),
+        );
+        for (a, b) in p.parameters.iter().zip(&q.parameters) {
+            assert!(
+                (a.value - b.value).abs() <= 1e-9 * a.value.abs(),
+                "{acc} {}",
+                a.name
+            );
+        }
+    }
+    assert!(linear(&y, "acc3").is_none());
+    assert!(
+        y.skipped.iter().any(|s| s.accelerometer == "acc3"
+            && s.session == "day1"
+            && s.reason.contains("not connected")),
+        "{:?}",
+        y.skipped
+    );
+}

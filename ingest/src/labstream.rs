@@ -18,6 +18,7 @@
 //! significant digits, more than an f64 holds); only scientific notation goes through f64.
 
 use crate::contract::ingest_ledger::{FileLedger, LabStreamReport, reason};
+use crate::contract::manifest::ValueColumns;
 use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
@@ -258,6 +259,8 @@ pub struct LabConfig {
     pub skip_bad_lines: bool,
     /// What the instrument, in its declared reading unit, can produce.
     pub reading_limits: Limits,
+    /// Which channels the file's value columns hold (docs/formats.md 9.4).
+    pub columns: ValueColumns,
 }
 
 /// A field that does not parse: (field name, message).
@@ -319,13 +322,13 @@ fn fast_decimal(field: &[u8]) -> Option<(f64, bool)> {
 }
 
 /// The common data line in one pass: a time `seconds[.fraction]` (at most 10 and 9 digits),
-/// then three plain decimals (a `-`, digits, a `.` and digits, 15 digits at most), each
+/// then `width` (1 to 3) plain decimals (a `-`, digits, a `.` and digits, 15 digits at most), each
 /// after one comma, space or tab, and nothing else. Returns the time since zero (ns), the
 /// readings and where the time field ends. What it reads is what [`parse_line`] reads from
 /// the same line, bit for bit (the readings are Clinger's exact case of `str::parse`);
 /// None sends the line there, which also says what is wrong with it.
 #[inline]
-fn fast_line(line: &[u8]) -> Option<(i64, [f64; 3], usize)> {
+fn fast_line(line: &[u8], width: usize) -> Option<(i64, [f64; 3], usize)> {
     let mut p = 0;
     let mut ns = digits(line, &mut p, 10)?.checked_mul(1_000_000_000)?;
     if line.get(p) == Some(&b'.') {
@@ -336,7 +339,7 @@ fn fast_line(line: &[u8]) -> Option<(i64, [f64; 3], usize)> {
     }
     let time_end = p;
     let mut values = [0.0; 3];
-    for value in &mut values {
+    for value in values.iter_mut().take(width) {
         if !matches!(line.get(p), Some(b',' | b' ' | b'\t')) {
             return None;
         }
@@ -364,20 +367,26 @@ fn fast_line(line: &[u8]) -> Option<(i64, [f64; 3], usize)> {
     (p == line.len()).then_some((ns, values, time_end))
 }
 
-/// One data line: (time since zero ns, readings, values in scientific notation).
+/// One data line of a time and `width` (1 to 3) values, `names` the time's and the value
+/// columns': (time since zero ns, readings by column, values in scientific notation).
 fn parse_line(
     fields: &[&[u8]],
     names: [&'static str; 4],
+    width: usize,
 ) -> std::result::Result<(i64, [Option<f64>; 3], u64), Bad> {
-    if fields.len() != 4 {
-        let n = if fields.len() > 4 {
-            "more than 4".to_owned()
+    let expected = 1 + width;
+    if fields.len() != expected {
+        let n = if fields.len() > expected {
+            format!("more than {expected}")
         } else {
             fields.len().to_string()
         };
         return Err((
             "line",
-            format!("{n} fields, expected 4 ({})", names.join(" ")),
+            format!(
+                "{n} fields, expected {expected} ({})",
+                names[..expected].join(" ")
+            ),
         ));
     }
     let time = parse_seconds_ns(fields[0]).ok_or_else(|| {
@@ -388,7 +397,7 @@ fn parse_line(
     })?;
     let mut values = [None; 3];
     let mut scientific = 0;
-    for k in 0..3 {
+    for k in 0..width {
         let raw = fields[k + 1];
         let bad = |what: &str| (names[k + 1], format!("`{}` is {what}", text(raw)));
         let (v, exponent) = match fast_decimal(raw) {
@@ -637,8 +646,12 @@ type DataLine<'l> = (i64, Readings, &'l [u8]);
 /// the acceleration stream and a temperature log are read through.
 struct Lines<'c> {
     path: &'c Path,
-    /// Field names in error messages: the time, then the three values.
+    /// Field names in error messages: the time, then the three channels.
     names: [&'static str; 4],
+    /// The time's, then the value columns' (each its first channel's).
+    column_names: [&'static str; 4],
+    /// Which channels the value columns hold.
+    columns: ValueColumns,
     zero_gps_ns: i64,
     range_ns: (i64, i64),
     skip_bad_lines: bool,
@@ -700,10 +713,16 @@ pub fn reading_limits(instrument: &crate::contract::manifest::Instrument) -> Lim
 
 impl<'c> Lines<'c> {
     fn new(path: &'c Path, names: [&'static str; 4], config: &LabConfig, limits: Limits) -> Self {
+        let columns = config.columns;
         Lines {
             limits,
             path,
             names,
+            column_names: std::array::from_fn(|i| match i {
+                0 => names[0],
+                _ => names[1 + columns.channel_of(i - 1)],
+            }),
+            columns,
             zero_gps_ns: config.zero_gps_ns,
             range_ns: config.range_ns,
             skip_bad_lines: config.skip_bad_lines,
@@ -725,9 +744,13 @@ impl<'c> Lines<'c> {
         ledger: &mut FileLedger,
     ) -> Result<Option<DataLine<'l>>> {
         if self.data_seen
-            && let Some((rel, values, time_end)) = fast_line(raw)
+            && let Some((rel, values, time_end)) = fast_line(raw, self.columns.width)
         {
-            let readings = Readings::all(values);
+            let readings = if self.columns == ValueColumns::EVERY_CHANNEL {
+                Readings::all(values)
+            } else {
+                Readings::from_options(self.on_channels(values.map(Some)))
+            };
             return Ok(self.judge(line_no, rel, readings, &raw[..time_end], ledger));
         }
         let line = strip_comment(raw);
@@ -762,28 +785,35 @@ impl<'c> Lines<'c> {
             return Ok(None);
         }
         self.data_seen = true;
-        let (rel, values, scientific) = match parse_line(fields, self.names) {
-            Ok(x) => x,
-            Err((field, message)) if self.skip_bad_lines => {
-                ledger.reject(
-                    format!("line {line_no}"),
-                    reason::MALFORMED,
-                    format!("{field}: {message}"),
-                );
-                return Ok(None);
-            }
-            Err((field, message)) => {
-                return Err(Error::Line {
-                    path: self.path.to_path_buf(),
-                    line: line_no,
-                    field: field.to_owned(),
-                    message,
-                });
-            }
-        };
+        let (rel, values, scientific) =
+            match parse_line(fields, self.column_names, self.columns.width) {
+                Ok(x) => x,
+                Err((field, message)) if self.skip_bad_lines => {
+                    ledger.reject(
+                        format!("line {line_no}"),
+                        reason::MALFORMED,
+                        format!("{field}: {message}"),
+                    );
+                    return Ok(None);
+                }
+                Err((field, message)) => {
+                    return Err(Error::Line {
+                        path: self.path.to_path_buf(),
+                        line: line_no,
+                        field: field.to_owned(),
+                        message,
+                    });
+                }
+            };
         self.scientific += scientific;
-        let readings = Readings::from_options(values);
+        let readings = Readings::from_options(self.on_channels(values));
         Ok(self.judge(line_no, rel, readings, fields[0], ledger))
+    }
+
+    /// The value columns' readings on their channels (None where a channel has no column).
+    #[inline]
+    fn on_channels(&self, by_column: [Option<f64>; 3]) -> [Option<f64>; 3] {
+        self.columns.column_of.map(|k| k.and_then(|k| by_column[k]))
     }
 
     /// Rejects a line for its first reading outside the limits; whether there was one.
@@ -1112,7 +1142,7 @@ mod tests {
                 .split(|&c| c == b',' || c.is_ascii_whitespace())
                 .filter(|f| !f.is_empty())
                 .collect();
-            parse_line(&fields, XYZ).ok().map(|(t, v, _)| (t, v))
+            parse_line(&fields, XYZ, 3).ok().map(|(t, v, _)| (t, v))
         };
         let mut next = lcg(11);
         let mut lines: Vec<String> = Vec::new();
@@ -1140,10 +1170,10 @@ mod tests {
         for line in &lines {
             let Some(want) = general(line.as_bytes()) else {
                 // A time beyond an i64 of ns.
-                assert_eq!(fast_line(line.as_bytes()), None, "{line}");
+                assert_eq!(fast_line(line.as_bytes(), 3), None, "{line}");
                 continue;
             };
-            if let Some((t, values, end)) = fast_line(line.as_bytes()) {
+            if let Some((t, values, end)) = fast_line(line.as_bytes(), 3) {
                 taken += 1;
                 assert_eq!(t, want.0, "{line}");
                 let bits = |v: [Option<f64>; 3]| v.map(|x| x.map(f64::to_bits));
@@ -1159,7 +1189,7 @@ mod tests {
             "1672887159.123456 9.80665 -0.001 0.5",
             "12\t-0\t0.0\t-7.25",
         ] {
-            assert!(fast_line(line.as_bytes()).is_some(), "{line}");
+            assert!(fast_line(line.as_bytes(), 3).is_some(), "{line}");
         }
         for line in [
             "t,x,y,z",
@@ -1183,22 +1213,22 @@ mod tests {
             "0.004,1234567890123456,2,3",
             "0.004,123456789.0123456,2,3",
         ] {
-            assert_eq!(fast_line(line.as_bytes()), None, "{line}");
+            assert_eq!(fast_line(line.as_bytes(), 3), None, "{line}");
         }
     }
 
     #[test]
     fn a_line_needs_a_time_and_three_readings() {
-        let ok = parse_line(&[b"0.01", b"9.8e+00", b"-0.1", b"nan"], XYZ).expect("parses");
+        let ok = parse_line(&[b"0.01", b"9.8e+00", b"-0.1", b"nan"], XYZ, 3).expect("parses");
         assert_eq!(ok, (10_000_000, [Some(9.8), Some(-0.1), None], 1));
         assert_eq!(
-            parse_line(&[b"0.01", b"1", b"2"], XYZ)
+            parse_line(&[b"0.01", b"1", b"2"], XYZ, 3)
                 .expect_err("3 fields")
                 .0,
             "line"
         );
         assert_eq!(
-            parse_line(&[b"0.01", b"1", b"x", b"2"], XYZ)
+            parse_line(&[b"0.01", b"1", b"x", b"2"], XYZ, 3)
                 .expect_err("x")
                 .0,
             "y"

@@ -173,6 +173,7 @@ pub(crate) fn read_acquisition(
                 range_ns: s.gps_range_ns(),
                 skip_bad_lines: opts.skip_bad_lines,
                 reading_limits: labstream::reading_limits(&ds.manifest.instrument),
+                columns: s.columns.adc,
             };
             let interval = file.read(stream, "adc_csv", "lines", |ledger, pb| {
                 labstream::read_lab(stream, config, &mut out.lab, ledger, pb)
@@ -180,6 +181,7 @@ pub(crate) fn read_acquisition(
             if let Some(path) = temperature {
                 let config = labstream::LabConfig {
                     zero_gps_ns: *temperature_zero_gps_ns,
+                    columns: s.columns.temperature,
                     ..config
                 };
                 file.read(path, "temperature_csv", "lines", |ledger, pb| {
@@ -330,8 +332,14 @@ pub(crate) fn ingest_session(
         readings,
         first_gps_ns: st.first_gps_ns,
         last_gps_ns: st.last_gps_ns,
+        // A lab stream's channel without a column (adc_columns) is never connected, as a
+        // counts log's whose status says so in every sample.
         channels_never_connected: (0..3u8)
-            .filter(|&ch| st.acceleration > 0 && !st.connected_seen[usize::from(ch)])
+            .filter(|&ch| {
+                let ch = usize::from(ch);
+                (st.acceleration > 0 && !st.connected_seen[ch])
+                    || (lab_samples > 0 && s.columns.adc.column_of[ch].is_none())
+            })
             .map(|ch| ch + 1)
             .collect(),
         measured_sample_rate_hz: interval_ns.filter(|&i| i > 0).map(|i| 1e9 / i as f64),

@@ -408,8 +408,8 @@ pub struct Session {
     /// How the attitude file writes its times.
     #[serde(default)]
     pub attitude_time: Option<TimeForm>,
-    /// The instrument channels (1..=3) the counts CSV's value columns hold, in their order
-    /// (docs/formats.md 9.4); default `[1, 2, 3]`.
+    /// The instrument channels (1..=3) the counts CSV's or lab stream's value columns hold,
+    /// in their order (docs/formats.md 9.4); default `[1, 2, 3]`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub adc_columns: Option<Vec<u8>>,
     /// The session's thermometers: one per accelerometer (default), one for all, or none.
@@ -1219,22 +1219,22 @@ fn resolve_session(
 }
 
 /// The channels of session `i`'s value columns (docs/formats.md 9.4): `adc_columns` for the
-/// counts CSV, and the temperature log's after `thermometers`. The binary log and the lab
-/// stream hold three channels a record.
+/// counts CSV or lab stream, and the temperature log's after `thermometers`. The binary log
+/// holds three channels a frame.
 fn log_columns(
     i: usize,
     s: &Session,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<LogColumns> {
     let key = |k: &str| format!("session[{i}].{k}");
-    let counts_csv = s.acquisition.is_none() && s.adc_format == AdcFormat::Gps;
+    let text_logs = s.acquisition.is_none();
     let channels = match &s.adc_columns {
         None => vec![1, 2, 3],
-        Some(_) if !counts_csv => {
+        Some(_) if !text_logs => {
             return Err(err(
                 key("adc_columns"),
-                "describes a counts CSV (`adc_csv` in counts): the binary log and a lab \
-                 stream hold three channels a record"
+                "describes `adc_csv` (a counts CSV or a lab stream): the binary log holds \
+                 three channels a frame"
                     .to_owned(),
             ));
         }
@@ -1276,14 +1276,6 @@ fn log_columns(
         return Err(err(
             key("temperature_csv"),
             "given, and thermometers = \"none\": give one of them".into(),
-        ));
-    }
-    if s.thermometers == Thermometers::One && !counts_csv {
-        return Err(err(
-            key("thermometers"),
-            "\"one\" describes the temperature CSV of a counts CSV: the binary log and a \
-             lab stream's temperature log hold a temperature per channel"
-                .to_owned(),
         ));
     }
     let temperature = match s.thermometers {
