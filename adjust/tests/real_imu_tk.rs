@@ -174,7 +174,8 @@ id = "lab"
 date = "2017-10-25"
 kind = "multi-position"
 adc_format = "seconds"
-adc_csv = "raw/acc.txt"
+adc_csv = "raw/7251imu.txt"
+adc_columns = [0, 0, 0, 1, 2, 3]   # time, the gyroscope's three, the accelerometer's three
 start = "2017-10-25T00:00:00"
 
 [[adjust.model]]
@@ -195,11 +196,8 @@ fn the_positions_imu_tk_finds_are_used() {
     let dir = tempfile::tempdir().expect("tempdir");
     let dataset = dir.path().join("imu-tk-7251");
     std::fs::create_dir_all(dataset.join("raw")).expect("raw");
-    let stream: String = s
-        .iter()
-        .map(|(t, a)| format!("{t:.6} {} {} {}\n", a[0], a[1], a[2]))
-        .collect();
-    std::fs::write(dataset.join("raw/acc.txt"), stream).expect("stream");
+    // The recording as published, its gyroscope's columns skipped (adc_columns).
+    std::fs::copy(fixture("7251imu.txt"), dataset.join("raw/7251imu.txt")).expect("copy");
     std::fs::write(dataset.join("dataset.toml"), MANIFEST).expect("manifest");
     let out = dir.path().join("out");
     ingest::run(&dataset, &out).expect("ingest");

@@ -7,7 +7,7 @@
 //! as over range (saturated).
 
 use crate::contract::ingest_ledger::{FileLedger, reason};
-use crate::contract::manifest::ValueColumns;
+use crate::contract::manifest::{MAX_VALUE_COLUMNS, ValueColumns};
 use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::error::{Error, Result};
 use crate::lines::{digits, read_lines, strip_comment, text};
@@ -45,10 +45,19 @@ impl CsvKind {
         }
     }
 
+    /// The name of value column `k` of `columns`: its first channel's, or `skipped`.
+    fn column_name(self, columns: &ValueColumns, k: usize) -> &'static str {
+        if columns.feeds(k) == 0 {
+            "skipped"
+        } else {
+            self.value_name(columns.channel_of(k))
+        }
+    }
+
     /// The names of the value columns of `columns`.
     fn value_names(self, columns: &ValueColumns) -> Vec<&'static str> {
         (0..columns.width)
-            .map(|k| self.value_name(columns.channel_of(k)))
+            .map(|k| self.column_name(columns, k))
             .collect()
     }
 
@@ -163,9 +172,15 @@ fn parse_adc_fast(line: &[u8], columns: &ValueColumns) -> Option<Row> {
 fn counts_fast(line: &[u8], mut p: usize, columns: &ValueColumns) -> Option<([i32; 3], u8)> {
     let n = line.len();
     let mut values = [None; 3];
-    for value in values.iter_mut().take(columns.width) {
+    for k in 0..columns.width {
         (line.get(p) == Some(&b',')).then_some(())?;
         p += 1;
+        let feeds = columns.feeds(k);
+        if feeds == 0 {
+            // A column no channel reads: skipped to the next comma.
+            p += line[p..].iter().position(|&c| c == b',').unwrap_or(n - p);
+            continue;
+        }
         if p == n || line[p] == b',' {
             continue;
         }
@@ -178,20 +193,29 @@ fn counts_fast(line: &[u8], mut p: usize, columns: &ValueColumns) -> Option<([i3
         if !(COUNT_MIN..=COUNT_MAX).contains(&v) {
             return None;
         }
-        *value = Some(v as i32);
+        place(&mut values, feeds, v as i32);
     }
-    (p == n).then(|| counts_on_channels(values, columns))
+    (p == n).then(|| counts_on_channels(values))
 }
 
-/// The counts of the value columns `values` on their channels, and their status: a channel
-/// without a column or whose field is empty not connected, a count at either end of the
-/// 24-bit range over range.
+/// `v` on every channel of `feeds` (bit `ch` for channel `ch`).
 #[inline]
-fn counts_on_channels(values: [Option<i32>; 3], columns: &ValueColumns) -> ([i32; 3], u8) {
+fn place<T: Copy>(values: &mut [Option<T>; 3], feeds: u8, v: T) {
+    for (ch, value) in values.iter_mut().enumerate() {
+        if feeds >> ch & 1 == 1 {
+            *value = Some(v);
+        }
+    }
+}
+
+/// The counts on their channels, and their status: a channel without a value (no column,
+/// or an empty field) not connected, a count at either end of the 24-bit range over range.
+#[inline]
+fn counts_on_channels(values: [Option<i32>; 3]) -> ([i32; 3], u8) {
     let mut counts = [0i32; 3];
     let mut status = 0u8;
     for ch in 0..3 {
-        match columns.column_of[ch].and_then(|k| values[k]) {
+        match values[ch] {
             None => status |= not_connected_bit(ch),
             Some(v) => {
                 if i64::from(v) == COUNT_MIN || i64::from(v) == COUNT_MAX {
@@ -229,7 +253,7 @@ fn parse_row(kind: CsvKind, line: &[u8], columns: &ValueColumns) -> Result<Row, 
 
 fn parse_row_general(kind: CsvKind, line: &[u8], columns: &ValueColumns) -> Result<Row, Bad> {
     let expected = 2 + columns.width;
-    let mut fields = [&line[..0]; 5];
+    let mut fields = [&line[..0]; 2 + MAX_VALUE_COLUMNS];
     let mut n = 0;
     for f in line.split(|&c| c == b',') {
         if n == expected {
@@ -283,21 +307,27 @@ fn row_of(
     fields: &[&[u8]],
     columns: &ValueColumns,
 ) -> Result<Row, Bad> {
-    let fields = &fields[..columns.width];
-    let name = |k: usize| kind.value_name(columns.channel_of(k));
+    // The fields a channel reads (a skipped column is not read), with the channels each
+    // feeds.
+    let read = fields[..columns.width]
+        .iter()
+        .enumerate()
+        .map(|(k, f)| (k, columns.feeds(k), f))
+        .filter(|(_, feeds, f)| *feeds != 0 && !f.is_empty());
+    let name = |k: usize| kind.column_name(columns, k);
     match kind {
         CsvKind::Adc => {
             let mut values = [None; 3];
-            for (k, f) in fields.iter().enumerate().filter(|(_, f)| !f.is_empty()) {
+            for (k, feeds, f) in read {
                 let v = parse_int(f).ok_or_else(|| {
                     bad(name(k), format!("`{}` is not an integer count", text(f)))
                 })?;
                 if !(COUNT_MIN..=COUNT_MAX).contains(&v) {
                     return Err(bad(name(k), format!("{v} is outside the 24-bit range")));
                 }
-                values[k] = Some(v as i32);
+                place(&mut values, feeds, v as i32);
             }
-            let (counts, status) = counts_on_channels(values, columns);
+            let (counts, status) = counts_on_channels(values);
             Ok(Row::Adc {
                 time_ns,
                 counts,
@@ -305,8 +335,8 @@ fn row_of(
             })
         }
         CsvKind::Temperature => {
-            let mut values = [None; 3];
-            for (k, f) in fields.iter().enumerate().filter(|(_, f)| !f.is_empty()) {
+            let mut celsius = [None; 3];
+            for (k, feeds, f) in read {
                 let v: f64 = std::str::from_utf8(f)
                     .ok()
                     .and_then(|s| s.parse().ok())
@@ -317,16 +347,14 @@ fn row_of(
                             format!("`{}` is not a temperature in degC", text(f)),
                         )
                     })?;
-                values[k] = Some(v);
+                place(&mut celsius, feeds, v);
             }
             let mut status = 0u8;
-            let celsius = std::array::from_fn(|ch| {
-                let v = columns.column_of[ch].and_then(|k| values[k]);
+            for (ch, v) in celsius.iter().enumerate() {
                 if v.is_none() {
                     status |= not_connected_bit(ch);
                 }
-                v
-            });
+            }
             Ok(Row::Temperature {
                 time_ns,
                 celsius,
@@ -344,8 +372,8 @@ fn parse_row_timed(
     time: &mut TimeReader,
     columns: &ValueColumns,
 ) -> Result<Row, Bad> {
-    // Up to five fields without allocating (a fifth only to say there are too many).
-    let mut buf: [&[u8]; 5] = [&[]; 5];
+    // The fields without allocating (one more only to say there are too many).
+    let mut buf: [&[u8]; 2 + MAX_VALUE_COLUMNS] = [&[]; 2 + MAX_VALUE_COLUMNS];
     let mut count = 0;
     for f in line.split(|&c| c == b',') {
         if count < buf.len() {
@@ -514,7 +542,12 @@ impl CsvLines<'_> {
         }
         let names = self.kind.header(&self.columns);
         let got: Vec<&[u8]> = fields().collect();
-        if got.len() != names.len() || got.iter().zip(&names).any(|(g, n)| *g != n.as_bytes()) {
+        // A skipped column's name is the logger's own.
+        let differs = got
+            .iter()
+            .zip(&names)
+            .any(|(g, n)| *n != "skipped" && *g != n.as_bytes());
+        if got.len() != names.len() || differs {
             let message = format!("`{}`, expected `{}`", text(line), names.join(","));
             return Err(self.error(line_no, "header", message));
         }
@@ -804,6 +837,28 @@ mod tests {
         assert_eq!(
             CsvKind::Temperature.header(&one),
             ["gps_week", "tow_s", "t1"]
+        );
+        // A column no channel reads is skipped unread, whatever it holds.
+        let skipping = ValueColumns {
+            width: 4,
+            column_of: [Some(2), None, Some(0)],
+        };
+        let line = b"1308,295200.032,5,0.25,7,x";
+        for row in [
+            parse_adc_fast(line, &skipping),
+            parse_row_general(CsvKind::Adc, line, &skipping).ok(),
+        ] {
+            match row {
+                Some(Row::Adc { counts, status, .. }) => {
+                    assert_eq!(counts, [7, 0, 5]);
+                    assert_eq!(status, not_connected_bit(1));
+                }
+                _ => panic!("skipped columns pass"),
+            }
+        }
+        assert_eq!(
+            CsvKind::Adc.header(&skipping),
+            ["gps_week", "tow_s", "c3", "skipped", "c1", "skipped"]
         );
     }
 }

@@ -18,7 +18,7 @@
 //! significant digits, more than an f64 holds); only scientific notation goes through f64.
 
 use crate::contract::ingest_ledger::{FileLedger, LabStreamReport, reason};
-use crate::contract::manifest::ValueColumns;
+use crate::contract::manifest::{MAX_VALUE_COLUMNS, ValueColumns};
 use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
@@ -328,7 +328,7 @@ fn fast_decimal(field: &[u8]) -> Option<(f64, bool)> {
 /// the same line, bit for bit (the readings are Clinger's exact case of `str::parse`);
 /// None sends the line there, which also says what is wrong with it.
 #[inline]
-fn fast_line(line: &[u8], width: usize) -> Option<(i64, [f64; 3], usize)> {
+fn fast_line(line: &[u8], columns: &ValueColumns) -> Option<(i64, [f64; 3], usize)> {
     let mut p = 0;
     let mut ns = digits(line, &mut p, 10)?.checked_mul(1_000_000_000)?;
     if line.get(p) == Some(&b'.') {
@@ -339,11 +339,20 @@ fn fast_line(line: &[u8], width: usize) -> Option<(i64, [f64; 3], usize)> {
     }
     let time_end = p;
     let mut values = [0.0; 3];
-    for value in values.iter_mut().take(width) {
+    for k in 0..columns.width {
         if !matches!(line.get(p), Some(b',' | b' ' | b'\t')) {
             return None;
         }
         p += 1;
+        let feeds = columns.feeds(k);
+        if feeds == 0 {
+            // A column no channel reads: skipped to the next separator.
+            p += line[p..]
+                .iter()
+                .position(|c| matches!(c, b',' | b' ' | b'\t'))
+                .unwrap_or(line.len() - p);
+            continue;
+        }
         let negative = line.get(p) == Some(&b'-');
         p += usize::from(negative);
         let start = p;
@@ -362,7 +371,12 @@ fn fast_line(line: &[u8], width: usize) -> Option<(i64, [f64; 3], usize)> {
         } else {
             mantissa as f64 / EXACT_POWERS[decimals]
         };
-        *value = if negative { -v } else { v };
+        let v = if negative { -v } else { v };
+        for (ch, value) in values.iter_mut().enumerate() {
+            if feeds >> ch & 1 == 1 {
+                *value = v;
+            }
+        }
     }
     (p == line.len()).then_some((ns, values, time_end))
 }
@@ -372,21 +386,28 @@ fn fast_line(line: &[u8], width: usize) -> Option<(i64, [f64; 3], usize)> {
 fn parse_line(
     fields: &[&[u8]],
     names: [&'static str; 4],
-    width: usize,
+    columns: &ValueColumns,
 ) -> std::result::Result<(i64, [Option<f64>; 3], u64), Bad> {
-    let expected = 1 + width;
+    let expected = 1 + columns.width;
+    let name = |k: usize| {
+        if columns.feeds(k) == 0 {
+            "skipped"
+        } else {
+            names[1 + columns.channel_of(k)]
+        }
+    };
     if fields.len() != expected {
         let n = if fields.len() > expected {
             format!("more than {expected}")
         } else {
             fields.len().to_string()
         };
+        let all: Vec<&str> = std::iter::once(names[0])
+            .chain((0..columns.width).map(name))
+            .collect();
         return Err((
             "line",
-            format!(
-                "{n} fields, expected {expected} ({})",
-                names[..expected].join(" ")
-            ),
+            format!("{n} fields, expected {expected} ({})", all.join(" ")),
         ));
     }
     let time = parse_seconds_ns(fields[0]).ok_or_else(|| {
@@ -397,9 +418,9 @@ fn parse_line(
     })?;
     let mut values = [None; 3];
     let mut scientific = 0;
-    for k in 0..width {
+    for k in (0..columns.width).filter(|&k| columns.feeds(k) != 0) {
         let raw = fields[k + 1];
-        let bad = |what: &str| (names[k + 1], format!("`{}` is {what}", text(raw)));
+        let bad = |what: &str| (name(k), format!("`{}` is {what}", text(raw)));
         let (v, exponent) = match fast_decimal(raw) {
             Some(v) => v,
             None => (
@@ -417,7 +438,12 @@ fn parse_line(
             return Err(bad("not finite"));
         }
         scientific += u64::from(exponent);
-        values[k] = Some(v);
+        let feeds = columns.feeds(k);
+        for (ch, value) in values.iter_mut().enumerate() {
+            if feeds >> ch & 1 == 1 {
+                *value = Some(v);
+            }
+        }
     }
     Ok((time, values, scientific))
 }
@@ -648,8 +674,6 @@ struct Lines<'c> {
     path: &'c Path,
     /// Field names in error messages: the time, then the three channels.
     names: [&'static str; 4],
-    /// The time's, then the value columns' (each its first channel's).
-    column_names: [&'static str; 4],
     /// Which channels the value columns hold.
     columns: ValueColumns,
     zero_gps_ns: i64,
@@ -718,10 +742,6 @@ impl<'c> Lines<'c> {
             limits,
             path,
             names,
-            column_names: std::array::from_fn(|i| match i {
-                0 => names[0],
-                _ => names[1 + columns.channel_of(i - 1)],
-            }),
             columns,
             zero_gps_ns: config.zero_gps_ns,
             range_ns: config.range_ns,
@@ -744,12 +764,13 @@ impl<'c> Lines<'c> {
         ledger: &mut FileLedger,
     ) -> Result<Option<DataLine<'l>>> {
         if self.data_seen
-            && let Some((rel, values, time_end)) = fast_line(raw, self.columns.width)
+            && let Some((rel, values, time_end)) = fast_line(raw, &self.columns)
         {
             let readings = if self.columns == ValueColumns::EVERY_CHANNEL {
                 Readings::all(values)
             } else {
-                Readings::from_options(self.on_channels(values.map(Some)))
+                let column_of = self.columns.column_of;
+                Readings::from_options(std::array::from_fn(|ch| column_of[ch].map(|_| values[ch])))
             };
             return Ok(self.judge(line_no, rel, readings, &raw[..time_end], ledger));
         }
@@ -761,8 +782,8 @@ impl<'c> Lines<'c> {
         if !self.data_seen {
             self.comma_separated = line.contains(&b',');
         }
-        // Up to five fields without allocating (a fifth only to say there are too many).
-        let mut buf: [&[u8]; 5] = [&[]; 5];
+        // The fields without allocating (one more only to say there are too many).
+        let mut buf: [&[u8]; 2 + MAX_VALUE_COLUMNS] = [&[]; 2 + MAX_VALUE_COLUMNS];
         let mut count = 0;
         for f in line
             .split(|&c| c == b',' || c.is_ascii_whitespace())
@@ -785,35 +806,28 @@ impl<'c> Lines<'c> {
             return Ok(None);
         }
         self.data_seen = true;
-        let (rel, values, scientific) =
-            match parse_line(fields, self.column_names, self.columns.width) {
-                Ok(x) => x,
-                Err((field, message)) if self.skip_bad_lines => {
-                    ledger.reject(
-                        format!("line {line_no}"),
-                        reason::MALFORMED,
-                        format!("{field}: {message}"),
-                    );
-                    return Ok(None);
-                }
-                Err((field, message)) => {
-                    return Err(Error::Line {
-                        path: self.path.to_path_buf(),
-                        line: line_no,
-                        field: field.to_owned(),
-                        message,
-                    });
-                }
-            };
+        let (rel, values, scientific) = match parse_line(fields, self.names, &self.columns) {
+            Ok(x) => x,
+            Err((field, message)) if self.skip_bad_lines => {
+                ledger.reject(
+                    format!("line {line_no}"),
+                    reason::MALFORMED,
+                    format!("{field}: {message}"),
+                );
+                return Ok(None);
+            }
+            Err((field, message)) => {
+                return Err(Error::Line {
+                    path: self.path.to_path_buf(),
+                    line: line_no,
+                    field: field.to_owned(),
+                    message,
+                });
+            }
+        };
         self.scientific += scientific;
-        let readings = Readings::from_options(self.on_channels(values));
+        let readings = Readings::from_options(values);
         Ok(self.judge(line_no, rel, readings, fields[0], ledger))
-    }
-
-    /// The value columns' readings on their channels (None where a channel has no column).
-    #[inline]
-    fn on_channels(&self, by_column: [Option<f64>; 3]) -> [Option<f64>; 3] {
-        self.columns.column_of.map(|k| k.and_then(|k| by_column[k]))
     }
 
     /// Rejects a line for its first reading outside the limits; whether there was one.
@@ -1142,7 +1156,9 @@ mod tests {
                 .split(|&c| c == b',' || c.is_ascii_whitespace())
                 .filter(|f| !f.is_empty())
                 .collect();
-            parse_line(&fields, XYZ, 3).ok().map(|(t, v, _)| (t, v))
+            parse_line(&fields, XYZ, &ValueColumns::EVERY_CHANNEL)
+                .ok()
+                .map(|(t, v, _)| (t, v))
         };
         let mut next = lcg(11);
         let mut lines: Vec<String> = Vec::new();
@@ -1170,10 +1186,15 @@ mod tests {
         for line in &lines {
             let Some(want) = general(line.as_bytes()) else {
                 // A time beyond an i64 of ns.
-                assert_eq!(fast_line(line.as_bytes(), 3), None, "{line}");
+                assert_eq!(
+                    fast_line(line.as_bytes(), &ValueColumns::EVERY_CHANNEL),
+                    None,
+                    "{line}"
+                );
                 continue;
             };
-            if let Some((t, values, end)) = fast_line(line.as_bytes(), 3) {
+            if let Some((t, values, end)) = fast_line(line.as_bytes(), &ValueColumns::EVERY_CHANNEL)
+            {
                 taken += 1;
                 assert_eq!(t, want.0, "{line}");
                 let bits = |v: [Option<f64>; 3]| v.map(|x| x.map(f64::to_bits));
@@ -1189,7 +1210,10 @@ mod tests {
             "1672887159.123456 9.80665 -0.001 0.5",
             "12\t-0\t0.0\t-7.25",
         ] {
-            assert!(fast_line(line.as_bytes(), 3).is_some(), "{line}");
+            assert!(
+                fast_line(line.as_bytes(), &ValueColumns::EVERY_CHANNEL).is_some(),
+                "{line}"
+            );
         }
         for line in [
             "t,x,y,z",
@@ -1213,24 +1237,37 @@ mod tests {
             "0.004,1234567890123456,2,3",
             "0.004,123456789.0123456,2,3",
         ] {
-            assert_eq!(fast_line(line.as_bytes(), 3), None, "{line}");
+            assert_eq!(
+                fast_line(line.as_bytes(), &ValueColumns::EVERY_CHANNEL),
+                None,
+                "{line}"
+            );
         }
     }
 
     #[test]
     fn a_line_needs_a_time_and_three_readings() {
-        let ok = parse_line(&[b"0.01", b"9.8e+00", b"-0.1", b"nan"], XYZ, 3).expect("parses");
+        let ok = parse_line(
+            &[b"0.01", b"9.8e+00", b"-0.1", b"nan"],
+            XYZ,
+            &ValueColumns::EVERY_CHANNEL,
+        )
+        .expect("parses");
         assert_eq!(ok, (10_000_000, [Some(9.8), Some(-0.1), None], 1));
         assert_eq!(
-            parse_line(&[b"0.01", b"1", b"2"], XYZ, 3)
+            parse_line(&[b"0.01", b"1", b"2"], XYZ, &ValueColumns::EVERY_CHANNEL)
                 .expect_err("3 fields")
                 .0,
             "line"
         );
         assert_eq!(
-            parse_line(&[b"0.01", b"1", b"x", b"2"], XYZ, 3)
-                .expect_err("x")
-                .0,
+            parse_line(
+                &[b"0.01", b"1", b"x", b"2"],
+                XYZ,
+                &ValueColumns::EVERY_CHANNEL
+            )
+            .expect_err("x")
+            .0,
             "y"
         );
     }

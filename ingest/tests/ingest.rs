@@ -398,7 +398,12 @@ fn value_columns_and_thermometers_are_checked_by_key() {
             "channel 4",
         ),
         ("adc_columns = [2, 2]", "session[0].adc_columns", "twice"),
-        ("adc_columns = []", "session[0].adc_columns", "0 channels"),
+        ("adc_columns = []", "session[0].adc_columns", "0 columns"),
+        (
+            "adc_columns = [0, 0]",
+            "session[0].adc_columns",
+            "0 of them a channel's",
+        ),
         (
             "thermometers = \"none\"",
             "session[0].temperature_csv",

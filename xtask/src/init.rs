@@ -779,8 +779,8 @@ fn column_keys(t: &mut String, counts: &Found, temperature: Option<&Found>) {
         _ => {
             let _ = writeln!(
                 t,
-                "adc_columns = {FILL}          # {}'s {n} count columns: gravcal reads 1 to 3 \
-                 channels; list the instrument channels they hold, e.g. [1, 2, 3]",
+                "adc_columns = {FILL}          # {}'s {n} count columns: list the channel (1 to \
+                 3) each holds, 0 for a column to skip, e.g. [1, 2, 3, 0]",
                 counts.rel
             );
         }

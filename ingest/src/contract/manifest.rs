@@ -409,7 +409,7 @@ pub struct Session {
     #[serde(default)]
     pub attitude_time: Option<TimeForm>,
     /// The instrument channels (1..=3) the counts CSV's or lab stream's value columns hold,
-    /// in their order (docs/formats.md 9.4); default `[1, 2, 3]`.
+    /// in their order, 0 for a column to skip (docs/formats.md 9.4); default `[1, 2, 3]`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub adc_columns: Option<Vec<u8>>,
     /// The session's thermometers: one per accelerometer (default), one for all, or none.
@@ -452,10 +452,11 @@ impl Thermometers {
 /// Which instrument channels a text log's value columns hold: `width` columns after the
 /// time, and for each channel the column it is read from (None: the log has none for it,
 /// and the channel is stored as not connected). One column may feed several channels (one
-/// thermometer for all).
+/// thermometer for all); a column that feeds none is skipped unread (a gyro's, a
+/// counter's).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ValueColumns {
-    /// Value columns after the time, 1..=3.
+    /// Value columns after the time, 1..=[`MAX_VALUE_COLUMNS`].
     pub width: usize,
     /// Channel `ch` (0-based) is read from column `column_of[ch]`.
     pub column_of: [Option<usize>; 3],
@@ -468,14 +469,31 @@ impl ValueColumns {
         column_of: [Some(0), Some(1), Some(2)],
     };
 
-    /// The channel (0-based) column `k` is named after: the first it feeds.
+    /// The channel (0-based) column `k` is named after: the first it feeds (the last
+    /// channel for a column that feeds none, which no value of is read).
     pub fn channel_of(&self, k: usize) -> usize {
         self.column_of
             .iter()
             .position(|c| *c == Some(k))
-            .unwrap_or(k)
+            .unwrap_or(2)
+    }
+
+    /// The channels column `k` feeds, bit `ch` for channel `ch` (0-based); 0 for a column
+    /// skipped.
+    #[inline]
+    pub fn feeds(&self, k: usize) -> u8 {
+        let mut bits = 0;
+        for (ch, c) in self.column_of.iter().enumerate() {
+            if *c == Some(k) {
+                bits |= 1 << ch;
+            }
+        }
+        bits
     }
 }
+
+/// The most value columns a text log may have after its time (channels and skipped ones).
+pub const MAX_VALUE_COLUMNS: usize = 16;
 
 /// How a session's counts and temperature logs lay out their channels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -1240,18 +1258,23 @@ fn log_columns(
         }
         Some(c) => c.clone(),
     };
-    if channels.is_empty() || channels.len() > 3 {
+    if channels.len() > MAX_VALUE_COLUMNS || channels.iter().all(|&c| c == 0) {
         return Err(err(
             key("adc_columns"),
-            format!("{} channels: give 1 to 3", channels.len()),
+            format!(
+                "{} columns, {} of them a channel's: give 1 to {MAX_VALUE_COLUMNS} columns, \
+                 1 to 3 of them channels",
+                channels.len(),
+                channels.iter().filter(|&&c| c != 0).count()
+            ),
         ));
     }
     let mut column_of = [None; 3];
-    for (k, &c) in channels.iter().enumerate() {
+    for (k, &c) in channels.iter().enumerate().filter(|(_, c)| **c != 0) {
         if !(1..=3).contains(&c) {
             return Err(err(
                 key("adc_columns"),
-                format!("channel {c} is out of range [1, 3]"),
+                format!("channel {c} is out of range [1, 3] (0 skips a column)"),
             ));
         }
         if column_of[usize::from(c) - 1].replace(k).is_some() {
@@ -1283,7 +1306,18 @@ fn log_columns(
             width: 1,
             column_of: column_of.map(|c| c.map(|_| 0)),
         },
-        Thermometers::Each | Thermometers::None => adc,
+        // A thermometer per channel, in the channels' order, no column skipped.
+        Thermometers::Each | Thermometers::None => {
+            let listed: Vec<u8> = channels.iter().copied().filter(|&c| c != 0).collect();
+            let mut column_of = [None; 3];
+            for (k, &c) in listed.iter().enumerate() {
+                column_of[usize::from(c) - 1] = Some(k);
+            }
+            ValueColumns {
+                width: listed.len(),
+                column_of,
+            }
+        }
     };
     Ok(LogColumns { adc, temperature })
 }
