@@ -456,6 +456,59 @@ fn value_columns_and_thermometers_are_checked_by_key() {
     );
 }
 
+/// A temperature log of more columns than thermometers at the accelerometers (docs/formats.md
+/// 9.4): esgt-2005-csv's day 1 log with a box thermometer's column first, declared
+/// `temperature_columns = [0, 1, 2, 3]`, gives the same temperature table as the log
+/// without it; a channel given twice is refused by key.
+#[test]
+fn a_temperature_log_maps_its_columns() {
+    let plain = copy_dataset("esgt-2005-csv");
+    let boxed = copy_dataset("esgt-2005-csv");
+    let log = boxed.path().join("raw/day1_temp.csv");
+    let text = std::fs::read_to_string(&log).expect("log");
+    let with_box: Vec<String> = text
+        .lines()
+        .map(|l| {
+            match l
+                .split_once(',')
+                .and_then(|(w, rest)| Some((w, rest.split_once(',')?)))
+            {
+                _ if l.starts_with('#') => l.to_owned(),
+                Some((w, (tow, rest))) => {
+                    let first = if w == "gps_week" { "box" } else { "21.5" };
+                    format!("{w},{tow},{first},{rest}")
+                }
+                None => l.to_owned(),
+            }
+        })
+        .collect();
+    std::fs::write(&log, with_box.join("\n") + "\n").expect("write");
+    let manifest = boxed.path().join("dataset.toml");
+    let m = std::fs::read_to_string(&manifest).expect("manifest");
+    let at = "temperature_csv = \"raw/day1_temp.csv\"";
+    let mapped = format!("{at}\ntemperature_columns = [0, 1, 2, 3]");
+    std::fs::write(&manifest, m.replacen(at, &mapped, 1)).expect("write");
+    let table = |ds: &std::path::Path| {
+        let out = tempfile::tempdir().expect("tempdir");
+        ingest::run(ds, out.path()).expect("ingest");
+        std::fs::read(out.path().join("ingest/temperature.parquet")).expect("table")
+    };
+    assert!(
+        table(plain.path()) == table(boxed.path()),
+        "the same temperatures"
+    );
+    let twice = format!("{at}\ntemperature_columns = [0, 1, 1, 3]");
+    std::fs::write(&manifest, m.replacen(at, &twice, 1)).expect("write");
+    let out = tempfile::tempdir().expect("tempdir");
+    let e = ingest::run(boxed.path(), out.path())
+        .expect_err("twice")
+        .to_string();
+    assert!(
+        e.contains("session[0].temperature_columns") && e.contains("twice"),
+        "{e}"
+    );
+}
+
 /// A lab stream's temperature log may count its seconds otherwise than the stream (9.1):
 /// the drive's log rewritten in seconds since a `start` gives the same temperature table
 /// as in Unix seconds; a calendar time there is refused by key.

@@ -415,6 +415,11 @@ pub struct Session {
     /// The session's thermometers: one per accelerometer (default), one for all, or none.
     #[serde(default, skip_serializing_if = "Thermometers::is_each")]
     pub thermometers: Thermometers,
+    /// With a thermometer each: the channel (1..=3) of each of the temperature log's value
+    /// columns, 0 for a column to skip (docs/formats.md 9.4); default the channels of
+    /// `adc_columns`, in order.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature_columns: Option<Vec<u8>>,
 }
 
 /// A session's thermometers (docs/formats.md 9.4).
@@ -1258,36 +1263,8 @@ fn log_columns(
         }
         Some(c) => c.clone(),
     };
-    if channels.len() > MAX_VALUE_COLUMNS || channels.iter().all(|&c| c == 0) {
-        return Err(err(
-            key("adc_columns"),
-            format!(
-                "{} columns, {} of them a channel's: give 1 to {MAX_VALUE_COLUMNS} columns, \
-                 1 to 3 of them channels",
-                channels.len(),
-                channels.iter().filter(|&&c| c != 0).count()
-            ),
-        ));
-    }
-    let mut column_of = [None; 3];
-    for (k, &c) in channels.iter().enumerate().filter(|(_, c)| **c != 0) {
-        if !(1..=3).contains(&c) {
-            return Err(err(
-                key("adc_columns"),
-                format!("channel {c} is out of range [1, 3] (0 skips a column)"),
-            ));
-        }
-        if column_of[usize::from(c) - 1].replace(k).is_some() {
-            return Err(err(
-                key("adc_columns"),
-                format!("channel {c} is given twice"),
-            ));
-        }
-    }
-    let adc = ValueColumns {
-        width: channels.len(),
-        column_of,
-    };
+    let adc = value_columns(&channels).map_err(|m| err(key("adc_columns"), m))?;
+    let column_of = adc.column_of;
     if s.acquisition.is_some() && !s.thermometers.is_each() {
         return Err(err(
             key("thermometers"),
@@ -1306,20 +1283,53 @@ fn log_columns(
             width: 1,
             column_of: column_of.map(|c| c.map(|_| 0)),
         },
-        // A thermometer per channel, in the channels' order, no column skipped.
+        // A thermometer per channel: as declared, or in the channels' order, no column
+        // skipped.
         Thermometers::Each | Thermometers::None => {
-            let listed: Vec<u8> = channels.iter().copied().filter(|&c| c != 0).collect();
-            let mut column_of = [None; 3];
-            for (k, &c) in listed.iter().enumerate() {
-                column_of[usize::from(c) - 1] = Some(k);
-            }
-            ValueColumns {
-                width: listed.len(),
-                column_of,
-            }
+            let listed: Vec<u8> = match &s.temperature_columns {
+                Some(t) => t.clone(),
+                None => channels.iter().copied().filter(|&c| c != 0).collect(),
+            };
+            value_columns(&listed).map_err(|m| err(key("temperature_columns"), m))?
         }
     };
+    if s.temperature_columns.is_some() && !(text_logs && s.thermometers.is_each()) {
+        return Err(err(
+            key("temperature_columns"),
+            "maps a temperature log of a thermometer each (thermometers = \"each\") beside \
+             `adc_csv`"
+                .to_owned(),
+        ));
+    }
     Ok(LogColumns { adc, temperature })
+}
+
+/// The value columns a list of channels gives (each 1 to 3 once, or 0 for a column to
+/// skip), or what is wrong with it.
+fn value_columns(channels: &[u8]) -> std::result::Result<ValueColumns, String> {
+    if channels.len() > MAX_VALUE_COLUMNS || channels.iter().all(|&c| c == 0) {
+        return Err(format!(
+            "{} columns, {} of them a channel's: give 1 to {MAX_VALUE_COLUMNS} columns, 1 to 3 \
+             of them channels",
+            channels.len(),
+            channels.iter().filter(|&&c| c != 0).count()
+        ));
+    }
+    let mut column_of = [None; 3];
+    for (k, &c) in channels.iter().enumerate().filter(|(_, c)| **c != 0) {
+        if !(1..=3).contains(&c) {
+            return Err(format!(
+                "channel {c} is out of range [1, 3] (0 skips a column)"
+            ));
+        }
+        if column_of[usize::from(c) - 1].replace(k).is_some() {
+            return Err(format!("channel {c} is given twice"));
+        }
+    }
+    Ok(ValueColumns {
+        width: channels.len(),
+        column_of,
+    })
 }
 
 /// Session `i`'s acquisition in counts: the binary log, or the CSV pair.
