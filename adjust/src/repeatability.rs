@@ -101,8 +101,8 @@ pub fn homogeneity(estimates: &[Estimate]) -> Option<Homogeneity> {
     })
 }
 
-/// The test for every model fitted per session and accelerometer with two or more sessions
-/// (`fits` in calibration.json's order; the fits over all sessions are left out).
+/// The test for every model `per_session` names and every accelerometer with two or more of
+/// its sessions among `results` (in their order; models with temperature terms left out).
 pub fn of_results(
     results: &[CalibrationResult],
     per_session: &dyn Fn(&str) -> bool,

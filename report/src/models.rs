@@ -148,6 +148,21 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
 /// Time bins of a stillness plot.
 const STILLNESS_BINS: usize = 800;
 
+/// Bins (index, least, greatest) at twice the width: each pair of neighbours one.
+fn merged_pairs(bins: &[(u64, f64, f64)]) -> Vec<(u64, f64, f64)> {
+    let mut out: Vec<(u64, f64, f64)> = Vec::with_capacity(bins.len() / 2 + 1);
+    for &(bin, lo, hi) in bins {
+        match out.last_mut() {
+            Some(e) if e.0 == bin / 2 => {
+                e.1 = e.1.min(lo);
+                e.2 = e.2.max(hi);
+            }
+            _ => out.push((bin / 2, lo, hi)),
+        }
+    }
+    out
+}
+
 /// Multi-position session `mp`'s stream as its norm over time (least and greatest per
 /// time bin, read from ingest's lab table) with the positions align used shaded; None for
 /// a session without samples in the table.
@@ -161,33 +176,39 @@ fn stillness_plot(st: &Stages<'_>, mp: &MultiPosition) -> Result<Option<Plot>, E
         return Ok(None);
     };
     let w = u16::try_from(w).unwrap_or(u16::MAX);
-    let mut norms: Vec<(i64, f64)> = Vec::new();
+    // (bin, least, greatest) in time order, binned as the samples stream by: when the bins
+    // pass twice STILLNESS_BINS, pairs merge and the width doubles (flat memory, whatever
+    // the session's length).
+    let mut bins: Vec<(u64, f64, f64)> = Vec::new();
+    let (mut t0, mut width_ns) = (None::<i64>, 10_000_000i64);
     align::read::lab_batches(&st.out.join(ingest_ledger::STAGE_DIR), 1 << 16, |b| {
         for i in (0..b.session.len()).filter(|&i| b.session[i] == w) {
             let v = b.values.map(|c| c.is_valid(i).then(|| c.value(i)));
-            if let [Some(x), Some(y), Some(z)] = v {
-                norms.push((b.time_ns[i], (x * x + y * y + z * z).sqrt()));
+            let [Some(x), Some(y), Some(z)] = v else {
+                continue;
+            };
+            let n = (x * x + y * y + z * z).sqrt();
+            let start = *t0.get_or_insert(b.time_ns[i]);
+            let bin = u64::try_from((b.time_ns[i] - start) / width_ns).unwrap_or(0);
+            match bins.last_mut() {
+                Some(e) if e.0 == bin => {
+                    e.1 = e.1.min(n);
+                    e.2 = e.2.max(n);
+                }
+                _ => bins.push((bin, n, n)),
+            }
+            if bins.len() > 2 * STILLNESS_BINS {
+                bins = merged_pairs(&bins);
+                width_ns *= 2;
             }
         }
         Ok(())
     })?;
-    let (Some(&(t0, _)), Some(&(t1, _))) = (norms.first(), norms.last()) else {
+    let Some(t0) = t0 else {
         return Ok(None);
     };
     let seconds = |t: i64| (t - t0) as f64 * 1e-9;
-    let width = (seconds(t1) / STILLNESS_BINS as f64).max(1e-9);
-    // (bin, least, greatest), bins in time order.
-    let mut bins: Vec<(u64, f64, f64)> = Vec::new();
-    for &(t, n) in &norms {
-        let bin = (seconds(t) / width).floor() as u64;
-        match bins.last_mut() {
-            Some(e) if e.0 == bin => {
-                e.1 = e.1.min(n);
-                e.2 = e.2.max(n);
-            }
-            _ => bins.push((bin, n, n)),
-        }
-    }
+    let width = width_ns as f64 * 1e-9;
     let envelope: Vec<(f64, f64, f64)> = bins
         .iter()
         .map(|&(bin, lo, hi)| ((bin as f64 + 0.5) * width, lo, hi))

@@ -627,9 +627,7 @@ impl Repeatability {
             )
         }
     }
-}
 
-impl Repeatability {
     /// The p-value to three decimals, or two significant digits below 0.001.
     pub fn p_text(&self) -> String {
         let p = self.p_value;

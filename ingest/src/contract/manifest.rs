@@ -426,8 +426,8 @@ pub struct Session {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Thermometers {
-    /// One per accelerometer: the temperature log has a value column for each of the
-    /// counts log's, the same channels in the same order.
+    /// One per accelerometer: the temperature log has a value column for each channel the
+    /// counts log holds, in the same order, or as `temperature_columns` maps them.
     #[default]
     Each,
     /// One for all: the temperature log's single value column is the temperature of every
