@@ -126,6 +126,46 @@ pub(crate) fn session_errors(
     errors
 }
 
+/// What a lab stream's times say of its declared unit (issue 49) when every line fell
+/// outside the session: its first time read in the other unit ("s" since `start`, or
+/// "unix_s"), where that puts it inside the session, named with the key; None otherwise.
+fn time_unit_hint(s: &manifest::ResolvedSession, f: &FileLedger) -> Option<String> {
+    if f.accepted > 0 {
+        return None;
+    }
+    let first = f
+        .rejections
+        .iter()
+        .find(|r| r.reason == contract::ingest_ledger::reason::OUTSIDE_SESSION)?;
+    let text = first.detail.strip_prefix("time ")?.split(' ').next()?;
+    let value = time::parse_seconds_ns(text.as_bytes())?;
+    let unix_zero = s.start_gps_ns - time::days_from_civil(s.date) * 86_400_000_000_000;
+    let (other, zero) = match s.times.adc {
+        time::TimeForm::S => ("unix_s", Some(unix_zero)),
+        _ => ("s", s.times.start_gps_ns),
+    };
+    let (lo, hi) = s.gps_range_ns();
+    let inside = zero
+        .and_then(|z| z.checked_add(value))
+        .is_some_and(|t| (lo..hi).contains(&t));
+    let looks = match (inside, other) {
+        (true, _) => format!("read as \"{other}\" they fall inside it"),
+        // Unix times of this century are above 1e9 s; seconds from a start are not.
+        (false, "s") if value < 1_000_000_000 * 1_000_000_000 => {
+            "they look like seconds since a start (\"s\", with the session's `start`)".to_owned()
+        }
+        _ => return None,
+    };
+    Some(format!(
+        "session {}: {}: every line's time is outside the session as \"{}\" (the first, \
+         {text} s, at {}); {looks}: check session.adc_time (or time_unit)",
+        s.session.id,
+        f.path,
+        s.times.adc.name(),
+        first.at
+    ))
+}
+
 /// The tables a run writes, and the session being read.
 pub(crate) struct Writers {
     pub(crate) streams: StreamWriter,
@@ -350,6 +390,14 @@ pub(crate) fn ingest_session(
         .map(|f| f.path.clone())
         .collect();
     let mut errors = session_errors(ds, s, &summary, &acquisition_files);
+    if summary.acceleration_samples == 0 {
+        errors.extend(
+            files
+                .iter()
+                .filter(|f| f.session == id && f.role == "adc_csv" && f.lab_stream.is_some())
+                .filter_map(|f| time_unit_hint(s, f)),
+        );
+    }
     // A lab stream whose stamps never move has no measured rate: its samples' times would
     // be the declared rate's, not the logger's.
     errors.extend(

@@ -509,6 +509,31 @@ fn a_temperature_log_maps_its_columns() {
     );
 }
 
+/// A lab stream's times declared in the wrong unit are named (issue 49): the lab-logger's
+/// drive, in Unix seconds, declared as seconds since a start, loses every line outside the
+/// session, and the run's error says that read as "unix_s" they fall inside it.
+#[test]
+fn a_lab_stream_in_the_wrong_time_unit_is_named() {
+    let ds = copy_dataset("lab-logger");
+    let manifest = ds.path().join("dataset.toml");
+    let m = std::fs::read_to_string(&manifest).expect("manifest");
+    let wrong = m.replacen(
+        "adc_time = \"unix_s\"",
+        "adc_time = \"s\"\nstart = \"2026-03-16T10:00:00Z\"",
+        1,
+    );
+    assert_ne!(wrong, m);
+    std::fs::write(&manifest, wrong).expect("write");
+    let out = tempfile::tempdir().expect("tempdir");
+    let e = ingest::run(ds.path(), out.path())
+        .expect_err("no sample")
+        .to_string();
+    assert!(
+        e.contains("raw/drive.txt") && e.contains("read as \"unix_s\" they fall inside it"),
+        "{e}"
+    );
+}
+
 /// A lab stream's temperature log may count its seconds otherwise than the stream (9.1):
 /// the drive's log rewritten in seconds since a `start` gives the same temperature table
 /// as in Unix seconds; a calendar time there is refused by key.
