@@ -502,6 +502,41 @@ pub fn utc_iso(gps_ns: i64) -> String {
     )
 }
 
+/// GPS time `gps_ns` as a log in `form` writes it, for a person to find it there: a
+/// calendar time in `scale` (UTC with `Z`, GPST or TAI named), Unix seconds, seconds since
+/// `start_gps_ns` (GPS ns), or GPS week and tow; milliseconds.
+pub fn as_written(
+    gps_ns: i64,
+    form: TimeForm,
+    scale: TimeScale,
+    start_gps_ns: Option<i64>,
+) -> String {
+    use TimeScale as Scale;
+    let e = Epoch::from_gpst_nanoseconds(u64::try_from(gps_ns).unwrap_or(0));
+    let calendar = |scale: hifitime::TimeScale, name: &str| {
+        let (y, mo, d, h, mi, s, ns) = e.to_gregorian(scale);
+        format!(
+            "{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{:03} {name}",
+            ns / 1_000_000
+        )
+    };
+    match (form, scale, start_gps_ns) {
+        (TimeForm::Iso, Scale::Utc, _) => utc_iso(gps_ns),
+        (TimeForm::Iso, Scale::Gpst, _) => calendar(hifitime::TimeScale::GPST, "GPST"),
+        (TimeForm::Iso, Scale::Tai, _) => calendar(hifitime::TimeScale::TAI, "TAI"),
+        (TimeForm::UnixS, _, _) => format!("{:.3} (Unix s)", e.to_unix_seconds()),
+        (TimeForm::S, _, Some(start)) => {
+            format!("{:.3} s after start", (gps_ns - start) as f64 * 1e-9)
+        }
+        (TimeForm::S, _, None) => utc_iso(gps_ns),
+        (TimeForm::GpsWeekTow, _, _) => format!(
+            "{},{:.3}",
+            gps_ns.div_euclid(NS_PER_WEEK),
+            gps_ns.rem_euclid(NS_PER_WEEK) as f64 * 1e-9
+        ),
+    }
+}
+
 /// An ISO 8601 time as GPS ns: in UTC where it carries `Z` or an offset, in `scale`
 /// otherwise, UTC's leap second 23:59:60 where one was inserted. The one path every time
 /// gravcal reads in ISO goes through: the logs' and the manifest's (a session's `start`, a
@@ -744,5 +779,37 @@ mod tests {
         assert_eq!(resolve_week(300, 0), 300);
         assert_eq!(week_of_date((2005, 2, 15)), 1310);
         assert_eq!(week_of_date((2019, 4, 7)), 2048);
+    }
+
+    /// A time as each form writes it: 2017-01-01T00:00:00.250Z, just after the leap second
+    /// of 2016, is GPST 18 s and TAI 37 s ahead, Unix 1483228800.250, and GPS week 1930
+    /// (which starts that Sunday) at 18.250 s.
+    #[test]
+    fn a_time_as_each_form_writes_it() {
+        let gps = iso_gps_ns("2017-01-01T00:00:00.250Z", TimeScale::Utc).expect("iso");
+        assert_eq!(
+            as_written(gps, TimeForm::Iso, TimeScale::Utc, None),
+            "2017-01-01T00:00:00.250Z"
+        );
+        assert_eq!(
+            as_written(gps, TimeForm::Iso, TimeScale::Gpst, None),
+            "2017-01-01T00:00:18.250 GPST"
+        );
+        assert_eq!(
+            as_written(gps, TimeForm::Iso, TimeScale::Tai, None),
+            "2017-01-01T00:00:37.250 TAI"
+        );
+        assert_eq!(
+            as_written(gps, TimeForm::UnixS, TimeScale::Utc, None),
+            "1483228800.250 (Unix s)"
+        );
+        assert_eq!(
+            as_written(gps, TimeForm::S, TimeScale::Utc, Some(gps - 1_500_000_000)),
+            "1.500 s after start"
+        );
+        assert_eq!(
+            as_written(gps, TimeForm::GpsWeekTow, TimeScale::Utc, None),
+            "1930,18.250"
+        );
     }
 }

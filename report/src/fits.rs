@@ -287,6 +287,20 @@ pub(crate) fn extra_terms_section(st: &Stages<'_>) -> Section {
     s
 }
 
+/// GPS time `gps_ns` of a reading of `session` as its theodolite log writes its times (its
+/// form and scale: docs/formats.md 9.1).
+fn written(st: &Stages<'_>, session: &str, gps_ns: i64) -> String {
+    match st.ds.sessions.iter().find(|s| s.session.id == session) {
+        Some(s) => ingest::time::as_written(
+            gps_ns,
+            s.times.theodolite,
+            s.times.scale,
+            s.times.start_gps_ns,
+        ),
+        None => ingest::time::utc_iso(gps_ns),
+    }
+}
+
 /// The global test, data snooping and the fits skipped.
 pub(crate) fn snooping_section(st: &Stages<'_>) -> Section {
     let Stages { cal, .. } = st;
@@ -303,7 +317,7 @@ pub(crate) fn snooping_section(st: &Stages<'_>) -> Section {
         "session",
         "station",
         "line",
-        "time (UTC)",
+        "time, as its log writes it",
         "GPS week / tow (s)",
         "w",
     ]);
@@ -316,7 +330,7 @@ pub(crate) fn snooping_section(st: &Stages<'_>) -> Section {
                 x.session.clone(),
                 x.station.clone(),
                 x.line.to_string(),
-                ingest::time::utc_iso(x.time_gps_ns),
+                written(st, &x.session, x.time_gps_ns),
                 gps(x.time_gps_ns),
                 format!("{:.2}", x.w),
             ]);

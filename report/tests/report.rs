@@ -543,3 +543,27 @@ fn the_gravity_section_shows_the_track() {
         "the map and the profile are not in the DOM"
     );
 }
+
+/// A removed reading is dated as its theodolite log writes it (issue 49): every row of the
+/// removed observations holds the time its log's line holds (esgt-2005's logs write UTC
+/// calendar times without a zone: the report adds `Z`), beside GPS week and tow.
+#[test]
+fn a_removed_reading_is_dated_as_its_log_writes_it() {
+    let dataset = fixtures::dataset_dir("esgt-2005");
+    let out = pipeline(&dataset);
+    let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("report.md");
+    let cal: ingest::contract::calibration::Calibration =
+        ingest::read_json(&out.path().join("adjust/calibration.json")).expect("calibration");
+    let mut rows = 0;
+    for x in cal.results.iter().flat_map(|r| &r.removed) {
+        let log =
+            std::fs::read_to_string(dataset.join(format!("raw/{}_theodolite.txt", x.session)))
+                .expect("the theodolite log");
+        let line = log.lines().nth(x.line as usize - 1).expect("the line");
+        let time = line.split_whitespace().nth(1).expect("its time");
+        let row = format!("| {} | {} | {time}Z | ", x.station, x.line);
+        assert!(md.contains(&row), "{row}");
+        rows += 1;
+    }
+    assert!(rows > 0, "esgt-2005 has removed readings");
+}
