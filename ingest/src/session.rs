@@ -126,42 +126,54 @@ pub(crate) fn session_errors(
     errors
 }
 
-/// What a lab stream's times say of its declared unit (issue 49) when every line fell
-/// outside the session: its first time read in the other unit ("s" since `start`, or
-/// "unix_s"), where that puts it inside the session, named with the key; None otherwise.
+/// What a log's times say of its declared unit (issue 49) when every line of a lab stream
+/// or of a counts CSV in seconds fell outside the session: its first time read in the other
+/// unit ("s" since `start`, or "unix_s"), where that puts it inside the session, named with
+/// the key; None otherwise.
 fn time_unit_hint(s: &manifest::ResolvedSession, f: &FileLedger) -> Option<String> {
-    if f.accepted > 0 {
+    let declared = s.times.adc;
+    if f.accepted > 0 || !matches!(declared, time::TimeForm::S | time::TimeForm::UnixS) {
         return None;
     }
     let first = f
         .rejections
         .iter()
         .find(|r| r.reason == contract::ingest_ledger::reason::OUTSIDE_SESSION)?;
-    let text = first.detail.strip_prefix("time ")?.split(' ').next()?;
-    let value = time::parse_seconds_ns(text.as_bytes())?;
     let unix_zero = s.start_gps_ns - time::days_from_civil(s.date) * 86_400_000_000_000;
-    let (other, zero) = match s.times.adc {
-        time::TimeForm::S => ("unix_s", Some(unix_zero)),
-        _ => ("s", s.times.start_gps_ns),
+    let (declared_zero, other, other_zero) = match declared {
+        time::TimeForm::S => (s.times.start_gps_ns?, "unix_s", Some(unix_zero)),
+        _ => (unix_zero, "s", s.times.start_gps_ns),
+    };
+    // The first time as written, ns from the declared zero: a lab stream's rejection
+    // gives it as written, the time gate's as GPS week and tow.
+    let value = match first.detail.strip_prefix("time ") {
+        Some(rest) => time::parse_seconds_ns(rest.split(' ').next()?.as_bytes())?,
+        None => {
+            let rest = first.detail.strip_prefix("GPS week ")?;
+            let (week, rest) = rest.split_once(" tow ")?;
+            let tow = time::parse_seconds_ns(rest.split(' ').next()?.as_bytes())?;
+            week.parse::<i64>().ok()? * time::NS_PER_WEEK + tow - declared_zero
+        }
     };
     let (lo, hi) = s.gps_range_ns();
-    let inside = zero
+    let inside = other_zero
         .and_then(|z| z.checked_add(value))
         .is_some_and(|t| (lo..hi).contains(&t));
     let looks = match (inside, other) {
         (true, _) => format!("read as \"{other}\" they fall inside it"),
         // Unix times of this century are above 1e9 s; seconds from a start are not.
-        (false, "s") if value < 1_000_000_000 * 1_000_000_000 => {
+        (false, "s") if (0..1_000_000_000 * 1_000_000_000).contains(&value) => {
             "they look like seconds since a start (\"s\", with the session's `start`)".to_owned()
         }
         _ => return None,
     };
     Some(format!(
         "session {}: {}: every line's time is outside the session as \"{}\" (the first, \
-         {text} s, at {}); {looks}: check session.adc_time (or time_unit)",
+         {:.3} s, at {}); {looks}: check session.adc_time (or time_unit)",
         s.session.id,
         f.path,
-        s.times.adc.name(),
+        declared.name(),
+        value as f64 * 1e-9,
         first.at
     ))
 }
@@ -394,7 +406,7 @@ pub(crate) fn ingest_session(
         errors.extend(
             files
                 .iter()
-                .filter(|f| f.session == id && f.role == "adc_csv" && f.lab_stream.is_some())
+                .filter(|f| f.session == id && f.role == "adc_csv")
                 .filter_map(|f| time_unit_hint(s, f)),
         );
     }

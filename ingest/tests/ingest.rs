@@ -534,6 +534,52 @@ fn a_lab_stream_in_the_wrong_time_unit_is_named() {
     );
 }
 
+/// The same for a counts CSV: the lab-logger's tilt-table counts rewritten in Unix seconds
+/// and declared as seconds since a start are named, their first time given.
+#[test]
+fn a_counts_csv_in_the_wrong_time_unit_is_named() {
+    let ds = copy_dataset("lab-logger");
+    let log = ds.path().join("raw/table_acc.csv");
+    let text = std::fs::read_to_string(&log).expect("log");
+    let unix: Vec<String> = text
+        .lines()
+        .map(|l| match l.split_once(',') {
+            Some((t, rest)) if t.starts_with("20") => {
+                let gps = ingest::time::iso_gps_ns(t, ingest::contract::manifest::TimeScale::Utc)
+                    .expect("iso");
+                let written = ingest::time::as_written(
+                    gps,
+                    ingest::time::TimeForm::UnixS,
+                    ingest::contract::manifest::TimeScale::Utc,
+                    None,
+                );
+                format!("{},{rest}", written.split(' ').next().expect("seconds"))
+            }
+            _ => l.to_owned(),
+        })
+        .collect();
+    std::fs::write(&log, unix.join("\n") + "\n").expect("write");
+    let manifest = ds.path().join("dataset.toml");
+    let m = std::fs::read_to_string(&manifest).expect("manifest");
+    let wrong = m.replacen(
+        "adc_time = \"iso\"",
+        "adc_time = \"s\"\nstart = \"2026-03-14T09:12:00Z\"",
+        1,
+    );
+    assert_ne!(wrong, m);
+    std::fs::write(&manifest, wrong).expect("write");
+    let out = tempfile::tempdir().expect("tempdir");
+    let e = ingest::run(ds.path(), out.path())
+        .expect_err("no sample")
+        .to_string();
+    assert!(
+        e.contains("raw/table_acc.csv")
+            && e.contains("the first, 1773479520.000 s")
+            && e.contains("read as \"unix_s\" they fall inside it"),
+        "{e}"
+    );
+}
+
 /// A lab stream's temperature log may count its seconds otherwise than the stream (9.1):
 /// the drive's log rewritten in seconds since a `start` gives the same temperature table
 /// as in Unix seconds; a calendar time there is refused by key.
