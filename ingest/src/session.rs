@@ -230,16 +230,45 @@ pub(crate) fn read_acquisition(
             let interval = file.read(stream, "adc_csv", "lines", |ledger, pb| {
                 labstream::read_lab(stream, config, &mut out.lab, ledger, pb)
             })?;
-            if let Some(path) = temperature {
-                let config = labstream::LabConfig {
-                    zero_gps_ns: *temperature_zero_gps_ns,
-                    columns: s.columns.temperature,
-                    ..config
-                };
-                file.read(path, "temperature_csv", "lines", |ledger, pb| {
-                    let t = gcb::TEMPERATURE_INTERVAL_NS;
-                    labstream::read_lab_temperature(path, config, t, &mut out.streams, ledger, pb)
-                })?;
+            let seconds = matches!(
+                s.times.temperature,
+                time::TimeForm::S | time::TimeForm::UnixS
+            );
+            match temperature {
+                // In seconds: the stream's layout.
+                Some(path) if seconds => {
+                    let config = labstream::LabConfig {
+                        zero_gps_ns: *temperature_zero_gps_ns,
+                        columns: s.columns.temperature,
+                        ..config
+                    };
+                    file.read(path, "temperature_csv", "lines", |ledger, pb| {
+                        let t = gcb::TEMPERATURE_INTERVAL_NS;
+                        labstream::read_lab_temperature(
+                            path,
+                            config,
+                            t,
+                            &mut out.streams,
+                            ledger,
+                            pb,
+                        )
+                    })?;
+                }
+                // In calendar times or GPS week + tow: a temperature CSV (9.1).
+                Some(path) => {
+                    file.read(path, "temperature_csv", "lines", |ledger, pb| {
+                        let config = csvlog::CsvConfig {
+                            kind: csvlog::CsvKind::Temperature,
+                            skip_bad_lines: opts.skip_bad_lines,
+                            interval_ns: gcb::TEMPERATURE_INTERVAL_NS,
+                            range_ns: s.gps_range_ns(),
+                            time: s.times.reader(s.times.temperature),
+                            columns: s.columns.temperature,
+                        };
+                        csvlog::read_csv(path, config, &mut out.streams, ledger, pb)
+                    })?;
+                }
+                None => {}
             }
             Ok(interval)
         }

@@ -810,9 +810,9 @@ impl ResolvedSession {
 /// path and the GPS time of its time 0: `start` in the session's time scale, or for Unix
 /// times the Unix epoch with the leap seconds of the session's date (a leap second inside
 /// a session would shift the rest of it by a second: none is expected in a lab day).
-/// A `temperature_csv` beside it is read in the same layout (`t T1 T2 T3`, degC), its times
-/// in seconds as `temperature_time` says (by default as the stream's), from a time 0 of
-/// its own.
+/// A `temperature_csv` beside it is read in the same layout (`t T1 T2 T3`, degC) when its
+/// times are seconds (`temperature_time`, by default the stream's form), from a time 0 of
+/// its own; in another form of 9.1, as a temperature CSV.
 fn lab_acquisition(
     i: usize,
     s: &Session,
@@ -913,18 +913,9 @@ fn log_time_forms(
                 ),
             ));
         }
-        let temperature = s.temperature_time.unwrap_or(adc);
-        if !matches!(temperature, TimeForm::S | TimeForm::UnixS) {
-            return Err(err(
-                key("temperature_time"),
-                format!(
-                    "\"{}\": a lab session's temperature log is read in its stream's layout, \
-                     which writes seconds: \"s\" (since `start`) or \"unix_s\"",
-                    temperature.name()
-                ),
-            ));
-        }
-        return Ok((adc, temperature));
+        // In seconds it is read in the stream's layout; in another form as a temperature
+        // CSV of that form.
+        return Ok((adc, s.temperature_time.unwrap_or(adc)));
     }
     if s.acquisition.is_some() {
         if let Some(k) = [
