@@ -156,8 +156,9 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let unit = ds.manifest.instrument.reading_unit.name();
     for r in &mut results {
         let k = r.parameters.iter().find(|p| p.name == "k").map(|p| p.value);
-        r.warnings
-            .extend(k.and_then(|k| reading_unit_warning(unit, k)));
+        r.warnings.extend(
+            k.and_then(|k| ingest::contract::calibration::scale_unit_warning(unit, "k", k)),
+        );
     }
     let adc_noise = kalibr_noise(&align_report, &results);
     let (triad, triad_skipped) = triad_fits::fit_all(&ds, &models, &align_report);

@@ -128,6 +128,9 @@ fn print_triad(t: &ingest::contract::calibration::TriadResult, w: &mut impl std:
     if let Some(advice) = t.advice() {
         let _ = writeln!(w, "adjust: {advice}");
     }
+    for warning in t.unit_warnings() {
+        let _ = writeln!(w, "adjust: triad {} {}: {warning}", t.model, t.session);
+    }
 }
 
 /// An axis fit's line: its parameters, sigma0, observations, the global test; what a failed

@@ -42,34 +42,6 @@ pub(crate) fn multiple_correlation(c: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// mGal per reading unit of the physical units, as the manifest names them.
-const PHYSICAL_UNITS: [(&str, f64); 3] = [("m/s^2", 1e5), ("mGal", 1.0), ("g", 980_665.0)];
-
-/// A scale factor `k` (mGal per reading unit) that does not fit the declared physical
-/// `unit` (issue 49): a calibrated accelerometer's k is within a factor 2 of the unit's
-/// mGal (its scale error is a few per cent at most), so a k beyond says the readings are in
-/// another unit, named where one fits. None for counts and volts, whose k is the
-/// instrument's own.
-pub(crate) fn reading_unit_warning(unit: &str, k: f64) -> Option<String> {
-    let (_, factor) = PHYSICAL_UNITS.iter().find(|(u, _)| *u == unit)?;
-    let fits = |f: f64| (0.5..=2.0).contains(&(k.abs() / f));
-    if fits(*factor) {
-        return None;
-    }
-    let suggested = PHYSICAL_UNITS
-        .iter()
-        .find(|(_, f)| fits(*f))
-        .map_or("no physical unit gravcal knows".to_owned(), |(u, _)| {
-            format!("\"{u}\"")
-        });
-    Some(format!(
-        "k = {k:.4e} mGal per {unit}, where readings in {unit} give k near {factor:.0} \
-         (a scale error of a few per cent): the readings look like {suggested}; check \
-         instrument.reading_unit. The fit itself maps the readings to mGal, but a \
-         calibration applied in the declared unit would be wrong by that factor"
-    ))
-}
-
 /// A thermal model whose temperatures differ mostly between two sessions: its b_t and k_t
 /// cannot tell a temperature effect from a change of b or k between the days (MODEL 6.9).
 fn two_day_confounding(job: &Job<'_>) -> Option<String> {

@@ -417,6 +417,17 @@ fn an_imu_tk_ascii_file_calibrates_with_a_manifest_alone() {
     assert_eq!(r.reading_unit, "m/s^2");
     within_sigmas(r, &truth.parameters);
     assert_eq!(r.positions.len(), truth.position.len());
+    assert!(r.unit_warnings().is_empty(), "{:?}", r.unit_warnings());
+    // The same readings declared in mGal: the scales, 1e5 times too large, are named.
+    let manifest = dataset.join("dataset.toml");
+    let m = std::fs::read_to_string(&manifest).expect("manifest");
+    let wrong = m.replacen("reading_unit = \"m/s^2\"", "reading_unit = \"mGal\"", 1);
+    assert_ne!(wrong, m);
+    std::fs::write(&manifest, wrong).expect("write");
+    let c = pipeline(&dataset, &dir.path().join("out-mgal"));
+    let warnings = c.triad[0].unit_warnings();
+    assert_eq!(warnings.len(), 3, "{warnings:?}");
+    assert!(warnings.iter().all(|w| w.contains("look like \"m/s^2\"")), "{warnings:?}");
 }
 
 /// A MEMS recording taken by hand as imu_tk's users take them (45 positions held 1-4 s,

@@ -138,6 +138,7 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
         if let Some(advice) = r.advice() {
             s.text.push(advice);
         }
+        s.text.extend(r.unit_warnings());
         s.tables
             .push((format!("Triad {} ({})", r.model, r.session), t));
         s.plots.extend(triad_plots(r)?);

@@ -641,6 +641,45 @@ impl Repeatability {
     }
 }
 
+/// mGal per reading unit of the physical units, as the manifest names them.
+const PHYSICAL_UNITS: [(&str, f64); 3] = [("m/s^2", 1e5), ("mGal", 1.0), ("g", 980_665.0)];
+
+/// A scale factor `name` = `scale` (mGal per reading unit) that does not fit the declared
+/// physical `unit` (issue 49): a calibrated accelerometer's is within a factor 2 of the
+/// unit's mGal (its scale error is a few per cent at most), so a scale beyond says the
+/// readings are in another unit, named where one fits. None for counts and volts, whose
+/// scale is the instrument's own.
+pub fn scale_unit_warning(unit: &str, name: &str, scale: f64) -> Option<String> {
+    let (_, factor) = PHYSICAL_UNITS.iter().find(|(u, _)| *u == unit)?;
+    let fits = |f: f64| (0.5..=2.0).contains(&(scale.abs() / f));
+    if fits(*factor) {
+        return None;
+    }
+    let suggested = PHYSICAL_UNITS
+        .iter()
+        .find(|(_, f)| fits(*f))
+        .map_or("no physical unit gravcal knows".to_owned(), |(u, _)| {
+            format!("\"{u}\"")
+        });
+    Some(format!(
+        "{name} = {scale:.4e} mGal per {unit}, where readings in {unit} give a scale near \
+         {factor:.0} (a scale error of a few per cent): the readings look like {suggested}; \
+         check instrument.reading_unit. The fit itself maps the readings to mGal, but a \
+         calibration applied in the declared unit would be wrong by that factor"
+    ))
+}
+
+impl TriadResult {
+    /// Its scales s_x, s_y, s_z held to its reading unit ([`scale_unit_warning`]).
+    pub fn unit_warnings(&self) -> Vec<String> {
+        self.parameters
+            .iter()
+            .filter(|p| p.name.starts_with("s_"))
+            .filter_map(|p| scale_unit_warning(&self.reading_unit, &p.name, p.value))
+            .collect()
+    }
+}
+
 /// `calibration.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Calibration {
