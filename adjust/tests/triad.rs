@@ -427,7 +427,10 @@ fn an_imu_tk_ascii_file_calibrates_with_a_manifest_alone() {
     let c = pipeline(&dataset, &dir.path().join("out-mgal"));
     let warnings = c.triad[0].unit_warnings();
     assert_eq!(warnings.len(), 3, "{warnings:?}");
-    assert!(warnings.iter().all(|w| w.contains("look like \"m/s^2\"")), "{warnings:?}");
+    assert!(
+        warnings.iter().all(|w| w.contains("look like \"m/s^2\"")),
+        "{warnings:?}"
+    );
 }
 
 /// A MEMS recording taken by hand as imu_tk's users take them (45 positions held 1-4 s,

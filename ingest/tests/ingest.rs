@@ -456,6 +456,20 @@ fn value_columns_and_thermometers_are_checked_by_key() {
     );
 }
 
+/// The temperature table ingest writes of the dataset `ds`.
+fn temperature_table(ds: &std::path::Path) -> Vec<u8> {
+    let out = tempfile::tempdir().expect("tempdir");
+    ingest::run(ds, out.path()).expect("ingest");
+    std::fs::read(out.path().join("ingest/temperature.parquet")).expect("table")
+}
+
+/// The manifest `m` of the dataset `ds` written with `lines` after the first `at`.
+fn declare_after(ds: &std::path::Path, m: &str, at: &str, lines: &str) {
+    let declared = m.replacen(at, &format!("{at}\n{lines}"), 1);
+    assert_ne!(declared, m, "{at} is in the manifest");
+    std::fs::write(ds.join("dataset.toml"), declared).expect("write");
+}
+
 /// A temperature log of more columns than thermometers at the accelerometers (docs/formats.md
 /// 9.4): esgt-2005-csv's day 1 log with a box thermometer's column first, declared
 /// `temperature_columns = [0, 1, 2, 3]`, gives the same temperature table as the log
@@ -483,22 +497,14 @@ fn a_temperature_log_maps_its_columns() {
         })
         .collect();
     std::fs::write(&log, with_box.join("\n") + "\n").expect("write");
-    let manifest = boxed.path().join("dataset.toml");
-    let m = std::fs::read_to_string(&manifest).expect("manifest");
+    let m = std::fs::read_to_string(boxed.path().join("dataset.toml")).expect("manifest");
     let at = "temperature_csv = \"raw/day1_temp.csv\"";
-    let mapped = format!("{at}\ntemperature_columns = [0, 1, 2, 3]");
-    std::fs::write(&manifest, m.replacen(at, &mapped, 1)).expect("write");
-    let table = |ds: &std::path::Path| {
-        let out = tempfile::tempdir().expect("tempdir");
-        ingest::run(ds, out.path()).expect("ingest");
-        std::fs::read(out.path().join("ingest/temperature.parquet")).expect("table")
-    };
+    declare_after(boxed.path(), &m, at, "temperature_columns = [0, 1, 2, 3]");
     assert!(
-        table(plain.path()) == table(boxed.path()),
+        temperature_table(plain.path()) == temperature_table(boxed.path()),
         "the same temperatures"
     );
-    let twice = format!("{at}\ntemperature_columns = [0, 1, 1, 3]");
-    std::fs::write(&manifest, m.replacen(at, &twice, 1)).expect("write");
+    declare_after(boxed.path(), &m, at, "temperature_columns = [0, 1, 1, 3]");
     let out = tempfile::tempdir().expect("tempdir");
     let e = ingest::run(boxed.path(), out.path())
         .expect_err("twice")
@@ -601,18 +607,13 @@ fn a_lab_temperature_log_counts_its_own_seconds() {
         })
         .collect();
     std::fs::write(&log, rewritten.join("\n") + "\n").expect("write");
-    let manifest = relative.path().join("dataset.toml");
-    let m = std::fs::read_to_string(&manifest).expect("manifest");
+    let m = std::fs::read_to_string(relative.path().join("dataset.toml")).expect("manifest");
     let drive = "temperature_csv = \"raw/drive_temp.txt\"";
-    let declared = format!("{drive}\ntemperature_time = \"s\"\nstart = \"2026-03-16T10:00:00Z\"");
-    std::fs::write(&manifest, m.replacen(drive, &declared, 1)).expect("write");
-    let table = |ds: &std::path::Path| {
-        let out = tempfile::tempdir().expect("tempdir");
-        ingest::run(ds, out.path()).expect("ingest");
-        std::fs::read(out.path().join("ingest/temperature.parquet")).expect("table")
-    };
+    let since_start = "temperature_time = \"s\"\nstart = \"2026-03-16T10:00:00Z\"";
+    declare_after(relative.path(), &m, drive, since_start);
+    let unix_table = temperature_table(unix.path());
     assert!(
-        table(unix.path()) == table(relative.path()),
+        unix_table == temperature_table(relative.path()),
         "the same temperatures"
     );
     // In ISO 8601 UTC times the log is a temperature CSV (9.1): the same table again.
@@ -638,10 +639,9 @@ fn a_lab_temperature_log_counts_its_own_seconds() {
         })
         .collect();
     std::fs::write(&log, iso_lines.join("\n") + "\n").expect("write");
-    let iso = format!("{drive}\ntemperature_time = \"iso\"");
-    std::fs::write(&manifest, m.replacen(drive, &iso, 1)).expect("write");
+    declare_after(relative.path(), &m, drive, "temperature_time = \"iso\"");
     assert!(
-        table(unix.path()) == table(relative.path()),
+        unix_table == temperature_table(relative.path()),
         "the same temperatures from ISO times"
     );
 }
