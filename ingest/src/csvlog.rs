@@ -193,19 +193,9 @@ fn counts_fast(line: &[u8], mut p: usize, columns: &ValueColumns) -> Option<([i3
         if !(COUNT_MIN..=COUNT_MAX).contains(&v) {
             return None;
         }
-        place(&mut values, feeds, v as i32);
+        ValueColumns::place(feeds, &mut values, Some(v as i32));
     }
     (p == n).then(|| counts_on_channels(values))
-}
-
-/// `v` on every channel of `feeds` (bit `ch` for channel `ch`).
-#[inline]
-fn place<T: Copy>(values: &mut [Option<T>; 3], feeds: u8, v: T) {
-    for (ch, value) in values.iter_mut().enumerate() {
-        if feeds >> ch & 1 == 1 {
-            *value = Some(v);
-        }
-    }
 }
 
 /// The counts on their channels, and their status: a channel without a value (no column,
@@ -325,7 +315,7 @@ fn row_of(
                 if !(COUNT_MIN..=COUNT_MAX).contains(&v) {
                     return Err(bad(name(k), format!("{v} is outside the 24-bit range")));
                 }
-                place(&mut values, feeds, v as i32);
+                ValueColumns::place(feeds, &mut values, Some(v as i32));
             }
             let (counts, status) = counts_on_channels(values);
             Ok(Row::Adc {
@@ -347,7 +337,7 @@ fn row_of(
                             format!("`{}` is not a temperature in degC", text(f)),
                         )
                     })?;
-                place(&mut celsius, feeds, v);
+                ValueColumns::place(feeds, &mut celsius, Some(v));
             }
             let mut status = 0u8;
             for (ch, v) in celsius.iter().enumerate() {

@@ -371,12 +371,7 @@ fn fast_line(line: &[u8], columns: &ValueColumns) -> Option<(i64, [f64; 3], usiz
         } else {
             mantissa as f64 / EXACT_POWERS[decimals]
         };
-        let v = if negative { -v } else { v };
-        for (ch, value) in values.iter_mut().enumerate() {
-            if feeds >> ch & 1 == 1 {
-                *value = v;
-            }
-        }
+        ValueColumns::place(feeds, &mut values, if negative { -v } else { v });
     }
     (p == line.len()).then_some((ns, values, time_end))
 }
@@ -438,12 +433,7 @@ fn parse_line(
             return Err(bad("not finite"));
         }
         scientific += u64::from(exponent);
-        let feeds = columns.feeds(k);
-        for (ch, value) in values.iter_mut().enumerate() {
-            if feeds >> ch & 1 == 1 {
-                *value = Some(v);
-            }
-        }
+        ValueColumns::place(columns.feeds(k), &mut values, Some(v));
     }
     Ok((time, values, scientific))
 }

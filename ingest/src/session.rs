@@ -257,14 +257,12 @@ pub(crate) fn read_acquisition(
                 // In calendar times or GPS week + tow: a temperature CSV (9.1).
                 Some(path) => {
                     file.read(path, "temperature_csv", "lines", |ledger, pb| {
-                        let config = csvlog::CsvConfig {
-                            kind: csvlog::CsvKind::Temperature,
-                            skip_bad_lines: opts.skip_bad_lines,
-                            interval_ns: gcb::TEMPERATURE_INTERVAL_NS,
-                            range_ns: s.gps_range_ns(),
-                            time: s.times.reader(s.times.temperature),
-                            columns: s.columns.temperature,
-                        };
+                        let config = csv_config(
+                            s,
+                            opts,
+                            csvlog::CsvKind::Temperature,
+                            acceleration_interval_ns,
+                        );
                         csvlog::read_csv(path, config, &mut out.streams, ledger, pb)
                     })?;
                 }
@@ -273,36 +271,50 @@ pub(crate) fn read_acquisition(
             Ok(interval)
         }
         Acquisition::Csv { adc, temperature } => {
-            let csv = |kind, form, interval_ns, columns| csvlog::CsvConfig {
-                kind,
-                skip_bad_lines: opts.skip_bad_lines,
-                interval_ns,
-                range_ns: s.gps_range_ns(),
-                time: s.times.reader(form),
-                columns,
-            };
             let interval = file.read(adc, "adc_csv", "lines", |ledger, pb| {
-                let config = csv(
-                    csvlog::CsvKind::Adc,
-                    s.times.adc,
-                    acceleration_interval_ns,
-                    s.columns.adc,
-                );
+                let config = csv_config(s, opts, csvlog::CsvKind::Adc, acceleration_interval_ns);
                 csvlog::read_csv(adc, config, &mut out.streams, ledger, pb)
             })?;
             if let Some(temperature) = temperature {
                 file.read(temperature, "temperature_csv", "lines", |ledger, pb| {
-                    let config = csv(
+                    let config = csv_config(
+                        s,
+                        opts,
                         csvlog::CsvKind::Temperature,
-                        s.times.temperature,
-                        gcb::TEMPERATURE_INTERVAL_NS,
-                        s.columns.temperature,
+                        acceleration_interval_ns,
                     );
                     csvlog::read_csv(temperature, config, &mut out.streams, ledger, pb)
                 })?;
             }
             Ok(interval)
         }
+    }
+}
+
+/// How session `s`'s CSV log of `kind` is read: its time form, nominal interval (the
+/// accelerometers' `acceleration_interval_ns`, or the thermometers') and value columns (a
+/// lab stream's temperature log in a calendar form is one too).
+fn csv_config(
+    s: &manifest::ResolvedSession,
+    opts: &Options,
+    kind: csvlog::CsvKind,
+    acceleration_interval_ns: i64,
+) -> csvlog::CsvConfig {
+    let (form, interval_ns, columns) = match kind {
+        csvlog::CsvKind::Adc => (s.times.adc, acceleration_interval_ns, s.columns.adc),
+        csvlog::CsvKind::Temperature => (
+            s.times.temperature,
+            gcb::TEMPERATURE_INTERVAL_NS,
+            s.columns.temperature,
+        ),
+    };
+    csvlog::CsvConfig {
+        kind,
+        skip_bad_lines: opts.skip_bad_lines,
+        interval_ns,
+        range_ns: s.gps_range_ns(),
+        time: s.times.reader(form),
+        columns,
     }
 }
 

@@ -483,6 +483,17 @@ impl ValueColumns {
             .unwrap_or(2)
     }
 
+    /// `v` on every channel of `feeds` (bit `ch` for channel `ch`, as [`Self::feeds`]
+    /// gives): what a reader does with a column's value.
+    #[inline]
+    pub fn place<T: Copy>(feeds: u8, values: &mut [T; 3], v: T) {
+        for (ch, value) in values.iter_mut().enumerate() {
+            if feeds >> ch & 1 == 1 {
+                *value = v;
+            }
+        }
+    }
+
     /// The channels column `k` feeds, bit `ch` for channel `ch` (0-based); 0 for a column
     /// skipped.
     #[inline]
