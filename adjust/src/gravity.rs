@@ -4,8 +4,8 @@
 //! type. The pieces the navigation equation is made of, each checked against a peer
 //! (`tests/gravity_peers.rs`) or the simulator's truth:
 //!
-//! - [`normal`]: GRS80 normal gravity at any point on or above the ellipsoid (closed form,
-//!   no free-air series), against boule;
+//! - [`normal`] (the contract's, re-exported): GRS80 or WGS84 normal gravity at any point
+//!   on or above the ellipsoid (closed form, no free-air series), against boule;
 //! - [`navigation`]: the ellipsoid's radii of curvature and the Coriolis and transport-rate
 //!   term of the navigation equation (its down component is the Eotvos correction),
 //!   against shipgrav's Harlan (1968);
@@ -37,7 +37,7 @@ pub mod errors;
 pub mod filter;
 pub mod horizontal;
 pub mod navigation;
-pub mod normal;
+pub use ingest::contract::normal;
 pub mod reduce;
 pub mod spectrum;
 mod spill;

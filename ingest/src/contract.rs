@@ -13,6 +13,7 @@
 //! | [`calibration`] | `calibration.json`: the results (docs/formats.md section 6) |
 //! | [`apply_ledger`] | `apply.json`: the calibration applied to a survey, rows and flags |
 //! | [`gravity_ledger`] | `gravity.json`: the survey reduced to gravity, epochs used and dropped |
+//! | [`normal`] | normal gravity of GRS80 and WGS84, which the stages hold values to |
 //! | [`precision`] | a value with its sigma, printed to the sigma's precision (GUM 7.2.6) |
 //! | [`custody`] | the SHA-256 of every file each stage read and wrote, and its check |
 //!
@@ -26,6 +27,7 @@ pub mod custody;
 pub mod gravity_ledger;
 pub mod ingest_ledger;
 pub mod manifest;
+pub mod normal;
 pub mod precision;
 pub mod status;
 pub mod survey;

@@ -345,6 +345,13 @@ fn manifest_errors_name_the_key_and_file() {
             "g_abs_mgal = 9.81",
             "site.g_abs_mgal",
         ),
+        // 980 856 mGal is a mid-latitude gravity: on the equator it is 2822 mGal from
+        // normal gravity, where no place is farther than 1000.
+        (
+            "sensor_height_m = 0.25",
+            "sensor_height_m = 0.25\nlatitude_deg = 0.0\nlongitude_deg = 10.0",
+            "site.g_abs_mgal: 980855.8 mGal is 2823 mGal from normal gravity at latitude 0",
+        ),
         (
             "date = \"2021-06-10\"",
             "date = \"2021-06-31\"",

@@ -17,7 +17,7 @@ use super::GravityError;
 use super::errors::{self, AttitudeErrors};
 use super::filter;
 use super::navigation::{eotvos_down, longitude_step_deg, radii};
-use super::normal::GRS80;
+use super::normal::{GRS80, MAX_DISTURBANCE_MGAL};
 use ingest::contract::survey::ErrorModel;
 
 /// One stretch of track: evenly spaced epochs and what was measured at them.
@@ -697,11 +697,6 @@ fn still(tie: &Tie, s: &Stretch, dt: f64) -> Result<(), GravityError> {
 fn nearest(t: &[i64], t0: i64) -> Option<usize> {
     (0..t.len()).min_by_key(|&k| (t[k] - t0).abs())
 }
-
-/// The largest gravity disturbance a tie may claim, mGal: free-air disturbances on the
-/// Earth stay within a few hundred mGal; a tie farther from normal gravity belongs to
-/// another place (or the trajectory does).
-pub const MAX_DISTURBANCE_MGAL: f64 = 1000.0;
 
 /// The sd of the filtered disturbance's mean over the epochs `window` (in order, without a
 /// gap), mGal, from the positions' and the accelerometers' white noise, each through its

@@ -11,6 +11,7 @@ use super::crossover;
 use super::epochs::{self, BinsAt, DownForce, SpilledBins, Target};
 use super::errors::{self, AttitudeErrors};
 use super::horizontal::{self, Horizontal, ReducedHorizontal};
+use super::normal::MAX_DISTURBANCE_MGAL;
 use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
 use super::spectrum::{self, Floor};
 use super::track::{Track, read_tracks};
@@ -420,9 +421,6 @@ fn numbers_only(s: &Stretch, r: &Reduced) -> Result<(), GravityError> {
     }
 }
 
-/// The largest gravity disturbance down on the Earth is a few hundred mGal: a filtered value
-/// beyond this (away from a stretch's ends) is no place's, mGal.
-pub const DISTURBANCE_BOUND_MGAL: f64 = 1000.0;
 /// A tie's level (the offset between the calibrated specific force and the ties) beyond
 /// this is not a calibration's error but a setup's, mGal.
 pub const OFFSET_BOUND_MGAL: f64 = 1000.0;
@@ -471,9 +469,9 @@ fn plausible(
                 .total_cmp(&r.filtered_mgal[b].abs())
         });
     match worst {
-        Some(k) if r.filtered_mgal[k].abs() > DISTURBANCE_BOUND_MGAL => refuse(format!(
+        Some(k) if r.filtered_mgal[k].abs() > MAX_DISTURBANCE_MGAL => refuse(format!(
             "at {} the filtered disturbance down is {:.3} mGal, beyond \
-             +/-{DISTURBANCE_BOUND_MGAL} mGal",
+             +/-{MAX_DISTURBANCE_MGAL} mGal",
             utc_iso(s.time_gps_ns[k]),
             r.filtered_mgal[k]
         )),

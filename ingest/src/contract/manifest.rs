@@ -1098,6 +1098,24 @@ fn check_site(site: &Site, err: &impl Fn(String, String) -> Error) -> Result<()>
             "the body tide needs the site's latitude_deg and longitude_deg".into(),
         ));
     }
+    if let Some(latitude_deg) = site.latitude_deg {
+        use crate::contract::normal::{GRS80, MAX_DISTURBANCE_MGAL};
+        let height_m = site.height_m.unwrap_or(0.0);
+        let normal = GRS80.normal_gravity_mgal(latitude_deg, height_m);
+        if (site.g_abs_mgal - normal).abs() > MAX_DISTURBANCE_MGAL {
+            return Err(err(
+                "site.g_abs_mgal".into(),
+                format!(
+                    "{} mGal is {:.0} mGal from normal gravity at latitude {latitude_deg} deg and \
+                     height {height_m} m ({normal:.0} mGal, GRS80), where no place on the \
+                     Earth is farther than {MAX_DISTURBANCE_MGAL} mGal: is it this \
+                     benchmark's gravity, in mGal, and its latitude?",
+                    site.g_abs_mgal,
+                    site.g_abs_mgal - normal
+                ),
+            ));
+        }
+    }
     Ok(())
 }
 

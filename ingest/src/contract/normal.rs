@@ -1,8 +1,16 @@
-//! Normal gravity of a level ellipsoid (GRS80) at a point given by geodetic latitude and
-//! ellipsoidal height: the magnitude of the normal gravity vector in closed form from the
+//! Normal gravity of a level ellipsoid (GRS80, WGS84) at a point given by geodetic latitude
+//! and ellipsoidal height: the magnitude of the normal gravity vector in closed form from the
 //! ellipsoidal-harmonic coordinates (u, beta) of the point (Hofmann-Wellenhof and Moritz
 //! 2006, section 2.7; Li and Goetze 2001), so no free-air series is needed at aircraft
-//! heights. Valid on and above the ellipsoid. No I/O.
+//! heights. Valid on and above the ellipsoid. No I/O. It lives in the contract because more
+//! than one stage holds values to it: the manifest's check of a benchmark's gravity, and the
+//! gravity stage's `normal_mgal`.
+
+/// The largest departure from normal gravity any place on the Earth has, mGal: free-air
+/// disturbances and anomalies stay within a few hundred mGal, so a gravity farther from
+/// normal gravity (a benchmark's, a tie's, a filtered disturbance) belongs to another place,
+/// or the values it is held to do.
+pub const MAX_DISTURBANCE_MGAL: f64 = 1000.0;
 
 /// A level ellipsoid: its four defining constants.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -22,6 +30,15 @@ pub const GRS80: Ellipsoid = Ellipsoid {
     a: 6_378_137.0,
     f: 1.0 / 298.257_222_101,
     gm: 3.986_005e14,
+    omega: 7.292_115e-5,
+};
+
+/// The World Geodetic System 1984 (NIMA TR8350.2, 2000): GRS80's a and omega, its own f and
+/// GM.
+pub const WGS84: Ellipsoid = Ellipsoid {
+    a: 6_378_137.0,
+    f: 1.0 / 298.257_223_563,
+    gm: 3.986_004_418e14,
     omega: 7.292_115e-5,
 };
 
@@ -94,6 +111,14 @@ mod tests {
         assert!((GRS80.normal_gravity(0.0, 0.0) - 9.780_326_771_5).abs() < 1e-9);
         assert!((GRS80.normal_gravity(90.0, 0.0) - 9.832_186_368_5).abs() < 1e-9);
         assert!((GRS80.normal_gravity(-90.0, 0.0) - 9.832_186_368_5).abs() < 1e-9);
+    }
+
+    /// WGS84's defining values give its published normal gravity at the equator and the
+    /// poles (NIMA TR8350.2 table 3.4: 9.7803253359 and 9.8321849378 m/s^2).
+    #[test]
+    fn wgs84_at_the_equator_and_the_poles() {
+        assert!((WGS84.normal_gravity(0.0, 0.0) - 9.780_325_335_9).abs() < 1e-9);
+        assert!((WGS84.normal_gravity(90.0, 0.0) - 9.832_184_937_8).abs() < 1e-9);
     }
 
     /// Above the ellipsoid gravity falls by about 0.3086 mGal a metre.
