@@ -133,23 +133,27 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let mut results = Vec::new();
     let mut fits = Vec::new();
     let mut residual_rows = Vec::new();
+    let full_scale_g = ds.manifest.instrument.full_scale_g;
+    let skip = |job: &Job<'_>, reason: String| Skipped {
+        accelerometer: job.accelerometer.clone(),
+        session: job.scope.id().to_owned(),
+        model: job.model.name.clone(),
+        reason,
+    };
     for (job, outcome) in jobs.iter().zip(&outcomes) {
         match outcome {
-            Ok((r, f)) => {
-                results.push(r.clone());
-                fits.push(f);
-                residual_rows.extend(residual_rows_of(job, f));
+            Ok((r, f)) => match r.implausible(full_scale_g) {
+                Some(reason) => skipped.push(skip(job, reason)),
+                None => {
+                    results.push(r.clone());
+                    fits.push(f);
+                    residual_rows.extend(residual_rows_of(job, f));
+                }
+            },
+            Err(_) if job.obs.is_empty() => {
+                skipped.push(skip(job, "no usable observations".to_owned()));
             }
-            Err(e) => skipped.push(Skipped {
-                accelerometer: job.accelerometer.clone(),
-                session: job.scope.id().to_owned(),
-                model: job.model.name.clone(),
-                reason: if job.obs.is_empty() {
-                    "no usable observations".to_owned()
-                } else {
-                    skip_reason(&ds, job, e)
-                },
-            }),
+            Err(e) => skipped.push(skip(job, skip_reason(&ds, job, e))),
         }
     }
     thermal_effects(&mut results, &fits);

@@ -68,7 +68,10 @@ pub fn fit_all(
                 Ok(s) => {
                     let mut r = result(ds, model, scope.id(), &rows, &positions, &s);
                     r.positions_without_temperature = total - rows.len();
-                    results.push(r);
+                    match r.implausible(ds.manifest.instrument.full_scale_g) {
+                        None => results.push(r),
+                        Some(reason) => skipped.push(skip(model, scope.id(), reason)),
+                    }
                 }
                 Err(e) => skipped.push(skip(model, scope.id(), e.to_string())),
             }

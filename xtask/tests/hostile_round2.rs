@@ -642,3 +642,46 @@ fn two_plots_named_alike_are_refused() {
         "{msg}"
     );
 }
+
+/// A fitted result is held to the instrument where it is formed (issue 50): a lab stream
+/// whose x channel reads 3 g beyond its zero (another instrument's output, a logger's
+/// offset; the ADC declared wide enough to pass it) gives a triad whose bias s_x b_x is
+/// beyond the declared full scale of 2 g. It is refused naming the parameter, the bound and
+/// the likely causes, and no triad result is written.
+#[test]
+fn a_bias_beyond_the_full_scale_is_refused_not_written() {
+    let (_dir, ds) = copy("triad-multipos", |m| {
+        m.replace(
+            "reading_unit = \"count\"",
+            "reading_unit = \"count\"\nadc_bits = 28",
+        )
+    });
+    let lab = ds.join("raw/lab.txt");
+    let text = std::fs::read_to_string(&lab).expect("lab.txt");
+    // 3 g at the fixture's 0.243 mGal per count.
+    let offset = 3.0 * 980_665.0 / 0.243;
+    let shifted: Vec<String> = text
+        .lines()
+        .map(|l| {
+            let mut f: Vec<String> = l.split(',').map(str::to_owned).collect();
+            match f.get(1).and_then(|x| x.parse::<f64>().ok()) {
+                Some(x) if f.len() == 4 => f[1] = format!("{:.1}", x + offset),
+                _ => {}
+            }
+            f.join(",")
+        })
+        .collect();
+    std::fs::write(&lab, shifted.join("\n") + "\n").expect("lab.txt");
+    let out = ds.join("out");
+    ingest::run(&ds, &out).expect("ingest");
+    align::run(&ds, &out).expect("align");
+    let calibration = adjust::run(&ds, &out).expect("adjust writes what it refused");
+    assert!(calibration.triad.is_empty(), "no triad result is written");
+    let said = &calibration.skipped[0].reason;
+    assert!(
+        said.contains("implausible: the fitted bias s_x b_x = ")
+            && said.contains("beyond the instrument's full scale (+/-2 g")
+            && said.contains("adc_columns"),
+        "{said}"
+    );
+}

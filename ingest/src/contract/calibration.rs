@@ -680,6 +680,50 @@ impl TriadResult {
     }
 }
 
+/// A fitted bias beyond the instrument's full scale (docs/formats.md 6): the acceleration
+/// a zero reading stands for, `bias_mgal`, cannot be beyond the range the accelerometer
+/// measures (a QA3000's is a few mg, a consumer MEMS's tens of mg, the full scale g's). One
+/// beyond says the readings are not this accelerometer's, or not in the declared unit, or
+/// the reference they were fitted to is not theirs. The refusal names the parameter and its
+/// bound; None when within.
+pub fn bias_beyond_full_scale(name: &str, bias_mgal: f64, full_scale_g: f64) -> Option<String> {
+    let bound = full_scale_g * 980_665.0;
+    (bias_mgal.abs() > bound || bias_mgal.is_nan()).then(|| {
+        format!(
+            "implausible: the fitted bias {name} = {bias_mgal:.0} mGal ({:.2} g) is beyond the \
+             instrument's full scale (+/-{full_scale_g} g, instrument.full_scale_g); likely a \
+             channel that is not this accelerometer's (channel, adc_columns), readings in \
+             another unit than instrument.reading_unit, or a reference of another instrument",
+            bias_mgal / 980_665.0
+        )
+    })
+}
+
+impl CalibrationResult {
+    /// Its bias `b` held to the instrument's full scale ([`bias_beyond_full_scale`]).
+    pub fn implausible(&self, full_scale_g: f64) -> Option<String> {
+        let b = self.parameters.iter().find(|p| p.name == "b")?;
+        bias_beyond_full_scale("b", b.value, full_scale_g)
+    }
+}
+
+impl TriadResult {
+    /// Its biases held to the instrument's full scale, each in mGal as its scale makes it
+    /// (`s_j b_j`, [`bias_beyond_full_scale`]); the first beyond.
+    pub fn implausible(&self, full_scale_g: f64) -> Option<String> {
+        let value = |name: String| {
+            self.parameters
+                .iter()
+                .find(|p| p.name == name)
+                .map(|p| p.value)
+        };
+        ["x", "y", "z"].iter().find_map(|axis| {
+            let bias = value(format!("s_{axis}"))? * value(format!("b_{axis}"))?;
+            bias_beyond_full_scale(&format!("s_{axis} b_{axis}"), bias, full_scale_g)
+        })
+    }
+}
+
 /// `calibration.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Calibration {
