@@ -186,6 +186,29 @@ impl CalibrationFunction {
         Ok(function)
     }
 
+    /// A calibration its maker states (docs/formats.md 11.1): the meter's gravity `offset +
+    /// scale * reading`, given in the axis models' convention, F = -(offset + scale *
+    /// reading) (an axis's F is minus the specific force along it: -g pointing up); its
+    /// variance from the stated sds (none: exact), uncorrelated; no range it was fitted
+    /// over, so no sample is flagged as beyond one.
+    pub fn vendor(v: &ingest::contract::manifest::VendorCalibration) -> Self {
+        let mut coef = [0.0; 6];
+        let mut cov = [[0.0; 6]; 6];
+        coef[0] = -v.offset_mgal;
+        coef[1] = -v.scale;
+        cov[0][0] = v.sd_offset_mgal.unwrap_or(0.0).powi(2);
+        cov[1][1] = v.sd_scale.unwrap_or(0.0).powi(2);
+        let (value, variance) = polynomials(&coef, &cov);
+        Self {
+            value_poly: Polynomial::new(value),
+            variance_poly: Polynomial::new(variance),
+            temperature: false,
+            t_ref_c: 0.0,
+            counts_range: None,
+            temperature_range_c: None,
+        }
+    }
+
     /// Where the calibration is meant to be used (the corners of its counts' and
     /// temperatures' ranges), its value and sigma must be numbers.
     fn finite_where_used(&self) -> Result<(), String> {

@@ -7,6 +7,9 @@ usage: python gravity_reference.py normal          prints lat,h,boule_mgal on a 
                                                    of IN's lon,lat,ht rows
        python gravity_reference.py shipgrav-track  prints lon,lat of shipgrav's own test
                                                    data (1 Hz), and its eotvos_full
+       python gravity_reference.py shipgrav-faa IN  prints shipgrav's free-air anomaly of
+                                                   the DGS laptop file IN (WGS84, no tide,
+                                                   unfiltered), and wgs_grav, a line each
 """
 import glob
 import os
@@ -46,3 +49,16 @@ elif what == "shipgrav-track":
     e = sgg.eotvos_full(lon, lat, np.zeros(len(lat)), 1)
     for a, b, c in zip(lon, lat, e):
         print(f"{a!r},{b!r},{c!r}")
+elif what == "shipgrav-faa":
+    # As shipgrav's own tests form it (tests/test_grav_data.py): the meter's offset, WGS84
+    # normal gravity with the second-order free-air term (0 at height 0), Eotvos.
+    import shipgrav.grav as sgg
+    import shipgrav.io as sgi
+
+    data = sgi.read_dgs_laptop([sys.argv[2]], "DGStest", progressbar=False)
+    grav = data["rgrav"].values + 969143
+    lat, lon = data["lat"], data["lon"]
+    normal = (sgg.wgs_grav(lat) + sgg.free_air_second_order(lat, np.zeros(len(lat)))).values
+    e = sgg.eotvos_full(lon.values, lat.values, np.zeros(len(lat)), 1)
+    for f, n in zip(grav - normal + e, normal):
+        print(f"{f!r},{n!r}")

@@ -18,7 +18,7 @@
 //! significant digits, more than an f64 holds); only scientific notation goes through f64.
 
 use crate::contract::ingest_ledger::{FileLedger, LabStreamReport, reason};
-use crate::contract::manifest::{MAX_VALUE_COLUMNS, ValueColumns};
+use crate::contract::manifest::{AdcFormat, MAX_VALUE_COLUMNS, ValueColumns};
 use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
@@ -261,6 +261,8 @@ pub struct LabConfig {
     pub reading_limits: Limits,
     /// Which channels the file's value columns hold (docs/formats.md 9.4).
     pub columns: ValueColumns,
+    /// The stream's layout: "seconds" or a DGS laptop file.
+    pub layout: AdcFormat,
 }
 
 /// A field that does not parse: (field name, message).
@@ -562,7 +564,7 @@ impl RunSink<'_> {
     /// The null readings by channel, for the ledger.
     fn null_counts(&self) -> BTreeMap<String, u64> {
         (0..3)
-            .filter(|&k| self.nulls[k] > 0)
+            .filter(|&k| self.nulls[k] > 0 && self.config.columns.column_of[k].is_some())
             .map(|k| (format!("ch{} nan", k + 1), self.nulls[k]))
             .collect()
     }
@@ -677,6 +679,8 @@ struct Lines<'c> {
     scientific: u64,
     /// The plausible range of a value, and the reason a line outside it is rejected for.
     limits: Limits,
+    /// "seconds", or a DGS laptop file (its time a UTC calendar in the line).
+    layout: AdcFormat,
 }
 
 /// What values a file's lines may hold: outside, the line is rejected for `reason`.
@@ -741,7 +745,74 @@ impl<'c> Lines<'c> {
             comma_separated: false,
             header: false,
             scientific: 0,
+            layout: config.layout,
         }
+    }
+
+    /// A line that does not parse: with `--skip-bad-lines` a counted rejection, otherwise an
+    /// error naming file, line and field.
+    fn malformed<T>(
+        &self,
+        line_no: u64,
+        (field, message): Bad,
+        ledger: &mut FileLedger,
+    ) -> Result<Option<T>> {
+        if self.skip_bad_lines {
+            ledger.reject(
+                format!("line {line_no}"),
+                reason::MALFORMED,
+                format!("{field}: {message}"),
+            );
+            return Ok(None);
+        }
+        Err(Error::Line {
+            path: self.path.to_path_buf(),
+            line: line_no,
+            field: field.to_owned(),
+            message,
+        })
+    }
+
+    /// A DGS laptop line ([`crate::dgs`]): its raw gravity on channel 1, judged as any
+    /// line; the time field in messages is its calendar fields.
+    fn dgs_data<'l>(
+        &mut self,
+        line_no: u64,
+        raw: &'l [u8],
+        ledger: &mut FileLedger,
+    ) -> Result<Option<DataLine<'l>>> {
+        let line = strip_comment(raw);
+        if line.trim_ascii().is_empty() {
+            self.other += 1;
+            return Ok(None);
+        }
+        self.comma_separated = true;
+        self.data_seen = true;
+        let mut buf: [&[u8]; crate::dgs::FIELDS + 1] = [&[]; crate::dgs::FIELDS + 1];
+        let mut count = 0;
+        let mut calendar = 0..0;
+        let mut at = 0;
+        for f in line.split(|&c| c == b',') {
+            if count == 19 {
+                calendar.start = at;
+            }
+            if count == 24 {
+                calendar.end = at + f.len();
+            }
+            if count < buf.len() {
+                buf[count] = f;
+            }
+            count += 1;
+            at += f.len() + 1;
+        }
+        let fields = &buf[..count.min(buf.len())];
+        let record = match crate::dgs::parse_laptop(fields) {
+            Ok(r) => r,
+            Err(bad) => return self.malformed(line_no, bad, ledger),
+        };
+        let readings = Readings::from_options([Some(record.raw_gravity_mgal), None, None]);
+        let rel = record.gps_ns - self.zero_gps_ns;
+        Ok(self.judge(line_no, rel, readings, &line[calendar], ledger))
     }
 
     /// A data line's GPS time (ns), values and time field; None for a comment, blank or
@@ -753,6 +824,9 @@ impl<'c> Lines<'c> {
         raw: &'l [u8],
         ledger: &mut FileLedger,
     ) -> Result<Option<DataLine<'l>>> {
+        if self.layout == AdcFormat::DgsLaptop {
+            return self.dgs_data(line_no, raw, ledger);
+        }
         if self.data_seen
             && let Some((rel, values, time_end)) = fast_line(raw, &self.columns)
         {
@@ -798,22 +872,7 @@ impl<'c> Lines<'c> {
         self.data_seen = true;
         let (rel, values, scientific) = match parse_line(fields, self.names, &self.columns) {
             Ok(x) => x,
-            Err((field, message)) if self.skip_bad_lines => {
-                ledger.reject(
-                    format!("line {line_no}"),
-                    reason::MALFORMED,
-                    format!("{field}: {message}"),
-                );
-                return Ok(None);
-            }
-            Err((field, message)) => {
-                return Err(Error::Line {
-                    path: self.path.to_path_buf(),
-                    line: line_no,
-                    field: field.to_owned(),
-                    message,
-                });
-            }
+            Err(bad) => return self.malformed(line_no, bad, ledger),
         };
         self.scientific += scientific;
         let readings = Readings::from_options(values);
@@ -882,7 +941,15 @@ impl<'c> Lines<'c> {
             ledger.reject(
                 format!("line {line_no}"),
                 reason::OUTSIDE_SESSION,
-                format!("time {} s is outside the session", text(time_field)),
+                format!(
+                    "time {}{} is outside the session",
+                    text(time_field),
+                    if self.layout == AdcFormat::DgsLaptop {
+                        " (UTC year, month, day, hour, minute, second)"
+                    } else {
+                        " s"
+                    }
+                ),
             );
             return None;
         }

@@ -21,6 +21,7 @@
 pub mod cli;
 pub mod contract;
 mod csvlog;
+pub mod dgs;
 pub mod encoding;
 mod error;
 pub mod gcb;

@@ -226,6 +226,7 @@ pub(crate) fn read_acquisition(
                 skip_bad_lines: opts.skip_bad_lines,
                 reading_limits: labstream::reading_limits(&ds.manifest.instrument),
                 columns: s.columns.adc,
+                layout: s.session.adc_format,
             };
             let interval = file.read(stream, "adc_csv", "lines", |ledger, pb| {
                 labstream::read_lab(stream, config, &mut out.lab, ledger, pb)
@@ -240,6 +241,7 @@ pub(crate) fn read_acquisition(
                     let config = labstream::LabConfig {
                         zero_gps_ns: *temperature_zero_gps_ns,
                         columns: s.columns.temperature,
+                        layout: manifest::AdcFormat::Seconds,
                         ..config
                     };
                     file.read(path, "temperature_csv", "lines", |ledger, pb| {

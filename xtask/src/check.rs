@@ -137,7 +137,7 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
 /// their epochs, first and last time and rate, or the error naming file, line and field.
 /// Returns whether they read.
 fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Result<bool> {
-    use adjust::gravity::trajectory::{read_csv, read_rtklib};
+    use adjust::gravity::trajectory::{read_csv, read_dgs_laptop, read_rtklib};
     use ingest::contract::survey::TrajectoryFormat;
     let Some(src) = &s.trajectory else {
         return Ok(true);
@@ -150,6 +150,10 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
         .to_string();
     let (layout, read) = match src.format {
         TrajectoryFormat::Rtklib => ("RTKLIB solution", read_rtklib(&src.path, false)),
+        TrajectoryFormat::DgsLaptop => (
+            "DGS laptop file, no heights: at the sea surface",
+            read_dgs_laptop(&src.path, false),
+        ),
         TrajectoryFormat::Csv => {
             let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
             ("CSV", read_csv(&src.path, s.times.reader(form), false))

@@ -50,6 +50,7 @@ impl Layout {
             Layout::Theodolite => "theodolite log",
             Layout::Trajectory(TrajectoryFormat::Rtklib) => "RTKLIB trajectory",
             Layout::Trajectory(TrajectoryFormat::Csv) => "CSV trajectory",
+            Layout::Trajectory(TrajectoryFormat::DgsLaptop) => "DGS laptop file",
             Layout::Attitude => "attitude CSV",
         }
     }

@@ -50,20 +50,32 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
     let ds = Dataset::load(dataset)?;
     let _lock = ingest::lock::OutputLock::acquire(out)?;
     ingest::contract::custody::check_out_folder(out, &ds.manifest.name)?;
-    let (cal, cal_sha256) = load_calibration(opts.calibration)?;
     let refused = |message| Error::Apply {
         path: opts.calibration.to_path_buf(),
         message,
     };
-    let selection = select(&cal, &ds, &opts.choice).map_err(|e| refused(e.to_string()))?;
-    let triad =
-        match super::select::triad_of(&cal, &ds, &selection).map_err(|e| refused(e.to_string()))? {
-            Some((result, channels)) => {
-                let f = super::triad_stream::TriadFunction::new(result).map_err(&refused)?;
-                Some((result, channels, f))
-            }
-            None => None,
-        };
+    let vendor = opts.calibration == Path::new(VENDOR);
+    let cal = if vendor {
+        None
+    } else {
+        Some(load_calibration(opts.calibration)?)
+    };
+    let (selection, triad) = match &cal {
+        None => (vendor_selection(&ds, &opts.choice).map_err(refused)?, None),
+        Some((cal, _)) => {
+            let selection = select(cal, &ds, &opts.choice).map_err(|e| refused(e.to_string()))?;
+            let triad = match super::select::triad_of(cal, &ds, &selection)
+                .map_err(|e| refused(e.to_string()))?
+            {
+                Some((result, channels)) => {
+                    let f = super::triad_stream::TriadFunction::new(result).map_err(&refused)?;
+                    Some((result, channels, f))
+                }
+                None => None,
+            };
+            (selection, triad)
+        }
+    };
     let ingest_report = match IngestReport::load_verified(&ds, out) {
         Ok(r) => r,
         Err(_) => ingest::run(dataset, out)?,
@@ -76,12 +88,21 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
     })?;
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
-    let used = CalibrationUsed {
-        path: opts.calibration.display().to_string(),
-        sha256: cal_sha256,
-        dataset: cal.dataset.clone(),
-        model: selection.model.clone(),
-        session: selection.session.clone(),
+    let used = match &cal {
+        Some((cal, sha256)) => CalibrationUsed {
+            path: opts.calibration.display().to_string(),
+            sha256: sha256.clone(),
+            dataset: cal.dataset.clone(),
+            model: selection.model.clone(),
+            session: selection.session.clone(),
+        },
+        None => CalibrationUsed {
+            path: format!("{VENDOR}: the makers' stated calibrations in dataset.toml"),
+            sha256: sha256_file(&ds.dir.join("dataset.toml"))?,
+            dataset: ds.manifest.name.clone(),
+            model: selection.model.clone(),
+            session: selection.session.clone(),
+        },
     };
     let report = match triad {
         Some((result, channels, f)) => {
@@ -220,6 +241,52 @@ fn apply_triad(
 }
 
 /// Reads and checks calibration.json; returns it and its SHA-256.
+/// `--calibration vendor`: each accelerometer's `vendor_calibration` from the survey's own
+/// manifest (docs/formats.md 11.1), not a fit.
+pub const VENDOR: &str = "vendor";
+
+/// The survey's accelerometers with the calibrations their makers state; refused when one
+/// states none, or a model or session is asked for (a stated calibration has neither).
+fn vendor_selection(ds: &Dataset, choice: &Choice<'_>) -> Result<Selection, String> {
+    if let Some(m) = choice.model {
+        return Err(format!(
+            "--model {m}: the makers' stated calibrations (--calibration {VENDOR}) are one each"
+        ));
+    }
+    if let Some(s) = choice.session {
+        return Err(format!(
+            "--session {s}: the makers' stated calibrations (--calibration {VENDOR}) hold for \
+             every session"
+        ));
+    }
+    let targets = ds
+        .manifest
+        .instrument
+        .accelerometer
+        .iter()
+        .map(|acc| {
+            let v = acc.vendor_calibration.as_ref().ok_or_else(|| {
+                format!(
+                    "accelerometer `{}` states no vendor_calibration in dataset.toml: give its \
+                     maker's scale and offset_mgal, or apply a fitted calibration.json",
+                    acc.id
+                )
+            })?;
+            Ok(Target {
+                accelerometer: acc.clone(),
+                function: Ok(CalibrationFunction::vendor(v)),
+                counts_range: None,
+                temperature_range_c: None,
+            })
+        })
+        .collect::<Result<_, String>>()?;
+    Ok(Selection {
+        model: VENDOR.to_owned(),
+        session: ingest::contract::calibration::ALL_SESSIONS.to_owned(),
+        targets,
+    })
+}
+
 fn load_calibration(path: &Path) -> Result<(Calibration, String), Error> {
     let cal: Calibration = ingest::read_json(path)?;
     if cal.format != CALIBRATION_FORMAT {
@@ -579,7 +646,9 @@ impl<'t> Lane<'t> {
 pub struct ApplyArgs {
     /// Dataset folder holding the survey (dataset.toml and its logs).
     pub dataset: std::path::PathBuf,
-    /// The calibration.json to apply (OUT/adjust/calibration.json of the calibration run).
+    /// The calibration.json to apply (OUT/adjust/calibration.json of the calibration run),
+    /// or `vendor`: the makers' stated scale and offset in the survey's dataset.toml
+    /// (`vendor_calibration`; a file named so is given as ./vendor).
     #[arg(long)]
     pub calibration: std::path::PathBuf,
     /// The model to apply (needed when the calibration holds several).

@@ -225,6 +225,7 @@ fn each_epoch(
     let g = |_: u64, t: i64, llh: [f64; 3], sd: Option<[f64; 3]>| f(t, llh, sd);
     match src.format {
         TrajectoryFormat::Rtklib => trajectory::for_each_rtklib(&src.path, skip, g),
+        TrajectoryFormat::DgsLaptop => trajectory::for_each_dgs_laptop(&src.path, skip, g),
         TrajectoryFormat::Csv => {
             let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
             trajectory::for_each_csv(&src.path, s.times.reader(form), skip, g)

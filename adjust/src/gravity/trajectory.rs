@@ -282,6 +282,50 @@ pub fn read_csv(path: &Path, time: TimeReader, skip: bool) -> Result<Trajectory,
     Ok(out)
 }
 
+/// Reads a DGS laptop file's navigation (docs/formats.md 11.1): each line's latitude and
+/// longitude through the parser ingest reads its gravity with ([`ingest::dgs`]), at height
+/// 0 (the file has none: the sea surface), without sds.
+pub fn read_dgs_laptop(path: &Path, skip: bool) -> Result<Trajectory, GravityError> {
+    let mut out = Trajectory::default();
+    out.bad_lines = for_each_dgs_laptop(path, skip, |line, t, llh, sd| {
+        out.push(t, llh, sd, line);
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Calls `f` with each epoch of a DGS laptop file (its line, time, position at height 0, no
+/// sds); with `skip`, a line that breaks the format is set aside.
+pub fn for_each_dgs_laptop(
+    path: &Path,
+    skip: bool,
+    mut f: impl FnMut(u64, i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
+) -> Result<Vec<BadLine>, GravityError> {
+    let mut bad_lines = Vec::new();
+    for (line_no, l) in numbered_lines(path)? {
+        let parsed = l.and_then(|l| {
+            if l.trim().is_empty() {
+                return Ok(None);
+            }
+            let fields: Vec<&[u8]> = l.as_bytes().split(|&b| b == b',').collect();
+            ingest::dgs::parse_laptop(&fields)
+                .map(Some)
+                .map_err(|(field, m)| bad(path, line_no, field, m))
+        });
+        match parsed {
+            Ok(Some(r)) => f(
+                line_no,
+                r.gps_ns,
+                [r.latitude_deg, r.longitude_deg, 0.0],
+                None,
+            )?,
+            Ok(None) => {}
+            Err(e) => set_aside(e, skip, &mut bad_lines)?,
+        }
+    }
+    Ok(bad_lines)
+}
+
 /// Calls `f` with each epoch of a CSV trajectory whose times `time` reads, in file order
 /// (its line, time, position and sds if given); with `skip`, a line that breaks the format
 /// is set aside (returned) instead of failing the file.

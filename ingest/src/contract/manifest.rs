@@ -136,6 +136,28 @@ pub struct Accelerometer {
     /// Serial number.
     #[serde(default)]
     pub serial: Option<String>,
+    /// The scale and offset its maker states (a platform gravimeter's; docs/formats.md 11.1),
+    /// applied with `--calibration vendor`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vendor_calibration: Option<VendorCalibration>,
+}
+
+/// A calibration its maker states: `F = offset_mgal + scale * reading`, mGal, with the
+/// sds the maker gives (none: taken as exact, and said so). Not a fit: it has no
+/// observations, residuals or tests.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct VendorCalibration {
+    /// mGal per reading unit.
+    pub scale: f64,
+    /// mGal.
+    pub offset_mgal: f64,
+    /// The stated sd of the offset, mGal.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sd_offset_mgal: Option<f64>,
+    /// The stated sd of the scale.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sd_scale: Option<f64>,
 }
 
 /// `[align]`.
@@ -244,6 +266,27 @@ pub enum AdcFormat {
     /// `t x y z`: seconds, then one decimal reading a channel, separated by commas or white
     /// space (docs/formats.md 8.3; imu_tk's ASCII layout).
     Seconds,
+    /// A DGS marine gravimeter's "laptop" file: 26 fields a line, the raw gravity (mGal) the
+    /// reading of channel 1, its own UTC calendar time (docs/formats.md 11.1, `crate::dgs`).
+    #[serde(rename = "dgs-laptop")]
+    DgsLaptop,
+}
+
+impl AdcFormat {
+    /// Read by the lab-stream reader into the lab table (decimal readings in the
+    /// instrument's `reading_unit`), not as counts.
+    pub fn is_lab_stream(self) -> bool {
+        matches!(self, AdcFormat::Seconds | AdcFormat::DgsLaptop)
+    }
+
+    /// The name as in the manifest.
+    pub fn name(self) -> &'static str {
+        match self {
+            AdcFormat::Gps => "gps",
+            AdcFormat::Seconds => "seconds",
+            AdcFormat::DgsLaptop => "dgs-laptop",
+        }
+    }
 }
 
 /// Unit of a "seconds" stream's times.
@@ -835,13 +878,19 @@ fn lab_acquisition(
     if s.acquisition.is_some() {
         return Err(err(
             format!("session[{i}].acquisition"),
-            "adc_format = \"seconds\" describes `adc_csv`; give the stream there".to_owned(),
+            format!(
+                "adc_format = \"{}\" describes `adc_csv`; give the stream there",
+                s.adc_format.name()
+            ),
         ));
     }
     let Some(stream) = &s.adc_csv else {
         return Err(err(
             format!("session[{i}].adc_csv"),
-            "missing: adc_format = \"seconds\" needs the stream in `adc_csv`".to_owned(),
+            format!(
+                "missing: adc_format = \"{}\" needs the stream in `adc_csv`",
+                s.adc_format.name()
+            ),
         ));
     };
     let stream = file(format!("session[{i}].adc_csv"), stream)?;
@@ -908,6 +957,17 @@ fn log_time_forms(
     key: &impl Fn(&str) -> String,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<(TimeForm, TimeForm)> {
+    if s.adc_format == AdcFormat::DgsLaptop {
+        if s.adc_time.is_some() {
+            return Err(err(
+                key("adc_time"),
+                "a DGS laptop file writes its own UTC calendar time on every line: this key \
+                 has nothing to describe"
+                    .to_owned(),
+            ));
+        }
+        return Ok((TimeForm::Iso, s.temperature_time.unwrap_or(TimeForm::Iso)));
+    }
     if s.adc_format == AdcFormat::Seconds {
         let unit = match s.time_unit {
             TimeUnit::Seconds => TimeForm::S,
@@ -1167,6 +1227,37 @@ fn check_instrument(ins: &Instrument, err: &impl Fn(String, String) -> Error) ->
                 format!("channel {} is used twice", a.channel),
             ));
         }
+        if let Some(v) = &a.vendor_calibration {
+            check_vendor(v, &|k, m| err(key(&format!("vendor_calibration.{k}")), m))?;
+        }
+    }
+    Ok(())
+}
+
+/// A stated calibration's numbers: a scale finite and not 0, an offset within +/-2 g, sds
+/// finite and not negative.
+fn check_vendor(v: &VendorCalibration, err: &impl Fn(&str, String) -> Error) -> Result<()> {
+    if !(v.scale.is_finite() && v.scale != 0.0) {
+        return Err(err(
+            "scale",
+            format!("{} is not a scale: a finite number, not 0", v.scale),
+        ));
+    }
+    if !(v.offset_mgal.is_finite() && v.offset_mgal.abs() <= 2.0 * 980_665.0) {
+        return Err(err(
+            "offset_mgal",
+            format!("{} is not an offset in mGal within +/-2 g", v.offset_mgal),
+        ));
+    }
+    for (k, sd) in [
+        ("sd_offset_mgal", v.sd_offset_mgal),
+        ("sd_scale", v.sd_scale),
+    ] {
+        if let Some(sd) = sd
+            && !(sd.is_finite() && sd >= 0.0)
+        {
+            return Err(err(k, format!("{sd} is not an sd")));
+        }
     }
     Ok(())
 }
@@ -1226,7 +1317,17 @@ fn resolve_session(
             format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
         )
     })?;
-    if s.adc_format != AdcFormat::Seconds && m.instrument.reading_unit != ReadingUnit::Count {
+    if s.adc_format == AdcFormat::DgsLaptop && m.instrument.reading_unit != ReadingUnit::MilliGal {
+        return Err(err(
+            format!("session[{i}].adc_format"),
+            format!(
+                "a DGS laptop file's raw gravity is in mGal, and the instrument's reading_unit \
+                 is \"{}\": set reading_unit = \"mGal\"",
+                m.instrument.reading_unit.name()
+            ),
+        ));
+    }
+    if !s.adc_format.is_lab_stream() && m.instrument.reading_unit != ReadingUnit::Count {
         // One fit takes every session's readings: they must share a unit.
         return Err(err(
             format!("session[{i}].adc_format"),
@@ -1240,7 +1341,7 @@ fn resolve_session(
         ));
     }
     let times = session_times(i, s, &err)?;
-    let acquisition = if s.adc_format == AdcFormat::Seconds {
+    let acquisition = if s.adc_format.is_lab_stream() {
         lab_acquisition(i, s, (date, start_gps_ns), &times, &file, &err)?
     } else {
         counts_acquisition(i, s, file, err)?
@@ -1272,6 +1373,14 @@ fn log_columns(
     let key = |k: &str| format!("session[{i}].{k}");
     let text_logs = s.acquisition.is_none();
     let channels = match &s.adc_columns {
+        // The meter's one reading.
+        None if s.adc_format == AdcFormat::DgsLaptop => vec![1],
+        Some(_) if s.adc_format == AdcFormat::DgsLaptop => {
+            return Err(err(
+                key("adc_columns"),
+                "a DGS laptop file has one reading, its raw gravity, on channel 1".to_owned(),
+            ));
+        }
         None => vec![1, 2, 3],
         Some(_) if !text_logs => {
             return Err(err(

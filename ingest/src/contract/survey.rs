@@ -17,6 +17,17 @@ pub enum TrajectoryFormat {
     /// `time,lat_deg,lon_deg,h_m[,sd_n_m,sd_e_m,sd_u_m]`, the time in `trajectory_time`.
     #[serde(rename = "csv")]
     Csv,
+    /// A DGS marine gravimeter's laptop file: the meter's own navigation columns (latitude and
+    /// longitude, no height: the sea surface, height 0, and said so; docs/formats.md 11.1).
+    #[serde(rename = "dgs-laptop")]
+    DgsLaptop,
+}
+
+impl TrajectoryFormat {
+    /// Whether its positions carry heights (a DGS laptop file's do not).
+    pub fn has_heights(self) -> bool {
+        self != TrajectoryFormat::DgsLaptop
+    }
 }
 
 /// `[survey]`: what turns a survey's calibrated accelerations into gravity (docs/formats.md 10).
@@ -219,7 +230,7 @@ pub fn trajectory(
     let format = s.trajectory_format.ok_or_else(|| {
         err(
             key("trajectory_format"),
-            "missing: \"rtklib\" (a .pos solution file) or \"csv\"".to_owned(),
+            "missing: \"rtklib\" (a .pos solution file), \"csv\" or \"dgs-laptop\"".to_owned(),
         )
     })?;
     let time = trajectory_time(format, s.trajectory_time, &key, err)?;
@@ -266,6 +277,15 @@ fn trajectory_time(
             ));
         }
         (TrajectoryFormat::Rtklib, None) => None,
+        (TrajectoryFormat::DgsLaptop, Some(_)) => {
+            return Err(err(
+                key("trajectory_time"),
+                "a DGS laptop file writes its own UTC calendar time on every line: remove the \
+                 key"
+                .to_owned(),
+            ));
+        }
+        (TrajectoryFormat::DgsLaptop, None) => None,
         (TrajectoryFormat::Csv, None) => {
             return Err(err(
                 key("trajectory_time"),

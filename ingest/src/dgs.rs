@@ -1,0 +1,211 @@
+//! DGS AT1M/AT1A marine gravimeters' "laptop" files (docs/formats.md 11.1): one line a
+//! second, 26 comma-separated fields, its own UTC calendar time at the end. The layout is
+//! the one shipgrav reads for R/V Atlantis, Revelle, Palmer, Ride and DGS's own test file
+//! (`shipgrav.io._dgs_laptop_general`); the fields, from 0:
+//!
+//! | field | what | read here |
+//! |---|---|---|
+//! | 1 | raw gravity `rgrav`, mGal, before the meter's offset | the meter's reading, channel 1 |
+//! | 2, 3 | long and cross accelerations | checked as numbers |
+//! | 6 | status | checked as an integer |
+//! | 10 to 13 | the cross-coupling monitors VE, VCC, AL, AX | checked as numbers |
+//! | 14, 15 | latitude, longitude, deg | the trajectory's (the gravity stage) |
+//! | 19 to 24 | year, month, day, hour, minute, second (UTC) | the time |
+//!
+//! The others (0, 4, 5, 7 to 9, 16 to 18, 25) are not read, as shipgrav does not read them.
+//! One parser serves ingest (the reading) and the gravity stage (the positions), so the two
+//! see the same lines the same way. No I/O.
+
+use crate::contract::manifest::TimeScale;
+use crate::time::{Calendar, gps_ns};
+
+/// Fields a laptop line has.
+pub const FIELDS: usize = 26;
+
+/// One line of a laptop file, as read.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LaptopLine {
+    /// GPS time, ns (the line's UTC calendar time).
+    pub gps_ns: i64,
+    /// Raw gravity, mGal, before the meter's offset.
+    pub raw_gravity_mgal: f64,
+    /// The cross-coupling monitors VE, VCC, AL, AX.
+    pub monitors: [f64; 4],
+    /// Latitude and longitude, deg.
+    pub latitude_deg: f64,
+    /// Longitude, deg.
+    pub longitude_deg: f64,
+}
+
+/// A field that does not parse: (field name, message).
+pub type Bad = (&'static str, String);
+
+fn text(f: &[u8]) -> String {
+    String::from_utf8_lossy(f).into_owned()
+}
+
+fn number(fields: &[&[u8]], k: usize, name: &'static str) -> Result<f64, Bad> {
+    let f = fields[k].trim_ascii();
+    std::str::from_utf8(f)
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| (name, format!("`{}` is not a number", text(f))))
+}
+
+fn integer(fields: &[&[u8]], k: usize, name: &'static str) -> Result<u32, Bad> {
+    let f = fields[k].trim_ascii();
+    std::str::from_utf8(f)
+        .ok()
+        .and_then(|s| s.parse::<u32>().ok())
+        .ok_or_else(|| (name, format!("`{}` is not an integer", text(f))))
+}
+
+/// A laptop line's fields (split at commas, white space around each allowed) read; the
+/// error names the field and what is wrong with it.
+pub fn parse_laptop(fields: &[&[u8]]) -> Result<LaptopLine, Bad> {
+    if fields.len() != FIELDS {
+        return Err((
+            "line",
+            format!(
+                "{} fields, expected {FIELDS} (a DGS laptop line: gravity, raw gravity, long, \
+                 cross, ..., year, month, day, hour, minute, second, ...)",
+                fields.len()
+            ),
+        ));
+    }
+    let raw_gravity_mgal = number(fields, 1, "rgrav")?;
+    number(fields, 2, "long_a")?;
+    number(fields, 3, "crss_a")?;
+    integer(fields, 6, "status")?;
+    let mut monitors = [0.0; 4];
+    for (m, (k, name)) in monitors
+        .iter_mut()
+        .zip([(10, "ve"), (11, "vcc"), (12, "al"), (13, "ax")])
+    {
+        *m = number(fields, k, name)?;
+    }
+    let latitude_deg = number(fields, 14, "lat")?;
+    let longitude_deg = number(fields, 15, "lon")?;
+    if !(-90.0..=90.0).contains(&latitude_deg) {
+        return Err(("lat", format!("{latitude_deg} is outside [-90, 90]")));
+    }
+    if !(-180.0..=360.0).contains(&longitude_deg) {
+        return Err(("lon", format!("{longitude_deg} is outside [-180, 360]")));
+    }
+    let gps_ns = time(fields)?;
+    Ok(LaptopLine {
+        gps_ns,
+        raw_gravity_mgal,
+        monitors,
+        latitude_deg,
+        longitude_deg,
+    })
+}
+
+/// The line's UTC calendar time (fields 19 to 24; the second may have a fraction) as GPS ns.
+fn time(fields: &[&[u8]]) -> Result<i64, Bad> {
+    let year = integer(fields, 19, "year")?;
+    let month = integer(fields, 20, "month")?;
+    let day = integer(fields, 21, "day")?;
+    let hour = integer(fields, 22, "hour")?;
+    let minute = integer(fields, 23, "minute")?;
+    let second = number(fields, 24, "second")?;
+    let bad = |name: &'static str, v: String| (name, format!("`{v}` is out of range"));
+    if !(1..=12).contains(&month) {
+        return Err(bad("month", month.to_string()));
+    }
+    let date = crate::contract::manifest::parse_date(&format!("{year:04}-{month:02}-{day:02}"))
+        .ok_or_else(|| {
+            (
+                "day",
+                format!("{year:04}-{month:02}-{day:02} is not a date"),
+            )
+        })?;
+    if hour > 23 {
+        return Err(bad("hour", hour.to_string()));
+    }
+    if minute > 59 {
+        return Err(bad("minute", minute.to_string()));
+    }
+    if !(0.0..61.0).contains(&second) {
+        return Err(bad("second", second.to_string()));
+    }
+    let whole = second.floor();
+    let c = Calendar {
+        year: date.0,
+        month: date.1,
+        day: date.2,
+        hour: hour as u8,
+        minute: minute as u8,
+        second: whole as u8,
+        nanos: ((second - whole) * 1e9).round().min(999_999_999.0) as u32,
+    };
+    gps_ns(c, TimeScale::Utc)
+        .ok_or_else(|| ("year", format!("{year}: before the GPS epoch (1980-01-06)")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LINE: &str = "11773.330941280192,12295.691114150419, -0.574874946460, \
+        -0.635361747189,  0.003210411454, 53.370688000000,           20814,         5403321, \
+        31.117220000000, 50.141118000000,  0.810980000000, -0.001845585113,  0.107840000000,  \
+        0.254290000000, 48.073118466700,-10.317187150000, 11.400000000000,270.080000000000,  \
+        0.319623703139,2019,07,11,00,00,00.00,0";
+
+    fn fields(line: &str) -> Vec<&[u8]> {
+        line.as_bytes().split(|&b| b == b',').collect()
+    }
+
+    /// shipgrav's test file's first line: its values, and 2019-07-11T00:00:00 UTC as GPS
+    /// time (18 leap seconds then).
+    #[test]
+    fn the_first_line_of_dgs_test_file() {
+        let l = parse_laptop(&fields(LINE)).expect("line");
+        // The doubles the text gives, bit for bit.
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(
+            bits(&[l.raw_gravity_mgal, l.latitude_deg, l.longitude_deg]),
+            bits(&[12_295.691_114_150_419, 48.073_118_466_7, -10.317_187_15])
+        );
+        assert_eq!(
+            bits(&l.monitors),
+            bits(&[0.81098, -0.001_845_585_113, 0.10784, 0.25429])
+        );
+        let midnight = gps_ns(
+            crate::time::parse_calendar("2019-07-11T00:00:00").expect("calendar"),
+            TimeScale::Utc,
+        )
+        .expect("gps");
+        assert_eq!(l.gps_ns, midnight);
+        let gpst = gps_ns(
+            crate::time::parse_calendar("2019-07-11T00:00:18").expect("calendar"),
+            TimeScale::Gpst,
+        );
+        assert_eq!(Some(l.gps_ns), gpst);
+    }
+
+    /// Each damaged field is named.
+    #[test]
+    fn a_damaged_field_is_named() {
+        for (k, to, name) in [
+            (1, "12295.6x", "rgrav"),
+            (6, "-3", "status"),
+            (11, "", "vcc"),
+            (14, "91.0", "lat"),
+            (20, "13", "month"),
+            (21, "32", "day"),
+            (22, "24", "hour"),
+            (24, "61.5", "second"),
+        ] {
+            let mut f = fields(LINE);
+            f[k] = to.as_bytes();
+            let (field, message) = parse_laptop(&f).expect_err(name);
+            assert_eq!(field, name, "{message}");
+        }
+        let (field, _) = parse_laptop(&fields(&LINE[..LINE.len() - 2])).expect_err("25 fields");
+        assert_eq!(field, "line");
+    }
+}
