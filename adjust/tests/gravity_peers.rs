@@ -233,6 +233,7 @@ trajectory_format = "dgs-laptop"
 [survey]
 filter_s = 240
 sample_noise_mgal = 1.0
+normal_gravity = "WGS84"
 "#,
     )
     .expect("manifest");
@@ -257,12 +258,12 @@ sample_noise_mgal = 1.0
     let mut ours = Vec::new();
     align::read::float_batches(
         &path,
-        &["down_mgal", "normal_mgal"],
+        &["down_mgal", "normal_mgal", "tide_mgal"],
         ingest::contract::tables::gravity::FLAGS,
         1 << 16,
         |b| {
             for i in 0..b.time_ns.len() {
-                ours.push((b.values[0].value(i), b.values[1].value(i)));
+                ours.push([0, 1, 2].map(|c| b.values[c].value(i)));
             }
             Ok(())
         },
@@ -270,12 +271,19 @@ sample_noise_mgal = 1.0
     .expect("gravity.parquet");
     let want = reference(&py, &["shipgrav-faa", record.to_str().expect("utf-8")]);
     assert_eq!(ours.len(), want.len());
-    // Ours against WGS84: the disturbance plus GRS80's normal gravity less WGS84's.
-    let d: Vec<f64> = ours
+    assert!(
+        ours.iter()
+            .zip(&want)
+            .all(|(o, w)| (o[1] - w[1]).abs() < 1e-3),
+        "the same normal gravity, WGS84's"
+    );
+    // shipgrav's tide is the correction (added), ours the effect (removed).
+    let tides = ours
         .iter()
         .zip(&want)
-        .map(|(&(down, grs80), w)| down + grs80 - w[1] - w[0])
-        .collect();
+        .map(|(o, w)| (o[2] + w[2]).abs())
+        .fold(0.0, f64::max);
+    let d: Vec<f64> = ours.iter().zip(&want).map(|(o, w)| o[0] - w[0]).collect();
     let interior = &d[5..d.len() - 5];
     let rms = (interior.iter().map(|x| x * x).sum::<f64>() / interior.len() as f64).sqrt();
     let means: Vec<f64> = interior
@@ -285,8 +293,11 @@ sample_noise_mgal = 1.0
     let worst_mean = means.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
     eprintln!(
         "DGS laptop file: free-air anomaly against shipgrav's, rms {rms:.4} mGal epoch by \
-         epoch, worst 240 s mean {worst_mean:.4} mGal"
+         epoch, worst 240 s mean {worst_mean:.4} mGal; the tides {:.4} mGal at the start, \
+         apart by {tides:.4} mGal at most",
+        ours[0][2]
     );
+    assert!(tides < 0.005, "the tides apart by {tides} mGal");
     assert!(
         rms < 0.02 && worst_mean < 0.005,
         "rms {rms}, worst mean {worst_mean}"

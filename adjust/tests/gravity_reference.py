@@ -8,8 +8,9 @@ usage: python gravity_reference.py normal          prints lat,h,boule_mgal on a 
        python gravity_reference.py shipgrav-track  prints lon,lat of shipgrav's own test
                                                    data (1 Hz), and its eotvos_full
        python gravity_reference.py shipgrav-faa IN  prints shipgrav's free-air anomaly of
-                                                   the DGS laptop file IN (WGS84, no tide,
-                                                   unfiltered), and wgs_grav, a line each
+                                                   the DGS laptop file IN (WGS84, Longman's
+                                                   tide, unfiltered), wgs_grav and the
+                                                   tide's correction, a line each
 """
 import glob
 import os
@@ -60,5 +61,6 @@ elif what == "shipgrav-faa":
     lat, lon = data["lat"], data["lon"]
     normal = (sgg.wgs_grav(lat) + sgg.free_air_second_order(lat, np.zeros(len(lat)))).values
     e = sgg.eotvos_full(lon.values, lat.values, np.zeros(len(lat)), 1)
-    for f, n in zip(grav - normal + e, normal):
-        print(f"{f!r},{n!r}")
+    lt = np.asarray(sgg.longman_tide_prediction(lon, lat, data["date_time"]))
+    for f, n, t in zip(grav - normal + e + lt, normal, lt):
+        print(f"{f!r},{n!r},{t!r}")

@@ -17,7 +17,7 @@ use super::GravityError;
 use super::errors::{self, AttitudeErrors};
 use super::filter;
 use super::navigation::{eotvos_down, longitude_step_deg, radii};
-use super::normal::{GRS80, MAX_DISTURBANCE_MGAL};
+use super::normal::{MAX_DISTURBANCE_MGAL, NormalGravity};
 use ingest::contract::survey::ErrorModel;
 
 /// One stretch of track: evenly spaced epochs and what was measured at them.
@@ -46,6 +46,10 @@ pub struct Stretch {
     pub f_down_mgal: Vec<f64>,
     /// Its sigma from the calibration's covariance, mGal.
     pub sigma_f_mgal: Vec<f64>,
+    /// The ellipsoid of normal gravity, and of the radii the velocities are formed with.
+    pub normal: NormalGravity,
+    /// The body tide's effect on gravity at each epoch, mGal (empty: none removed).
+    pub tide_mgal: Vec<f64>,
     /// The effect on it of a one-sd error of the heading, the pitch and the roll, signed
     /// ([`errors::attitude_effects`]; 0 without attitude), mGal.
     pub attitude_effects_mgal: Vec<[f64; 3]>,
@@ -81,8 +85,10 @@ impl Stretch {
         ] {
             cut(v, range.clone());
         }
-        if !self.sd_up_declared_m.is_empty() {
-            cut(&mut self.sd_up_declared_m, range.clone());
+        for v in [&mut self.sd_up_declared_m, &mut self.tide_mgal] {
+            if !v.is_empty() {
+                cut(v, range.clone());
+            }
         }
         cut(&mut self.attitude_effects_mgal, range.clone());
         cut(&mut self.time_gps_ns, range);
@@ -105,6 +111,7 @@ impl Reduced {
             &mut self.speed_m_s,
             &mut self.eotvos_mgal,
             &mut self.normal_mgal,
+            &mut self.tide_mgal,
         ] {
             cut(v, range.clone());
         }
@@ -189,6 +196,8 @@ pub struct Reduced {
     pub eotvos_mgal: Vec<f64>,
     /// Normal gravity, mGal.
     pub normal_mgal: Vec<f64>,
+    /// The body tide's effect on gravity, removed, mGal (0 without a tide).
+    pub tide_mgal: Vec<f64>,
     /// The drift removed: (offset mGal at the first tie, rate mGal/h), their sigmas.
     pub drift: Option<Drift>,
 }
@@ -342,11 +351,12 @@ fn sliding_min_max(x: &[f64], reach: usize) -> (Vec<f64>, Vec<f64>) {
 /// and normal gravity pushed into `out`.
 fn unfiltered(s: &Stretch, dt: f64, out: &mut Reduced) -> Vec<f64> {
     let n = s.time_gps_ns.len();
+    let ellipsoid = s.normal.ellipsoid();
     let mut raw = vec![0.0; n];
     for k in 0..n {
         let (lo, hi) = (k.saturating_sub(1), (k + 1).min(n - 1));
         let span = (hi - lo) as f64 * dt;
-        let (r_m, r_n) = radii(&GRS80, s.latitude_deg[k]);
+        let (r_m, r_n) = radii(ellipsoid, s.latitude_deg[k]);
         let h = s.height_m[k];
         let v_n = (s.latitude_deg[hi] - s.latitude_deg[lo]).to_radians() * (r_m + h) / span;
         let v_e = longitude_step_deg(s.longitude_deg[lo], s.longitude_deg[hi]).to_radians()
@@ -356,12 +366,14 @@ fn unfiltered(s: &Stretch, dt: f64, out: &mut Reduced) -> Vec<f64> {
         // a_D = -d2h/dt2; at the ends, the neighbour's.
         let c = k.clamp(1, n - 2);
         let a_d = -(s.height_m[c + 1] - 2.0 * s.height_m[c] + s.height_m[c - 1]) / (dt * dt);
-        let e = eotvos_down(&GRS80, s.latitude_deg[k], h, v_n, v_e) * 1e5;
-        let gamma = GRS80.normal_gravity_mgal(s.latitude_deg[k], h);
-        raw[k] = a_d * 1e5 - s.f_down_mgal[k] + e - gamma;
+        let e = eotvos_down(ellipsoid, s.latitude_deg[k], h, v_n, v_e) * 1e5;
+        let gamma = ellipsoid.normal_gravity_mgal(s.latitude_deg[k], h);
+        let tide = s.tide_mgal.get(k).copied().unwrap_or(0.0);
+        raw[k] = a_d * 1e5 - s.f_down_mgal[k] + e - gamma - tide;
         out.speed_m_s.push(v_n.hypot(v_e));
         out.eotvos_mgal.push(e);
         out.normal_mgal.push(gamma);
+        out.tide_mgal.push(tide);
     }
     raw
 }
@@ -384,7 +396,7 @@ fn filtered(
 ) -> Vec<f64> {
     let n = s.time_gps_ns.len();
     let rest: Vec<f64> = (0..n)
-        .map(|k| -s.f_down_mgal[k] + out.eotvos_mgal[k] - out.normal_mgal[k])
+        .map(|k| -s.f_down_mgal[k] + out.eotvos_mgal[k] - out.normal_mgal[k] - out.tide_mgal[k])
         .collect();
     let mut f = filter::filtfilt_pivoted(sections, &rest, pad, pivot);
     let h = filter::filtfilt_pivoted(sections, &s.height_m, pad, 1);

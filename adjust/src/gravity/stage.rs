@@ -111,6 +111,8 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
             attitude: survey.attitude_error_model(),
             positions: survey.position_error_model(),
         },
+        normal_gravity: survey.normal_gravity,
+        earth_tide: survey.earth_tide,
         sessions,
         ties,
         crossovers,
@@ -1006,6 +1008,7 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
             interval_s: track.attitude.as_ref().map_or(0.0, |a| a.interval_s()),
         },
         position_errors: declared(ctx.survey.position_error_model()),
+        normal: ctx.survey.normal_gravity,
         ..Stretch::default()
     };
     let bins = &b.bins;
@@ -1040,7 +1043,30 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
         }
         s.noise_f_mgal.push(bins[k].noise(ctx.sample_noise.sd_mgal));
     }
+    if ctx.survey.earth_tide {
+        s.tide_mgal = body_tide(&s);
+    }
     s
+}
+
+/// The body tide's effect on gravity at each epoch of `s` where it is (align's model,
+/// docs/model.md 6.3), mGal.
+fn body_tide(s: &Stretch) -> Vec<f64> {
+    // GPS less UTC, taken once: within a stretch a leap second moves the tide's time by a
+    // second, where it changes by less than 1e-4 mGal.
+    let leap_s = s.time_gps_ns.first().map_or(0.0, |&t| {
+        t as f64 * 1e-9 - align::tide::utc_seconds_of_gps(t)
+    });
+    (0..s.time_gps_ns.len())
+        .map(|k| {
+            let site = align::tide::Site {
+                latitude_deg: s.latitude_deg[k],
+                longitude_deg: s.longitude_deg[k],
+                height_m: s.height_m[k],
+            };
+            align::tide::body_tide_mgal(site, s.time_gps_ns[k] as f64 * 1e-9 - leap_s)
+        })
+        .collect()
 }
 
 /// The positions' error model where it is not white (None when white: the file's sds then
@@ -1230,7 +1256,7 @@ struct Rows {
     session: Vec<u16>,
     time: Vec<i64>,
     stretch: Vec<u32>,
-    floats: [Vec<f64>; 15],
+    floats: [Vec<f64>; gravity::FLOATS.len()],
     /// Whether any track has attitude: then north and east ([`gravity::HORIZONTAL`]) and
     /// whether each row has them; otherwise their columns are null throughout.
     with_horizontal: bool,
@@ -1300,13 +1326,14 @@ impl Rows {
         self.session.extend(std::iter::repeat_n(session, n));
         append(&mut self.time, s.time_gps_ns);
         self.stretch.extend(std::iter::repeat_n(number, n));
-        let columns: [Vec<f64>; 15] = [
+        let columns: [Vec<f64>; gravity::FLOATS.len()] = [
             s.latitude_deg,
             s.longitude_deg,
             s.height_m,
             r.speed_m_s,
             r.eotvos_mgal,
             r.normal_mgal,
+            r.tide_mgal,
             r.disturbance_mgal,
             r.filtered_mgal,
             r.sigma_mgal,
@@ -1563,6 +1590,16 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
         describe_model(m.positions),
         describe_model(m.attitude)
     );
+    let _ = writeln!(
+        w,
+        "gravity: held to {} normal gravity; {}",
+        r.normal_gravity.name(),
+        if r.earth_tide {
+            "the body tide removed at every epoch (tide_mgal)"
+        } else {
+            "the body tide not removed (earth_tide = false)"
+        }
+    );
     for s in &r.sessions {
         print_session(s, w);
     }
@@ -1610,6 +1647,7 @@ mod tests {
             speed_m_s: v.clone(),
             eotvos_mgal: v.clone(),
             normal_mgal: v.clone(),
+            tide_mgal: v.clone(),
             disturbance_mgal: v.clone(),
             filtered_mgal: v.clone(),
             sigma_mgal: v.clone(),

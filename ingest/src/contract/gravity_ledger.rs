@@ -232,6 +232,12 @@ pub struct GravityReport {
     /// How the inputs' errors were taken to behave over time (`[survey] attitude_errors`,
     /// `position_errors`; docs/formats.md 10).
     pub error_models: ErrorModelsUsed,
+    /// The ellipsoid of normal gravity (`[survey] normal_gravity`).
+    #[serde(default)]
+    pub normal_gravity: crate::contract::normal::NormalGravity,
+    /// Whether the body tide was removed (`[survey] earth_tide`).
+    #[serde(default)]
+    pub earth_tide: bool,
     /// Per session.
     pub sessions: Vec<SessionGravity>,
     /// The ties.

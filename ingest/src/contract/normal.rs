@@ -12,6 +12,38 @@
 /// or the values it is held to do.
 pub const MAX_DISTURBANCE_MGAL: f64 = 1000.0;
 
+/// Which ellipsoid's normal gravity a survey is held to (`[survey] normal_gravity`,
+/// docs/formats.md 11.1): GRS80 by default, WGS84 as marine users' software (shipgrav)
+/// takes it; 0.14 mGal apart at mid-latitudes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+pub enum NormalGravity {
+    /// [`GRS80`].
+    #[default]
+    #[serde(rename = "GRS80")]
+    Grs80,
+    /// [`WGS84`].
+    #[serde(rename = "WGS84")]
+    Wgs84,
+}
+
+impl NormalGravity {
+    /// Its ellipsoid.
+    pub fn ellipsoid(self) -> &'static Ellipsoid {
+        match self {
+            NormalGravity::Grs80 => &GRS80,
+            NormalGravity::Wgs84 => &WGS84,
+        }
+    }
+
+    /// The name as in the manifest.
+    pub fn name(self) -> &'static str {
+        match self {
+            NormalGravity::Grs80 => "GRS80",
+            NormalGravity::Wgs84 => "WGS84",
+        }
+    }
+}
+
 /// A level ellipsoid: its four defining constants.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ellipsoid {

@@ -61,6 +61,11 @@ pub struct SurveyConfig {
     pub sample_noise_mgal: Option<f64>,
     /// Static ties at known gravity.
     pub tie: Vec<TieDecl>,
+    /// The ellipsoid whose normal gravity the disturbance is held to (GRS80 by default).
+    pub normal_gravity: crate::contract::normal::NormalGravity,
+    /// The solid Earth's body tide removed at every epoch (align's model, docs/model.md
+    /// 6.3), and written as `tide_mgal`; default true (ties are tide-free values).
+    pub earth_tide: bool,
 }
 
 /// How the errors an input's sds state behave over time (docs/model.md 7, "Error models").
@@ -148,6 +153,8 @@ impl Default for SurveyConfig {
             position_correlation_s: None,
             sample_noise_mgal: None,
             tie: Vec::new(),
+            normal_gravity: crate::contract::normal::NormalGravity::Grs80,
+            earth_tide: true,
         }
     }
 }

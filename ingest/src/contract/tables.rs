@@ -476,7 +476,8 @@ pub mod applied {
 /// | latitude_deg, longitude_deg | float64 | the accelerometers' position, deg |
 /// | height_m | float64 | their ellipsoidal height (the antenna's with the lever arm), m |
 /// | speed_m_s | float64 | speed over ground, m/s |
-/// | eotvos_mgal, normal_mgal | float64 | the Eotvos term and normal gravity, mGal |
+/// | eotvos_mgal, normal_mgal | float64 | the Eotvos term and normal gravity (`[survey] normal_gravity`'s ellipsoid), mGal |
+/// | tide_mgal | float64 | the body tide's effect on gravity, removed (0 with `earth_tide = false`), mGal |
 /// | down_mgal | float64 | the gravity disturbance down, unfiltered (ties applied), mGal |
 /// | down_filtered_mgal | float64 | the same after the low-pass filter, mGal; NaN within a filter period of its stretch's ends (flag 4), as its sigma and parts, north's and east's |
 /// | sigma_down_mgal | float64 | the filtered value's sigma: the five below in quadrature, mGal |
@@ -532,6 +533,8 @@ pub mod gravity {
     pub const EOTVOS_MGAL: &str = "eotvos_mgal";
     /// Column `normal_mgal`.
     pub const NORMAL_MGAL: &str = "normal_mgal";
+    /// Column `tide_mgal`.
+    pub const TIDE_MGAL: &str = "tide_mgal";
     /// Column `down_mgal`.
     pub const DOWN_MGAL: &str = "down_mgal";
     /// Column `down_filtered_mgal`.
@@ -551,13 +554,14 @@ pub mod gravity {
     /// Column `height_antenna_m`.
     pub const HEIGHT_ANTENNA_M: &str = "height_antenna_m";
     /// The Float64 columns after session_index, time_gps_ns and stretch, in order.
-    pub const FLOATS: [&str; 15] = [
+    pub const FLOATS: [&str; 16] = [
         LATITUDE_DEG,
         LONGITUDE_DEG,
         HEIGHT_M,
         SPEED_M_S,
         EOTVOS_MGAL,
         NORMAL_MGAL,
+        TIDE_MGAL,
         DOWN_MGAL,
         DOWN_FILTERED_MGAL,
         SIGMA_DOWN_MGAL,
