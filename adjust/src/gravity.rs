@@ -24,6 +24,8 @@
 //!   attitude's part of their sigma apart;
 //! - [`epochs`]: apply's calibrated samples brought onto the trajectory's epochs (with
 //!   attitude, each turned into the navigation frame at its own time);
+//! - [`coupling`]: a platform meter's cross-coupling, its coefficients fitted by LaCoste's
+//!   method as shipgrav fits them (against shipgrav's own fit);
 //! - [`crossover`]: where the track crosses itself, the two passes' difference and its
 //!   sigma;
 //! - [`stage`]: the run, `cargo xtask gravity` (`tests/gravity_stage.rs`: the fixture
@@ -31,6 +33,7 @@
 //!   convention broken failing; a rolling boat with attitude, north and east within theirs).
 
 pub mod attitude;
+pub mod coupling;
 pub mod crossover;
 pub mod epochs;
 pub mod errors;

@@ -303,3 +303,42 @@ normal_gravity = "WGS84"
         "rms {rms}, worst mean {worst_mean}"
     );
 }
+
+/// The cross-coupling fit against shipgrav's `calc_cross_coupling_coefficients` on the
+/// series shipgrav gives it (its test record's anomaly and the meter's four monitors): the
+/// same coefficients and ordinary sds to 1e-6 of each (the arithmetic is LaCoste's as
+/// shipgrav does it), and the Newey-West sds printed beside the ordinary ones.
+#[test]
+fn the_cross_coupling_fit_agrees_with_shipgrav() {
+    use adjust::gravity::coupling;
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    let record = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/real/shipgrav-dgs/DGStest_laptop.dat");
+    let rows = reference(&py, &["shipgrav-ccp", record.to_str().expect("utf-8")]);
+    let (want, want_sd) = (&rows[0], &rows[1]);
+    let anomaly: Vec<f64> = rows[2..].iter().map(|r| r[0]).collect();
+    let monitors: Vec<[f64; 4]> = rows[2..].iter().map(|r| [r[1], r[2], r[3], r[4]]).collect();
+    let f = coupling::fit(&coupling::segment_rows(&anomaly, &monitors), coupling::TAPS)
+        .expect("the record determines them");
+    for i in 0..5 {
+        let sd = f.covariance[i][i].sqrt();
+        eprintln!(
+            "{}: gravcal {:.6e} (OLS sd {:.3e}, Newey-West sd {sd:.3e}); shipgrav {:.6e} (sd {:.3e})",
+            ["const", "ve", "vcc", "al", "ax"][i],
+            f.coefficients[i],
+            f.ols_sigma[i],
+            want[i],
+            want_sd[i]
+        );
+        assert!(
+            (f.coefficients[i] - want[i]).abs() <= 1e-6 * want[i].abs().max(1e-9),
+            "{i}"
+        );
+        assert!(
+            (f.ols_sigma[i] - want_sd[i]).abs() <= 1e-6 * want_sd[i],
+            "{i}"
+        );
+    }
+}

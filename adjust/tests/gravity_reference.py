@@ -7,6 +7,8 @@ usage: python gravity_reference.py normal          prints lat,h,boule_mgal on a 
                                                    of IN's lon,lat,ht rows
        python gravity_reference.py shipgrav-track  prints lon,lat of shipgrav's own test
                                                    data (1 Hz), and its eotvos_full
+       python gravity_reference.py shipgrav-ccp IN  prints shipgrav's cross-coupling fit
+                                                   of IN, and the series it was given
        python gravity_reference.py shipgrav-faa IN  prints shipgrav's free-air anomaly of
                                                    the DGS laptop file IN (WGS84, Longman's
                                                    tide, unfiltered), wgs_grav and the
@@ -64,3 +66,25 @@ elif what == "shipgrav-faa":
     lt = np.asarray(sgg.longman_tide_prediction(lon, lat, data["date_time"]))
     for f, n, t in zip(grav - normal + e + lt, normal, lt):
         print(f"{f!r},{n!r},{t!r}")
+elif what == "shipgrav-ccp":
+    # shipgrav's cross-coupling fit on its own test record, as its tests call it: the first
+    # line its coefficients (const, ve, vcc, al, ax), the second their OLS sds, then the
+    # anomaly and the four monitors it was given, a line per sample.
+    import shipgrav.grav as sgg
+    import shipgrav.io as sgi
+
+    data = sgi.read_dgs_laptop([sys.argv[2]], "DGStest", progressbar=False)
+    grav = data["rgrav"].values + 969143
+    lat, lon = data["lat"], data["lon"]
+    normal = (sgg.wgs_grav(lat) + sgg.free_air_second_order(lat, np.zeros(len(lat)))).values
+    e = sgg.eotvos_full(lon.values, lat.values, np.zeros(len(lat)), 1)
+    lt = np.asarray(sgg.longman_tide_prediction(lon, lat, data["date_time"]))
+    faa = grav - normal + e + lt
+    _, model = sgg.calc_cross_coupling_coefficients(
+        faa, data["vcc"].values, data["ve"].values, data["al"].values, data["ax"].values,
+        np.zeros(len(faa)))
+    names = ["const", "ve", "vcc", "al", "ax"]
+    print(",".join(repr(float(model.params[n])) for n in names))
+    print(",".join(repr(float(model.bse[n])) for n in names))
+    for row in zip(faa, data["ve"], data["vcc"], data["al"], data["ax"]):
+        print(",".join(repr(float(v)) for v in row))

@@ -1,0 +1,316 @@
+//! Cross-coupling of a platform gravimeter (docs/model.md 7, "Cross-coupling"): the
+//! meter's monitors (VE, VCC, AL, AX) times coefficients, added to its gravity. The
+//! coefficients are fitted by LaCoste's method as shipgrav applies it
+//! (`shipgrav.grav.calc_cross_coupling_coefficients`): over each continuous segment of at
+//! least [`MIN_SEGMENT`] samples, the second derivatives of the anomaly and of the monitors
+//! (a 10th-order Taylor stencil, twice, 10 samples trimmed at each end), each low-passed by
+//! a 200-tap Blackman FIR (`scipy.signal.firwin`, run causally as `lfilter`, 200 samples
+//! trimmed at each end); then -g'' = c0 + sum c_i m_i'' by least squares. The residuals of
+//! that regression are filtered, so strongly correlated from sample to sample: the
+//! coefficients' covariance is taken by Newey and West (1987) with the filter's length as
+//! the lag window, not the ordinary one, which assumes independent residuals (both are
+//! given; docs/model.md 7 says what each is worth). No I/O.
+
+/// The monitors, in the order of the coefficients.
+pub const MONITORS: [&str; 4] = ["ve", "vcc", "al", "ax"];
+
+/// The shortest continuous segment the fit uses, samples (shipgrav's).
+pub const MIN_SEGMENT: usize = 1000;
+
+/// shipgrav's `tay10`: the first derivative per sample by a 10th-order central stencil.
+const TAY10: [f64; 11] = [
+    1.0 / 1260.0,
+    -5.0 / 504.0,
+    5.0 / 84.0,
+    -5.0 / 21.0,
+    5.0 / 6.0,
+    0.0,
+    -5.0 / 6.0,
+    5.0 / 21.0,
+    -5.0 / 84.0,
+    5.0 / 504.0,
+    -1.0 / 1260.0,
+];
+
+/// The Blackman FIR's taps (shipgrav's `2 * filterlength`).
+pub const TAPS: usize = 200;
+
+/// `np.convolve(x, kernel, 'same')` for an odd kernel: zeros beyond the ends.
+fn convolve_same(x: &[f64], kernel: &[f64]) -> Vec<f64> {
+    let half = kernel.len() / 2;
+    (0..x.len())
+        .map(|i| {
+            kernel
+                .iter()
+                .enumerate()
+                .filter_map(|(j, k)| {
+                    let at = (i + half).checked_sub(j)?;
+                    x.get(at).map(|v| k * v)
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// The second derivative per sample squared, the stencil applied twice, with 10 samples
+/// trimmed at each end (where the zeros beyond the ends reach in).
+pub fn second_derivative(x: &[f64]) -> Vec<f64> {
+    let d2 = convolve_same(&convolve_same(x, &TAY10), &TAY10);
+    if d2.len() <= 20 {
+        return Vec::new();
+    }
+    d2[10..d2.len() - 10].to_vec()
+}
+
+/// `scipy.signal.firwin(taps, 1 / taps, window="blackman")`: a windowed sinc low-pass with
+/// its cut-off at 1 / taps of the Nyquist frequency, scaled to 1 at 0 Hz.
+pub fn blackman_lowpass(taps: usize) -> Vec<f64> {
+    let cutoff = 1.0 / taps as f64;
+    let alpha = 0.5 * (taps as f64 - 1.0);
+    let m = (taps - 1) as f64;
+    let pi = std::f64::consts::PI;
+    let h: Vec<f64> = (0..taps)
+        .map(|n| {
+            let x = n as f64 - alpha;
+            let sinc = if x == 0.0 {
+                1.0
+            } else {
+                (pi * cutoff * x).sin() / (pi * cutoff * x)
+            };
+            let w = 0.42 - 0.5 * (2.0 * pi * n as f64 / m).cos()
+                + 0.08 * (4.0 * pi * n as f64 / m).cos();
+            cutoff * sinc * w
+        })
+        .collect();
+    let sum: f64 = h.iter().sum();
+    h.iter().map(|v| v / sum).collect()
+}
+
+/// `scipy.signal.lfilter(b, 1, x)`: the causal FIR from rest.
+fn lfilter(b: &[f64], x: &[f64]) -> Vec<f64> {
+    (0..x.len())
+        .map(|n| {
+            b.iter()
+                .take(n + 1)
+                .enumerate()
+                .map(|(k, c)| c * x[n - k])
+                .sum()
+        })
+        .collect()
+}
+
+/// A segment's rows of the regression: (-g'', the monitors''), filtered and trimmed; empty
+/// for a segment too short to leave any.
+pub fn segment_rows(anomaly_mgal: &[f64], monitors: &[[f64; 4]]) -> Vec<(f64, [f64; 4])> {
+    let fir = blackman_lowpass(TAPS);
+    let prepare = |x: &[f64]| {
+        let f = lfilter(&fir, &second_derivative(x));
+        if f.len() <= 2 * TAPS {
+            Vec::new()
+        } else {
+            f[TAPS..f.len() - TAPS].to_vec()
+        }
+    };
+    let g = prepare(anomaly_mgal);
+    let m: Vec<Vec<f64>> = (0..4)
+        .map(|i| prepare(&monitors.iter().map(|r| r[i]).collect::<Vec<_>>()))
+        .collect();
+    (0..g.len())
+        .map(|k| (-g[k], [m[0][k], m[1][k], m[2][k], m[3][k]]))
+        .collect()
+}
+
+/// The fitted coefficients: a constant and one per monitor ([`MONITORS`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fitted {
+    /// c0 (mGal per sample squared), then VE, VCC, AL, AX.
+    pub coefficients: [f64; 5],
+    /// Their covariance by Newey and West (the one to quote).
+    pub covariance: [[f64; 5]; 5],
+    /// Their sds as ordinary least squares gives them (independent residuals assumed).
+    pub ols_sigma: [f64; 5],
+    /// Rows used.
+    pub rows: usize,
+}
+
+/// Solves the symmetric positive definite 5 x 5 system `a x = b` for each column of `b`
+/// (Cholesky, the matrix equilibrated by its diagonal first); None when it is singular.
+fn solve(a: &[[f64; 5]; 5], b: &[[f64; 5]; 5]) -> Option<[[f64; 5]; 5]> {
+    let d: [f64; 5] = std::array::from_fn(|i| a[i][i].sqrt());
+    if d.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+        return None;
+    }
+    let s: [[f64; 5]; 5] =
+        std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] / (d[i] * d[j])));
+    let mut l = [[0.0; 5]; 5];
+    for i in 0..5 {
+        for j in 0..=i {
+            let sum: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
+            if i == j {
+                let v = s[i][i] - sum;
+                if v <= 1e-12 {
+                    return None;
+                }
+                l[i][i] = v.sqrt();
+            } else {
+                l[i][j] = (s[i][j] - sum) / l[j][j];
+            }
+        }
+    }
+    let mut x = [[0.0; 5]; 5];
+    for c in 0..5 {
+        let mut y = [0.0; 5];
+        for i in 0..5 {
+            y[i] = (b[i][c] / d[i] - (0..i).map(|k| l[i][k] * y[k]).sum::<f64>()) / l[i][i];
+        }
+        for i in (0..5).rev() {
+            x[i][c] = (y[i] - (i + 1..5).map(|k| l[k][i] * x[k][c]).sum::<f64>()) / l[i][i];
+        }
+        for (i, row) in x.iter_mut().enumerate() {
+            row[c] /= d[i];
+        }
+    }
+    Some(x)
+}
+
+/// Least squares of `rows` (y, x) with a constant, the covariance by Newey and West with
+/// `lags` (Bartlett weights); None with fewer rows than twice the parameters or a design
+/// the rows do not determine (a monitor that never moves).
+pub fn fit(rows: &[(f64, [f64; 4])], lags: usize) -> Option<Fitted> {
+    if rows.len() < 10 {
+        return None;
+    }
+    let design = |x: &[f64; 4]| [1.0, x[0], x[1], x[2], x[3]];
+    let mut n = [[0.0; 5]; 5];
+    let mut u = [0.0; 5];
+    for (y, x) in rows {
+        let a = design(x);
+        for i in 0..5 {
+            u[i] += a[i] * y;
+            for j in 0..5 {
+                n[i][j] += a[i] * a[j];
+            }
+        }
+    }
+    let identity: [[f64; 5]; 5] =
+        std::array::from_fn(|i| std::array::from_fn(|j| f64::from(u8::from(i == j))));
+    let inverse = solve(&n, &identity)?;
+    let coefficients: [f64; 5] =
+        std::array::from_fn(|i| (0..5).map(|j| inverse[i][j] * u[j]).sum());
+    let residuals: Vec<f64> = rows
+        .iter()
+        .map(|(y, x)| {
+            y - design(x)
+                .iter()
+                .zip(&coefficients)
+                .map(|(a, c)| a * c)
+                .sum::<f64>()
+        })
+        .collect();
+    let dof = rows.len() - 5;
+    let s2 = residuals.iter().map(|e| e * e).sum::<f64>() / dof as f64;
+    let ols_sigma = std::array::from_fn(|i| (s2 * inverse[i][i]).sqrt());
+    // Newey-West: the scores' long-run covariance, Bartlett-weighted to `lags`.
+    let scores: Vec<[f64; 5]> = rows
+        .iter()
+        .zip(&residuals)
+        .map(|((_, x), e)| design(x).map(|a| a * e))
+        .collect();
+    let mut meat = [[0.0; 5]; 5];
+    for lag in 0..=lags.min(rows.len() - 1) {
+        let w = if lag == 0 {
+            1.0
+        } else {
+            1.0 - lag as f64 / (lags + 1) as f64
+        };
+        for t in lag..scores.len() {
+            let (a, b) = (scores[t], scores[t - lag]);
+            for i in 0..5 {
+                for j in 0..5 {
+                    let v = a[i] * b[j] + if lag == 0 { 0.0 } else { b[i] * a[j] };
+                    meat[i][j] += w * v;
+                }
+            }
+        }
+    }
+    let scale = rows.len() as f64 / dof as f64;
+    let covariance = std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            scale
+                * (0..5)
+                    .flat_map(|k| (0..5).map(move |l| (k, l)))
+                    .map(|(k, l)| inverse[i][k] * meat[k][l] * inverse[l][j])
+                    .sum::<f64>()
+        })
+    });
+    Some(Fitted {
+        coefficients,
+        covariance,
+        ols_sigma,
+        rows: rows.len(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stencil differentiates a cubic exactly (per sample squared), away from the ends.
+    #[test]
+    fn the_stencil_twice_is_the_second_derivative() {
+        let x: Vec<f64> = (0..100)
+            .map(|k| f64::from(k).powi(3) * 1e-3 + 2.0 * f64::from(k))
+            .collect();
+        let d2 = second_derivative(&x);
+        for (i, v) in d2.iter().enumerate().skip(10).take(60) {
+            let k = (i + 10) as f64;
+            assert!((v - 6e-3 * k).abs() < 1e-9, "{i}: {v}");
+        }
+    }
+
+    /// The FIR passes a constant unchanged once past its start.
+    #[test]
+    fn the_blackman_lowpass_has_unit_gain() {
+        let h = blackman_lowpass(TAPS);
+        assert_eq!(h.len(), TAPS);
+        assert!((h.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        assert!((h[0] - h[TAPS - 1]).abs() < 1e-18, "symmetric");
+    }
+
+    /// Monitors that explain the anomaly exactly give their coefficients back.
+    #[test]
+    fn a_known_coupling_is_recovered() {
+        let n = 2000;
+        let mut state = 7u64;
+        let mut noise = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let monitors: Vec<[f64; 4]> = (0..n)
+            .map(|k| {
+                let t = f64::from(k);
+                [
+                    (t / 37.0).sin() + 0.1 * noise(),
+                    (t / 23.0).cos() * 0.5 + 0.1 * noise(),
+                    (t / 51.0).sin() * 2.0 + 0.1 * noise(),
+                    (t / 17.0).cos() + 0.1 * noise(),
+                ]
+            })
+            .collect();
+        let truth = [0.3, -1.2, 0.05, 2.0];
+        let anomaly: Vec<f64> = monitors
+            .iter()
+            .map(|m| -(0..4).map(|i| truth[i] * m[i]).sum::<f64>())
+            .collect();
+        let f = fit(&segment_rows(&anomaly, &monitors), TAPS).expect("fit");
+        for i in 0..4 {
+            assert!(
+                (f.coefficients[i + 1] - truth[i]).abs() < 1e-6,
+                "{i}: {:?}",
+                f.coefficients
+            );
+        }
+    }
+}
