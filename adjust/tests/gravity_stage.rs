@@ -746,7 +746,18 @@ fn a_stage_that_would_reduce_nothing_or_the_wrong_thing_is_refused() {
 
 #[test]
 fn the_new_keys_are_refused_where_they_cannot_work() {
-    let cases: [(&str, &str, &str); 8] = [
+    let cases: [(&str, &str, &str); 10] = [
+        // Only a meter's own file carries cross-coupling monitors.
+        (
+            "filter_s = 100.0",
+            "filter_s = 100.0\ncross_coupling = \"fit\"",
+            "survey.cross_coupling",
+        ),
+        (
+            "filter_s = 100.0",
+            "filter_s = 100.0\ncross_coupling = \"fitted\"",
+            "`fitted`: expected \"none\", \"fit\" or",
+        ),
         (
             "trajectory_format = \"rtklib\"\n",
             "trajectory_format = \"rtklib\"\ntrajectory_time = \"iso\"\n",

@@ -251,6 +251,69 @@ pub fn fit(rows: &[(f64, [f64; 4])], lags: usize) -> Option<Fitted> {
     })
 }
 
+/// A meter's monitors as its file gives them, in time order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Monitors {
+    /// GPS time, ns, increasing.
+    pub time_gps_ns: Vec<i64>,
+    /// VE, VCC, AL, AX.
+    pub values: Vec<[f64; 4]>,
+}
+
+impl Monitors {
+    /// The monitors at each of `times` (the file's own lines: the same times), NaN where
+    /// the file has no line at that time.
+    pub fn at(&self, times: &[i64]) -> Vec<[f64; 4]> {
+        times
+            .iter()
+            .map(|t| match self.time_gps_ns.binary_search(t) {
+                Ok(i) => self.values[i],
+                Err(_) => [f64::NAN; 4],
+            })
+            .collect()
+    }
+}
+
+/// The correction applied to a session: its coefficients for VE, VCC, AL, AX (mGal per
+/// unit of each monitor) and their covariance (zero when given).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Correction {
+    /// VE, VCC, AL, AX.
+    pub coefficients: [f64; 4],
+    /// Their covariance (Newey-West when fitted).
+    pub covariance: [[f64; 4]; 4],
+}
+
+impl Correction {
+    /// A fit's monitor coefficients (its constant, which only levels the second
+    /// derivatives, left out).
+    pub fn of(f: &Fitted) -> Self {
+        Correction {
+            coefficients: std::array::from_fn(|i| f.coefficients[i + 1]),
+            covariance: std::array::from_fn(|i| {
+                std::array::from_fn(|j| f.covariance[i + 1][j + 1])
+            }),
+        }
+    }
+
+    /// The correction at monitors `m`, mGal.
+    pub fn value(&self, m: &[f64; 4]) -> f64 {
+        (0..4).map(|i| self.coefficients[i] * m[i]).sum()
+    }
+
+    /// The sd the coefficients' errors give a combination `m` of the monitors (the
+    /// monitors filtered as the value is), mGal.
+    pub fn sigma(&self, m: &[f64; 4]) -> f64 {
+        let mut v = 0.0;
+        for i in 0..4 {
+            for j in 0..4 {
+                v += m[i] * self.covariance[i][j] * m[j];
+            }
+        }
+        v.max(0.0).sqrt()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

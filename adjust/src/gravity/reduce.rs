@@ -14,6 +14,7 @@
 //! [`super::horizontal`]'s).
 
 use super::GravityError;
+use super::coupling::Correction;
 use super::errors::{self, AttitudeErrors};
 use super::filter;
 use super::navigation::{eotvos_down, longitude_step_deg, radii};
@@ -50,6 +51,8 @@ pub struct Stretch {
     pub normal: NormalGravity,
     /// The body tide's effect on gravity at each epoch, mGal (empty: none removed).
     pub tide_mgal: Vec<f64>,
+    /// A platform meter's cross-coupling: its monitors at each epoch and the correction.
+    pub coupling: Option<StretchCoupling>,
     /// The effect on it of a one-sd error of the heading, the pitch and the roll, signed
     /// ([`errors::attitude_effects`]; 0 without attitude), mGal.
     pub attitude_effects_mgal: Vec<[f64; 3]>,
@@ -62,6 +65,15 @@ pub struct Stretch {
     /// The sd of the epoch's value from the samples' own noise (their scatter in the epoch
     /// over the square root of their number), mGal; 0 where unknown.
     pub noise_f_mgal: Vec<f64>,
+}
+
+/// A platform meter's cross-coupling along a stretch ([`super::coupling`]).
+#[derive(Clone, Debug)]
+pub struct StretchCoupling {
+    /// VE, VCC, AL, AX at each epoch.
+    pub monitors: Vec<[f64; 4]>,
+    /// The coefficients and their covariance.
+    pub correction: Correction,
 }
 
 /// `v` cut to `range`.
@@ -91,6 +103,9 @@ impl Stretch {
             }
         }
         cut(&mut self.attitude_effects_mgal, range.clone());
+        if let Some(c) = &mut self.coupling {
+            cut(&mut c.monitors, range.clone());
+        }
         cut(&mut self.time_gps_ns, range);
         self.calibration_tied = None;
     }
@@ -112,6 +127,8 @@ impl Reduced {
             &mut self.eotvos_mgal,
             &mut self.normal_mgal,
             &mut self.tide_mgal,
+            &mut self.coupling_mgal,
+            &mut self.sigma_coupling_mgal,
         ] {
             cut(v, range.clone());
         }
@@ -198,6 +215,10 @@ pub struct Reduced {
     pub normal_mgal: Vec<f64>,
     /// The body tide's effect on gravity, removed, mGal (0 without a tide).
     pub tide_mgal: Vec<f64>,
+    /// The cross-coupling correction, added, mGal (0 without one).
+    pub coupling_mgal: Vec<f64>,
+    /// The filtered value's sigma from the correction's coefficients, mGal.
+    pub sigma_coupling_mgal: Vec<f64>,
     /// The drift removed: (offset mGal at the first tie, rate mGal/h), their sigmas.
     pub drift: Option<Drift>,
 }
@@ -369,13 +390,25 @@ fn unfiltered(s: &Stretch, dt: f64, out: &mut Reduced) -> Vec<f64> {
         let e = eotvos_down(ellipsoid, s.latitude_deg[k], h, v_n, v_e) * 1e5;
         let gamma = ellipsoid.normal_gravity_mgal(s.latitude_deg[k], h);
         let tide = s.tide_mgal.get(k).copied().unwrap_or(0.0);
-        raw[k] = a_d * 1e5 - s.f_down_mgal[k] + e - gamma - tide;
+        let coupling = s
+            .coupling
+            .as_ref()
+            .map_or(0.0, |c| c.correction.value(&c.monitors[k]));
+        raw[k] = a_d * 1e5 - s.f_down_mgal[k] + e - gamma - tide + coupling;
+        out.coupling_mgal.push(coupling);
         out.speed_m_s.push(v_n.hypot(v_e));
         out.eotvos_mgal.push(e);
         out.normal_mgal.push(gamma);
         out.tide_mgal.push(tide);
     }
     raw
+}
+
+/// The unfiltered disturbance at each epoch of `s` (before ties), alone: what the
+/// cross-coupling regression is fitted to.
+pub fn unfiltered_disturbance(s: &Stretch) -> Result<Vec<f64>, GravityError> {
+    let dt = interval_s(&s.time_gps_ns)?;
+    Ok(unfiltered(s, dt, &mut Reduced::default()))
 }
 
 /// The filtered disturbance, term by term, the ends extended consistently. The heights
@@ -396,7 +429,10 @@ fn filtered(
 ) -> Vec<f64> {
     let n = s.time_gps_ns.len();
     let rest: Vec<f64> = (0..n)
-        .map(|k| -s.f_down_mgal[k] + out.eotvos_mgal[k] - out.normal_mgal[k] - out.tide_mgal[k])
+        .map(|k| {
+            -s.f_down_mgal[k] + out.eotvos_mgal[k] - out.normal_mgal[k] - out.tide_mgal[k]
+                + out.coupling_mgal[k]
+        })
         .collect();
     let mut f = filter::filtfilt_pivoted(sections, &rest, pad, pivot);
     let h = filter::filtfilt_pivoted(sections, &s.height_m, pad, 1);
@@ -482,6 +518,7 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
     out.sigma_noise_mgal = scaled(&row(&sections, reach, None), &s.noise_f_mgal);
     out.sigma_calibration_mgal = filter::filtfilt_pivoted(&sections, &s.sigma_f_mgal, pad, pivot);
     out.sigma_tie_mgal = vec![0.0; n];
+    out.sigma_coupling_mgal = coupling_sigma(s, (&sections, pad, pivot));
     out.sigma_attitude_mgal = if s.attitude_effects_mgal.iter().flatten().any(|v| *v != 0.0) {
         errors::attitude_sigma(
             &s.attitude_effects_mgal,
@@ -493,6 +530,34 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
         vec![0.0; n]
     };
     Ok(out)
+}
+
+/// The sd the cross-coupling coefficients' errors give each filtered value: the monitors
+/// filtered as the value is, through the coefficients' covariance (0 without a correction).
+fn coupling_sigma(
+    s: &Stretch,
+    (sections, pad, pivot): (&[filter::Section], usize, usize),
+) -> Vec<f64> {
+    let n = s.time_gps_ns.len();
+    let Some(c) = &s.coupling else {
+        return vec![0.0; n];
+    };
+    let filtered: Vec<Vec<f64>> = (0..4)
+        .map(|i| {
+            let series: Vec<f64> = c.monitors.iter().map(|m| m[i]).collect();
+            filter::filtfilt_pivoted(sections, &series, pad, pivot)
+        })
+        .collect();
+    (0..n)
+        .map(|k| {
+            c.correction.sigma(&[
+                filtered[0][k],
+                filtered[1][k],
+                filtered[2][k],
+                filtered[3][k],
+            ])
+        })
+        .collect()
 }
 
 /// What one tie says of the level: at the centre of its window, the filtered disturbance's
@@ -623,6 +688,7 @@ pub fn apply_level(
                 r.sigma_calibration_mgal[k],
                 r.sigma_tie_mgal[k],
                 r.sigma_attitude_mgal[k],
+                r.sigma_coupling_mgal[k],
             ];
             parts.iter().map(|v| v * v).sum::<f64>().sqrt()
         })

@@ -7,6 +7,7 @@
 
 use super::GravityError;
 use super::attitude::{self, AttitudeAt, AttitudeCursor};
+use super::coupling;
 use super::crossover;
 use super::epochs::{self, BinsAt, DownForce, SpilledBins, Target};
 use super::errors::{self, AttitudeErrors};
@@ -18,8 +19,9 @@ use super::track::{Track, read_tracks};
 use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
-    Crossover, DriftFitted, ErrorModelsUsed, FilterUsed, GravityReport, Input, LEDGER_FILE,
-    LEDGER_FORMAT, NotReduced, STAGE_DIR, SessionGravity, StretchSummary, TieUsed, dropped,
+    CouplingUsed, Crossover, DriftFitted, ErrorModelsUsed, FilterUsed, GravityReport, Input,
+    LEDGER_FILE, LEDGER_FORMAT, NotReduced, STAGE_DIR, SessionGravity, StretchSummary, TieUsed,
+    dropped,
 };
 use ingest::contract::manifest::Dataset;
 use ingest::contract::survey::{ErrorModel, ResolvedTie, SurveyConfig};
@@ -92,6 +94,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
         triad: triad.as_ref(),
         mounting: mounting(&survey),
         block_epochs: opts.block_epochs,
+        coupling: None,
     };
     let (sessions, ties) = reduce_tracks(&ds, &tracks, &filled, ctx, &mut rows)?;
     let filter = filter_used(&rows.speeds, survey.filter_s);
@@ -572,6 +575,7 @@ fn sample_noise(
 }
 
 /// What every track's reduction shares.
+#[derive(Clone, Copy)]
 struct Context<'a> {
     survey: &'a SurveyConfig,
     ties: &'a [ResolvedTie],
@@ -584,6 +588,8 @@ struct Context<'a> {
     mounting: [[f64; 3]; 3],
     /// [`Options::block_epochs`].
     block_epochs: Option<usize>,
+    /// The session's cross-coupling correction ([`coupling_of`]).
+    coupling: Option<coupling::Correction>,
 }
 
 /// C_b^v = Rz(yaw) Ry(pitch) Rx(roll) of `[survey] mounting_deg`.
@@ -623,6 +629,7 @@ fn reduce_track(
         position_sd_given_m: track.sd_given_median_m,
         sample_noise_mgal: ctx.sample_noise.sd_mgal,
         sample_noise_from: ctx.sample_noise.from.clone(),
+        cross_coupling: None,
         stretches: Vec::new(),
     };
     let (spans, gaps) = stretches(
@@ -633,6 +640,12 @@ fn reduce_track(
     )
     .map_err(|e| spill_error(bins, e))?;
     summary.gaps = gaps;
+    let (correction, used) = coupling_of(track, bins, &spans, ctx)?;
+    summary.cross_coupling = used;
+    let ctx = &Context {
+        coupling: correction,
+        ..*ctx
+    };
     for span in spans {
         let inside = ties_inside(ctx.ties, &track.times[span.clone()]);
         let number = summary.stretches.len() as u32;
@@ -768,6 +781,7 @@ fn withhold_edges(
             &mut r.sigma_noise_mgal,
             &mut r.sigma_tie_mgal,
             &mut r.sigma_attitude_mgal,
+            &mut r.sigma_coupling_mgal,
         ] {
             v[k] = f64::NAN;
         }
@@ -1046,7 +1060,81 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
     if ctx.survey.earth_tide {
         s.tide_mgal = body_tide(&s);
     }
+    if let (Some(correction), Some(m)) = (ctx.coupling, &track.monitors) {
+        s.coupling = Some(reduce::StretchCoupling {
+            monitors: m.at(&s.time_gps_ns),
+            correction,
+        });
+    }
     s
+}
+
+/// A track's cross-coupling correction as `[survey] cross_coupling` asks (docs/formats.md
+/// 11.1): none; the coefficients given; or fitted by LaCoste's method over its stretches of
+/// at least [`coupling::MIN_SEGMENT`] epochs (each reduced whole, untied: the regression
+/// sees second derivatives, which no level changes), with what gravity.json says of it.
+fn coupling_of(
+    track: &Track<'_>,
+    bins: &SpilledBins,
+    spans: &[Range<usize>],
+    ctx: &Context<'_>,
+) -> Result<(Option<coupling::Correction>, Option<CouplingUsed>), GravityError> {
+    use ingest::contract::survey::{CouplingWord, CrossCoupling};
+    let refuse = |why: String| GravityError::Refused {
+        message: format!(
+            "survey.cross_coupling = \"fit\": session {}: {why}",
+            track.session.session.id
+        ),
+    };
+    match ctx.survey.cross_coupling {
+        CrossCoupling::Word(CouplingWord::None) => Ok((None, None)),
+        CrossCoupling::Given(g) => Ok((
+            Some(coupling::Correction {
+                coefficients: g.values(),
+                covariance: [[0.0; 4]; 4],
+            }),
+            Some(CouplingUsed {
+                how: "given".to_owned(),
+                coefficients: g.values(),
+                sigma: [0.0; 4],
+                ols_sigma: None,
+                rows: 0,
+            }),
+        )),
+        CrossCoupling::Word(CouplingWord::Fit) => {
+            let monitors = track
+                .monitors
+                .as_ref()
+                .ok_or_else(|| refuse("its file carries no monitors".to_owned()))?;
+            let mut rows = Vec::new();
+            for span in spans.iter().filter(|s| s.len() >= coupling::MIN_SEGMENT) {
+                let b = block(track, bins, span.clone())?;
+                let s = stretch(track, &b, span.clone(), ctx);
+                let anomaly = reduce::unfiltered_disturbance(&s)?;
+                rows.extend(coupling::segment_rows(
+                    &anomaly,
+                    &monitors.at(&s.time_gps_ns),
+                ));
+            }
+            let fitted = coupling::fit(&rows, coupling::TAPS).ok_or_else(|| {
+                refuse(format!(
+                    "{} rows from its stretches of at least {} epochs do not determine the \
+                     four coefficients (too short a record, or a monitor that never moves)",
+                    rows.len(),
+                    coupling::MIN_SEGMENT
+                ))
+            })?;
+            let c = coupling::Correction::of(&fitted);
+            let used = CouplingUsed {
+                how: "fit".to_owned(),
+                coefficients: c.coefficients,
+                sigma: std::array::from_fn(|i| c.covariance[i][i].sqrt()),
+                ols_sigma: Some(std::array::from_fn(|i| fitted.ols_sigma[i + 1])),
+                rows: fitted.rows as u64,
+            };
+            Ok((Some(c), Some(used)))
+        }
+    }
 }
 
 /// The body tide's effect on gravity at each epoch of `s` where it is (align's model,
@@ -1334,6 +1422,7 @@ impl Rows {
             r.eotvos_mgal,
             r.normal_mgal,
             r.tide_mgal,
+            r.coupling_mgal,
             r.disturbance_mgal,
             r.filtered_mgal,
             r.sigma_mgal,
@@ -1342,6 +1431,7 @@ impl Rows {
             r.sigma_noise_mgal,
             r.sigma_tie_mgal,
             r.sigma_attitude_mgal,
+            r.sigma_coupling_mgal,
             s.height_antenna_m,
         ];
         for (dst, src) in self.floats.iter_mut().zip(columns) {
@@ -1530,6 +1620,27 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
          (their third differences); {given}",
         s.id
     );
+    if let Some(c) = &s.cross_coupling {
+        let terms: Vec<String> = coupling::MONITORS
+            .iter()
+            .enumerate()
+            .map(|(i, m)| match c.sigma[i] {
+                0.0 => format!("{m} {} (exact)", c.coefficients[i]),
+                sd => format!(
+                    "{m} {}",
+                    ingest::contract::precision::value_with_sigma(c.coefficients[i], sd)
+                ),
+            })
+            .collect();
+        let _ = writeln!(
+            w,
+            "gravity: {}: cross-coupling {} ({} rows): {}",
+            s.id,
+            c.how,
+            c.rows,
+            terms.join(", ")
+        );
+    }
     let _ = writeln!(
         w,
         "gravity: {}: a sample's noise {:.4} mGal, from {}",
@@ -1648,6 +1759,8 @@ mod tests {
             eotvos_mgal: v.clone(),
             normal_mgal: v.clone(),
             tide_mgal: v.clone(),
+            coupling_mgal: v.clone(),
+            sigma_coupling_mgal: v.clone(),
             disturbance_mgal: v.clone(),
             filtered_mgal: v.clone(),
             sigma_mgal: v.clone(),

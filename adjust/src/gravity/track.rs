@@ -53,6 +53,9 @@ pub(super) struct Track<'a> {
     /// The kept epochs whose position was an outlier, replaced by its neighbours'
     /// prediction ([`screen`]), increasing.
     pub replaced: Vec<usize>,
+    /// A platform meter's cross-coupling monitors, when `[survey] cross_coupling` asks for
+    /// them (a DGS laptop file's).
+    pub monitors: Option<super::coupling::Monitors>,
 }
 
 /// Doubles a kept epoch is written aside as: latitude, longitude, height (moved to the
@@ -184,6 +187,11 @@ pub(super) fn read_tracks<'a>(
             track.attitude_dropped = a.dropped.clone();
         }
         track.attitude = attitude;
+        if survey.cross_coupling.is_some()
+            && let ingest::contract::manifest::Acquisition::Lab { stream, .. } = &s.acquisition
+        {
+            track.monitors = Some(trajectory::read_dgs_monitors(stream)?);
+        }
         tracks.push(track);
     }
     if tracks.is_empty() {
@@ -349,6 +357,7 @@ fn gated<'a>(
         noise_neu_m: [0.0; 3],
         sd_given_median_m: None,
         replaced: Vec::new(),
+        monitors: None,
     };
     let mut steps = Steps::default();
     for &t in &track.times {

@@ -326,6 +326,24 @@ pub fn for_each_dgs_laptop(
     Ok(bad_lines)
 }
 
+/// A DGS laptop file's cross-coupling monitors ([`ingest::dgs`]), a line a time; the lines
+/// that do not parse are passed over (ingest rejects and counts them, naming them, when it
+/// reads the same file for the meter's gravity).
+pub fn read_dgs_monitors(path: &Path) -> Result<super::coupling::Monitors, GravityError> {
+    let mut out = super::coupling::Monitors::default();
+    for (_, l) in numbered_lines(path)? {
+        let Ok(l) = l else { continue };
+        let fields: Vec<&[u8]> = l.as_bytes().split(|&b| b == b',').collect();
+        if let Ok(r) = ingest::dgs::parse_laptop(&fields)
+            && out.time_gps_ns.last().is_none_or(|&t| t < r.gps_ns)
+        {
+            out.time_gps_ns.push(r.gps_ns);
+            out.values.push(r.monitors);
+        }
+    }
+    Ok(out)
+}
+
 /// Calls `f` with each epoch of a CSV trajectory whose times `time` reads, in file order
 /// (its line, time, position and sds if given); with `skip`, a line that breaks the format
 /// is set aside (returned) instead of failing the file.

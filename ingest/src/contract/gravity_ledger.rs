@@ -145,8 +145,30 @@ pub struct SessionGravity {
     /// sample_noise_mgal` (with the record's own floor beside it, or why it has none).
     #[serde(default)]
     pub sample_noise_from: String,
+    /// A platform meter's cross-coupling correction, when `[survey] cross_coupling` asks
+    /// for one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cross_coupling: Option<CouplingUsed>,
     /// The stretches.
     pub stretches: Vec<StretchSummary>,
+}
+
+/// The cross-coupling correction of a session: `sum c_i m_i` of the monitors VE, VCC, AL,
+/// AX (in that order), added to the meter's gravity.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct CouplingUsed {
+    /// `"fit"` (LaCoste's regression on this session) or `"given"` (the manifest's).
+    pub how: String,
+    /// mGal per unit of each monitor.
+    pub coefficients: [f64; 4],
+    /// Their sds by Newey and West (the ones the output's sigma carries); 0 when given.
+    pub sigma: [f64; 4],
+    /// Their sds as ordinary least squares gives them (independent residuals assumed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ols_sigma: Option<[f64; 4]>,
+    /// The regression's rows (samples left after the derivatives' and the filter's ends).
+    #[serde(default)]
+    pub rows: u64,
 }
 
 /// A survey session not reduced, and why.

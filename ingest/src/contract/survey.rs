@@ -66,6 +66,98 @@ pub struct SurveyConfig {
     /// The solid Earth's body tide removed at every epoch (align's model, docs/model.md
     /// 6.3), and written as `tide_mgal`; default true (ties are tide-free values).
     pub earth_tide: bool,
+    /// A platform meter's cross-coupling (docs/formats.md 11.1): `"none"` (the default),
+    /// `"fit"` (LaCoste's regression per session), or the four coefficients given.
+    pub cross_coupling: CrossCoupling,
+}
+
+/// `[survey] cross_coupling`: the correction `sum c_i m_i` of a meter's monitors (VE, VCC,
+/// AL, AX), added to its gravity.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+#[serde(untagged)]
+pub enum CrossCoupling {
+    /// `"none"` or `"fit"`.
+    Word(CouplingWord),
+    /// `{ ve = ..., vcc = ..., al = ..., ax = ... }`: coefficients known, exact.
+    Given(GivenCoupling),
+}
+
+/// A word or a table, the error naming what either may be.
+impl<'de> Deserialize<'de> for CrossCoupling {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = CrossCoupling;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("\"none\", \"fit\" or { ve = ..., vcc = ..., al = ..., ax = ... }")
+            }
+            fn visit_str<E: serde::de::Error>(
+                self,
+                v: &str,
+            ) -> std::result::Result<Self::Value, E> {
+                match v {
+                    "none" => Ok(CrossCoupling::Word(CouplingWord::None)),
+                    "fit" => Ok(CrossCoupling::Word(CouplingWord::Fit)),
+                    other => Err(E::custom(format!(
+                        "`{other}`: expected \"none\", \"fit\" or {{ ve = ..., vcc = ..., al = \
+                         ..., ax = ... }}"
+                    ))),
+                }
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                GivenCoupling::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(CrossCoupling::Given)
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
+}
+
+impl Default for CrossCoupling {
+    fn default() -> Self {
+        CrossCoupling::Word(CouplingWord::None)
+    }
+}
+
+impl CrossCoupling {
+    /// Whether a correction is asked for.
+    pub fn is_some(self) -> bool {
+        self != CrossCoupling::Word(CouplingWord::None)
+    }
+}
+
+/// `"none"` or `"fit"`.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum CouplingWord {
+    /// No correction.
+    None,
+    /// Coefficients fitted to each session (LaCoste's method, as shipgrav).
+    Fit,
+}
+
+/// The four coefficients, as a meter's maker or an earlier fit states them.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GivenCoupling {
+    /// VE's.
+    pub ve: f64,
+    /// VCC's.
+    pub vcc: f64,
+    /// AL's.
+    pub al: f64,
+    /// AX's.
+    pub ax: f64,
+}
+
+impl GivenCoupling {
+    /// In the order of the monitors: VE, VCC, AL, AX.
+    pub fn values(self) -> [f64; 4] {
+        [self.ve, self.vcc, self.al, self.ax]
+    }
 }
 
 /// How the errors an input's sds state behave over time (docs/model.md 7, "Error models").
@@ -155,6 +247,7 @@ impl Default for SurveyConfig {
             tie: Vec::new(),
             normal_gravity: crate::contract::normal::NormalGravity::Grs80,
             earth_tide: true,
+            cross_coupling: CrossCoupling::default(),
         }
     }
 }
@@ -303,6 +396,38 @@ fn trajectory_time(
         }
         (TrajectoryFormat::Csv, Some(t)) => Some(t),
     })
+}
+
+/// `[survey] cross_coupling` checked against the sessions: only a meter's own file carries
+/// monitors; given coefficients are numbers.
+pub fn check_coupling(
+    survey: &SurveyConfig,
+    sessions: &[super::manifest::ResolvedSession],
+    err: &impl Fn(String, String) -> Error,
+) -> Result<()> {
+    if survey.cross_coupling.is_some()
+        && let Some(s) = sessions.iter().find(|s| {
+            s.trajectory.is_some() && s.session.adc_format != super::manifest::AdcFormat::DgsLaptop
+        })
+    {
+        return Err(err(
+            "survey.cross_coupling".to_owned(),
+            format!(
+                "session `{}` has no cross-coupling monitors: only a meter's own file \
+                 (adc_format = \"dgs-laptop\") carries them",
+                s.session.id
+            ),
+        ));
+    }
+    if let CrossCoupling::Given(g) = survey.cross_coupling
+        && let Some(v) = g.values().iter().find(|v| !v.is_finite())
+    {
+        return Err(err(
+            "survey.cross_coupling".to_owned(),
+            format!("{v} is not a coefficient"),
+        ));
+    }
+    Ok(())
 }
 
 /// `[survey]` checked against the sessions: it describes trajectories, so some session must

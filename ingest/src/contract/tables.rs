@@ -478,10 +478,11 @@ pub mod applied {
 /// | speed_m_s | float64 | speed over ground, m/s |
 /// | eotvos_mgal, normal_mgal | float64 | the Eotvos term and normal gravity (`[survey] normal_gravity`'s ellipsoid), mGal |
 /// | tide_mgal | float64 | the body tide's effect on gravity, removed (0 with `earth_tide = false`), mGal |
+/// | cross_coupling_mgal | float64 | a platform meter's cross-coupling correction, added (0 without `cross_coupling`), mGal |
 /// | down_mgal | float64 | the gravity disturbance down, unfiltered (ties applied), mGal |
 /// | down_filtered_mgal | float64 | the same after the low-pass filter, mGal; NaN within a filter period of its stretch's ends (flag 4), as its sigma and parts, north's and east's |
-/// | sigma_down_mgal | float64 | the filtered value's sigma: the five below in quadrature, mGal |
-/// | sigma_calibration_mgal, sigma_positions_mgal, sigma_noise_mgal, sigma_tie_mgal, sigma_attitude_mgal | float64 | its parts, mGal (the attitude's 0 without attitude) |
+/// | sigma_down_mgal | float64 | the filtered value's sigma: the six below in quadrature, mGal |
+/// | sigma_calibration_mgal, sigma_positions_mgal, sigma_noise_mgal, sigma_tie_mgal, sigma_attitude_mgal, sigma_coupling_mgal | float64 | its parts, mGal (the attitude's 0 without attitude, the cross-coupling's without a fitted correction) |
 /// | height_antenna_m | float64 | the antenna's height as the trajectory gives it, m |
 /// | north_mgal, north_filtered_mgal, sigma_north_mgal | float64, null without attitude | the disturbance north, unfiltered and filtered, and the filtered value's sigma: the four below in quadrature |
 /// | sigma_north_calibration_mgal, sigma_north_positions_mgal, sigma_north_noise_mgal, sigma_north_attitude_mgal | float64, null without attitude | its parts |
@@ -535,6 +536,10 @@ pub mod gravity {
     pub const NORMAL_MGAL: &str = "normal_mgal";
     /// Column `tide_mgal`.
     pub const TIDE_MGAL: &str = "tide_mgal";
+    /// Column `cross_coupling_mgal`.
+    pub const CROSS_COUPLING_MGAL: &str = "cross_coupling_mgal";
+    /// Column `sigma_coupling_mgal`.
+    pub const SIGMA_COUPLING_MGAL: &str = "sigma_coupling_mgal";
     /// Column `down_mgal`.
     pub const DOWN_MGAL: &str = "down_mgal";
     /// Column `down_filtered_mgal`.
@@ -554,7 +559,7 @@ pub mod gravity {
     /// Column `height_antenna_m`.
     pub const HEIGHT_ANTENNA_M: &str = "height_antenna_m";
     /// The Float64 columns after session_index, time_gps_ns and stretch, in order.
-    pub const FLOATS: [&str; 16] = [
+    pub const FLOATS: [&str; 18] = [
         LATITUDE_DEG,
         LONGITUDE_DEG,
         HEIGHT_M,
@@ -562,6 +567,7 @@ pub mod gravity {
         EOTVOS_MGAL,
         NORMAL_MGAL,
         TIDE_MGAL,
+        CROSS_COUPLING_MGAL,
         DOWN_MGAL,
         DOWN_FILTERED_MGAL,
         SIGMA_DOWN_MGAL,
@@ -570,6 +576,7 @@ pub mod gravity {
         SIGMA_NOISE_MGAL,
         SIGMA_TIE_MGAL,
         SIGMA_ATTITUDE_MGAL,
+        SIGMA_COUPLING_MGAL,
         HEIGHT_ANTENNA_M,
     ];
     /// The nullable Float64 columns of north and east (docs/formats.md 10.3), after
