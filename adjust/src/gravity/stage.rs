@@ -24,7 +24,7 @@ use ingest::contract::gravity_ledger::{
     dropped,
 };
 use ingest::contract::manifest::Dataset;
-use ingest::contract::survey::{ErrorModel, ResolvedTie, SurveyConfig};
+use ingest::contract::survey::{ErrorModel, ResolvedTie, SurveyConfig, TieLevel};
 use ingest::contract::tables::{applied, gravity};
 use ingest::time::utc_iso;
 use std::collections::BTreeMap;
@@ -646,12 +646,15 @@ fn reduce_track(
         coupling: correction,
         ..*ctx
     };
+    let session = match ctx.survey.tie_level {
+        TieLevel::Session => Some(session_ties(track, bins, &spans, ctx)?),
+        TieLevel::Stretch => None,
+    };
     for span in spans {
         let inside = ties_inside(ctx.ties, &track.times[span.clone()]);
         let number = summary.stretches.len() as u32;
-        let Some(drift) = reduce_stretch(track, bins, (span.clone(), &inside), ctx, number, {
-            (rows, &mut summary)
-        })?
+        let which = (span.clone(), &inside[..], session.as_ref());
+        let Some(drift) = reduce_stretch(track, bins, which, ctx, number, (rows, &mut summary))?
         else {
             *summary
                 .dropped
@@ -713,7 +716,7 @@ fn margin(filter_s: f64, interval_s: f64) -> usize {
 fn reduce_stretch(
     track: &Track<'_>,
     bins: &SpilledBins,
-    (span, inside): (Range<usize>, &[(usize, Tie)]),
+    (span, inside, session): (Range<usize>, &[(usize, Tie)], Option<&SessionTies>),
     ctx: &Context<'_>,
     number: u32,
     (rows, summary): (&mut Rows, &mut SessionGravity),
@@ -729,15 +732,22 @@ fn reduce_stretch(
         None => BLOCK_EPOCHS.max(4 * margin),
     };
     let plan = blocks(span.len(), size, margin);
+    let (at_tie, level) = match session {
+        Some(t) => (t.at_tie.clone(), Some(t.level)),
+        None => (
+            match ctx.triad {
+                Some(f) => tie_gradient(f, track, bins, (span.clone(), ctx), inside)?,
+                None => None,
+            },
+            match plan.len() {
+                1 => None,
+                _ => Some(tie_level(track, bins, (span.clone(), inside), ctx, margin)?),
+            },
+        ),
+    };
     let mut st = Reducing {
-        at_tie: match ctx.triad {
-            Some(f) => tie_gradient(f, track, bins, (span.clone(), ctx), inside)?,
-            None => None,
-        },
-        level: match plan.len() {
-            1 => None,
-            _ => Some(tie_level(track, bins, (span.clone(), inside), ctx, margin)?),
-        },
+        at_tie,
+        level,
         ends: (track.times[span.start], track.times[span.end - 1]),
         span,
         inside,
@@ -899,9 +909,8 @@ fn reduce_block(
     Ok(Some((s, r, h, flags)))
 }
 
-/// The level the ties `inside` a stretch of several blocks fix: each tie's window reduced
-/// with `margin` epochs either side (the filter's reach: what lies beyond does not change
-/// the window's values), its point taken there, the points fitted as one stretch's.
+/// The level the ties `inside` a stretch of several blocks fix: [`tie_points`] fitted as
+/// one stretch's.
 fn tie_level(
     track: &Track<'_>,
     bins: &SpilledBins,
@@ -909,6 +918,25 @@ fn tie_level(
     ctx: &Context<'_>,
     margin: usize,
 ) -> Result<Option<reduce::Level>, GravityError> {
+    Ok(reduce::level(&tie_points(
+        track,
+        bins,
+        (span, inside),
+        ctx,
+        margin,
+    )?))
+}
+
+/// What the ties `inside` a stretch say of its level: each tie's window reduced with
+/// `margin` epochs either side (the filter's reach: what lies beyond does not change the
+/// window's values), its point taken there.
+fn tie_points(
+    track: &Track<'_>,
+    bins: &SpilledBins,
+    (span, inside): (Range<usize>, &[(usize, Tie)]),
+    ctx: &Context<'_>,
+    margin: usize,
+) -> Result<Vec<reduce::TiePoint>, GravityError> {
     let times = &track.times[span.clone()];
     let mut points = Vec::new();
     for (_, tie) in inside {
@@ -921,7 +949,54 @@ fn tie_level(
         let r = reduce::untied(&s, ctx.survey.filter_s)?;
         points.extend(reduce::tie_point(&s, &r, tie, ctx.survey.filter_s)?);
     }
-    Ok(reduce::level(&points))
+    Ok(points)
+}
+
+/// One level for every stretch of a session (`tie_level = "session"`, docs/formats.md 10):
+/// the points of all its ties, in whichever stretch each lies, fitted as one offset and
+/// drift; and the calibration's gradient at the first tie's window.
+struct SessionTies {
+    level: Option<reduce::Level>,
+    at_tie: Option<Vec<f64>>,
+}
+
+/// [`SessionTies`] of `track` cut into `spans`; the stretches too short for the filter hold
+/// no tie point.
+fn session_ties(
+    track: &Track<'_>,
+    bins: &SpilledBins,
+    spans: &[Range<usize>],
+    ctx: &Context<'_>,
+) -> Result<SessionTies, GravityError> {
+    let interval_s = track.interval_ns as f64 * 1e-9;
+    let margin = margin(ctx.survey.filter_s, interval_s);
+    let mut points = Vec::new();
+    let mut at_tie = None;
+    for span in spans {
+        if (span.len() as f64) * interval_s < ctx.survey.filter_s {
+            continue;
+        }
+        let inside = ties_inside(ctx.ties, &track.times[span.clone()]);
+        if inside.is_empty() {
+            continue;
+        }
+        if at_tie.is_none()
+            && let Some(f) = ctx.triad
+        {
+            at_tie = tie_gradient(f, track, bins, (span.clone(), ctx), &inside)?;
+        }
+        points.extend(tie_points(
+            track,
+            bins,
+            (span.clone(), &inside),
+            ctx,
+            margin,
+        )?);
+    }
+    Ok(SessionTies {
+        level: reduce::level(&points),
+        at_tie,
+    })
 }
 
 /// The filter's cut-off period against the trajectory's epochs: a period no longer than two
@@ -1717,11 +1792,11 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
     for n in &r.not_reduced {
         let _ = writeln!(w, "gravity: {}: not reduced: {}", n.session, n.why);
     }
-    let unused = r.ties.iter().filter(|t| t.used_in.is_none()).count();
-    if unused > 0 {
+    for t in r.ties.iter().filter(|t| t.used_in.is_none()) {
         let _ = writeln!(
             w,
-            "gravity: {unused} tie(s) not used: no stretch holds their still window"
+            "gravity: the tie at {} ({} mGal) is not used: no stretch holds its still window",
+            t.time, t.g_mgal
         );
     }
     for c in &r.crossovers {

@@ -69,6 +69,21 @@ pub struct SurveyConfig {
     /// A platform meter's cross-coupling (docs/formats.md 11.1): `"none"` (the default),
     /// `"fit"` (LaCoste's regression per session), or the four coefficients given.
     pub cross_coupling: CrossCoupling,
+    /// Which ties level a stretch (docs/formats.md 10): every tie of its session, one drift
+    /// across the gaps (`"session"`, the default), or only those inside it (`"stretch"`).
+    pub tie_level: TieLevel,
+}
+
+/// `[survey] tie_level`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum TieLevel {
+    /// One offset and drift per session, from all its ties, for every stretch: the
+    /// instrument drifts on through a gap in the navigation (dock ties at a cruise's ends).
+    #[default]
+    Session,
+    /// Each stretch by the ties inside it alone (untied without any).
+    Stretch,
 }
 
 /// `[survey] cross_coupling`: the correction `sum c_i m_i` of a meter's monitors (VE, VCC,
@@ -248,6 +263,7 @@ impl Default for SurveyConfig {
             normal_gravity: crate::contract::normal::NormalGravity::Grs80,
             earth_tide: true,
             cross_coupling: CrossCoupling::default(),
+            tie_level: TieLevel::default(),
         }
     }
 }
