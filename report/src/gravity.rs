@@ -20,11 +20,74 @@ struct Epoch {
     lon: f64,
     filtered: f64,
     sigma: f64,
-    parts: [f64; 5],
+    parts: [f64; 6],
 }
 
 /// Most points a plot draws (every k-th epoch beyond).
 const MAX_POINTS: usize = 1500;
+
+/// The section's title; a report that opens on it is a survey report.
+pub(crate) const TITLE: &str = "Gravity along the track";
+
+/// The result in one paragraph, first: the filtered values' range and median sigma, the
+/// ties and drift, the crossovers.
+fn answer(r: &GravityReport, epochs: &[Epoch]) -> String {
+    let mut values: Vec<f64> = epochs
+        .iter()
+        .map(|e| e.filtered)
+        .filter(|v| v.is_finite())
+        .collect();
+    let mut sigmas: Vec<f64> = epochs
+        .iter()
+        .map(|e| e.sigma)
+        .filter(|v| v.is_finite())
+        .collect();
+    values.sort_by(f64::total_cmp);
+    sigmas.sort_by(f64::total_cmp);
+    let used: u64 = r.sessions.iter().map(|s| s.epochs_used).sum();
+    let range = match (values.first(), values.last(), sigmas.get(sigmas.len() / 2)) {
+        (Some(lo), Some(hi), Some(m)) => format!(
+            "the filtered disturbance down from {lo:.2} to {hi:.2} mGal, median sigma {m:.2} mGal"
+        ),
+        _ => "no filtered value (every epoch within a filter period of its stretch's ends)"
+            .to_owned(),
+    };
+    let used_ties = r.ties.iter().filter(|t| t.used_in.is_some()).count();
+    let drifts: Vec<String> = r
+        .sessions
+        .iter()
+        .filter_map(|s| {
+            let d = s.stretches.iter().find_map(|st| st.drift.as_ref())?;
+            let drift = match d.sigma_rate_mgal_per_h {
+                Some(sd) => format!("drift {:.3} ± {sd:.3} mGal/h", d.rate_mgal_per_h),
+                None => "no drift (one tie)".to_owned(),
+            };
+            Some(format!(
+                "{}: offset {:.2} ± {:.2} mGal, {drift}",
+                s.id, d.offset_mgal, d.sigma_offset_mgal
+            ))
+        })
+        .collect();
+    let ties = match (r.ties.len(), drifts.is_empty()) {
+        (0, _) => "no tie: values at the calibration's level".to_owned(),
+        (_, true) => format!("{} tie(s), none used", r.ties.len()),
+        (n, false) => format!("{used_ties} of {n} tie(s) used ({})", drifts.join("; ")),
+    };
+    let n = r.crossovers.len();
+    let crossovers = if n == 0 {
+        "no crossover".to_owned()
+    } else {
+        let rms = |f: &dyn Fn(&ingest::contract::gravity_ledger::Crossover) -> f64| {
+            (r.crossovers.iter().map(|c| f(c).powi(2)).sum::<f64>() / n as f64).sqrt()
+        };
+        format!(
+            "{n} crossover(s), rms difference {:.3} mGal, rms difference / sigma {:.2}",
+            rms(&|c| c.difference_mgal),
+            rms(&|c| c.difference_mgal / c.sigma_mgal)
+        )
+    };
+    format!("{used} epochs reduced: {range}; {ties}; {crossovers}.")
+}
 
 /// The section, or None when OUT holds no gravity stage output.
 pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section>, Error> {
@@ -45,7 +108,8 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
         .into());
     }
     let epochs = read(&table)?;
-    let mut s = section("Gravity along the track");
+    let mut s = section(TITLE);
+    s.text.push(answer(&r, &epochs));
     s.text.push(summary(&r));
     for n in &r.not_reduced {
         s.text
@@ -129,9 +193,10 @@ fn summary(r: &GravityReport) -> String {
         "The survey reduced to the gravity disturbance down (docs/formats.md 10): the \
          calibration of {} (model {}, {}; sha256 {}) applied, the specific force down formed \
          as follows: {}. Zero-phase {} with a cut-off period of {} s: a resolution (half \
-         wavelength) of {:.0} m at the median speed of {:.1} m/s. Epochs within one filter \
-         period of a stretch's ends are flagged edge and given no filtered value (NaN): \
-         there it would lean on how the series is extended past the end.",
+         wavelength) of {:.0} m at the median speed of {:.1} m/s. Held to {} normal \
+         gravity; {}. Epochs within one filter period of a stretch's ends are flagged edge \
+         and given no filtered value (NaN): there it would lean on how the series is \
+         extended past the end.",
         c.dataset,
         c.model,
         c.session,
@@ -140,7 +205,13 @@ fn summary(r: &GravityReport) -> String {
         r.filter.kind,
         r.filter.filter_s,
         r.filter.resolution_m,
-        r.filter.median_speed_m_s
+        r.filter.median_speed_m_s,
+        r.normal_gravity.name(),
+        if r.earth_tide {
+            "the body tide removed at every epoch"
+        } else {
+            "the body tide not removed (earth_tide = false)"
+        }
     )
 }
 
@@ -255,6 +326,7 @@ fn disturbance(ds: &Dataset, epochs: &[Epoch]) -> Table {
         "noise",
         "tie",
         "attitude",
+        "cross-coupling",
     ]);
     for (index, s) in ds.sessions.iter().enumerate() {
         let e: Vec<&Epoch> = epochs
@@ -275,7 +347,7 @@ fn disturbance(ds: &Dataset, epochs: &[Epoch]) -> Table {
             format!("{hi:.3}"),
             format!("{:.3}", median(e.iter().map(|x| x.sigma).collect())),
         ];
-        for k in 0..5 {
+        for k in 0..6 {
             row.push(format!(
                 "{:.3}",
                 median(e.iter().map(|x| x.parts[k]).collect())
@@ -374,6 +446,7 @@ fn read(path: &Path) -> Result<Vec<Epoch>, Error> {
         gravity::SIGMA_NOISE_MGAL,
         gravity::SIGMA_TIE_MGAL,
         gravity::SIGMA_ATTITUDE_MGAL,
+        gravity::SIGMA_COUPLING_MGAL,
     ];
     let mut out = Vec::new();
     align::read::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {
@@ -390,7 +463,7 @@ fn read(path: &Path) -> Result<Vec<Epoch>, Error> {
                 lon: v(1),
                 filtered: v(2),
                 sigma: v(3),
-                parts: [v(4), v(5), v(6), v(7), v(8)],
+                parts: [v(4), v(5), v(6), v(7), v(8), v(9)],
             });
         }
         Ok(())

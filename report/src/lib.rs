@@ -144,9 +144,13 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         .iter()
         .any(|r| r.misalignment_vector.is_some());
     let triad = !st.cal.triad.is_empty();
+    // A dataset with nothing to calibrate and a survey reduced opens on the survey.
+    let nothing_calibrated = st.cal.results.is_empty() && st.cal.triad.is_empty();
     let mut sections = vec![summary_section(&st), dataset_section(&st)];
-    if let Some(g) = gravity::gravity_section(ds, out)? {
-        sections.push(g);
+    match gravity::gravity_section(ds, out)? {
+        Some(g) if nothing_calibrated && st.cal.skipped.is_empty() => sections.insert(0, g),
+        Some(g) => sections.push(g),
+        None => {}
     }
     if axis {
         sections.push(function_section());

@@ -82,9 +82,18 @@ pub(crate) fn section(title: &str) -> Section {
     }
 }
 
+/// The report's heading: a survey report when it opens on a survey reduced to gravity
+/// (a dataset with nothing to calibrate), a calibration report otherwise.
+pub fn heading(name: &str, sections: &[Section]) -> String {
+    match sections.first() {
+        Some(s) if s.title == crate::gravity::TITLE => format!("Survey report: {name}"),
+        _ => format!("Calibration report: {name}"),
+    }
+}
+
 /// The report as Markdown.
 pub fn markdown(name: &str, sections: &[Section]) -> String {
-    let mut s = format!("# Calibration report: {name}\n");
+    let mut s = format!("# {}\n", heading(name, sections));
     for sec in sections {
         let _ = write!(s, "\n## {}\n\n", sec.title);
         for t in &sec.text {
@@ -144,10 +153,9 @@ pub(crate) fn anchor(title: &str) -> String {
 
 /// The report as one self-contained HTML page.
 pub fn html(name: &str, sections: &[Section]) -> String {
+    let heading = esc(&heading(name, sections));
     let mut s = format!(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>Calibration report: {}</title><style>{CSS}</style></head><body>\n<h1>Calibration report: {}</h1>\n",
-        esc(name),
-        esc(name)
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{heading}</title><style>{CSS}</style></head><body>\n<h1>{heading}</h1>\n"
     );
     for sec in sections {
         let _ = writeln!(

@@ -467,6 +467,24 @@ fn the_gravity_section_shows_the_track() {
     report::run(&dataset, out.path()).expect("report");
     let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("md");
     assert!(md.contains("## Gravity along the track"), "{md}");
+    // Nothing to calibrate in survey-lines: a survey report, the answer first (issue 48).
+    let survey = md.find("## Gravity along the track").expect("section");
+    assert!(
+        md.starts_with("# Survey report: survey-lines\n")
+            && md[..survey].matches("\n## ").count() == 0,
+        "{}",
+        &md[..survey.min(400)]
+    );
+    let used: u64 = g.sessions.iter().map(|s| s.epochs_used).sum();
+    let answer = &md[survey..];
+    assert!(
+        answer.contains(&format!(
+            "{used} epochs reduced: the filtered disturbance down from "
+        )) && answer.contains("2 of 2 tie(s) used")
+            && answer.contains("1 crossover(s), rms difference "),
+        "{}",
+        &answer[..answer.len().min(600)]
+    );
     assert!(
         md.contains(&format!("{:.0} m", g.filter.resolution_m)),
         "{md}"
