@@ -86,7 +86,7 @@ pub(crate) fn section(title: &str) -> Section {
 /// (a dataset with nothing to calibrate), a calibration report otherwise.
 pub fn heading(name: &str, sections: &[Section]) -> String {
     match sections.first() {
-        Some(s) if s.title == crate::gravity::TITLE => format!("Survey report: {name}"),
+        Some(s) if s.title == gravity::TITLE => format!("Survey report: {name}"),
         _ => format!("Calibration report: {name}"),
     }
 }
