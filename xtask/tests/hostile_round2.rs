@@ -685,3 +685,74 @@ fn a_bias_beyond_the_full_scale_is_refused_not_written() {
         "{said}"
     );
 }
+
+/// The DGS laptop reader (issue 48) through the same damage as every reader: a line
+/// stamped 7 minutes ahead of its neighbours, one 7 minutes behind, a raw gravity the
+/// instrument cannot give, and a monitor that is not a number each cost that line alone,
+/// counted by reason, the ledger adding up; without `--skip-bad-lines` the last is an error
+/// naming the file, the line and the field.
+#[test]
+fn the_dgs_reader_loses_only_the_damaged_line() {
+    let write = |dir: &Path| {
+        let ds = dir.join("cruise");
+        fixtures::meter::write_cruise(&ds, 1200, 7, "none").expect("cruise");
+        ds
+    };
+    let file = "raw/cruise.dat";
+    let clean_dir = tempfile::tempdir().expect("tempdir");
+    let clean = write(clean_dir.path());
+    let clean_report = ingest::run(&clean, &clean_dir.path().join("out")).expect("clean");
+    let accepted = ledger(&clean_report, file).accepted;
+    assert_eq!(accepted, 1200);
+    let minute = |by: i64| -> FieldEdit {
+        Box::new(move |f| {
+            let m: i64 = f[23].parse().expect("minute");
+            f[23] = format!("{:02}", m + by);
+        })
+    };
+    let cases: [(&str, FieldEdit, &str); 4] = [
+        ("7 minutes ahead", minute(7), reason::TIME_OUTLIER),
+        ("7 minutes behind", minute(-7), reason::TIME_BACKWARDS),
+        (
+            "implausible gravity",
+            Box::new(|f| f[1] = "1e12".to_owned()),
+            reason::READING_OUT_OF_RANGE,
+        ),
+        (
+            "a monitor not a number",
+            Box::new(|f| f[11] = "x".to_owned()),
+            reason::MALFORMED,
+        ),
+    ];
+    for (what, edit, why) in cases {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let ds = write(dir.path());
+        // Line 800 of 1200: minute 13, so 7 either way stays within the hour.
+        let line = edit_data_line(&ds.join(file), 799, edit);
+        let skip = ingest::Options {
+            skip_bad_lines: true,
+            progress: false,
+        };
+        let r = ingest::run_with(&ds, &dir.path().join("out"), &skip)
+            .unwrap_or_else(|e| panic!("{what}: {e}"));
+        let f = ledger(&r, file);
+        adds_up(f);
+        assert_eq!(
+            (f.rejected_total(), f.rejected.get(why)),
+            (1, Some(&1)),
+            "{what}: {:?}",
+            f.rejected
+        );
+        assert_eq!(f.rejections[0].at, format!("line {line}"), "{what}");
+        assert_eq!(f.accepted + 1, accepted, "{what}");
+        if why == reason::MALFORMED {
+            let e = ingest::run(&ds, &dir.path().join("out2"))
+                .expect_err("a bad line without --skip-bad-lines")
+                .to_string();
+            assert!(
+                e.contains(&format!("cruise.dat:{line}: vcc: `x` is not a number")),
+                "{e}"
+            );
+        }
+    }
+}
