@@ -240,7 +240,6 @@ fn apply_triad(
     })
 }
 
-/// Reads and checks calibration.json; returns it and its SHA-256.
 /// `--calibration vendor`: each accelerometer's `vendor_calibration` from the survey's own
 /// manifest (docs/formats.md 11.1), not a fit.
 pub const VENDOR: &str = "vendor";
@@ -287,6 +286,7 @@ fn vendor_selection(ds: &Dataset, choice: &Choice<'_>) -> Result<Selection, Stri
     })
 }
 
+/// Reads and checks calibration.json; returns it and its SHA-256.
 fn load_calibration(path: &Path) -> Result<(Calibration, String), Error> {
     let cal: Calibration = ingest::read_json(path)?;
     if cal.format != CALIBRATION_FORMAT {
