@@ -1730,8 +1730,6 @@ fn dock_ties_level_every_stretch_across_the_gaps() {
     assert!(z < 1.5, "rms z {z}");
 }
 
-/// Cross-coupling on simulated cruises (formerly its own test binary; one binary fewer to
-/// build in CI).
 mod cross_coupling {
     //! Cross-coupling on simulated cruises with known coefficients (issue 48, docs/model.md 7
     //! "Cross-coupling"): `fixtures::meter` writes a DGS laptop file whose gravity holds the
