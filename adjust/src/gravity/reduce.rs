@@ -205,7 +205,8 @@ pub struct Reduced {
     /// Sigma of the filtered value from the attitude (taken as correlated over the
     /// filter's length, so not reduced by it), mGal (0 without attitude).
     pub sigma_attitude_mgal: Vec<f64>,
-    /// The filtered value's sigma: the five above in quadrature, mGal.
+    /// The filtered value's sigma: the five above and the cross-coupling's in quadrature,
+    /// mGal.
     pub sigma_mgal: Vec<f64>,
     /// Speed over ground, m/s.
     pub speed_m_s: Vec<f64>,
@@ -651,7 +652,7 @@ pub fn level(points: &[TiePoint]) -> Option<Level> {
 /// `r` (of `s`, reduced [`untied`]) tied to `level`: the drift removed from the
 /// disturbance before and after the filter, the tie's sigma at each epoch, the
 /// calibration's sigma relative to the tie (through `s.calibration_tied` where given; the
-/// difference of the sigmas otherwise); then the total sigma, the five in quadrature.
+/// difference of the sigmas otherwise); then the total sigma, the six parts in quadrature.
 pub fn apply_level(
     s: &Stretch,
     r: &mut Reduced,

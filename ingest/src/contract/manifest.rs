@@ -142,9 +142,10 @@ pub struct Accelerometer {
     pub vendor_calibration: Option<VendorCalibration>,
 }
 
-/// A calibration its maker states: `F = offset_mgal + scale * reading`, mGal, with the
-/// sds the maker gives (none: taken as exact, and said so). Not a fit: it has no
-/// observations, residuals or tests.
+/// A calibration its maker states: the meter's gravity is `offset_mgal + scale * reading`,
+/// mGal, with the sds the maker gives (none: taken as exact, its sigma 0). Not a fit: it
+/// has no observations, residuals or tests. Apply gives it in the axis models' convention,
+/// minus the specific force along an axis pointing up (`adjust::apply`).
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct VendorCalibration {
