@@ -23,13 +23,6 @@ pub enum TrajectoryFormat {
     DgsLaptop,
 }
 
-impl TrajectoryFormat {
-    /// Whether its positions carry heights (a DGS laptop file's do not).
-    pub fn has_heights(self) -> bool {
-        self != TrajectoryFormat::DgsLaptop
-    }
-}
-
 /// `[survey]`: what turns a survey's calibrated accelerations into gravity (docs/formats.md 10).
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
