@@ -197,3 +197,40 @@ fn a_damaged_calibration_is_refused_naming_the_defect() {
         assert!(e.contains("acc1") && e.contains("thermal"), "{what}: {e}");
     }
 }
+
+/// `--calibration vendor` (docs/formats.md 11.1) is refused before any work when an
+/// accelerometer of the survey states no `vendor_calibration`, naming it, and with
+/// `--model` or `--session`, which a stated calibration has not.
+#[test]
+fn a_vendor_calibration_not_stated_is_refused_by_name() {
+    use adjust::apply::select::Choice;
+    use adjust::apply::stream::{Options, VENDOR, run};
+    let dataset = fixtures::dataset_dir("survey");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let vendor = std::path::Path::new(VENDOR);
+    for (model, session, says) in [
+        (
+            None,
+            None,
+            "accelerometer `acc1` states no vendor_calibration",
+        ),
+        (Some("linear"), None, "--model linear"),
+        (None, Some("day1"), "--session day1"),
+    ] {
+        let e = run(
+            &dataset,
+            dir.path(),
+            &Options {
+                calibration: vendor,
+                choice: Choice { model, session },
+            },
+        )
+        .expect_err(says)
+        .to_string();
+        assert!(e.contains(says), "{e}");
+        assert!(
+            !dir.path().join("apply").exists(),
+            "no work before the refusal"
+        );
+    }
+}
