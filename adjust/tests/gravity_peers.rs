@@ -209,49 +209,18 @@ fn dgs_reduced(
     let record = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../fixtures/real/shipgrav-dgs/DGStest_laptop.dat");
     std::fs::copy(&record, ds.join("raw/DGStest_laptop.dat")).expect("copy");
-    std::fs::write(
-        ds.join("dataset.toml"),
-        format!(
-            r#"name = "dgs-test"
-[site]
-g_abs_mgal = 980900.0
-[instrument]
-sample_rate_hz = 1
-reading_unit = "mGal"
-[[instrument.accelerometer]]
-id = "meter"
-channel = 1
-vendor_calibration = {{ scale = 1.0, offset_mgal = 969143.0 }}
-[[session]]
-id = "cruise"
-kind = "survey"
-date = "2019-07-11"
-adc_csv = "raw/DGStest_laptop.dat"
-adc_format = "dgs-laptop"
-thermometers = "none"
-trajectory = "raw/DGStest_laptop.dat"
-trajectory_format = "dgs-laptop"
-[survey]
-filter_s = 240
-sample_noise_mgal = 1.0
-normal_gravity = "WGS84"
-{extra}"#
-        ),
-    )
-    .expect("manifest");
+    // shipgrav's tests take the meter's offset as 969143 mGal, as laptop_manifest states it.
+    let survey =
+        format!("filter_s = 240\nsample_noise_mgal = 1.0\nnormal_gravity = \"WGS84\"\n{extra}");
+    let manifest = fixtures::meter::laptop_manifest(
+        ("dgs-test", "2019-07-11"),
+        "raw/DGStest_laptop.dat",
+        &survey,
+    );
+    std::fs::write(ds.join("dataset.toml"), manifest).expect("manifest");
     let out = dir.path().join("out");
-    let args = adjust::gravity::stage::GravityArgs {
-        apply: adjust::apply::stream::ApplyArgs {
-            dataset: ds.clone(),
-            calibration: adjust::apply::stream::VENDOR.into(),
-            model: None,
-            session: None,
-            out: None,
-        },
-        accelerometer: None,
-        skip_bad_lines: false,
-        block_epochs: None,
-    };
+    let args =
+        adjust::gravity::stage::GravityArgs::new(&ds, Path::new(adjust::apply::stream::VENDOR));
     let report = args.run(&out).expect("the file reduces as it is");
     assert_eq!(report.sessions[0].epochs_used, 1001, "every epoch");
     let path = out

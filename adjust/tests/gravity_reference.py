@@ -52,24 +52,10 @@ elif what == "shipgrav-track":
     e = sgg.eotvos_full(lon, lat, np.zeros(len(lat)), 1)
     for a, b, c in zip(lon, lat, e):
         print(f"{a!r},{b!r},{c!r}")
-elif what == "shipgrav-faa":
-    # As shipgrav's own tests form it (tests/test_grav_data.py): the meter's offset, WGS84
-    # normal gravity with the second-order free-air term (0 at height 0), Eotvos.
-    import shipgrav.grav as sgg
-    import shipgrav.io as sgi
-
-    data = sgi.read_dgs_laptop([sys.argv[2]], "DGStest", progressbar=False)
-    grav = data["rgrav"].values + 969143
-    lat, lon = data["lat"], data["lon"]
-    normal = (sgg.wgs_grav(lat) + sgg.free_air_second_order(lat, np.zeros(len(lat)))).values
-    e = sgg.eotvos_full(lon.values, lat.values, np.zeros(len(lat)), 1)
-    lt = np.asarray(sgg.longman_tide_prediction(lon, lat, data["date_time"]))
-    for f, n, t in zip(grav - normal + e + lt, normal, lt):
-        print(f"{f!r},{n!r},{t!r}")
-elif what == "shipgrav-ccp":
-    # shipgrav's cross-coupling fit on its own test record, as its tests call it: the first
-    # line its coefficients (const, ve, vcc, al, ax), the second their OLS sds, then the
-    # anomaly and the four monitors it was given, a line per sample.
+elif what in ("shipgrav-faa", "shipgrav-ccp"):
+    # shipgrav's free-air anomaly of the DGS laptop file, as shipgrav's own tests form it
+    # (tests/test_grav_data.py): the meter's offset, WGS84 normal gravity with the
+    # second-order free-air term (0 at height 0), Eotvos, Longman's tide.
     import shipgrav.grav as sgg
     import shipgrav.io as sgi
 
@@ -80,11 +66,18 @@ elif what == "shipgrav-ccp":
     e = sgg.eotvos_full(lon.values, lat.values, np.zeros(len(lat)), 1)
     lt = np.asarray(sgg.longman_tide_prediction(lon, lat, data["date_time"]))
     faa = grav - normal + e + lt
-    _, model = sgg.calc_cross_coupling_coefficients(
-        faa, data["vcc"].values, data["ve"].values, data["al"].values, data["ax"].values,
-        np.zeros(len(faa)))
-    names = ["const", "ve", "vcc", "al", "ax"]
-    print(",".join(repr(float(model.params[n])) for n in names))
-    print(",".join(repr(float(model.bse[n])) for n in names))
-    for row in zip(faa, data["ve"], data["vcc"], data["al"], data["ax"]):
-        print(",".join(repr(float(v)) for v in row))
+    if what == "shipgrav-faa":
+        for f, n, t in zip(faa, normal, lt):
+            print(f"{f!r},{n!r},{t!r}")
+    else:
+        # Its cross-coupling fit, as its tests call it: the first line the coefficients
+        # (const, ve, vcc, al, ax), the second their OLS sds, then the anomaly and the four
+        # monitors it was given, a line per sample.
+        _, model = sgg.calc_cross_coupling_coefficients(
+            faa, data["vcc"].values, data["ve"].values, data["al"].values, data["ax"].values,
+            np.zeros(len(faa)))
+        names = ["const", "ve", "vcc", "al", "ax"]
+        print(",".join(repr(float(model.params[n])) for n in names))
+        print(",".join(repr(float(model.bse[n])) for n in names))
+        for row in zip(faa, data["ve"], data["vcc"], data["al"], data["ax"]):
+            print(",".join(repr(float(v)) for v in row))

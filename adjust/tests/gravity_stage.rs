@@ -1755,20 +1755,9 @@ mod cross_coupling {
         let truth =
             fixtures::meter::write_cruise(&dataset, seconds, seed, cross_coupling).expect("cruise");
         let out = dir.join("out");
-        let report = GravityArgs {
-            apply: adjust::apply::stream::ApplyArgs {
-                dataset,
-                calibration: adjust::apply::stream::VENDOR.into(),
-                model: None,
-                session: None,
-                out: None,
-            },
-            accelerometer: None,
-            skip_bad_lines: false,
-            block_epochs: None,
-        }
-        .run(&out)
-        .expect("reduced");
+        let report = GravityArgs::new(&dataset, Path::new(adjust::apply::stream::VENDOR))
+            .run(&out)
+            .expect("reduced");
         let (sections, pad, pivot) = (
             adjust::gravity::filter::butterworth(
                 adjust::gravity::filter::ORDER,

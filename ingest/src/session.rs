@@ -258,15 +258,7 @@ pub(crate) fn read_acquisition(
                 }
                 // In calendar times or GPS week + tow: a temperature CSV (9.1).
                 Some(path) => {
-                    file.read(path, "temperature_csv", "lines", |ledger, pb| {
-                        let config = csv_config(
-                            s,
-                            opts,
-                            csvlog::CsvKind::Temperature,
-                            acceleration_interval_ns,
-                        );
-                        csvlog::read_csv(path, config, &mut out.streams, ledger, pb)
-                    })?;
+                    file.temperature_csv(path, s, acceleration_interval_ns, &mut out.streams)?;
                 }
                 None => {}
             }
@@ -278,15 +270,7 @@ pub(crate) fn read_acquisition(
                 csvlog::read_csv(adc, config, &mut out.streams, ledger, pb)
             })?;
             if let Some(temperature) = temperature {
-                file.read(temperature, "temperature_csv", "lines", |ledger, pb| {
-                    let config = csv_config(
-                        s,
-                        opts,
-                        csvlog::CsvKind::Temperature,
-                        acceleration_interval_ns,
-                    );
-                    csvlog::read_csv(temperature, config, &mut out.streams, ledger, pb)
-                })?;
+                file.temperature_csv(temperature, s, acceleration_interval_ns, &mut out.streams)?;
             }
             Ok(interval)
         }
@@ -344,6 +328,24 @@ impl Reading<'_> {
         pb.finish_and_clear();
         self.files.push(ledger);
         Ok(out)
+    }
+
+    /// Reads session `s`'s temperature CSV at `path` (docs/formats.md 9.1: the counts CSV
+    /// pair's, or a lab stream's in calendar times or GPS week + tow) into `streams`.
+    fn temperature_csv(
+        &mut self,
+        path: &Path,
+        s: &manifest::ResolvedSession,
+        acceleration_interval_ns: i64,
+        streams: &mut StreamWriter,
+    ) -> Result<()> {
+        let opts = self.opts;
+        self.read(path, "temperature_csv", "lines", |ledger, pb| {
+            let kind = csvlog::CsvKind::Temperature;
+            let config = csv_config(s, opts, kind, acceleration_interval_ns);
+            csvlog::read_csv(path, config, streams, ledger, pb)
+        })?;
+        Ok(())
     }
 }
 

@@ -741,7 +741,13 @@ fn reduce_stretch(
             },
             match plan.len() {
                 1 => None,
-                _ => Some(tie_level(track, bins, (span.clone(), inside), ctx, margin)?),
+                _ => Some(reduce::level(&tie_points(
+                    track,
+                    bins,
+                    (span.clone(), inside),
+                    ctx,
+                    margin,
+                )?)),
             },
         ),
     };
@@ -909,25 +915,8 @@ fn reduce_block(
     Ok(Some((s, r, h, flags)))
 }
 
-/// The level the ties `inside` a stretch of several blocks fix: [`tie_points`] fitted as
-/// one stretch's.
-fn tie_level(
-    track: &Track<'_>,
-    bins: &SpilledBins,
-    (span, inside): (Range<usize>, &[(usize, Tie)]),
-    ctx: &Context<'_>,
-    margin: usize,
-) -> Result<Option<reduce::Level>, GravityError> {
-    Ok(reduce::level(&tie_points(
-        track,
-        bins,
-        (span, inside),
-        ctx,
-        margin,
-    )?))
-}
-
-/// What the ties `inside` a stretch say of its level: each tie's window reduced with
+/// What the ties `inside` a stretch say of its level (fitted as one stretch's when it is
+/// reduced in several blocks, or with the session's other ties): each tie's window reduced with
 /// `margin` epochs either side (the filter's reach: what lies beyond does not change the
 /// window's values), its point taken there.
 fn tie_points(
@@ -1648,6 +1637,23 @@ pub struct GravityArgs {
 }
 
 impl GravityArgs {
+    /// `dataset` reduced with `calibration` (a calibration.json, or
+    /// [`crate::apply::stream::VENDOR`]), every option at its default.
+    pub fn new(dataset: &Path, calibration: &Path) -> Self {
+        GravityArgs {
+            apply: crate::apply::stream::ApplyArgs {
+                dataset: dataset.to_path_buf(),
+                calibration: calibration.to_path_buf(),
+                model: None,
+                session: None,
+                out: None,
+            },
+            accelerometer: None,
+            skip_bad_lines: false,
+            block_epochs: None,
+        }
+    }
+
     /// Runs the stage into `out`.
     pub fn run(&self, out: &Path) -> Result<GravityReport, GravityError> {
         run(

@@ -151,6 +151,9 @@ mod tests {
     fn wgs84_at_the_equator_and_the_poles() {
         assert!((WGS84.normal_gravity(0.0, 0.0) - 9.780_325_335_9).abs() < 1e-9);
         assert!((WGS84.normal_gravity(90.0, 0.0) - 9.832_184_937_8).abs() < 1e-9);
+        // The two ellipsoids 0.14 mGal apart at 48 N (docs/formats.md 10).
+        let apart = GRS80.normal_gravity_mgal(48.0, 0.0) - WGS84.normal_gravity_mgal(48.0, 0.0);
+        assert!((apart - 0.14).abs() < 0.005, "{apart}");
     }
 
     /// Above the ellipsoid gravity falls by about 0.3086 mGal a metre.
