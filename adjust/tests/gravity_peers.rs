@@ -303,7 +303,8 @@ fn a_dgs_laptop_file_reduces_as_shipgrav_reduces_it() {
 /// The cross-coupling fit against shipgrav's `calc_cross_coupling_coefficients` on the
 /// series shipgrav gives it (its test record's anomaly and the meter's four monitors): the
 /// same coefficients and ordinary sds to 1e-6 of each (the arithmetic is LaCoste's as
-/// shipgrav does it), and the Newey-West sds printed beside the ordinary ones.
+/// shipgrav does it), and the sds gravcal carries (the frequency-domain jackknife's)
+/// printed beside the ordinary ones.
 #[test]
 fn the_cross_coupling_fit_agrees_with_shipgrav() {
     use adjust::gravity::coupling;
@@ -316,12 +317,12 @@ fn the_cross_coupling_fit_agrees_with_shipgrav() {
     let (want, want_sd) = (&rows[0], &rows[1]);
     let anomaly: Vec<f64> = rows[2..].iter().map(|r| r[0]).collect();
     let monitors: Vec<[f64; 4]> = rows[2..].iter().map(|r| [r[1], r[2], r[3], r[4]]).collect();
-    let f = coupling::fit(&coupling::segment_rows(&anomaly, &monitors), coupling::TAPS)
+    let f = coupling::fit(&coupling::segment_rows(&anomaly, &monitors))
         .expect("the record determines them");
     for i in 0..5 {
         let sd = f.covariance[i][i].sqrt();
         eprintln!(
-            "{}: gravcal {:.6e} (OLS sd {:.3e}, Newey-West sd {sd:.3e}); shipgrav {:.6e} (sd {:.3e})",
+            "{}: gravcal {:.6e} (OLS sd {:.3e}, jackknife sd {sd:.3e}); shipgrav {:.6e} (sd {:.3e})",
             ["const", "ve", "vcc", "al", "ax"][i],
             f.coefficients[i],
             f.ols_sigma[i],
@@ -340,7 +341,7 @@ fn the_cross_coupling_fit_agrees_with_shipgrav() {
 }
 
 /// The same record with `cross_coupling = "fit"` (issue 48): the stage's coefficients, fitted
-/// to its own anomaly, are within their (Newey-West) sigmas of shipgrav's fit to shipgrav's
+/// to its own anomaly, are within their (carried) sigmas of shipgrav's fit to shipgrav's
 /// anomaly, and the corrected anomaly agrees with shipgrav's corrected one (its anomaly plus
 /// its coefficients times the monitors) epoch by epoch and over every 240 s mean, the
 /// correction itself being 2.5 mGal rms.

@@ -695,7 +695,8 @@ fn a_bias_beyond_the_full_scale_is_refused_not_written() {
 fn the_dgs_reader_loses_only_the_damaged_line() {
     let write = |dir: &Path| {
         let ds = dir.join("cruise");
-        fixtures::meter::write_cruise(&ds, 1200, 7, "none").expect("cruise");
+        fixtures::meter::write_cruise(&ds, fixtures::meter::Cruise::new(1200, 7), "none")
+            .expect("cruise");
         ds
     };
     let file = "raw/cruise.dat";

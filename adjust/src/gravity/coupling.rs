@@ -6,10 +6,10 @@
 //! (a 10th-order Taylor stencil, twice, 10 samples trimmed at each end), each low-passed by
 //! a 200-tap Blackman FIR (`scipy.signal.firwin`, run causally as `lfilter`, 200 samples
 //! trimmed at each end); then -g'' = c0 + sum c_i m_i'' by least squares. The residuals of
-//! that regression are filtered, so strongly correlated from sample to sample: the
-//! coefficients' covariance is taken by Newey and West (1987) with the filter's length as
-//! the lag window, not the ordinary one, which assumes independent residuals (both are
-//! given; docs/model.md 7 says what each is worth). No I/O.
+//! that regression are filtered, and hold the anomaly's own swells: the coefficients'
+//! covariance is taken frequency by frequency with a jackknife's leverage correction
+//! ([`spectral_jackknife`]), not the ordinary one, which assumes independent residuals
+//! (both are given; docs/model.md 7 says what each is worth). No I/O.
 
 /// The monitors, in the order of the coefficients.
 pub const MONITORS: [&str; 4] = ["ve", "vcc", "al", "ax"];
@@ -125,7 +125,7 @@ pub fn segment_rows(anomaly_mgal: &[f64], monitors: &[[f64; 4]]) -> Vec<(f64, [f
 pub struct Fitted {
     /// c0 (mGal per sample squared), then VE, VCC, AL, AX.
     pub coefficients: [f64; 5],
-    /// Their covariance by Newey and West (the one to quote).
+    /// Their covariance by the frequency-domain jackknife (the one to quote).
     pub covariance: [[f64; 5]; 5],
     /// Their sds as ordinary least squares gives them (independent residuals assumed).
     pub ols_sigma: [f64; 5],
@@ -173,18 +173,24 @@ fn solve(a: &[[f64; 5]; 5], b: &[[f64; 5]; 5]) -> Option<[[f64; 5]; 5]> {
     Some(x)
 }
 
-/// Least squares of `rows` (y, x) with a constant, the covariance by Newey and West with
-/// `lags` (Bartlett weights); None with fewer rows than twice the parameters or a design
-/// the rows do not determine (a monitor that never moves).
-pub fn fit(rows: &[(f64, [f64; 4])], lags: usize) -> Option<Fitted> {
+/// The least leverage's complement a frequency is given, so that a frequency one monitor
+/// alone determines does not divide by zero.
+const MIN_FREE: f64 = 1e-2;
+
+/// Least squares of `rows` (y, x) with a constant, the covariance by the frequency-domain
+/// jackknife ([`spectral_jackknife`]); None with fewer rows than ten or a design the rows
+/// do not determine (a monitor that never moves).
+pub fn fit(rows: &[(f64, [f64; 4])]) -> Option<Fitted> {
     if rows.len() < 10 {
         return None;
     }
-    let design = |x: &[f64; 4]| [1.0, x[0], x[1], x[2], x[3]];
+    let design: Vec<[f64; 5]> = rows
+        .iter()
+        .map(|(_, x)| [1.0, x[0], x[1], x[2], x[3]])
+        .collect();
     let mut n = [[0.0; 5]; 5];
     let mut u = [0.0; 5];
-    for (y, x) in rows {
-        let a = design(x);
+    for (a, (y, _)) in design.iter().zip(rows) {
         for i in 0..5 {
             u[i] += a[i] * y;
             for j in 0..5 {
@@ -197,57 +203,75 @@ pub fn fit(rows: &[(f64, [f64; 4])], lags: usize) -> Option<Fitted> {
     let inverse = solve(&n, &identity)?;
     let coefficients: [f64; 5] =
         std::array::from_fn(|i| (0..5).map(|j| inverse[i][j] * u[j]).sum());
-    let residuals: Vec<f64> = rows
+    let residuals: Vec<f64> = design
         .iter()
-        .map(|(y, x)| {
-            y - design(x)
-                .iter()
-                .zip(&coefficients)
-                .map(|(a, c)| a * c)
-                .sum::<f64>()
-        })
+        .zip(rows)
+        .map(|(a, (y, _))| y - a.iter().zip(&coefficients).map(|(a, c)| a * c).sum::<f64>())
         .collect();
     let dof = rows.len() - 5;
     let s2 = residuals.iter().map(|e| e * e).sum::<f64>() / dof as f64;
-    let ols_sigma = std::array::from_fn(|i| (s2 * inverse[i][i]).sqrt());
-    // Newey-West: the scores' long-run covariance, Bartlett-weighted to `lags`.
-    let scores: Vec<[f64; 5]> = rows
-        .iter()
-        .zip(&residuals)
-        .map(|((_, x), e)| design(x).map(|a| a * e))
+    Some(Fitted {
+        coefficients,
+        covariance: spectral_jackknife(&design, &residuals, &inverse),
+        ols_sigma: std::array::from_fn(|i| (s2 * inverse[i][i]).sqrt()),
+        rows: rows.len(),
+    })
+}
+
+/// The coefficients' covariance `inverse * M * inverse` of a regression whose residuals are
+/// a stationary series of unknown spectrum (docs/model.md 7, "Cross-coupling"). Transformed
+/// (a unitary DFT), the regression's frequencies are nearly independent, each with the
+/// residuals' spectrum at it as variance: heteroscedastic, where the ordinary covariance
+/// assumes them alike. M sums, over the frequencies, each one's design outer product times
+/// its residual's power divided by (1 - h)^2, h its leverage (MacKinnon and White's HC3,
+/// the jackknife): a monitor swelling at a few frequencies takes up, there, part of what
+/// the anomaly itself does, and the residual left at those frequencies is that much too
+/// small. Zero frequency, which the constant alone determines, takes its neighbour's power.
+fn spectral_jackknife(
+    design: &[[f64; 5]],
+    residuals: &[f64],
+    inverse: &[[f64; 5]; 5],
+) -> [[f64; 5]; 5] {
+    let t = residuals.len();
+    let norm = 1.0 / (t as f64).sqrt();
+    let zeros = vec![0.0; t];
+    let unitary = |x: &[f64]| {
+        let (re, im) = super::spectrum::dft(x, &zeros);
+        let scaled = |v: Vec<f64>| v.into_iter().map(|a| a * norm).collect::<Vec<_>>();
+        (scaled(re), scaled(im))
+    };
+    let columns: Vec<(Vec<f64>, Vec<f64>)> = (0..5)
+        .map(|i| unitary(&design.iter().map(|a| a[i]).collect::<Vec<_>>()))
         .collect();
+    let (e_re, e_im) = unitary(residuals);
+    let power = |f: usize| {
+        let x: [(f64, f64); 5] = std::array::from_fn(|i| (columns[i].0[f], columns[i].1[f]));
+        let mut h = 0.0;
+        for i in 0..5 {
+            for j in 0..5 {
+                h += inverse[i][j] * (x[i].0 * x[j].0 + x[i].1 * x[j].1);
+            }
+        }
+        let free = (1.0 - h).max(MIN_FREE);
+        (e_re[f] * e_re[f] + e_im[f] * e_im[f]) / (free * free)
+    };
     let mut meat = [[0.0; 5]; 5];
-    for lag in 0..=lags.min(rows.len() - 1) {
-        let w = if lag == 0 {
-            1.0
-        } else {
-            1.0 - lag as f64 / (lags + 1) as f64
-        };
-        for t in lag..scores.len() {
-            let (a, b) = (scores[t], scores[t - lag]);
-            for i in 0..5 {
-                for j in 0..5 {
-                    let v = a[i] * b[j] + if lag == 0 { 0.0 } else { b[i] * a[j] };
-                    meat[i][j] += w * v;
-                }
+    for f in 0..t {
+        let p = if f == 0 && t > 1 { power(1) } else { power(f) };
+        for i in 0..5 {
+            for j in 0..5 {
+                let (a, b) = (&columns[i], &columns[j]);
+                meat[i][j] += p * (a.0[f] * b.0[f] + a.1[f] * b.1[f]);
             }
         }
     }
-    let scale = rows.len() as f64 / dof as f64;
-    let covariance = std::array::from_fn(|i| {
+    std::array::from_fn(|i| {
         std::array::from_fn(|j| {
-            scale
-                * (0..5)
-                    .flat_map(|k| (0..5).map(move |l| (k, l)))
-                    .map(|(k, l)| inverse[i][k] * meat[k][l] * inverse[l][j])
-                    .sum::<f64>()
+            (0..5)
+                .flat_map(|k| (0..5).map(move |l| (k, l)))
+                .map(|(k, l)| inverse[i][k] * meat[k][l] * inverse[l][j])
+                .sum::<f64>()
         })
-    });
-    Some(Fitted {
-        coefficients,
-        covariance,
-        ols_sigma,
-        rows: rows.len(),
     })
 }
 
@@ -280,7 +304,7 @@ impl Monitors {
 pub struct Correction {
     /// VE, VCC, AL, AX.
     pub coefficients: [f64; 4],
-    /// Their covariance (Newey-West when fitted).
+    /// Their covariance (the frequency-domain jackknife's when fitted).
     pub covariance: [[f64; 4]; 4],
 }
 
@@ -378,7 +402,7 @@ mod tests {
             .iter()
             .map(|m| -(0..4).map(|i| truth[i] * m[i]).sum::<f64>())
             .collect();
-        let f = fit(&segment_rows(&anomaly, &monitors), TAPS).expect("fit");
+        let f = fit(&segment_rows(&anomaly, &monitors)).expect("fit");
         for i in 0..4 {
             assert!(
                 (f.coefficients[i + 1] - truth[i]).abs() < 1e-6,

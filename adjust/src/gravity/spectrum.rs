@@ -205,9 +205,87 @@ pub fn fft(re: &mut [f64], im: &mut [f64]) {
     }
 }
 
+/// The discrete Fourier transform of a series of any length n, X_k = sum_j x_j exp(-2 pi i
+/// j k / n), as (re, im): Bluestein's chirp, its convolution through [`fft`] at the next
+/// power of two of 2n - 1 (a power of two itself goes to [`fft`] straight).
+pub fn dft(x_re: &[f64], x_im: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let n = x_re.len();
+    debug_assert_eq!(x_im.len(), n);
+    if n.is_power_of_two() || n == 0 {
+        let (mut re, mut im) = (x_re.to_vec(), x_im.to_vec());
+        fft(&mut re, &mut im);
+        return (re, im);
+    }
+    // w_k = exp(-i pi k^2 / n), k^2 taken modulo 2n so the angle stays exact.
+    let chirp: Vec<(f64, f64)> = (0..n)
+        .map(|k| {
+            let k2 = (k as u128 * k as u128 % (2 * n as u128)) as f64;
+            let (s, c) = (-std::f64::consts::PI * k2 / n as f64).sin_cos();
+            (c, s)
+        })
+        .collect();
+    let m = (2 * n - 1).next_power_of_two();
+    let (mut a_re, mut a_im) = (vec![0.0; m], vec![0.0; m]);
+    let (mut b_re, mut b_im) = (vec![0.0; m], vec![0.0; m]);
+    for (k, &(c, s)) in chirp.iter().enumerate() {
+        a_re[k] = x_re[k] * c - x_im[k] * s;
+        a_im[k] = x_re[k] * s + x_im[k] * c;
+        b_re[k] = c;
+        b_im[k] = -s;
+        if k > 0 {
+            b_re[m - k] = c;
+            b_im[m - k] = -s;
+        }
+    }
+    fft(&mut a_re, &mut a_im);
+    fft(&mut b_re, &mut b_im);
+    // The product, conjugated, transformed and conjugated again: the inverse transform.
+    for k in 0..m {
+        let (re, im) = (
+            a_re[k] * b_re[k] - a_im[k] * b_im[k],
+            a_re[k] * b_im[k] + a_im[k] * b_re[k],
+        );
+        a_re[k] = re;
+        a_im[k] = -im;
+    }
+    fft(&mut a_re, &mut a_im);
+    chirp
+        .iter()
+        .enumerate()
+        .map(|(k, &(c, s))| {
+            let (re, im) = (a_re[k] / m as f64, -a_im[k] / m as f64);
+            (re * c - im * s, re * s + im * c)
+        })
+        .unzip()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_transform_of_any_length_is_the_sum() {
+        for n in [1_usize, 3, 13, 100, 1001] {
+            let x: Vec<f64> = (0..n).map(|i| ((i * 7) % 5) as f64 - 1.3).collect();
+            let y: Vec<f64> = (0..n).map(|i| ((i * 3) % 4) as f64 * 0.5).collect();
+            let (re, im) = dft(&x, &y);
+            for k in (0..n).step_by(1 + n / 17) {
+                let (mut r, mut i) = (0.0, 0.0);
+                for j in 0..n {
+                    let a = -std::f64::consts::TAU * ((j * k) % n) as f64 / n as f64;
+                    r += x[j] * a.cos() - y[j] * a.sin();
+                    i += x[j] * a.sin() + y[j] * a.cos();
+                }
+                let scale = 1.0 + r.abs() + i.abs();
+                assert!(
+                    (re[k] - r).abs() < 1e-9 * scale && (im[k] - i).abs() < 1e-9 * scale,
+                    "{n} {k}: {} {} against {r} {i}",
+                    re[k],
+                    im[k]
+                );
+            }
+        }
+    }
 
     struct Normal(u64);
     impl Normal {

@@ -1180,7 +1180,7 @@ fn coupling_of(
                     &monitors.at(&s.time_gps_ns),
                 ));
             }
-            let fitted = coupling::fit(&rows, coupling::TAPS).ok_or_else(|| {
+            let fitted = coupling::fit(&rows).ok_or_else(|| {
                 refuse(format!(
                     "{} rows from its stretches of at least {} epochs do not determine the \
                      four coefficients (too short a record, or a monitor that never moves)",

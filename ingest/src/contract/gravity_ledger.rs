@@ -161,7 +161,8 @@ pub struct CouplingUsed {
     pub how: String,
     /// mGal per unit of each monitor.
     pub coefficients: [f64; 4],
-    /// Their sds by Newey and West (the ones the output's sigma carries); 0 when given.
+    /// Their sds by the frequency-domain jackknife (the ones the output's sigma carries;
+    /// docs/model.md 7); 0 when given.
     pub sigma: [f64; 4],
     /// Their sds as ordinary least squares gives them (independent residuals assumed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
