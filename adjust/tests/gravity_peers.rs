@@ -110,6 +110,66 @@ fn the_filter_agrees_with_scipy() {
     }
 }
 
+/// The named FIR kernels are scipy's: a Blackman or Hamming window's taps and sinc cut-off
+/// as the stage designs them, given to `scipy.signal.firwin`, give the stage's taps to 1e-12
+/// and, by `freqz`, a response of 0.5 at the cut-off; the Gaussian kernel is scipy's
+/// `windows.gaussian` of its length and sd, its sum 1, with 0.5 at the cut-off to 1e-3.
+#[test]
+fn the_named_filters_are_scipys() {
+    use ingest::contract::survey::FilterKind;
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    for period in [30.0, 240.0] {
+        for kind in [
+            FilterKind::Blackman,
+            FilterKind::Hamming,
+            FilterKind::Gaussian,
+        ] {
+            let filter::Lowpass::Kernel(ours) =
+                filter::Lowpass::design(kind, 1.0 / period, 1.0).expect("filter")
+            else {
+                panic!("{kind:?} is a kernel");
+            };
+            let p = period.to_string();
+            let rows = if kind == FilterKind::Gaussian {
+                let m = ours.len().to_string();
+                let sd = filter::gaussian_sd(period).to_string();
+                reference(&py, &["gaussian", &m, &sd, &p])
+            } else {
+                let (taps, cutoff) = filter::windowed_sinc_design(kind, period);
+                assert_eq!(taps, ours.len());
+                let (taps, cutoff) = (taps.to_string(), cutoff.to_string());
+                reference(&py, &["firwin", kind.name(), &taps, &cutoff, &p])
+            };
+            let (taps, response) = rows.split_at(rows.len() - 1);
+            let worst = ours
+                .iter()
+                .zip(taps)
+                .map(|(a, b)| (a - b[0]).abs())
+                .fold(0.0, f64::max);
+            eprintln!(
+                "{} over {period} s: {} taps, worst difference {worst:.1e}, scipy's response at \
+                 the cut-off {:.6}",
+                kind.name(),
+                ours.len(),
+                response[0][0]
+            );
+            assert_eq!(ours.len(), taps.len());
+            assert!(worst < 1e-12, "{kind:?} {period}: {worst}");
+            let tolerance = if kind == FilterKind::Gaussian {
+                1e-3
+            } else {
+                1e-6
+            };
+            assert!(
+                (response[0][0] - 0.5).abs() < tolerance,
+                "{kind:?} {period}"
+            );
+        }
+    }
+}
+
 /// Our Eotvos term on positions sampled at `fs`: velocities by central differences of
 /// latitude and longitude (as shipgrav takes them), the ends left out.
 fn ours(lon: &[f64], lat: &[f64], h: &[f64], fs: f64) -> Vec<f64> {
@@ -195,7 +255,8 @@ fn the_eotvos_term_agrees_with_shipgrav() {
 /// shipgrav's DGS test record (fixtures/real/shipgrav-dgs) as it is, through the gravity
 /// stage with the meter's stated offset (`--calibration vendor`, 969143 mGal as shipgrav's
 /// tests take it), WGS84 normal gravity, `extra` lines of `[survey]`: the record's path,
-/// the report and, per epoch, the disturbance, normal gravity, tide and cross-coupling.
+/// the report and, per epoch, the value down (its free-air anomaly), normal gravity, tide
+/// and cross-coupling.
 fn dgs_reduced(
     extra: &str,
 ) -> (
@@ -204,7 +265,19 @@ fn dgs_reduced(
     Vec<[f64; 4]>,
 ) {
     let dir = tempfile::tempdir().expect("tempdir");
-    let ds = dir.path().join("dgs");
+    dgs_reduced_into(dir.path(), extra)
+}
+
+/// [`dgs_reduced`] in `dir` (`dir/dgs` the dataset, `dir/out` its outputs).
+fn dgs_reduced_into(
+    dir: &Path,
+    extra: &str,
+) -> (
+    std::path::PathBuf,
+    ingest::contract::gravity_ledger::GravityReport,
+    Vec<[f64; 4]>,
+) {
+    let ds = dir.join("dgs");
     std::fs::create_dir_all(ds.join("raw")).expect("raw");
     let record = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../fixtures/real/shipgrav-dgs/DGStest_laptop.dat");
@@ -218,7 +291,7 @@ fn dgs_reduced(
         &survey,
     );
     std::fs::write(ds.join("dataset.toml"), manifest).expect("manifest");
-    let out = dir.path().join("out");
+    let out = dir.join("out");
     let args =
         adjust::gravity::stage::GravityArgs::new(&ds, Path::new(adjust::apply::stream::VENDOR));
     let report = args.run(&out).expect("the file reduces as it is");
@@ -246,6 +319,106 @@ fn dgs_reduced(
     )
     .expect("gravity.parquet");
     (record, report, ours)
+}
+
+/// shipgrav's DGS record through the stage with `filter = "blackman"` over 240 s, against
+/// shipgrav's free-air anomaly of it filtered by scipy's `firwin` of the same taps and
+/// cut-off (convolved, centred): the issue's "the same normal gravity, tide and filter",
+/// over the epochs the stage gives a filtered value (one filter period from either end).
+#[test]
+fn the_dgs_record_filtered_as_scipy_filters_shipgravs_anomaly() {
+    use ingest::contract::survey::FilterKind;
+    use ingest::contract::tables::gravity;
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (record, _, _) = dgs_reduced_into(dir.path(), "filter = \"blackman\"\n");
+    let path = dir.path().join("out/gravity").join(gravity::FILE);
+    let mut ours = Vec::new();
+    align::read::float_batches(
+        &path,
+        &["down_filtered_mgal"],
+        gravity::FLAGS,
+        1 << 16,
+        |b| {
+            ours.extend((0..b.time_ns.len()).map(|i| b.values[0].value(i)));
+            Ok(())
+        },
+    )
+    .expect("gravity.parquet");
+    let (taps, cutoff) = filter::windowed_sinc_design(FilterKind::Blackman, 240.0);
+    let kernel = reference(
+        &py,
+        &[
+            "firwin",
+            "blackman",
+            &taps.to_string(),
+            &cutoff.to_string(),
+            "240",
+        ],
+    );
+    let kernel: Vec<f64> = kernel[..taps].iter().map(|r| r[0]).collect();
+    let faa: Vec<f64> = reference(&py, &["shipgrav-faa", record.to_str().expect("utf-8")])
+        .iter()
+        .map(|r| r[0])
+        .collect();
+    let half = taps / 2;
+    let d: Vec<f64> = (half..faa.len() - half)
+        .filter(|&i| ours[i].is_finite())
+        .map(|i| {
+            let theirs: f64 = (0..taps).map(|k| kernel[k] * faa[i + k - half]).sum();
+            ours[i] - theirs
+        })
+        .collect();
+    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
+    eprintln!(
+        "DGS record, 240 s Blackman ({taps} taps): filtered free-air anomaly against shipgrav's \
+         filtered by scipy's kernel, rms {rms:.4} mGal over {} epochs",
+        d.len()
+    );
+    assert!(d.len() > 400, "{} epochs compared", d.len());
+    assert!(rms < 0.05, "rms {rms}");
+}
+
+/// The DGS record's navigation has no height: the sea surface, above sea level, so its value
+/// down is the free-air anomaly, named so (docs/formats.md 10.3), and the disturbance is not
+/// formed; with `[survey] geoid_height_m` the disturbance is the anomaly plus normal
+/// gravity's change over the geoid's height (about 0.3086 mGal/m).
+#[test]
+fn the_dgs_record_gives_the_free_air_anomaly_and_with_a_geoid_height_the_disturbance() {
+    use arrow_array::Array as _;
+    use ingest::contract::tables::gravity;
+    let named = |extra: &str| {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (_, report, _) = dgs_reduced_into(dir.path(), extra);
+        let mut rows = Vec::new();
+        let path = dir.path().join("out/gravity").join(gravity::FILE);
+        let names = ["down_filtered_mgal", gravity::NAMED[0], gravity::NAMED[1]];
+        align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+            for i in 0..b.time_ns.len() {
+                let at = |c: usize| (!b.values[c].is_null(i)).then(|| b.values[c].value(i));
+                rows.push((b.values[0].value(i), at(1), at(2)));
+            }
+            Ok(())
+        })
+        .expect("gravity.parquet");
+        (report.sessions[0].quantities.clone(), rows)
+    };
+    let (q, rows) = named("");
+    assert!(!q.disturbance && q.free_air_anomaly, "{q:?}");
+    assert!(rows.iter().any(|r| r.0.is_finite()));
+    for (down, disturbance, anomaly) in &rows {
+        assert!(disturbance.is_none());
+        assert!(anomaly.expect("formed").total_cmp(down).is_eq());
+    }
+    let (q, rows) = named("geoid_height_m = 55.0\n");
+    assert!(q.disturbance && q.free_air_anomaly, "{q:?}");
+    for (down, disturbance, anomaly) in rows.iter().filter(|r| r.0.is_finite()) {
+        let shift = disturbance.expect("formed") - anomaly.expect("formed");
+        assert!(anomaly.expect("formed").total_cmp(down).is_eq());
+        assert!((shift - 0.3086 * 55.0).abs() < 0.05, "{shift}");
+    }
 }
 
 /// shipgrav's DGS AT1M test file (fixtures/real/shipgrav-dgs), as it is, through the gravity

@@ -3,6 +3,11 @@ checked against.
 
 usage: python gravity_reference.py normal          prints lat,h,boule_mgal on a grid
        python gravity_reference.py filter IN FS PERIOD   prints scipy's sosfiltfilt of IN
+       python gravity_reference.py firwin WINDOW TAPS CUTOFF P   prints scipy's firwin
+                                                   (cycles per sample) a tap a line,
+                                                   then |H| at 1 / P by freqz
+       python gravity_reference.py gaussian M STD P   the same of scipy's gaussian window
+                                                   of M points, its sum 1
        python gravity_reference.py eotvos IN FS    prints shipgrav's eotvos_full (mGal)
                                                    of IN's lon,lat,ht rows
        python gravity_reference.py shipgrav-track  prints lon,lat of shipgrav's own test
@@ -36,6 +41,18 @@ elif what == "filter":
     sos = signal.butter(4, 1.0 / period, fs=fs, output="sos")
     for v in signal.sosfiltfilt(sos, x):
         print(repr(v))
+elif what in ("firwin", "gaussian"):
+    from scipy import signal
+
+    if what == "firwin":
+        h = signal.firwin(int(sys.argv[3]), float(sys.argv[4]), window=sys.argv[2], fs=1.0)
+    else:
+        h = signal.windows.gaussian(int(sys.argv[2]), float(sys.argv[3]))
+        h = h / h.sum()
+    for v in h:
+        print(repr(v))
+    _, resp = signal.freqz(h, worN=[2 * np.pi / float(sys.argv[-1])])
+    print(repr(abs(resp[0])))
 elif what == "eotvos":
     import shipgrav.grav as sgg
 

@@ -29,6 +29,20 @@ const MAX_POINTS: usize = 1500;
 /// The section's title; a report that opens on it is a survey report.
 pub(crate) const TITLE: &str = "Gravity along the track";
 
+/// What the stage's value down is (docs/formats.md 10.3): gravity less normal gravity at the
+/// trajectory's heights, the disturbance above the ellipsoid and the free-air anomaly above
+/// sea level; where sessions differ, said as that.
+fn quantity(r: &GravityReport) -> &'static str {
+    let mut heights = r.sessions.iter().map(|s| s.quantities.heights);
+    match heights.next() {
+        Some(first) if heights.all(|h| h == first) => match first {
+            ingest::contract::survey::Heights::Ellipsoidal => "gravity disturbance down",
+            ingest::contract::survey::Heights::SeaLevel => "free-air anomaly",
+        },
+        _ => "gravity less normal gravity at the trajectory's heights",
+    }
+}
+
 /// The result in one paragraph, first: the filtered values' range and median sigma, the
 /// ties and drift, the crossovers.
 fn answer(r: &GravityReport, epochs: &[Epoch]) -> String {
@@ -47,7 +61,8 @@ fn answer(r: &GravityReport, epochs: &[Epoch]) -> String {
     let used: u64 = r.sessions.iter().map(|s| s.epochs_used).sum();
     let range = match (values.first(), values.last(), sigmas.get(sigmas.len() / 2)) {
         (Some(lo), Some(hi), Some(m)) => format!(
-            "the filtered disturbance down from {lo:.2} to {hi:.2} mGal, median sigma {m:.2} mGal"
+            "the filtered {} from {lo:.2} to {hi:.2} mGal, median sigma {m:.2} mGal",
+            quantity(r)
         ),
         _ => "no filtered value (every epoch within a filter period of its stretch's ends)"
             .to_owned(),
@@ -119,8 +134,10 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
     s.tables
         .push(("Ties and drift, per stretch".to_owned(), ties(&r)));
     s.tables.push((
-        "The filtered disturbance down and its sigma (mGal; the sigma's parts are medians)"
-            .to_owned(),
+        format!(
+            "The filtered {} and its sigma (mGal; the sigma's parts are medians)",
+            quantity(&r)
+        ),
         disturbance(ds, &epochs),
     ));
     if let Some(t) = horizontal(ds, &table)? {
@@ -135,7 +152,7 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
         "Crossovers: where the track crosses itself (mGal)".to_owned(),
         crossovers(&r),
     ));
-    s.plots.extend(plots(&epochs)?);
+    s.plots.extend(plots(&epochs, quantity(&r))?);
     Ok(Some(s))
 }
 
@@ -190,13 +207,19 @@ fn crossovers(r: &GravityReport) -> Table {
 fn summary(r: &GravityReport) -> String {
     let c = &r.calibration;
     format!(
-        "The survey reduced to the gravity disturbance down (docs/formats.md 10): the \
+        "The survey reduced to the {} (docs/formats.md 10; per session, {}): the \
          calibration of {} (model {}, {}; sha256 {}) applied, the specific force down formed \
          as follows: {}. Zero-phase {} with a cut-off period of {} s: a resolution (half \
          wavelength) of {:.0} m at the median speed of {:.1} m/s. Held to {} normal \
          gravity; {}. Epochs within one filter period of a stretch's ends are flagged edge \
          and given no filtered value (NaN): there it would lean on how the series is \
          extended past the end.",
+        quantity(r),
+        r.sessions
+            .iter()
+            .map(|s| format!("{}: {}", s.id, s.quantities.describe()))
+            .collect::<Vec<_>>()
+            .join("; "),
         c.dataset,
         c.model,
         c.session,
@@ -505,7 +528,7 @@ fn profile(
 /// The map and the profile, per session: east/north and distance from the session's first
 /// epoch (a local flat frame: a survey of tens of km), a new stretch of the profile where
 /// the epochs' interval jumps.
-fn plots(epochs: &[Epoch]) -> Result<Vec<(String, String)>, Error> {
+fn plots(epochs: &[Epoch], quantity: &str) -> Result<Vec<(String, String)>, Error> {
     let mut out = Vec::new();
     let sessions: std::collections::BTreeSet<u16> = epochs.iter().map(|e| e.session).collect();
     for index in sessions {
@@ -533,17 +556,22 @@ fn plots(epochs: &[Epoch]) -> Result<Vec<(String, String)>, Error> {
             move |message| Error::Plot { name, message }
         };
         let map_name = format!("gravity_map_{index}.svg");
+        let title = format!("Filtered {quantity} along the track");
         let svg = plots::track_map(&plots::TrackMap {
-            title: "Filtered gravity disturbance down along the track",
+            title: &title,
             points: &map,
             value_label: "mGal",
         })
         .map_err(plot_err(&map_name))?;
         out.push((map_name, svg));
         let profile_name = format!("gravity_profile_{index}.svg");
+        let (title, y_label) = (
+            format!("Filtered {quantity} with its 1-sigma band"),
+            format!("{quantity} (mGal)"),
+        );
         let svg = plots::profile(&plots::Profile {
-            title: "Filtered gravity disturbance down with its 1-sigma band",
-            y_label: "disturbance down (mGal)",
+            title: &title,
+            y_label: &y_label,
             stretches: &stretches,
         })
         .map_err(plot_err(&profile_name))?;

@@ -479,7 +479,7 @@ fn the_gravity_section_shows_the_track() {
     let answer = &md[survey..];
     assert!(
         answer.contains(&format!(
-            "{used} epochs reduced: the filtered disturbance down from "
+            "{used} epochs reduced: the filtered gravity disturbance down from "
         )) && answer.contains("2 of 2 tie(s) used")
             && answer.contains("1 crossover(s), rms difference "),
         "{}",

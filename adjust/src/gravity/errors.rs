@@ -71,7 +71,7 @@ pub fn attitude_effects(heading: f64, sd: [f64; 3], f: [f64; 3]) -> [[f64; 3]; 3
 pub fn attitude_sigma(
     b: &[[f64; 3]],
     errors: AttitudeErrors,
-    (sections, pad, pivot): (&[filter::Section], usize, usize),
+    (sections, pad, pivot): (&filter::Lowpass, usize, usize),
     (first_epoch, dt, filter_s): (i64, f64, f64),
 ) -> Vec<f64> {
     let n = b.len();
@@ -85,7 +85,7 @@ pub fn attitude_sigma(
         ErrorModel::White => Vec::new(),
         _ => angles
             .iter()
-            .map(|x| filter::filtfilt_pivoted(sections, x, pad, pivot))
+            .map(|x| sections.apply(x, pad, pivot))
             .collect(),
     };
     let squares = |k: usize| systematic.iter().map(|y| y[k] * y[k]).sum::<f64>();
@@ -198,7 +198,7 @@ pub fn position_sigma(
 /// The row of the filter alone at a stretch's interior ([`super::reduce::row`]), trimmed to
 /// where its tails hold under 1e-10 of its squares' sum (about four filter periods either
 /// side).
-fn trimmed_row(sections: &[filter::Section], dt: f64, filter_s: f64) -> Vec<f64> {
+fn trimmed_row(sections: &filter::Lowpass, dt: f64, filter_s: f64) -> Vec<f64> {
     let full = super::reduce::row(sections, super::reduce::reach(filter_s, dt), None);
     let total: f64 = full.iter().map(|v| v * v).sum();
     let mid = full.len() / 2;
@@ -256,8 +256,10 @@ fn markov_form(row: &[f64], x: &[f64], rho: f64, k: usize) -> f64 {
 mod tests {
     use super::*;
 
-    fn filter_of(filter_s: f64, dt: f64) -> Vec<filter::Section> {
-        filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt).expect("filter")
+    fn filter_of(filter_s: f64, dt: f64) -> filter::Lowpass {
+        filter::Lowpass::Butterworth(
+            filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt).expect("filter"),
+        )
     }
 
     /// The effects agree with the sigmas of the old form: each component's three effects in
@@ -329,7 +331,7 @@ mod tests {
                         sens[k] * e
                     })
                     .collect();
-                let y = filter::filtfilt_pivoted(&sections, &x, 0, 1);
+                let y = sections.apply(&x, 0, 1);
                 sum2 += y[n / 2].powi(2);
             }
             let got = (sum2 / f64::from(runs)).sqrt();

@@ -1,12 +1,181 @@
-//! The zero-phase low-pass filter of the gravity stage: a Butterworth filter of order
-//! [`ORDER`] run forward and backward (scipy.signal's `sosfiltfilt`: odd extension at both
-//! ends, each pass started from its steady state). Run twice, its amplitude response is
-//! |H(f)|^2 = 1 / (1 + (f / f_c)^(2n)): 0.5 at the cut-off f_c = 1 / `filter_s` whatever the
-//! sampling, and no phase at all. Designed as scipy's `butter` designs it (the analog
-//! prototype's poles, the cut-off pre-warped, the bilinear transform), in second-order
-//! sections. No I/O.
+//! The zero-phase low-pass filters of the gravity stage ([`Lowpass`], `[survey] filter`),
+//! each with its amplitude response 0.5 at the cut-off f_c = 1 / `filter_s`:
+//!
+//! - Butterworth of order [`ORDER`] run forward and backward (scipy.signal's `sosfiltfilt`:
+//!   odd extension at both ends, each pass started from its steady state). Run twice, its
+//!   response is |H(f)|^2 = 1 / (1 + (f / f_c)^(2n)), and no phase at all. Designed as
+//!   scipy's `butter` designs it (the analog prototype's poles, the cut-off pre-warped, the
+//!   bilinear transform), in second-order sections.
+//! - Windowed-sinc FIRs (Blackman, Hamming: scipy's `firwin`) of 2 P + 1 taps, P the cut-off
+//!   period in samples, their sinc's cut-off set so that the response is 0.5 at f_c; and a
+//!   Gaussian kernel of sd sqrt(ln 2 / 2) / (pi f_c), truncated at four sds (NAVO's and
+//!   LDEO's filter). Each is symmetric and applied once, centred: zero phase, its response
+//!   the kernel's real transform.
+//!
+//! No I/O.
 
 use super::GravityError;
+use ingest::contract::survey::FilterKind;
+
+/// A zero-phase low-pass filter, designed for a cut-off period and a sampling rate.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Lowpass {
+    /// Butterworth sections, run forward and backward.
+    Butterworth(Vec<Section>),
+    /// A symmetric kernel of odd length, applied once, centred.
+    Kernel(Vec<f64>),
+}
+
+impl Lowpass {
+    /// `kind` with its response 0.5 at `cutoff_hz`, for samples at `rate_hz`.
+    pub fn design(kind: FilterKind, cutoff_hz: f64, rate_hz: f64) -> Result<Self, GravityError> {
+        if !(cutoff_hz > 0.0 && cutoff_hz < rate_hz / 2.0) {
+            return Err(GravityError::Filter(format!(
+                "a cut-off of {cutoff_hz} Hz at {rate_hz} Hz: it must lie in (0, {}) Hz (the \
+                 filter period longer than two sample intervals)",
+                rate_hz / 2.0
+            )));
+        }
+        let period = rate_hz / cutoff_hz;
+        Ok(match kind {
+            FilterKind::Butterworth => {
+                Lowpass::Butterworth(butterworth(ORDER, cutoff_hz, rate_hz)?)
+            }
+            FilterKind::Gaussian => Lowpass::Kernel(gaussian(period)),
+            FilterKind::Blackman | FilterKind::Hamming => {
+                Lowpass::Kernel(windowed_sinc(kind, period))
+            }
+        })
+    }
+
+    /// `x` filtered, its ends extended by `pad` samples (at least the kernel's half length)
+    /// reflected through the Hann-weighted mean of `pivot` samples ([`filtfilt_pivoted`]).
+    pub fn apply(&self, x: &[f64], pad: usize, pivot: usize) -> Vec<f64> {
+        match self {
+            Lowpass::Butterworth(sections) => filtfilt_pivoted(sections, x, pad, pivot),
+            Lowpass::Kernel(h) => {
+                let half = h.len() / 2;
+                let ext = extended(x, pad.max(half), pivot);
+                let pad = pad.max(half).min(x.len().saturating_sub(1));
+                (0..x.len())
+                    .map(|i| {
+                        let centre = i + pad;
+                        // Where the extension is shorter than the kernel (a series shorter
+                        // than it), the kernel is cut there and its rest weighs to 1.
+                        let (sum, weight) = h
+                            .iter()
+                            .enumerate()
+                            .filter_map(|(k, c)| {
+                                ext.get((centre + k).checked_sub(half)?)
+                                    .map(|v| (c * v, *c))
+                            })
+                            .fold((0.0, 0.0), |(s, w), (a, b)| (s + a, w + b));
+                        sum / weight
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    /// The zero-phase amplitude response at `f_hz` for samples at `rate_hz`: Butterworth's
+    /// |H|^2 (two passes), a kernel's real transform.
+    pub fn response(&self, f_hz: f64, rate_hz: f64) -> f64 {
+        match self {
+            Lowpass::Butterworth(sections) => response(sections, f_hz, rate_hz),
+            Lowpass::Kernel(h) => kernel_response(h, f_hz / rate_hz),
+        }
+    }
+}
+
+/// A symmetric kernel's transform at `cycles` per sample, about its centre.
+fn kernel_response(h: &[f64], cycles: f64) -> f64 {
+    let half = (h.len() / 2) as f64;
+    h.iter()
+        .enumerate()
+        .map(|(k, c)| c * (std::f64::consts::TAU * cycles * (k as f64 - half)).cos())
+        .sum()
+}
+
+/// The Gaussian kernel's sd, samples, whose transform is 0.5 at one cycle per `period`
+/// samples: exp(-2 pi^2 sd^2 f^2) = 0.5.
+pub fn gaussian_sd(period: f64) -> f64 {
+    (std::f64::consts::LN_2 / 2.0).sqrt() * period / std::f64::consts::PI
+}
+
+/// The Gaussian kernel of sd [`gaussian_sd`], truncated at four sds, its sum 1.
+fn gaussian(period: f64) -> Vec<f64> {
+    let sd = gaussian_sd(period);
+    let half = (4.0 * sd).ceil() as i64;
+    let h: Vec<f64> = (-half..=half)
+        .map(|k| (-0.5 * (k as f64 / sd).powi(2)).exp())
+        .collect();
+    let sum: f64 = h.iter().sum();
+    h.into_iter().map(|v| v / sum).collect()
+}
+
+/// scipy's `firwin(taps, cutoff, window)` with its cut-off in cycles per sample: the sinc
+/// times the symmetric window, its sum 1.
+pub fn firwin(taps: usize, cutoff: f64, kind: FilterKind) -> Vec<f64> {
+    let alpha = 0.5 * (taps as f64 - 1.0);
+    let m = (taps - 1).max(1) as f64;
+    let tau = std::f64::consts::TAU;
+    let h: Vec<f64> = (0..taps)
+        .map(|n| {
+            let x = n as f64 - alpha;
+            let arg = 2.0 * cutoff * x;
+            let sinc = if arg == 0.0 {
+                1.0
+            } else {
+                (std::f64::consts::PI * arg).sin() / (std::f64::consts::PI * arg)
+            };
+            let phase = tau * n as f64 / m;
+            let w = match kind {
+                FilterKind::Hamming => 0.54 - 0.46 * phase.cos(),
+                _ => 0.42 - 0.5 * phase.cos() + 0.08 * (2.0 * phase).cos(),
+            };
+            2.0 * cutoff * sinc * w
+        })
+        .collect();
+    let sum: f64 = h.iter().sum();
+    h.into_iter().map(|v| v / sum).collect()
+}
+
+/// The windowed sinc whose response is 0.5 at one cycle per `period` samples: 2 P + 1 taps
+/// (P = `period`, rounded) and the sinc's cut-off (cycles per sample) found by bisection
+/// (within 2 % of 1 / period for either window); [`firwin`] of these is the kernel.
+pub fn windowed_sinc_design(kind: FilterKind, period: f64) -> (usize, f64) {
+    let taps = 2 * (period.round() as usize).max(1) + 1;
+    let f_c = 1.0 / period;
+    let (mut lo, mut hi) = (0.5 * f_c, (2.0 * f_c).min(0.5));
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if kernel_response(&firwin(taps, mid, kind), f_c) < 0.5 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (taps, 0.5 * (lo + hi))
+}
+
+fn windowed_sinc(kind: FilterKind, period: f64) -> Vec<f64> {
+    let (taps, cutoff) = windowed_sinc_design(kind, period);
+    firwin(taps, cutoff, kind)
+}
+
+/// `x` extended by `pad` samples at each end (at most its length less one), reflected
+/// through the Hann-weighted mean of its first and last `pivot` samples.
+fn extended(x: &[f64], pad: usize, pivot: usize) -> Vec<f64> {
+    let n = x.len();
+    let pad = pad.min(n.saturating_sub(1));
+    let pivot = pivot.clamp(1, n);
+    let (p0, p1) = (hann_mean(&x[..pivot]), hann_mean(&x[n - pivot..]));
+    let mut ext = Vec::with_capacity(n + 2 * pad);
+    ext.extend((1..=pad).rev().map(|i| 2.0 * p0 - x[i]));
+    ext.extend_from_slice(x);
+    ext.extend((1..=pad).map(|i| 2.0 * p1 - x[n - 1 - i]));
+    ext
+}
 
 /// The Butterworth order of one pass.
 pub const ORDER: usize = 4;
@@ -156,11 +325,8 @@ pub fn filtfilt_pivoted(sections: &[Section], x: &[f64], pad: usize, pivot: usiz
     let n = x.len();
     let pad = pad.min(n.saturating_sub(1));
     let pivot = pivot.clamp(1, n);
-    let (p0, p1) = (hann_mean(&x[..pivot]), hann_mean(&x[n - pivot..]));
-    let mut ext = Vec::with_capacity(n + 2 * pad);
-    ext.extend((1..=pad).rev().map(|i| 2.0 * p0 - x[i]));
-    ext.extend_from_slice(x);
-    ext.extend((1..=pad).map(|i| 2.0 * p1 - x[n - 1 - i]));
+    let p0 = hann_mean(&x[..pivot]);
+    let mut ext = extended(x, pad, pivot);
     let zi = steady_state(sections);
     let start = |v: f64| zi.iter().map(|z| [z[0] * v, z[1] * v]).collect::<Vec<_>>();
     let mut z = start(p0);
@@ -217,8 +383,41 @@ mod tests {
         assert!(y.iter().all(|v| (v - 3.5).abs() < 1e-9), "{:?}", &y[..3]);
     }
 
+    /// Every kind's response is 1 at zero frequency, 0.5 at the cut-off (the definition of
+    /// `filter_s`; the Gaussian's to its sampling, 1e-3) and small two octaves above; and a
+    /// constant passes every kind unchanged, ends included.
+    #[test]
+    fn every_kind_has_half_its_response_at_the_cutoff() {
+        for kind in [
+            FilterKind::Butterworth,
+            FilterKind::Gaussian,
+            FilterKind::Blackman,
+            FilterKind::Hamming,
+        ] {
+            for (rate, period) in [(1.0, 30.0), (10.0, 100.0), (1.0, 240.0)] {
+                let f = Lowpass::design(kind, 1.0 / period, rate).expect("filter");
+                let at = |x: f64| f.response(x / period, rate);
+                let tolerance = if kind == FilterKind::Gaussian {
+                    1e-3
+                } else {
+                    1e-9
+                };
+                assert!(
+                    (at(1.0) - 0.5).abs() < tolerance,
+                    "{kind:?} {period}: {}",
+                    at(1.0)
+                );
+                assert!((at(0.0) - 1.0).abs() < 1e-9, "{kind:?}");
+                assert!(at(4.0).abs() < 0.01, "{kind:?} {period}: {}", at(4.0));
+                let y = f.apply(&[3.5; 400], 300, 30);
+                assert!(y.iter().all(|v| (v - 3.5).abs() < 1e-9), "{kind:?}");
+            }
+        }
+    }
+
     #[test]
     fn a_cutoff_beyond_nyquist_is_refused() {
+        assert!(Lowpass::design(FilterKind::Blackman, 0.6, 1.0).is_err());
         assert!(butterworth(ORDER, 6.0, 10.0).is_err());
         let s = butterworth(ORDER, 0.1, 1.0).expect("filter");
         assert!(filtfilt(&s, &[0.0; 10]).is_err());

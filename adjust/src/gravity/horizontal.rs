@@ -142,7 +142,7 @@ pub fn reduce_horizontal(
 ) -> Result<ReducedHorizontal, GravityError> {
     let n = s.time_gps_ns.len();
     let dt = reduce::interval_s(&s.time_gps_ns)?;
-    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt)?;
+    let sections = filter::Lowpass::design(s.filter, 1.0 / filter_s, 1.0 / dt)?;
     let pad = reduce::padding(filter_s, dt);
     let pivot = ((filter_s / dt).round() as usize).min(n);
     let xy = northing_easting(s);
@@ -157,8 +157,8 @@ pub fn reduce_horizontal(
         let a = second_difference(&xy[c], dt);
         out.disturbance_mgal[c] = (0..n).map(|k| a[k] - h.f_mgal[c][k] + cor[c][k]).collect();
         let rest: Vec<f64> = (0..n).map(|k| -h.f_mgal[c][k] + cor[c][k]).collect();
-        let mut f = filter::filtfilt_pivoted(&sections, &rest, pad, pivot);
-        let x = filter::filtfilt_pivoted(&sections, &xy[c], pad, 1);
+        let mut f = sections.apply(&rest, pad, pivot);
+        let x = sections.apply(&xy[c], pad, 1);
         for (v, a) in f.iter_mut().zip(second_difference(&x, dt)) {
             *v += a;
         }
@@ -175,7 +175,7 @@ pub fn reduce_horizontal(
         out.sigma_noise_mgal[c] = reduce::scaled(&noise_row, &s.noise_f_mgal);
         out.sigma_calibration_mgal[c] = match &h.calibration[c] {
             Some(g) => g.filtered_sigma(&sections, pad, pivot),
-            None => filter::filtfilt_pivoted(&sections, &h.sigma_calibration_mgal[c], pad, pivot),
+            None => sections.apply(&h.sigma_calibration_mgal[c], pad, pivot),
         };
         out.sigma_attitude_mgal[c] = errors::attitude_sigma(
             &h.attitude_effects_mgal[c],

@@ -19,7 +19,7 @@ use super::errors::{self, AttitudeErrors};
 use super::filter;
 use super::navigation::{eotvos_down, longitude_step_deg, radii};
 use super::normal::{MAX_DISTURBANCE_MGAL, NormalGravity};
-use ingest::contract::survey::ErrorModel;
+use ingest::contract::survey::{ErrorModel, FilterKind, Heights};
 
 /// One stretch of track: evenly spaced epochs and what was measured at them.
 #[derive(Clone, Debug, Default)]
@@ -34,6 +34,8 @@ pub struct Stretch {
     pub height_m: Vec<f64>,
     /// The antenna's, as the trajectory gives it, m (written out, not used here).
     pub height_antenna_m: Vec<f64>,
+    /// The low-pass filter the stretch is reduced with (`[survey] filter`).
+    pub filter: FilterKind,
     /// The positions' white sd up, m (0 where unknown): the larger of the file's and the
     /// heights' own white noise when the file's sds are declared white, the own noise alone
     /// otherwise.
@@ -151,14 +153,14 @@ impl CalibrationGradient {
     /// linear and the parameters common to all epochs), then g C g^T.
     pub(super) fn filtered_sigma(
         &self,
-        sections: &[filter::Section],
+        sections: &filter::Lowpass,
         pad: usize,
         pivot: usize,
     ) -> Vec<f64> {
         let g: Vec<Vec<f64>> = self
             .gradient
             .iter()
-            .map(|x| filter::filtfilt_pivoted(sections, x, pad, pivot))
+            .map(|x| sections.apply(x, pad, pivot))
             .collect();
         let n = g.len();
         let epochs = g.first().map_or(0, Vec::len);
@@ -285,7 +287,7 @@ pub(super) fn reach(filter_s: f64, dt: f64) -> usize {
 /// per unit of x, in x's unit per s^2) at any epoch of a stretch's interior: its response
 /// to an impulse at the middle of `2 reach + 1` epochs (the zero-phase filter's operator is
 /// symmetric, so its row is its column).
-pub(super) fn row(sections: &[filter::Section], reach: usize, dt: Option<f64>) -> Vec<f64> {
+pub(super) fn row(sections: &filter::Lowpass, reach: usize, dt: Option<f64>) -> Vec<f64> {
     let n = 2 * reach + 1;
     let mut x = vec![0.0; n];
     x[reach] = 1.0;
@@ -296,7 +298,7 @@ pub(super) fn row(sections: &[filter::Section], reach: usize, dt: Option<f64>) -
         }
         x = second;
     }
-    filter::filtfilt_pivoted(sections, &x, 0, 1)
+    sections.apply(&x, 0, 1)
 }
 
 /// The sd at each epoch of an operator's output whose `row` ([`row`]) applies to
@@ -423,7 +425,7 @@ pub fn unfiltered_disturbance(s: &Stretch) -> Result<Vec<f64>, GravityError> {
 /// at each end as a step of velocity: a transient of hundreds of mGal for a filter period.
 fn filtered(
     s: &Stretch,
-    sections: &[filter::Section],
+    sections: &filter::Lowpass,
     out: &Reduced,
     (pad, pivot): (usize, usize),
     dt: f64,
@@ -435,8 +437,8 @@ fn filtered(
                 + out.coupling_mgal[k]
         })
         .collect();
-    let mut f = filter::filtfilt_pivoted(sections, &rest, pad, pivot);
-    let h = filter::filtfilt_pivoted(sections, &s.height_m, pad, 1);
+    let mut f = sections.apply(&rest, pad, pivot);
+    let h = sections.apply(&s.height_m, pad, 1);
     for (k, v) in f.iter_mut().enumerate() {
         let c = k.clamp(1, n - 2);
         *v -= (h[c + 1] - 2.0 * h[c] + h[c - 1]) / (dt * dt) * 1e5;
@@ -456,11 +458,12 @@ pub(super) fn padding(filter_s: f64, dt: f64) -> usize {
 /// The filter of a stretch of epochs `dt` apart: its sections, the padding at each end and
 /// the pivot's length ([`filter::filtfilt_pivoted`]) for a stretch of `n` epochs.
 fn filter_of(
+    kind: FilterKind,
     filter_s: f64,
     dt: f64,
     n: usize,
-) -> Result<(Vec<filter::Section>, usize, usize), GravityError> {
-    let sections = filter::butterworth(filter::ORDER, 1.0 / filter_s, 1.0 / dt)?;
+) -> Result<(filter::Lowpass, usize, usize), GravityError> {
+    let sections = filter::Lowpass::design(kind, 1.0 / filter_s, 1.0 / dt)?;
     let pivot = ((filter_s / dt).round() as usize).min(n);
     Ok((sections, padding(filter_s, dt), pivot))
 }
@@ -494,7 +497,7 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
 pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
     let n = s.time_gps_ns.len();
     let dt = interval_s(&s.time_gps_ns)?;
-    let (sections, pad, pivot) = filter_of(filter_s, dt, n)?;
+    let (sections, pad, pivot) = filter_of(s.filter, filter_s, dt, n)?;
     if (n as f64) * dt < filter_s {
         return Err(GravityError::TooShort {
             epochs: n,
@@ -517,7 +520,7 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
         }
     }
     out.sigma_noise_mgal = scaled(&row(&sections, reach, None), &s.noise_f_mgal);
-    out.sigma_calibration_mgal = filter::filtfilt_pivoted(&sections, &s.sigma_f_mgal, pad, pivot);
+    out.sigma_calibration_mgal = sections.apply(&s.sigma_f_mgal, pad, pivot);
     out.sigma_tie_mgal = vec![0.0; n];
     out.sigma_coupling_mgal = coupling_sigma(s, (&sections, pad, pivot));
     out.sigma_attitude_mgal = if s.attitude_effects_mgal.iter().flatten().any(|v| *v != 0.0) {
@@ -537,7 +540,7 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
 /// filtered as the value is, through the coefficients' covariance (0 without a correction).
 fn coupling_sigma(
     s: &Stretch,
-    (sections, pad, pivot): (&[filter::Section], usize, usize),
+    (sections, pad, pivot): (&filter::Lowpass, usize, usize),
 ) -> Vec<f64> {
     let n = s.time_gps_ns.len();
     let Some(c) = &s.coupling else {
@@ -546,7 +549,7 @@ fn coupling_sigma(
     let filtered: Vec<Vec<f64>> = (0..4)
         .map(|i| {
             let series: Vec<f64> = c.monitors.iter().map(|m| m[i]).collect();
-            filter::filtfilt_pivoted(sections, &series, pad, pivot)
+            sections.apply(&series, pad, pivot)
         })
         .collect();
     (0..n)
@@ -625,7 +628,7 @@ pub fn tie_point(
         });
     }
     let mean = idx.iter().map(|&k| r.filtered_mgal[k]).sum::<f64>() / n - disturbance;
-    let (sections, pad, _) = filter_of(filter_s, dt, t.len())?;
+    let (sections, pad, _) = filter_of(s.filter, filter_s, dt, t.len())?;
     let sd = window_mean_sd(s, &idx, (&sections, dt, pad));
     let calibration = nearest(t, tie.time_gps_ns).map_or(0.0, |k| r.sigma_calibration_mgal[k]);
     Ok(Some(TiePoint {
@@ -664,7 +667,8 @@ pub fn apply_level(
         let d = &level.drift;
         let tied = match &s.calibration_tied {
             Some(c) => {
-                let (sections, pad, pivot) = filter_of(filter_s, interval_s(&s.time_gps_ns)?, n)?;
+                let (sections, pad, pivot) =
+                    filter_of(s.filter, filter_s, interval_s(&s.time_gps_ns)?, n)?;
                 Some(c.filtered_sigma(&sections, pad, pivot))
             }
             None => None,
@@ -790,7 +794,7 @@ fn nearest(t: &[i64], t0: i64) -> Option<usize> {
 fn window_mean_sd(
     s: &Stretch,
     window: &[usize],
-    (sections, dt, margin): (&[filter::Section], f64, usize),
+    (sections, dt, margin): (&filter::Lowpass, f64, usize),
 ) -> f64 {
     let n = s.time_gps_ns.len();
     let len = window.len() as f64;
@@ -806,8 +810,8 @@ fn window_mean_sd(
         on_heights[c - 1] -= w;
         on_force[k + margin] += 1.0 / len;
     }
-    let heights = filter::filtfilt_pivoted(sections, &on_heights, 0, 1);
-    let force = filter::filtfilt_pivoted(sections, &on_force, 0, 1);
+    let heights = sections.apply(&on_heights, 0, 1);
+    let force = sections.apply(&on_force, 0, 1);
     let var: f64 = (0..n + 2 * margin)
         .map(|i| {
             let j = i.saturating_sub(margin).min(n - 1);
@@ -857,12 +861,82 @@ fn line(points: &[(i64, f64, f64)]) -> Option<Drift> {
     })
 }
 
+/// How a session's named quantities come from its filtered value, gravity less normal
+/// gravity at the trajectory's heights (docs/formats.md 10.3): that value is the quantity
+/// the heights give (the disturbance above the ellipsoid, the free-air anomaly above sea
+/// level); the other is it moved by normal gravity's change over the geoid's height N,
+/// when N is given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Named {
+    /// What the heights are measured from.
+    pub heights: Heights,
+    /// The geoid's height above the ellipsoid, m.
+    pub geoid_height_m: Option<f64>,
+    /// The ellipsoid of normal gravity.
+    pub normal: NormalGravity,
+}
+
+impl Named {
+    /// The disturbance and the free-air anomaly (None where not formed) of filtered value
+    /// `value_mgal` at `latitude_deg` and height `height_m`, as the heights give it.
+    pub fn at(&self, latitude_deg: f64, height_m: f64, value_mgal: f64) -> [Option<f64>; 2] {
+        let gamma = |h: f64| self.normal.ellipsoid().normal_gravity_mgal(latitude_deg, h);
+        match self.heights {
+            // delta g = g - gamma(h); Delta g = g - gamma(h - N).
+            Heights::Ellipsoidal => [
+                Some(value_mgal),
+                self.geoid_height_m
+                    .map(|n| value_mgal + gamma(height_m) - gamma(height_m - n)),
+            ],
+            // Delta g = g - gamma(H); delta g = g - gamma(H + N).
+            Heights::SeaLevel => [
+                self.geoid_height_m
+                    .map(|n| value_mgal + gamma(height_m) - gamma(height_m + n)),
+                Some(value_mgal),
+            ],
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn sections() -> Vec<filter::Section> {
-        filter::butterworth(filter::ORDER, 1.0 / 100.0, 10.0).expect("filter")
+    /// The named quantities: the one the heights give is the value itself; the other is it
+    /// moved by normal gravity's change over the geoid's height, the free-air gradient's
+    /// 0.3086 mGal/m to its second-order term, and not formed without N.
+    #[test]
+    fn the_disturbance_and_the_free_air_anomaly_differ_by_the_geoid_height() {
+        let named = |heights, geoid_height_m| Named {
+            heights,
+            geoid_height_m,
+            normal: NormalGravity::Grs80,
+        };
+        let (lat, h, v) = (48.07, 10.0, 12.5);
+        assert_eq!(
+            named(Heights::Ellipsoidal, None).at(lat, h, v),
+            [Some(v), None]
+        );
+        assert_eq!(
+            named(Heights::SeaLevel, None).at(lat, h, v),
+            [None, Some(v)]
+        );
+        for n in [-40.0, 55.0] {
+            let [d, f] = named(Heights::Ellipsoidal, Some(n)).at(lat, h, v);
+            assert_eq!(d, Some(v));
+            let f = f.expect("formed");
+            assert!((v - f - 0.3086 * n).abs() < 0.002 * n.abs(), "{n}: {f}");
+            let [d, f] = named(Heights::SeaLevel, Some(n)).at(lat, h, v);
+            assert_eq!(f, Some(v));
+            let d = d.expect("formed");
+            assert!((d - v - 0.3086 * n).abs() < 0.002 * n.abs(), "{n}: {d}");
+        }
+    }
+
+    fn sections() -> filter::Lowpass {
+        filter::Lowpass::Butterworth(
+            filter::butterworth(filter::ORDER, 1.0 / 100.0, 10.0).expect("filter"),
+        )
     }
 
     /// The row's reach holds its energy: the gain over four filter periods either side is

@@ -20,11 +20,11 @@ use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
     CouplingUsed, Crossover, DriftFitted, ErrorModelsUsed, FilterUsed, GravityReport, Input,
-    LEDGER_FILE, LEDGER_FORMAT, NotReduced, STAGE_DIR, SessionGravity, StretchSummary, TieUsed,
-    dropped,
+    LEDGER_FILE, LEDGER_FORMAT, NotReduced, Quantities, STAGE_DIR, SessionGravity, StretchSummary,
+    TieUsed, dropped,
 };
 use ingest::contract::manifest::Dataset;
-use ingest::contract::survey::{ErrorModel, ResolvedTie, SurveyConfig, TieLevel};
+use ingest::contract::survey::{ErrorModel, FilterKind, ResolvedTie, SurveyConfig, TieLevel};
 use ingest::contract::tables::{applied, gravity};
 use ingest::time::utc_iso;
 use std::collections::BTreeMap;
@@ -97,7 +97,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
         coupling: None,
     };
     let (sessions, ties) = reduce_tracks(&ds, &tracks, &filled, ctx, &mut rows)?;
-    let filter = filter_used(&rows.speeds, survey.filter_s);
+    let filter = filter_used(&rows.speeds, (survey.filter, survey.filter_s));
     let crossovers = rows.crossovers(&names, &tracks, &sessions, survey.filter_s);
     let (rows_written, sha256) = rows.finish(&dir)?;
     let inputs = inputs(&table, &tracks)?;
@@ -115,6 +115,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
             positions: survey.position_error_model(),
         },
         normal_gravity: survey.normal_gravity,
+        geoid_height_m: survey.geoid_height_m,
         earth_tide: survey.earth_tide,
         sessions,
         ties,
@@ -630,6 +631,7 @@ fn reduce_track(
         sample_noise_mgal: ctx.sample_noise.sd_mgal,
         sample_noise_from: ctx.sample_noise.from.clone(),
         cross_coupling: None,
+        quantities: Quantities::new(track.named(ctx.survey).heights, ctx.survey.geoid_height_m),
         stretches: Vec::new(),
     };
     let (spans, gaps) = stretches(
@@ -770,7 +772,8 @@ fn reduce_stretch(
         }
         summary.epochs_used += s.time_gps_ns.len() as u64;
         let step = crossover::step(filter_s, interval_s);
-        rows.push((track.index, number, step), (s, r, h), flags)?;
+        let named = track.named(ctx.survey);
+        rows.push((track.index, number, step), named, (s, r, h), flags)?;
     }
     Ok(Some(st.level.flatten().map(|l| l.drift)))
 }
@@ -1087,6 +1090,7 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
         },
         position_errors: declared(ctx.survey.position_error_model()),
         normal: ctx.survey.normal_gravity,
+        filter: ctx.survey.filter,
         ..Stretch::default()
     };
     let bins = &b.bins;
@@ -1376,15 +1380,32 @@ fn tie_entry(t: &ResolvedTie) -> TieUsed {
 
 /// The filter and the resolution at the median speed of the epochs moving faster than
 /// 0.5 m/s (of `speeds`, the rows' sampled as [`Rows`] keeps them).
-fn filter_used(speeds: &[f64], filter_s: f64) -> FilterUsed {
+fn filter_used(speeds: &[f64], (kind, filter_s): (FilterKind, f64)) -> FilterUsed {
     let mut moving: Vec<f64> = speeds.iter().copied().filter(|v| *v > 0.5).collect();
     moving.sort_by(f64::total_cmp);
     let median = moving.get(moving.len() / 2).copied().unwrap_or(0.0);
     FilterUsed {
-        kind: format!(
-            "Butterworth, order {} each way (zero phase, forward and backward)",
-            super::filter::ORDER
-        ),
+        name: kind,
+        kind: match kind {
+            FilterKind::Butterworth => format!(
+                "Butterworth, order {} each way (zero phase, forward and backward)",
+                super::filter::ORDER
+            ),
+            FilterKind::Gaussian => {
+                "Gaussian kernel, sd 0.187 of the cut-off period, to four sds (zero phase, \
+                 applied once, centred)"
+                    .to_owned()
+            }
+            FilterKind::Blackman | FilterKind::Hamming => format!(
+                "windowed sinc, {} window, two cut-off periods long (zero phase, applied once, \
+                 centred)",
+                if kind == FilterKind::Blackman {
+                    "Blackman"
+                } else {
+                    "Hamming"
+                }
+            ),
+        },
         filter_s,
         median_speed_m_s: median,
         resolution_m: median * filter_s / 2.0,
@@ -1414,6 +1435,9 @@ struct Rows {
     with_horizontal: bool,
     horizontal: [Vec<f64>; 14],
     horizontal_valid: Vec<bool>,
+    /// The named quantities ([`gravity::NAMED`]) and whether each row forms them.
+    named: [Vec<f64>; 2],
+    named_valid: [Vec<bool>; 2],
     flags: Vec<u8>,
     /// The rows the crossover search takes.
     kept: crossover::Kept,
@@ -1439,6 +1463,8 @@ impl Rows {
             with_horizontal,
             horizontal: Default::default(),
             horizontal_valid: Vec::new(),
+            named: Default::default(),
+            named_valid: Default::default(),
             flags: Vec::new(),
             kept: crossover::Kept::default(),
             speeds: Vec::new(),
@@ -1450,6 +1476,7 @@ impl Rows {
     fn push(
         &mut self,
         (session, number, step): (u16, u32, usize),
+        named: reduce::Named,
         (s, r, h): (Stretch, Reduced, Option<ReducedHorizontal>),
         flags: Vec<u8>,
     ) -> Result<(), GravityError> {
@@ -1474,6 +1501,13 @@ impl Rows {
             );
         }
         let (r, h) = withhold_edges(r, h, &flags);
+        for k in 0..n {
+            let values = named.at(s.latitude_deg[k], s.height_m[k], r.filtered_mgal[k]);
+            for ((dst, valid), v) in self.named.iter_mut().zip(&mut self.named_valid).zip(values) {
+                dst.push(v.unwrap_or(0.0));
+                valid.push(v.is_some());
+            }
+        }
         self.speeds.extend(r.speed_m_s.iter().step_by(step.max(1)));
         self.session.extend(std::iter::repeat_n(session, n));
         append(&mut self.time, s.time_gps_ns);
@@ -1599,6 +1633,13 @@ impl Rows {
                 None => Float64Array::new_null(n_rows),
             }));
         }
+        for (f, valid) in self.named.iter_mut().zip(&mut self.named_valid) {
+            let valid = arrow_buffer::NullBuffer::from(std::mem::take(valid));
+            columns.push(Arc::new(Float64Array::new(
+                std::mem::take(f).into(),
+                Some(valid),
+            )));
+        }
         columns.push(Arc::new(UInt8Array::from(flags)));
         self.writer.write(columns)?;
         self.writer.flush()?;
@@ -1701,6 +1742,7 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
          (their third differences); {given}",
         s.id
     );
+    let _ = writeln!(w, "gravity: {}: {}", s.id, s.quantities.describe());
     if let Some(c) = &s.cross_coupling {
         let terms: Vec<String> = coupling::MONITORS
             .iter()
@@ -1772,8 +1814,12 @@ pub fn print_summary(r: &GravityReport, w: &mut impl std::io::Write) {
     let f = &r.filter;
     let _ = writeln!(
         w,
-        "gravity: {} rows; filter {} s, resolution {:.0} m at {:.1} m/s",
-        r.rows_written, f.filter_s, f.resolution_m, f.median_speed_m_s
+        "gravity: {} rows; filter {} over {} s, resolution {:.0} m at {:.1} m/s",
+        r.rows_written,
+        f.name.name(),
+        f.filter_s,
+        f.resolution_m,
+        f.median_speed_m_s
     );
     let m = &r.error_models;
     let _ = writeln!(
@@ -1866,6 +1912,13 @@ mod tests {
         (s, r, h)
     }
 
+    /// Heights above the ellipsoid, no geoid height.
+    const NAMED: reduce::Named = reduce::Named {
+        heights: ingest::contract::survey::Heights::Ellipsoidal,
+        geoid_height_m: None,
+        normal: super::super::normal::NormalGravity::Grs80,
+    };
+
     /// North and east are held only where a track has attitude: without, nothing is held
     /// for them; with, the rows of a stretch without attitude are null.
     #[test]
@@ -1875,18 +1928,19 @@ mod tests {
         let mut without = Rows::create(dir.path(), &names, false).expect("rows");
         let (s, r, _) = rows_of(2);
         without
-            .push((0, 0, 1), (s, r, None), vec![0, 0])
+            .push((0, 0, 1), NAMED, (s, r, None), vec![0, 0])
             .expect("pushed");
         assert!(without.horizontal_valid.is_empty() && without.horizontal[0].is_empty());
         let mut rows = Rows::create(dir.path(), &names, true).expect("rows");
         let (s, r, _) = rows_of(2);
-        rows.push((0, 0, 1), (s, r, None), vec![0, 0])
+        rows.push((0, 0, 1), NAMED, (s, r, None), vec![0, 0])
             .expect("pushed");
         let (s, r, h) = rows_of(3);
-        rows.push((1, 0, 1), (s, r, Some(h)), vec![0; 3])
+        rows.push((1, 0, 1), NAMED, (s, r, Some(h)), vec![0; 3])
             .expect("pushed");
         let (s, r, _) = rows_of(1);
-        rows.push((0, 1, 1), (s, r, None), vec![0]).expect("pushed");
+        rows.push((0, 1, 1), NAMED, (s, r, None), vec![0])
+            .expect("pushed");
         assert_eq!(
             rows.horizontal_valid,
             [false, false, true, true, true, false]

@@ -107,6 +107,22 @@ impl Positions {
 }
 
 impl Track<'_> {
+    /// How its named quantities come from its filtered values, with the survey's geoid
+    /// height and normal gravity.
+    pub fn named(&self, survey: &SurveyConfig) -> super::reduce::Named {
+        super::reduce::Named {
+            heights: self
+                .session
+                .trajectory
+                .as_ref()
+                .map_or(ingest::contract::survey::Heights::Ellipsoidal, |t| {
+                    t.format.heights()
+                }),
+            geoid_height_m: survey.geoid_height_m,
+            normal: survey.normal_gravity,
+        }
+    }
+
     /// The attitude at the kept epochs `range` (None without attitude).
     pub fn attitude_at(
         &self,

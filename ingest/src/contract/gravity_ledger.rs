@@ -65,7 +65,10 @@ pub struct Input {
 /// The zero-phase low-pass filter and what it resolves.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct FilterUsed {
-    /// Kind and order, e.g. `butterworth, order 4 each way (zero phase)`.
+    /// The filter's name (`[survey] filter`).
+    #[serde(default)]
+    pub name: crate::contract::survey::FilterKind,
+    /// What it is, e.g. `Butterworth, order 4 each way (zero phase, forward and backward)`.
     pub kind: String,
     /// Cut-off period (amplitude response 0.5), s.
     pub filter_s: f64,
@@ -149,8 +152,54 @@ pub struct SessionGravity {
     /// for one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cross_coupling: Option<CouplingUsed>,
+    /// What the trajectory's heights are measured from, and so which quantity `down_mgal`
+    /// is, and which of the named columns are formed (docs/formats.md 10.3).
+    pub quantities: Quantities,
     /// The stretches.
     pub stretches: Vec<StretchSummary>,
+}
+
+/// A session's named quantities: gravity less normal gravity at the trajectory's heights is
+/// the quantity those heights give; the other needs the geoid's height.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Quantities {
+    /// What the heights are measured from.
+    pub heights: crate::contract::survey::Heights,
+    /// `disturbance_filtered_mgal` formed.
+    pub disturbance: bool,
+    /// `free_air_anomaly_filtered_mgal` formed.
+    pub free_air_anomaly: bool,
+}
+
+impl Quantities {
+    /// A session's quantities with its `heights` and the survey's geoid height.
+    pub fn new(heights: crate::contract::survey::Heights, geoid_height_m: Option<f64>) -> Self {
+        use crate::contract::survey::Heights;
+        Quantities {
+            heights,
+            disturbance: heights == Heights::Ellipsoidal || geoid_height_m.is_some(),
+            free_air_anomaly: heights == Heights::SeaLevel || geoid_height_m.is_some(),
+        }
+    }
+
+    /// One sentence of what the session gives, and what it cannot and why.
+    pub fn describe(&self) -> String {
+        let give = match (self.disturbance, self.free_air_anomaly) {
+            (true, true) => "the gravity disturbance and the free-air anomaly".to_owned(),
+            (true, false) => "the gravity disturbance".to_owned(),
+            _ => "the free-air anomaly".to_owned(),
+        };
+        let heights = match self.heights {
+            crate::contract::survey::Heights::Ellipsoidal => "above the ellipsoid",
+            crate::contract::survey::Heights::SeaLevel => "above sea level",
+        };
+        let missing = match (self.disturbance, self.free_air_anomaly) {
+            (true, false) => "; the free-air anomaly needs [survey] geoid_height_m",
+            (false, true) => "; the gravity disturbance needs [survey] geoid_height_m",
+            _ => "",
+        };
+        format!("heights {heights}: {give}{missing}")
+    }
 }
 
 /// The cross-coupling correction of a session: `sum c_i m_i` of the monitors VE, VCC, AL,
@@ -258,6 +307,10 @@ pub struct GravityReport {
     /// The ellipsoid of normal gravity (`[survey] normal_gravity`).
     #[serde(default)]
     pub normal_gravity: crate::contract::normal::NormalGravity,
+    /// The geoid's height the named quantities were converted with (`[survey]
+    /// geoid_height_m`), m; absent when not given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geoid_height_m: Option<f64>,
     /// Whether the body tide was removed (`[survey] earth_tide`).
     #[serde(default)]
     pub earth_tide: bool,

@@ -23,6 +23,44 @@ pub enum TrajectoryFormat {
     DgsLaptop,
 }
 
+impl TrajectoryFormat {
+    /// What the format's heights are measured from: a GNSS solution's from the ellipsoid, a
+    /// ship's meter's navigation (no height) from the sea surface.
+    pub fn heights(self) -> Heights {
+        match self {
+            TrajectoryFormat::Rtklib | TrajectoryFormat::Csv => Heights::Ellipsoidal,
+            TrajectoryFormat::DgsLaptop => Heights::SeaLevel,
+        }
+    }
+}
+
+/// What a trajectory's heights are measured from (docs/formats.md 10.3): it decides which
+/// quantity gravity less normal gravity at those heights is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+pub enum Heights {
+    /// Above the ellipsoid: gravity less normal gravity there is the gravity disturbance.
+    #[serde(rename = "ellipsoidal")]
+    Ellipsoidal,
+    /// Above sea level (the geoid): gravity less normal gravity there is the free-air
+    /// anomaly.
+    #[serde(rename = "sea level")]
+    SeaLevel,
+}
+
+impl Heights {
+    /// The quantity gravity less normal gravity at these heights is.
+    pub fn quantity(self) -> &'static str {
+        match self {
+            Heights::Ellipsoidal => "gravity disturbance",
+            Heights::SeaLevel => "free-air anomaly",
+        }
+    }
+}
+
+/// The geoid's height above the ellipsoid the manifest may state, m: the Earth's geoid lies
+/// within about -107 and +86 m of GRS80.
+pub const GEOID_HEIGHT_BOUND_M: f64 = 120.0;
+
 /// `[survey]`: what turns a survey's calibrated accelerations into gravity (docs/formats.md 10).
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
@@ -36,6 +74,8 @@ pub struct SurveyConfig {
     /// The low-pass filter's cut-off period, s: its zero-phase amplitude response is 0.5 at
     /// 1 / filter_s.
     pub filter_s: f64,
+    /// The low-pass filter's kind (Butterworth by default).
+    pub filter: FilterKind,
     /// What the attitude file's sds say over time (docs/formats.md 10.2): its errors are
     /// white, correlated or systematic.
     pub attitude_errors: ErrorKind,
@@ -56,6 +96,11 @@ pub struct SurveyConfig {
     pub tie: Vec<TieDecl>,
     /// The ellipsoid whose normal gravity the disturbance is held to (GRS80 by default).
     pub normal_gravity: crate::contract::normal::NormalGravity,
+    /// The geoid's height above the ellipsoid over the survey, m (one value: the survey's
+    /// area small against the geoid's wavelengths), from a geoid model the user names in
+    /// their report. With it both the gravity disturbance and the free-air anomaly are
+    /// formed; without it only the one the trajectory's heights give (docs/formats.md 10.3).
+    pub geoid_height_m: Option<f64>,
     /// The solid Earth's body tide removed at every epoch (align's model, docs/model.md
     /// 6.3), and written as `tide_mgal`; default true (ties are tide-free values).
     pub earth_tide: bool,
@@ -65,6 +110,34 @@ pub struct SurveyConfig {
     /// Which ties level a stretch (docs/formats.md 10): every tie of its session, one drift
     /// across the gaps (`"session"`, the default), or only those inside it (`"stretch"`).
     pub tie_level: TieLevel,
+}
+
+/// `[survey] filter`: the zero-phase low-pass filter's kind (docs/model.md 7, "The
+/// filters"); whichever, its amplitude response is 0.5 at 1 / `filter_s`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum FilterKind {
+    /// Butterworth of order 4, forward and backward (scipy's `sosfiltfilt`).
+    #[default]
+    Butterworth,
+    /// A Gaussian kernel (NAVO's and LDEO's), applied once, centred.
+    Gaussian,
+    /// A windowed-sinc FIR with a Blackman window (scipy's `firwin`), applied once, centred.
+    Blackman,
+    /// The same with a Hamming window.
+    Hamming,
+}
+
+impl FilterKind {
+    /// The manifest's word for it.
+    pub fn name(self) -> &'static str {
+        match self {
+            FilterKind::Butterworth => "butterworth",
+            FilterKind::Gaussian => "gaussian",
+            FilterKind::Blackman => "blackman",
+            FilterKind::Hamming => "hamming",
+        }
+    }
 }
 
 /// `[survey] tie_level`.
@@ -247,6 +320,7 @@ impl Default for SurveyConfig {
             lever_arm_m: [0.0; 3],
             mounting_deg: [0.0; 3],
             filter_s: 100.0,
+            filter: FilterKind::Butterworth,
             attitude_errors: ErrorKind::Correlated,
             attitude_correlation_s: None,
             position_errors: ErrorKind::White,
@@ -254,6 +328,7 @@ impl Default for SurveyConfig {
             sample_noise_mgal: None,
             tie: Vec::new(),
             normal_gravity: crate::contract::normal::NormalGravity::Grs80,
+            geoid_height_m: None,
             earth_tide: true,
             cross_coupling: CrossCoupling::default(),
             tie_level: TieLevel::default(),
@@ -502,6 +577,17 @@ pub fn check(
             format!("{v} is not a sample's noise in mGal within (0, 100000]"),
         ));
     }
+    if let Some(v) = survey.geoid_height_m
+        && !(v.is_finite() && v.abs() <= GEOID_HEIGHT_BOUND_M)
+    {
+        return Err(err(
+            "survey.geoid_height_m".to_owned(),
+            format!(
+                "{v} is not a geoid height in m within +/-{GEOID_HEIGHT_BOUND_M} (the geoid \
+                 lies within about -107 and +86 m of the ellipsoid)"
+            ),
+        ));
+    }
     let ties: Vec<ResolvedTie> = survey
         .tie
         .iter()
@@ -675,5 +761,18 @@ mod tests {
             let e = check(&s, true, &err).expect_err("refused").to_string();
             assert!(e.contains("survey.sample_noise_mgal"), "{v}: {e}");
         }
+        for v in [f64::NAN, 130.0, -500.0] {
+            let s = SurveyConfig {
+                geoid_height_m: Some(v),
+                ..SurveyConfig::default()
+            };
+            let e = check(&s, true, &err).expect_err("refused").to_string();
+            assert!(e.contains("survey.geoid_height_m"), "{v}: {e}");
+        }
+        let s = SurveyConfig {
+            geoid_height_m: Some(-106.0),
+            ..SurveyConfig::default()
+        };
+        assert!(check(&s, true, &err).is_ok());
     }
 }

@@ -597,6 +597,14 @@ pub mod gravity {
         "sigma_east_noise_mgal",
         "sigma_east_attitude_mgal",
     ];
+    /// The nullable Float64 columns of the named quantities (docs/formats.md 10.3), after
+    /// [`HORIZONTAL`]: the filtered gravity disturbance and free-air anomaly, each null in a
+    /// session that cannot form it (`quantities` in gravity.json), NaN where
+    /// `down_filtered_mgal` is.
+    pub const NAMED: [&str; 2] = [
+        "disturbance_filtered_mgal",
+        "free_air_anomaly_filtered_mgal",
+    ];
     /// The stretch column.
     pub const STRETCH: &str = "stretch";
     /// The flags column.
@@ -612,8 +620,8 @@ pub mod gravity {
         for name in FLOATS {
             fields.push(Field::new(name, DataType::Float64, false));
         }
-        for name in HORIZONTAL {
-            fields.push(Field::new(name, DataType::Float64, true));
+        for name in HORIZONTAL.iter().chain(&NAMED) {
+            fields.push(Field::new(*name, DataType::Float64, true));
         }
         fields.push(Field::new(FLAGS, DataType::UInt8, false));
         with_sessions(fields, sessions)
