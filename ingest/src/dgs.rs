@@ -61,18 +61,43 @@ fn integer(fields: &[&[u8]], k: usize, name: &'static str) -> Result<u32, Bad> {
         .ok_or_else(|| (name, format!("`{}` is not an integer", text(f))))
 }
 
+/// A laptop line split at its commas into [`FIELDS`] fields, without allocating; a line of
+/// another count is refused as [`parse_laptop`] refuses it.
+pub fn split(line: &[u8]) -> Result<[&[u8]; FIELDS], Bad> {
+    let mut fields: [&[u8]; FIELDS] = [&[]; FIELDS];
+    let mut n = 0;
+    for f in line.split(|&b| b == b',') {
+        if let Some(slot) = fields.get_mut(n) {
+            *slot = f;
+        }
+        n += 1;
+    }
+    if n != FIELDS {
+        return Err(field_count(n));
+    }
+    Ok(fields)
+}
+
+fn field_count(n: usize) -> Bad {
+    (
+        "line",
+        format!(
+            "{n} fields, expected {FIELDS} (a DGS laptop line: gravity, raw gravity, long, cross, \
+             ..., year, month, day, hour, minute, second, ...)"
+        ),
+    )
+}
+
+/// A laptop line's time alone ([`split`] first): for a pass that needs only the times.
+pub fn parse_time(fields: &[&[u8]; FIELDS]) -> Result<i64, Bad> {
+    time(fields)
+}
+
 /// A laptop line's fields (split at commas, white space around each allowed) read; the
 /// error names the field and what is wrong with it.
 pub fn parse_laptop(fields: &[&[u8]]) -> Result<LaptopLine, Bad> {
     if fields.len() != FIELDS {
-        return Err((
-            "line",
-            format!(
-                "{} fields, expected {FIELDS} (a DGS laptop line: gravity, raw gravity, long, \
-                 cross, ..., year, month, day, hour, minute, second, ...)",
-                fields.len()
-            ),
-        ));
+        return Err(field_count(fields.len()));
     }
     let raw_gravity_mgal = number(fields, 1, "rgrav")?;
     number(fields, 2, "long_a")?;
@@ -115,13 +140,28 @@ fn time(fields: &[&[u8]]) -> Result<i64, Bad> {
     if !(1..=12).contains(&month) {
         return Err(bad("month", month.to_string()));
     }
-    let date = crate::contract::manifest::parse_date(&format!("{year:04}-{month:02}-{day:02}"))
-        .ok_or_else(|| {
-            (
-                "day",
-                format!("{year:04}-{month:02}-{day:02} is not a date"),
-            )
-        })?;
+    let leap = year % 4 == 0 && (year % 100 != 0 || year % 400 == 0);
+    let days = [
+        31,
+        if leap { 29 } else { 28 },
+        31,
+        30,
+        31,
+        30,
+        31,
+        31,
+        30,
+        31,
+        30,
+        31,
+    ];
+    if !(1..=9999).contains(&year) || day == 0 || day > days[month as usize - 1] {
+        return Err((
+            "day",
+            format!("{year:04}-{month:02}-{day:02} is not a date"),
+        ));
+    }
+    let date = (year as i32, month as u8, day as u8);
     if hour > 23 {
         return Err(bad("hour", hour.to_string()));
     }
@@ -131,18 +171,40 @@ fn time(fields: &[&[u8]]) -> Result<i64, Bad> {
     if !(0.0..61.0).contains(&second) {
         return Err(bad("second", second.to_string()));
     }
-    let whole = second.floor();
-    let c = Calendar {
+    let minute_gps_ns = minute_start(Calendar {
         year: date.0,
         month: date.1,
         day: date.2,
         hour: hour as u8,
         minute: minute as u8,
-        second: whole as u8,
-        nanos: ((second - whole) * 1e9).round().min(999_999_999.0) as u32,
-    };
-    gps_ns(c, TimeScale::Utc)
-        .ok_or_else(|| ("year", format!("{year}: before the GPS epoch (1980-01-06)")))
+        second: 0,
+        nanos: 0,
+    })
+    .ok_or_else(|| ("year", format!("{year}: before the GPS epoch (1980-01-06)")))?;
+    // Seconds counted on from the minute's start: a leap second (23:59:60) is the GPS second
+    // after 23:59:59, as the calendar's own conversion has it.
+    let whole = second.floor();
+    let nanos = ((second - whole) * 1e9).round().min(999_999_999.0) as i64;
+    Ok(minute_gps_ns + whole as i64 * 1_000_000_000 + nanos)
+}
+
+/// The GPS time of a UTC minute's start, the last one converted kept: a laptop file's lines
+/// come a second apart, so one conversion serves sixty of them.
+fn minute_start(c: Calendar) -> Option<i64> {
+    /// A UTC minute: year, month, day, hour, minute.
+    type Minute = (i32, u8, u8, u8, u8);
+    thread_local! {
+        static LAST: std::cell::Cell<Option<(Minute, i64)>> = const { std::cell::Cell::new(None) };
+    }
+    let key = (c.year, c.month, c.day, c.hour, c.minute);
+    LAST.with(|last| match last.get() {
+        Some((k, ns)) if k == key => Some(ns),
+        _ => {
+            let ns = gps_ns(c, TimeScale::Utc)?;
+            last.set(Some((key, ns)));
+            Some(ns)
+        }
+    })
 }
 
 #[cfg(test)]
@@ -157,6 +219,50 @@ mod tests {
 
     fn fields(line: &str) -> Vec<&[u8]> {
         line.as_bytes().split(|&b| b == b',').collect()
+    }
+
+    /// Lines a second apart across the 2016 leap second, each minute's start converted once:
+    /// 23:59:59, 23:59:60 and 00:00:00 are three GPS seconds in a row, and a line of another
+    /// minute read between them does not disturb them; `split` reads the line as the
+    /// collected fields do and refuses another count.
+    #[test]
+    fn seconds_count_on_from_the_minute_across_a_leap_second() {
+        let at = |time: &str| {
+            let line = LINE.replace("2019,07,11,00,00,00.00", time);
+            let f = split(line.as_bytes()).expect("26 fields");
+            assert_eq!(f.to_vec(), fields(&line));
+            parse_laptop(&f).expect("line").gps_ns
+        };
+        let t = [
+            at("2016,12,31,23,59,59.00"),
+            at("2016,12,31,23,59,60.00"),
+            at("2019,07,11,00,00,00.50"),
+            at("2017,01,01,00,00,00.00"),
+        ];
+        assert_eq!(t[1] - t[0], 1_000_000_000);
+        assert_eq!(t[3] - t[1], 1_000_000_000);
+        // 2019-07-11T00:00:00.5 UTC: 18 leap seconds.
+        let gps = crate::time::gps_ns(
+            Calendar {
+                year: 2019,
+                month: 7,
+                day: 11,
+                hour: 0,
+                minute: 0,
+                second: 0,
+                nanos: 500_000_000,
+            },
+            TimeScale::Utc,
+        );
+        assert_eq!(Some(t[2]), gps);
+        assert!(split(b"1,2,3").is_err());
+        for bad in ["2019,02,29,00,00,00.00", "2020,04,31,00,00,00.00"] {
+            let line = LINE.replace("2019,07,11,00,00,00.00", bad);
+            let e = parse_laptop(&fields(&line)).expect_err("not a date");
+            assert_eq!(e.0, "day", "{bad}: {e:?}");
+        }
+        let line = LINE.replace("2019,07,11,00,00,00.00", "2020,02,29,00,00,00.00");
+        assert!(parse_laptop(&fields(&line)).is_ok(), "a leap day");
     }
 
     /// shipgrav's test file's first line: its values, and 2019-07-11T00:00:00 UTC as GPS

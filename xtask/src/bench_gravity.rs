@@ -2,8 +2,14 @@
 //! survey logged at 250 Hz with a 10 Hz trajectory (fixtures' `survey_lines::bench_plan`),
 //! at `hours` and a quarter of it, so that peak memory shows whether it grows with the log;
 //! levelled (the down component) and rolling with a 10 Hz attitude file (north, east and
-//! down, each sample turned into the navigation frame). Measured, never asserted. No peer
-//! does this (docs/model.md 7).
+//! down, each sample turned into the navigation frame). No peer does this (docs/model.md 7).
+//!
+//! Then a platform meter's cruise of `hours` at 1 Hz (`fixtures::meter`, a DGS laptop file)
+//! reduced to its free-air anomaly through a 240 s Blackman filter: gravcal's ingest and
+//! gravity stages (the meter's stated calibration, every sigma) beside shipgrav's reduction
+//! of the same file in the peers' venv (its reader, Eotvos, WGS84 normal gravity, Longman's
+//! tide, scipy's `firwin` of the same taps applied centred, a CSV written). Measured, never
+//! asserted.
 
 use super::bench::Build;
 use anyhow::{Context, Result, bail};
@@ -25,8 +31,14 @@ fn calibration(dir: &Path) -> Result<PathBuf> {
     Ok(cal)
 }
 
-/// The gravity benchmark on `hours` and `hours / 4`.
-pub fn gravity(root: &Path, hours: f64, runs: usize, build: Build) -> Result<()> {
+/// The gravity benchmark on `hours` and `hours / 4`, then the marine cruise of `hours`
+/// beside shipgrav when `peers` names the peers' Python.
+pub fn gravity(
+    root: &Path,
+    hours: f64,
+    (runs, peers): (usize, Option<&Path>),
+    build: Build,
+) -> Result<()> {
     let bin = build.stage_binaries(root)?.join("gravcal-gravity");
     let data = root.join("target/bench-data");
     std::fs::create_dir_all(&data)?;
@@ -88,6 +100,116 @@ pub fn gravity(root: &Path, hours: f64, runs: usize, build: Build) -> Result<()>
             r.seconds,
             samples as f64 / 1e6 / r.seconds,
             r.peak_rss_mb
+        );
+    }
+    marine(root, hours, (runs, peers), build)
+}
+
+/// shipgrav's reduction of a DGS laptop file, timed by itself: argv the file, the CSV to
+/// write, the FIR's taps and cut-off (cycles per sample), the meter's offset (mGal); its last
+/// line wall seconds, peak RSS in kB, CPU seconds.
+const SHIPGRAV: &str = r#"
+import resource, sys, time
+t0 = time.time()
+import numpy as np
+import pandas as pd
+import shipgrav.grav as sgg
+import shipgrav.io as sgi
+from scipy.signal import firwin
+
+path, out, taps, cutoff, offset = sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), float(sys.argv[5])
+data = sgi.read_dgs_laptop([path], "Atlantis", progressbar=False)
+grav = data["rgrav"].values + offset
+lat, lon = data["lat"], data["lon"]
+normal = (sgg.wgs_grav(lat) + sgg.free_air_second_order(lat, np.zeros(len(lat)))).values
+e = sgg.eotvos_full(lon.values, lat.values, np.zeros(len(lat)), 1)
+tide = np.asarray(sgg.longman_tide_prediction(lon, lat, data["date_time"]))
+faa = grav - normal + e + tide
+h = firwin(taps, cutoff, window="blackman", fs=1.0)
+filtered = np.convolve(faa, h, mode="same")
+pd.DataFrame({"time": data["date_time"], "lat": lat, "lon": lon, "faa": faa,
+              "faa_filtered": filtered}).to_csv(out, index=False)
+ru = resource.getrusage(resource.RUSAGE_SELF)
+print(time.time() - t0, ru.ru_maxrss, ru.ru_utime + ru.ru_stime)
+"#;
+
+/// The marine cruise of `hours` at 1 Hz: gravcal (ingest, then gravity) and shipgrav.
+pub fn marine(
+    root: &Path,
+    hours: f64,
+    (runs, peers): (usize, Option<&Path>),
+    build: Build,
+) -> Result<()> {
+    let bins = build.stage_binaries(root)?;
+    let data = root.join("target/bench-data");
+    let seconds = (hours * 3600.0).round() as usize;
+    let dataset = data.join(format!("meter-cruise-{hours}h"));
+    if !dataset.join("dataset.toml").exists() {
+        eprintln!("bench: generating {}", dataset.display());
+        let _ = std::fs::remove_dir_all(&dataset);
+        fixtures::meter::write_cruise(&dataset, fixtures::meter::Cruise::new(seconds, 1), "none")?;
+        let manifest = std::fs::read_to_string(dataset.join("dataset.toml"))?;
+        std::fs::write(
+            dataset.join("dataset.toml"),
+            manifest.replace(
+                "filter_s = 240.0\n",
+                "filter_s = 240.0\nfilter = \"blackman\"\nnormal_gravity = \"WGS84\"\n",
+            ),
+        )?;
+    }
+    let out = data.join(format!("out-meter-{hours}h"));
+    let vendor = [
+        "--calibration".as_ref(),
+        adjust::apply::stream::VENDOR.as_ref(),
+    ];
+    let (ours, median) = super::bench::best_of(runs, || {
+        let _ = std::fs::remove_dir_all(&out);
+        let i = super::bench::stage_once_with(&bins.join("gravcal-ingest"), &dataset, &out, &[])?;
+        let g =
+            super::bench::stage_once_with(&bins.join("gravcal-gravity"), &dataset, &out, &vendor)?;
+        Ok(super::bench::Run {
+            seconds: i.seconds + g.seconds,
+            peak_rss_mb: i.peak_rss_mb.max(g.peak_rss_mb),
+            cpu_seconds: i.cpu_seconds.zip(g.cpu_seconds).map(|(a, b)| a + b),
+        })
+    })?;
+    let mut rows = vec![("gravcal ingest + gravity", ours, median)];
+    if let Some(py) = peers {
+        let script = data.join("shipgrav_reduce.py");
+        std::fs::write(&script, SHIPGRAV)?;
+        let (taps, cutoff) = adjust::gravity::filter::windowed_sinc_design(
+            ingest::contract::survey::FilterKind::Blackman,
+            240.0,
+        );
+        let csv = data.join("shipgrav-reduced.csv");
+        let (theirs, median) = super::bench::best_of(runs, || {
+            let o = std::process::Command::new(py)
+                .arg(&script)
+                .arg(dataset.join("raw/cruise.dat"))
+                .arg(&csv)
+                .arg(taps.to_string())
+                .arg(cutoff.to_string())
+                .arg(fixtures::meter::OFFSET_MGAL.to_string())
+                .output()?;
+            if !o.status.success() {
+                bail!("shipgrav failed: {}", String::from_utf8_lossy(&o.stderr));
+            }
+            super::bench::parse_peer_run(&String::from_utf8_lossy(&o.stdout))
+        })?;
+        rows.push(("shipgrav (its reader, FAA, scipy's FIR)", theirs, median));
+        let _ = std::fs::remove_file(&csv);
+    }
+    let _ = std::fs::remove_dir_all(&out);
+    println!();
+    println!(
+        "| DGS laptop file at 1 Hz | what | seconds (fastest) | seconds (median) | CPU s | peak RSS MB |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for (what, r, median) in rows {
+        let cpu = r.cpu_seconds.map_or("-".to_owned(), |c| format!("{c:.2}"));
+        println!(
+            "| {hours} h, {seconds} lines | {what} | {:.2} | {median:.2} | {cpu} | {:.0} |",
+            r.seconds, r.peak_rss_mb
         );
     }
     Ok(())

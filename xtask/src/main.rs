@@ -57,12 +57,13 @@ struct FixturesArgs {
 /// `cargo xtask bench`'s arguments.
 #[derive(clap::Args)]
 struct BenchArgs {
-    /// Which stage: ingest, align, adjust, apply or gravity; or smoke (each once, small, as CI).
+    /// Which stage: ingest, align, adjust, apply or gravity (marine: its platform meter's
+    /// cruise beside shipgrav alone); or smoke (each once, small, as CI).
     what: String,
     /// Logging hours of the 250 Hz log (the 31.25 Hz log is twice as long).
     #[arg(long, default_value_t = 24.0)]
     hours: f64,
-    /// Skip the Python peers (polars, pyarrow).
+    /// Skip the Python peers (polars and pyarrow; shipgrav for gravity).
     #[arg(long)]
     no_peers: bool,
     /// Ingest benchmark: runs of each program; the table gives the fastest and the median.
@@ -519,7 +520,8 @@ fn bench_smoke() -> Result<()> {
     bench::align(&root, 5, 10, dev).context("bench align on a small dataset")?;
     bench::adjust(&root, 20_000, false, dev).context("bench adjust on 20 000 observations")?;
     bench_apply::apply(&root, 0.05, false, 1, dev).context("bench apply on a small log")?;
-    bench_gravity::gravity(&root, 0.4, 1, dev).context("bench gravity on a short survey")?;
+    bench_gravity::gravity(&root, 0.4, (1, None), dev)
+        .context("bench gravity on a short survey")?;
     eprintln!("benchmarks on small sizes: ok");
     Ok(())
 }
@@ -675,11 +677,24 @@ fn bench_command(a: &BenchArgs) -> Result<()> {
         "align" => bench::align(&root, a.stations, a.readings, release),
         "adjust" => bench::adjust(&root, a.observations, !a.no_peers, release),
         "apply" => bench_apply::apply(&root, a.hours, !a.no_peers, a.runs.max(1), release),
-        "gravity" => bench_gravity::gravity(&root, a.hours, a.runs.max(1), release),
+        "gravity" | "marine" => {
+            let py = if a.no_peers {
+                None
+            } else {
+                peers_venv()?;
+                Some(root.join("target/peers-venv/bin/python")).filter(|p| p.exists())
+            };
+            let runs = (a.runs.max(1), py.as_deref());
+            if a.what == "marine" {
+                bench_gravity::marine(&root, a.hours, runs, release)
+            } else {
+                bench_gravity::gravity(&root, a.hours, runs, release)
+            }
+        }
         "smoke" => bench_smoke(),
         other => bail!(
-            "no benchmark `{other}`: there are ingest, align, adjust, apply, gravity (and \
-             smoke: each once on a small size, as CI runs them)"
+            "no benchmark `{other}`: there are ingest, align, adjust, apply, gravity, marine \
+             (and smoke: each once on a small size, as CI runs them)"
         ),
     }
 }

@@ -327,10 +327,19 @@ fn gated<'a>(
     dir: &Path,
 ) -> Result<(Track<'a>, Vec<BadLine>), GravityError> {
     let mut steps = Steps::default();
-    each_epoch(s, skip, |t, _, _| {
+    let mut step = |t| {
         steps.push(t);
         Ok(())
-    })?;
+    };
+    match &s.trajectory {
+        // Its lines are long: the times alone are read for the interval.
+        Some(src) if src.format == TrajectoryFormat::DgsLaptop => {
+            trajectory::for_each_dgs_time(&src.path, step)?;
+        }
+        _ => {
+            each_epoch(s, skip, |t, _, _| step(t))?;
+        }
+    }
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
     let mut sink = EpochSink {
         session: s,

@@ -307,8 +307,8 @@ pub fn for_each_dgs_laptop(
             if l.trim().is_empty() {
                 return Ok(None);
             }
-            let fields: Vec<&[u8]> = l.as_bytes().split(|&b| b == b',').collect();
-            ingest::dgs::parse_laptop(&fields)
+            ingest::dgs::split(l.as_bytes())
+                .and_then(|fields| ingest::dgs::parse_laptop(&fields))
                 .map(Some)
                 .map_err(|(field, m)| bad(path, line_no, field, m))
         });
@@ -326,6 +326,24 @@ pub fn for_each_dgs_laptop(
     Ok(bad_lines)
 }
 
+/// Calls `f` with the time of each line of a DGS laptop file that has one (its other fields
+/// not read: the pass that finds the epochs' interval; [`for_each_dgs_laptop`] reads them).
+pub fn for_each_dgs_time(
+    path: &Path,
+    mut f: impl FnMut(i64) -> Result<(), GravityError>,
+) -> Result<(), GravityError> {
+    for (_, l) in numbered_lines(path)? {
+        if let Ok(t) = l.map_err(|_| ()).and_then(|l| {
+            ingest::dgs::split(l.as_bytes())
+                .and_then(|fields| ingest::dgs::parse_time(&fields))
+                .map_err(|_| ())
+        }) {
+            f(t)?;
+        }
+    }
+    Ok(())
+}
+
 /// A DGS laptop file's cross-coupling monitors ([`ingest::dgs`]), a line a time; the lines
 /// that do not parse are passed over (ingest rejects and counts them, naming them, when it
 /// reads the same file for the meter's gravity).
@@ -333,8 +351,8 @@ pub fn read_dgs_monitors(path: &Path) -> Result<super::coupling::Monitors, Gravi
     let mut out = super::coupling::Monitors::default();
     for (_, l) in numbered_lines(path)? {
         let Ok(l) = l else { continue };
-        let fields: Vec<&[u8]> = l.as_bytes().split(|&b| b == b',').collect();
-        if let Ok(r) = ingest::dgs::parse_laptop(&fields)
+        if let Ok(r) =
+            ingest::dgs::split(l.as_bytes()).and_then(|fields| ingest::dgs::parse_laptop(&fields))
             && out.time_gps_ns.last().is_none_or(|&t| t < r.gps_ns)
         {
             out.time_gps_ns.push(r.gps_ns);
