@@ -381,6 +381,129 @@ fn the_dgs_record_filtered_as_scipy_filters_shipgravs_anomaly() {
     assert!(rms < 0.05, "rms {rms}");
 }
 
+/// shipgrav's six ships' navigation files (fixtures/real/shipgrav-nav), each with its
+/// logger's prefix, through gravcal's NMEA reader as they are: the same fixes as shipgrav's
+/// `read_nav` (its talker for each ship), latitude and longitude to 1e-9 deg, and the times
+/// within a second (gravcal takes each sentence's own UTC time; shipgrav, for some ships,
+/// the logger's clock); the heights above the ellipsoid where the GGA gives the geoid's
+/// separation (altitude plus separation), above sea level where it does not.
+#[test]
+fn ships_nmea_files_read_as_shipgrav_reads_them() {
+    use adjust::gravity::trajectory::{nmea_scan, read_nmea};
+    use ingest::contract::survey::Heights;
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/real/shipgrav-nav");
+    // 2020-2023: GPS time is UTC plus 18 s.
+    let unix_of_gps = |ns: i64| ns as f64 * 1e-9 + 315_964_800.0 - 18.0;
+    for (ship, file, date, heights, first_h) in [
+        (
+            "Atlantis",
+            "AT01_nav.gps",
+            (2022, 7, 1),
+            Heights::Ellipsoidal,
+            25.169 - 30.062,
+        ),
+        (
+            "Langseth",
+            "MGL2003_nav.y2020d244",
+            (2020, 8, 31),
+            Heights::Ellipsoidal,
+            1.62 - 7.75,
+        ),
+        (
+            "NBP",
+            "NBP_2301_nav.d013",
+            (2023, 1, 13),
+            Heights::Ellipsoidal,
+            -1.36 - 56.73,
+        ),
+        (
+            "Revelle",
+            "RR2212_nav.txt",
+            (2022, 11, 5),
+            Heights::Ellipsoidal,
+            -3.95 - 33.51,
+        ),
+        (
+            "Ride",
+            "SR2302_nav.raw",
+            (2023, 1, 20),
+            Heights::Ellipsoidal,
+            -4.31 - 33.32,
+        ),
+        (
+            "Thompson",
+            "TN400_nav.Raw",
+            (2022, 3, 13),
+            Heights::SeaLevel,
+            0.19,
+        ),
+    ] {
+        let path = dir.join(file);
+        let ours = read_nmea(&path, date, false).expect("read as it is");
+        assert_eq!(nmea_scan(&path).expect("scan").heights, heights, "{file}");
+        let theirs = reference(&py, &["shipgrav-nav", ship, path.to_str().expect("utf-8")]);
+        assert_eq!(ours.time_gps_ns.len(), theirs.len(), "{file}");
+        for (k, t) in theirs.iter().enumerate() {
+            let dt = unix_of_gps(ours.time_gps_ns[k]) - t[0];
+            assert!(dt.abs() < 1.0, "{file} fix {k}: {dt} s apart");
+            assert!((ours.latitude_deg[k] - t[1]).abs() < 1e-9, "{file} {k}");
+            assert!((ours.longitude_deg[k] - t[2]).abs() < 1e-9, "{file} {k}");
+        }
+        assert!(
+            (ours.height_m[0] - first_h).abs() < 1e-9,
+            "{file}: {}",
+            ours.height_m[0]
+        );
+        eprintln!(
+            "{file} ({ship}): {} fixes as shipgrav's, heights {heights:?}, the first {:.3} m",
+            theirs.len(),
+            ours.height_m[0]
+        );
+    }
+}
+
+/// A damaged sentence costs its line alone: its checksum refuses it, naming file, line and
+/// field, and with `--skip-bad-lines` the other fixes are read; a fix that is none (GGA
+/// quality 0) is a bad line as well, never a position.
+#[test]
+fn a_damaged_nmea_sentence_costs_its_line_alone() {
+    use adjust::gravity::trajectory::read_nmea;
+    let src =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/real/shipgrav-nav/AT01_nav.gps");
+    let text = std::fs::read_to_string(src).expect("read");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("nav.gps");
+    // The first GGA's latitude changed, its checksum kept.
+    let gga = text.lines().nth(3).expect("the first GGA");
+    let damaged = text.replacen(gga, &gga.replacen("4131.403226,N", "4131.403227,N", 1), 1);
+    std::fs::write(&path, damaged).expect("write");
+    let e = read_nmea(&path, (2022, 7, 1), false)
+        .expect_err("damaged")
+        .to_string();
+    assert!(e.contains("nav.gps:4") && e.contains("checksum"), "{e}");
+    let t = read_nmea(&path, (2022, 7, 1), true).expect("the others read");
+    assert_eq!(
+        (t.time_gps_ns.len(), t.bad_lines.len()),
+        (1, 1),
+        "{:?}",
+        t.bad_lines
+    );
+    // A GGA without a fix (quality 0), its checksum made again.
+    let line = gga;
+    let body = &line[line.find('$').expect("$") + 1..line.find('*').expect("*")];
+    let no_fix = body.replacen(",W,2,", ",W,0,", 1);
+    let sum = no_fix.bytes().fold(0u8, |a, b| a ^ b);
+    let fixed = text.replacen(line, &format!("${no_fix}*{sum:02X}"), 1);
+    std::fs::write(&path, fixed).expect("write");
+    let e = read_nmea(&path, (2022, 7, 1), false)
+        .expect_err("no fix")
+        .to_string();
+    assert!(e.contains("quality") && e.contains("no fix"), "{e}");
+}
+
 /// The DGS record's navigation has no height: the sea surface, above sea level, so its value
 /// down is the free-air anomaly, named so (docs/formats.md 10.3), and the disturbance is not
 /// formed; with `[survey] geoid_height_m` the disturbance is the anomaly plus normal

@@ -8,6 +8,8 @@ usage: python gravity_reference.py normal          prints lat,h,boule_mgal on a 
                                                    then |H| at 1 / P by freqz
        python gravity_reference.py gaussian M STD P   the same of scipy's gaussian window
                                                    of M points, its sum 1
+       python gravity_reference.py shipgrav-nav SHIP IN  prints shipgrav's read_nav of IN:
+                                                   unix seconds, lat, lon a fix a line
        python gravity_reference.py eotvos IN FS    prints shipgrav's eotvos_full (mGal)
                                                    of IN's lon,lat,ht rows
        python gravity_reference.py shipgrav-track  prints lon,lat of shipgrav's own test
@@ -53,6 +55,12 @@ elif what in ("firwin", "gaussian"):
         print(repr(v))
     _, resp = signal.freqz(h, worN=[2 * np.pi / float(sys.argv[-1])])
     print(repr(abs(resp[0])))
+elif what == "shipgrav-nav":
+    import shipgrav.io as sgi
+
+    nav = sgi.read_nav(sys.argv[2], sys.argv[3], progressbar=False)
+    for t, la, lo in zip(nav["time_sec"], nav["lat"], nav["lon"]):
+        print(f"{t!r},{la!r},{lo!r}")
 elif what == "eotvos":
     import shipgrav.grav as sgg
 

@@ -1889,6 +1889,111 @@ mod cross_coupling {
         assert!(rms < uncorrected / 3.0, "{rms} against {uncorrected} mGal");
     }
 
+    /// The cruise navigated by NMEA sentences (docs/formats.md 10.1) instead of the meter's own
+    /// columns: its positions written as a logger writes a GPS (a clock before each sentence,
+    /// a ZDA first, GGA fixes at 1e-6 arc-minutes with an altitude of 0 and no geoid
+    /// separation, so above sea level), the same filtered free-air anomaly to 0.01 mGal rms.
+    #[test]
+    fn a_cruise_navigated_by_nmea_reduces_as_by_the_meters_own_columns() {
+        use arrow_array::Array as _;
+        let dir = tempfile::tempdir().expect("tempdir");
+        let dataset = dir.path().join("cruise");
+        fixtures::meter::write_cruise(&dataset, Cruise::new(3600, 3), "none").expect("cruise");
+        let laptop = std::fs::read_to_string(dataset.join("raw/cruise.dat")).expect("dat");
+        let checked = |body: String| {
+            let sum = body.bytes().fold(0u8, |a, b| a ^ b);
+            format!("${body}*{sum:02X}")
+        };
+        let minutes = |v: f64, digits: usize| {
+            let d = v.abs().trunc();
+            format!("{:0digits$}{:09.6}", d as u32, (v.abs() - d) * 60.0)
+        };
+        let mut nmea = checked("GPZDA,000000.00,01,03,2021,00,00".to_owned()) + "\n";
+        for line in laptop.lines() {
+            let f: Vec<&str> = line.split(',').collect();
+            let (lat, lon): (f64, f64) = (f[14].parse().expect("lat"), f[15].parse().expect("lon"));
+            let time = format!(
+                "{}{}{:05.2}",
+                f[22],
+                f[23],
+                f[24].parse::<f64>().expect("s")
+            );
+            let gga = format!(
+                "GPGGA,{time},{},{},{},{},2,12,0.9,0.0,M,,M,,",
+                minutes(lat, 2),
+                if lat < 0.0 { "S" } else { "N" },
+                minutes(lon, 3),
+                if lon < 0.0 { "W" } else { "E" }
+            );
+            nmea += &format!(
+                "NAV 2021/03/01 {}:{}:{} GPS {}\n",
+                f[22],
+                f[23],
+                f[24],
+                checked(gga)
+            );
+        }
+        std::fs::write(dataset.join("raw/nav.nmea"), nmea).expect("nmea");
+        let filtered = |out: &Path| {
+            let path = out.join("gravity").join(gravity::FILE);
+            let mut v = Vec::new();
+            let names = ["free_air_anomaly_filtered_mgal"];
+            align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+                v.extend((0..b.time_ns.len()).map(|i| {
+                    assert!(!b.values[0].is_null(i), "formed");
+                    b.values[0].value(i)
+                }));
+                Ok(())
+            })
+            .expect("gravity.parquet");
+            v
+        };
+        let vendor = Path::new(adjust::apply::stream::VENDOR);
+        let own = dir.path().join("own");
+        GravityArgs::new(&dataset, vendor)
+            .run(&own)
+            .expect("reduced");
+        let manifest = std::fs::read_to_string(dataset.join("dataset.toml")).expect("toml");
+        let manifest = manifest
+            .replace(
+                "trajectory = \"raw/cruise.dat\"",
+                "trajectory = \"raw/nav.nmea\"",
+            )
+            .replace(
+                "trajectory_format = \"dgs-laptop\"",
+                "trajectory_format = \"nmea\"",
+            );
+        std::fs::write(dataset.join("dataset.toml"), manifest).expect("toml");
+        let by_nmea = dir.path().join("nmea");
+        let r = GravityArgs::new(&dataset, vendor)
+            .run(&by_nmea)
+            .expect("reduced");
+        assert_eq!(r.sessions[0].epochs_used, 3600);
+        assert!(
+            r.inputs.iter().any(|i| i.path.ends_with("nav.nmea")),
+            "{:?}",
+            r.inputs
+        );
+        assert_eq!(
+            r.sessions[0].quantities.heights,
+            ingest::contract::survey::Heights::SeaLevel
+        );
+        let (a, b) = (filtered(&own), filtered(&by_nmea));
+        assert_eq!(a.len(), b.len());
+        let d: Vec<f64> = a
+            .iter()
+            .zip(&b)
+            .filter(|(x, _)| x.is_finite())
+            .map(|(x, y)| x - y)
+            .collect();
+        let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
+        eprintln!(
+            "the cruise by NMEA against its meter's own navigation: rms {rms:.2e} mGal over {} epochs",
+            d.len()
+        );
+        assert!(d.len() > 2000 && rms < 0.01, "rms {rms} over {}", d.len());
+    }
+
     /// Replicas of the cruise over `disturbance` times the simulated one: the rms over
     /// replicas and coefficients of (error / sigma) for the sigmas the stage carries (the
     /// frequency-domain jackknife's) and for the ordinary ones, and the corrected anomaly's rms

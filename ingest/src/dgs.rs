@@ -140,28 +140,16 @@ fn time(fields: &[&[u8]]) -> Result<i64, Bad> {
     if !(1..=12).contains(&month) {
         return Err(bad("month", month.to_string()));
     }
-    let leap = year % 4 == 0 && (year % 100 != 0 || year % 400 == 0);
-    let days = [
-        31,
-        if leap { 29 } else { 28 },
-        31,
-        30,
-        31,
-        30,
-        31,
-        31,
-        30,
-        31,
-        30,
-        31,
-    ];
-    if !(1..=9999).contains(&year) || day == 0 || day > days[month as usize - 1] {
-        return Err((
-            "day",
-            format!("{year:04}-{month:02}-{day:02} is not a date"),
-        ));
-    }
-    let date = (year as i32, month as u8, day as u8);
+    let narrow = |v: u32| u8::try_from(v).unwrap_or(0);
+    let date = i32::try_from(year)
+        .ok()
+        .and_then(|y| crate::contract::manifest::calendar_date(y, narrow(month), narrow(day)))
+        .ok_or_else(|| {
+            (
+                "day",
+                format!("{year:04}-{month:02}-{day:02} is not a date (from 1980 to 2200)"),
+            )
+        })?;
     if hour > 23 {
         return Err(bad("hour", hour.to_string()));
     }
@@ -242,7 +230,7 @@ mod tests {
         assert_eq!(t[1] - t[0], 1_000_000_000);
         assert_eq!(t[3] - t[1], 1_000_000_000);
         // 2019-07-11T00:00:00.5 UTC: 18 leap seconds.
-        let gps = crate::time::gps_ns(
+        let gps = gps_ns(
             Calendar {
                 year: 2019,
                 month: 7,

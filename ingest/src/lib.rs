@@ -27,6 +27,7 @@ mod error;
 pub mod gcb;
 pub mod labstream;
 mod lines;
+pub mod nmea;
 pub use lines::BOM;
 pub mod lock;
 mod streams;

@@ -137,7 +137,7 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
 /// their epochs, first and last time and rate, or the error naming file, line and field.
 /// Returns whether they read.
 fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Result<bool> {
-    use adjust::gravity::trajectory::{read_csv, read_dgs_laptop, read_rtklib};
+    use adjust::gravity::trajectory::{read_csv, read_dgs_laptop, read_nmea, read_rtklib};
     use ingest::contract::survey::TrajectoryFormat;
     let Some(src) = &s.trajectory else {
         return Ok(true);
@@ -158,6 +158,21 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
             let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
             ("CSV", read_csv(&src.path, s.times.reader(form), false))
         }
+        TrajectoryFormat::Nmea => (
+            match adjust::gravity::trajectory::nmea_scan(&src.path) {
+                Ok(scan) if scan.gga => match scan.heights {
+                    ingest::contract::survey::Heights::Ellipsoidal => {
+                        "NMEA, GGA fixes, heights above the ellipsoid (altitude plus separation)"
+                    }
+                    ingest::contract::survey::Heights::SeaLevel => {
+                        "NMEA, GGA fixes, heights above sea level (a GGA without the geoid's \
+                         separation)"
+                    }
+                },
+                _ => "NMEA, RMC fixes, no heights: at the sea surface",
+            },
+            read_nmea(&src.path, s.date, false),
+        ),
     };
     let t = match read {
         Ok(t) => t,

@@ -51,6 +51,7 @@ impl Layout {
             Layout::Trajectory(TrajectoryFormat::Rtklib) => "RTKLIB trajectory",
             Layout::Trajectory(TrajectoryFormat::Csv) => "CSV trajectory",
             Layout::Trajectory(TrajectoryFormat::DgsLaptop) => "DGS laptop file",
+            Layout::Trajectory(TrajectoryFormat::Nmea) => "NMEA navigation",
             Layout::Attitude => "attitude CSV",
         }
     }

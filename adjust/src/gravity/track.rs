@@ -17,7 +17,7 @@ use super::trajectory;
 use super::{BadLine, GravityError};
 use ingest::contract::gravity_ledger::dropped;
 use ingest::contract::manifest::{Dataset, ResolvedSession};
-use ingest::contract::survey::{SurveyConfig, TrajectoryFormat};
+use ingest::contract::survey::{Heights, SurveyConfig, TrajectoryFormat};
 use ingest::timegate::{Position, TimeGate};
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -56,6 +56,8 @@ pub(super) struct Track<'a> {
     /// A platform meter's cross-coupling monitors, when `[survey] cross_coupling` asks for
     /// them (a DGS laptop file's).
     pub monitors: Option<super::coupling::Monitors>,
+    /// What its heights are measured from (the format's, or an NMEA file's own).
+    pub heights: Heights,
 }
 
 /// Doubles a kept epoch is written aside as: latitude, longitude, height (moved to the
@@ -111,13 +113,7 @@ impl Track<'_> {
     /// height and normal gravity.
     pub fn named(&self, survey: &SurveyConfig) -> super::reduce::Named {
         super::reduce::Named {
-            heights: self
-                .session
-                .trajectory
-                .as_ref()
-                .map_or(ingest::contract::survey::Heights::Ellipsoidal, |t| {
-                    t.format.heights()
-                }),
+            heights: self.heights,
             geoid_height_m: survey.geoid_height_m,
             normal: survey.normal_gravity,
         }
@@ -250,6 +246,7 @@ fn each_epoch(
     match src.format {
         TrajectoryFormat::Rtklib => trajectory::for_each_rtklib(&src.path, skip, g),
         TrajectoryFormat::DgsLaptop => trajectory::for_each_dgs_laptop(&src.path, skip, g),
+        TrajectoryFormat::Nmea => trajectory::for_each_nmea(&src.path, s.date, skip, g),
         TrajectoryFormat::Csv => {
             let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
             trajectory::for_each_csv(&src.path, s.times.reader(form), skip, g)
@@ -383,6 +380,13 @@ fn gated<'a>(
         sd_given_median_m: None,
         replaced: Vec::new(),
         monitors: None,
+        heights: match &s.trajectory {
+            Some(src) => match src.format.heights() {
+                Some(h) => h,
+                None => trajectory::nmea_scan(&src.path)?.heights,
+            },
+            None => Heights::Ellipsoidal,
+        },
     };
     let mut steps = Steps::default();
     for &t in &track.times {

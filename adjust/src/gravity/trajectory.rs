@@ -344,6 +344,147 @@ pub fn for_each_dgs_time(
     Ok(())
 }
 
+/// What an NMEA file's first pass finds: whether its fixes come from GGA sentences (else
+/// RMC's), and whether every GGA gives the geoid's separation (then the heights are
+/// ellipsoidal, altitude plus separation; else above sea level, the altitude alone).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NmeaScan {
+    /// GGA sentences carry the fixes.
+    pub gga: bool,
+    /// The heights' datum.
+    pub heights: ingest::contract::survey::Heights,
+}
+
+/// An NMEA file's first pass ([`NmeaScan`]); lines that do not parse are left to
+/// [`for_each_nmea`].
+pub fn nmea_scan(path: &Path) -> Result<NmeaScan, GravityError> {
+    use ingest::nmea::{Sentence, find, parse};
+    let (mut gga, mut separated) = (false, true);
+    for (_, l) in numbered_lines(path)? {
+        let Ok(l) = l else { continue };
+        if let Some(Ok(Sentence::Gga(g))) = find(l.as_bytes()).map(parse) {
+            gga = true;
+            separated &= g.separation_m.is_some() && g.altitude_m.is_some();
+        }
+    }
+    Ok(NmeaScan {
+        gga,
+        heights: if gga && separated {
+            ingest::contract::survey::Heights::Ellipsoidal
+        } else {
+            ingest::contract::survey::Heights::SeaLevel
+        },
+    })
+}
+
+/// Reads an NMEA file's fixes ([`for_each_nmea`]).
+pub fn read_nmea(
+    path: &Path,
+    session_date: (i32, u8, u8),
+    skip: bool,
+) -> Result<Trajectory, GravityError> {
+    let mut out = Trajectory::default();
+    out.bad_lines = for_each_nmea(path, session_date, skip, |line, t, llh, sd| {
+        out.push(t, llh, sd, line);
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Calls `f` with each fix of an NMEA file (docs/formats.md 10.1): its GGA sentences' (or,
+/// in a file without GGA, its valid RMC's), at the UTC time of day the sentence gives on the
+/// date the last ZDA or RMC before it gave (the session's date before any), a day on when the
+/// time of day falls back by more than 12 h; the height as [`nmea_scan`] says (0 for RMC's);
+/// no sds. A sentence whose checksum or fields do not hold, and a fix that is none (GGA
+/// quality 0, RMC status V), is a bad line, set aside with `skip`.
+pub fn for_each_nmea(
+    path: &Path,
+    session_date: (i32, u8, u8),
+    skip: bool,
+    mut f: impl FnMut(u64, i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
+) -> Result<Vec<BadLine>, GravityError> {
+    use ingest::nmea::{Sentence, find, parse};
+    let scan = nmea_scan(path)?;
+    let ellipsoidal = scan.heights == ingest::contract::survey::Heights::Ellipsoidal;
+    let midnight = |d: (i32, u8, u8)| {
+        ingest::time::gps_ns(ingest::time::Calendar::midnight(d), TimeScale::Utc)
+            .unwrap_or(i64::MIN)
+    };
+    let mut day = midnight(session_date);
+    let mut last_of_day: Option<i64> = None;
+    let mut bad_lines = Vec::new();
+    for (line_no, l) in numbered_lines(path)? {
+        let read = l.and_then(|l| {
+            let Some(sentence) = find(l.as_bytes()) else {
+                return Ok(None);
+            };
+            parse(sentence)
+                .map(Some)
+                .map_err(|(field, m)| bad(path, line_no, field, m))
+        });
+        let sentence = match read {
+            Ok(Some(s)) => s,
+            Ok(None) => continue,
+            Err(e) => {
+                set_aside(e, skip, &mut bad_lines)?;
+                continue;
+            }
+        };
+        let no_fix = |what: &str| bad(path, line_no, "quality", format!("{what}: no fix"));
+        let fix = match sentence {
+            Sentence::Zda { date, .. } => {
+                (day, last_of_day) = (midnight(date), None);
+                None
+            }
+            Sentence::Rmc {
+                date,
+                valid,
+                position,
+                time_of_day_ns,
+            } => {
+                (day, last_of_day) = (midnight(date), None);
+                match (scan.gga, valid) {
+                    (true, _) => None,
+                    (false, true) => Some((time_of_day_ns, [position[0], position[1], 0.0])),
+                    (false, false) => {
+                        set_aside(no_fix("RMC status V"), skip, &mut bad_lines)?;
+                        None
+                    }
+                }
+            }
+            Sentence::Gga(g) if g.quality == 0 => {
+                set_aside(no_fix("GGA quality 0"), skip, &mut bad_lines)?;
+                None
+            }
+            Sentence::Gga(g) => {
+                let h = match (g.altitude_m, g.separation_m) {
+                    (Some(a), Some(n)) if ellipsoidal => a + n,
+                    (Some(a), _) => a,
+                    (None, _) => 0.0,
+                };
+                Some((g.time_of_day_ns, [g.position[0], g.position[1], h]))
+            }
+            Sentence::Other => None,
+        };
+        if let Some((_, llh)) = fix
+            && !(-1.0e4..=1.0e5).contains(&llh[2])
+        {
+            let m = format!("{} m is not a height within [-10000, 100000] m", llh[2]);
+            set_aside(bad(path, line_no, "altitude", m), skip, &mut bad_lines)?;
+            continue;
+        }
+        if let Some((time_of_day_ns, llh)) = fix {
+            // Past midnight with no date sentence since: the next day.
+            if last_of_day.is_some_and(|t| time_of_day_ns + 43_200_000_000_000 < t) {
+                day += 86_400_000_000_000;
+            }
+            last_of_day = Some(time_of_day_ns);
+            f(line_no, day + time_of_day_ns, llh, None)?;
+        }
+    }
+    Ok(bad_lines)
+}
+
 /// A DGS laptop file's cross-coupling monitors ([`ingest::dgs`]), a line a time; the lines
 /// that do not parse are passed over (ingest rejects and counts them, naming them, when it
 /// reads the same file for the meter's gravity).

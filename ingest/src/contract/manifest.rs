@@ -1631,6 +1631,11 @@ pub fn parse_date(s: &str) -> Option<(i32, u8, u8)> {
     let y: i32 = s[0..4].parse().ok()?;
     let m: u8 = s[5..7].parse().ok()?;
     let d: u8 = s[8..10].parse().ok()?;
+    calendar_date(y, m, d)
+}
+
+/// `(y, m, d)` when it is a date of the calendar from 1980 (GPS's epoch) to 2200.
+pub fn calendar_date(y: i32, m: u8, d: u8) -> Option<(i32, u8, u8)> {
     (1980..=2200).contains(&y).then_some(())?;
     let days = match m {
         1 | 3 | 5 | 7 | 8 | 10 | 12 => 31,

@@ -21,15 +21,21 @@ pub enum TrajectoryFormat {
     /// longitude, no height: the sea surface, height 0, and said so; docs/formats.md 11.1).
     #[serde(rename = "dgs-laptop")]
     DgsLaptop,
+    /// NMEA 0183 sentences as a ship's logger writes them (GGA, else RMC; dates from ZDA or
+    /// RMC, else the session's; docs/formats.md 10.1).
+    #[serde(rename = "nmea")]
+    Nmea,
 }
 
 impl TrajectoryFormat {
     /// What the format's heights are measured from: a GNSS solution's from the ellipsoid, a
-    /// ship's meter's navigation (no height) from the sea surface.
-    pub fn heights(self) -> Heights {
+    /// ship's meter's navigation (no height) from the sea surface; None where the file says
+    /// (NMEA: its GGA's geoid separation, or none).
+    pub fn heights(self) -> Option<Heights> {
         match self {
-            TrajectoryFormat::Rtklib | TrajectoryFormat::Csv => Heights::Ellipsoidal,
-            TrajectoryFormat::DgsLaptop => Heights::SeaLevel,
+            TrajectoryFormat::Rtklib | TrajectoryFormat::Csv => Some(Heights::Ellipsoidal),
+            TrajectoryFormat::DgsLaptop => Some(Heights::SeaLevel),
+            TrajectoryFormat::Nmea => None,
         }
     }
 }
@@ -414,7 +420,8 @@ pub fn trajectory(
     let format = s.trajectory_format.ok_or_else(|| {
         err(
             key("trajectory_format"),
-            "missing: \"rtklib\" (a .pos solution file), \"csv\" or \"dgs-laptop\"".to_owned(),
+            "missing: \"rtklib\" (a .pos solution file), \"csv\", \"dgs-laptop\" or \"nmea\""
+                .to_owned(),
         )
     })?;
     let time = trajectory_time(format, s.trajectory_time, &key, err)?;
@@ -470,6 +477,13 @@ fn trajectory_time(
             ));
         }
         (TrajectoryFormat::DgsLaptop, None) => None,
+        (TrajectoryFormat::Nmea, Some(_)) => {
+            return Err(err(
+                key("trajectory_time"),
+                "NMEA sentences carry their own UTC time: remove the key".to_owned(),
+            ));
+        }
+        (TrajectoryFormat::Nmea, None) => None,
         (TrajectoryFormat::Csv, None) => {
             return Err(err(
                 key("trajectory_time"),
