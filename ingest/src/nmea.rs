@@ -77,29 +77,7 @@ pub fn parse(sentence: &[u8]) -> Result<Sentence, Bad> {
         // Not read here: passed over, its checksum unchecked.
         return Ok(Sentence::Other);
     }
-    let body = match body.iter().position(|&b| b == b'*') {
-        Some(star) => {
-            let (body, sum) = (&body[..star], body[star + 1..].trim_ascii());
-            let want = std::str::from_utf8(sum)
-                .ok()
-                .and_then(|s| u8::from_str_radix(s, 16).ok())
-                .ok_or_else(|| ("checksum", format!("`{}` is not two hex digits", text(sum))))?;
-            let got = body.iter().fold(0u8, |a, b| a ^ b);
-            if got != want {
-                return Err((
-                    "checksum",
-                    format!("{got:02X} computed, {want:02X} written: the sentence is damaged"),
-                ));
-            }
-            body
-        }
-        None => body,
-    };
-    let fields: Vec<&[u8]> = body.split(|&b| b == b',').collect();
-    let kind = fields[0];
-    if kind.len() < 5 || kind.starts_with(b"P") {
-        return Ok(Sentence::Other);
-    }
+    let fields: Vec<&[u8]> = verified(body)?.split(|&b| b == b',').collect();
     let need = |n: usize, name: &'static str| {
         if fields.len() < n {
             Err((
@@ -149,6 +127,26 @@ pub fn parse(sentence: &[u8]) -> Result<Sentence, Bad> {
         }
         _ => Sentence::Other,
     })
+}
+
+/// The sentence's body (between `$` and `*`) with its checksum, where written, checked.
+fn verified(body: &[u8]) -> Result<&[u8], Bad> {
+    let Some(star) = body.iter().position(|&b| b == b'*') else {
+        return Ok(body);
+    };
+    let (body, sum) = (&body[..star], body[star + 1..].trim_ascii());
+    let want = std::str::from_utf8(sum)
+        .ok()
+        .and_then(|s| u8::from_str_radix(s, 16).ok())
+        .ok_or_else(|| ("checksum", format!("`{}` is not two hex digits", text(sum))))?;
+    let got = body.iter().fold(0u8, |a, b| a ^ b);
+    if got != want {
+        return Err((
+            "checksum",
+            format!("{got:02X} computed, {want:02X} written: the sentence is damaged"),
+        ));
+    }
+    Ok(body)
 }
 
 fn text(f: &[u8]) -> String {

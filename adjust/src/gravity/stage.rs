@@ -1656,6 +1656,28 @@ impl Rows {
     }
 }
 
+/// A session's cross-coupling as the console says it: how, the rows, each coefficient with
+/// its sd (or exact, given).
+fn coupling_line(c: &CouplingUsed) -> String {
+    let terms: Vec<String> = coupling::MONITORS
+        .iter()
+        .enumerate()
+        .map(|(i, m)| match c.sigma[i] {
+            0.0 => format!("{m} {} (exact)", c.coefficients[i]),
+            sd => format!(
+                "{m} {}",
+                ingest::contract::precision::value_with_sigma(c.coefficients[i], sd)
+            ),
+        })
+        .collect();
+    format!(
+        "cross-coupling {} ({} rows): {}",
+        c.how,
+        c.rows,
+        terms.join(", ")
+    )
+}
+
 /// The command line of `cargo xtask gravity`: apply's, and what gravity adds.
 #[derive(clap::Args, Clone, Debug)]
 pub struct GravityArgs {
@@ -1744,25 +1766,7 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
     );
     let _ = writeln!(w, "gravity: {}: {}", s.id, s.quantities.describe());
     if let Some(c) = &s.cross_coupling {
-        let terms: Vec<String> = coupling::MONITORS
-            .iter()
-            .enumerate()
-            .map(|(i, m)| match c.sigma[i] {
-                0.0 => format!("{m} {} (exact)", c.coefficients[i]),
-                sd => format!(
-                    "{m} {}",
-                    ingest::contract::precision::value_with_sigma(c.coefficients[i], sd)
-                ),
-            })
-            .collect();
-        let _ = writeln!(
-            w,
-            "gravity: {}: cross-coupling {} ({} rows): {}",
-            s.id,
-            c.how,
-            c.rows,
-            terms.join(", ")
-        );
+        let _ = writeln!(w, "gravity: {}: {}", s.id, coupling_line(c));
     }
     let _ = writeln!(
         w,

@@ -403,86 +403,112 @@ pub fn for_each_nmea(
     skip: bool,
     mut f: impl FnMut(u64, i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
-    use ingest::nmea::{Sentence, find, parse};
     let scan = nmea_scan(path)?;
-    let ellipsoidal = scan.heights == ingest::contract::survey::Heights::Ellipsoidal;
-    let midnight = |d: (i32, u8, u8)| {
-        ingest::time::gps_ns(ingest::time::Calendar::midnight(d), TimeScale::Utc)
-            .unwrap_or(i64::MIN)
-    };
-    let mut day = midnight(session_date);
-    let mut last_of_day: Option<i64> = None;
+    let mut clock = NmeaClock::new(session_date);
     let mut bad_lines = Vec::new();
     for (line_no, l) in numbered_lines(path)? {
-        let read = l.and_then(|l| {
-            let Some(sentence) = find(l.as_bytes()) else {
+        let fix = l.and_then(|l| {
+            let Some(sentence) = ingest::nmea::find(l.as_bytes()) else {
                 return Ok(None);
             };
-            parse(sentence)
-                .map(Some)
-                .map_err(|(field, m)| bad(path, line_no, field, m))
+            let sentence =
+                ingest::nmea::parse(sentence).map_err(|(field, m)| bad(path, line_no, field, m))?;
+            nmea_fix(sentence, scan, &mut clock).map_err(|(field, m)| bad(path, line_no, field, m))
         });
-        let sentence = match read {
-            Ok(Some(s)) => s,
-            Ok(None) => continue,
-            Err(e) => {
-                set_aside(e, skip, &mut bad_lines)?;
-                continue;
-            }
-        };
-        let no_fix = |what: &str| bad(path, line_no, "quality", format!("{what}: no fix"));
-        let fix = match sentence {
-            Sentence::Zda { date, .. } => {
-                (day, last_of_day) = (midnight(date), None);
-                None
-            }
-            Sentence::Rmc {
-                date,
-                valid,
-                position,
-                time_of_day_ns,
-            } => {
-                (day, last_of_day) = (midnight(date), None);
-                match (scan.gga, valid) {
-                    (true, _) => None,
-                    (false, true) => Some((time_of_day_ns, [position[0], position[1], 0.0])),
-                    (false, false) => {
-                        set_aside(no_fix("RMC status V"), skip, &mut bad_lines)?;
-                        None
-                    }
-                }
-            }
-            Sentence::Gga(g) if g.quality == 0 => {
-                set_aside(no_fix("GGA quality 0"), skip, &mut bad_lines)?;
-                None
-            }
-            Sentence::Gga(g) => {
-                let h = match (g.altitude_m, g.separation_m) {
-                    (Some(a), Some(n)) if ellipsoidal => a + n,
-                    (Some(a), _) => a,
-                    (None, _) => 0.0,
-                };
-                Some((g.time_of_day_ns, [g.position[0], g.position[1], h]))
-            }
-            Sentence::Other => None,
-        };
-        if let Some((_, llh)) = fix
-            && !(-1.0e4..=1.0e5).contains(&llh[2])
-        {
-            let m = format!("{} m is not a height within [-10000, 100000] m", llh[2]);
-            set_aside(bad(path, line_no, "altitude", m), skip, &mut bad_lines)?;
-            continue;
-        }
-        if let Some((time_of_day_ns, llh)) = fix {
-            // Past midnight with no date sentence since: the next day.
-            if last_of_day.is_some_and(|t| time_of_day_ns + 43_200_000_000_000 < t) {
-                day += 86_400_000_000_000;
-            }
-            last_of_day = Some(time_of_day_ns);
-            f(line_no, day + time_of_day_ns, llh, None)?;
+        match fix {
+            Ok(Some((t, llh))) => f(line_no, t, llh, None)?,
+            Ok(None) => {}
+            Err(e) => set_aside(e, skip, &mut bad_lines)?,
         }
     }
     Ok(bad_lines)
+}
+
+/// The UTC date an NMEA file's fixes are on, as its sentences go by.
+struct NmeaClock {
+    /// GPS time of the date's midnight, ns.
+    day_gps_ns: i64,
+    /// The last fix's time of day on it, ns.
+    last_of_day: Option<i64>,
+}
+
+impl NmeaClock {
+    fn new(date: (i32, u8, u8)) -> Self {
+        let mut c = NmeaClock {
+            day_gps_ns: 0,
+            last_of_day: None,
+        };
+        c.date(date);
+        c
+    }
+
+    /// A date sentence's (ZDA, RMC) date.
+    fn date(&mut self, d: (i32, u8, u8)) {
+        self.day_gps_ns = ingest::time::gps_ns(ingest::time::Calendar::midnight(d), TimeScale::Utc)
+            .unwrap_or(i64::MIN);
+        self.last_of_day = None;
+    }
+
+    /// A fix's GPS time from its time of day: a day on when the time of day falls back by
+    /// more than 12 h with no date sentence since.
+    fn at(&mut self, time_of_day_ns: i64) -> i64 {
+        if self
+            .last_of_day
+            .is_some_and(|t| time_of_day_ns + 43_200_000_000_000 < t)
+        {
+            self.day_gps_ns += 86_400_000_000_000;
+        }
+        self.last_of_day = Some(time_of_day_ns);
+        self.day_gps_ns + time_of_day_ns
+    }
+}
+
+/// The fix a sentence gives (GPS time, position), if any, as [`for_each_nmea`] takes them;
+/// a fix that is none, or a height beyond [-10 km, 100 km], is refused naming the field.
+fn nmea_fix(
+    sentence: ingest::nmea::Sentence,
+    scan: NmeaScan,
+    clock: &mut NmeaClock,
+) -> Result<Option<(i64, [f64; 3])>, ingest::nmea::Bad> {
+    use ingest::nmea::Sentence;
+    let no_fix = |what: &str| ("quality", format!("{what}: no fix"));
+    let (time_of_day_ns, llh) = match sentence {
+        Sentence::Zda { date, .. } => {
+            clock.date(date);
+            return Ok(None);
+        }
+        Sentence::Rmc {
+            date,
+            valid,
+            position,
+            time_of_day_ns,
+        } => {
+            clock.date(date);
+            match (scan.gga, valid) {
+                (true, _) => return Ok(None),
+                (false, true) => (time_of_day_ns, [position[0], position[1], 0.0]),
+                (false, false) => return Err(no_fix("RMC status V")),
+            }
+        }
+        Sentence::Gga(g) if g.quality == 0 => return Err(no_fix("GGA quality 0")),
+        Sentence::Gga(g) => {
+            let ellipsoidal = scan.heights == ingest::contract::survey::Heights::Ellipsoidal;
+            let h = match (g.altitude_m, g.separation_m) {
+                (Some(a), Some(n)) if ellipsoidal => a + n,
+                (Some(a), _) => a,
+                (None, _) => 0.0,
+            };
+            (g.time_of_day_ns, [g.position[0], g.position[1], h])
+        }
+        Sentence::Other => return Ok(None),
+    };
+    if !(-1.0e4..=1.0e5).contains(&llh[2]) {
+        return Err((
+            "altitude",
+            format!("{} m is not a height within [-10000, 100000] m", llh[2]),
+        ));
+    }
+    Ok(Some((clock.at(time_of_day_ns), llh)))
 }
 
 /// A DGS laptop file's cross-coupling monitors ([`ingest::dgs`]), a line a time; the lines

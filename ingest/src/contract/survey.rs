@@ -591,17 +591,7 @@ pub fn check(
             format!("{v} is not a sample's noise in mGal within (0, 100000]"),
         ));
     }
-    if let Some(v) = survey.geoid_height_m
-        && !(v.is_finite() && v.abs() <= GEOID_HEIGHT_BOUND_M)
-    {
-        return Err(err(
-            "survey.geoid_height_m".to_owned(),
-            format!(
-                "{v} is not a geoid height in m within +/-{GEOID_HEIGHT_BOUND_M} (the geoid \
-                 lies within about -107 and +86 m of the ellipsoid)"
-            ),
-        ));
-    }
+    geoid_height(survey.geoid_height_m, err)?;
     let ties: Vec<ResolvedTie> = survey
         .tie
         .iter()
@@ -610,6 +600,20 @@ pub fn check(
         .collect::<Result<_>>()?;
     no_overlap(&ties, err)?;
     Ok(ties)
+}
+
+/// `[survey] geoid_height_m`: within [`GEOID_HEIGHT_BOUND_M`].
+fn geoid_height(v: Option<f64>, err: &impl Fn(String, String) -> Error) -> Result<()> {
+    match v {
+        Some(v) if !(v.is_finite() && v.abs() <= GEOID_HEIGHT_BOUND_M) => Err(err(
+            "survey.geoid_height_m".to_owned(),
+            format!(
+                "{v} is not a geoid height in m within +/-{GEOID_HEIGHT_BOUND_M} (the geoid \
+                 lies within about -107 and +86 m of the ellipsoid)"
+            ),
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// An error model's keys: a correlation time only with `"correlated"`, in (0, 1e6] s, and
