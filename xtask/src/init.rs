@@ -163,7 +163,9 @@ fn recognise(path: &Path) -> Result<Found> {
 /// `time,lat_deg`; or its attitude (10.2), a CSV whose header begins `time,heading_deg`;
 /// span and rate from their ends.
 fn trajectory(rel: &str, head: &str, tail: &str) -> Option<Found> {
-    rtklib_trajectory(rel, head, tail)
+    dgs_laptop(rel, head, tail)
+        .or_else(|| nmea(rel, head, tail))
+        .or_else(|| rtklib_trajectory(rel, head, tail))
         .or_else(|| {
             csv_epochs(
                 rel,
@@ -193,6 +195,71 @@ fn trajectory_found(
         comments: String::new(),
         magnitude: 0.0,
     }
+}
+
+/// A DGS meter's laptop file (docs/formats.md 11.1): its first and last lines read by the
+/// parser ingest reads it with; the meter's gravity and its navigation, one channel.
+fn dgs_laptop(rel: &str, head: &str, tail: &str) -> Option<Found> {
+    let time = |l: &str| {
+        ingest::dgs::split(l.trim_end().as_bytes())
+            .and_then(|f| ingest::dgs::parse_laptop(&f))
+            .ok()
+            .map(|r| r.gps_ns)
+    };
+    let times: Vec<i64> = head.lines().take(20).map_while(time).collect();
+    if times.len() < 2 {
+        return None;
+    }
+    let last = tail.lines().skip(1).filter_map(time).last();
+    let mut found = trajectory_found(
+        rel,
+        Layout::Trajectory(TrajectoryFormat::DgsLaptop),
+        None,
+        times,
+        last,
+    );
+    found.channels = 1;
+    Some(found)
+}
+
+/// An NMEA logger's navigation (docs/formats.md 10.1): GGA or RMC sentences among its
+/// first lines, whatever the logger writes before them; the span from the first and last
+/// GGA or RMC's time of day on the date of the first ZDA or RMC (none: the span is left to
+/// the session's date).
+fn nmea(rel: &str, head: &str, tail: &str) -> Option<Found> {
+    use ingest::nmea::{Sentence, find, parse};
+    let sentences = |text: &str| -> Vec<Sentence> {
+        text.lines()
+            .filter_map(|l| find(l.as_bytes()).and_then(|s| parse(s).ok()))
+            .collect()
+    };
+    let (first, last) = (sentences(head), sentences(tail));
+    let fix_time = |s: &Sentence| match s {
+        Sentence::Gga(g) => Some(g.time_of_day_ns),
+        Sentence::Rmc { time_of_day_ns, .. } => Some(*time_of_day_ns),
+        _ => None,
+    };
+    if !first.iter().any(|s| fix_time(s).is_some()) {
+        return None;
+    }
+    let date = first.iter().find_map(|s| match s {
+        Sentence::Zda { date, .. } | Sentence::Rmc { date, .. } => Some(*date),
+        _ => None,
+    });
+    let midnight = date
+        .and_then(|d| ingest::time::gps_ns(ingest::time::Calendar::midnight(d), TimeScale::Utc));
+    let times: Vec<i64> = match midnight {
+        Some(m) => first.iter().filter_map(fix_time).map(|t| m + t).collect(),
+        None => Vec::new(),
+    };
+    let last = midnight.and_then(|m| last.iter().filter_map(fix_time).next_back().map(|t| m + t));
+    Some(trajectory_found(
+        rel,
+        Layout::Trajectory(TrajectoryFormat::Nmea),
+        None,
+        times,
+        last,
+    ))
 }
 
 /// An RTKLIB solution file: a `%` column header naming the latitude and the time scale.
@@ -622,9 +689,15 @@ fn instrument(t: &mut String, found: &[Found]) {
     let acc = found.iter().filter(|f| {
         matches!(
             f.layout,
-            Layout::Binary | Layout::CountsCsv | Layout::LabStream
+            Layout::Binary
+                | Layout::CountsCsv
+                | Layout::LabStream
+                | Layout::Trajectory(TrajectoryFormat::DgsLaptop)
         )
     });
+    let meter = found
+        .iter()
+        .any(|f| f.layout == Layout::Trajectory(TrajectoryFormat::DgsLaptop));
     let rates: Vec<f64> = acc.clone().filter_map(|f| f.rate_hz).collect();
     let rate = rates.first().map_or(FILL.to_owned(), |&r| nice_rate(r));
     let channels = acc
@@ -647,6 +720,16 @@ fn instrument(t: &mut String, found: &[Found]) {
     if let Some(l) = lab.first() {
         let (unit, why) = reading_unit(l);
         let _ = writeln!(t, "reading_unit = {unit}          # {why}");
+    } else if meter {
+        let _ = writeln!(
+            t,
+            "reading_unit = \"mGal\"         # a DGS meter's raw gravity (docs/formats.md 11.1)\n\n\
+             [[instrument.accelerometer]]\nid = \"meter\"\nchannel = 1\n\n\
+             # The meter's scale and offset as its maker states them (--calibration vendor):\n\
+             [instrument.accelerometer.vendor_calibration]\nscale = 1.0\n\
+             offset_mgal = {FILL}         # mGal: gravity = offset_mgal + scale * reading\n"
+        );
+        return;
     }
     let _ = writeln!(t);
     for ch in 1..=channels {
@@ -890,8 +973,20 @@ fn kind(theodolite: bool, trajectory: bool) -> String {
 fn trajectory_keys(t: &mut String, tr: &Found, attitude: Option<&Found>) {
     let format = match tr.layout {
         Layout::Trajectory(TrajectoryFormat::Csv) => "csv",
+        Layout::Trajectory(TrajectoryFormat::DgsLaptop) => "dgs-laptop",
+        Layout::Trajectory(TrajectoryFormat::Nmea) => "nmea",
         _ => "rtklib",
     };
+    if tr.layout == Layout::Trajectory(TrajectoryFormat::DgsLaptop) {
+        // The meter's own gravity, its one channel, from the same file.
+        let _ = writeln!(
+            t,
+            "adc_csv = {}
+adc_format = \"dgs-laptop\"
+thermometers = \"none\"",
+            q(&tr.rel)
+        );
+    }
     let _ = writeln!(
         t,
         "trajectory = {}\ntrajectory_format = \"{format}\"",

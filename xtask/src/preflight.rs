@@ -20,6 +20,7 @@ fn stand_in(key: &str) -> Option<&'static str> {
         "reading_unit" => "\"count\"",
         "adc_columns" => "[1, 2, 3]",
         "thermometers" => "\"each\"",
+        "offset_mgal" => "0.0",
         _ => return None,
     })
 }

@@ -198,6 +198,61 @@ fn a_draft_filled_in_calibrates_as_the_committed_manifest() {
 
 /// A survey folder with an attitude CSV beside its trajectory: the draft names both in one
 /// session, with the attitude's time form, and filled in it resolves as the written manifest.
+/// A DGS meter's laptop file (shipgrav's real record) in raw/ alone: init drafts a survey
+/// session reading the meter's gravity and its navigation from the same file, one channel in
+/// mGal with the maker's offset to fill in (its check step standing in for it); filled, and
+/// with the `[survey]` keys a meter's own filtered record needs, check reads it whole and
+/// the gravity stage reduces every line to the free-air anomaly (issue 48: the record as it
+/// is, no conversion by hand).
+#[test]
+fn a_dgs_meters_file_is_drafted_as_a_survey_of_its_own_navigation() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("dgs");
+    std::fs::create_dir_all(ds.join("raw")).expect("raw");
+    let record = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/real/shipgrav-dgs/DGStest_laptop.dat");
+    std::fs::copy(&record, ds.join("raw/DGStest_laptop.dat")).expect("copy");
+    let o = xtask(&["init", ds.to_str().expect("utf-8")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let draft = std::fs::read_to_string(ds.join("dataset.toml")).expect("draft");
+    for want in [
+        "adc_csv = \"raw/DGStest_laptop.dat\"\nadc_format = \"dgs-laptop\"\nthermometers = \"none\"",
+        "trajectory = \"raw/DGStest_laptop.dat\"\ntrajectory_format = \"dgs-laptop\"",
+        "reading_unit = \"mGal\"",
+        "offset_mgal = \"FILL IN\"",
+        "sample_rate_hz = 1 ",
+        "date = \"2019-07-11\"",
+    ] {
+        assert!(draft.contains(want), "{want}\n{draft}");
+    }
+    // The check step stood in for the offset and read both sides of the file: no refusal
+    // at the draft's head.
+    assert!(!draft.contains("says of these logs"), "{draft}");
+    let filled = draft
+        .replace("g_abs_mgal = \"FILL IN\"", "g_abs_mgal = 980900.0")
+        .replace("offset_mgal = \"FILL IN\"", "offset_mgal = 969143.0")
+        + "\n[survey]\nfilter_s = 240.0\nsample_noise_mgal = 1.0\n";
+    assert!(
+        filled
+            .lines()
+            .all(|l| l.trim_start().starts_with('#') || !l.contains("FILL IN")),
+        "{filled}"
+    );
+    std::fs::write(ds.join("dataset.toml"), filled).expect("write");
+    let o = xtask(&["check", ds.to_str().expect("utf-8")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stdout));
+    let out = dir.path().join("out");
+    let r = adjust::gravity::stage::GravityArgs::new(&ds, Path::new(adjust::apply::stream::VENDOR))
+        .run(&out)
+        .expect("reduced");
+    assert_eq!(r.sessions[0].epochs_used, 1001);
+    assert!(
+        r.sessions[0].quantities.free_air_anomaly,
+        "{:?}",
+        r.sessions[0].quantities
+    );
+}
+
 #[test]
 fn an_attitude_file_is_drafted_beside_its_trajectory() {
     let dir = tempfile::tempdir().expect("tempdir");
