@@ -12,7 +12,7 @@ pub const STAGE_DIR: &str = "gravity";
 /// The ledger's file name.
 pub const LEDGER_FILE: &str = "gravity.json";
 /// The ledger's format tag.
-pub const LEDGER_FORMAT: &str = "gravcal-gravity/2";
+pub const LEDGER_FORMAT: &str = "gravcal-gravity/3";
 
 /// The error models the sigmas were propagated with.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -53,16 +53,6 @@ pub enum Heights {
     SeaLevel,
 }
 
-impl Heights {
-    /// The quantity gravity less normal gravity at these heights is.
-    pub fn quantity(self) -> &'static str {
-        match self {
-            Heights::Ellipsoidal => "gravity disturbance",
-            Heights::SeaLevel => "free-air anomaly",
-        }
-    }
-}
-
 /// The geoid's height above the ellipsoid the manifest may state, m: the Earth's geoid lies
 /// within about -107 and +86 m of GRS80.
 pub const GEOID_HEIGHT_BOUND_M: f64 = 120.0;
