@@ -381,6 +381,12 @@ fn the_walkthrough_drafts_and_calibrates_the_lab_fixture() {
         "{}",
         String::from_utf8_lossy(&apply.stderr)
     );
+    // A fresh OUT: apply ingests first and says why.
+    let said = String::from_utf8_lossy(&apply.stderr);
+    assert!(
+        said.contains("apply: ingesting") && said.contains("ingest.json"),
+        "{said}"
+    );
 }
 
 /// Files in raw/ that no logger wrote (random bytes, one long field, a table of words, a

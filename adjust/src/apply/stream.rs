@@ -76,9 +76,14 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
             (selection, triad)
         }
     };
+    // Ingest first where OUT holds no ingest of these logs as they are, saying why (another
+    // dataset's OUT is refused by ingest itself, naming it).
     let ingest_report = match IngestReport::load_verified(&ds, out) {
         Ok(r) => r,
-        Err(_) => ingest::run(dataset, out)?,
+        Err(why) => {
+            eprintln!("apply: ingesting {} first: {why}", dataset.display());
+            ingest::run(dataset, out)?
+        }
     };
     nothing_to_apply(&ds, &ingest_report).map_err(refused)?;
     let dir = out.join(STAGE_DIR);
