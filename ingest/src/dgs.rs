@@ -88,11 +88,6 @@ fn field_count(n: usize) -> Bad {
     )
 }
 
-/// A laptop line's time alone ([`split`] first): for a pass that needs only the times.
-pub fn parse_time(fields: &[&[u8]; FIELDS]) -> Result<i64, Bad> {
-    time(fields)
-}
-
 /// A laptop line's fields (split at commas, white space around each allowed) read; the
 /// error names the field and what is wrong with it.
 pub fn parse_laptop(fields: &[&[u8]]) -> Result<LaptopLine, Bad> {
@@ -118,7 +113,7 @@ pub fn parse_laptop(fields: &[&[u8]]) -> Result<LaptopLine, Bad> {
     if !(-180.0..=360.0).contains(&longitude_deg) {
         return Err(("lon", format!("{longitude_deg} is outside [-180, 360]")));
     }
-    let gps_ns = time(fields)?;
+    let gps_ns = parse_time(fields)?;
     Ok(LaptopLine {
         gps_ns,
         raw_gravity_mgal,
@@ -128,8 +123,9 @@ pub fn parse_laptop(fields: &[&[u8]]) -> Result<LaptopLine, Bad> {
     })
 }
 
-/// The line's UTC calendar time (fields 19 to 24; the second may have a fraction) as GPS ns.
-fn time(fields: &[&[u8]]) -> Result<i64, Bad> {
+/// The line's UTC calendar time (fields 19 to 24; the second may have a fraction) as GPS ns:
+/// also alone ([`split`] first), for a pass that needs only the times.
+pub fn parse_time(fields: &[&[u8]]) -> Result<i64, Bad> {
     let year = integer(fields, 19, "year")?;
     let month = integer(fields, 20, "month")?;
     let day = integer(fields, 21, "day")?;

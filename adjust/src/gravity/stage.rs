@@ -631,7 +631,7 @@ fn reduce_track(
         sample_noise_mgal: ctx.sample_noise.sd_mgal,
         sample_noise_from: ctx.sample_noise.from.clone(),
         cross_coupling: None,
-        quantities: Quantities::new(track.named(ctx.survey).heights, ctx.survey.geoid_height_m),
+        quantities: Quantities::new(track.heights, ctx.survey.geoid_height_m),
         stretches: Vec::new(),
     };
     let (spans, gaps) = stretches(

@@ -232,10 +232,11 @@ fn listed(ds: &Dataset, path: &Path, bad: &[BadLine]) -> Vec<String> {
         .collect()
 }
 
-/// Calls `f` with each epoch of session `s`'s trajectory (time, position, sds); the lines
-/// set aside.
+/// Calls `f` with each epoch of session `s`'s trajectory (time, position, sds), an NMEA
+/// file's as its first pass `nmea` found it; the lines set aside.
 fn each_epoch(
     s: &ResolvedSession,
+    nmea: Option<trajectory::NmeaScan>,
     skip: bool,
     mut f: impl FnMut(i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
@@ -246,7 +247,13 @@ fn each_epoch(
     match src.format {
         TrajectoryFormat::Rtklib => trajectory::for_each_rtklib(&src.path, skip, g),
         TrajectoryFormat::DgsLaptop => trajectory::for_each_dgs_laptop(&src.path, skip, g),
-        TrajectoryFormat::Nmea => trajectory::for_each_nmea(&src.path, s.date, skip, g),
+        TrajectoryFormat::Nmea => {
+            let scan = match nmea {
+                Some(scan) => scan,
+                None => trajectory::nmea_scan(&src.path)?,
+            };
+            trajectory::for_each_nmea(&src.path, (scan, s.date), skip, g)
+        }
         TrajectoryFormat::Csv => {
             let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
             trajectory::for_each_csv(&src.path, s.times.reader(form), skip, g)
@@ -323,6 +330,13 @@ fn gated<'a>(
     (lever_arm_m, skip): ([f64; 3], bool),
     dir: &Path,
 ) -> Result<(Track<'a>, Vec<BadLine>), GravityError> {
+    // An NMEA file's first pass, once: which sentences carry its fixes, its heights' datum.
+    let nmea = match &s.trajectory {
+        Some(src) if src.format == TrajectoryFormat::Nmea => {
+            Some(trajectory::nmea_scan(&src.path)?)
+        }
+        _ => None,
+    };
     let mut steps = Steps::default();
     let mut step = |t| {
         steps.push(t);
@@ -334,7 +348,7 @@ fn gated<'a>(
             trajectory::for_each_dgs_time(&src.path, step)?;
         }
         _ => {
-            each_epoch(s, skip, |t, _, _| step(t))?;
+            each_epoch(s, nmea, skip, |t, _, _| step(t))?;
         }
     }
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
@@ -349,7 +363,7 @@ fn gated<'a>(
     let interval_ns = steps.median().unwrap_or(1_000_000_000);
     let mut gate = TimeGate::new(interval_ns, s.gps_range_ns());
     let mut read = 0u64;
-    let bad = each_epoch(s, skip, |t, llh, sd| {
+    let bad = each_epoch(s, nmea, skip, |t, llh, sd| {
         let at = Position::Line(read);
         read += 1;
         gate.offer(t, at, (llh, sd), &mut sink)
@@ -380,13 +394,12 @@ fn gated<'a>(
         sd_given_median_m: None,
         replaced: Vec::new(),
         monitors: None,
-        heights: match &s.trajectory {
-            Some(src) => match src.format.heights() {
-                Some(h) => h,
-                None => trajectory::nmea_scan(&src.path)?.heights,
-            },
-            None => Heights::Ellipsoidal,
-        },
+        heights: s
+            .trajectory
+            .as_ref()
+            .and_then(|src| src.format.heights())
+            .or(nmea.map(|scan| scan.heights))
+            .unwrap_or(Heights::Ellipsoidal),
     };
     let mut steps = Steps::default();
     for &t in &track.times {

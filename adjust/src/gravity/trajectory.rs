@@ -384,7 +384,8 @@ pub fn read_nmea(
     skip: bool,
 ) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
-    out.bad_lines = for_each_nmea(path, session_date, skip, |line, t, llh, sd| {
+    let scan = nmea_scan(path)?;
+    out.bad_lines = for_each_nmea(path, (scan, session_date), skip, |line, t, llh, sd| {
         out.push(t, llh, sd, line);
         Ok(())
     })?;
@@ -394,16 +395,16 @@ pub fn read_nmea(
 /// Calls `f` with each fix of an NMEA file (docs/formats.md 10.1): its GGA sentences' (or,
 /// in a file without GGA, its valid RMC's), at the UTC time of day the sentence gives on the
 /// date the last ZDA or RMC before it gave (the session's date before any), a day on when the
-/// time of day falls back by more than 12 h; the height as [`nmea_scan`] says (0 for RMC's);
-/// no sds. A sentence whose checksum or fields do not hold, and a fix that is none (GGA
-/// quality 0, RMC status V), is a bad line, set aside with `skip`.
+/// time of day falls back by more than 12 h; the height as `scan` (the file's
+/// [`nmea_scan`]) says (0 for RMC's); no sds. A sentence whose checksum or fields do not
+/// hold, and a fix that is none (GGA quality 0, RMC status V), is a bad line, set aside with
+/// `skip`.
 pub fn for_each_nmea(
     path: &Path,
-    session_date: (i32, u8, u8),
+    (scan, session_date): (NmeaScan, (i32, u8, u8)),
     skip: bool,
     mut f: impl FnMut(u64, i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
-    let scan = nmea_scan(path)?;
     let mut clock = NmeaClock::new(session_date);
     let mut bad_lines = Vec::new();
     for (line_no, l) in numbered_lines(path)? {
