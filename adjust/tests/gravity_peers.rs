@@ -465,6 +465,87 @@ fn ships_nmea_files_read_as_shipgrav_reads_them() {
     }
 }
 
+/// shipgrav's ships' BGM-3 and DGS raw serial samples (fixtures/real/shipgrav-serial) read
+/// as shipgrav's `read_bgm_raw` and `read_dgs_raw` read them: the same lines, the readings
+/// (counts, AD units) equal, the monitors (scaled by 1e-5) to 1e-12 and the logger's times to
+/// 1 us; R/V Sally Ride's file, whose ISO stamp shipgrav 1.0.11 does not convert ("raw
+/// (serial) timestamps not found/converted"), is read with its stamps, the first checked by
+/// hand. Every DGS line's checksum holds.
+#[test]
+fn meters_serial_files_read_as_shipgrav_reads_them() {
+    use ingest::contract::manifest::TimeScale;
+    use ingest::meter_serial::{parse_bgm3, parse_dgs_raw};
+    let Some(py) = peers::peers_python() else {
+        return;
+    };
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/real/shipgrav-serial");
+    // 2020-2024: GPS time is UTC plus 18 s.
+    let unix_of_gps = |ns: i64| ns as f64 * 1e-9 + 315_964_800.0 - 18.0;
+    for (meter, ship, file) in [
+        ("bgm3", "Atlantis", "AT01_bgm.BGM"),
+        ("bgm3", "Langseth", "MGL2003_bgm.y2020d244"),
+        ("bgm3", "Revelle", "RR2212_bgm.txt"),
+        ("bgm3", "Thompson", "TN400_bgm.Raw"),
+        ("dgs-raw", "Ride", "SR2312_dgs_raw.txt"),
+        ("dgs-raw", "Thompson", "TN400_dgs_raw.Raw"),
+        ("dgs-raw", "Sikuliaq", "SKQ_dgs_raw.20241018T2212Z"),
+    ] {
+        let path = dir.join(file);
+        let bytes = std::fs::read(&path).expect("read");
+        let ours: Vec<_> = bytes
+            .split(|&c| c == b'\n')
+            .filter(|l| !l.trim_ascii().is_empty() && !l.starts_with(b"#"))
+            .map(|l| match meter {
+                "bgm3" => parse_bgm3(l, TimeScale::Utc),
+                _ => parse_dgs_raw(l, TimeScale::Utc),
+            })
+            .collect::<Result<_, _>>()
+            .unwrap_or_else(|e| panic!("{file}: {e:?}"));
+        let theirs = reference(
+            &py,
+            &[
+                "shipgrav-serial",
+                meter,
+                ship,
+                path.to_str().expect("utf-8"),
+            ],
+        );
+        assert_eq!(ours.len(), theirs.len(), "{file}");
+        for (k, (o, t)) in ours.iter().zip(&theirs).enumerate() {
+            if t[0].is_nan() {
+                assert_eq!(
+                    file, "SR2312_dgs_raw.txt",
+                    "{file} {k}: shipgrav found no time"
+                );
+            } else {
+                let dt = unix_of_gps(o.gps_ns) - t[0];
+                assert!(dt.abs() < 1e-6, "{file} line {k}: {dt} s apart");
+            }
+            assert_eq!(o.reading.to_bits(), t[1].to_bits(), "{file} line {k}");
+            for (i, m) in o.monitors.unwrap_or([f64::NAN; 4]).iter().enumerate() {
+                let close = (m - t[2 + i]).abs() < 1e-12 || (m.is_nan() && t[2 + i].is_nan());
+                assert!(
+                    close,
+                    "{file} line {k} monitor {i}: {m} against {}",
+                    t[2 + i]
+                );
+            }
+        }
+        eprintln!(
+            "{file} ({ship}, {meter}): {} lines as shipgrav's, stamps {}",
+            ours.len(),
+            ours[0].form.name()
+        );
+    }
+    let ride = std::fs::read(dir.join("SR2312_dgs_raw.txt")).expect("read");
+    let first = parse_dgs_raw(
+        ride.split(|&c| c == b'\n').next().expect("a line"),
+        TimeScale::Utc,
+    );
+    let at = ingest::time::iso_gps_ns("2023-06-16T00:00:00.857719Z", TimeScale::Utc);
+    assert_eq!(first.map(|l| l.gps_ns).ok(), at.ok());
+}
+
 /// A damaged sentence costs its line alone: its checksum refuses it, naming file, line and
 /// field, and with `--skip-bad-lines` the other fixes are read; a fix that is none (GGA
 /// quality 0) is a bad line as well, never a position.

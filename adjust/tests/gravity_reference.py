@@ -10,6 +10,11 @@ usage: python gravity_reference.py normal          prints lat,h,boule_mgal on a 
                                                    of M points, its sum 1
        python gravity_reference.py shipgrav-nav SHIP IN  prints shipgrav's read_nav of IN:
                                                    unix seconds, lat, lon a fix a line
+       python gravity_reference.py shipgrav-serial METER SHIP IN   prints shipgrav's
+                                                   read_bgm_raw (METER bgm3) or read_dgs_raw
+                                                   (dgs-raw) of IN: unix seconds (nan where
+                                                   shipgrav finds no time), the reading (counts,
+                                                   AD units), ve, vcc, al, ax (nan for a BGM-3)
        python gravity_reference.py eotvos IN FS    prints shipgrav's eotvos_full (mGal)
                                                    of IN's lon,lat,ht rows
        python gravity_reference.py shipgrav-track  prints lon,lat of shipgrav's own test
@@ -61,6 +66,30 @@ elif what == "shipgrav-nav":
     nav = sgi.read_nav(sys.argv[2], sys.argv[3], progressbar=False)
     for t, la, lo in zip(nav["time_sec"], nav["lat"], nav["lon"]):
         print(f"{t!r},{la!r},{lo!r}")
+elif what == "shipgrav-serial":
+    import shipgrav.io as sgi
+
+    import contextlib
+
+    meter, ship, path = sys.argv[2], sys.argv[3], sys.argv[4]
+    # shipgrav says what it could not read on stdout: kept apart from the numbers.
+    with contextlib.redirect_stdout(sys.stderr):
+        if meter == "bgm3":
+            d = sgi.read_bgm_raw(path, ship, progressbar=False)
+        else:
+            d = sgi.read_dgs_raw(path, ship, progressbar=False)
+    if meter == "bgm3":
+        reading, monitors = d["counts"], None
+    else:
+        reading = d["rgrav"] if "rgrav" in d else d["Gravity"]
+        monitors = [d[m] for m in ("ve", "vcc", "al", "ax")]
+    if "date_time" in d:
+        t = [v.timestamp() for v in d["date_time"]]
+    else:
+        t = [float("nan")] * len(d)
+    for k in range(len(d)):
+        m = [float("nan")] * 4 if monitors is None else [float(c.iloc[k]) for c in monitors]
+        print(",".join(repr(float(v)) for v in [t[k], reading.iloc[k]] + m))
 elif what == "eotvos":
     import shipgrav.grav as sgg
 

@@ -1889,17 +1889,10 @@ mod cross_coupling {
         assert!(rms < uncorrected / 3.0, "{rms} against {uncorrected} mGal");
     }
 
-    /// The cruise navigated by NMEA sentences (docs/formats.md 10.1) instead of the meter's own
-    /// columns: its positions written as a logger writes a GPS (a clock before each sentence,
-    /// a ZDA first, GGA fixes at 1e-6 arc-minutes with an altitude of 0 and no geoid
-    /// separation, so above sea level), the same filtered free-air anomaly to 0.01 mGal rms.
-    #[test]
-    fn a_cruise_navigated_by_nmea_reduces_as_by_the_meters_own_columns() {
-        use arrow_array::Array as _;
-        let dir = tempfile::tempdir().expect("tempdir");
-        let dataset = dir.path().join("cruise");
-        fixtures::meter::write_cruise(&dataset, Cruise::new(3600, 3), "none").expect("cruise");
-        let laptop = std::fs::read_to_string(dataset.join("raw/cruise.dat")).expect("dat");
+    /// A laptop file's positions written as a logger writes a GPS: a clock before each
+    /// sentence, a ZDA first, GGA fixes at 1e-6 arc-minutes with an altitude of 0 and no geoid
+    /// separation (so above sea level).
+    fn nmea_of_laptop(laptop: &str) -> String {
         let checked = |body: String| {
             let sum = body.bytes().fold(0u8, |a, b| a ^ b);
             format!("${body}*{sum:02X}")
@@ -1933,21 +1926,49 @@ mod cross_coupling {
                 checked(gga)
             );
         }
-        std::fs::write(dataset.join("raw/nav.nmea"), nmea).expect("nmea");
-        let filtered = |out: &Path| {
-            let path = out.join("gravity").join(gravity::FILE);
-            let mut v = Vec::new();
-            let names = ["free_air_anomaly_filtered_mgal"];
-            align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
-                v.extend((0..b.time_ns.len()).map(|i| {
-                    assert!(!b.values[0].is_null(i), "formed");
-                    b.values[0].value(i)
-                }));
-                Ok(())
-            })
-            .expect("gravity.parquet");
-            v
-        };
+        nmea
+    }
+
+    /// The filtered free-air anomaly of a reduction into `out`.
+    fn filtered(out: &Path) -> Vec<f64> {
+        use arrow_array::Array as _;
+        let path = out.join("gravity").join(gravity::FILE);
+        let mut v = Vec::new();
+        let names = ["free_air_anomaly_filtered_mgal"];
+        align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+            v.extend((0..b.time_ns.len()).map(|i| {
+                assert!(!b.values[0].is_null(i), "formed");
+                b.values[0].value(i)
+            }));
+            Ok(())
+        })
+        .expect("gravity.parquet");
+        v
+    }
+
+    /// The rms of the differences of two reductions' series where both are finite, and how
+    /// many there are.
+    fn rms_apart(a: &[f64], b: &[f64]) -> (f64, usize) {
+        assert_eq!(a.len(), b.len());
+        let d: Vec<f64> = a
+            .iter()
+            .zip(b)
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .map(|(x, y)| x - y)
+            .collect();
+        let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
+        (rms, d.len())
+    }
+
+    /// The cruise navigated by NMEA sentences (docs/formats.md 10.1) instead of the meter's own
+    /// columns ([`nmea_of_laptop`]): the same filtered free-air anomaly to 0.01 mGal rms.
+    #[test]
+    fn a_cruise_navigated_by_nmea_reduces_as_by_the_meters_own_columns() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let dataset = dir.path().join("cruise");
+        fixtures::meter::write_cruise(&dataset, Cruise::new(3600, 3), "none").expect("cruise");
+        let laptop = std::fs::read_to_string(dataset.join("raw/cruise.dat")).expect("dat");
+        std::fs::write(dataset.join("raw/nav.nmea"), nmea_of_laptop(&laptop)).expect("nmea");
         let vendor = Path::new(adjust::apply::stream::VENDOR);
         let own = dir.path().join("own");
         GravityArgs::new(&dataset, vendor)
@@ -1978,20 +1999,158 @@ mod cross_coupling {
             r.sessions[0].quantities.heights,
             ingest::contract::survey::Heights::SeaLevel
         );
-        let (a, b) = (filtered(&own), filtered(&by_nmea));
-        assert_eq!(a.len(), b.len());
-        let d: Vec<f64> = a
-            .iter()
-            .zip(&b)
-            .filter(|(x, _)| x.is_finite())
-            .map(|(x, y)| x - y)
-            .collect();
-        let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
+        let (rms, n) = rms_apart(&filtered(&own), &filtered(&by_nmea));
         eprintln!(
-            "the cruise by NMEA against its meter's own navigation: rms {rms:.2e} mGal over {} epochs",
-            d.len()
+            "the cruise by NMEA against its meter's own navigation: rms {rms:.2e} mGal over {n} epochs"
         );
-        assert!(d.len() > 2000 && rms < 0.01, "rms {rms} over {}", d.len());
+        assert!(n > 2000 && rms < 0.01, "rms {rms} over {n}");
+    }
+
+    /// A laptop line as the meter's raw serial output behind a logger's stamp (docs/formats.md
+    /// 11.1): a DGS `$AT1M` record (gravity in counts of 0.01 mGal, the monitors in 1e-5
+    /// units, the checksum) behind R/V Thompson's `MM/DD/YYYY,hh:mm:ss.sss,`, or a BGM-3's
+    /// `04:CCCCCCC 00` (counts of 0.01 mGal) behind R/V Atlantis's `BGM YYYY/MM/DD hh:mm:ss BGM3`.
+    fn serial_of_laptop(line: &str, k: usize, meter: &str) -> String {
+        let f: Vec<&str> = line.split(',').collect();
+        let counts = (f[1].trim().parse::<f64>().expect("rgrav") * 100.0).round() as i64;
+        let (date, clock) = (
+            format!("{}/{}/{}", f[20], f[21], f[19]),
+            format!("{}:{}:{}", f[22], f[23], f[24]),
+        );
+        if meter == "bgm3" {
+            return format!(
+                "BGM {}/{}/{} {clock} BGM3 04:{counts:07} 00\n",
+                f[19], f[20], f[21]
+            );
+        }
+        let monitor =
+            |i: usize| (f[i].trim().parse::<f64>().expect("monitor") * 1e5).round() as i64;
+        // The raw record's order: VCC, VE, AL, AX.
+        let v = [
+            counts,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            monitor(11),
+            monitor(10),
+            monitor(12),
+            monitor(13),
+        ];
+        let fields: Vec<String> = v.iter().map(ToString::to_string).collect();
+        format!(
+            "{date},{clock},$AT1M_3.61_{k},{},330,{},0.0,0.0,0.0,0.0,{k}\n",
+            fields.join(","),
+            v.iter().sum::<i64>()
+        )
+    }
+
+    /// The cruise logged as its meter's raw serial output instead of its laptop file, as DGS
+    /// raw records (`adc_format = "dgs-raw"`, the monitors from the same file, cross-coupling
+    /// fitted) and as BGM-3 counts (`"bgm3"`, no monitors, none), each navigated by NMEA, the
+    /// maker's scale 0.01 mGal a count: every line read, the same filtered free-air anomaly as
+    /// the laptop file's (the counts' and monitors' rounding is all that differs) to 0.01 mGal
+    /// rms without cross-coupling, and with it fitted on the rounded monitors to 0.05 mGal, the
+    /// coefficients within 0.05 of their sigmas; a damaged line refused, naming file, line and
+    /// field (`checksum`, `counts`).
+    #[test]
+    fn a_cruise_logged_as_raw_serial_reduces_as_its_laptop_file() {
+        let vendor = Path::new(adjust::apply::stream::VENDOR);
+        for (meter, coupling) in [("dgs-raw", "fit"), ("bgm3", "none")] {
+            let dir = tempfile::tempdir().expect("tempdir");
+            let dataset = dir.path().join("cruise");
+            fixtures::meter::write_cruise(&dataset, Cruise::new(3600, 3), coupling)
+                .expect("cruise");
+            let own = dir.path().join("own");
+            GravityArgs::new(&dataset, vendor)
+                .run(&own)
+                .expect("laptop");
+            let laptop = std::fs::read_to_string(dataset.join("raw/cruise.dat")).expect("dat");
+            std::fs::write(dataset.join("raw/nav.nmea"), nmea_of_laptop(&laptop)).expect("nmea");
+            let serial: String = laptop
+                .lines()
+                .enumerate()
+                .map(|(k, l)| serial_of_laptop(l, k, meter))
+                .collect();
+            std::fs::write(dataset.join("raw/meter.raw"), &serial).expect("raw");
+            let manifest = std::fs::read_to_string(dataset.join("dataset.toml"))
+                .expect("toml")
+                .replace("reading_unit = \"mGal\"", "reading_unit = \"count\"")
+                .replace("scale = 1.0,", "scale = 0.01,")
+                .replace(
+                    "adc_csv = \"raw/cruise.dat\"",
+                    "adc_csv = \"raw/meter.raw\"",
+                )
+                .replace(
+                    "adc_format = \"dgs-laptop\"",
+                    &format!("adc_format = \"{meter}\""),
+                )
+                .replace(
+                    "trajectory = \"raw/cruise.dat\"",
+                    "trajectory = \"raw/nav.nmea\"",
+                )
+                .replace(
+                    "trajectory_format = \"dgs-laptop\"",
+                    "trajectory_format = \"nmea\"",
+                );
+            std::fs::write(dataset.join("dataset.toml"), &manifest).expect("toml");
+            let by_serial = dir.path().join("serial");
+            let r = GravityArgs::new(&dataset, vendor)
+                .run(&by_serial)
+                .expect(meter);
+            assert_eq!(r.sessions[0].epochs_used, 3600, "{meter}");
+            assert_eq!(
+                r.sessions[0].cross_coupling.is_some(),
+                coupling == "fit",
+                "{meter}"
+            );
+            let (rms, n) = rms_apart(&filtered(&own), &filtered(&by_serial));
+            eprintln!(
+                "{meter}: against the laptop file's reduction, rms {rms:.2e} mGal over {n} epochs"
+            );
+            // The fit on rounded monitors: its coefficients within 0.05 of their sigmas of the
+            // laptop file's fit, and the anomaly within 0.05 mGal; without, the counts'
+            // rounding alone, 0.01 mGal.
+            let mut bound = 0.01;
+            if let Some(c) = &r.sessions[0].cross_coupling {
+                bound = 0.05;
+                let read = std::fs::read_to_string(own.join("gravity/gravity.json")).expect("json");
+                let laptop: GravityReport = serde_json::from_str(&read).expect("report");
+                let l = laptop.sessions[0].cross_coupling.clone().expect("fitted");
+                for i in 0..4 {
+                    let z = (c.coefficients[i] - l.coefficients[i]) / l.sigma[i];
+                    eprintln!(
+                        "{}: {:.4e} against the laptop file's {:.4e}: {z:.3} sigma",
+                        adjust::gravity::coupling::MONITORS[i],
+                        c.coefficients[i],
+                        l.coefficients[i]
+                    );
+                    assert!(z.abs() < 0.05, "{i}: {z}");
+                }
+            }
+            assert!(n > 2000 && rms < bound, "{meter}: rms {rms} over {n}");
+            // One damaged line: refused, naming file, line and field.
+            let damaged = serial
+                .replacen("$AT1M_3.61_10,", "$AT1M_3.61_10,1", 1)
+                .replacen(" 04:", " 04:x", 1);
+            std::fs::write(dataset.join("raw/meter.raw"), damaged).expect("raw");
+            let e = GravityArgs::new(&dataset, vendor)
+                .run(&dir.path().join("damaged"))
+                .expect_err("a damaged line");
+            let line = if meter == "bgm3" { 1 } else { 11 };
+            let field = if meter == "bgm3" {
+                "counts"
+            } else {
+                "checksum"
+            };
+            let text = format!("{e:#}");
+            assert!(
+                text.contains(&format!("meter.raw:{line}: {field}")),
+                "{meter}: {text}"
+            );
+        }
     }
 
     /// Replicas of the cruise over `disturbance` times the simulated one: the rms over

@@ -261,8 +261,10 @@ pub struct LabConfig {
     pub reading_limits: Limits,
     /// Which channels the file's value columns hold (docs/formats.md 9.4).
     pub columns: ValueColumns,
-    /// The stream's layout: "seconds" or a DGS laptop file.
+    /// The stream's layout: "seconds" or a platform meter's file.
     pub layout: AdcFormat,
+    /// The scale of a logger's stamps without a zone (a meter's serial output).
+    pub time_scale: crate::contract::manifest::TimeScale,
 }
 
 /// A field that does not parse: (field name, message).
@@ -679,8 +681,10 @@ struct Lines<'c> {
     scientific: u64,
     /// The plausible range of a value, and the reason a line outside it is rejected for.
     limits: Limits,
-    /// "seconds", or a DGS laptop file (its time a UTC calendar in the line).
+    /// "seconds", or a platform meter's file (its time in the line).
     layout: AdcFormat,
+    /// The scale of a logger's stamps without a zone.
+    time_scale: crate::contract::manifest::TimeScale,
 }
 
 /// What values a file's lines may hold: outside, the line is rejected for `reason`.
@@ -746,6 +750,7 @@ impl<'c> Lines<'c> {
             header: false,
             scientific: 0,
             layout: config.layout,
+            time_scale: config.time_scale,
         }
     }
 
@@ -815,6 +820,33 @@ impl<'c> Lines<'c> {
         Ok(self.judge(line_no, rel, readings, &line[calendar], ledger))
     }
 
+    /// A meter's serial line as a logger writes it ([`crate::meter_serial`]): its reading on
+    /// channel 1, judged as any line; the time field in messages is the logger's stamp.
+    fn serial_data<'l>(
+        &mut self,
+        line_no: u64,
+        raw: &'l [u8],
+        ledger: &mut FileLedger,
+    ) -> Result<Option<DataLine<'l>>> {
+        let line = strip_comment(raw);
+        if line.trim_ascii().is_empty() {
+            self.other += 1;
+            return Ok(None);
+        }
+        self.data_seen = true;
+        let parsed = match self.layout {
+            AdcFormat::Bgm3 => crate::meter_serial::parse_bgm3(line, self.time_scale),
+            _ => crate::meter_serial::parse_dgs_raw(line, self.time_scale),
+        };
+        let record = match parsed {
+            Ok(r) => r,
+            Err(bad) => return self.malformed(line_no, bad, ledger),
+        };
+        let readings = Readings::from_options([Some(record.reading), None, None]);
+        let rel = record.gps_ns - self.zero_gps_ns;
+        Ok(self.judge(line_no, rel, readings, &line[record.stamp], ledger))
+    }
+
     /// A data line's GPS time (ns), values and time field; None for a comment, blank or
     /// header line, or a line rejected into `ledger` (malformed when skipping, outside the
     /// session); an error for a malformed line otherwise.
@@ -824,8 +856,10 @@ impl<'c> Lines<'c> {
         raw: &'l [u8],
         ledger: &mut FileLedger,
     ) -> Result<Option<DataLine<'l>>> {
-        if self.layout == AdcFormat::DgsLaptop {
-            return self.dgs_data(line_no, raw, ledger);
+        match self.layout {
+            AdcFormat::DgsLaptop => return self.dgs_data(line_no, raw, ledger),
+            AdcFormat::DgsRaw | AdcFormat::Bgm3 => return self.serial_data(line_no, raw, ledger),
+            AdcFormat::Seconds | AdcFormat::Gps => {}
         }
         if self.data_seen
             && let Some((rel, values, time_end)) = fast_line(raw, &self.columns)
@@ -944,10 +978,10 @@ impl<'c> Lines<'c> {
                 format!(
                     "time {}{} is outside the session",
                     text(time_field),
-                    if self.layout == AdcFormat::DgsLaptop {
-                        " (UTC year, month, day, hour, minute, second)"
-                    } else {
-                        " s"
+                    match self.layout {
+                        AdcFormat::DgsLaptop => " (UTC year, month, day, hour, minute, second)",
+                        AdcFormat::DgsRaw | AdcFormat::Bgm3 => " (the logger's stamp)",
+                        AdcFormat::Seconds | AdcFormat::Gps => " s",
                     }
                 ),
             );

@@ -30,6 +30,7 @@ mod lines;
 pub mod nmea;
 pub use lines::BOM;
 pub mod lock;
+pub mod meter_serial;
 mod streams;
 pub mod table;
 pub mod theodolite;

@@ -227,6 +227,7 @@ pub(crate) fn read_acquisition(
                 reading_limits: labstream::reading_limits(&ds.manifest.instrument),
                 columns: s.columns.adc,
                 layout: s.session.adc_format,
+                time_scale: s.times.scale,
             };
             let interval = file.read(stream, "adc_csv", "lines", |ledger, pb| {
                 labstream::read_lab(stream, config, &mut out.lab, ledger, pb)

@@ -440,12 +440,13 @@ pub fn parse_calendar(s: &str) -> Result<Calendar, String> {
     }
     let mut nanos = 0u32;
     if b.len() > 19 {
+        // The point first: a byte 19 that starts a character of several bytes is no
+        // boundary to cut at.
+        if b[19] != b'.' {
+            return Err(bad());
+        }
         let frac = &s[20..];
-        if b[19] != b'.'
-            || frac.is_empty()
-            || frac.len() > 9
-            || !frac.bytes().all(|c| c.is_ascii_digit())
-        {
+        if frac.is_empty() || frac.len() > 9 || !frac.bytes().all(|c| c.is_ascii_digit()) {
             return Err(bad());
         }
         nanos = frac.parse::<u32>().map_err(|_| bad())? * 10u32.pow(9 - frac.len() as u32);
@@ -712,6 +713,9 @@ mod tests {
             "2005-02-15T09:12:03.1234567890",
             "2005-02-15T09:12:03Z",
             "2005-02-15T09:1a:03",
+            // A character of several bytes where the point goes (it panicked, cut inside).
+            "2005-02-15T09:12:03\u{fffd}25",
+            "2005-02-15T09:12:03\u{e9}",
         ] {
             assert!(parse_calendar(bad).is_err(), "{bad}");
         }

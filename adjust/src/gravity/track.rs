@@ -202,7 +202,11 @@ pub(super) fn read_tracks<'a>(
         if survey.cross_coupling.is_some()
             && let ingest::contract::manifest::Acquisition::Lab { stream, .. } = &s.acquisition
         {
-            track.monitors = Some(trajectory::read_dgs_monitors(stream)?);
+            track.monitors = Some(trajectory::read_monitors(
+                stream,
+                s.session.adc_format,
+                s.times.scale,
+            )?);
         }
         tracks.push(track);
     }

@@ -271,13 +271,32 @@ pub enum AdcFormat {
     /// reading of channel 1, its own UTC calendar time (docs/formats.md 11.1, `crate::dgs`).
     #[serde(rename = "dgs-laptop")]
     DgsLaptop,
+    /// A DGS meter's raw serial output as a ship's logger writes it: the logger's time stamp,
+    /// then the meter's `$AT1M` record, its gravity in AD units the reading of channel 1
+    /// (docs/formats.md 11.1, `crate::meter_serial`).
+    #[serde(rename = "dgs-raw")]
+    DgsRaw,
+    /// A BGM-3 meter's serial output as a ship's logger writes it: the logger's time stamp,
+    /// then `PP:CCCCCC SS`, the counts the reading of channel 1 (docs/formats.md 11.1,
+    /// `crate::meter_serial`).
+    #[serde(rename = "bgm3")]
+    Bgm3,
 }
 
 impl AdcFormat {
     /// Read by the lab-stream reader into the lab table (decimal readings in the
     /// instrument's `reading_unit`), not as counts.
     pub fn is_lab_stream(self) -> bool {
-        matches!(self, AdcFormat::Seconds | AdcFormat::DgsLaptop)
+        matches!(self, AdcFormat::Seconds) || self.is_meter_file()
+    }
+
+    /// A platform meter's own file: one reading a line, its time in the line as the meter
+    /// or its logger writes it (no `adc_time`), on channel 1.
+    pub fn is_meter_file(self) -> bool {
+        matches!(
+            self,
+            AdcFormat::DgsLaptop | AdcFormat::DgsRaw | AdcFormat::Bgm3
+        )
     }
 
     /// The name as in the manifest.
@@ -286,6 +305,8 @@ impl AdcFormat {
             AdcFormat::Gps => "gps",
             AdcFormat::Seconds => "seconds",
             AdcFormat::DgsLaptop => "dgs-laptop",
+            AdcFormat::DgsRaw => "dgs-raw",
+            AdcFormat::Bgm3 => "bgm3",
         }
     }
 }
@@ -958,13 +979,15 @@ fn log_time_forms(
     key: &impl Fn(&str) -> String,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<(TimeForm, TimeForm)> {
-    if s.adc_format == AdcFormat::DgsLaptop {
+    if s.adc_format.is_meter_file() {
         if s.adc_time.is_some() {
             return Err(err(
                 key("adc_time"),
-                "a DGS laptop file writes its own UTC calendar time on every line: this key \
-                 has nothing to describe"
-                    .to_owned(),
+                format!(
+                    "a {} file writes its own time on every line (docs/formats.md 11.1): this \
+                     key has nothing to describe",
+                    s.adc_format.name()
+                ),
             ));
         }
         return Ok((TimeForm::Iso, s.temperature_time.unwrap_or(TimeForm::Iso)));
@@ -1318,13 +1341,25 @@ fn resolve_session(
             format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
         )
     })?;
-    if s.adc_format == AdcFormat::DgsLaptop && m.instrument.reading_unit != ReadingUnit::MilliGal {
+    let (unit, what) = match s.adc_format {
+        AdcFormat::DgsLaptop => (
+            ReadingUnit::MilliGal,
+            "a DGS laptop file's raw gravity is in mGal",
+        ),
+        AdcFormat::DgsRaw => (
+            ReadingUnit::Count,
+            "a DGS raw record's gravity is in AD units",
+        ),
+        AdcFormat::Bgm3 => (ReadingUnit::Count, "a BGM-3's reading is its counts"),
+        _ => (m.instrument.reading_unit, ""),
+    };
+    if m.instrument.reading_unit != unit {
         return Err(err(
             format!("session[{i}].adc_format"),
             format!(
-                "a DGS laptop file's raw gravity is in mGal, and the instrument's reading_unit \
-                 is \"{}\": set reading_unit = \"mGal\"",
-                m.instrument.reading_unit.name()
+                "{what}, and the instrument's reading_unit is \"{}\": set reading_unit = \"{}\"",
+                m.instrument.reading_unit.name(),
+                unit.name()
             ),
         ));
     }
@@ -1375,11 +1410,14 @@ fn log_columns(
     let text_logs = s.acquisition.is_none();
     let channels = match &s.adc_columns {
         // The meter's one reading.
-        None if s.adc_format == AdcFormat::DgsLaptop => vec![1],
-        Some(_) if s.adc_format == AdcFormat::DgsLaptop => {
+        None if s.adc_format.is_meter_file() => vec![1],
+        Some(_) if s.adc_format.is_meter_file() => {
             return Err(err(
                 key("adc_columns"),
-                "a DGS laptop file has one reading, its raw gravity, on channel 1".to_owned(),
+                format!(
+                    "a {} file has one reading, the meter's, on channel 1",
+                    s.adc_format.name()
+                ),
             ));
         }
         None => vec![1, 2, 3],

@@ -495,14 +495,18 @@ pub fn check_coupling(
 ) -> Result<()> {
     if survey.cross_coupling.is_some()
         && let Some(s) = sessions.iter().find(|s| {
-            s.trajectory.is_some() && s.session.adc_format != super::manifest::AdcFormat::DgsLaptop
+            s.trajectory.is_some()
+                && !matches!(
+                    s.session.adc_format,
+                    super::manifest::AdcFormat::DgsLaptop | super::manifest::AdcFormat::DgsRaw
+                )
         })
     {
         return Err(err(
             "survey.cross_coupling".to_owned(),
             format!(
-                "session `{}` has no cross-coupling monitors: only a meter's own file \
-                 (adc_format = \"dgs-laptop\") carries them",
+                "session `{}` has no cross-coupling monitors: only a DGS meter's own file \
+                 (adc_format = \"dgs-laptop\" or \"dgs-raw\") carries them",
                 s.session.id
             ),
         ));
