@@ -2153,6 +2153,111 @@ mod cross_coupling {
         }
     }
 
+    /// A laptop line with its time moved by `seconds` (within the day) or its raw gravity
+    /// set to `rgrav`.
+    fn laptop_edited(line: &str, seconds: i64, rgrav: Option<f64>) -> String {
+        let mut f: Vec<String> = line.split(',').map(str::to_owned).collect();
+        let at = |k: usize| f[k].trim().parse::<f64>().expect("a number") as i64;
+        let t = at(22) * 3600 + at(23) * 60 + at(24) + seconds;
+        f[22] = format!("{:02}", t / 3600);
+        f[23] = format!("{:02}", t / 60 % 60);
+        f[24] = format!("{:05.2}", (t % 60) as f64);
+        if let Some(g) = rgrav {
+            f[1] = format!("{g:.2}");
+        }
+        f.join(",")
+    }
+
+    /// The raw serial readers through the same damage as every reader's
+    /// (xtask/tests/hostile_round2.rs): a line stamped 400 s ahead of its neighbours, one
+    /// 400 s behind, and a reading the ADC cannot give (1e8 counts, its checksum made to
+    /// hold), each in a cruise's 2401st line, costs that line alone with
+    /// `--skip-bad-lines`, for the reason the time gate or the reading limits give, and the
+    /// ledger adds up.
+    #[test]
+    fn a_damaged_serial_line_costs_that_line_alone() {
+        use ingest::contract::ingest_ledger::reason;
+        let dir = tempfile::tempdir().expect("tempdir");
+        let dataset = dir.path().join("cruise");
+        fixtures::meter::write_cruise(&dataset, Cruise::new(3600, 3), "none").expect("cruise");
+        let laptop = std::fs::read_to_string(dataset.join("raw/cruise.dat")).expect("dat");
+        let lines: Vec<&str> = laptop.lines().collect();
+        let skip = ingest::Options {
+            skip_bad_lines: true,
+            progress: false,
+        };
+        let manifest = std::fs::read_to_string(dataset.join("dataset.toml")).expect("toml");
+        for meter in ["dgs-raw", "bgm3"] {
+            let m = manifest
+                .replace("reading_unit = \"mGal\"", "reading_unit = \"count\"")
+                .replace(
+                    "adc_csv = \"raw/cruise.dat\"",
+                    "adc_csv = \"raw/meter.raw\"",
+                )
+                .replace(
+                    "adc_format = \"dgs-laptop\"",
+                    &format!("adc_format = \"{meter}\""),
+                );
+            std::fs::write(dataset.join("dataset.toml"), m).expect("toml");
+            let k = 2400;
+            let cases: [(&str, Option<String>, &[&str]); 4] = [
+                ("clean", None, &[]),
+                (
+                    "400 s ahead",
+                    Some(laptop_edited(lines[k], 400, None)),
+                    &[reason::TIME_OUTLIER],
+                ),
+                (
+                    "400 s behind",
+                    Some(laptop_edited(lines[k], -400, None)),
+                    &[reason::TIME_BACKWARDS, reason::TIME_OUTLIER],
+                ),
+                (
+                    "1e8 counts",
+                    Some(laptop_edited(lines[k], 0, Some(1e6))),
+                    &[reason::READING_OUT_OF_RANGE],
+                ),
+            ];
+            for (what, edited, reasons) in cases {
+                let serial: String = lines
+                    .iter()
+                    .enumerate()
+                    .map(|(i, l)| match &edited {
+                        Some(e) if i == k => serial_of_laptop(e, i, meter),
+                        _ => serial_of_laptop(l, i, meter),
+                    })
+                    .collect();
+                std::fs::write(dataset.join("raw/meter.raw"), serial).expect("raw");
+                let out = dir
+                    .path()
+                    .join(format!("{meter}-{}", what.replace(' ', "-")));
+                let r = ingest::run_with(&dataset, &out, &skip).expect(what);
+                let f = r
+                    .files
+                    .iter()
+                    .find(|f| f.path == "raw/meter.raw")
+                    .expect("its ledger");
+                assert_eq!(f.read, f.accepted + f.rejected_total(), "{meter}, {what}");
+                if edited.is_none() {
+                    assert_eq!((f.accepted, f.rejected_total()), (3600, 0), "{meter}");
+                    continue;
+                }
+                assert_eq!(f.rejected_total(), 1, "{meter}, {what}: {:?}", f.rejected);
+                assert!(
+                    reasons.iter().any(|why| f.rejected.get(*why) == Some(&1)),
+                    "{meter}, {what}: {:?}",
+                    f.rejected
+                );
+                assert_eq!(
+                    f.rejections[0].at,
+                    format!("line {}", k + 1),
+                    "{meter}, {what}"
+                );
+                assert_eq!(f.accepted, 3599, "{meter}, {what}");
+            }
+        }
+    }
+
     /// Replicas of the cruise over `disturbance` times the simulated one: the rms over
     /// replicas and coefficients of (error / sigma) for the sigmas the stage carries (the
     /// frequency-domain jackknife's) and for the ordinary ones, and the corrected anomaly's rms
