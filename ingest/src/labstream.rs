@@ -281,7 +281,7 @@ const EXACT_POWERS: [f64; 23] = [
 /// over an exact power of ten: one correctly rounded operation, the double `str::parse`
 /// gives (Clinger's fast path), and whether it had an exponent. None for anything else
 /// (more digits, `nan`, malformed), which `str::parse` then reads or rejects.
-fn fast_decimal(field: &[u8]) -> Option<(f64, bool)> {
+pub(crate) fn fast_decimal(field: &[u8]) -> Option<(f64, bool)> {
     let (negative, mut rest) = match field.first()? {
         b'-' => (true, &field[1..]),
         b'+' => (false, &field[1..]),

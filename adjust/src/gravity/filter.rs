@@ -57,9 +57,18 @@ impl Lowpass {
                 let half = h.len() / 2;
                 let (ext, _) = extended(x, pad.max(half), pivot);
                 let pad = pad.max(half).min(x.len().saturating_sub(1));
+                let whole: f64 = h.iter().sum();
                 (0..x.len())
                     .map(|i| {
                         let centre = i + pad;
+                        // The kernel whole within the extension (every sample of a series
+                        // longer than it): a dot product, four sums at a time.
+                        if let Some(w) = centre
+                            .checked_sub(half)
+                            .and_then(|from| ext.get(from..from + h.len()))
+                        {
+                            return dot(h, w) / whole;
+                        }
                         // Where the extension is shorter than the kernel (a series shorter
                         // than it), the kernel is cut there and its rest weighs to 1.
                         let (sum, weight) = h
@@ -85,6 +94,26 @@ impl Lowpass {
             Lowpass::Kernel(h) => kernel_response(h, f_hz / rate_hz),
         }
     }
+}
+
+/// The dot product of `a` and `b` (of one length) in four interleaved sums, which the
+/// compiler keeps in vector registers: a 240 s kernel at 1 Hz over a day's epochs took a
+/// quarter of the stage's time summed one product at a time.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut s = [0.0; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            s[k] += x[k] * y[k];
+        }
+    }
+    (s[0] + s[1]) + (s[2] + s[3]) + tail
 }
 
 /// A symmetric kernel's transform at `cycles` per sample, about its centre.

@@ -1,33 +1,55 @@
 //! Records written aside: the gravity stage's per-epoch data (the epochs' sums, the kept
-//! positions) go to an unnamed file in the output folder as they are made, fixed-size
-//! records of doubles, and come back a range at a time, so that memory holds a block of
-//! epochs, not the survey. The file has no name: it is removed when closed, a crash
+//! positions) are kept as they are made, fixed-size records of doubles, and come back a
+//! range at a time. Up to [`IN_MEMORY_BYTES`] a spill holds them in memory (a day at 1 Hz
+//! needs a few MB, and a file cost a tenth of that day's reduction); beyond, it moves them
+//! to an unnamed file in the output folder and goes on there, so that memory holds a block
+//! of epochs, not the survey. The file has no name: it is removed when closed, a crash
 //! included.
 
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// The most one spill holds in memory before it moves to a file: 32 MB, the widest record
+/// (the epochs' sums, 17 doubles) for 68 h at 1 Hz or 6.8 h at 10 Hz.
+pub(super) const IN_MEMORY_BYTES: usize = 32 << 20;
+
+/// Where a spill's records are.
+enum Store {
+    /// In memory, one after another.
+    Memory(Vec<f64>),
+    /// In an unnamed file.
+    File(BufWriter<File>),
+}
 
 /// Records of `width` doubles being written.
 pub(super) struct SpillWriter {
-    out: BufWriter<File>,
+    store: Store,
+    dir: PathBuf,
     width: usize,
     len: usize,
 }
 
 /// Records of `width` doubles written, read back by range.
 pub(super) struct Spill {
-    file: File,
+    store: Finished,
     width: usize,
     len: usize,
 }
 
+/// A finished spill's records.
+enum Finished {
+    Memory(Vec<f64>),
+    File(File),
+}
+
 impl SpillWriter {
-    /// An unnamed file in `dir` for records of `width` doubles.
+    /// A spill for records of `width` doubles, its file (when it needs one) in `dir`.
     pub(super) fn new(dir: &Path, width: usize) -> std::io::Result<Self> {
         Ok(SpillWriter {
-            out: BufWriter::new(tempfile::tempfile_in(dir)?),
+            store: Store::Memory(Vec::new()),
+            dir: dir.to_path_buf(),
             width,
             len: 0,
         })
@@ -36,19 +58,46 @@ impl SpillWriter {
     /// Appends one record (`width` values).
     pub(super) fn push(&mut self, record: &[f64]) -> std::io::Result<()> {
         debug_assert_eq!(record.len(), self.width);
-        for v in record {
-            self.out.write_all(&v.to_le_bytes())?;
+        if let Store::Memory(v) = &self.store
+            && (v.len() + record.len()) * 8 > IN_MEMORY_BYTES
+        {
+            self.move_to_file()?;
+        }
+        match &mut self.store {
+            Store::Memory(v) => v.extend_from_slice(record),
+            Store::File(out) => {
+                for v in record {
+                    out.write_all(&v.to_le_bytes())?;
+                }
+            }
         }
         self.len += 1;
         Ok(())
     }
 
+    /// Moves the records held in memory to an unnamed file, where the rest go.
+    fn move_to_file(&mut self) -> std::io::Result<()> {
+        let mut out = BufWriter::new(tempfile::tempfile_in(&self.dir)?);
+        if let Store::Memory(v) = &self.store {
+            for x in v {
+                out.write_all(&x.to_le_bytes())?;
+            }
+        }
+        self.store = Store::File(out);
+        Ok(())
+    }
+
     /// The records written, to read back.
-    pub(super) fn finish(mut self) -> std::io::Result<Spill> {
-        self.out.flush()?;
-        let file = self.out.into_inner().map_err(|e| e.into_error())?;
+    pub(super) fn finish(self) -> std::io::Result<Spill> {
+        let store = match self.store {
+            Store::Memory(v) => Finished::Memory(v),
+            Store::File(mut out) => {
+                out.flush()?;
+                Finished::File(out.into_inner().map_err(|e| e.into_error())?)
+            }
+        };
         Ok(Spill {
-            file,
+            store,
             width: self.width,
             len: self.len,
         })
@@ -61,11 +110,29 @@ impl Spill {
         self.len
     }
 
+    /// Whether the records went to a file.
+    #[cfg(test)]
+    fn in_file(&self) -> bool {
+        matches!(self.store, Finished::File(_))
+    }
+
     /// The records `range`, one after another (`width` values each).
     pub(super) fn read(&self, range: Range<usize>) -> std::io::Result<Vec<f64>> {
+        if range.end > self.len || range.start > range.end {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                format!("records {range:?} of {}", self.len),
+            ));
+        }
+        let file = match &self.store {
+            Finished::Memory(v) => {
+                return Ok(v[range.start * self.width..range.end * self.width].to_vec());
+            }
+            Finished::File(file) => file,
+        };
         let bytes_per = self.width * 8;
         let mut bytes = vec![0u8; range.len() * bytes_per];
-        let mut f = &self.file;
+        let mut f = file;
         f.seek(SeekFrom::Start((range.start * bytes_per) as u64))?;
         f.read_exact(&mut bytes)?;
         Ok(bytes
@@ -79,12 +146,20 @@ impl Spill {
 mod tests {
     use super::*;
 
-    /// Records come back as written, by any range, bit for bit (a NaN and -0 too).
+    /// Records come back as written, by any range, bit for bit (a NaN and -0 too), from
+    /// memory and, past [`IN_MEMORY_BYTES`], from the file the spill moved to.
     #[test]
     fn records_come_back_by_range() {
+        let small = IN_MEMORY_BYTES / 24;
+        for (n, in_file) in [(1000, false), (small + 1000, true)] {
+            records_come_back(n, in_file);
+        }
+    }
+
+    fn records_come_back(n: usize, in_file: bool) {
         let dir = tempfile::tempdir().expect("dir");
         let mut w = SpillWriter::new(dir.path(), 3).expect("spill");
-        let rows: Vec<[f64; 3]> = (0..1000_u32)
+        let rows: Vec<[f64; 3]> = (0..u32::try_from(n).expect("u32"))
             .map(f64::from)
             .map(|k| [k, -0.0, if k % 7.0 == 0.0 { f64::NAN } else { 1.0 / k }])
             .collect();
@@ -92,8 +167,10 @@ mod tests {
             w.push(r).expect("pushed");
         }
         let s = w.finish().expect("finished");
-        assert_eq!(s.len(), 1000);
-        for range in [0..0, 0..1, 3..17, 990..1000, 0..1000] {
+        assert_eq!(s.len(), rows.len());
+        assert_eq!(s.in_file(), in_file);
+        let n = rows.len();
+        for range in [0..0, 0..1, 3..17, n - 10..n, 0..n] {
             let got = s.read(range.clone()).expect("read");
             let want: Vec<f64> = rows[range].iter().flatten().copied().collect();
             assert_eq!(got.len(), want.len());
@@ -103,6 +180,6 @@ mod tests {
                     .all(|(a, b)| a.to_bits() == b.to_bits())
             );
         }
-        assert!(s.read(999..1001).is_err());
+        assert!(s.read(n - 1..n + 1).is_err());
     }
 }
