@@ -10,7 +10,7 @@
 //! manifest.
 
 use anyhow::{Context, Result, bail};
-use ingest::contract::manifest::TimeScale;
+use ingest::contract::manifest::{AdcFormat, TimeScale};
 use ingest::contract::survey::TrajectoryFormat;
 use ingest::time::{TimeForm, TimeReader, parse_iso};
 use std::collections::BTreeMap;
@@ -38,6 +38,9 @@ enum Layout {
     Trajectory(TrajectoryFormat),
     /// A survey's attitude (docs/formats.md 10.2).
     Attitude,
+    /// A platform meter's serial output behind a logger's stamps (docs/formats.md 11.2):
+    /// `AdcFormat::Bgm3` or `AdcFormat::DgsRaw`.
+    MeterSerial(AdcFormat),
 }
 
 impl Layout {
@@ -53,6 +56,8 @@ impl Layout {
             Layout::Trajectory(TrajectoryFormat::DgsLaptop) => "DGS laptop file",
             Layout::Trajectory(TrajectoryFormat::Nmea) => "NMEA navigation",
             Layout::Attitude => "attitude CSV",
+            Layout::MeterSerial(AdcFormat::Bgm3) => "BGM-3 serial file",
+            Layout::MeterSerial(_) => "DGS raw serial file",
         }
     }
 }
@@ -152,10 +157,47 @@ fn recognise(path: &Path) -> Result<Found> {
     }
     let head = String::from_utf8_lossy(&head).into_owned();
     let tail = String::from_utf8_lossy(&tail).into_owned();
+    if let Some(found) = meter_serial(&rel, &head, &tail) {
+        return Ok(found);
+    }
     if let Some(found) = trajectory(&rel, &head, &tail) {
         return Ok(found);
     }
     text(rel, &head, &tail)
+}
+
+/// A platform meter's serial output behind a logger's stamps (docs/formats.md 11.2): its
+/// first lines (past `#` comments) read by the parser ingest reads it with, as a BGM-3's
+/// or a DGS's raw records; one channel, in counts. The stamps without a zone are taken as
+/// UTC here (only the span and rate are drafted).
+fn meter_serial(rel: &str, head: &str, tail: &str) -> Option<Found> {
+    use ingest::meter_serial::{parse_bgm3, parse_dgs_raw};
+    let lines = |text: &str| -> Vec<String> {
+        text.lines()
+            .map(str::trim)
+            .filter(|l| !l.is_empty() && !l.starts_with('#'))
+            .map(str::to_owned)
+            .collect()
+    };
+    let (first, last) = (lines(head), lines(tail));
+    for format in [AdcFormat::DgsRaw, AdcFormat::Bgm3] {
+        let time = |l: &String| {
+            let parsed = match format {
+                AdcFormat::Bgm3 => parse_bgm3(l.as_bytes(), TimeScale::Utc),
+                _ => parse_dgs_raw(l.as_bytes(), TimeScale::Utc),
+            };
+            parsed.ok().map(|r| r.gps_ns)
+        };
+        let times: Vec<i64> = first.iter().take(20).map_while(time).collect();
+        if times.len() >= 2 {
+            // The tail's first line may be cut.
+            let end = last.iter().skip(1).filter_map(time).next_back();
+            let mut found = trajectory_found(rel, Layout::MeterSerial(format), None, times, end);
+            found.channels = 1;
+            return Some(found);
+        }
+    }
+    None
 }
 
 /// A survey's trajectory (docs/formats.md 10.1): an RTKLIB solution file (a `%` column
@@ -615,6 +657,13 @@ fn stem(rel: &str) -> String {
         "_attitude",
         "_att",
         "_pos",
+        // A ship's meter and navigation logs (shipgrav's samples: `TN400_dgs_raw.Raw`,
+        // `TN400_nav.Raw`, `AT01_bgm.BGM`, `AT01_nav.gps`).
+        "_raw",
+        "_dgs",
+        "_bgm",
+        "_nav",
+        "_gps",
     ];
     while let Some(s) = suffixes
         .iter()
@@ -693,8 +742,12 @@ fn instrument(t: &mut String, found: &[Found]) {
                 | Layout::CountsCsv
                 | Layout::LabStream
                 | Layout::Trajectory(TrajectoryFormat::DgsLaptop)
+                | Layout::MeterSerial(_)
         )
     });
+    let serial = found
+        .iter()
+        .find(|f| matches!(f.layout, Layout::MeterSerial(_)));
     let meter = found
         .iter()
         .any(|f| f.layout == Layout::Trajectory(TrajectoryFormat::DgsLaptop));
@@ -728,6 +781,19 @@ fn instrument(t: &mut String, found: &[Found]) {
              # The meter's scale and offset as its maker states them (--calibration vendor):\n\
              [instrument.accelerometer.vendor_calibration]\nscale = 1.0\n\
              offset_mgal = {FILL}         # mGal: gravity = offset_mgal + scale * reading\n"
+        );
+        return;
+    } else if let Some(f) = serial {
+        let _ = writeln!(
+            t,
+            "reading_unit = \"count\"        # {}: a {}'s reading is in counts (docs/formats.md 11.2)\n\n\
+             [[instrument.accelerometer]]\nid = \"meter\"\nchannel = 1\n\n\
+             # The meter's scale and offset as its maker states them (--calibration vendor):\n\
+             [instrument.accelerometer.vendor_calibration]\n\
+             scale = {FILL}               # mGal a count (a BGM-3's is about 5)\n\
+             offset_mgal = {FILL}         # mGal: gravity = offset_mgal + scale * reading\n",
+            f.rel,
+            f.layout.name()
         );
         return;
     }
@@ -800,7 +866,23 @@ fn session(t: &mut String, id: &str, files: &[&Found]) -> bool {
         .find(|f| matches!(f.layout, Layout::Trajectory(_)));
     let _ = writeln!(t, "kind = {}", kind(theodolite.is_some(), track.is_some()));
     let binary = get(Layout::Binary);
-    acquisition_keys(t, binary, lab, get(Layout::CountsCsv));
+    let serial = files
+        .iter()
+        .copied()
+        .find(|f| matches!(f.layout, Layout::MeterSerial(_)));
+    if let Some(m) = serial {
+        let format = match m.layout {
+            Layout::MeterSerial(f) => f.name(),
+            _ => "",
+        };
+        let _ = writeln!(
+            t,
+            "adc_csv = {}\nadc_format = \"{format}\"\nthermometers = \"none\"",
+            q(&m.rel)
+        );
+    } else {
+        acquisition_keys(t, binary, lab, get(Layout::CountsCsv));
+    }
     if let Some(x) = temperature {
         let _ = writeln!(
             t,

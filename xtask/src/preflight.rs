@@ -21,6 +21,7 @@ fn stand_in(key: &str) -> Option<&'static str> {
         "adc_columns" => "[1, 2, 3]",
         "thermometers" => "\"each\"",
         "offset_mgal" => "0.0",
+        "scale" => "1.0",
         _ => return None,
     })
 }

@@ -253,6 +253,70 @@ fn a_dgs_meters_file_is_drafted_as_a_survey_of_its_own_navigation() {
     );
 }
 
+/// A ship's meter serial files and navigation as its logger wrote them (shipgrav's samples,
+/// fixtures/real/shipgrav-serial and shipgrav-nav): R/V Atlantis's BGM-3 counts beside its
+/// NMEA navigation, and R/V Thompson's DGS raw records beside its own, each drafted as one
+/// survey session (their stems `AT01`, `TN400`) of the meter's counts on channel 1, the
+/// maker's scale and offset to fill in, navigated by the NMEA file; filled in, the drafts
+/// pass `check`.
+#[test]
+fn a_ships_meter_serial_file_is_drafted_beside_its_navigation() {
+    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/real");
+    for (meter, nav, format, date) in [
+        ("AT01_bgm.BGM", "AT01_nav.gps", "bgm3", "2022-07-01"),
+        (
+            "TN400_dgs_raw.Raw",
+            "TN400_nav.Raw",
+            "dgs-raw",
+            "2022-03-12",
+        ),
+    ] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let ds = dir.path().join("ship");
+        std::fs::create_dir_all(ds.join("raw")).expect("raw");
+        std::fs::copy(
+            real.join("shipgrav-serial").join(meter),
+            ds.join("raw").join(meter),
+        )
+        .expect("copy");
+        std::fs::copy(
+            real.join("shipgrav-nav").join(nav),
+            ds.join("raw").join(nav),
+        )
+        .expect("copy");
+        let o = xtask(&["init", ds.to_str().expect("utf-8")]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let draft = std::fs::read_to_string(ds.join("dataset.toml")).expect("draft");
+        for want in [
+            format!(
+                "adc_csv = \"raw/{meter}\"\nadc_format = \"{format}\"\nthermometers = \"none\""
+            ),
+            format!("trajectory = \"raw/{nav}\"\ntrajectory_format = \"nmea\""),
+            "reading_unit = \"count\"".to_owned(),
+            "scale = \"FILL IN\"".to_owned(),
+            "offset_mgal = \"FILL IN\"".to_owned(),
+            format!("date = \"{date}\""),
+            "kind = \"survey\"".to_owned(),
+        ] {
+            assert!(draft.contains(&want), "{want}\n{draft}");
+        }
+        assert_eq!(draft.matches("[[session]]").count(), 1, "{draft}");
+        let filled = draft
+            .replace("g_abs_mgal = \"FILL IN\"", "g_abs_mgal = 980000.0")
+            .replace("scale = \"FILL IN\"", "scale = 5.0")
+            .replace("offset_mgal = \"FILL IN\"", "offset_mgal = 855000.0")
+            + "\n[survey]\nfilter_s = 240.0\n";
+        std::fs::write(ds.join("dataset.toml"), filled).expect("write");
+        let o = xtask(&["check", ds.to_str().expect("utf-8")]);
+        assert!(
+            o.status.success(),
+            "{meter}: {}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}
+
 #[test]
 fn an_attitude_file_is_drafted_beside_its_trajectory() {
     let dir = tempfile::tempdir().expect("tempdir");
