@@ -126,9 +126,8 @@ pub fn parse_laptop(fields: &[&[u8]]) -> Result<LaptopLine, Bad> {
     })
 }
 
-/// The line's UTC calendar time (fields 19 to 24; the second may have a fraction) as GPS ns:
-/// also alone ([`split`] first), for a pass that needs only the times.
-pub fn parse_time(fields: &[&[u8]]) -> Result<i64, Bad> {
+/// The line's UTC calendar time (fields 19 to 24; the second may have a fraction) as GPS ns.
+fn parse_time(fields: &[&[u8]]) -> Result<i64, Bad> {
     let year = integer(fields, 19, "year")?;
     let month = integer(fields, 20, "month")?;
     let day = integer(fields, 21, "day")?;

@@ -322,7 +322,12 @@ impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
     }
 }
 
-/// The track of session `s` (the `index`-th), its trajectory streamed twice: the median
+/// The most epochs a trajectory's first pass keeps for its second, 64 MB: 12 days at 1 Hz,
+/// 29 h at 10 Hz. A longer trajectory is read twice.
+const HELD_EPOCHS: usize = 1 << 20;
+
+/// The track of session `s` (the `index`-th), its trajectory in two passes (over the epochs
+/// held in memory, [`HELD_EPOCHS`], or the file again): the median
 /// interval between its epochs in file order, then each epoch through ingest's time gate
 /// (every log's: outside the session's days, a time that repeats or goes back, one that
 /// jumps away from its neighbours and back, each dropped alone, at that interval) and, with
@@ -341,20 +346,20 @@ fn gated<'a>(
         }
         _ => None,
     };
+    // The interval the time gate judges by is the epochs' median step: a first pass. Up to
+    // [`HELD_EPOCHS`] its epochs are kept for the gate, and the file is read once.
     let mut steps = Steps::default();
-    let mut step = |t| {
+    let mut held = Vec::new();
+    let mut whole = true;
+    let first_bad = each_epoch(s, nmea, skip, |t, llh, sd| {
         steps.push(t);
+        if held.len() < HELD_EPOCHS {
+            held.push((t, llh, sd));
+        } else {
+            whole = false;
+        }
         Ok(())
-    };
-    match &s.trajectory {
-        // Its lines are long: the times alone are read for the interval.
-        Some(src) if src.format == TrajectoryFormat::DgsLaptop => {
-            trajectory::for_each_dgs_time(&src.path, step)?;
-        }
-        _ => {
-            each_epoch(s, nmea, skip, |t, _, _| step(t))?;
-        }
-    }
+    })?;
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
     let mut sink = EpochSink {
         session: s,
@@ -367,11 +372,19 @@ fn gated<'a>(
     let interval_ns = steps.median().unwrap_or(1_000_000_000);
     let mut gate = TimeGate::new(interval_ns, s.gps_range_ns());
     let mut read = 0u64;
-    let bad = each_epoch(s, nmea, skip, |t, llh, sd| {
+    let mut offer = |(t, llh, sd)| {
         let at = Position::Line(read);
         read += 1;
         gate.offer(t, at, (llh, sd), &mut sink)
-    })?;
+    };
+    let bad = if whole {
+        held.into_iter().try_for_each(&mut offer)?;
+        first_bad
+    } else {
+        // Too long to hold: read again.
+        drop(held);
+        each_epoch(s, nmea, skip, |t, llh, sd| offer((t, llh, sd)))?
+    };
     gate.finish(&mut sink)?;
     let EpochSink {
         times,

@@ -326,24 +326,6 @@ pub fn for_each_dgs_laptop(
     Ok(bad_lines)
 }
 
-/// Calls `f` with the time of each line of a DGS laptop file that has one (its other fields
-/// not read: the pass that finds the epochs' interval; [`for_each_dgs_laptop`] reads them).
-pub fn for_each_dgs_time(
-    path: &Path,
-    mut f: impl FnMut(i64) -> Result<(), GravityError>,
-) -> Result<(), GravityError> {
-    for (_, l) in numbered_lines(path)? {
-        if let Ok(t) = l.map_err(|_| ()).and_then(|l| {
-            ingest::dgs::split(l.as_bytes())
-                .and_then(|fields| ingest::dgs::parse_time(&fields))
-                .map_err(|_| ())
-        }) {
-            f(t)?;
-        }
-    }
-    Ok(())
-}
-
 /// What an NMEA file's first pass finds: whether its fixes come from GGA sentences (else
 /// RMC's), and whether every GGA gives the geoid's separation (then the heights are
 /// ellipsoidal, altitude plus separation; else above sea level, the altitude alone).
