@@ -1,4 +1,4 @@
-//! A platform meter's serial output as a ship's logger writes it (docs/formats.md 11.1): the
+//! A platform meter's serial output as a ship's logger writes it (docs/formats.md 11.2): the
 //! logger's time stamp, then the meter's own record. Two meters' records are read:
 //!
 //! - **BGM-3** (`adc_format = "bgm3"`): `PP:CCCCCC SS`, the counter's counts `CCCCCC` of the

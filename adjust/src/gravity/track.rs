@@ -326,6 +326,43 @@ impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
 /// 29 h at 10 Hz. A longer trajectory is read twice.
 const HELD_EPOCHS: usize = 1 << 20;
 
+/// An epoch as a trajectory reader gives it: its GPS time (ns), position and sds if given.
+type Epoch = (i64, [f64; 3], Option<[f64; 3]>);
+
+/// What a trajectory's first pass finds.
+struct FirstPass {
+    /// The median step between its epochs in file order, ns (1 s when it has fewer than 2).
+    interval_ns: i64,
+    /// Its epochs in file order, when there are at most [`HELD_EPOCHS`].
+    held: Option<Vec<Epoch>>,
+    /// Its lines set aside.
+    bad: Vec<BadLine>,
+}
+
+/// The first pass over session `s`'s trajectory: the interval the time gate judges by, and
+/// the epochs kept for the gate when they fit.
+fn first_pass(
+    s: &ResolvedSession,
+    nmea: Option<trajectory::NmeaScan>,
+    skip: bool,
+) -> Result<FirstPass, GravityError> {
+    let mut steps = Steps::default();
+    let mut held = Some(Vec::new());
+    let bad = each_epoch(s, nmea, skip, |t, llh, sd| {
+        steps.push(t);
+        match &mut held {
+            Some(h) if h.len() < HELD_EPOCHS => h.push((t, llh, sd)),
+            _ => held = None,
+        }
+        Ok(())
+    })?;
+    Ok(FirstPass {
+        interval_ns: steps.median().unwrap_or(1_000_000_000),
+        held,
+        bad,
+    })
+}
+
 /// The track of session `s` (the `index`-th), its trajectory in two passes (over the epochs
 /// held in memory, [`HELD_EPOCHS`], or the file again): the median
 /// interval between its epochs in file order, then each epoch through ingest's time gate
@@ -346,20 +383,7 @@ fn gated<'a>(
         }
         _ => None,
     };
-    // The interval the time gate judges by is the epochs' median step: a first pass. Up to
-    // [`HELD_EPOCHS`] its epochs are kept for the gate, and the file is read once.
-    let mut steps = Steps::default();
-    let mut held = Vec::new();
-    let mut whole = true;
-    let first_bad = each_epoch(s, nmea, skip, |t, llh, sd| {
-        steps.push(t);
-        if held.len() < HELD_EPOCHS {
-            held.push((t, llh, sd));
-        } else {
-            whole = false;
-        }
-        Ok(())
-    })?;
+    let first = first_pass(s, nmea, skip)?;
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
     let mut sink = EpochSink {
         session: s,
@@ -369,21 +393,20 @@ fn gated<'a>(
         attitude: attitude.map(AttitudeCursor::new),
         lever_arm_m,
     };
-    let interval_ns = steps.median().unwrap_or(1_000_000_000);
-    let mut gate = TimeGate::new(interval_ns, s.gps_range_ns());
+    let mut gate = TimeGate::new(first.interval_ns, s.gps_range_ns());
     let mut read = 0u64;
     let mut offer = |(t, llh, sd)| {
         let at = Position::Line(read);
         read += 1;
         gate.offer(t, at, (llh, sd), &mut sink)
     };
-    let bad = if whole {
-        held.into_iter().try_for_each(&mut offer)?;
-        first_bad
-    } else {
+    let bad = match first.held {
+        Some(held) => {
+            held.into_iter().try_for_each(&mut offer)?;
+            first.bad
+        }
         // Too long to hold: read again.
-        drop(held);
-        each_epoch(s, nmea, skip, |t, llh, sd| offer((t, llh, sd)))?
+        None => each_epoch(s, nmea, skip, |t, llh, sd| offer((t, llh, sd)))?,
     };
     gate.finish(&mut sink)?;
     let EpochSink {

@@ -273,11 +273,11 @@ pub enum AdcFormat {
     DgsLaptop,
     /// A DGS meter's raw serial output as a ship's logger writes it: the logger's time stamp,
     /// then the meter's `$AT1M` record, its gravity in AD units the reading of channel 1
-    /// (docs/formats.md 11.1, `crate::meter_serial`).
+    /// (docs/formats.md 11.2, `crate::meter_serial`).
     #[serde(rename = "dgs-raw")]
     DgsRaw,
     /// A BGM-3 meter's serial output as a ship's logger writes it: the logger's time stamp,
-    /// then `PP:CCCCCC SS`, the counts the reading of channel 1 (docs/formats.md 11.1,
+    /// then `PP:CCCCCC SS`, the counts the reading of channel 1 (docs/formats.md 11.2,
     /// `crate::meter_serial`).
     #[serde(rename = "bgm3")]
     Bgm3,
@@ -984,7 +984,7 @@ fn log_time_forms(
             return Err(err(
                 key("adc_time"),
                 format!(
-                    "a {} file writes its own time on every line (docs/formats.md 11.1): this \
+                    "a {} file writes its own time on every line (docs/formats.md 11.1, 11.2): this \
                      key has nothing to describe",
                     s.adc_format.name()
                 ),
