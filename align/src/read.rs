@@ -341,8 +341,21 @@ pub fn float_batches(
     names: &[&str],
     flags: &str,
     batch_rows: usize,
-    mut f: impl FnMut(FloatBatch<'_>) -> Result<()>,
+    f: impl FnMut(FloatBatch<'_>) -> Result<()>,
 ) -> Result<()> {
+    float_batches_with(path, names, flags, batch_rows, f)
+}
+
+/// [`float_batches`] with a callback that stops with an error of its own, `E` (the
+/// table's errors converted into it): a stage's error comes out as itself, not dressed as
+/// a table's.
+pub fn float_batches_with<E: From<Error>>(
+    path: &Path,
+    names: &[&str],
+    flags: &str,
+    batch_rows: usize,
+    mut f: impl FnMut(FloatBatch<'_>) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
     for b in batches_of(path, batch_rows)? {
         let b = b?;
         let (session, time) = session_and_time(path, &b)?;

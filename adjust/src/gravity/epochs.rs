@@ -112,6 +112,42 @@ pub struct Bin {
 }
 
 impl Bin {
+    /// Adds a sample at weight `w`: its flags, and with a value (f_D and its variance) its
+    /// sums; a triad's vector and covariance elements too, and with attitude its vector
+    /// turned into the navigation frame, `nav`.
+    fn add(
+        &mut self,
+        w: f64,
+        sample: &Sample<'_>,
+        value: Option<(f64, f64)>,
+        nav: Option<[f64; 3]>,
+        triad: bool,
+    ) {
+        self.weight += w;
+        self.flags |= sample.flags;
+        let Some((down, var)) = value else {
+            return;
+        };
+        self.value_weight += w;
+        self.sum += w * down;
+        self.sigma_sum += w * var.sqrt();
+        if !triad {
+            return;
+        }
+        let v = sample.values;
+        for (sum, v) in self.vector_sum.iter_mut().zip(v) {
+            *sum += w * v.unwrap_or(0.0);
+        }
+        for (sum, v) in self.covariance_sum.iter_mut().zip(&v[3..]) {
+            *sum += w * v.unwrap_or(0.0);
+        }
+        if let Some(n) = nav {
+            for (sum, v) in self.nav_sum.iter_mut().zip(n) {
+                *sum += w * v;
+            }
+        }
+    }
+
     /// The weighted mean f_D, mGal.
     pub fn mean(&self) -> f64 {
         self.sum / self.value_weight
@@ -445,6 +481,24 @@ pub struct Filled {
     pub floors: Vec<Floor>,
 }
 
+/// Why filling stopped: the table could not be read, or one of its samples not used.
+enum Stop {
+    Table(align::Error),
+    Stage(GravityError),
+}
+
+impl From<align::Error> for Stop {
+    fn from(e: align::Error) -> Self {
+        Stop::Table(e)
+    }
+}
+
+/// One target's filling: its bins being summed and its samples' noise floor.
+struct Filling {
+    window: Window,
+    noise: SpectralFloor,
+}
+
 /// Reads apply's table at `path` and returns one bin per epoch of each target, written
 /// into `dir` as they are completed ([`SpilledBins`]); samples are `interval_ns` apart.
 pub fn fill(
@@ -457,91 +511,44 @@ pub fn fill(
         path: dir.to_path_buf(),
         message: format!("the epochs' sums written aside: {e}"),
     };
-    let mut windows = targets
+    let mut fillings = targets
         .iter()
-        .map(|_| Window::new(dir))
+        .map(|_| {
+            Window::new(dir).map(|window| Filling {
+                window,
+                noise: SpectralFloor::new(interval_ns),
+            })
+        })
         .collect::<std::io::Result<Vec<_>>>()
         .map_err(spill)?;
     let mut backwards: Option<i64> = None;
-    let mut failed: Option<GravityError> = None;
-    let mut noise = vec![SpectralFloor::new(interval_ns); targets.len()];
     let (names, flags) = force.columns();
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut values = vec![None; refs.len()];
-    align::read::float_batches(path, &refs, &flags, 1 << 17, |b| {
+    align::read::float_batches_with(path, &refs, &flags, 1 << 17, |b| {
         use arrow_array::Array;
         for i in 0..b.time_ns.len() {
             let Some(ti) = targets.iter().position(|t| t.session == b.session[i]) else {
                 continue;
             };
-            let t = &mut targets[ti];
             for (v, c) in values.iter_mut().zip(&b.values) {
                 *v = c.is_valid(i).then(|| c.value(i));
             }
-            let value = force.down(&values);
-            if let Some((down, _)) = value {
-                noise[ti].push(b.time_ns[i], down);
-            }
-            let near = epochs_of(t.times, t.interval_ns, b.time_ns[i]);
-            // Samples come in time within a session (ingest's time gate): an epoch an
-            // interval behind this sample is reached by no later one.
-            let done = t
-                .times
-                .partition_point(|&e| e + t.interval_ns <= b.time_ns[i]);
-            let mut stop = |e: GravityError| {
-                let message = e.to_string();
-                failed = Some(e);
-                Err(align::Error::Table {
-                    path: dir.to_path_buf(),
-                    message,
-                })
+            let sample = Sample {
+                time_ns: b.time_ns[i],
+                flags: b.flags[i],
+                values: &values,
             };
-            if let Err(e) = windows[ti].complete(done) {
-                return stop(spill(e));
-            }
-            let to_nav = match value {
-                Some(_) => match t.body_to_nav(b.time_ns[i], &near) {
-                    Ok(c) => c,
-                    Err(e) => return stop(e),
-                },
-                None => None,
-            };
-            let nav = to_nav.map(|c| {
-                let v = [values[0], values[1], values[2]].map(|x| x.unwrap_or(0.0));
-                attitude::apply(&c, v)
-            });
-            for (k, w) in near.into_iter().flatten() {
-                let Some(bin) = windows[ti].bin(k) else {
-                    backwards.get_or_insert(b.time_ns[i]);
-                    continue;
-                };
-                bin.weight += w;
-                bin.flags |= b.flags[i];
-                if let Some((down, var)) = value {
-                    bin.value_weight += w;
-                    bin.sum += w * down;
-                    bin.sigma_sum += w * var.sqrt();
-                    if matches!(force, DownForce::Triad { .. }) {
-                        for (sum, v) in bin.vector_sum.iter_mut().zip(&values) {
-                            *sum += w * v.unwrap_or(0.0);
-                        }
-                        for (sum, v) in bin.covariance_sum.iter_mut().zip(&values[3..]) {
-                            *sum += w * v.unwrap_or(0.0);
-                        }
-                        if let Some(n) = nav {
-                            for (sum, v) in bin.nav_sum.iter_mut().zip(n) {
-                                *sum += w * v;
-                            }
-                        }
-                    }
-                }
+            let (t, f) = (&mut targets[ti], &mut fillings[ti]);
+            if !add_sample(force, &sample, t, f).map_err(|e| Stop::Stage(spill_or(e, dir)))? {
+                backwards.get_or_insert(sample.time_ns);
             }
         }
         Ok(())
     })
-    .map_err(|e| match failed.take() {
-        Some(e) => e,
-        None => GravityError::File {
+    .map_err(|e| match e {
+        Stop::Stage(e) => e,
+        Stop::Table(e) => GravityError::File {
             path: path.to_path_buf(),
             message: format!("{e} (reading {TIME_GPS_NS} and the calibrated columns)"),
         },
@@ -556,16 +563,78 @@ pub fn fill(
             ),
         });
     }
-    let bins = windows
+    let (bins, floors) = fillings
         .into_iter()
         .zip(targets)
-        .map(|(w, t)| w.finish(t.times.len()))
-        .collect::<std::io::Result<Vec<_>>>()
+        .map(|(f, t)| Ok((f.window.finish(t.times.len())?, f.noise.floor())))
+        .collect::<std::io::Result<(Vec<_>, Vec<_>)>>()
         .map_err(spill)?;
-    Ok(Filled {
-        bins,
-        floors: noise.iter().map(SpectralFloor::floor).collect(),
-    })
+    Ok(Filled { bins, floors })
+}
+
+/// One row of apply's table.
+struct Sample<'v> {
+    time_ns: i64,
+    flags: u8,
+    /// The calibrated columns [`DownForce::columns`] names, None where null.
+    values: &'v [Option<f64>],
+}
+
+/// Why a sample could not be added: its epochs' sums not written aside, or no attitude to
+/// turn it by.
+enum AddError {
+    Spill(std::io::Error),
+    Stage(GravityError),
+}
+
+/// An [`AddError`] as the stage's error, a spill's naming `dir`.
+fn spill_or(e: AddError, dir: &Path) -> GravityError {
+    match e {
+        AddError::Spill(e) => GravityError::File {
+            path: dir.to_path_buf(),
+            message: format!("the epochs' sums written aside: {e}"),
+        },
+        AddError::Stage(e) => e,
+    }
+}
+
+/// Adds `sample` to its target's epochs (the two whose triangles cover it), completing the
+/// epochs no later sample reaches; false when one of its epochs was completed already (the
+/// table goes back in time).
+fn add_sample(
+    force: &DownForce,
+    sample: &Sample<'_>,
+    t: &mut Target<'_>,
+    f: &mut Filling,
+) -> Result<bool, AddError> {
+    let value = force.down(sample.values);
+    if let Some((down, _)) = value {
+        f.noise.push(sample.time_ns, down);
+    }
+    let near = epochs_of(t.times, t.interval_ns, sample.time_ns);
+    // Samples come in time within a session (ingest's time gate): an epoch an interval
+    // behind this sample is reached by no later one.
+    let done = t
+        .times
+        .partition_point(|&e| e + t.interval_ns <= sample.time_ns);
+    f.window.complete(done).map_err(AddError::Spill)?;
+    let to_nav = match value {
+        Some(_) => t
+            .body_to_nav(sample.time_ns, &near)
+            .map_err(AddError::Stage)?,
+        None => None,
+    };
+    let v = &sample.values;
+    let nav = to_nav.map(|c| attitude::apply(&c, [v[0], v[1], v[2]].map(|x| x.unwrap_or(0.0))));
+    let triad = matches!(force, DownForce::Triad { .. });
+    let mut in_order = true;
+    for (k, w) in near.into_iter().flatten() {
+        match f.window.bin(k) {
+            Some(bin) => bin.add(w, sample, value, nav.filter(|_| triad), triad),
+            None => in_order = false,
+        }
+    }
+    Ok(in_order)
 }
 
 #[cfg(test)]
