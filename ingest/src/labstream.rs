@@ -733,6 +733,30 @@ pub fn reading_limits(instrument: &crate::contract::manifest::Instrument) -> Lim
     }
 }
 
+/// A DGS laptop line's GPS time, raw gravity (mGal) and the bytes of its calendar fields
+/// (19 to 24), split without allocating (one field more only to say there are too many).
+fn laptop_record(line: &[u8]) -> std::result::Result<(i64, f64, std::ops::Range<usize>), Bad> {
+    let mut buf: [&[u8]; crate::dgs::FIELDS + 1] = [&[]; crate::dgs::FIELDS + 1];
+    let mut count = 0;
+    let mut calendar = 0..0;
+    let mut at = 0;
+    for f in line.split(|&c| c == b',') {
+        if count == 19 {
+            calendar.start = at;
+        }
+        if count == 24 {
+            calendar.end = at + f.len();
+        }
+        if count < buf.len() {
+            buf[count] = f;
+        }
+        count += 1;
+        at += f.len() + 1;
+    }
+    let record = crate::dgs::parse_laptop(&buf[..count.min(buf.len())])?;
+    Ok((record.gps_ns, record.raw_gravity_mgal, calendar))
+}
+
 impl<'c> Lines<'c> {
     fn new(path: &'c Path, names: [&'static str; 4], config: &LabConfig, limits: Limits) -> Self {
         let columns = config.columns;
@@ -778,73 +802,41 @@ impl<'c> Lines<'c> {
         })
     }
 
-    /// A DGS laptop line ([`crate::dgs`]): its raw gravity on channel 1, judged as any
-    /// line; the time field in messages is its calendar fields.
-    fn dgs_data<'l>(
+    /// A platform meter's line (a DGS laptop line, [`crate::dgs`]; a BGM-3's or DGS's serial
+    /// line as a logger writes it, [`crate::meter_serial`]): its reading on channel 1,
+    /// judged as any line; the time field in messages is the line's calendar fields or the
+    /// logger's stamp.
+    fn meter_data<'l>(
         &mut self,
         line_no: u64,
         raw: &'l [u8],
         ledger: &mut FileLedger,
     ) -> Result<Option<DataLine<'l>>> {
         let line = strip_comment(raw);
-        if line.trim_ascii().is_empty() {
-            self.other += 1;
-            return Ok(None);
-        }
-        self.comma_separated = true;
-        self.data_seen = true;
-        let mut buf: [&[u8]; crate::dgs::FIELDS + 1] = [&[]; crate::dgs::FIELDS + 1];
-        let mut count = 0;
-        let mut calendar = 0..0;
-        let mut at = 0;
-        for f in line.split(|&c| c == b',') {
-            if count == 19 {
-                calendar.start = at;
-            }
-            if count == 24 {
-                calendar.end = at + f.len();
-            }
-            if count < buf.len() {
-                buf[count] = f;
-            }
-            count += 1;
-            at += f.len() + 1;
-        }
-        let fields = &buf[..count.min(buf.len())];
-        let record = match crate::dgs::parse_laptop(fields) {
-            Ok(r) => r,
-            Err(bad) => return self.malformed(line_no, bad, ledger),
-        };
-        let readings = Readings::from_options([Some(record.raw_gravity_mgal), None, None]);
-        let rel = record.gps_ns - self.zero_gps_ns;
-        Ok(self.judge(line_no, rel, readings, &line[calendar], ledger))
-    }
-
-    /// A meter's serial line as a logger writes it ([`crate::meter_serial`]): its reading on
-    /// channel 1, judged as any line; the time field in messages is the logger's stamp.
-    fn serial_data<'l>(
-        &mut self,
-        line_no: u64,
-        raw: &'l [u8],
-        ledger: &mut FileLedger,
-    ) -> Result<Option<DataLine<'l>>> {
-        let line = strip_comment(raw);
-        if line.trim_ascii().is_empty() {
+        if line.is_empty() {
             self.other += 1;
             return Ok(None);
         }
         self.data_seen = true;
-        let parsed = match self.layout {
-            AdcFormat::Bgm3 => crate::meter_serial::parse_bgm3(line, self.time_scale),
-            _ => crate::meter_serial::parse_dgs_raw(line, self.time_scale),
+        let scale = self.time_scale;
+        let record = match self.layout {
+            AdcFormat::DgsLaptop => {
+                self.comma_separated = true;
+                laptop_record(line)
+            }
+            AdcFormat::Bgm3 => {
+                crate::meter_serial::parse_bgm3(line, scale).map(|r| (r.gps_ns, r.reading, r.stamp))
+            }
+            _ => crate::meter_serial::parse_dgs_raw(line, scale)
+                .map(|r| (r.gps_ns, r.reading, r.stamp)),
         };
-        let record = match parsed {
+        let (gps_ns, reading, time_field) = match record {
             Ok(r) => r,
             Err(bad) => return self.malformed(line_no, bad, ledger),
         };
-        let readings = Readings::from_options([Some(record.reading), None, None]);
-        let rel = record.gps_ns - self.zero_gps_ns;
-        Ok(self.judge(line_no, rel, readings, &line[record.stamp], ledger))
+        let readings = Readings::from_options([Some(reading), None, None]);
+        let rel = gps_ns - self.zero_gps_ns;
+        Ok(self.judge(line_no, rel, readings, &line[time_field], ledger))
     }
 
     /// A data line's GPS time (ns), values and time field; None for a comment, blank or
@@ -856,10 +848,8 @@ impl<'c> Lines<'c> {
         raw: &'l [u8],
         ledger: &mut FileLedger,
     ) -> Result<Option<DataLine<'l>>> {
-        match self.layout {
-            AdcFormat::DgsLaptop => return self.dgs_data(line_no, raw, ledger),
-            AdcFormat::DgsRaw | AdcFormat::Bgm3 => return self.serial_data(line_no, raw, ledger),
-            AdcFormat::Seconds | AdcFormat::Gps => {}
+        if self.layout.is_meter_file() {
+            return self.meter_data(line_no, raw, ledger);
         }
         if self.data_seen
             && let Some((rel, values, time_end)) = fast_line(raw, &self.columns)
