@@ -2047,6 +2047,21 @@ mod cross_coupling {
         )
     }
 
+    /// The cruise's manifest with its meter's samples from `raw/meter.raw`, written as
+    /// `meter` ("dgs-raw" or "bgm3") writes them, in counts.
+    fn serial_manifest(manifest: &str, meter: &str) -> String {
+        manifest
+            .replace("reading_unit = \"mGal\"", "reading_unit = \"count\"")
+            .replace(
+                "adc_csv = \"raw/cruise.dat\"",
+                "adc_csv = \"raw/meter.raw\"",
+            )
+            .replace(
+                "adc_format = \"dgs-laptop\"",
+                &format!("adc_format = \"{meter}\""),
+            )
+    }
+
     /// The cruise logged as its meter's raw serial output instead of its laptop file, as DGS
     /// raw records (`adc_format = "dgs-raw"`, the monitors from the same file, cross-coupling
     /// fitted) and as BGM-3 counts (`"bgm3"`, no monitors, none), each navigated by NMEA, the
@@ -2075,26 +2090,19 @@ mod cross_coupling {
                 .map(|(k, l)| serial_of_laptop(l, k, meter))
                 .collect();
             std::fs::write(dataset.join("raw/meter.raw"), &serial).expect("raw");
-            let manifest = std::fs::read_to_string(dataset.join("dataset.toml"))
-                .expect("toml")
-                .replace("reading_unit = \"mGal\"", "reading_unit = \"count\"")
-                .replace("scale = 1.0,", "scale = 0.01,")
-                .replace(
-                    "adc_csv = \"raw/cruise.dat\"",
-                    "adc_csv = \"raw/meter.raw\"",
-                )
-                .replace(
-                    "adc_format = \"dgs-laptop\"",
-                    &format!("adc_format = \"{meter}\""),
-                )
-                .replace(
-                    "trajectory = \"raw/cruise.dat\"",
-                    "trajectory = \"raw/nav.nmea\"",
-                )
-                .replace(
-                    "trajectory_format = \"dgs-laptop\"",
-                    "trajectory_format = \"nmea\"",
-                );
+            let manifest = serial_manifest(
+                &std::fs::read_to_string(dataset.join("dataset.toml")).expect("toml"),
+                meter,
+            )
+            .replace("scale = 1.0,", "scale = 0.01,")
+            .replace(
+                "trajectory = \"raw/cruise.dat\"",
+                "trajectory = \"raw/nav.nmea\"",
+            )
+            .replace(
+                "trajectory_format = \"dgs-laptop\"",
+                "trajectory_format = \"nmea\"",
+            );
             std::fs::write(dataset.join("dataset.toml"), &manifest).expect("toml");
             let by_serial = dir.path().join("serial");
             let r = GravityArgs::new(&dataset, vendor)
@@ -2188,16 +2196,7 @@ mod cross_coupling {
         };
         let manifest = std::fs::read_to_string(dataset.join("dataset.toml")).expect("toml");
         for meter in ["dgs-raw", "bgm3"] {
-            let m = manifest
-                .replace("reading_unit = \"mGal\"", "reading_unit = \"count\"")
-                .replace(
-                    "adc_csv = \"raw/cruise.dat\"",
-                    "adc_csv = \"raw/meter.raw\"",
-                )
-                .replace(
-                    "adc_format = \"dgs-laptop\"",
-                    &format!("adc_format = \"{meter}\""),
-                );
+            let m = serial_manifest(&manifest, meter);
             std::fs::write(dataset.join("dataset.toml"), m).expect("toml");
             let k = 2400;
             let cases: [(&str, Option<String>, &[&str]); 4] = [
