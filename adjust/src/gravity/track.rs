@@ -322,9 +322,9 @@ impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
     }
 }
 
-/// The most epochs a trajectory's first pass keeps for its second, 64 MB: 12 days at 1 Hz,
-/// 29 h at 10 Hz. A longer trajectory is read twice.
-const HELD_EPOCHS: usize = 1 << 20;
+/// The most epochs a trajectory's first pass keeps for its second, 16 MB: 3 days at 1 Hz,
+/// 7 h at 10 Hz. A longer trajectory is read twice.
+const HELD_EPOCHS: usize = 1 << 18;
 
 /// An epoch as a trajectory reader gives it: its GPS time (ns), position and sds if given.
 type Epoch = (i64, [f64; 3], Option<[f64; 3]>);
