@@ -1929,6 +1929,20 @@ mod cross_coupling {
         nmea
     }
 
+    /// The cruise's manifest navigated by `raw/nav.nmea` ([`nmea_of_laptop`]) instead of its
+    /// meter's own columns.
+    fn navigated_by_nmea(manifest: &str) -> String {
+        manifest
+            .replace(
+                "trajectory = \"raw/cruise.dat\"",
+                "trajectory = \"raw/nav.nmea\"",
+            )
+            .replace(
+                "trajectory_format = \"dgs-laptop\"",
+                "trajectory_format = \"nmea\"",
+            )
+    }
+
     /// The filtered free-air anomaly of a reduction into `out`.
     fn filtered(out: &Path) -> Vec<f64> {
         use arrow_array::Array as _;
@@ -1975,16 +1989,7 @@ mod cross_coupling {
             .run(&own)
             .expect("reduced");
         let manifest = std::fs::read_to_string(dataset.join("dataset.toml")).expect("toml");
-        let manifest = manifest
-            .replace(
-                "trajectory = \"raw/cruise.dat\"",
-                "trajectory = \"raw/nav.nmea\"",
-            )
-            .replace(
-                "trajectory_format = \"dgs-laptop\"",
-                "trajectory_format = \"nmea\"",
-            );
-        std::fs::write(dataset.join("dataset.toml"), manifest).expect("toml");
+        std::fs::write(dataset.join("dataset.toml"), navigated_by_nmea(&manifest)).expect("toml");
         let by_nmea = dir.path().join("nmea");
         let r = GravityArgs::new(&dataset, vendor)
             .run(&by_nmea)
@@ -2090,19 +2095,11 @@ mod cross_coupling {
                 .map(|(k, l)| serial_of_laptop(l, k, meter))
                 .collect();
             std::fs::write(dataset.join("raw/meter.raw"), &serial).expect("raw");
-            let manifest = serial_manifest(
+            let manifest = navigated_by_nmea(&serial_manifest(
                 &std::fs::read_to_string(dataset.join("dataset.toml")).expect("toml"),
                 meter,
-            )
-            .replace("scale = 1.0,", "scale = 0.01,")
-            .replace(
-                "trajectory = \"raw/cruise.dat\"",
-                "trajectory = \"raw/nav.nmea\"",
-            )
-            .replace(
-                "trajectory_format = \"dgs-laptop\"",
-                "trajectory_format = \"nmea\"",
-            );
+            ))
+            .replace("scale = 1.0,", "scale = 0.01,");
             std::fs::write(dataset.join("dataset.toml"), &manifest).expect("toml");
             let by_serial = dir.path().join("serial");
             let r = GravityArgs::new(&dataset, vendor)
