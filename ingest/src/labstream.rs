@@ -734,26 +734,13 @@ pub fn reading_limits(instrument: &crate::contract::manifest::Instrument) -> Lim
 }
 
 /// A DGS laptop line's GPS time, raw gravity (mGal) and the bytes of its calendar fields
-/// (19 to 24), split without allocating (one field more only to say there are too many).
+/// (19 to 24), split by [`crate::dgs::split`].
 fn laptop_record(line: &[u8]) -> std::result::Result<(i64, f64, std::ops::Range<usize>), Bad> {
-    let mut buf: [&[u8]; crate::dgs::FIELDS + 1] = [&[]; crate::dgs::FIELDS + 1];
-    let mut count = 0;
-    let mut calendar = 0..0;
-    let mut at = 0;
-    for f in line.split(|&c| c == b',') {
-        if count == 19 {
-            calendar.start = at;
-        }
-        if count == 24 {
-            calendar.end = at + f.len();
-        }
-        if count < buf.len() {
-            buf[count] = f;
-        }
-        count += 1;
-        at += f.len() + 1;
-    }
-    let record = crate::dgs::parse_laptop(&buf[..count.min(buf.len())])?;
+    let fields = crate::dgs::split(line)?;
+    let record = crate::dgs::parse_laptop(&fields)?;
+    // The fields are slices of `line`: their offsets in it.
+    let at = |f: &[u8]| f.as_ptr() as usize - line.as_ptr() as usize;
+    let calendar = at(fields[19])..at(fields[24]) + fields[24].len();
     Ok((record.gps_ns, record.raw_gravity_mgal, calendar))
 }
 

@@ -507,10 +507,7 @@ pub fn fill(
     targets: &mut [Target<'_>],
     (interval_ns, dir): (i64, &Path),
 ) -> Result<Filled, GravityError> {
-    let spill = |e: std::io::Error| GravityError::File {
-        path: dir.to_path_buf(),
-        message: format!("the epochs' sums written aside: {e}"),
-    };
+    let spill = |e| spill_error(dir, e);
     let mut fillings = targets
         .iter()
         .map(|_| {
@@ -540,7 +537,7 @@ pub fn fill(
                 values: &values,
             };
             let (t, f) = (&mut targets[ti], &mut fillings[ti]);
-            if !add_sample(force, &sample, t, f).map_err(|e| Stop::Stage(spill_or(e, dir)))? {
+            if !add_sample(force, &sample, t, f, dir).map_err(Stop::Stage)? {
                 backwards.get_or_insert(sample.time_ns);
             }
         }
@@ -580,21 +577,11 @@ struct Sample<'v> {
     values: &'v [Option<f64>],
 }
 
-/// Why a sample could not be added: its epochs' sums not written aside, or no attitude to
-/// turn it by.
-enum AddError {
-    Spill(std::io::Error),
-    Stage(GravityError),
-}
-
-/// An [`AddError`] as the stage's error, a spill's naming `dir`.
-fn spill_or(e: AddError, dir: &Path) -> GravityError {
-    match e {
-        AddError::Spill(e) => GravityError::File {
-            path: dir.to_path_buf(),
-            message: format!("the epochs' sums written aside: {e}"),
-        },
-        AddError::Stage(e) => e,
+/// The epochs' sums not written aside into `dir`.
+fn spill_error(dir: &Path, e: std::io::Error) -> GravityError {
+    GravityError::File {
+        path: dir.to_path_buf(),
+        message: format!("the epochs' sums written aside: {e}"),
     }
 }
 
@@ -606,7 +593,8 @@ fn add_sample(
     sample: &Sample<'_>,
     t: &mut Target<'_>,
     f: &mut Filling,
-) -> Result<bool, AddError> {
+    dir: &Path,
+) -> Result<bool, GravityError> {
     let value = force.down(sample.values);
     if let Some((down, _)) = value {
         f.noise.push(sample.time_ns, down);
@@ -617,11 +605,9 @@ fn add_sample(
     let done = t
         .times
         .partition_point(|&e| e + t.interval_ns <= sample.time_ns);
-    f.window.complete(done).map_err(AddError::Spill)?;
+    f.window.complete(done).map_err(|e| spill_error(dir, e))?;
     let to_nav = match value {
-        Some(_) => t
-            .body_to_nav(sample.time_ns, &near)
-            .map_err(AddError::Stage)?,
+        Some(_) => t.body_to_nav(sample.time_ns, &near)?,
         None => None,
     };
     let v = &sample.values;
