@@ -133,7 +133,6 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let mut results = Vec::new();
     let mut fits = Vec::new();
     let mut residual_rows = Vec::new();
-    let full_scale_g = ds.manifest.instrument.full_scale_g;
     let skip = |job: &Job<'_>, reason: String| Skipped {
         accelerometer: job.accelerometer.clone(),
         session: job.scope.id().to_owned(),
@@ -142,7 +141,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     };
     for (job, outcome) in jobs.iter().zip(&outcomes) {
         match outcome {
-            Ok((r, f)) => match r.implausible(full_scale_g) {
+            Ok((r, f)) => match r.implausible(&ds.manifest.instrument) {
                 Some(reason) => skipped.push(skip(job, reason)),
                 None => {
                     results.push(r.clone());

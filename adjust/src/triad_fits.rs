@@ -68,7 +68,7 @@ pub fn fit_all(
                 Ok(s) => {
                     let mut r = result(ds, model, scope.id(), &rows, &positions, &s);
                     r.positions_without_temperature = total - rows.len();
-                    match r.implausible(ds.manifest.instrument.full_scale_g) {
+                    match r.implausible(&ds.manifest.instrument) {
                         None => results.push(r),
                         Some(reason) => skipped.push(skip(model, scope.id(), reason)),
                     }

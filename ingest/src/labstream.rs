@@ -709,17 +709,23 @@ pub const TEMPERATURE_LIMITS: Limits = Limits {
 };
 
 /// What the instrument can produce in its declared reading unit: counts within the ADC's
-/// range; an acceleration (m/s^2, mGal, g) within twice the declared full scale (the
+/// range, two's complement or offset binary (-2^(adc_bits - 1) to 2^adc_bits: an unsigned
+/// 16-bit IMU's raw counts run from 0 to 65535); an acceleration (m/s^2, mGal, g) within twice the declared full scale (the
 /// instrument saturates at its full scale: a reading beyond twice it cannot be one of its
 /// own); volts within +/- 100 V (no accelerometer's output is wider).
 pub fn reading_limits(instrument: &crate::contract::manifest::Instrument) -> Limits {
     use crate::contract::manifest::ReadingUnit;
     let full_scale_g = 2.0 * instrument.full_scale_g;
+    let bits = i32::try_from(instrument.adc_bits).unwrap_or(32);
     let (hi, unit) = match instrument.reading_unit {
-        ReadingUnit::Count => (
-            2f64.powi(i32::try_from(instrument.adc_bits).unwrap_or(32) - 1),
-            "counts",
-        ),
+        ReadingUnit::Count => {
+            return Limits {
+                lo: -(2f64.powi(bits - 1)),
+                hi: 2f64.powi(bits),
+                reason: reason::READING_OUT_OF_RANGE,
+                unit: "counts",
+            };
+        }
         ReadingUnit::MetrePerSecond2 => (full_scale_g * 9.806_65, "m/s^2"),
         ReadingUnit::MilliGal => (full_scale_g * 980_665.0, "mGal"),
         ReadingUnit::StandardGravity => (full_scale_g, "g"),

@@ -2,7 +2,7 @@
 //! the fits skipped with their reasons, and exactly the files the numbers came from.
 
 use crate::contract::custody::{Custody, Folders, check_dataset};
-use crate::contract::manifest::Dataset;
+use crate::contract::manifest::{Dataset, Instrument, ReadingUnit};
 use crate::contract::{align_ledger, ingest_ledger};
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
@@ -681,36 +681,74 @@ impl TriadResult {
 }
 
 /// A fitted bias beyond the instrument's full scale (docs/formats.md 6): the acceleration
-/// a zero reading stands for, `bias_mgal`, cannot be beyond the range the accelerometer
-/// measures (a QA3000's is a few mg, a consumer MEMS's tens of mg, the full scale g's). One
-/// beyond says the readings are not this accelerometer's, or not in the declared unit, or
-/// the reference they were fitted to is not theirs. The refusal names the parameter and its
-/// bound; None when within.
-pub fn bias_beyond_full_scale(name: &str, bias_mgal: f64, full_scale_g: f64) -> Option<String> {
+/// its ADC's zero stands for cannot be beyond the range the accelerometer measures (a
+/// QA3000's is a few mg, a consumer MEMS's tens of mg, the full scale g's). One beyond says
+/// the readings are not this accelerometer's, or not in the declared unit, or the reference
+/// they were fitted to is not theirs. An ADC's zero is reading 0 (two's complement), or for
+/// counts mid-scale, 2^(adc_bits - 1) (offset binary: an unsigned 16-bit IMU's raw counts
+/// stand near 32768 still, as imu_tk's own Xsens test data): `zeros` gives the acceleration
+/// at each, mGal, and the smaller counts. The refusal names the parameter and its bound;
+/// None when within.
+pub fn bias_beyond_full_scale(
+    name: &str,
+    zeros: (f64, Option<f64>),
+    instrument: &Instrument,
+) -> Option<String> {
+    let full_scale_g = instrument.full_scale_g;
     let bound = full_scale_g * 980_665.0;
+    let bias_mgal = match zeros {
+        (at_zero, Some(at_mid)) if at_mid.abs() < at_zero.abs() => at_mid,
+        (at_zero, _) => at_zero,
+    };
     (bias_mgal.abs() > bound || bias_mgal.is_nan()).then(|| {
+        let offset_binary = match zeros.1 {
+            Some(at_mid) => format!(
+                ", and {:.2} g at mid-scale, count 2^{} (an offset-binary ADC's zero: \
+                 instrument.adc_bits = {} says where it is)",
+                at_mid / 980_665.0,
+                instrument.adc_bits - 1,
+                instrument.adc_bits
+            ),
+            None => String::new(),
+        };
         format!(
-            "implausible: the fitted bias {name} = {bias_mgal:.0} mGal ({:.2} g) is beyond the \
-             instrument's full scale (+/-{full_scale_g} g, instrument.full_scale_g); likely a \
+            "implausible: the fitted bias {name} = {:.0} mGal ({:.2} g{offset_binary}) is beyond \
+             the instrument's full scale (+/-{full_scale_g} g, instrument.full_scale_g); likely a \
              channel that is not this accelerometer's (channel, adc_columns), readings in \
              another unit than instrument.reading_unit, or a reference of another instrument",
-            bias_mgal / 980_665.0
+            zeros.0,
+            zeros.0 / 980_665.0
         )
     })
 }
 
+/// Mid-scale of the instrument's ADC, counts, when its readings are counts: 2^(adc_bits - 1).
+fn mid_scale(instrument: &Instrument) -> Option<f64> {
+    (instrument.reading_unit == ReadingUnit::Count)
+        .then(|| 2f64.powi(i32::try_from(instrument.adc_bits).unwrap_or(32) - 1))
+}
+
 impl CalibrationResult {
-    /// Its bias `b` held to the instrument's full scale ([`bias_beyond_full_scale`]).
-    pub fn implausible(&self, full_scale_g: f64) -> Option<String> {
-        let b = self.parameters.iter().find(|p| p.name == "b")?;
-        bias_beyond_full_scale("b", b.value, full_scale_g)
+    /// Its bias `b` held to the instrument's full scale ([`bias_beyond_full_scale`]): `b` at
+    /// reading 0, `b + k 2^(adc_bits - 1)` at mid-scale.
+    pub fn implausible(&self, instrument: &Instrument) -> Option<String> {
+        let value = |name: &str| {
+            self.parameters
+                .iter()
+                .find(|p| p.name == name)
+                .map(|p| p.value)
+        };
+        let b = value("b")?;
+        let at_mid = mid_scale(instrument).and_then(|m| Some(b + value("k")? * m));
+        bias_beyond_full_scale("b", (b, at_mid), instrument)
     }
 }
 
 impl TriadResult {
     /// Its biases held to the instrument's full scale, each in mGal as its scale makes it
-    /// (`s_j b_j`, [`bias_beyond_full_scale`]); the first beyond.
-    pub fn implausible(&self, full_scale_g: f64) -> Option<String> {
+    /// (`s_j b_j` at reading 0, `s_j (b_j - 2^(adc_bits - 1))` at mid-scale,
+    /// [`bias_beyond_full_scale`]); the first beyond.
+    pub fn implausible(&self, instrument: &Instrument) -> Option<String> {
         let value = |name: String| {
             self.parameters
                 .iter()
@@ -718,8 +756,9 @@ impl TriadResult {
                 .map(|p| p.value)
         };
         ["x", "y", "z"].iter().find_map(|axis| {
-            let bias = value(format!("s_{axis}"))? * value(format!("b_{axis}"))?;
-            bias_beyond_full_scale(&format!("s_{axis} b_{axis}"), bias, full_scale_g)
+            let (s, b) = (value(format!("s_{axis}"))?, value(format!("b_{axis}"))?);
+            let at_mid = mid_scale(instrument).map(|m| s * (b - m));
+            bias_beyond_full_scale(&format!("s_{axis} b_{axis}"), (s * b, at_mid), instrument)
         })
     }
 }
