@@ -529,6 +529,46 @@ fn held_samples_and_shared_stamps_calibrate() {
     assert!(fewest >= 40, "a replica used {fewest} positions");
 }
 
+/// The recording issue 47 describes, as the simulator makes it: 45 positions of 1-4 s
+/// after a quiet start of 6.6 s (the detector's first 10 s take in the first turn), a
+/// quarter of each axis's samples held, 10 ms stamps, and a hand that trembles by 2 mrad at
+/// 8.7 and 10.3 Hz (about 20 mm/s^2, above the 3 mm/s^2 of noise a sample). The windows
+/// inside a position then scatter far beyond the white-noise law, and the detector, which
+/// took the quiet start's table-still noise for the positions' and cut a run at the first
+/// window past its 99.9 % quantile, found 1 position here (no triad). It now takes the
+/// positions' own noise and keeps a run through windows up to `statics::HOLD_FACTOR` times
+/// it: 46 found (the quiet start and the 45), every one used, the triad within its sigmas.
+/// Their sigmas are far too large (sigma0 0.11: a 10 Hz tremor averages out over a hold
+/// faster than white noise), left open in docs/triad.md, "Finding the positions".
+#[test]
+fn a_trembling_hand_keeps_its_positions() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("trembling");
+    let plan = fixtures::triad::MultiPosPlan {
+        held_fraction: 0.25,
+        tremor_rad: 2e-3,
+        ..fixtures::triad::hand_held(45, 6.6, 20_261_201)
+    };
+    let truth = fixtures::triad::write_multipos(&plan, &dataset).expect("write");
+    let c = pipeline(&dataset, &dir.path().join("out"));
+    let a = ingest::contract::align_ledger::AlignReport::load(&dir.path().join("out/align"))
+        .expect("align");
+    let mp = &a.multi_position[0];
+    let r = &c.triad[0];
+    eprintln!(
+        "trembling hand: {} found, {} used by align, {} by the triad, sigma0 {:.3}, warnings \
+         {:?}",
+        mp.found, mp.used, r.positions_used, r.sigma0, mp.warnings
+    );
+    // The positions and the quiet start.
+    assert!(
+        r.positions_used >= 41,
+        "{} positions used",
+        r.positions_used
+    );
+    within_sigmas(r, &truth.parameters);
+}
+
 /// Per parameter the rms z within 3 standard errors (1/sqrt(2n)) of 1 and the global
 /// test's rejections within 3 se of 5 %, over `replicas`.
 fn held_to_one(rms: &[f64], rate: f64, replicas: u64) {

@@ -2,22 +2,26 @@
 //! stream by a moving-variance detector, or taken from the manifest's `static_s`; each
 //! interval's three mean readings with their sigmas.
 //!
-//! The detector, like imu_tk's, takes its threshold from the data's own quiet start; unlike
-//! imu_tk's (a multiple of the quiet variance tried until the calibration looks best) the
-//! threshold is a quantile. Over a window of w samples of a still block with white noise of
-//! the quiet start's sds, each axis's sample variance over its quiet variance is
-//! chi2(w - 1)/(w - 1), so their sum over the three axes is chi2(3(w - 1))/(w - 1): a
-//! window whose sum exceeds that law's 99.9 % quantile is moving. A sample is still when the
-//! window centred on it is; runs of still samples at least `min_static_s` long are the
-//! intervals (the window's half-width keeps them clear of the motion on either side). Each
+//! The detector judges each window (centred on a sample) by the three axes' sample
+//! variances over the positions' own noise, summed: for a still block with white noise that
+//! sum is chi2(3(w - 1))/(w - 1). The noise is the stream's, not the quiet start's
+//! ([`still_class_variance`]: the windows split into still and moving by Otsu's threshold on
+//! their log variance, the still class's median; raised until the stretches found with it
+//! hold it); the quiet start is checked against it. A position is a run of windows under
+//! [`HOLD_FACTOR`] times the noise holding one under [`SEED_FACTOR`] times it (or the law's
+//! 99.9 % quantile, if larger): a hand's tremor scatters a position's windows far beyond the
+//! white-noise law, while the turns stand thousands of times above it (docs/triad.md,
+//! "Finding the positions"). Runs at least a window long are the intervals (the window's
+//! half-width keeps them clear of the motion on either side). Each
 //! window's variance is summed afresh (time n w, about a second for an hour at 200 Hz):
 //! running sums over the stream cancel catastrophically.
 
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-/// The first this many seconds of a multi-position stream must be still (unless the session
-/// declares its `quiet_start_s`): the noise the threshold is made from (imu_tk asks for a
-/// quiet start of tens of seconds), checked against the still stretches' own.
+/// The first this many seconds of a multi-position stream are taken for still (unless the
+/// session declares its `quiet_start_s`): their noise is checked against the still
+/// stretches' own, which the detector judges by (imu_tk asks for a quiet start of tens of
+/// seconds and takes its threshold from it; none is needed here).
 pub const QUIET_S: f64 = 10.0;
 /// The moving-variance window, s, up to [`MAX_WINDOW_SAMPLES`].
 pub const WINDOW_S: f64 = 1.0;
@@ -42,13 +46,12 @@ pub struct Series {
 }
 
 /// A quiet start whose variance is further than this factor from the variance inside the
-/// still stretches (either way, on any axis) is not a noise reference: motion in the quiet
-/// start, or a start quieter than the positions.
+/// still stretches (either way, on any axis) is warned of: motion in the quiet start, or a
+/// start quieter than the positions.
 pub const QUIET_START_AGREEMENT: f64 = 4.0;
 
-/// The still stretches' variance beyond this factor of the quiet start's (on any axis)
-/// makes the stretches' noise the detector's reference, raised until it holds (within
-/// [`QUIET_START_AGREEMENT`]).
+/// The detector's reference is raised until the still stretches found with it have a
+/// variance within this factor of it on every axis.
 pub const STILLER_START: f64 = 1.05;
 
 /// What the detector found.
@@ -167,35 +170,28 @@ pub fn detect(series: &Series, rate_hz: f64, quiet_s: f64) -> Result<Detection, 
         .inverse_cdf(1.0 - ALPHA)
         / (window as f64 - 1.0);
     let quiet_var = q.map(|x| x.1);
-    let mut intervals = intervals_with(series, window, threshold, quiet_var);
-    // The quiet start is checked against what the still stretches themselves say.
-    let mut still_var = pooled_variance(series, &intervals, window);
-    let mut warning = None;
-    if let Some(v) = still_var
-        && (0..3).any(|k| {
-            let r = quiet_var[k] / v[k];
+    // The noise the positions themselves have, as the windows' population says (a hand
+    // trembles where the table the quiet start lay on did not), raised until the stretches
+    // found with it hold it; the quiet start is checked against it, not taken for it.
+    let population = still_class_variance(series, window).unwrap_or(quiet_var);
+    let (intervals, still_var) = raised(series, window, threshold, population);
+    let reference = still_var.unwrap_or(population);
+    let sd = |v: [f64; 3]| v.map(|x| format!("{:.4e}", x.sqrt())).join(", ");
+    let warning = (0..3)
+        .any(|k| {
+            let r = quiet_var[k] / reference[k];
             !(1.0 / QUIET_START_AGREEMENT..=QUIET_START_AGREEMENT).contains(&r)
         })
-    {
-        let (found, reference) = set_aside(series, window, threshold, v);
-        intervals = found;
-        still_var = Some(reference);
-        let sd = |v: [f64; 3]| v.map(|x| format!("{:.4e}", x.sqrt())).join(", ");
-        warning = Some(format!(
-            "the quiet start's noise (first {quiet_s} s, sd per axis {}) is at odds with the \
-             noise inside the still stretches (sd {}; more than {QUIET_START_AGREEMENT} times \
-             apart in variance): motion in the quiet start, or none at all; the still \
-             stretches' noise is the detector's reference",
-            sd(quiet_var),
-            sd(reference)
-        ));
-    } else if let Some(v) = still_var
-        && (0..3).any(|k| v[k] > quiet_var[k] * STILLER_START)
-    {
-        let (found, var) = raised(series, window, threshold, quiet_var, v);
-        intervals = found;
-        still_var = var.or(still_var);
-    }
+        .then(|| {
+            format!(
+                "the quiet start's noise (first {quiet_s} s, sd per axis {}) is at odds with the \
+                 noise inside the still stretches (sd {}; more than {QUIET_START_AGREEMENT} \
+                 times apart in variance): motion in the quiet start, or none at all; the still \
+                 stretches' noise is the detector's reference",
+                sd(quiet_var),
+                sd(reference)
+            )
+        });
     Ok(Detection {
         quiet_sd,
         still_sd: still_var.map(|v| v.map(f64::sqrt)),
@@ -206,37 +202,17 @@ pub fn detect(series: &Series, rate_hz: f64, quiet_s: f64) -> Result<Detection, 
     })
 }
 
-/// A quiet start at odds with the still stretches' noise `v`: the stretches found with it
-/// are themselves suspect, so the reference becomes a low quantile of the windows'
-/// variances, then the noise of the stretches found with that. Returns the stretches and
-/// the reference.
-fn set_aside(
-    series: &Series,
-    window: usize,
-    threshold: f64,
-    v: [f64; 3],
-) -> (Vec<(usize, usize)>, [f64; 3]) {
-    let robust = robust_variance(series, window).unwrap_or(v);
-    let first = intervals_with(series, window, threshold, robust);
-    let reference = pooled_variance(series, &first, window).unwrap_or(robust);
-    (
-        intervals_with(series, window, threshold, reference),
-        reference,
-    )
-}
-
-/// A quiet start stiller than the positions (a block on a table, then held by a hand that
-/// trembles): the positions' noise `v` is what the detector must accept, or it cuts them
-/// short. The stretches found with a reference too small are their stillest parts, so the
-/// reference is raised step by step until it holds. Returns the stretches and their noise.
+/// The stretches found against `start`, the reference raised step by step (each axis to the
+/// stretches' pooled noise when that is larger) until it holds within [`STILLER_START`]:
+/// stretches found with a reference too small are their stillest parts. Returns the
+/// stretches and their noise.
 fn raised(
     series: &Series,
     window: usize,
     threshold: f64,
-    quiet_var: [f64; 3],
-    v: [f64; 3],
+    start: [f64; 3],
 ) -> (Vec<(usize, usize)>, Option<[f64; 3]>) {
-    let mut reference: [f64; 3] = std::array::from_fn(|k| v[k].max(quiet_var[k]));
+    let mut reference = start;
     let mut intervals = Vec::new();
     let mut still = None;
     for _ in 0..4 {
@@ -253,9 +229,83 @@ fn raised(
     (intervals, still)
 }
 
+/// Each axis's noise variance in the still windows of the stream, the positions' and the
+/// quiet start's together: the windows (non-overlapping) split in two by Otsu's threshold on
+/// the logarithm of their variance (each axis over its [`robust_variance`], averaged), the
+/// still class the lower; its median variance per axis over the median of chi2(w - 1)/(w - 1).
+/// The turns stand 10^3 and more above the still windows, and a hand's tremor a few times to
+/// tens of times: the threshold falls between the still and the moving, and the median is the
+/// positions' own noise, tremor included. None for fewer than 10 windows.
+fn still_class_variance(series: &Series, window: usize) -> Option<[f64; 3]> {
+    let scale = robust_variance(series, window)?;
+    let n = series.time_ns.len() / window;
+    let windows: Vec<[f64; 3]> = (0..n)
+        .map(|w| stats_of(series, w * window, (w + 1) * window).map(|s| s.1))
+        .filter(|v| v.iter().all(|x| x.is_finite() && *x > 0.0))
+        .collect();
+    let level: Vec<f64> = windows
+        .iter()
+        .map(|v| ((0..3).map(|k| v[k] / scale[k]).sum::<f64>() / 3.0).ln())
+        .collect();
+    let cut = otsu(&level)?;
+    let dof = window as f64 - 1.0;
+    let median_of_law = ChiSquared::new(dof).ok()?.inverse_cdf(0.5) / dof;
+    let mut out = [0.0; 3];
+    for k in 0..3 {
+        let mut v: Vec<f64> = windows
+            .iter()
+            .zip(&level)
+            .filter(|(_, l)| **l < cut)
+            .map(|(v, _)| v[k])
+            .collect();
+        if v.is_empty() {
+            return None;
+        }
+        let at = v.len() / 2;
+        out[k] = *v.select_nth_unstable_by(at, f64::total_cmp).1 / median_of_law;
+    }
+    Some(out)
+}
+
+/// Otsu's threshold of `x`: the cut between two classes that maximises the variance between
+/// them, over 128 bins of its range; None for a range of zero.
+fn otsu(x: &[f64]) -> Option<f64> {
+    const BINS: usize = 128;
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if !(hi > lo) {
+        return None;
+    }
+    let width = (hi - lo) / BINS as f64;
+    let mut counts = [0usize; BINS];
+    for &v in x {
+        counts[(((v - lo) / width) as usize).min(BINS - 1)] += 1;
+    }
+    let centre = |i: usize| lo + (i as f64 + 0.5) * width;
+    let total = x.len() as f64;
+    let sum: f64 = (0..BINS).map(|i| counts[i] as f64 * centre(i)).sum();
+    let (mut below, mut below_sum, mut best) = (0.0, 0.0, (f64::NEG_INFINITY, lo));
+    for i in 0..BINS - 1 {
+        below += counts[i] as f64;
+        below_sum += counts[i] as f64 * centre(i);
+        let above = total - below;
+        if below == 0.0 || above == 0.0 {
+            continue;
+        }
+        let between = below * above * (below_sum / below - (sum - below_sum) / above).powi(2);
+        if between > best.0 {
+            best = (between, lo + (i + 1) as f64 * width);
+        }
+    }
+    best.0.is_finite().then_some(best.1)
+}
+
 /// How far a window of a position may rise above the noise it is judged by: up to this
 /// many times the reference variance (the mean over the three axes), as long as the run it
-/// belongs to holds a window the white-noise quantile calls still. A hand-held position's
+/// belongs to holds a window within [`SEED_FACTOR`] of it. A hand-held position's
 /// windows scatter well beyond the white-noise law (a tremor that comes and goes, held
 /// samples that leave fewer independent values in a window): on ouabout/imu_tk's recording
 /// cut to a quiet start of 6.6 s, a third of the windows inside the intervals imu_tk finds
@@ -263,11 +313,16 @@ fn raised(
 /// above the noise (docs/triad.md, "Finding the positions"). 10 is imu_tk's largest multiple.
 pub const HOLD_FACTOR: f64 = 10.0;
 
+/// A run must hold a window within this many times the reference variance (the mean over
+/// the axes), or within the white-noise quantile if that is larger: twice the noise, imu_tk's
+/// smallest multiple, is still by anyone's reading, and a slow turn is not.
+pub const SEED_FACTOR: f64 = 2.0;
+
 /// The still stretches of `series` against the noise variances `reference` per axis:
 /// hysteresis on the window statistic (the sum over the axes of each window's variance over
 /// the reference). A run is a stretch of windows below `3 HOLD_FACTOR` holding at least one
-/// below `threshold` (the white-noise quantile): the strict test finds the positions, the
-/// loose one keeps a position whole through its tremor.
+/// below `3 SEED_FACTOR` (or `threshold`, the white-noise quantile, if larger): the strict
+/// test finds the positions, the loose one keeps a position whole through its tremor.
 fn intervals_with(
     series: &Series,
     window: usize,
@@ -277,6 +332,7 @@ fn intervals_with(
     let len = series.time_ns.len();
     let half = window / 2;
     let hold = (3.0 * HOLD_FACTOR).max(threshold);
+    let seed = (3.0 * SEED_FACTOR).max(threshold);
     let stat: Vec<f64> = (0..len)
         .map(|i| {
             if i < half || i + window - half > len {
@@ -293,7 +349,7 @@ fn intervals_with(
             let j = (i..len)
                 .find(|&j| stat[j].is_nan() || stat[j] >= hold)
                 .unwrap_or(len);
-            if stat[i..j].iter().any(|&x| x < threshold) {
+            if stat[i..j].iter().any(|&x| x < seed) {
                 runs.push((i, j));
             }
             i = j;

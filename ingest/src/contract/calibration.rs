@@ -814,9 +814,7 @@ pub struct Calibration {
 pub const STAGE_DIR: &str = "adjust";
 
 fn count_unit() -> String {
-    crate::contract::manifest::ReadingUnit::Count
-        .name()
-        .to_owned()
+    ReadingUnit::Count.name().to_owned()
 }
 
 impl Calibration {
