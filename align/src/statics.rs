@@ -66,7 +66,9 @@ pub struct Detection {
     pub warning: Option<String>,
     /// The window, samples.
     pub window: usize,
-    /// The threshold of the window statistic.
+    /// The white-noise law's 99.9 % quantile of the window statistic (a run's seed window
+    /// is within the larger of it and 3 [`SEED_FACTOR`], every window within 3
+    /// [`HOLD_FACTOR`]).
     pub threshold: f64,
     /// Runs of still samples: half-open index ranges, in time order.
     pub intervals: Vec<(usize, usize)>,
@@ -307,10 +309,11 @@ fn otsu(x: &[f64]) -> Option<f64> {
 /// many times the reference variance (the mean over the three axes), as long as the run it
 /// belongs to holds a window within [`SEED_FACTOR`] of it. A hand-held position's
 /// windows scatter well beyond the white-noise law (a tremor that comes and goes, held
-/// samples that leave fewer independent values in a window): on ouabout/imu_tk's recording
-/// cut to a quiet start of 6.6 s, a third of the windows inside the intervals imu_tk finds
-/// exceed the 99.9 % quantile, while the turns between positions stand 10^3-10^4 times
-/// above the noise (docs/triad.md, "Finding the positions"). 10 is imu_tk's largest multiple.
+/// samples that leave fewer independent values in a window), while the turns between
+/// positions stand 10^3-10^4 times above the noise: cutting a run at the 99.9 % quantile,
+/// the detector found 17 positions on ouabout/imu_tk's recording cut to a 6.6 s quiet start,
+/// where imu_tk finds 21 (docs/triad.md, "Finding the positions"). 10 is imu_tk's largest
+/// multiple.
 pub const HOLD_FACTOR: f64 = 10.0;
 
 /// A run must hold a window within this many times the reference variance (the mean over
