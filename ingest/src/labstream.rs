@@ -710,9 +710,10 @@ pub const TEMPERATURE_LIMITS: Limits = Limits {
 
 /// What the instrument can produce in its declared reading unit: counts within the ADC's
 /// range, two's complement or offset binary (-2^(adc_bits - 1) to 2^adc_bits: an unsigned
-/// 16-bit IMU's raw counts run from 0 to 65535); an acceleration (m/s^2, mGal, g) within twice the declared full scale (the
-/// instrument saturates at its full scale: a reading beyond twice it cannot be one of its
-/// own); volts within +/- 100 V (no accelerometer's output is wider).
+/// 16-bit IMU's raw counts run from 0 to 65535); an acceleration (m/s^2, mGal, g) within
+/// twice the declared full scale (the instrument saturates at its full scale: a reading
+/// beyond twice it cannot be one of its own); volts within +/- 100 V (no accelerometer's
+/// output is wider).
 pub fn reading_limits(instrument: &crate::contract::manifest::Instrument) -> Limits {
     use crate::contract::manifest::ReadingUnit;
     let full_scale_g = 2.0 * instrument.full_scale_g;

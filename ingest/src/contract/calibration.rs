@@ -687,8 +687,8 @@ impl TriadResult {
 /// they were fitted to is not theirs. An ADC's zero is reading 0 (two's complement), or for
 /// counts mid-scale, 2^(adc_bits - 1) (offset binary: an unsigned 16-bit IMU's raw counts
 /// stand near 32768 still, as imu_tk's own Xsens test data): `zeros` gives the acceleration
-/// at each, mGal, and the smaller counts. The refusal names the parameter and its bound;
-/// None when within.
+/// at reading 0 and, for counts, at mid-scale, mGal; the one nearer zero g is held to the
+/// bound. The refusal names the parameter and its bound; None when within.
 pub fn bias_beyond_full_scale(
     name: &str,
     zeros: (f64, Option<f64>),
