@@ -26,6 +26,8 @@
 //!   attitude, each turned into the navigation frame at its own time);
 //! - [`coupling`]: a platform meter's cross-coupling, its coefficients fitted by LaCoste's
 //!   method as shipgrav fits them (against shipgrav's own fit);
+//! - [`meter`]: a platform meter's own record beside its readings, its monitors and status
+//!   word a line, brought onto the epochs;
 //! - [`crossover`]: where the track crosses itself, the two passes' difference and its
 //!   sigma;
 //! - [`stage`]: the run, `cargo xtask gravity` (`tests/gravity_stage.rs`: the fixture
@@ -39,6 +41,7 @@ pub mod epochs;
 pub mod errors;
 pub mod filter;
 pub mod horizontal;
+pub mod meter;
 pub mod navigation;
 pub use ingest::contract::normal;
 pub mod reduce;

@@ -774,3 +774,128 @@ fn the_dgs_record_is_corrected_for_cross_coupling_as_shipgrav_corrects_it() {
     eprintln!("shipgrav's coefficients given: rms {rms:.4} mGal against shipgrav's");
     assert!(rms < 0.02, "rms {rms}");
 }
+
+/// gravity.parquet's `meter_status` column and flags, by row.
+fn status_column(out: &Path) -> Vec<(Option<u32>, u8)> {
+    use arrow_array::Array as _;
+    use arrow_array::cast::AsArray as _;
+    use arrow_array::types::{UInt8Type, UInt32Type};
+    use ingest::contract::tables::gravity;
+    let file = std::fs::File::open(out.join("gravity").join(gravity::FILE)).expect("parquet");
+    let reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+        .expect("reader")
+        .build()
+        .expect("reader");
+    let mut rows = Vec::new();
+    for batch in reader {
+        let batch = batch.expect("batch");
+        let words = batch
+            .column_by_name(gravity::METER_STATUS_WORD)
+            .expect("meter_status")
+            .as_primitive::<UInt32Type>()
+            .clone();
+        let flags = batch
+            .column_by_name(gravity::FLAGS)
+            .expect("flags")
+            .as_primitive::<UInt8Type>()
+            .clone();
+        for i in 0..batch.num_rows() {
+            rows.push(((!words.is_null(i)).then(|| words.value(i)), flags.value(i)));
+        }
+    }
+    rows
+}
+
+/// shipgrav's DGS record's status words (field 7, 20814 on every line) as the stage gives
+/// them: per epoch in `meter_status`, per bit in gravity.json (the bits the test finds in
+/// the file itself, at every epoch), and flagging an epoch `meter_status` exactly where a
+/// declared bit is set: none with bit 0 declared, every epoch with bit 12; the record with
+/// 50 lines' bit 0 set (a clamp, say) flags those 50 alone. A bit beyond 31, or bits
+/// declared for a session that is no meter's file, is refused by key.
+#[test]
+fn the_dgs_record_s_status_words_are_counted_and_flag_as_declared() {
+    use ingest::contract::tables::gravity::METER_STATUS;
+    let record = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../fixtures/real/shipgrav-dgs/DGStest_laptop.dat"),
+    )
+    .expect("record");
+    let words: Vec<u32> = record
+        .lines()
+        .map(|l| {
+            l.split(',')
+                .nth(6)
+                .expect("field 7")
+                .trim()
+                .parse()
+                .expect("word")
+        })
+        .collect();
+    assert_eq!(words.len(), 1001);
+    let set: std::collections::BTreeMap<u8, u64> = (0u8..32)
+        .map(|b| (b, words.iter().filter(|w| *w >> b & 1 == 1).count() as u64))
+        .filter(|(_, n)| *n > 0)
+        .collect();
+    for (flag_bits, flagged) in [("[0]", 0), ("[0, 12]", 1001)] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (_, report, _) = dgs_reduced_into(
+            dir.path(),
+            &format!("meter_status_flag_bits = {flag_bits}\n"),
+        );
+        let status = report.sessions[0].meter_status.clone().expect("a meter's");
+        eprintln!("{flag_bits}: {status:?}");
+        assert_eq!(status.epochs, 1001);
+        assert_eq!(status.bits_set, set);
+        let rows = status_column(&dir.path().join("out"));
+        assert_eq!(rows.len(), 1001);
+        assert!(rows.iter().zip(&words).all(|(r, w)| r.0 == Some(*w)));
+        let n = rows.iter().filter(|r| r.1 & METER_STATUS != 0).count();
+        assert_eq!(n, flagged, "{flag_bits}");
+        let named = report.sessions[0].flagged.get("meter_status").copied();
+        assert_eq!(named.unwrap_or(0), flagged as u64);
+    }
+    // Bit 0 set on lines 301 to 350 of the record.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let clamped: String = record
+        .lines()
+        .enumerate()
+        .map(|(k, l)| {
+            let mut f: Vec<String> = l.split(',').map(str::to_owned).collect();
+            if (300..350).contains(&k) {
+                f[6] = (words[k] | 1).to_string();
+            }
+            f.join(",") + "\n"
+        })
+        .collect();
+    dgs_reduced_into(dir.path(), "meter_status_flag_bits = [0]\n");
+    let ds = dir.path().join("dgs");
+    std::fs::write(ds.join("raw/DGStest_laptop.dat"), clamped).expect("clamped");
+    let out = dir.path().join("clamped");
+    let args =
+        adjust::gravity::stage::GravityArgs::new(&ds, Path::new(adjust::apply::stream::VENDOR));
+    let report = args.run(&out).expect("the clamped record reduces");
+    let rows = status_column(&out);
+    let flagged: Vec<usize> = (0..rows.len())
+        .filter(|&k| rows[k].1 & METER_STATUS != 0)
+        .collect();
+    assert_eq!(flagged, (300..350).collect::<Vec<_>>());
+    let status = report.sessions[0].meter_status.clone().expect("a meter's");
+    assert_eq!(status.bits_set.get(&0), Some(&50));
+    // A bit beyond a 32-bit word's, refused by key.
+    let toml = std::fs::read_to_string(ds.join("dataset.toml")).expect("toml");
+    let beyond = toml.replace(
+        "meter_status_flag_bits = [0]",
+        "meter_status_flag_bits = [0, 32]",
+    );
+    assert_ne!(beyond, toml);
+    std::fs::write(ds.join("dataset.toml"), beyond).expect("toml");
+    let e = args
+        .run(&dir.path().join("beyond"))
+        .expect_err("bit 32")
+        .to_string();
+    eprintln!("{e}");
+    assert!(
+        e.contains("survey.meter_status_flag_bits") && e.contains("bit 32"),
+        "{e}"
+    );
+}

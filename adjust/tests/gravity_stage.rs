@@ -293,6 +293,22 @@ fn a_convention_broken_fails_the_truth() {
     }
 }
 
+/// `[survey] meter_status_flag_bits` on a survey whose samples are no meter's file (the
+/// accelerometers' stream of survey-lines) is refused by key.
+#[test]
+fn meter_status_bits_on_a_stream_without_a_status_are_refused() {
+    let (_dir, dataset, out) = edited(|m| {
+        assert!(m.contains("[survey]\n"));
+        m.replace("[survey]\n", "[survey]\nmeter_status_flag_bits = [0]\n")
+    });
+    let e = args(&dataset).run(&out).expect_err("refused").to_string();
+    eprintln!("{e}");
+    assert!(
+        e.contains("survey.meter_status_flag_bits") && e.contains("no meter status"),
+        "{e}"
+    );
+}
+
 /// North and east against the truth through the stage's filter, over the epochs not at an
 /// edge: per component the rms error (mGal), the rms of error / sigma, and the median sigma
 /// and its attitude part.
@@ -2106,6 +2122,16 @@ mod cross_coupling {
                 .run(&by_serial)
                 .expect(meter);
             assert_eq!(r.sessions[0].epochs_used, 3600, "{meter}");
+            // The status words: the DGS records' 330 (bits 1, 3, 6, 8), the BGM-3's 00.
+            let status = r.sessions[0]
+                .meter_status
+                .clone()
+                .expect("a meter's status");
+            assert_eq!(status.epochs, 3600, "{meter}");
+            let bits: Vec<u8> = status.bits_set.keys().copied().collect();
+            let want: &[u8] = if meter == "bgm3" { &[] } else { &[1, 3, 6, 8] };
+            assert_eq!(bits, want, "{meter}");
+            assert!(status.bits_set.values().all(|&n| n == 3600), "{meter}");
             assert_eq!(
                 r.sessions[0].cross_coupling.is_some(),
                 coupling == "fit",

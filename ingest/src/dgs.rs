@@ -31,6 +31,8 @@ pub struct LaptopLine {
     pub raw_gravity_mgal: f64,
     /// The cross-coupling monitors VE, VCC, AL, AX.
     pub monitors: [f64; 4],
+    /// The meter's status word (field 7), its bits as the meter sets them.
+    pub status: u32,
     /// Latitude and longitude, deg.
     pub latitude_deg: f64,
     /// Longitude, deg.
@@ -100,7 +102,7 @@ pub fn parse_laptop(fields: &[&[u8]]) -> Result<LaptopLine, Bad> {
     let raw_gravity_mgal = number(fields, 1, "rgrav")?;
     number(fields, 2, "long_a")?;
     number(fields, 3, "crss_a")?;
-    integer(fields, 6, "status")?;
+    let status = integer(fields, 6, "status")?;
     let mut monitors = [0.0; 4];
     for (m, (k, name)) in monitors
         .iter_mut()
@@ -121,6 +123,7 @@ pub fn parse_laptop(fields: &[&[u8]]) -> Result<LaptopLine, Bad> {
         gps_ns,
         raw_gravity_mgal,
         monitors,
+        status,
         latitude_deg,
         longitude_deg,
     })

@@ -63,6 +63,8 @@ pub struct SerialLine {
     /// The cross-coupling monitors VE, VCC, AL, AX (a DGS's, scaled by 1e-5), in the order
     /// of the laptop file's ([`crate::dgs::LaptopLine::monitors`]); None for a BGM-3.
     pub monitors: Option<[f64; 4]>,
+    /// The meter's status word: a DGS's status field, a BGM-3's `SS`, as integers.
+    pub status: u32,
     /// The bytes of the line that hold the logger's stamp.
     pub stamp: std::ops::Range<usize>,
 }
@@ -186,6 +188,22 @@ fn integer(t: &[u8], name: &'static str) -> Result<i64, Bad> {
         .ok_or_else(|| (name, format!("`{}` is not an integer", text(t))))
 }
 
+/// A status word: an integer from 0 to 2^32 - 1 (its bits are the meter's flags).
+fn status_word(t: &[u8]) -> Result<u32, Bad> {
+    std::str::from_utf8(t.trim_ascii())
+        .ok()
+        .and_then(|s| s.parse::<u32>().ok())
+        .ok_or_else(|| {
+            (
+                "status",
+                format!(
+                    "`{}` is not a status word (an integer from 0 to 2^32 - 1)",
+                    text(t)
+                ),
+            )
+        })
+}
+
 /// A BGM-3 line: the logger's stamp, then `PP:CCCCCC SS` (the line's last two tokens).
 pub fn parse_bgm3(line: &[u8], scale: TimeScale) -> Result<SerialLine, Bad> {
     let toks: Vec<(usize, &[u8])> = tokens(line.trim_ascii_end()).collect();
@@ -203,13 +221,14 @@ pub fn parse_bgm3(line: &[u8], scale: TimeScale) -> Result<SerialLine, Bad> {
     };
     integer(&record[..colon], "prefix")?;
     let counts = integer(&record[colon + 1..], "counts")?;
-    integer(status, "status")?;
+    let status = status_word(status)?;
     let (gps_ns, form, stamp) = logger_time(&line[..at], scale)?;
     Ok(SerialLine {
         gps_ns,
         form,
         reading: counts as f64,
         monitors: None,
+        status,
         stamp,
     })
 }
@@ -248,7 +267,7 @@ pub fn parse_dgs_raw(line: &[u8], scale: TimeScale) -> Result<SerialLine, Bad> {
     for (k, name) in NAMES.iter().enumerate() {
         v[k] = integer(fields[k + 1], name)?;
     }
-    integer(fields[12], "status")?;
+    let status = status_word(fields[12])?;
     let checksum = integer(fields[13], "checksum")?;
     let sum: i64 = v.iter().sum();
     if sum != checksum {
@@ -264,6 +283,7 @@ pub fn parse_dgs_raw(line: &[u8], scale: TimeScale) -> Result<SerialLine, Bad> {
         form,
         reading: v[0] as f64,
         monitors: Some([m(8), m(7), m(9), m(10)]),
+        status,
         stamp,
     })
 }

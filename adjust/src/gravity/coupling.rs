@@ -275,29 +275,6 @@ fn spectral_jackknife(
     })
 }
 
-/// A meter's monitors as its file gives them, in time order.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Monitors {
-    /// GPS time, ns, increasing.
-    pub time_gps_ns: Vec<i64>,
-    /// VE, VCC, AL, AX.
-    pub values: Vec<[f64; 4]>,
-}
-
-impl Monitors {
-    /// The monitors at each of `times` (the file's own lines: the same times), NaN where
-    /// the file has no line at that time.
-    pub fn at(&self, times: &[i64]) -> Vec<[f64; 4]> {
-        times
-            .iter()
-            .map(|t| match self.time_gps_ns.binary_search(t) {
-                Ok(i) => self.values[i],
-                Err(_) => [f64::NAN; 4],
-            })
-            .collect()
-    }
-}
-
 /// The correction applied to a session: its coefficients for VE, VCC, AL, AX (mGal per
 /// unit of each monitor) and their covariance (zero when given).
 #[derive(Clone, Copy, Debug, PartialEq)]

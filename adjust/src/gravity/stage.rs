@@ -20,8 +20,8 @@ use crate::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
     CouplingUsed, Crossover, DriftFitted, ErrorModelsUsed, FilterUsed, GravityReport, Input,
-    LEDGER_FILE, LEDGER_FORMAT, NotReduced, Quantities, STAGE_DIR, SessionGravity, StretchSummary,
-    TieUsed, dropped,
+    LEDGER_FILE, LEDGER_FORMAT, MeterStatus, NotReduced, Quantities, STAGE_DIR, SessionGravity,
+    StretchSummary, TieUsed, dropped,
 };
 use ingest::contract::manifest::Dataset;
 use ingest::contract::survey::{ErrorModel, FilterKind, ResolvedTie, SurveyConfig, TieLevel};
@@ -52,19 +52,36 @@ pub const BLOCK_EPOCHS: usize = 1 << 16;
 
 /// Runs the stage on `dataset` into `out`.
 pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityReport, GravityError> {
-    let applied = crate::apply::stream::run(dataset, out, &opts.apply)?;
     let ds = Dataset::load(dataset)?;
     let _lock = ingest::lock::OutputLock::acquire(out)?;
     let survey = ds.manifest.survey.clone().unwrap_or_default();
     let table = out.join(apply_ledger::STAGE_DIR).join(applied::FILE);
-    let force = down_force(&applied, &survey, opts.accelerometer)?;
-    let triad = triad_function(&applied, opts.apply.calibration)?;
     let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| crate::Error::Io {
         path: dir.clone(),
         source: e,
     })?;
-    let tracks = read_tracks(&ds, &survey, opts.skip_bad_lines, &dir)?;
+    // Apply, then the meters' own records, on the second core while the first reads the
+    // trajectories: none reads what another writes (the lock is re-entrant, and held here
+    // across them). Apply's error is the one told when several fail, as when it came first.
+    let (applied, tracks) = std::thread::scope(|scope| {
+        let applying = scope.spawn(|| {
+            let applied = crate::apply::stream::run(dataset, out, &opts.apply)?;
+            Ok::<_, GravityError>((applied, super::track::read_meters(&ds)?))
+        });
+        let tracks = read_tracks(&ds, &survey, opts.skip_bad_lines, &dir);
+        let applied = applying
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (applied, tracks)
+    });
+    let (applied, meters) = applied?;
+    let mut tracks = tracks?;
+    for (track, meter) in tracks.iter_mut().zip(meters) {
+        track.meter = meter;
+    }
+    let force = down_force(&applied, &survey, opts.accelerometer)?;
+    let triad = triad_function(&applied, opts.apply.calibration)?;
     refuse_attitude_with_an_axis(&force, &tracks)?;
     // The inputs' SHA-256 on the second core while the first reduces (a twentieth of a day
     // at 1 Hz's reduction when it came after).
@@ -171,7 +188,7 @@ fn reduce_and_write(r: &Reading<'_>) -> Result<Reduction, GravityError> {
     let (sessions, ties) = reduce_tracks(ds, tracks, &filled, ctx, &mut rows)?;
     let filter = filter_used(&rows.speeds, (survey.filter, survey.filter_s));
     let crossovers = rows.crossovers(&names, tracks, &sessions, survey.filter_s);
-    let (rows_written, sha256) = rows.finish(dir)?;
+    let (rows_written, sha256) = rows.finish()?;
     Ok(Reduction {
         filter,
         sessions,
@@ -695,6 +712,10 @@ fn reduce_track(
         sample_noise_mgal: ctx.sample_noise.sd_mgal,
         sample_noise_from: ctx.sample_noise.from.clone(),
         cross_coupling: None,
+        meter_status: track.meter.as_ref().map(|_| MeterStatus {
+            flag_bits: ctx.survey.meter_status_flag_bits.clone(),
+            ..MeterStatus::default()
+        }),
         quantities: Quantities::new(track.heights, ctx.survey.geoid_height_m),
         stretches: Vec::new(),
     };
@@ -826,18 +847,37 @@ fn reduce_stretch(
     };
     for (reduced, keep) in plan {
         let cut = keep.start - reduced.start..keep.end - reduced.start;
-        let Some((s, r, h, flags)) =
-            reduce_block(track, bins, ctx, &mut st, (reduced, cut), number)?
+        let Some((block, level)) = reduce_block(track, bins, ctx, &st, (reduced, cut), number)?
         else {
             return Ok(None);
         };
+        st.level.get_or_insert(level);
+        let BlockRows {
+            s,
+            r,
+            h,
+            flags,
+            status,
+        } = block;
+        if let (Some(summary), Some(words)) = (&mut summary.meter_status, &status) {
+            let (with, bits) = super::meter::summary(words);
+            summary.epochs += with;
+            for (bit, n) in bits {
+                *summary.bits_set.entry(bit).or_insert(0) += n;
+            }
+        }
         for (name, n) in count_flags(&flags) {
             *summary.flagged.entry(name).or_insert(0) += n;
         }
         summary.epochs_used += s.time_gps_ns.len() as u64;
         let step = crossover::step(filter_s, interval_s);
         let named = track.named(ctx.survey);
-        rows.push((track.index, number, step), named, (s, r, h), flags)?;
+        rows.push(
+            (track.index, number, step),
+            named,
+            (s, r, h),
+            (flags, status),
+        )?;
     }
     Ok(Some(st.level.flatten().map(|l| l.drift)))
 }
@@ -906,8 +946,19 @@ fn sensible_block(block: usize, filter_s: f64, track: &Track<'_>) -> Result<usiz
     })
 }
 
-/// A block reduced: the stretch's series, the reduction's, north and east's, the flags.
-type BlockRows = (Stretch, Reduced, Option<ReducedHorizontal>, Vec<u8>);
+/// A block reduced.
+struct BlockRows {
+    /// The stretch's series.
+    s: Stretch,
+    /// The reduction's.
+    r: Reduced,
+    /// North and east's, with attitude.
+    h: Option<ReducedHorizontal>,
+    /// Each epoch's flags.
+    flags: Vec<u8>,
+    /// Each epoch's meter status word, for a session whose samples are a meter's file.
+    status: Option<Vec<Option<u32>>>,
+}
 
 /// A stretch being reduced: its epochs and ties, the calibration's gradient at its drift's
 /// reference, the level its ties fix (None until known), its first and last epochs' times.
@@ -921,16 +972,16 @@ struct Reducing<'a> {
 
 /// The epochs `reduced` (within the stretch) reduced and tied, cut to `cut` (within
 /// them): the stretch's series, the reduction's, north and east's with attitude, the
-/// flags; None when too short for the filter. The first block of a stretch of one block
-/// fixes the level from its own reduction.
+/// flags, the meter's status, and the level it was tied to; None when too short for the
+/// filter. The block of a stretch of one block fixes the level from its own reduction.
 fn reduce_block(
     track: &Track<'_>,
     bins: &SpilledBins,
     ctx: &Context<'_>,
-    st: &mut Reducing<'_>,
+    st: &Reducing<'_>,
     (reduced, cut): (Range<usize>, Range<usize>),
     number: u32,
-) -> Result<Option<BlockRows>, GravityError> {
+) -> Result<Option<(BlockRows, Option<reduce::Level>)>, GravityError> {
     let filter_s = ctx.survey.filter_s;
     let range = st.span.start + reduced.start..st.span.start + reduced.end;
     let b = &block(track, bins, range.clone())?;
@@ -951,7 +1002,7 @@ fn reduce_block(
             for (_, tie) in st.inside {
                 points.extend(reduce::tie_point(&s, &r, tie, filter_s)?);
             }
-            *st.level.insert(reduce::level(&points))
+            reduce::level(&points)
         }
     };
     reduce::apply_level(&s, &mut r, level.as_ref(), filter_s)?;
@@ -965,10 +1016,14 @@ fn reduce_block(
         None => None,
     };
     let mut flags = flags_of(&s, b, range, st.ends, (filter_s, &r), &track.replaced);
+    let mut status = meter_status(track, &s.time_gps_ns, ctx.survey, &mut flags);
     s.keep(cut.clone());
     r.keep(cut.clone());
     if let Some(h) = &mut h {
         h.keep(cut.clone());
+    }
+    if let Some(status) = &mut status {
+        reduce::cut(status, cut.clone());
     }
     reduce::cut(&mut flags, cut);
     numbers_only(&s, &r)?;
@@ -979,7 +1034,33 @@ fn reduce_block(
         level.as_ref().map(|l| &l.drift),
         (track, number),
     )?;
-    Ok(Some((s, r, h, flags)))
+    let rows = BlockRows {
+        s,
+        r,
+        h,
+        flags,
+        status,
+    };
+    Ok(Some((rows, level)))
+}
+
+/// The meter's status word at each of the epochs `times` of `track` (None for a session
+/// whose samples are not a meter's file), the epochs whose word has a bit of `[survey]
+/// meter_status_flag_bits` set flagged [`gravity::METER_STATUS`] in `flags`.
+fn meter_status(
+    track: &Track<'_>,
+    times: &[i64],
+    survey: &SurveyConfig,
+    flags: &mut [u8],
+) -> Option<Vec<Option<u32>>> {
+    let words = track.meter.as_ref()?.status_at(times, track.interval_ns);
+    let mask = survey.meter_status_mask();
+    for (f, w) in flags.iter_mut().zip(&words) {
+        if w.is_some_and(|w| w & mask != 0) {
+            *f |= gravity::METER_STATUS;
+        }
+    }
+    Some(words)
 }
 
 /// What the ties `inside` a stretch say of its level (fitted as one stretch's when it is
@@ -1192,9 +1273,9 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
     if ctx.survey.earth_tide {
         s.tide_mgal = body_tide(&s);
     }
-    if let (Some(correction), Some(m)) = (ctx.coupling, &track.monitors) {
+    if let (Some(correction), Some(m)) = (ctx.coupling, &track.meter) {
         s.coupling = Some(reduce::StretchCoupling {
-            monitors: m.at(&s.time_gps_ns),
+            monitors: m.monitors_at(&s.time_gps_ns, track.interval_ns),
             correction,
         });
     }
@@ -1234,9 +1315,10 @@ fn coupling_of(
             }),
         )),
         CrossCoupling::Word(CouplingWord::Fit) => {
-            let monitors = track
-                .monitors
+            let meter = track
+                .meter
                 .as_ref()
+                .filter(|m| m.monitors.is_some())
                 .ok_or_else(|| refuse("its file carries no monitors".to_owned()))?;
             let mut rows = Vec::new();
             for span in spans.iter().filter(|s| s.len() >= coupling::MIN_SEGMENT) {
@@ -1245,7 +1327,7 @@ fn coupling_of(
                 let anomaly = reduce::unfiltered_disturbance(&s)?;
                 rows.extend(coupling::segment_rows(
                     &anomaly,
-                    &monitors.at(&s.time_gps_ns),
+                    &meter.monitors_at(&s.time_gps_ns, track.interval_ns),
                 ));
             }
             let fitted = coupling::fit(&rows).ok_or_else(|| {
@@ -1277,7 +1359,10 @@ fn body_tide(s: &Stretch) -> Vec<f64> {
     let leap_s = s.time_gps_ns.first().map_or(0.0, |&t| {
         t as f64 * 1e-9 - align::tide::utc_seconds_of_gps(t)
     });
+    // Each epoch's tide on its own, across the cores (a tenth of a day at 1 Hz's stage).
+    use rayon::prelude::{IntoParallelIterator, ParallelIterator};
     (0..s.time_gps_ns.len())
+        .into_par_iter()
         .map(|k| {
             let site = align::tide::Site {
                 latitude_deg: s.latitude_deg[k],
@@ -1503,6 +1588,8 @@ struct Rows {
     named: [Vec<f64>; 2],
     named_valid: [Vec<bool>; 2],
     flags: Vec<u8>,
+    /// The meter's status word, None where there is none.
+    status: Vec<Option<u32>>,
     /// The rows the crossover search takes.
     kept: crossover::Kept,
     /// One speed a step, m/s.
@@ -1530,19 +1617,20 @@ impl Rows {
             named: Default::default(),
             named_valid: Default::default(),
             flags: Vec::new(),
+            status: Vec::new(),
             kept: crossover::Kept::default(),
             speeds: Vec::new(),
         })
     }
 
     /// Appends a block's rows (of session `session`, stretch `number`, a row in `step`
-    /// sampled), taking its series; writes a row group once [`BLOCK_EPOCHS`] are gathered.
+    /// sampled), taking its series, flags and meter status; writes a row group once [`BLOCK_EPOCHS`] are gathered.
     fn push(
         &mut self,
         (session, number, step): (u16, u32, usize),
         named: reduce::Named,
         (s, r, h): (Stretch, Reduced, Option<ReducedHorizontal>),
-        flags: Vec<u8>,
+        (flags, status): (Vec<u8>, Option<Vec<Option<u32>>>),
     ) -> Result<(), GravityError> {
         let n = s.time_gps_ns.len();
         for k in 0..n {
@@ -1601,6 +1689,10 @@ impl Rows {
         }
         self.push_horizontal(h, n);
         append(&mut self.flags, flags);
+        match status {
+            Some(words) => append(&mut self.status, words),
+            None => self.status.extend(std::iter::repeat_n(None, n)),
+        }
         if self.time.len() >= BLOCK_EPOCHS {
             self.write()?;
         }
@@ -1705,18 +1797,19 @@ impl Rows {
             )));
         }
         columns.push(Arc::new(UInt8Array::from(flags)));
+        columns.push(Arc::new(UInt32Array::from(std::mem::take(
+            &mut self.status,
+        ))));
         self.writer.write(columns)?;
         self.writer.flush()?;
         Ok(())
     }
 
-    /// Writes the last rows and closes gravity.parquet in `dir`; returns the rows and the
-    /// file's SHA-256.
-    fn finish(mut self, dir: &Path) -> Result<(u64, String), GravityError> {
+    /// Writes the last rows and closes gravity.parquet; returns the rows and the file's
+    /// SHA-256 (hashed as it was written).
+    fn finish(mut self) -> Result<(u64, String), GravityError> {
         self.write()?;
-        let rows = self.writer.finish()?;
-        let sha = ingest::contract::custody::sha256_file(&dir.join(gravity::FILE))?;
-        Ok((rows, sha))
+        Ok(self.writer.finish_hashed()?)
     }
 }
 
@@ -1832,6 +1925,9 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
     if let Some(c) = &s.cross_coupling {
         let _ = writeln!(w, "gravity: {}: {}", s.id, coupling_line(c));
     }
+    if let Some(m) = &s.meter_status {
+        let _ = writeln!(w, "gravity: {}: {}", s.id, status_line(m, s.epochs_used));
+    }
     let _ = writeln!(
         w,
         "gravity: {}: a sample's noise {:.4} mGal, from {}",
@@ -1865,6 +1961,33 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
         );
         let _ = writeln!(w, "gravity:   {} to {}: {}", st.first, st.last, drift);
     }
+}
+
+/// A session's meter status as the console says it: each bit set, at every epoch or at
+/// how many; the bits that flag an epoch.
+fn status_line(m: &MeterStatus, epochs_used: u64) -> String {
+    let (always, some): (Vec<_>, Vec<_>) = m.bits_set.iter().partition(|(_, n)| **n == m.epochs);
+    let mut set = Vec::new();
+    if !always.is_empty() {
+        let bits: Vec<String> = always.iter().map(|(b, _)| b.to_string()).collect();
+        set.push(format!("bits {} set at every one", bits.join(", ")));
+    }
+    if !some.is_empty() {
+        let bits: Vec<String> = some.iter().map(|(b, n)| format!("{b} at {n}")).collect();
+        set.push(format!("bits {}", bits.join(", ")));
+    }
+    if set.is_empty() {
+        set.push("no bit set".to_owned());
+    }
+    let flag = match m.flag_bits.is_empty() {
+        true => "no bit declared to flag an epoch (survey.meter_status_flag_bits)".to_owned(),
+        false => format!("bits {:?} flag an epoch `meter_status`", m.flag_bits),
+    };
+    format!(
+        "meter status (bit 0 the least significant) at {} of {epochs_used} epochs: {}; {flag}",
+        m.epochs,
+        set.join("; ")
+    )
 }
 
 /// An error model in words.
@@ -1996,18 +2119,18 @@ mod tests {
         let mut without = Rows::create(dir.path(), &names, false).expect("rows");
         let (s, r, _) = rows_of(2);
         without
-            .push((0, 0, 1), NAMED, (s, r, None), vec![0, 0])
+            .push((0, 0, 1), NAMED, (s, r, None), (vec![0, 0], None))
             .expect("pushed");
         assert!(without.horizontal_valid.is_empty() && without.horizontal[0].is_empty());
         let mut rows = Rows::create(dir.path(), &names, true).expect("rows");
         let (s, r, _) = rows_of(2);
-        rows.push((0, 0, 1), NAMED, (s, r, None), vec![0, 0])
+        rows.push((0, 0, 1), NAMED, (s, r, None), (vec![0, 0], None))
             .expect("pushed");
         let (s, r, h) = rows_of(3);
-        rows.push((1, 0, 1), NAMED, (s, r, Some(h)), vec![0; 3])
+        rows.push((1, 0, 1), NAMED, (s, r, Some(h)), (vec![0; 3], None))
             .expect("pushed");
         let (s, r, _) = rows_of(1);
-        rows.push((0, 1, 1), NAMED, (s, r, None), vec![0])
+        rows.push((0, 1, 1), NAMED, (s, r, None), (vec![0], None))
             .expect("pushed");
         assert_eq!(
             rows.horizontal_valid,

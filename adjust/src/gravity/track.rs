@@ -53,9 +53,9 @@ pub(super) struct Track<'a> {
     /// The kept epochs whose position was an outlier, replaced by its neighbours'
     /// prediction ([`screen`]), increasing.
     pub replaced: Vec<usize>,
-    /// A platform meter's cross-coupling monitors, when `[survey] cross_coupling` asks for
-    /// them (a DGS laptop file's).
-    pub monitors: Option<super::coupling::Monitors>,
+    /// A platform meter's own record (its monitors and status words), when the session's
+    /// samples come from its file.
+    pub meter: Option<super::meter::MeterLines>,
     /// What its heights are measured from (the format's, or an NMEA file's own).
     pub heights: Heights,
 }
@@ -199,15 +199,6 @@ pub(super) fn read_tracks<'a>(
             track.attitude_dropped = a.dropped.clone();
         }
         track.attitude = attitude;
-        if survey.cross_coupling.is_some()
-            && let ingest::contract::manifest::Acquisition::Lab { stream, .. } = &s.acquisition
-        {
-            track.monitors = Some(trajectory::read_monitors(
-                stream,
-                s.session.adc_format,
-                s.times.scale,
-            )?);
-        }
         tracks.push(track);
     }
     if tracks.is_empty() {
@@ -220,6 +211,23 @@ pub(super) fn read_tracks<'a>(
         });
     }
     Ok(tracks)
+}
+
+/// The meters' own records of the sessions with a trajectory, in [`read_tracks`]'s order
+/// (None for a session whose samples are not a meter's file).
+pub(super) fn read_meters(
+    ds: &Dataset,
+) -> Result<Vec<Option<super::meter::MeterLines>>, GravityError> {
+    ds.sessions
+        .iter()
+        .filter(|s| s.trajectory.is_some())
+        .map(|s| match &s.acquisition {
+            ingest::contract::manifest::Acquisition::Lab { stream, .. } => {
+                super::meter::read(stream, s.session.adc_format, s.times.scale)
+            }
+            _ => Ok(None),
+        })
+        .collect()
 }
 
 /// A file's lines set aside, as the ledger lists them (the first
@@ -433,7 +441,7 @@ fn gated<'a>(
         noise_neu_m: [0.0; 3],
         sd_given_median_m: None,
         replaced: Vec::new(),
-        monitors: None,
+        meter: None,
         heights: s
             .trajectory
             .as_ref()

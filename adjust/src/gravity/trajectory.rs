@@ -7,7 +7,7 @@
 //! resampling here: epochs as written, in time order.
 
 use super::{BadLine, GravityError, set_aside};
-use ingest::contract::manifest::{AdcFormat, TimeScale};
+use ingest::contract::manifest::TimeScale;
 use ingest::time::{TimeForm, TimeReader};
 use std::io::BufRead;
 use std::path::Path;
@@ -92,7 +92,7 @@ fn sds(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
 /// The file's lines, numbered from 1, without the line end (`\n` or `\r\n`) and, on the
 /// first, a UTF-8 byte-order mark; a line that is not UTF-8 is a line error (field `line`,
 /// the byte offset in it), which `--skip-bad-lines` sets aside as any other.
-fn numbered_lines(
+pub(super) fn numbered_lines(
     path: &Path,
 ) -> Result<impl Iterator<Item = (u64, Result<String, GravityError>)>, GravityError> {
     let file = std::fs::File::open(path).map_err(|e| GravityError::File {
@@ -492,40 +492,6 @@ fn nmea_fix(
         ));
     }
     Ok(Some((clock.at(time_of_day_ns), llh)))
-}
-
-/// A DGS meter's cross-coupling monitors, a line a time, from its laptop file
-/// ([`ingest::dgs`]) or its raw serial output ([`ingest::meter_serial`], the logger's stamps
-/// without a zone in `scale`); the lines that do not parse are passed over (ingest rejects
-/// and counts them, naming them, when it reads the same file for the meter's gravity).
-/// `format` is the session's `adc_format`; a file of another carries none (empty).
-pub fn read_monitors(
-    path: &Path,
-    format: AdcFormat,
-    scale: TimeScale,
-) -> Result<super::coupling::Monitors, GravityError> {
-    let mut out = super::coupling::Monitors::default();
-    for (_, l) in numbered_lines(path)? {
-        let Ok(l) = l else { continue };
-        let line = l.as_bytes();
-        let read = match format {
-            AdcFormat::DgsLaptop => ingest::dgs::split(line)
-                .and_then(|fields| ingest::dgs::parse_laptop(&fields))
-                .ok()
-                .map(|r| (r.gps_ns, r.monitors)),
-            AdcFormat::DgsRaw => ingest::meter_serial::parse_dgs_raw(line, scale)
-                .ok()
-                .and_then(|r| Some((r.gps_ns, r.monitors?))),
-            _ => None,
-        };
-        if let Some((t, m)) = read
-            && out.time_gps_ns.last().is_none_or(|&last| last < t)
-        {
-            out.time_gps_ns.push(t);
-            out.values.push(m);
-        }
-    }
-    Ok(out)
 }
 
 /// Calls `f` with each epoch of a CSV trajectory whose times `time` reads, in file order

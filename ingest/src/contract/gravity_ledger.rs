@@ -12,7 +12,7 @@ pub const STAGE_DIR: &str = "gravity";
 /// The ledger's file name.
 pub const LEDGER_FILE: &str = "gravity.json";
 /// The ledger's format tag.
-pub const LEDGER_FORMAT: &str = "gravcal-gravity/3";
+pub const LEDGER_FORMAT: &str = "gravcal-gravity/4";
 
 /// The error models the sigmas were propagated with.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -152,11 +152,29 @@ pub struct SessionGravity {
     /// for one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cross_coupling: Option<CouplingUsed>,
+    /// A platform meter's status words over the epochs written, when its own file gives
+    /// them (docs/formats.md 11.1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub meter_status: Option<MeterStatus>,
     /// What the trajectory's heights are measured from, and so which quantity `down_mgal`
     /// is, and which of the named columns are formed (docs/formats.md 10.3).
     pub quantities: Quantities,
     /// The stretches.
     pub stretches: Vec<StretchSummary>,
+}
+
+/// A meter's status words over a session's epochs written: each epoch's word is its
+/// lines' or-ed (bits numbered from the least significant, 0; gravcal names none).
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct MeterStatus {
+    /// Epochs with a word (an epoch without a line of the meter's file in its window has
+    /// none).
+    pub epochs: u64,
+    /// Each bit set at some epoch, with the epochs it is set at, by bit.
+    pub bits_set: BTreeMap<u8, u64>,
+    /// The bits `[survey] meter_status_flag_bits` declares: an epoch with one set is
+    /// flagged `meter_status`.
+    pub flag_bits: Vec<u8>,
 }
 
 /// A session's named quantities: gravity less normal gravity at the trajectory's heights is

@@ -106,6 +106,10 @@ pub struct SurveyConfig {
     /// Which ties level a stretch (docs/formats.md 10): every tie of its session, one drift
     /// across the gaps (`"session"`, the default), or only those inside it (`"stretch"`).
     pub tie_level: TieLevel,
+    /// The bits of a platform meter's status word (0 the least significant) that flag an
+    /// epoch `meter_status` when set in it (docs/formats.md 11.1): the meter's map of them
+    /// is the user's to know; none by default.
+    pub meter_status_flag_bits: Vec<u8>,
 }
 
 /// `[survey] filter`: the zero-phase low-pass filter's kind (docs/model.md 7, "The
@@ -328,7 +332,18 @@ impl Default for SurveyConfig {
             earth_tide: true,
             cross_coupling: CrossCoupling::default(),
             tie_level: TieLevel::default(),
+            meter_status_flag_bits: Vec::new(),
         }
+    }
+}
+
+impl SurveyConfig {
+    /// [`SurveyConfig::meter_status_flag_bits`] as a mask.
+    pub fn meter_status_mask(&self) -> u32 {
+        self.meter_status_flag_bits
+            .iter()
+            .filter(|&&b| b < 32)
+            .fold(0, |m, &b| m | 1 << b)
     }
 }
 
@@ -486,8 +501,9 @@ fn trajectory_time(
     })
 }
 
-/// `[survey] cross_coupling` checked against the sessions: only a meter's own file carries
-/// monitors; given coefficients are numbers.
+/// `[survey] cross_coupling` and `meter_status_flag_bits` checked against the sessions:
+/// only a meter's own file carries monitors (a DGS's) and a status word; given
+/// coefficients are numbers; a flag bit is one of a 32-bit word's.
 pub fn check_coupling(
     survey: &SurveyConfig,
     sessions: &[super::manifest::ResolvedSession],
@@ -507,6 +523,32 @@ pub fn check_coupling(
             format!(
                 "session `{}` has no cross-coupling monitors: only a DGS meter's own file \
                  (adc_format = \"dgs-laptop\" or \"dgs-raw\") carries them",
+                s.session.id
+            ),
+        ));
+    }
+    if let Some(b) = survey.meter_status_flag_bits.iter().find(|&&b| b >= 32) {
+        return Err(err(
+            "survey.meter_status_flag_bits".to_owned(),
+            format!("bit {b}: a status word's bits are 0 (the least significant) to 31"),
+        ));
+    }
+    if !survey.meter_status_flag_bits.is_empty()
+        && let Some(s) = sessions.iter().find(|s| {
+            s.trajectory.is_some()
+                && !matches!(
+                    s.session.adc_format,
+                    super::manifest::AdcFormat::DgsLaptop
+                        | super::manifest::AdcFormat::DgsRaw
+                        | super::manifest::AdcFormat::Bgm3
+                )
+        })
+    {
+        return Err(err(
+            "survey.meter_status_flag_bits".to_owned(),
+            format!(
+                "session `{}` has no meter status: only a meter's own file (adc_format = \
+                 \"dgs-laptop\", \"dgs-raw\" or \"bgm3\") carries one",
                 s.session.id
             ),
         ));

@@ -488,6 +488,7 @@ pub mod applied {
 /// | sigma_north_calibration_mgal, sigma_north_positions_mgal, sigma_north_noise_mgal, sigma_north_attitude_mgal | float64, null without attitude | its parts |
 /// | east_... | float64, null without attitude | the same seven east |
 /// | flags | uint8 | the bits of this module's flags, or-ed |
+/// | meter_status | uint32, null | a platform meter's status word at the epoch (its lines' within half an epoch interval, or-ed; docs/formats.md 11.1), null where the session's samples carry none |
 pub mod gravity {
     use super::*;
     /// File name.
@@ -505,15 +506,19 @@ pub mod gravity {
     /// The epoch's position failed the outlier test against its neighbours: it was
     /// replaced by their prediction, with the prediction's sd (docs/formats.md 10.1).
     pub const POSITION_OUTLIER: u8 = 16;
+    /// The meter's status word has a bit set that `[survey] meter_status_flag_bits`
+    /// declares.
+    pub const METER_STATUS: u8 = 32;
     /// The course rate above which an epoch is flagged [`TURN`], deg/s.
     pub const TURN_DEG_PER_S: f64 = 0.5;
     /// Every flag with its name in gravity.json, in bit order.
-    pub const FLAG_NAMES: [(u8, &str); 5] = [
+    pub const FLAG_NAMES: [(u8, &str); 6] = [
         (OUTSIDE_CALIBRATION, "outside_calibration"),
         (TURN, "turn"),
         (EDGE, "edge"),
         (ATTITUDE_SD_UNKNOWN, "attitude_sd_unknown"),
         (POSITION_OUTLIER, "position_outlier"),
+        (METER_STATUS, "meter_status"),
     ];
     /// The columns of [`HORIZONTAL`] null where [`ATTITUDE_SD_UNKNOWN`] is set.
     pub const NEEDS_ATTITUDE_SD: [&str; 4] = [
@@ -609,6 +614,8 @@ pub mod gravity {
     pub const STRETCH: &str = "stretch";
     /// The flags column.
     pub const FLAGS: &str = "flags";
+    /// The meter's status column, after [`FLAGS`].
+    pub const METER_STATUS_WORD: &str = "meter_status";
 
     /// The Arrow schema for the dataset's `sessions`.
     pub fn schema(sessions: &[String]) -> SchemaRef {
@@ -624,6 +631,7 @@ pub mod gravity {
             fields.push(Field::new(*name, DataType::Float64, true));
         }
         fields.push(Field::new(FLAGS, DataType::UInt8, false));
+        fields.push(Field::new(METER_STATUS_WORD, DataType::UInt32, true));
         with_sessions(fields, sessions)
     }
 }
