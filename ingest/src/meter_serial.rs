@@ -380,6 +380,8 @@ mod tests {
         for (line, field) in [
             ("BGM 2022/07/01 12:17:33.492 BGM3 04:0249x3 00", "counts"),
             ("BGM 2022/07/01 12:17:33.492 BGM3 04:024963 0x", "status"),
+            ("BGM 2022/07/01 12:17:33.492 BGM3 04:024963 -1", "status"),
+            ("BGM 2022/07/01 12:17:33.492 BGM3 04:024963 4294967296", "status"),
             ("BGM 2022/07/01 12:17:33.492 BGM3 04024963 00", "counts"),
             ("BGM 2022/13/01 12:17:33.492 BGM3 04:024963 00", "time"),
             ("BGM BGM3 04:024963 00", "time"),
@@ -393,6 +395,7 @@ mod tests {
                     3571,2,7,-1,330,4086876,0.0000000000,0.0000000000,0.0000,0.0000,00000131034752 ";
         let l = parse_dgs_raw(good.as_bytes(), TimeScale::Utc).expect("good");
         assert_eq!(l.reading.to_bits(), (-82.0f64).to_bits());
+        assert_eq!(l.status, 330);
         let m = l.monitors.expect("a DGS's");
         for (got, want) in m.iter().zip([2e-5, 3571e-5, 7e-5, -1e-5]) {
             assert!((got - want).abs() < 1e-15, "{m:?}");
@@ -403,6 +406,7 @@ mod tests {
             (",4086876,", ",,", "checksum"),
             ("$AT1M", "$XT1M", "line"),
             ("03/12/2022", "03/12/20x2", "time"),
+            (",330,", ",-330,", "status"),
         ] {
             let line = good.replacen(from, to, 1);
             let e = parse_dgs_raw(line.as_bytes(), TimeScale::Utc).expect_err(&line);
