@@ -13,6 +13,8 @@
 //!   period `filter_s`, against scipy.signal's `sosfiltfilt`;
 //! - [`trajectory`]: GNSS positions from RTKLIB's `.pos` or a CSV;
 //! - [`attitude`]: heading, pitch and roll from a CSV, onto the trajectory's epochs;
+//! - [`antennas`]: the attitude and the accelerometers' position per epoch from several
+//!   GNSS antennas' positions (a weighted fit of the declared array, with its covariance);
 //! - `spill`: per-epoch records written aside and read back a block at a time;
 //! - `track`: a session's track made ready (gated, attitude, lever arm, noise) with its
 //!   kept positions written aside, only their times held;
@@ -34,6 +36,7 @@
 //!   survey-lines recovered within its sigmas, its crossover within its sigma, each
 //!   convention broken failing; a rolling boat with attitude, north and east within theirs).
 
+pub mod antennas;
 pub mod attitude;
 pub mod coupling;
 pub mod crossover;
