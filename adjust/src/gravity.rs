@@ -15,6 +15,8 @@
 //! - [`attitude`]: heading, pitch and roll from a CSV, onto the trajectory's epochs;
 //! - [`antennas`]: the attitude and the accelerometers' position per epoch from several
 //!   GNSS antennas' positions (a weighted fit of the declared array, with its covariance);
+//!   `array`: an array session's antennas read, matched by time and fitted, the fit given
+//!   to its track and written as attitude.parquet;
 //! - `spill`: per-epoch records written aside and read back a block at a time;
 //! - `track`: a session's track made ready (gated, attitude, lever arm, noise) with its
 //!   kept positions written aside, only their times held;
@@ -37,6 +39,7 @@
 //!   convention broken failing; a rolling boat with attitude, north and east within theirs).
 
 pub mod antennas;
+mod array;
 pub mod attitude;
 pub mod coupling;
 pub mod crossover;

@@ -2331,3 +2331,215 @@ mod cross_coupling {
         }
     }
 }
+
+/// The seed's instrument (issue 52): a survey whose session lists four GNSS antennas
+/// instead of a trajectory and an attitude file.
+mod antenna_array {
+    use super::*;
+    use arrow_array::cast::AsArray;
+    use arrow_array::types::{Float64Type, Int64Type};
+
+    /// attitude.parquet's times (s after the start), angles and sds (deg).
+    fn attitude_table(out: &Path) -> (Vec<f64>, Vec<[f64; 3]>, Vec<[f64; 3]>) {
+        use ingest::contract::tables::attitude;
+        let file = std::fs::File::open(out.join("gravity").join(attitude::FILE)).expect("file");
+        let reader = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+            .expect("reader")
+            .build()
+            .expect("reader");
+        let (mut t, mut hpr, mut sd) = (Vec::new(), Vec::new(), Vec::new());
+        let start = fixtures::survey_lines::START_GPS_S as f64;
+        for batch in reader {
+            let b = batch.expect("batch");
+            let col = |name: &str| {
+                b.column_by_name(name)
+                    .expect(name)
+                    .as_primitive::<Float64Type>()
+                    .clone()
+            };
+            let time = b
+                .column_by_name("time_gps_ns")
+                .expect("time")
+                .as_primitive::<Int64Type>()
+                .clone();
+            let f: Vec<_> = attitude::FLOATS.iter().map(|n| col(n)).collect();
+            for i in 0..b.num_rows() {
+                t.push(time.value(i) as f64 * 1e-9 - start);
+                hpr.push([f[0].value(i), f[1].value(i), f[2].value(i)]);
+                sd.push([f[3].value(i), f[4].value(i), f[5].value(i)]);
+            }
+        }
+        (t, hpr, sd)
+    }
+
+    /// Four antennas on the rolling boat (3 deg of roll, 1 deg of pitch), 2.2 to 3 m
+    /// apart, at RTK's 5 mm horizontal and 10 mm vertical noise, and no attitude file: every
+    /// epoch solved, its heading, pitch and roll within their sds of the truth (rms z 0.8 to
+    /// 1.2 each), down as accurate as with the truth's attitude (rms z 0.8 to 1.2), north and
+    /// east within their sigmas, which carry the derived attitude's part.
+    #[test]
+    fn four_antennas_give_the_attitude_and_north_and_east_within_their_sigmas() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let root = dir.path();
+        let dataset = root.join("antennas");
+        let plan = fixtures::survey_lines::antenna_plan();
+        let truth = fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+        let out = root.join("out");
+        let r = reduce(&dataset, &out);
+        let a = r.sessions[0].antennas.clone().expect("the array's");
+        eprintln!("{a:?}");
+        assert_eq!(a.epochs_solved, truth.epochs, "every epoch");
+        // Six baselines an epoch tested at 5 sds: 0.09 false alarms expected over the
+        // survey's 25 631 epochs; two at most.
+        assert!(a.set_aside.values().sum::<u64>() <= 2, "{:?}", a.set_aside);
+        assert!(
+            r.inputs
+                .iter()
+                .filter(|i| i.role.starts_with("antenna a"))
+                .count()
+                == 4,
+            "{:?}",
+            r.inputs
+        );
+        assert!(r.attitude_table.is_some());
+        let (t, hpr, sd) = attitude_table(&out);
+        let want = plan.attitude_at(&t);
+        let mut z2 = [0.0; 3];
+        for k in 0..t.len() {
+            for j in 0..3 {
+                let mut d = hpr[k][j] - want[k][j].to_degrees();
+                d = (d + 180.0).rem_euclid(360.0) - 180.0;
+                z2[j] += (d / sd[k][j]).powi(2);
+            }
+        }
+        let z = z2.map(|v| (v / t.len() as f64).sqrt());
+        eprintln!(
+            "derived attitude: rms z heading, pitch, roll {z:?}; median sds {:?} deg",
+            a.median_sd_hpr_deg
+        );
+        for (name, z) in ["heading", "pitch", "roll"].iter().zip(z) {
+            assert!((0.8..1.2).contains(&z), "{name}: rms z {z}");
+        }
+        let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
+        eprintln!("antennas, down: rms error {rms:.3} mGal, rms z {z:.3}");
+        assert!((0.6..1.2).contains(&z), "down rms z {z}");
+        for (name, [rms, z, sigma, att]) in
+            ["north", "east"]
+                .into_iter()
+                .zip(horizontal_scores(&dataset, &out, r.filter.filter_s))
+        {
+            eprintln!(
+                "antennas, {name}: rms error {rms:.2} mGal, rms z {z:.3}; median sigma \
+                 {sigma:.1} mGal, of it the attitude's {att:.1}"
+            );
+            assert!(z < 1.3 && z > 0.7, "{name} rms z {z}");
+        }
+    }
+}
+
+/// The array's checks on the rolling boat: antenna a2 moved 5 cm north at one epoch has
+/// its baselines' lengths off, is set aside there and the epoch reduced from the other
+/// three; a lever arm beside the antennas, two antennas across the boat, and two fore and
+/// aft (heading and pitch only, no roll for the lever arms) are each refused by name.
+#[test]
+fn an_antenna_off_by_5_cm_is_set_aside_and_the_epoch_kept() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("antennas");
+    let plan = fixtures::survey_lines::antenna_plan();
+    let truth = fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+    let file = dataset.join("raw/antenna2.pos");
+    let out = dir.path().join("out");
+    let text = std::fs::read_to_string(&file).expect("pos");
+    let moved: String = text
+        .lines()
+        .enumerate()
+        .map(|(k, l)| {
+            if k != 1002 {
+                return format!("{l}\n");
+            }
+            let f: Vec<&str> = l.split_whitespace().collect();
+            let lat: f64 = f[2].parse().expect("latitude");
+            let north = (0.05 / 6_367_000.0f64).to_degrees();
+            format!(
+                "{} {} {:.9} {}\n",
+                f[0],
+                f[1],
+                lat + north,
+                f[3..].join(" ")
+            )
+        })
+        .collect();
+    std::fs::write(&file, moved).expect("pos");
+    let r = reduce(&dataset, &out);
+    let a = r.sessions[0].antennas.clone().expect("the array's");
+    eprintln!("{a:?}");
+    assert_eq!(a.epochs_solved, truth.epochs, "the epoch kept");
+    // attitude.parquet's masks at that epoch (the 1000th): a2 set aside, the others used.
+    let masks = {
+        use arrow_array::cast::AsArray;
+        use arrow_array::types::UInt32Type;
+        let file = std::fs::File::open(out.join("gravity/attitude.parquet")).expect("file");
+        let b = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file)
+            .expect("reader")
+            .build()
+            .expect("reader")
+            .next()
+            .expect("a batch")
+            .expect("batch");
+        let m = |n: &str| {
+            b.column_by_name(n)
+                .expect(n)
+                .as_primitive::<UInt32Type>()
+                .value(1000)
+        };
+        [m("antennas_used"), m("antennas_set_aside")]
+    };
+    assert_eq!(masks, [0b1011, 0b0100], "{:?}", a.set_aside);
+    let manifest = std::fs::read_to_string(dataset.join("dataset.toml")).expect("toml");
+    // The manifest without the antennas `gone` (each block ends at a blank line).
+    let without = |gone: &[usize]| {
+        let mut m = manifest.clone();
+        for k in gone {
+            let at = m
+                .find(&format!("[[session.antenna]]\nid = \"a{k}\""))
+                .expect("antenna");
+            let end = m[at + 1..].find("\n\n").map_or(m.len(), |e| at + 2 + e);
+            m = format!("{}{}", &m[..at], &m[end..]);
+        }
+        m
+    };
+    let two_across = without(&[0, 1]);
+    let fore_aft = without(&[2, 3]).replace(
+        "position_m = [1.6, 0.0, -2.1]",
+        "position_m = [1.6, 0.0, -2.0]",
+    );
+    for (what, m, want) in [
+        (
+            "a lever arm",
+            manifest.replace(
+                "lever_arm_m = [0.0, 0.0, 0.0]",
+                "lever_arm_m = [0.1, 0.0, 0.0]",
+            ),
+            "survey.lever_arm_m",
+        ),
+        (
+            "two antennas across",
+            two_across,
+            "along the vehicle's x axis",
+        ),
+        (
+            "two antennas fore and aft",
+            fore_aft,
+            "two antennas give heading and pitch",
+        ),
+    ] {
+        assert_ne!(m, manifest, "{what}");
+        std::fs::write(dataset.join("dataset.toml"), &m).expect("toml");
+        let e = args(&dataset)
+            .run(&dir.path().join(what))
+            .expect_err(what)
+            .to_string();
+        eprintln!("{what}: {e}");
+        assert!(e.contains(want), "{what}: {e}");
+    }
+}

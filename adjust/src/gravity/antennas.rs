@@ -14,8 +14,9 @@
 //! that an RTK height is twice as noisy as its horizontal position).
 //!
 //! A baseline whose measured length departs from its declared one by more than `limit`
-//! times its sd flags its antennas; the antenna in the most such baselines is set aside
-//! for the epoch and the fit made again from the others (`baseline_length`). Three
+//! times its sd sets an antenna aside for the epoch: the one whose leaving out lets the
+//! others fit best (the least chi-square); the fit is made again from them
+//! (`baseline_length`). Three
 //! antennas not in a line are needed; two give heading and pitch only ([`heading_pitch`]),
 //! the baseline along the vehicle's x axis. No I/O.
 
@@ -46,6 +47,9 @@ pub struct Solution {
     pub used: u32,
     /// Bit k set: antenna k set aside, its baselines' lengths off.
     pub set_aside: u32,
+    /// The fit's weighted sum of squared residuals (chi-square on 3n - 6 degrees of
+    /// freedom when the sds hold).
+    pub chi2: f64,
 }
 
 impl Solution {
@@ -207,6 +211,7 @@ fn fit(positions: &[[f64; 3]], fixes: &[(usize, Fix)]) -> Option<Solution> {
     }
     let normal = design.transpose() * &design;
     let cov = normal.qr().solve_lstsq(Mat::<f64>::identity(6, 6));
+    let chi2 = linearised(positions, fixes, (&c, p)).1.squared_norm_l2();
     Some(Solution {
         origin_ned_m: p,
         hpr_rad: hpr_of(&c),
@@ -214,6 +219,7 @@ fn fit(positions: &[[f64; 3]], fixes: &[(usize, Fix)]) -> Option<Solution> {
         covariance: std::array::from_fn(|i| std::array::from_fn(|j| cov[(i, j)])),
         used: fixes.iter().fold(0, |m, (k, _)| m | 1 << k),
         set_aside: 0,
+        chi2,
     })
 }
 
@@ -229,26 +235,25 @@ fn baseline_z(positions: &[[f64; 3]], (i, fi): (usize, Fix), (j, fj): (usize, Fi
     (length - norm(sub(positions[i], positions[j]))) / var.sqrt()
 }
 
-/// The antenna of `fixes` to set aside: the one in the most baselines off by more than
-/// `limit` sds (ties: the larger sum of their |z|); None when no baseline is off.
-fn worst(positions: &[[f64; 3]], fixes: &[(usize, Fix)], limit: f64) -> Option<usize> {
-    let mut score = vec![(0usize, 0.0f64); fixes.len()];
-    for a in 0..fixes.len() {
-        for b in a + 1..fixes.len() {
-            let z = baseline_z(positions, fixes[a], fixes[b]).abs();
-            if z > limit {
-                for k in [a, b] {
-                    score[k].0 += 1;
-                    score[k].1 += z;
-                }
-            }
-        }
-    }
-    let (k, s) = score
-        .iter()
-        .enumerate()
-        .max_by(|x, y| x.1.0.cmp(&y.1.0).then(x.1.1.total_cmp(&y.1.1)))?;
-    (s.0 > 0).then_some(k)
+/// Whether a baseline of `fixes` is off by more than `limit` sds.
+fn any_off(positions: &[[f64; 3]], fixes: &[(usize, Fix)], limit: f64) -> bool {
+    (0..fixes.len()).any(|a| {
+        (a + 1..fixes.len()).any(|b| baseline_z(positions, fixes[a], fixes[b]).abs() > limit)
+    })
+}
+
+/// The antenna of `fixes` (more than three) to set aside once a baseline is off: the one
+/// whose leaving out lets the others fit best (the least chi-square). A baseline's length
+/// alone does not say which of its two ends moved; the fit of the rest does.
+fn worst(positions: &[[f64; 3]], fixes: &[(usize, Fix)]) -> Option<usize> {
+    (0..fixes.len())
+        .filter_map(|k| {
+            let mut rest = fixes.to_vec();
+            rest.remove(k);
+            fit(positions, &rest).map(|s| (k, s.chi2))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(k, _)| k)
 }
 
 /// Why an epoch has no fit: the antennas set aside (bit k: antenna k), and whether that
@@ -257,7 +262,7 @@ fn worst(positions: &[[f64; 3]], fixes: &[(usize, Fix)], limit: f64) -> Option<u
 pub struct Unsolved {
     /// Bit k set: antenna k set aside, its baselines' lengths off.
     pub set_aside: u32,
-    /// Fewer than three antennas usable.
+    /// Fewer than three antennas usable, or three whose baselines disagree.
     pub too_few: bool,
 }
 
@@ -277,17 +282,17 @@ pub fn solve(
         .collect();
     let mut set_aside = 0u32;
     while given.len() >= 3 {
-        match worst(positions, &given, limit) {
-            Some(k) if given.len() > 3 => {
+        match (any_off(positions, &given, limit), given.len() > 3) {
+            (true, true) => {
+                let k = worst(positions, &given).unwrap_or(0);
                 set_aside |= 1 << given[k].0;
                 given.remove(k);
             }
-            Some(k) => {
+            (true, false) => {
                 // Three antennas, a baseline off: which is wrong cannot be told apart.
-                set_aside |= 1 << given[k].0;
                 break;
             }
-            None => {
+            (false, _) => {
                 let unsolved = Unsolved {
                     set_aside,
                     too_few: false,
@@ -362,7 +367,9 @@ mod tests {
         let mut s = seed;
         move || {
             let mut u = || {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
             };
             let (a, b) = (u(), u());
@@ -378,9 +385,17 @@ mod tests {
             let c = rot(h, p, r);
             let s = solve(&ARRAY, &fixes(&c, [10.0, -4.0, 2.0], &mut || 0.0), 5.0).expect("fit");
             for (got, want) in s.hpr_rad.iter().zip([h, p, r]) {
-                assert!((got - want).abs() < 1e-12, "{:?} against {h} {p} {r}", s.hpr_rad);
+                assert!(
+                    (got - want).abs() < 1e-12,
+                    "{:?} against {h} {p} {r}",
+                    s.hpr_rad
+                );
             }
-            assert!((s.origin_ned_m[0] - 10.0).abs() < 1e-12, "{:?}", s.origin_ned_m);
+            assert!(
+                (s.origin_ned_m[0] - 10.0).abs() < 1e-12,
+                "{:?}",
+                s.origin_ned_m
+            );
             assert_eq!((s.used, s.set_aside), (0b1111, 0));
         }
     }
@@ -406,14 +421,19 @@ mod tests {
             }
         }
         let rms = |v: [f64; 3]| v.map(|x| (x / f64::from(n)).sqrt());
-        eprintln!("rms z heading, pitch, roll {:?}; position {:?}", rms(z2), rms(zp2));
+        eprintln!(
+            "rms z heading, pitch, roll {:?}; position {:?}",
+            rms(z2),
+            rms(zp2)
+        );
         for z in rms(z2).into_iter().chain(rms(zp2)) {
             assert!((z - 1.0).abs() < 0.05, "{z}");
         }
     }
 
     /// An antenna 5 cm off along its baseline at one epoch is set aside, and the epoch
-    /// fitted from the other three; with three antennas left so, none is.
+    /// fitted from the other three; with three antennas left so, which one is off cannot
+    /// be told, and the epoch has no fit.
     #[test]
     fn an_antenna_whose_baselines_are_off_is_set_aside() {
         let c = rot(1.0, 0.02, -0.03);
@@ -426,7 +446,7 @@ mod tests {
         assert!((s.hpr_rad[0] - 1.0).abs() < 0.01);
         f[3] = None;
         let e = solve(&ARRAY, &f, 5.0).expect_err("too few");
-        assert!(e.too_few && e.set_aside != 0, "{e:?}");
+        assert!(e.too_few && e.set_aside == 0, "{e:?}");
     }
 
     /// Two antennas fore and aft: heading and pitch of the baseline, their sds honest over

@@ -43,6 +43,10 @@ pub struct AttitudeAt {
     pub sd_rad: [f64; 3],
     /// Whether the file gives the sds of both samples it is interpolated between.
     pub sd_given: bool,
+    /// The covariance of the attitude's error as a small rotation of the navigation frame
+    /// (north, east, down), rad^2, where the attitude comes with one (an antenna array's,
+    /// [`super::antennas`]); None: its angles' errors are independent, of `sd_rad`.
+    pub nav_covariance: Option<[[f64; 3]; 3]>,
 }
 
 impl AttitudeAt {
@@ -102,8 +106,19 @@ pub fn read_csv(
 }
 
 /// Doubles an attitude sample is written aside as: heading (unwrapped), pitch, roll, their
-/// sds (NaN: none), deg.
-const WIDTH: usize = 6;
+/// sds (NaN: none), deg; the navigation-frame error's covariance NN, NE, ND, EE, ED, DD,
+/// rad^2 (NaN: none).
+const WIDTH: usize = 12;
+
+fn nav_covariance_of(v: &[f64]) -> Option<[[f64; 3]; 3]> {
+    (!v[6].is_nan()).then(|| {
+        [
+            [v[6], v[7], v[8]],
+            [v[7], v[9], v[10]],
+            [v[8], v[10], v[11]],
+        ]
+    })
+}
 
 fn sd_of(v: &[f64]) -> Option<[f64; 3]> {
     (!v[3].is_nan()).then(|| [v[3], v[4], v[5]])
@@ -162,7 +177,10 @@ impl Sink<([f64; 3], Option<[f64; 3]>)> for Kept {
         self.heading = Some(h);
         self.times.push(time_ns);
         let [a, b, c] = sd.unwrap_or([f64::NAN; 3]);
-        self.out.push(&[h, hpr[1], hpr[2], a, b, c])
+        let none = f64::NAN;
+        self.out.push(&[
+            h, hpr[1], hpr[2], a, b, c, none, none, none, none, none, none,
+        ])
     }
 
     fn reject(
@@ -305,11 +323,82 @@ impl<'a> AttitudeCursor<'a> {
 fn interpolated(a: &[f64; WIDTH], b: &[f64; WIDTH], f: f64) -> AttitudeAt {
     let (sa, sb) = (sd_of(a), sd_of(b));
     let sd = |s: Option<[f64; 3]>| s.unwrap_or([0.0; 3]);
+    let nav_covariance = nav_covariance_of(a)
+        .zip(nav_covariance_of(b))
+        .map(|(ca, cb)| {
+            std::array::from_fn(|i| std::array::from_fn(|j| ca[i][j] + f * (cb[i][j] - ca[i][j])))
+        });
     AttitudeAt {
         hpr_rad: std::array::from_fn(|j| (a[j] + f * (b[j] - a[j])).to_radians()),
         sd_rad: std::array::from_fn(|j| (sd(sa)[j] + f * (sd(sb)[j] - sd(sa)[j])).to_radians()),
         sd_given: sa.is_some() && sb.is_some(),
+        nav_covariance,
     }
+}
+
+/// One sample of an attitude derived at the trajectory's own epochs (an antenna array's):
+/// its time, heading, pitch, roll (deg), their sds (deg) and the navigation-frame error's
+/// covariance (rad^2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DerivedSample {
+    /// GPS time, ns.
+    pub time_gps_ns: i64,
+    /// Heading, pitch, roll, deg.
+    pub hpr_deg: [f64; 3],
+    /// Their sds, deg.
+    pub sd_deg: [f64; 3],
+    /// The error's covariance as a small rotation of the navigation frame, rad^2.
+    pub nav_covariance: [[f64; 3]; 3],
+}
+
+/// Writes derived attitude samples, increasing in time (the trajectory's epochs, which
+/// passed the time gate), aside into `dir` as a file's would be, the heading made
+/// continuous; `path` names them in errors.
+pub fn spill_derived(
+    path: &Path,
+    samples: impl IntoIterator<Item = DerivedSample>,
+    dir: &Path,
+) -> Result<SpilledAttitude, GravityError> {
+    let io = |e: std::io::Error| GravityError::File {
+        path: path.to_path_buf(),
+        message: format!("its samples written aside: {e}"),
+    };
+    let mut out = SpillWriter::new(dir, WIDTH).map_err(io)?;
+    let (mut times, mut steps, mut heading) = (Vec::new(), Steps::default(), None::<f64>);
+    for s in samples {
+        let h = match heading {
+            Some(last) => last + ((s.hpr_deg[0] - last + 180.0).rem_euclid(360.0) - 180.0),
+            None => s.hpr_deg[0],
+        };
+        heading = Some(h);
+        let c = s.nav_covariance;
+        let [sh, sp, sr] = s.sd_deg;
+        out.push(&[
+            h,
+            s.hpr_deg[1],
+            s.hpr_deg[2],
+            sh,
+            sp,
+            sr,
+            c[0][0],
+            c[0][1],
+            c[0][2],
+            c[1][1],
+            c[1][2],
+            c[2][2],
+        ])
+        .map_err(io)?;
+        times.push(s.time_gps_ns);
+        steps.push(s.time_gps_ns);
+    }
+    Ok(SpilledAttitude {
+        path: path.to_path_buf(),
+        max_gap_ns: 2 * steps.median().unwrap_or(0),
+        times,
+        values: out.finish().map_err(io)?,
+        bad_lines: Vec::new(),
+        dropped: BTreeMap::new(),
+    })
 }
 
 /// One line: its time, heading, pitch and roll, and their sds if given.

@@ -65,6 +65,30 @@ pub fn attitude_effects(heading: f64, sd: [f64; 3], f: [f64; 3]) -> [[f64; 3]; 3
     ]
 }
 
+/// [`attitude_effects`] for an attitude whose error is given as the covariance `c` (rad^2)
+/// of a small rotation eps of the navigation frame (north, east, down; an antenna array's):
+/// its Cholesky factor's columns are three independent one-sd errors e_k, each moving the
+/// specific force by e_k x f, `[component][k]`. For independent angle errors this is the
+/// same sum of squares as [`attitude_effects`]' (the covariance then has the angles' axes
+/// as its eigenvectors); correlated ones are carried whole. A covariance that is not
+/// positive definite (a degenerate array's) gives NaN effects.
+pub fn attitude_effects_of_covariance(c: &[[f64; 3]; 3], f: [f64; 3]) -> [[f64; 3]; 3] {
+    let m = faer::Mat::<f64>::from_fn(3, 3, |i, j| c[i][j]);
+    let Ok(llt) = m.llt(faer::Side::Lower) else {
+        return [[f64::NAN; 3]; 3];
+    };
+    let l = llt.L();
+    let sources: [[f64; 3]; 3] = std::array::from_fn(|k| std::array::from_fn(|i| l[(i, k)]));
+    let mut out = [[0.0; 3]; 3];
+    for (k, e) in sources.iter().enumerate() {
+        // delta f = e x f.
+        out[0][k] = e[1] * f[2] - e[2] * f[1];
+        out[1][k] = e[2] * f[0] - e[0] * f[2];
+        out[2][k] = e[0] * f[1] - e[1] * f[0];
+    }
+    out
+}
+
 /// The sd of each epoch's filtered attitude error, mGal, from the signed one-sd effects `b`
 /// of the three angles at each epoch (epochs `dt` s apart), under `errors`. The filter is
 /// `sections` with the stretch's ends treated as the value's are (`pad`, `pivot`).
@@ -276,6 +300,32 @@ mod tests {
         // The sign: a roll to starboard (positive) heading north tilts the force west.
         let e = attitude_effects(0.0, [0.0, 0.0, 1e-4], [0.0, 0.0, -g]);
         assert!(e[1][2] > 0.0, "{e:?}");
+    }
+
+    /// The covariance form of independent angle errors gives each component the same sum of
+    /// squares as the angles' form, at any heading, with a turn's horizontal force.
+    #[test]
+    fn the_covariance_form_agrees_with_independent_angles() {
+        let f = [1200.0, -16_700.0, -980_000.0];
+        for heading in [0.0, 0.7, 2.5, -1.9] {
+            let sd: [f64; 3] = [1e-3, 2e-4, 1e-4];
+            let e = attitude_effects(heading, sd, f);
+            // eps = M (dh, dp, dr): columns down, (-sin h, cos h, 0), (cos h, sin h, 0).
+            let (s, c) = f64::sin_cos(heading);
+            let m = [[0.0, -s, c], [0.0, c, s], [1.0, 0.0, 0.0]];
+            let cov: [[f64; 3]; 3] = std::array::from_fn(|i| {
+                std::array::from_fn(|j| (0..3).map(|k| m[i][k] * sd[k] * sd[k] * m[j][k]).sum())
+            });
+            let g = attitude_effects_of_covariance(&cov, f);
+            for comp in 0..3 {
+                let a: f64 = e[comp].iter().map(|v| v * v).sum();
+                let b: f64 = g[comp].iter().map(|v| v * v).sum();
+                assert!(
+                    (a - b).abs() <= 1e-9 * a.max(1e-12),
+                    "{heading} {comp}: {a} {b}"
+                );
+            }
+        }
     }
 
     /// The three models against a Monte-Carlo of the same filter: unit errors drawn white,

@@ -80,6 +80,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     for (track, meter) in tracks.iter_mut().zip(meters) {
         track.meter = meter;
     }
+    let attitude_table = attitude_table(&ds, &tracks, &dir)?;
     let force = down_force(&applied, &survey, opts.accelerometer)?;
     let triad = triad_function(&applied, opts.apply.calibration)?;
     refuse_attitude_with_an_axis(&force, &tracks)?;
@@ -123,10 +124,30 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
             crossovers: r.crossovers,
             rows_written: r.rows_written,
             sha256: r.sha256,
+            attitude_table,
         };
         ingest::write_json_atomically(&dir.join(LEDGER_FILE), &report)?;
         Ok(report)
     })
+}
+
+/// attitude.parquet written in `dir` from the array sessions' fits (its rows and SHA-256),
+/// or, without one, a stale one from an earlier run removed.
+fn attitude_table(
+    ds: &Dataset,
+    tracks: &[Track<'_>],
+    dir: &Path,
+) -> Result<Option<(u64, String)>, GravityError> {
+    let tables: Vec<(u16, &[super::array::AttitudeRow])> = tracks
+        .iter()
+        .filter_map(|t| t.array.as_ref().map(|(_, rows)| (t.index, &rows[..])))
+        .collect();
+    if tables.is_empty() {
+        ingest::remove_stale(&dir.join(ingest::contract::tables::attitude::FILE))?;
+        return Ok(None);
+    }
+    let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
+    super::array::write_attitude_table(dir, &names, &tables).map(Some)
 }
 
 /// What the reduction reads and where it writes.
@@ -297,8 +318,19 @@ fn inputs(table: &Path, tracks: &[Track<'_>]) -> Result<Vec<Input>, GravityError
         let Some(src) = &t.session.trajectory else {
             continue;
         };
-        let attitude = src.attitude.as_ref().map(|(p, _)| ("attitude", p));
-        for (role, path) in std::iter::once(("trajectory", &src.path)).chain(attitude) {
+        let attitude = src
+            .attitude
+            .as_ref()
+            .map(|(p, _)| ("attitude".to_owned(), p));
+        let files: Vec<(String, &std::path::PathBuf)> = match src.antennas.is_empty() {
+            true => std::iter::once(("trajectory".to_owned(), &src.path))
+                .chain(attitude)
+                .collect(),
+            false => (src.antennas.iter())
+                .map(|a| (format!("antenna {}", a.id), &a.path))
+                .collect(),
+        };
+        for (role, path) in files {
             inputs.push(Input {
                 role: format!("{role} of {}", t.session.session.id),
                 path: path.display().to_string(),
@@ -712,6 +744,7 @@ fn reduce_track(
         sample_noise_mgal: ctx.sample_noise.sd_mgal,
         sample_noise_from: ctx.sample_noise.from.clone(),
         cross_coupling: None,
+        antennas: track.array.as_ref().map(|(used, _)| used.clone()),
         meter_status: track.meter.as_ref().map(|_| MeterStatus {
             flag_bits: ctx.survey.meter_status_flag_bits.clone(),
             ..MeterStatus::default()
@@ -1230,7 +1263,11 @@ fn stretches(
 fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) -> Stretch {
     let mut s = Stretch {
         attitude_errors: AttitudeErrors {
-            model: ctx.survey.attitude_error_model(),
+            // An antenna array's attitude errs as its positions do.
+            model: match track.array {
+                Some(_) => ctx.survey.position_error_model(),
+                None => ctx.survey.attitude_error_model(),
+            },
             interval_s: track.attitude.as_ref().map_or(0.0, |a| a.interval_s()),
         },
         position_errors: declared(ctx.survey.position_error_model()),
@@ -1257,9 +1294,7 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
                 s.f_down_mgal.push(f[2]);
                 s.sigma_f_mgal.push(bins[k].sigma_along(c[2]));
                 let a = b.attitude(k);
-                let effects = a.map_or([0.0; 3], |a| {
-                    errors::attitude_effects(a.hpr_rad[0], a.sd_rad, f)[2]
-                });
+                let effects = a.map_or([0.0; 3], |a| attitude_effects_at(&a, f)[2]);
                 s.attitude_effects_mgal.push(effects);
             }
             None => {
@@ -1374,6 +1409,16 @@ fn body_tide(s: &Stretch) -> Vec<f64> {
         .collect()
 }
 
+/// The effects of attitude `a`'s errors on the specific force `f` (N, E, D, mGal),
+/// `[component][source]`: from its navigation-frame covariance where it has one (an
+/// antenna array's), else from its angles' sds.
+fn attitude_effects_at(a: &AttitudeAt, f: [f64; 3]) -> [[f64; 3]; 3] {
+    match &a.nav_covariance {
+        Some(c) => errors::attitude_effects_of_covariance(c, f),
+        None => errors::attitude_effects(a.hpr_rad[0], a.sd_rad, f),
+    }
+}
+
 /// The positions' error model where it is not white (None when white: the file's sds then
 /// join the white part).
 fn declared(model: ErrorModel) -> Option<ErrorModel> {
@@ -1410,7 +1455,7 @@ fn horizontal_inputs(
         let c = attitude::product(&a.vehicle_to_nav(), &ctx.mounting);
         let v = bins[k].mean_vector();
         let f = bins[k].mean_nav();
-        let effects = errors::attitude_effects(a.hpr_rad[0], a.sd_rad, f);
+        let effects = attitude_effects_at(a, f);
         let [sd, given] = position_sds(&b.positions, k, model);
         let x = ctx.triad.and_then(|t| t.readings_for(v));
         for i in 0..2 {
@@ -1928,6 +1973,9 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
     if let Some(m) = &s.meter_status {
         let _ = writeln!(w, "gravity: {}: {}", s.id, status_line(m, s.epochs_used));
     }
+    if let Some(a) = &s.antennas {
+        let _ = writeln!(w, "gravity: {}: {}", s.id, antennas_line(a));
+    }
     let _ = writeln!(
         w,
         "gravity: {}: a sample's noise {:.4} mGal, from {}",
@@ -1961,6 +2009,30 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
         );
         let _ = writeln!(w, "gravity:   {} to {}: {}", st.first, st.last, drift);
     }
+}
+
+/// An antenna array's session as the console says it: its antennas, the epochs solved,
+/// the antennas set aside, the attitude's and position's median sds.
+fn antennas_line(a: &ingest::contract::gravity_ledger::AntennasUsed) -> String {
+    let aside: Vec<String> = a
+        .set_aside
+        .iter()
+        .map(|(id, n)| format!("{id} at {n}"))
+        .collect();
+    let [h, p, r] = a.median_sd_hpr_deg;
+    let [n, e, d] = a.median_sd_position_m.map(|v| v * 100.0);
+    format!(
+        "antennas {}: attitude and position at {} epochs; set aside (baseline length): {}; \
+         median sd heading {h:.3}, pitch {p:.3}, roll {r:.3} deg, position north {n:.2}, east \
+         {e:.2}, down {d:.2} cm (OUT/gravity/attitude.parquet)",
+        a.ids.join(", "),
+        a.epochs_solved,
+        if aside.is_empty() {
+            "none".to_owned()
+        } else {
+            aside.join(", ")
+        }
+    )
 }
 
 /// A session's meter status as the console says it: each bit set, at every epoch or at

@@ -56,6 +56,11 @@ pub(super) struct Track<'a> {
     /// A platform meter's own record (its monitors and status words), when the session's
     /// samples come from its file.
     pub meter: Option<super::meter::MeterLines>,
+    /// An antenna array's session: what its antennas gave, and its attitude.parquet rows.
+    pub array: Option<(
+        ingest::contract::gravity_ledger::AntennasUsed,
+        Vec<super::array::AttitudeRow>,
+    )>,
     /// What its heights are measured from (the format's, or an NMEA file's own).
     pub heights: Heights,
 }
@@ -187,9 +192,13 @@ pub(super) fn read_tracks<'a>(
             )?),
             None => None,
         };
+        if !src.antennas.is_empty() {
+            tracks.push(array_track(ds, (index, s), skip, (survey, dir))?);
+            continue;
+        }
         let (mut track, bad) = gated(
             (index, s),
-            attitude.as_ref(),
+            (attitude.as_ref(), None),
             (survey.lever_arm_m, skip),
             dir,
         )?;
@@ -211,6 +220,40 @@ pub(super) fn read_tracks<'a>(
         });
     }
     Ok(tracks)
+}
+
+/// An antenna array's session's track ([`super::array`]): the accelerometers' positions
+/// the antennas give, through the time gate as a trajectory's, with the attitude they give.
+fn array_track<'a>(
+    ds: &Dataset,
+    (index, s): (usize, &'a ResolvedSession),
+    skip: bool,
+    (survey, dir): (&SurveyConfig, &Path),
+) -> Result<Track<'a>, GravityError> {
+    let array = super::array::read_array(s, survey, skip, dir)?;
+    let derived = (Some(&array.attitude), Some(&array.epochs[..]));
+    let (mut track, _) = gated((index, s), derived, ([0.0; 3], skip), dir)?;
+    let antennas = &s.trajectory.as_ref().expect("an array").antennas;
+    for (k, lines) in &array.bad {
+        track
+            .bad_lines
+            .extend(listed(ds, &antennas[*k].path, lines));
+    }
+    let set_aside: usize = array.bad.iter().map(|(_, l)| l.len()).sum();
+    if set_aside > 0 {
+        track
+            .dropped
+            .insert(dropped::BAD_LINE.to_owned(), set_aside as u64);
+    }
+    if array.too_few > 0 {
+        track
+            .dropped
+            .insert(dropped::TOO_FEW_ANTENNAS.to_owned(), array.too_few);
+    }
+    track.epochs_read += array.too_few;
+    track.attitude = Some(array.attitude);
+    track.array = Some((array.used, array.rows));
+    Ok(track)
 }
 
 /// The meters' own records of the sessions with a trajectory, in [`read_tracks`]'s order
@@ -246,7 +289,7 @@ fn listed(ds: &Dataset, path: &Path, bad: &[BadLine]) -> Vec<String> {
 
 /// Calls `f` with each epoch of session `s`'s trajectory (time, position, sds), an NMEA
 /// file's as its first pass `nmea` found it; the lines set aside.
-fn each_epoch(
+pub(super) fn each_epoch(
     s: &ResolvedSession,
     nmea: Option<trajectory::NmeaScan>,
     skip: bool,
@@ -335,7 +378,7 @@ impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
 const HELD_EPOCHS: usize = 1 << 18;
 
 /// An epoch as a trajectory reader gives it: its GPS time (ns), position and sds if given.
-type Epoch = (i64, [f64; 3], Option<[f64; 3]>);
+pub(super) type Epoch = (i64, [f64; 3], Option<[f64; 3]>);
 
 /// What a trajectory's first pass finds.
 struct FirstPass {
@@ -353,8 +396,19 @@ fn first_pass(
     s: &ResolvedSession,
     nmea: Option<trajectory::NmeaScan>,
     skip: bool,
+    derived: Option<&[Epoch]>,
 ) -> Result<FirstPass, GravityError> {
     let mut steps = Steps::default();
+    if let Some(epochs) = derived {
+        for e in epochs {
+            steps.push(e.0);
+        }
+        return Ok(FirstPass {
+            interval_ns: steps.median().unwrap_or(1_000_000_000),
+            held: Some(epochs.to_vec()),
+            bad: Vec::new(),
+        });
+    }
     let mut held = Some(Vec::new());
     let bad = each_epoch(s, nmea, skip, |t, llh, sd| {
         steps.push(t);
@@ -380,7 +434,7 @@ fn first_pass(
 /// moved by the lever arm and written aside into `dir`; the trajectory's lines set aside.
 fn gated<'a>(
     (index, s): (usize, &'a ResolvedSession),
-    attitude: Option<&SpilledAttitude>,
+    (attitude, derived): (Option<&SpilledAttitude>, Option<&[Epoch]>),
     (lever_arm_m, skip): ([f64; 3], bool),
     dir: &Path,
 ) -> Result<(Track<'a>, Vec<BadLine>), GravityError> {
@@ -391,7 +445,7 @@ fn gated<'a>(
         }
         _ => None,
     };
-    let first = first_pass(s, nmea, skip)?;
+    let first = first_pass(s, nmea, skip, derived)?;
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
     let mut sink = EpochSink {
         session: s,
@@ -442,6 +496,7 @@ fn gated<'a>(
         sd_given_median_m: None,
         replaced: Vec::new(),
         meter: None,
+        array: None,
         heights: s
             .trajectory
             .as_ref()

@@ -49,6 +49,28 @@ pub mod dropped {
     /// third or later of a run (one or two in a row are replaced by the prediction and
     /// flagged `position_outlier` instead).
     pub const POSITION_OUTLIER: &str = "position_outlier";
+    /// An antenna array's epoch with fewer than three usable antennas not in a line (after
+    /// those whose baselines' lengths were off were set aside), or three whose baselines
+    /// disagree (which of them is off cannot be told).
+    pub const TOO_FEW_ANTENNAS: &str = "too_few_antennas";
+}
+
+/// An antenna array's session: what its antennas gave (docs/formats.md 11.1).
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct AntennasUsed {
+    /// The antennas, in the manifest's order (bit k of attitude.parquet's masks).
+    pub ids: Vec<String>,
+    /// Each antenna's epochs after its own time gate.
+    pub epochs_read: Vec<u64>,
+    /// Epochs the array gave an attitude and a position at.
+    pub epochs_solved: u64,
+    /// Per antenna, the epochs it was set aside at, its baselines' lengths off by more
+    /// than `[survey] baseline_length_sigmas` (`baseline_length`).
+    pub set_aside: BTreeMap<String, u64>,
+    /// The solved epochs' median sds of heading, pitch and roll, deg.
+    pub median_sd_hpr_deg: [f64; 3],
+    /// Their median sds of the accelerometers' position north, east, down, m.
+    pub median_sd_position_m: [f64; 3],
 }
 
 /// A file read, with its hash.
@@ -156,6 +178,9 @@ pub struct SessionGravity {
     /// them (docs/formats.md 11.1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub meter_status: Option<MeterStatus>,
+    /// An antenna array's session: what its antennas gave.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub antennas: Option<AntennasUsed>,
     /// What the trajectory's heights are measured from, and so which quantity `down_mgal`
     /// is, and which of the named columns are formed (docs/formats.md 10.3).
     pub quantities: Quantities,
@@ -347,4 +372,7 @@ pub struct GravityReport {
     pub rows_written: u64,
     /// Its SHA-256.
     pub sha256: String,
+    /// attitude.parquet's rows and SHA-256, when a session lists its antennas.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attitude_table: Option<(u64, String)>,
 }

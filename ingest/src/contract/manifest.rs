@@ -473,6 +473,11 @@ pub struct Session {
     /// How the attitude file writes its times.
     #[serde(default)]
     pub attitude_time: Option<TimeForm>,
+    /// A survey session's GNSS antennas on the vehicle, instead of one `trajectory` and an
+    /// `attitude` (docs/formats.md 11.1): the attitude and the accelerometers' position
+    /// come from their baselines.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub antenna: Vec<crate::contract::survey::AntennaDecl>,
     /// The instrument channels (1..=3) the counts CSV's or lab stream's value columns hold,
     /// in their order, 0 for a column to skip (docs/formats.md 9.4); default `[1, 2, 3]`.
     #[serde(default, skip_serializing_if = "Option::is_none")]

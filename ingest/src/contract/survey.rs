@@ -110,6 +110,10 @@ pub struct SurveyConfig {
     /// epoch `meter_status` when set in it (docs/formats.md 11.1): the meter's map of them
     /// is the user's to know; none by default.
     pub meter_status_flag_bits: Vec<u8>,
+    /// An antenna array's baseline check (docs/formats.md 11.1): a baseline whose measured
+    /// length departs from its declared one by more than this many sds sets an antenna
+    /// aside for the epoch.
+    pub baseline_length_sigmas: f64,
 }
 
 /// `[survey] filter`: the zero-phase low-pass filter's kind (docs/model.md 7, "The
@@ -333,6 +337,7 @@ impl Default for SurveyConfig {
             cross_coupling: CrossCoupling::default(),
             tie_level: TieLevel::default(),
             meter_status_flag_bits: Vec::new(),
+            baseline_length_sigmas: 5.0,
         }
     }
 }
@@ -381,6 +386,186 @@ pub struct TrajectorySource {
     pub time: Option<TimeForm>,
     /// The attitude file (docs/formats.md 10.2), if any, and how it writes its times.
     pub attitude: Option<(PathBuf, TimeForm)>,
+    /// The session's antennas (docs/formats.md 11.1), when it lists them: the attitude and
+    /// the accelerometers' position come from their baselines, and `path`, `format` and
+    /// `time` above are the first antenna's, the session's reference (empty: one
+    /// trajectory at the antenna the lever arm starts from).
+    pub antennas: Vec<Antenna>,
+}
+
+/// `[[session.antenna]]`: one GNSS antenna of an array on the vehicle.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AntennaDecl {
+    /// Its name.
+    pub id: String,
+    /// Its trajectory (docs/formats.md 10.1).
+    pub trajectory: String,
+    /// Its layout.
+    pub trajectory_format: TrajectoryFormat,
+    /// How a CSV trajectory writes its times.
+    #[serde(default)]
+    pub trajectory_time: Option<TimeForm>,
+    /// Its phase centre in the vehicle frame (x forward, y right, z down), m, from the
+    /// accelerometers' origin to the antenna.
+    pub position_m: [f64; 3],
+}
+
+/// An antenna of a session's array, resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Antenna {
+    /// Its name.
+    pub id: String,
+    /// Its trajectory file.
+    pub path: PathBuf,
+    /// Its layout.
+    pub format: TrajectoryFormat,
+    /// For a CSV, how it writes its times.
+    pub time: Option<TimeForm>,
+    /// Its phase centre in the vehicle frame, m, from the accelerometers.
+    pub position_m: [f64; 3],
+}
+
+/// The most antennas an array may list.
+pub const MAX_ANTENNAS: usize = 8;
+
+/// Session `i`'s antennas resolved: on a survey session, instead of `trajectory` and
+/// `attitude`; two to [`MAX_ANTENNAS`] of them, their ids distinct, their positions within
+/// 100 m; two only fore and aft (their baseline within 0.5 deg of the vehicle's x axis:
+/// they give heading and pitch), three or more not in a line.
+fn antennas(
+    i: usize,
+    s: &Session,
+    file: &impl Fn(String, &str) -> Result<PathBuf>,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<TrajectorySource> {
+    let key = |k: &str| format!("session[{i}].{k}");
+    if let Some(k) = [
+        ("trajectory", s.trajectory.is_some()),
+        ("trajectory_format", s.trajectory_format.is_some()),
+        ("trajectory_time", s.trajectory_time.is_some()),
+        ("attitude", s.attitude.is_some()),
+        ("attitude_time", s.attitude_time.is_some()),
+    ]
+    .iter()
+    .find_map(|(k, given)| given.then_some(*k))
+    {
+        return Err(err(
+            key(k),
+            "a session with `[[session.antenna]]` takes its track and attitude from the \
+             antennas"
+                .to_owned(),
+        ));
+    }
+    if s.kind != SessionKind::Survey {
+        return Err(err(
+            key("antenna"),
+            format!(
+                "a {} session has no antennas: only a survey session",
+                s.kind.name()
+            ),
+        ));
+    }
+    if !(2..=MAX_ANTENNAS).contains(&s.antenna.len()) {
+        return Err(err(
+            key("antenna"),
+            format!(
+                "{} antenna(s): an array has 2 to {MAX_ANTENNAS} (one antenna is a `trajectory` \
+                 with `[survey] lever_arm_m`)",
+                s.antenna.len()
+            ),
+        ));
+    }
+    let mut out = Vec::new();
+    for (k, a) in s.antenna.iter().enumerate() {
+        let key = |f: &str| format!("session[{i}].antenna[{k}].{f}");
+        if out.iter().any(|o: &Antenna| o.id == a.id) {
+            return Err(err(key("id"), format!("`{}` is listed twice", a.id)));
+        }
+        if a.position_m
+            .iter()
+            .any(|v| !v.is_finite() || v.abs() > 100.0)
+        {
+            return Err(err(
+                key("position_m"),
+                format!(
+                    "{:?} is not a position on a vehicle (within 100 m)",
+                    a.position_m
+                ),
+            ));
+        }
+        let time = trajectory_time(a.trajectory_format, a.trajectory_time, &key, err)?;
+        out.push(Antenna {
+            id: a.id.clone(),
+            path: file(key("trajectory"), &a.trajectory)?,
+            format: a.trajectory_format,
+            time,
+            position_m: a.position_m,
+        });
+    }
+    array_geometry(&out, &key, err)?;
+    Ok(TrajectorySource {
+        path: out[0].path.clone(),
+        format: out[0].format,
+        time: out[0].time,
+        attitude: None,
+        antennas: out,
+    })
+}
+
+/// An array's geometry checked: two antennas fore and aft, three or more not in a line.
+fn array_geometry(
+    antennas: &[Antenna],
+    key: &impl Fn(&str) -> String,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<()> {
+    let p: Vec<[f64; 3]> = antennas.iter().map(|a| a.position_m).collect();
+    let d = |a: [f64; 3], b: [f64; 3]| [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let base = d(p[0], p[1]);
+    if norm(base) < 0.1 {
+        return Err(err(
+            key("antenna"),
+            format!(
+                "antennas `{}` and `{}` are {:.3} m apart: a baseline needs 0.1 m at least",
+                antennas[0].id,
+                antennas[1].id,
+                norm(base)
+            ),
+        ));
+    }
+    if p.len() == 2 {
+        let off_axis = (base[1].hypot(base[2]) / base[0].abs()).atan().to_degrees();
+        if base[0] == 0.0 || off_axis > 0.5 {
+            return Err(err(
+                key("antenna"),
+                "two antennas give heading and pitch only when their baseline lies along the \
+                 vehicle's x axis (within 0.5 deg); across it, roll turns it: add a third \
+                 antenna"
+                    .to_owned(),
+            ));
+        }
+        return Ok(());
+    }
+    let area = p[2..]
+        .iter()
+        .map(|q| {
+            let o = d(p[0], *q);
+            norm([
+                base[1] * o[2] - base[2] * o[1],
+                base[2] * o[0] - base[0] * o[2],
+                base[0] * o[1] - base[1] * o[0],
+            ])
+        })
+        .fold(0.0, f64::max);
+    if area <= 1e-3 * norm(base).powi(2) {
+        return Err(err(
+            key("antenna"),
+            "the antennas lie in a line: roll about it is not seen; place one off the line"
+                .to_owned(),
+        ));
+    }
+    Ok(())
 }
 
 /// Session `i`'s trajectory keys checked and its files resolved: only on a survey session;
@@ -394,6 +579,9 @@ pub fn trajectory(
     err: &impl Fn(String, String) -> Error,
 ) -> Result<Option<TrajectorySource>> {
     let key = |k: &str| format!("session[{i}].{k}");
+    if !s.antenna.is_empty() {
+        return antennas(i, s, file, err).map(Some);
+    }
     let Some(rel) = &s.trajectory else {
         if let Some(k) = [
             ("trajectory_format", s.trajectory_format.is_some()),
@@ -453,6 +641,7 @@ pub fn trajectory(
         format,
         time,
         attitude,
+        antennas: Vec::new(),
     }))
 }
 
@@ -501,9 +690,10 @@ fn trajectory_time(
     })
 }
 
-/// `[survey] cross_coupling` and `meter_status_flag_bits` checked against the sessions:
-/// only a meter's own file carries monitors (a DGS's) and a status word; given
-/// coefficients are numbers; a flag bit is one of a 32-bit word's.
+/// `[survey]` checked against the sessions: no lever arm beside an antenna array, its
+/// baselines' check in range; `cross_coupling` and `meter_status_flag_bits`: only a meter's
+/// own file carries monitors (a DGS's) and a status word; given coefficients are numbers; a
+/// flag bit is one of a 32-bit word's.
 pub fn check_coupling(
     survey: &SurveyConfig,
     sessions: &[super::manifest::ResolvedSession],
@@ -524,6 +714,30 @@ pub fn check_coupling(
                 "session `{}` has no cross-coupling monitors: only a DGS meter's own file \
                  (adc_format = \"dgs-laptop\" or \"dgs-raw\") carries them",
                 s.session.id
+            ),
+        ));
+    }
+    if let Some(s) = sessions.iter().find(|s| {
+        s.trajectory
+            .as_ref()
+            .is_some_and(|t| !t.antennas.is_empty())
+    }) && survey.lever_arm_m.iter().any(|v| *v != 0.0)
+    {
+        return Err(err(
+            "survey.lever_arm_m".to_owned(),
+            format!(
+                "session `{}` lists its antennas, each with its position from the \
+                 accelerometers (`position_m`): a lever arm has nothing to add",
+                s.session.id
+            ),
+        ));
+    }
+    if !(survey.baseline_length_sigmas >= 2.0 && survey.baseline_length_sigmas <= 1e3) {
+        return Err(err(
+            "survey.baseline_length_sigmas".to_owned(),
+            format!(
+                "{}: a baseline's length is checked at 2 to 1000 of its sds",
+                survey.baseline_length_sigmas
             ),
         ));
     }

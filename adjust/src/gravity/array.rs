@@ -1,0 +1,378 @@
+//! An antenna array's session (docs/formats.md 11.1): each antenna's trajectory read as a
+//! session's one trajectory is (the same readers, its own pass through ingest's time gate
+//! at its median interval, its bad lines set aside), the antennas' epochs matched by time,
+//! each epoch fitted ([`super::antennas`]), and the fit given to the session's track: the
+//! accelerometers' positions with their sds, and the attitude with its covariance (an
+//! attitude sample at every epoch); the fit is also written as `attitude.parquet`.
+//!
+//! The antennas' positions are taken to a local north-east-down frame at the first antenna
+//! with a position at the epoch, and the accelerometers' position back from it, by the
+//! radii of curvature there (baselines of metres: the frame's curvature is a micrometre). An
+//! antenna whose file gives no sds at an epoch is weighed by its own white noise (its third
+//! differences, as a single trajectory's are). The derived attitude's errors are those of
+//! the positions: white per epoch when the positions are, as the stage carries them.
+
+use super::antennas::{self, Fix};
+use super::attitude::{DerivedSample, SpilledAttitude};
+use super::{BadLine, GravityError};
+use ingest::contract::gravity_ledger::AntennasUsed;
+use ingest::contract::manifest::ResolvedSession;
+use ingest::contract::survey::{Antenna, SurveyConfig, TrajectorySource};
+use ingest::timegate::{Position, Sink, TimeGate};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use super::track::Epoch;
+
+/// A row of attitude.parquet: the epoch's time, the columns of
+/// [`ingest::contract::tables::attitude::FLOATS`] and of its `MASKS`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct AttitudeRow {
+    /// GPS time, ns.
+    pub time_gps_ns: i64,
+    /// Heading, pitch, roll, their sds (deg) and their correlations.
+    pub values: [f64; 9],
+    /// The antennas used and set aside.
+    pub masks: [u32; 2],
+}
+
+/// What an array gives its session's track.
+pub(super) struct ArrayTrack {
+    /// The accelerometers' positions with their sds, at the epochs solved.
+    pub epochs: Vec<Epoch>,
+    /// The attitude at the same epochs, with its covariance.
+    pub attitude: SpilledAttitude,
+    /// Each antenna's lines set aside, by antenna.
+    pub bad: Vec<(usize, Vec<BadLine>)>,
+    /// What gravity.json says of it.
+    pub used: AntennasUsed,
+    /// Epochs no fit could be made at.
+    pub too_few: u64,
+    /// The rows of attitude.parquet.
+    pub rows: Vec<AttitudeRow>,
+}
+
+/// The epochs the time gate keeps, the others counted by reason.
+#[derive(Default)]
+struct Kept {
+    epochs: Vec<Epoch>,
+    dropped: BTreeMap<String, u64>,
+}
+
+impl Sink<([f64; 3], Option<[f64; 3]>)> for Kept {
+    type Error = GravityError;
+
+    fn accept(
+        &mut self,
+        time_ns: i64,
+        (llh, sd): ([f64; 3], Option<[f64; 3]>),
+    ) -> Result<(), GravityError> {
+        self.epochs.push((time_ns, llh, sd));
+        Ok(())
+    }
+
+    fn reject(
+        &mut self,
+        _: Position,
+        why: &'static str,
+        _: String,
+        _: ([f64; 3], Option<[f64; 3]>),
+    ) {
+        *self.dropped.entry(why.to_owned()).or_insert(0) += 1;
+    }
+}
+
+/// Antenna `a`'s epochs through its own time gate, and its lines set aside.
+fn antenna_epochs(
+    s: &ResolvedSession,
+    a: &Antenna,
+    skip: bool,
+) -> Result<(Kept, Vec<BadLine>), GravityError> {
+    let mut one = s.clone();
+    one.trajectory = Some(TrajectorySource {
+        path: a.path.clone(),
+        format: a.format,
+        time: a.time,
+        attitude: None,
+        antennas: Vec::new(),
+    });
+    let mut all = Vec::new();
+    let bad = super::track::each_epoch(&one, None, skip, |t, llh, sd| {
+        all.push((t, llh, sd));
+        Ok(())
+    })?;
+    let mut steps = super::reduce::Steps::default();
+    for e in &all {
+        steps.push(e.0);
+    }
+    let mut gate = TimeGate::new(steps.median().unwrap_or(1_000_000_000), s.gps_range_ns());
+    let mut kept = Kept::default();
+    for (k, (t, llh, sd)) in all.into_iter().enumerate() {
+        gate.offer(t, Position::Line(k as u64), (llh, sd), &mut kept)?;
+    }
+    gate.finish(&mut kept)?;
+    Ok((kept, bad))
+}
+
+/// North, east, down of `llh` from `origin` (deg, deg, m), m, by the radii at the origin.
+fn ned_of(origin: [f64; 3], llh: [f64; 3]) -> [f64; 3] {
+    let (r_m, r_n) = super::navigation::radii(&super::normal::GRS80, origin[0]);
+    let phi = origin[0].to_radians();
+    [
+        (llh[0] - origin[0]).to_radians() * (r_m + origin[2]),
+        super::navigation::longitude_step_deg(origin[1], llh[1]).to_radians()
+            * (r_n + origin[2])
+            * phi.cos(),
+        origin[2] - llh[2],
+    ]
+}
+
+/// The point `ned` (m) from `origin`, as latitude, longitude (deg) and height (m).
+fn llh_of(origin: [f64; 3], ned: [f64; 3]) -> [f64; 3] {
+    let (r_m, r_n) = super::navigation::radii(&super::normal::GRS80, origin[0]);
+    let phi = origin[0].to_radians();
+    [
+        origin[0] + (ned[0] / (r_m + origin[2])).to_degrees(),
+        origin[1] + (ned[1] / ((r_n + origin[2]) * phi.cos())).to_degrees(),
+        origin[2] - ned[2],
+    ]
+}
+
+/// An antenna's white noise north, east and up, m: the median absolute third difference
+/// of its positions (in its local frame at its first epoch) over 0.6745, over sqrt(20).
+fn white_noise(epochs: &[Epoch]) -> [f64; 3] {
+    let Some(first) = epochs.first() else {
+        return [f64::NAN; 3];
+    };
+    let ned: Vec<[f64; 3]> = epochs.iter().map(|e| ned_of(first.1, e.1)).collect();
+    std::array::from_fn(|axis| {
+        let mut d: Vec<f64> = ned
+            .windows(4)
+            .map(|w| (w[3][axis] - 3.0 * w[2][axis] + 3.0 * w[1][axis] - w[0][axis]).abs())
+            .collect();
+        if d.is_empty() {
+            return f64::NAN;
+        }
+        let mid = d.len() / 2;
+        let m = *d.select_nth_unstable_by(mid, f64::total_cmp).1;
+        m / 0.6745 / 20f64.sqrt()
+    })
+}
+
+/// Reads session `s`'s antennas and fits every epoch where at least three give a position
+/// (two: refused, heading and pitch not carrying the track), each baseline checked at
+/// `[survey] baseline_length_sigmas`; the attitude samples written aside into `dir`.
+pub(super) fn read_array(
+    s: &ResolvedSession,
+    survey: &SurveyConfig,
+    skip: bool,
+    dir: &Path,
+) -> Result<ArrayTrack, GravityError> {
+    let src = s
+        .trajectory
+        .as_ref()
+        .expect("an array session has its antennas");
+    let antennas = &src.antennas;
+    if antennas.len() < 3 {
+        return Err(GravityError::Refused {
+            message: format!(
+                "session {}: two antennas give heading and pitch only; the reduction needs the \
+                 roll as well (the lever arm to each antenna turns with it): add a third \
+                 antenna not in line with them",
+                s.session.id
+            ),
+        });
+    }
+    let mut per = Vec::new();
+    let mut bad = Vec::new();
+    for (k, a) in antennas.iter().enumerate() {
+        let (kept, lines) = antenna_epochs(s, a, skip)?;
+        bad.push((k, lines));
+        per.push(kept.epochs);
+    }
+    let noise: Vec<[f64; 3]> = per.iter().map(|e| white_noise(e)).collect();
+    let positions: Vec<[f64; 3]> = antennas.iter().map(|a| a.position_m).collect();
+    let times: std::collections::BTreeSet<i64> =
+        per.iter().flat_map(|e| e.iter().map(|x| x.0)).collect();
+    let mut cursor = vec![0usize; per.len()];
+    let mut out = Solved::default();
+    for t in times {
+        let mut at: Vec<Option<(usize, Epoch)>> = vec![None; per.len()];
+        for (k, e) in per.iter().enumerate() {
+            while cursor[k] < e.len() && e[cursor[k]].0 < t {
+                cursor[k] += 1;
+            }
+            if cursor[k] < e.len() && e[cursor[k]].0 == t {
+                at[k] = Some((k, e[cursor[k]]));
+            }
+        }
+        out.epoch(t, &at, (&positions, &noise), survey.baseline_length_sigmas);
+    }
+    let attitude = super::attitude::spill_derived(&src.path, out.samples.iter().copied(), dir)?;
+    let used = AntennasUsed {
+        ids: antennas.iter().map(|a| a.id.clone()).collect(),
+        epochs_read: per.iter().map(|e| e.len() as u64).collect(),
+        epochs_solved: out.epochs.len() as u64,
+        set_aside: antennas
+            .iter()
+            .zip(&out.set_aside)
+            .filter(|(_, n)| **n > 0)
+            .map(|(a, n)| (a.id.clone(), *n))
+            .collect(),
+        median_sd_hpr_deg: std::array::from_fn(|k| median(out.samples.iter().map(|s| s.sd_deg[k]))),
+        median_sd_position_m: std::array::from_fn(|k| {
+            median(out.epochs.iter().filter_map(|e| e.2.map(|sd| sd[k])))
+        }),
+    };
+    Ok(ArrayTrack {
+        epochs: out.epochs,
+        attitude,
+        bad,
+        used,
+        too_few: out.too_few,
+        rows: out.rows,
+    })
+}
+
+fn median(v: impl Iterator<Item = f64>) -> f64 {
+    let mut v: Vec<f64> = v.collect();
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// The fits so far.
+#[derive(Default)]
+struct Solved {
+    epochs: Vec<Epoch>,
+    samples: Vec<DerivedSample>,
+    rows: Vec<AttitudeRow>,
+    set_aside: Vec<u64>,
+    too_few: u64,
+}
+
+impl Solved {
+    /// The epoch at `t` fitted from the antennas `at` gives (index, epoch), the declared
+    /// `positions` and each antenna's `noise` standing in for sds its file does not give.
+    fn epoch(
+        &mut self,
+        t: i64,
+        at: &[Option<(usize, Epoch)>],
+        (positions, noise): (&[[f64; 3]], &[[f64; 3]]),
+        limit: f64,
+    ) {
+        self.set_aside.resize(positions.len(), 0);
+        let Some(origin) = at.iter().flatten().next().map(|(_, e)| e.1) else {
+            return;
+        };
+        let fixes: Vec<Option<Fix>> = at
+            .iter()
+            .map(|a| {
+                a.map(|(k, (_, llh, sd))| {
+                    // The file's sds are north, east, up; down's is up's.
+                    let sd = sd
+                        .filter(|s| s.iter().all(|v| *v > 0.0))
+                        .unwrap_or(noise[k]);
+                    Fix {
+                        ned_m: ned_of(origin, llh),
+                        sd_m: sd,
+                    }
+                })
+            })
+            .collect();
+        let s = match antennas::solve(positions, &fixes, limit) {
+            Ok(s) => s,
+            Err(why) => {
+                self.count_set_aside(why.set_aside);
+                self.too_few += 1;
+                return;
+            }
+        };
+        self.count_set_aside(s.set_aside);
+        let sd_p: [f64; 3] = std::array::from_fn(|k| s.covariance[k][k].sqrt());
+        self.epochs
+            .push((t, llh_of(origin, s.origin_ned_m), Some(sd_p)));
+        let c = s.hpr_covariance();
+        let sd: [f64; 3] = std::array::from_fn(|k| c[k][k].sqrt());
+        let corr = |i: usize, j: usize| c[i][j] / (sd[i] * sd[j]);
+        let hpr_deg = s.hpr_rad.map(f64::to_degrees);
+        let sd_deg = sd.map(f64::to_degrees);
+        self.samples.push(DerivedSample {
+            time_gps_ns: t,
+            hpr_deg,
+            sd_deg,
+            nav_covariance: std::array::from_fn(|i| {
+                std::array::from_fn(|j| s.covariance[3 + i][3 + j])
+            }),
+        });
+        let [h, p, r] = hpr_deg;
+        let [a, b, cc] = sd_deg;
+        self.rows.push(AttitudeRow {
+            time_gps_ns: t,
+            values: [h, p, r, a, b, cc, corr(0, 1), corr(0, 2), corr(1, 2)],
+            masks: [s.used, s.set_aside],
+        });
+    }
+
+    fn count_set_aside(&mut self, mask: u32) {
+        for (k, n) in self.set_aside.iter_mut().enumerate() {
+            *n += u64::from(mask >> k & 1);
+        }
+    }
+}
+
+/// Writes `OUT/gravity/attitude.parquet` in `dir`: every array session's rows, as
+/// (session index, rows).
+pub(super) fn write_attitude_table(
+    dir: &Path,
+    sessions: &[String],
+    tables: &[(u16, &[AttitudeRow])],
+) -> Result<(u64, String), GravityError> {
+    use arrow_array::{ArrayRef, Float64Array, Int64Array, UInt16Array, UInt32Array};
+    use ingest::contract::tables::attitude;
+    use std::sync::Arc;
+    let mut w = ingest::table::TableWriter::create(
+        dir,
+        attitude::FILE,
+        attitude::schema(sessions),
+        ingest::table::Encodings::default(),
+    )?;
+    for (index, rows) in tables {
+        let mut columns: Vec<ArrayRef> = vec![
+            Arc::new(UInt16Array::from(vec![*index; rows.len()])),
+            Arc::new(Int64Array::from(
+                rows.iter().map(|r| r.time_gps_ns).collect::<Vec<_>>(),
+            )),
+        ];
+        for c in 0..attitude::FLOATS.len() {
+            columns.push(Arc::new(Float64Array::from(
+                rows.iter().map(|r| r.values[c]).collect::<Vec<_>>(),
+            )));
+        }
+        for m in 0..attitude::MASKS.len() {
+            columns.push(Arc::new(UInt32Array::from(
+                rows.iter().map(|r| r.masks[m]).collect::<Vec<_>>(),
+            )));
+        }
+        w.write(columns)?;
+    }
+    Ok(w.finish_hashed()?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A point's local north-east-down offsets and back agree to a micrometre over metres.
+    #[test]
+    fn the_local_frame_goes_there_and_back() {
+        let origin = [48.07, -10.3, 35.0];
+        let ned = [2.1, -1.3, 0.7];
+        let back = ned_of(origin, llh_of(origin, ned));
+        for k in 0..3 {
+            assert!((back[k] - ned[k]).abs() < 1e-9, "{back:?}");
+        }
+    }
+}
