@@ -16,7 +16,8 @@
 //! - [`antennas`]: the attitude and the accelerometers' position per epoch from several
 //!   GNSS antennas' positions (a weighted fit of the declared array, with its covariance);
 //!   `array`: an array session's antennas read, matched by time and fitted, the fit given
-//!   to its track and written as attitude.parquet;
+//!   to its track and written as attitude.parquet; [`array_plan`]: an array sized before
+//!   it is bought (`cargo xtask plan` on an `[array]` plan);
 //! - `spill`: per-epoch records written aside and read back a block at a time;
 //! - `track`: a session's track made ready (gated, attitude, lever arm, noise) with its
 //!   kept positions written aside, only their times held;
@@ -40,6 +41,7 @@
 
 pub mod antennas;
 mod array;
+pub mod array_plan;
 pub mod attitude;
 pub mod coupling;
 pub mod crossover;

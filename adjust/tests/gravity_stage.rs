@@ -2420,6 +2420,47 @@ mod antenna_array {
         for (name, z) in ["heading", "pitch", "roll"].iter().zip(z) {
             assert!((0.8..1.2).contains(&z), "{name}: rms z {z}");
         }
+        // The planner (`cargo xtask plan` on an `[array]`) for this array, level, heading
+        // east as the lines run: the stage's median sds within 3 % of its prediction.
+        let array = adjust::gravity::array_plan::ArrayPlan {
+            description: String::new(),
+            array: adjust::gravity::array_plan::PlanArray {
+                positions_m: fixtures::survey_lines::four_antennas().positions_m,
+                sd_m: plan.position_sd_m,
+                rate_hz: plan.rates_hz[1],
+                filter_s: r.filter.filter_s,
+                g_mgal: 980_000.0,
+            },
+        };
+        let east = &adjust::gravity::array_plan::predict(&array).expect("plan")[2];
+        let [north_sigma, east_sigma] =
+            horizontal_scores(&dataset, &out, r.filter.filter_s).map(|s| s[2]);
+        let pairs = [
+            (
+                "heading",
+                a.median_sd_hpr_deg[0].to_radians() * 1e3,
+                east.sd_hpr_mrad[0],
+            ),
+            (
+                "pitch",
+                a.median_sd_hpr_deg[1].to_radians() * 1e3,
+                east.sd_hpr_mrad[1],
+            ),
+            (
+                "roll",
+                a.median_sd_hpr_deg[2].to_radians() * 1e3,
+                east.sd_hpr_mrad[2],
+            ),
+            ("north filtered", north_sigma, east.sd_filtered_mgal[0]),
+            ("east filtered", east_sigma, east.sd_filtered_mgal[1]),
+        ];
+        for (what, stage, planned) in pairs {
+            eprintln!("{what}: the stage's median sd {stage:.3}, the planner's {planned:.3}");
+            assert!(
+                (stage / planned - 1.0).abs() < 0.03,
+                "{what}: {stage} against {planned}"
+            );
+        }
         let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
         eprintln!("antennas, down: rms error {rms:.3} mGal, rms z {z:.3}");
         assert!((0.6..1.2).contains(&z), "down rms z {z}");

@@ -657,6 +657,17 @@ fn fixtures_command(a: FixturesArgs) -> Result<()> {
 fn plan_command(plan: &Path, json: bool) -> Result<()> {
     let text =
         std::fs::read_to_string(plan).with_context(|| format!("reading {}", plan.display()))?;
+    // An antenna array's plan (docs/planning.md, "An antenna array"): its own table.
+    if toml::from_str::<toml::Table>(&text).is_ok_and(|t| t.contains_key("array")) {
+        use adjust::gravity::array_plan;
+        let parsed: array_plan::ArrayPlan =
+            toml::from_str(&text).with_context(|| format!("{}", plan.display()))?;
+        let rows = array_plan::predict(&parsed).with_context(|| format!("{}", plan.display()))?;
+        return match json {
+            true => print_stdout(&serde_json::to_string_pretty(&rows)?),
+            false => print_stdout(&array_plan::render(&parsed, &rows)),
+        };
+    }
     let parsed: adjust::plan::Plan =
         toml::from_str(&text).with_context(|| format!("{}", plan.display()))?;
     let predictions =
