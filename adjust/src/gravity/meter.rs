@@ -133,6 +133,15 @@ pub fn read(
     Ok(Some(out))
 }
 
+/// The status `words` of a block's epochs added to a session's `m`.
+pub fn count(m: &mut ingest::contract::gravity_ledger::MeterStatus, words: &[Option<u32>]) {
+    let (with, bits) = summary(words);
+    m.epochs += with;
+    for (bit, n) in bits {
+        *m.bits_set.entry(bit).or_insert(0) += n;
+    }
+}
+
 /// A session's status words as gravity.json gives them: the epochs with a word, and per
 /// bit set in any, the epochs it is set at.
 pub fn summary(status: &[Option<u32>]) -> (u64, Vec<(u8, u64)>) {

@@ -745,10 +745,10 @@ fn reduce_track(
         sample_noise_from: ctx.sample_noise.from.clone(),
         cross_coupling: None,
         antennas: track.array.as_ref().map(|(used, _)| used.clone()),
-        meter_status: track.meter.as_ref().map(|_| MeterStatus {
-            flag_bits: ctx.survey.meter_status_flag_bits.clone(),
-            ..MeterStatus::default()
-        }),
+        meter_status: track
+            .meter
+            .as_ref()
+            .map(|_| MeterStatus::declared(ctx.survey)),
         quantities: Quantities::new(track.heights, ctx.survey.geoid_height_m),
         stretches: Vec::new(),
     };
@@ -892,12 +892,8 @@ fn reduce_stretch(
             flags,
             status,
         } = block;
-        if let (Some(summary), Some(words)) = (&mut summary.meter_status, &status) {
-            let (with, bits) = super::meter::summary(words);
-            summary.epochs += with;
-            for (bit, n) in bits {
-                *summary.bits_set.entry(bit).or_insert(0) += n;
-            }
+        if let (Some(m), Some(words)) = (&mut summary.meter_status, &status) {
+            super::meter::count(m, words);
         }
         for (name, n) in count_flags(&flags) {
             *summary.flagged.entry(name).or_insert(0) += n;

@@ -425,6 +425,17 @@ fn first_pass(
     })
 }
 
+/// An NMEA trajectory's first pass, once: which sentences carry its fixes, its heights'
+/// datum (None for another format).
+fn nmea_scan(s: &ResolvedSession) -> Result<Option<trajectory::NmeaScan>, GravityError> {
+    match &s.trajectory {
+        Some(src) if src.format == TrajectoryFormat::Nmea => {
+            trajectory::nmea_scan(&src.path).map(Some)
+        }
+        _ => Ok(None),
+    }
+}
+
 /// The track of session `s` (the `index`-th), its trajectory in two passes (over the epochs
 /// held in memory, [`HELD_EPOCHS`], or the file again): the median
 /// interval between its epochs in file order, then each epoch through ingest's time gate
@@ -438,13 +449,7 @@ fn gated<'a>(
     (lever_arm_m, skip): ([f64; 3], bool),
     dir: &Path,
 ) -> Result<(Track<'a>, Vec<BadLine>), GravityError> {
-    // An NMEA file's first pass, once: which sentences carry its fixes, its heights' datum.
-    let nmea = match &s.trajectory {
-        Some(src) if src.format == TrajectoryFormat::Nmea => {
-            Some(trajectory::nmea_scan(&src.path)?)
-        }
-        _ => None,
-    };
+    let nmea = nmea_scan(s)?;
     let first = first_pass(s, nmea, skip, derived)?;
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
     let mut sink = EpochSink {

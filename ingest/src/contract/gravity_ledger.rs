@@ -202,6 +202,16 @@ pub struct MeterStatus {
     pub flag_bits: Vec<u8>,
 }
 
+impl MeterStatus {
+    /// None counted yet, with the survey's declared flag bits.
+    pub fn declared(survey: &crate::contract::survey::SurveyConfig) -> Self {
+        MeterStatus {
+            flag_bits: survey.meter_status_flag_bits.clone(),
+            ..MeterStatus::default()
+        }
+    }
+}
+
 /// A session's named quantities: gravity less normal gravity at the trajectory's heights is
 /// the quantity those heights give; the other needs the geoid's height.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -1795,7 +1795,7 @@ impl Dataset {
         let ties = match &m.survey {
             Some(survey) => {
                 let any = sessions.iter().any(|s| s.trajectory.is_some());
-                crate::contract::survey::check_coupling(survey, &sessions, &err)?;
+                crate::contract::survey::check_against_sessions(survey, &sessions, &err)?;
                 crate::contract::survey::check(survey, any, &err)?
             }
             None => Vec::new(),

@@ -690,33 +690,13 @@ fn trajectory_time(
     })
 }
 
-/// `[survey]` checked against the sessions: no lever arm beside an antenna array, its
-/// baselines' check in range; `cross_coupling` and `meter_status_flag_bits`: only a meter's
-/// own file carries monitors (a DGS's) and a status word; given coefficients are numbers; a
-/// flag bit is one of a 32-bit word's.
-pub fn check_coupling(
+/// No lever arm beside an antenna array (its antennas' positions are from the
+/// accelerometers), and its baselines' check in range.
+fn check_array(
     survey: &SurveyConfig,
     sessions: &[super::manifest::ResolvedSession],
     err: &impl Fn(String, String) -> Error,
 ) -> Result<()> {
-    if survey.cross_coupling.is_some()
-        && let Some(s) = sessions.iter().find(|s| {
-            s.trajectory.is_some()
-                && !matches!(
-                    s.session.adc_format,
-                    super::manifest::AdcFormat::DgsLaptop | super::manifest::AdcFormat::DgsRaw
-                )
-        })
-    {
-        return Err(err(
-            "survey.cross_coupling".to_owned(),
-            format!(
-                "session `{}` has no cross-coupling monitors: only a DGS meter's own file \
-                 (adc_format = \"dgs-laptop\" or \"dgs-raw\") carries them",
-                s.session.id
-            ),
-        ));
-    }
     if let Some(s) = sessions.iter().find(|s| {
         s.trajectory
             .as_ref()
@@ -741,6 +721,16 @@ pub fn check_coupling(
             ),
         ));
     }
+    Ok(())
+}
+
+/// `meter_status_flag_bits`: a 32-bit word's bits, declared only where a meter's own file
+/// carries a status word.
+fn check_meter_status(
+    survey: &SurveyConfig,
+    sessions: &[super::manifest::ResolvedSession],
+    err: &impl Fn(String, String) -> Error,
+) -> Result<()> {
     if let Some(b) = survey.meter_status_flag_bits.iter().find(|&&b| b >= 32) {
         return Err(err(
             "survey.meter_status_flag_bits".to_owned(),
@@ -763,6 +753,37 @@ pub fn check_coupling(
             format!(
                 "session `{}` has no meter status: only a meter's own file (adc_format = \
                  \"dgs-laptop\", \"dgs-raw\" or \"bgm3\") carries one",
+                s.session.id
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// `[survey]` checked against the sessions: [`check_array`], [`check_meter_status`], and
+/// `cross_coupling`: only a DGS meter's own file carries monitors; given coefficients are
+/// numbers.
+pub fn check_against_sessions(
+    survey: &SurveyConfig,
+    sessions: &[super::manifest::ResolvedSession],
+    err: &impl Fn(String, String) -> Error,
+) -> Result<()> {
+    check_array(survey, sessions, err)?;
+    check_meter_status(survey, sessions, err)?;
+    if survey.cross_coupling.is_some()
+        && let Some(s) = sessions.iter().find(|s| {
+            s.trajectory.is_some()
+                && !matches!(
+                    s.session.adc_format,
+                    super::manifest::AdcFormat::DgsLaptop | super::manifest::AdcFormat::DgsRaw
+                )
+        })
+    {
+        return Err(err(
+            "survey.cross_coupling".to_owned(),
+            format!(
+                "session `{}` has no cross-coupling monitors: only a DGS meter's own file \
+                 (adc_format = \"dgs-laptop\" or \"dgs-raw\") carries them",
                 s.session.id
             ),
         ));
