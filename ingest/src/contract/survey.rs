@@ -426,6 +426,19 @@ pub struct Antenna {
     pub position_m: [f64; 3],
 }
 
+/// The first of the keys that describe a `trajectory` (its format and time, the attitude
+/// and its time) that session `s` gives.
+fn track_key_given(s: &Session) -> Option<&'static str> {
+    [
+        ("trajectory_format", s.trajectory_format.is_some()),
+        ("trajectory_time", s.trajectory_time.is_some()),
+        ("attitude", s.attitude.is_some()),
+        ("attitude_time", s.attitude_time.is_some()),
+    ]
+    .iter()
+    .find_map(|(k, given)| given.then_some(*k))
+}
+
 /// The most antennas an array may list.
 pub const MAX_ANTENNAS: usize = 8;
 
@@ -440,16 +453,8 @@ fn antennas(
     err: &impl Fn(String, String) -> Error,
 ) -> Result<TrajectorySource> {
     let key = |k: &str| format!("session[{i}].{k}");
-    if let Some(k) = [
-        ("trajectory", s.trajectory.is_some()),
-        ("trajectory_format", s.trajectory_format.is_some()),
-        ("trajectory_time", s.trajectory_time.is_some()),
-        ("attitude", s.attitude.is_some()),
-        ("attitude_time", s.attitude_time.is_some()),
-    ]
-    .iter()
-    .find_map(|(k, given)| given.then_some(*k))
-    {
+    let trajectory = s.trajectory.is_some().then_some("trajectory");
+    if let Some(k) = trajectory.or_else(|| track_key_given(s)) {
         return Err(err(
             key(k),
             "a session with `[[session.antenna]]` takes its track and attitude from the \
@@ -583,15 +588,7 @@ pub fn trajectory(
         return antennas(i, s, file, err).map(Some);
     }
     let Some(rel) = &s.trajectory else {
-        if let Some(k) = [
-            ("trajectory_format", s.trajectory_format.is_some()),
-            ("trajectory_time", s.trajectory_time.is_some()),
-            ("attitude", s.attitude.is_some()),
-            ("attitude_time", s.attitude_time.is_some()),
-        ]
-        .iter()
-        .find_map(|(k, given)| given.then_some(*k))
-        {
+        if let Some(k) = track_key_given(s) {
             return Err(err(
                 key(k),
                 "describes `trajectory`, which is not given".to_owned(),
@@ -1063,5 +1060,43 @@ mod tests {
             ..SurveyConfig::default()
         };
         assert!(check(&s, true, &err).is_ok());
+    }
+
+    /// An array's geometry: two antennas only fore and aft (within 0.5 deg), three or more
+    /// not in a line, no baseline under 0.1 m; each refused naming the session's antennas.
+    #[test]
+    fn an_arrays_geometry_is_checked() {
+        let array = |p: &[[f64; 3]]| -> Vec<Antenna> {
+            p.iter()
+                .enumerate()
+                .map(|(k, q)| Antenna {
+                    id: format!("a{k}"),
+                    path: "a.pos".into(),
+                    format: TrajectoryFormat::Rtklib,
+                    time: None,
+                    position_m: *q,
+                })
+                .collect()
+        };
+        let err = |k: String, m: String| Error::Manifest {
+            path: "dataset.toml".into(),
+            key: k,
+            message: m,
+        };
+        let key = |k: &str| format!("session[0].{k}");
+        let check = |p: &[[f64; 3]]| array_geometry(&array(p), &key, &err);
+        assert!(check(&[[1.5, 0.0, -2.0], [-1.5, 0.0, -2.0]]).is_ok());
+        assert!(check(&[[1.5, 0.0, -2.0], [-1.5, 0.0, -2.0], [0.0, 1.2, -2.0]]).is_ok());
+        for (p, why) in [
+            (vec![[1.5, 0.0, -2.0], [-1.5, 0.1, -2.0]], "x axis"),
+            (vec![[1.0, 0.0, -2.0], [1.05, 0.0, -2.0]], "0.1 m"),
+            (
+                vec![[1.0, 0.0, -2.0], [0.0, 0.0, -2.0], [-1.0, 0.0, -2.0]],
+                "in a line",
+            ),
+        ] {
+            let e = check(&p).expect_err(why).to_string();
+            assert!(e.contains(why) && e.contains("session[0].antenna"), "{e}");
+        }
     }
 }
