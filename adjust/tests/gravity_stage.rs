@@ -2664,3 +2664,58 @@ fn monte_carlo_of_four_antenna_surveys() {
         assert!(pooled[5] < 1.2, "{vehicle} down: {}", pooled[5]);
     }
 }
+
+/// An antenna's file through the damage every reader faces (docs/hostile-input.md): a
+/// latitude that is not a number on one line of antenna a1 fails the run naming the file,
+/// line and field; with `--skip-bad-lines` it costs a1 that epoch alone (the epoch fitted
+/// from the other three), listed and counted; a line of a3 repeated is dropped by a3's
+/// time gate and counted under a3.
+#[test]
+fn a_damaged_antenna_line_costs_that_antenna_that_epoch() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("antennas");
+    let plan = fixtures::survey_lines::antenna_plan();
+    let truth = fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+    let edit = |name: &str, f: &dyn Fn(usize, &str) -> String| {
+        let path = dataset.join("raw").join(name);
+        let text = std::fs::read_to_string(&path).expect("pos");
+        let out: String = text.lines().enumerate().map(|(k, l)| f(k, l)).collect();
+        std::fs::write(&path, out).expect("pos");
+    };
+    edit("antenna1.pos", &|k, l| match k {
+        500 => {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            format!("{} {} 43.2x {}\n", f[0], f[1], f[3..].join(" "))
+        }
+        _ => format!("{l}\n"),
+    });
+    edit("antenna3.pos", &|k, l| match k {
+        700 => format!("{l}\n{l}\n"),
+        _ => format!("{l}\n"),
+    });
+    let e = args(&dataset)
+        .run(&dir.path().join("strict"))
+        .expect_err("a damaged line")
+        .to_string();
+    eprintln!("{e}");
+    assert!(e.contains("antenna1.pos:501"), "{e}");
+    let mut skipping = args(&dataset);
+    skipping.skip_bad_lines = true;
+    let r = skipping.run(&dir.path().join("out")).expect("skipping");
+    let a = r.sessions[0].antennas.clone().expect("the array's");
+    eprintln!("{a:?}; {:?}", r.sessions[0].bad_lines);
+    assert_eq!(
+        a.epochs_solved, truth.epochs,
+        "every epoch, from the others where a1 has none"
+    );
+    assert_eq!(a.epochs_read[1], truth.epochs - 1);
+    assert!(
+        r.sessions[0]
+            .bad_lines
+            .iter()
+            .any(|l| l.contains("antenna1.pos:501"))
+    );
+    assert_eq!(r.sessions[0].dropped.get("bad_line"), Some(&1));
+    let a3: u64 = a.dropped.get("a3").map_or(0, |d| d.values().sum());
+    assert_eq!(a3, 1, "{:?}", a.dropped);
+}

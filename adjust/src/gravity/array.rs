@@ -183,12 +183,14 @@ pub(super) fn read_array(
             ),
         });
     }
-    let mut per = Vec::new();
-    let mut bad = Vec::new();
+    let (mut per, mut bad, mut dropped) = (Vec::new(), Vec::new(), BTreeMap::new());
     for (k, a) in antennas.iter().enumerate() {
         let (kept, lines) = antenna_epochs(s, a, skip)?;
         bad.push((k, lines));
         per.push(kept.epochs);
+        if !kept.dropped.is_empty() {
+            dropped.insert(a.id.clone(), kept.dropped);
+        }
     }
     let noise: Vec<[f64; 3]> = per.iter().map(|e| white_noise(e)).collect();
     let positions: Vec<[f64; 3]> = antennas.iter().map(|a| a.position_m).collect();
@@ -212,6 +214,7 @@ pub(super) fn read_array(
     let used = AntennasUsed {
         ids: antennas.iter().map(|a| a.id.clone()).collect(),
         epochs_read: per.iter().map(|e| e.len() as u64).collect(),
+        dropped,
         epochs_solved: out.epochs.len() as u64,
         set_aside: antennas
             .iter()

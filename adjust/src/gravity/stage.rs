@@ -2010,24 +2010,30 @@ fn print_session(s: &SessionGravity, w: &mut impl std::io::Write) {
 /// An antenna array's session as the console says it: its antennas, the epochs solved,
 /// the antennas set aside, the attitude's and position's median sds.
 fn antennas_line(a: &ingest::contract::gravity_ledger::AntennasUsed) -> String {
-    let aside: Vec<String> = a
-        .set_aside
-        .iter()
-        .map(|(id, n)| format!("{id} at {n}"))
-        .collect();
+    let listed = |v: Vec<String>| match v.is_empty() {
+        true => "none".to_owned(),
+        false => v.join(", "),
+    };
+    let aside = listed(
+        a.set_aside
+            .iter()
+            .map(|(id, n)| format!("{id} at {n}"))
+            .collect(),
+    );
+    let gated = listed(
+        (a.dropped.iter())
+            .flat_map(|(id, d)| d.iter().map(move |(why, n)| format!("{id}: {n} {why}")))
+            .collect(),
+    );
     let [h, p, r] = a.median_sd_hpr_deg;
     let [n, e, d] = a.median_sd_position_m.map(|v| v * 100.0);
     format!(
-        "antennas {}: attitude and position at {} epochs; set aside (baseline length): {}; \
-         median sd heading {h:.3}, pitch {p:.3}, roll {r:.3} deg, position north {n:.2}, east \
-         {e:.2}, down {d:.2} cm (OUT/gravity/attitude.parquet)",
+        "antennas {}: attitude and position at {} epochs; dropped by an antenna's time gate: \
+         {gated}; set aside (baseline length): {aside}; median sd heading {h:.3}, pitch \
+         {p:.3}, roll {r:.3} deg, position north {n:.2}, east {e:.2}, down {d:.2} cm \
+         (OUT/gravity/attitude.parquet)",
         a.ids.join(", "),
         a.epochs_solved,
-        if aside.is_empty() {
-            "none".to_owned()
-        } else {
-            aside.join(", ")
-        }
     )
 }
 

@@ -62,6 +62,9 @@ pub struct AntennasUsed {
     pub ids: Vec<String>,
     /// Each antenna's epochs after its own time gate.
     pub epochs_read: Vec<u64>,
+    /// Each antenna's epochs its time gate dropped, by ingest's reason (absent when none).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub dropped: BTreeMap<String, BTreeMap<String, u64>>,
     /// Epochs the array gave an attitude and a position at.
     pub epochs_solved: u64,
     /// Per antenna, the epochs it was set aside at, its baselines' lengths off by more
