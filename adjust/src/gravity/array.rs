@@ -185,7 +185,11 @@ pub(super) fn read_array(
     }
     let (mut per, mut bad, mut dropped) = (Vec::new(), Vec::new(), BTreeMap::new());
     for (k, a) in antennas.iter().enumerate() {
-        let (kept, lines) = antenna_epochs(s, a, skip)?;
+        let (mut kept, lines) = antenna_epochs(s, a, skip)?;
+        if !lines.is_empty() {
+            let bad_line = ingest::contract::gravity_ledger::dropped::BAD_LINE.to_owned();
+            kept.dropped.insert(bad_line, lines.len() as u64);
+        }
         bad.push((k, lines));
         per.push(kept.epochs);
         if !kept.dropped.is_empty() {

@@ -80,7 +80,6 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     for (track, meter) in tracks.iter_mut().zip(meters) {
         track.meter = meter;
     }
-    let attitude_table = attitude_table(&ds, &tracks, &dir)?;
     let force = down_force(&applied, &survey, opts.accelerometer)?;
     let triad = triad_function(&applied, opts.apply.calibration)?;
     refuse_attitude_with_an_axis(&force, &tracks)?;
@@ -102,6 +101,8 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
         let r = reduced?;
+        // Written once the reduction holds, beside the gravity.parquet it went into.
+        let attitude_table = attitude_table(&ds, &tracks, &dir)?;
         let report = GravityReport {
             format: LEDGER_FORMAT.to_owned(),
             dataset: ds.manifest.name.clone(),

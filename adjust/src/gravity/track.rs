@@ -239,12 +239,8 @@ fn array_track<'a>(
             .bad_lines
             .extend(listed(ds, &antennas[*k].path, lines));
     }
-    let set_aside: usize = array.bad.iter().map(|(_, l)| l.len()).sum();
-    if set_aside > 0 {
-        track
-            .dropped
-            .insert(dropped::BAD_LINE.to_owned(), set_aside as u64);
-    }
+    // An antenna's line set aside costs that antenna the epoch, not the epoch: counted
+    // under the antenna (`antennas.dropped`), listed in the session's bad lines.
     if array.too_few > 0 {
         track
             .dropped

@@ -62,7 +62,9 @@ pub struct AntennasUsed {
     pub ids: Vec<String>,
     /// Each antenna's epochs after its own time gate.
     pub epochs_read: Vec<u64>,
-    /// Each antenna's epochs its time gate dropped, by ingest's reason (absent when none).
+    /// Each antenna's epochs its time gate dropped, by ingest's reason, and its lines set
+    /// aside (`bad_line`), which cost that antenna the epoch, not the epoch (absent when
+    /// none).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub dropped: BTreeMap<String, BTreeMap<String, u64>>,
     /// Epochs the array gave an attitude and a position at.
