@@ -2372,7 +2372,7 @@ mod antenna_array {
         (t, hpr, sd)
     }
 
-    /// Four antennas on the rolling boat (3 deg of roll, 1 deg of pitch), 2.2 to 3 m
+    /// Four antennas on the rolling boat (3 deg of roll, 1 deg of pitch), 1.9 to 3 m
     /// apart, at RTK's 5 mm horizontal and 10 mm vertical noise, and no attitude file: every
     /// epoch solved, its heading, pitch and roll within their sds of the truth (rms z 0.8 to
     /// 1.2 each), down as accurate as with the truth's attitude (rms z 0.8 to 1.2), north and
