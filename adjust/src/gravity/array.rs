@@ -14,6 +14,7 @@
 
 use super::antennas::{self, Fix};
 use super::attitude::{DerivedSample, SpilledAttitude};
+use super::epochs::ThirdDifferences;
 use super::{BadLine, GravityError};
 use ingest::contract::gravity_ledger::AntennasUsed;
 use ingest::contract::manifest::ResolvedSession;
@@ -127,8 +128,9 @@ fn ned_of(origin: [f64; 3], llh: [f64; 3]) -> [f64; 3] {
     ]
 }
 
-/// The point `ned` (m) from `origin`, as latitude, longitude (deg) and height (m).
-fn llh_of(origin: [f64; 3], ned: [f64; 3]) -> [f64; 3] {
+/// The point `ned` (m) from `origin`, as latitude, longitude (deg) and height (m), by the
+/// radii at the origin (a lever arm's offset, [`super::track`], is made so too).
+pub(super) fn llh_of(origin: [f64; 3], ned: [f64; 3]) -> [f64; 3] {
     let (r_m, r_n) = super::navigation::radii(&super::normal::GRS80, origin[0]);
     let phi = origin[0].to_radians();
     [
@@ -138,25 +140,26 @@ fn llh_of(origin: [f64; 3], ned: [f64; 3]) -> [f64; 3] {
     ]
 }
 
-/// An antenna's white noise north, east and up, m: the median absolute third difference
-/// of its positions (in its local frame at its first epoch) over 0.6745, over sqrt(20).
+/// An antenna's white noise north, east and up, m: its positions' third differences (in
+/// its local frame at its first epoch), as a single trajectory's are measured
+/// ([`super::epochs::ThirdDifferences`], at the epochs' median interval); NaN where too few
+/// epochs give none.
 fn white_noise(epochs: &[Epoch]) -> [f64; 3] {
     let Some(first) = epochs.first() else {
         return [f64::NAN; 3];
     };
-    let ned: Vec<[f64; 3]> = epochs.iter().map(|e| ned_of(first.1, e.1)).collect();
-    std::array::from_fn(|axis| {
-        let mut d: Vec<f64> = ned
-            .windows(4)
-            .map(|w| (w[3][axis] - 3.0 * w[2][axis] + 3.0 * w[1][axis] - w[0][axis]).abs())
-            .collect();
-        if d.is_empty() {
-            return f64::NAN;
+    let mut steps = super::reduce::Steps::default();
+    for e in epochs {
+        steps.push(e.0);
+    }
+    let interval = steps.median().unwrap_or(1_000_000_000);
+    let mut d: [ThirdDifferences; 3] = std::array::from_fn(|_| ThirdDifferences::new(interval));
+    for (t, llh, _) in epochs {
+        for (d, v) in d.iter_mut().zip(ned_of(first.1, *llh)) {
+            d.push(*t, v);
         }
-        let mid = d.len() / 2;
-        let m = *d.select_nth_unstable_by(mid, f64::total_cmp).1;
-        m / 0.6745 / 20f64.sqrt()
-    })
+    }
+    d.map(|d| Some(d.sd()).filter(|s| *s > 0.0).unwrap_or(f64::NAN))
 }
 
 /// Reads session `s`'s antennas and fits every epoch where at least three give a position

@@ -169,11 +169,7 @@ impl Sink<([f64; 3], Option<[f64; 3]>)> for Kept {
         time_ns: i64,
         (hpr, sd): ([f64; 3], Option<[f64; 3]>),
     ) -> Result<(), Self::Error> {
-        // The heading made continuous: each step taken as the shortest turn.
-        let h = match self.heading {
-            Some(last) => last + ((hpr[0] - last + 180.0).rem_euclid(360.0) - 180.0),
-            None => hpr[0],
-        };
+        let h = continuous(self.heading, hpr[0]);
         self.heading = Some(h);
         self.times.push(time_ns);
         let [a, b, c] = sd.unwrap_or([f64::NAN; 3]);
@@ -336,6 +332,15 @@ fn interpolated(a: &[f64; WIDTH], b: &[f64; WIDTH], f: f64) -> AttitudeAt {
     }
 }
 
+/// The heading `h` (deg) made continuous with the `last` one: the step taken as the shortest
+/// turn.
+fn continuous(last: Option<f64>, h: f64) -> f64 {
+    match last {
+        Some(last) => last + ((h - last + 180.0).rem_euclid(360.0) - 180.0),
+        None => h,
+    }
+}
+
 /// One sample of an attitude derived at the trajectory's own epochs (an antenna array's):
 /// its time, heading, pitch, roll (deg), their sds (deg) and the navigation-frame error's
 /// covariance (rad^2).
@@ -366,10 +371,7 @@ pub fn spill_derived(
     let mut out = SpillWriter::new(dir, WIDTH).map_err(io)?;
     let (mut times, mut steps, mut heading) = (Vec::new(), Steps::default(), None::<f64>);
     for s in samples {
-        let h = match heading {
-            Some(last) => last + ((s.hpr_deg[0] - last + 180.0).rem_euclid(360.0) - 180.0),
-            None => s.hpr_deg[0],
-        };
+        let h = continuous(heading, s.hpr_deg[0]);
         heading = Some(h);
         let c = s.nav_covariance;
         let [sh, sp, sr] = s.sd_deg;

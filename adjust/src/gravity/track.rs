@@ -523,14 +523,7 @@ fn moved(llh: [f64; 3], attitude: Option<&AttitudeAt>, lever_arm_m: [f64; 3]) ->
     let Some(a) = attitude else {
         return [lat, lon, h - lever_arm_m[2]];
     };
-    let d = attitude::apply(&a.vehicle_to_nav(), lever_arm_m);
-    let (r_m, r_n) = super::navigation::radii(&super::normal::GRS80, lat);
-    let phi = lat.to_radians();
-    [
-        lat + (d[0] / (r_m + h)).to_degrees(),
-        lon + (d[1] / ((r_n + h) * phi.cos())).to_degrees(),
-        h - d[2],
-    ]
+    super::array::llh_of(llh, attitude::apply(&a.vehicle_to_nav(), lever_arm_m))
 }
 
 /// The kept positions' white noise north, east and up, m: their third differences, as the
