@@ -1687,8 +1687,9 @@ fn a_position_outlier_is_replaced_and_counted() {
 
 /// The body tide in the moving reduction (issue 48): survey-lines' world has the tide in
 /// its specific force; the stage removes it at each epoch with align's model, at the
-/// epoch's place and UTC time (checked here against the model called epoch by epoch, and
-/// not 0), and writes it as `tide_mgal`. Untied (the ties' level would take up the tide's
+/// epoch's place and UTC time (checked here against the model called epoch by epoch, to
+/// 1e-5 mGal: the stage computes it a minute apart and interpolates, 6.8e-7 mGal off at
+/// the track's turns; and not 0), and writes it as `tide_mgal`. Untied (the ties' level would take up the tide's
 /// mean), with `earth_tide = false` the column is 0 and the filtered disturbance is larger
 /// by the tide, to the filter's smoothing of it.
 #[test]
@@ -1729,7 +1730,7 @@ fn the_body_tide_is_removed_and_written() {
         "tide {:.4} to {:.4} mGal; worst against the model {worst:.2e}",
         range.0, range.1
     );
-    assert!(worst < 1e-9 && range.1 - range.0 > 1e-3 && range.0.abs().max(range.1.abs()) > 0.01);
+    assert!(worst < 1e-5 && range.1 - range.0 > 1e-3 && range.0.abs().max(range.1.abs()) > 0.01);
     assert!(col(&without, "tide_mgal").iter().all(|&x| x == 0.0));
     let (a, b) = (
         col(&with, "down_filtered_mgal"),

@@ -29,6 +29,32 @@ pub struct MeterLines {
 }
 
 impl MeterLines {
+    /// An empty record of a meter whose file is in `format`: with monitors but a BGM-3's.
+    pub fn empty(format: AdcFormat) -> Self {
+        MeterLines {
+            monitors: (format != AdcFormat::Bgm3).then(Vec::new),
+            ..MeterLines::default()
+        }
+    }
+
+    /// A line's time, monitors and status added; passed over unless its time is after the
+    /// last line's (the time gate ingest puts the meter's gravity through counts it).
+    pub fn push(&mut self, t: i64, monitors: Option<[f64; 4]>, status: u32) {
+        if self.time_gps_ns.last().is_some_and(|&last| last >= t) {
+            return;
+        }
+        self.time_gps_ns.push(t);
+        self.status.push(status);
+        if let (Some(all), Some(m)) = (&mut self.monitors, monitors) {
+            all.push(m);
+        }
+    }
+
+    /// A DGS laptop line added ([`MeterLines::push`]).
+    pub fn push_laptop(&mut self, r: &ingest::dgs::LaptopLine) {
+        self.push(r.gps_ns, Some(r.monitors), r.status);
+    }
+
     /// The lines within half of `interval_ns` of `t`: `[t - dt/2, t + dt/2)`.
     fn window(&self, t: i64, interval_ns: i64) -> std::ops::Range<usize> {
         let half = interval_ns / 2;
@@ -99,18 +125,19 @@ pub fn read(
     if !is_meter_file(format) {
         return Ok(None);
     }
-    let mut out = MeterLines {
-        monitors: (format != AdcFormat::Bgm3).then(Vec::new),
-        ..MeterLines::default()
-    };
+    let mut out = MeterLines::empty(format);
+    if format == AdcFormat::DgsLaptop {
+        // The lines that do not parse are set aside, and passed over.
+        super::trajectory::for_each_dgs_laptop(path, true, |_, r| {
+            out.push_laptop(r);
+            Ok(())
+        })?;
+        return Ok(Some(out));
+    }
     for (_, l) in super::trajectory::numbered_lines(path)? {
         let Ok(l) = l else { continue };
         let line = l.as_bytes();
         let read = match format {
-            AdcFormat::DgsLaptop => ingest::dgs::split(line)
-                .and_then(|fields| ingest::dgs::parse_laptop(&fields))
-                .ok()
-                .map(|r| (r.gps_ns, Some(r.monitors), r.status)),
             AdcFormat::DgsRaw => ingest::meter_serial::parse_dgs_raw(line, scale)
                 .ok()
                 .map(|r| (r.gps_ns, r.monitors, r.status)),
@@ -118,16 +145,8 @@ pub fn read(
                 .ok()
                 .map(|r| (r.gps_ns, None, r.status)),
         };
-        let Some((t, monitors, status)) = read else {
-            continue;
-        };
-        if out.time_gps_ns.last().is_some_and(|&last| last >= t) {
-            continue;
-        }
-        out.time_gps_ns.push(t);
-        out.status.push(status);
-        if let (Some(all), Some(m)) = (&mut out.monitors, monitors) {
-            all.push(m);
+        if let Some((t, monitors, status)) = read {
+            out.push(t, monitors, status);
         }
     }
     Ok(Some(out))

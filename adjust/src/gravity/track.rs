@@ -11,12 +11,13 @@
 
 use super::attitude::{self, AttitudeAt, AttitudeCursor, SpilledAttitude};
 use super::epochs::ThirdDifferences;
+use super::meter::MeterLines;
 use super::reduce::Steps;
 use super::spill::{Spill, SpillWriter};
 use super::trajectory;
 use super::{BadLine, GravityError};
 use ingest::contract::gravity_ledger::dropped;
-use ingest::contract::manifest::{Dataset, ResolvedSession};
+use ingest::contract::manifest::{AdcFormat, Dataset, ResolvedSession};
 use ingest::contract::survey::{Heights, SurveyConfig, TrajectoryFormat};
 use ingest::timegate::{Position, TimeGate};
 use std::collections::BTreeMap;
@@ -55,7 +56,7 @@ pub(super) struct Track<'a> {
     pub replaced: Vec<usize>,
     /// A platform meter's own record (its monitors and status words), when the session's
     /// samples come from its file.
-    pub meter: Option<super::meter::MeterLines>,
+    pub meter: Option<MeterLines>,
     /// An antenna array's session: what its antennas gave, and its attitude.parquet rows.
     pub array: Option<(
         ingest::contract::gravity_ledger::AntennasUsed,
@@ -254,19 +255,33 @@ fn array_track<'a>(
 
 /// The meters' own records of the sessions with a trajectory, in [`read_tracks`]'s order
 /// (None for a session whose samples are not a meter's file).
-pub(super) fn read_meters(
-    ds: &Dataset,
-) -> Result<Vec<Option<super::meter::MeterLines>>, GravityError> {
+pub(super) fn read_meters(ds: &Dataset) -> Result<Vec<Option<MeterLines>>, GravityError> {
     ds.sessions
         .iter()
         .filter(|s| s.trajectory.is_some())
         .map(|s| match &s.acquisition {
-            ingest::contract::manifest::Acquisition::Lab { stream, .. } => {
+            ingest::contract::manifest::Acquisition::Lab { stream, .. }
+                if !meter_in_trajectory(s) =>
+            {
                 super::meter::read(stream, s.session.adc_format, s.times.scale)
             }
             _ => Ok(None),
         })
         .collect()
+}
+
+/// Whether session `s`'s meter record is its trajectory's file (a DGS laptop file gives
+/// both), read in the trajectory's first pass ([`first_pass`]) rather than again.
+pub(super) fn meter_in_trajectory(s: &ResolvedSession) -> bool {
+    match (&s.acquisition, &s.trajectory) {
+        (ingest::contract::manifest::Acquisition::Lab { stream, .. }, Some(src)) => {
+            s.session.adc_format == AdcFormat::DgsLaptop
+                && src.format == TrajectoryFormat::DgsLaptop
+                && src.antennas.is_empty()
+                && *stream == src.path
+        }
+        _ => false,
+    }
 }
 
 /// A file's lines set aside, as the ledger lists them (the first
@@ -289,6 +304,16 @@ pub(super) fn each_epoch(
     s: &ResolvedSession,
     nmea: Option<trajectory::NmeaScan>,
     skip: bool,
+    f: impl FnMut(i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
+) -> Result<Vec<BadLine>, GravityError> {
+    each_epoch_and_meter(s, (nmea, None), skip, f)
+}
+
+/// [`each_epoch`], a DGS laptop file's lines also added to `meter` where given.
+fn each_epoch_and_meter(
+    s: &ResolvedSession,
+    (nmea, meter): (Option<trajectory::NmeaScan>, Option<&mut MeterLines>),
+    skip: bool,
     mut f: impl FnMut(i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
     let Some(src) = &s.trajectory else {
@@ -297,7 +322,15 @@ pub(super) fn each_epoch(
     let g = |_: u64, t: i64, llh: [f64; 3], sd: Option<[f64; 3]>| f(t, llh, sd);
     match src.format {
         TrajectoryFormat::Rtklib => trajectory::for_each_rtklib(&src.path, skip, g),
-        TrajectoryFormat::DgsLaptop => trajectory::for_each_dgs_laptop(&src.path, skip, g),
+        TrajectoryFormat::DgsLaptop => {
+            let mut meter = meter;
+            trajectory::for_each_dgs_laptop(&src.path, skip, |_, r| {
+                if let Some(m) = meter.as_deref_mut() {
+                    m.push_laptop(r);
+                }
+                f(r.gps_ns, [r.latitude_deg, r.longitude_deg, 0.0], None)
+            })
+        }
         TrajectoryFormat::Nmea => {
             let scan = match nmea {
                 Some(scan) => scan,
@@ -384,6 +417,8 @@ struct FirstPass {
     held: Option<Vec<Epoch>>,
     /// Its lines set aside.
     bad: Vec<BadLine>,
+    /// The meter's record, where it is the trajectory's file ([`meter_in_trajectory`]).
+    meter: Option<MeterLines>,
 }
 
 /// The first pass over session `s`'s trajectory: the interval the time gate judges by, and
@@ -403,10 +438,12 @@ fn first_pass(
             interval_ns: steps.median().unwrap_or(1_000_000_000),
             held: Some(epochs.to_vec()),
             bad: Vec::new(),
+            meter: None,
         });
     }
     let mut held = Some(Vec::new());
-    let bad = each_epoch(s, nmea, skip, |t, llh, sd| {
+    let mut meter = meter_in_trajectory(s).then(|| MeterLines::empty(AdcFormat::DgsLaptop));
+    let bad = each_epoch_and_meter(s, (nmea, meter.as_mut()), skip, |t, llh, sd| {
         steps.push(t);
         match &mut held {
             Some(h) if h.len() < HELD_EPOCHS => h.push((t, llh, sd)),
@@ -418,6 +455,7 @@ fn first_pass(
         interval_ns: steps.median().unwrap_or(1_000_000_000),
         held,
         bad,
+        meter,
     })
 }
 
@@ -496,7 +534,7 @@ fn gated<'a>(
         noise_neu_m: [0.0; 3],
         sd_given_median_m: None,
         replaced: Vec::new(),
-        meter: None,
+        meter: first.meter,
         array: None,
         heights: s
             .trajectory

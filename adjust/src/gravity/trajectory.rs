@@ -287,23 +287,25 @@ pub fn read_csv(path: &Path, time: TimeReader, skip: bool) -> Result<Trajectory,
 /// 0 (the file has none: the sea surface), without sds.
 pub fn read_dgs_laptop(path: &Path, skip: bool) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
-    out.bad_lines = for_each_dgs_laptop(path, skip, |line, t, llh, sd| {
-        out.push(t, llh, sd, line);
+    out.bad_lines = for_each_dgs_laptop(path, skip, |line, r| {
+        out.push(r.gps_ns, [r.latitude_deg, r.longitude_deg, 0.0], None, line);
         Ok(())
     })?;
     Ok(out)
 }
 
-/// Calls `f` with each epoch of a DGS laptop file (its line, time, position at height 0, no
-/// sds); with `skip`, a line that breaks the format is set aside.
+/// Calls `f` with each line of a DGS laptop file read (its number and the line: time,
+/// position, the meter's gravity, monitors and status), in file order, the lines parsed on
+/// the cores ([`for_each_line_parsed`]); with `skip`, a line that breaks the format is set
+/// aside.
 pub fn for_each_dgs_laptop(
     path: &Path,
     skip: bool,
-    mut f: impl FnMut(u64, i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
+    mut f: impl FnMut(u64, &ingest::dgs::LaptopLine) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
     let mut bad_lines = Vec::new();
-    for (line_no, l) in numbered_lines(path)? {
-        let parsed = l.and_then(|l| {
+    let parse = |line_no: u64, l: Result<&str, GravityError>| {
+        l.and_then(|l| {
             if l.trim().is_empty() {
                 return Ok(None);
             }
@@ -311,19 +313,105 @@ pub fn for_each_dgs_laptop(
                 .and_then(|fields| ingest::dgs::parse_laptop(&fields))
                 .map(Some)
                 .map_err(|(field, m)| bad(path, line_no, field, m))
-        });
-        match parsed {
-            Ok(Some(r)) => f(
-                line_no,
-                r.gps_ns,
-                [r.latitude_deg, r.longitude_deg, 0.0],
-                None,
-            )?,
-            Ok(None) => {}
-            Err(e) => set_aside(e, skip, &mut bad_lines)?,
-        }
-    }
+        })
+    };
+    for_each_line_parsed(path, parse, |line_no, parsed| match parsed {
+        Ok(Some(r)) => f(line_no, &r),
+        Ok(None) => Ok(()),
+        Err(e) => set_aside(e, skip, &mut bad_lines),
+    })?;
     Ok(bad_lines)
+}
+
+/// The bytes [`for_each_line_parsed`] reads at a time: a chunk's lines and what they parse
+/// to are held at once.
+const CHUNK_BYTES: usize = 1 << 20;
+
+/// Calls `f` in file order with each line of `path` as `parse` reads it: its number, from
+/// one, and its text, or its error, as [`numbered_lines`] gives them. The lines are read a
+/// chunk of about [`CHUNK_BYTES`] at a time, and each chunk's are parsed on the cores:
+/// this is for a format whose line parses alone, without what the lines before it said.
+pub(super) fn for_each_line_parsed<T: Send>(
+    path: &Path,
+    parse: impl Fn(u64, Result<&str, GravityError>) -> T + Sync,
+    mut f: impl FnMut(u64, T) -> Result<(), GravityError>,
+) -> Result<(), GravityError> {
+    use rayon::prelude::*;
+    use std::io::Read;
+    let io = |line: u64, e: std::io::Error| GravityError::File {
+        path: path.to_path_buf(),
+        message: format!("line {line}: {e}"),
+    };
+    let mut file = std::fs::File::open(path).map_err(|e| GravityError::File {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let (mut buf, mut next_line, mut eof) = (Vec::new(), 1u64, false);
+    while !eof {
+        let held = buf.len();
+        buf.resize(held + CHUNK_BYTES, 0);
+        let mut got = 0;
+        while held + got < buf.len() {
+            match file.read(&mut buf[held + got..]) {
+                Ok(0) => break,
+                Ok(n) => got += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(io(next_line, e)),
+            }
+        }
+        buf.truncate(held + got);
+        eof = got == 0;
+        let end = match memchr::memrchr(b'\n', &buf) {
+            _ if eof => buf.len(),
+            Some(k) => k + 1,
+            None => continue, // a line longer than the chunk: read on
+        };
+        let lines = lines_of(&buf[..end], next_line);
+        let parsed: Vec<T> = lines
+            .par_iter()
+            .with_min_len(1024)
+            .map(|&(no, l)| parse(no, line_text(path, no, l)))
+            .collect();
+        for (&(no, _), p) in lines.iter().zip(parsed) {
+            f(no, p)?;
+        }
+        next_line += lines.len() as u64;
+        buf.drain(..end);
+    }
+    Ok(())
+}
+
+/// The lines of `bytes` (each ended by `\n`, the last perhaps not), numbered from `first`.
+fn lines_of(bytes: &[u8], first: u64) -> Vec<(u64, &[u8])> {
+    let mut lines = Vec::new();
+    let mut start = 0;
+    for end in memchr::memchr_iter(b'\n', bytes) {
+        lines.push((first + lines.len() as u64, &bytes[start..end]));
+        start = end + 1;
+    }
+    if start < bytes.len() {
+        lines.push((first + lines.len() as u64, &bytes[start..]));
+    }
+    lines
+}
+
+/// Line `line_no`'s text as [`numbered_lines`] gives it: without a `\r` at its end and, on
+/// the first, a UTF-8 byte-order mark; not UTF-8, a line error naming the byte.
+fn line_text<'a>(path: &Path, line_no: u64, mut l: &'a [u8]) -> Result<&'a str, GravityError> {
+    if let Some(rest) = l.strip_suffix(b"\r") {
+        l = rest;
+    }
+    if line_no == 1 {
+        l = l.strip_prefix(ingest::BOM).unwrap_or(l);
+    }
+    std::str::from_utf8(l).map_err(|e| {
+        bad(
+            path,
+            line_no,
+            "line",
+            format!("not UTF-8 at byte {} of the line", e.valid_up_to()),
+        )
+    })
 }
 
 /// What an NMEA file's first pass finds: whether its fixes come from GGA sentences (else
@@ -602,6 +690,56 @@ mod tests {
         let p = d.path().join("t.pos");
         std::fs::write(&p, text).expect("write");
         (d, p)
+    }
+
+    /// The lines read a chunk at a time and parsed on the cores are the lines read one at a
+    /// time, numbered alike, with the same errors: CR-LF ends, a byte-order mark, a line
+    /// not UTF-8, no newline at the end, blank lines, a line longer than a chunk and a file
+    /// of several chunks.
+    #[test]
+    fn lines_parsed_a_chunk_at_a_time_are_the_lines_one_at_a_time() {
+        let long = "x".repeat(CHUNK_BYTES + 17);
+        let many: String = (0..200_000).map(|k| format!("{k},{}\r\n", k * 7)).collect();
+        let mut contents: Vec<Vec<u8>> = [
+            "",
+            "\n",
+            "a",
+            "a\n",
+            "a\n\n\nb",
+            "\u{feff}first\r\nsecond\r\n\u{feff}third",
+            &format!("one\n{long}\nthree\n"),
+            &many,
+        ]
+        .iter()
+        .map(|s| s.as_bytes().to_vec())
+        .collect();
+        contents.push(b"ok\nnot \xff utf-8\nok again".to_vec());
+        for bytes in contents {
+            let d = tempfile::tempdir().expect("tempdir");
+            let p = d.path().join("lines.txt");
+            std::fs::write(&p, &bytes).expect("write");
+            let one: Vec<(u64, String)> = numbered_lines(&p)
+                .expect("opened")
+                .map(|(no, l)| (no, l.unwrap_or_else(|e| format!("error {e}"))))
+                .collect();
+            let mut chunked = Vec::new();
+            for_each_line_parsed(
+                &p,
+                |no, l| (no, l.map_or_else(|e| format!("error {e}"), str::to_owned)),
+                |no, parsed| {
+                    assert_eq!(no, parsed.0);
+                    chunked.push(parsed);
+                    Ok(())
+                },
+            )
+            .expect("read");
+            assert_eq!(chunked.len(), one.len());
+            assert!(
+                chunked == one,
+                "{:?}",
+                String::from_utf8_lossy(&bytes[..bytes.len().min(40)])
+            );
+        }
     }
 
     const HEADER: &str = "% program   : RTKPOST ver.2.4.3\n%  GPST                  latitude(deg) longitude(deg)  height(m)   Q  ns   sdn(m)   sde(m)   sdu(m)  sdne(m)  sdeu(m)  sdun(m) age(s)  ratio\n";
