@@ -376,6 +376,7 @@ fn sliding_min_max(x: &[f64], reach: usize) -> (Vec<f64>, Vec<f64>) {
 fn unfiltered(s: &Stretch, dt: f64, out: &mut Reduced) -> Vec<f64> {
     let n = s.time_gps_ns.len();
     let ellipsoid = s.normal.ellipsoid();
+    let field = ellipsoid.field();
     let mut raw = vec![0.0; n];
     for k in 0..n {
         let (lo, hi) = (k.saturating_sub(1), (k + 1).min(n - 1));
@@ -391,7 +392,7 @@ fn unfiltered(s: &Stretch, dt: f64, out: &mut Reduced) -> Vec<f64> {
         let c = k.clamp(1, n - 2);
         let a_d = -(s.height_m[c + 1] - 2.0 * s.height_m[c] + s.height_m[c - 1]) / (dt * dt);
         let e = eotvos_down(ellipsoid, s.latitude_deg[k], h, v_n, v_e) * 1e5;
-        let gamma = ellipsoid.normal_gravity_mgal(s.latitude_deg[k], h);
+        let gamma = field.normal_gravity_mgal(s.latitude_deg[k], h);
         let tide = s.tide_mgal.get(k).copied().unwrap_or(0.0);
         let coupling = s
             .coupling

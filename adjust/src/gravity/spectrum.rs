@@ -189,9 +189,11 @@ pub fn fft(re: &mut [f64], im: &mut [f64]) {
     let mut len = 2;
     while len <= n {
         let angle = -std::f64::consts::TAU / len as f64;
+        // The stage's twiddles, once (the same for each of its n / len butterflies).
+        let twiddles: Vec<(f64, f64)> =
+            (0..len / 2).map(|k| (angle * k as f64).sin_cos()).collect();
         for start in (0..n).step_by(len) {
-            for k in 0..len / 2 {
-                let (s, c) = (angle * k as f64).sin_cos();
+            for (k, &(s, c)) in twiddles.iter().enumerate() {
                 let (a, b) = (start + k, start + k + len / 2);
                 let tr = re[b] * c - im[b] * s;
                 let ti = re[b] * s + im[b] * c;

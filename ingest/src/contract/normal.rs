@@ -113,16 +113,55 @@ impl Ellipsoid {
     /// Normal gravity at geodetic latitude `latitude_deg` and ellipsoidal height `height_m`
     /// (on or above the ellipsoid), m/s^2.
     pub fn normal_gravity(&self, latitude_deg: f64, height_m: f64) -> f64 {
-        let (sin2_beta, u) = self.harmonic(latitude_deg, height_m);
+        self.field().normal_gravity(latitude_deg, height_m)
+    }
+
+    /// What normal gravity takes of the ellipsoid alone, computed once for many points.
+    pub fn field(&self) -> NormalField<'_> {
         let (b, e) = (self.b(), self.linear_eccentricity());
         let e2 = e * e;
-        let q0 = 0.5 * ((1.0 + 3.0 * b * b / e2) * e.atan2(b) - 3.0 * b / e);
+        NormalField {
+            ellipsoid: self,
+            e,
+            e2,
+            q0: 0.5 * ((1.0 + 3.0 * b * b / e2) * e.atan2(b) - 3.0 * b / e),
+        }
+    }
+
+    /// Normal gravity in mGal.
+    pub fn normal_gravity_mgal(&self, latitude_deg: f64, height_m: f64) -> f64 {
+        self.normal_gravity(latitude_deg, height_m) * 1e5
+    }
+}
+
+/// An ellipsoid's normal field: what [`Ellipsoid::normal_gravity`] takes of the ellipsoid
+/// alone (its linear eccentricity and q0), for the points of a survey.
+#[derive(Clone, Copy, Debug)]
+pub struct NormalField<'a> {
+    ellipsoid: &'a Ellipsoid,
+    e: f64,
+    e2: f64,
+    q0: f64,
+}
+
+impl NormalField<'_> {
+    /// Normal gravity at geodetic latitude `latitude_deg` and ellipsoidal height `height_m`
+    /// (on or above the ellipsoid), m/s^2.
+    pub fn normal_gravity(&self, latitude_deg: f64, height_m: f64) -> f64 {
+        let NormalField {
+            ellipsoid,
+            e,
+            e2,
+            q0,
+        } = *self;
+        let (sin2_beta, u) = ellipsoid.harmonic(latitude_deg, height_m);
         let q_prime = 3.0 * (1.0 + u * u / e2) * (1.0 - u / e * e.atan2(u)) - 1.0;
         let w = ((u * u + e2 * sin2_beta) / (u * u + e2)).sqrt();
-        let radial = self.gm / (u * u + e2);
+        let radial = ellipsoid.gm / (u * u + e2);
         let rotation = (0.5 * sin2_beta - 1.0 / 6.0)
-            * (self.a * self.a * e * q_prime / q0 * self.omega * self.omega / (u * u + e2));
-        let centrifugal = -(1.0 - sin2_beta) * u * self.omega * self.omega;
+            * (ellipsoid.a * ellipsoid.a * e * q_prime / q0 * ellipsoid.omega * ellipsoid.omega
+                / (u * u + e2));
+        let centrifugal = -(1.0 - sin2_beta) * u * ellipsoid.omega * ellipsoid.omega;
         (radial + rotation + centrifugal) / w
     }
 
