@@ -60,23 +60,37 @@ fn number(fields: &[&[u8]], k: usize, name: &'static str) -> Result<f64, Bad> {
 
 fn integer(fields: &[&[u8]], k: usize, name: &'static str) -> Result<u32, Bad> {
     let f = fields[k].trim_ascii();
-    std::str::from_utf8(f)
-        .ok()
-        .and_then(|s| s.parse::<u32>().ok())
-        .ok_or_else(|| (name, format!("`{}` is not an integer", text(f))))
+    unsigned(f).ok_or_else(|| (name, format!("`{}` is not an integer", text(f))))
+}
+
+/// What `str::parse::<u32>` reads: an optional `+`, then decimal digits, within u32.
+fn unsigned(f: &[u8]) -> Option<u32> {
+    let digits = f.strip_prefix(b"+").unwrap_or(f);
+    if digits.is_empty() {
+        return None;
+    }
+    digits.iter().try_fold(0u32, |v, &c| {
+        c.is_ascii_digit()
+            .then(|| v.checked_mul(10)?.checked_add(u32::from(c - b'0')))
+            .flatten()
+    })
 }
 
 /// A laptop line split at its commas into [`FIELDS`] fields, without allocating; a line of
 /// another count is refused as [`parse_laptop`] refuses it.
 pub fn split(line: &[u8]) -> Result<[&[u8]; FIELDS], Bad> {
     let mut fields: [&[u8]; FIELDS] = [&[]; FIELDS];
-    let mut n = 0;
-    for f in line.split(|&b| b == b',') {
+    let (mut n, mut start) = (0, 0);
+    for comma in memchr::memchr_iter(b',', line) {
         if let Some(slot) = fields.get_mut(n) {
-            *slot = f;
+            *slot = &line[start..comma];
         }
-        n += 1;
+        (n, start) = (n + 1, comma + 1);
     }
+    if let Some(slot) = fields.get_mut(n) {
+        *slot = &line[start..];
+    }
+    n += 1;
     if n != FIELDS {
         return Err(field_count(n));
     }
@@ -199,6 +213,31 @@ fn minute_start(c: Calendar) -> Option<i64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The integer fields read as `str::parse::<u32>` reads them.
+    #[test]
+    fn integers_are_str_parse_s() {
+        for f in [
+            "0",
+            "7",
+            "+7",
+            "-7",
+            "",
+            "+",
+            "++1",
+            "00012",
+            "4294967295",
+            "4294967296",
+            "99999999999",
+            "1a",
+            "a1",
+            " 1",
+            "1 ",
+            "\u{661}",
+        ] {
+            assert_eq!(unsigned(f.as_bytes()), f.parse::<u32>().ok(), "`{f}`");
+        }
+    }
 
     const LINE: &str = "11773.330941280192,12295.691114150419, -0.574874946460, \
         -0.635361747189,  0.003210411454, 53.370688000000,           20814,         5403321, \

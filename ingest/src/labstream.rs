@@ -282,6 +282,46 @@ const EXACT_POWERS: [f64; 23] = [
 /// gives (Clinger's fast path), and whether it had an exponent. None for anything else
 /// (more digits, `nan`, malformed), which `str::parse` then reads or rejects.
 pub(crate) fn fast_decimal(field: &[u8]) -> Option<(f64, bool)> {
+    plain_decimal(field).or_else(|| general_decimal(field))
+}
+
+/// [`fast_decimal`] of the common field, `[-+]digits[.digits]` (no exponent), in a loop
+/// without [`general_decimal`]'s states: the same mantissa (refused at 16 significant
+/// digits, as there) over the same power of ten, so the same double. None for any other
+/// field, which [`general_decimal`] then reads.
+#[inline]
+fn plain_decimal(field: &[u8]) -> Option<(f64, bool)> {
+    const LIMIT: u64 = 1_000_000_000_000_000; // 16 significant digits
+    let (negative, rest) = match field.first()? {
+        b'-' => (true, &field[1..]),
+        b'+' => (false, &field[1..]),
+        _ => (false, field),
+    };
+    let (mut mantissa, mut fraction, mut point, mut digits) = (0u64, 0usize, false, 0usize);
+    for &c in rest {
+        match c {
+            b'0'..=b'9' => {
+                mantissa = mantissa * 10 + u64::from(c - b'0');
+                if mantissa >= LIMIT {
+                    return None;
+                }
+                digits += 1;
+                fraction += usize::from(point);
+            }
+            b'.' if !point => point = true,
+            _ => return None,
+        }
+    }
+    if digits == 0 {
+        return None;
+    }
+    let m = mantissa as f64;
+    let v = m / *EXACT_POWERS.get(fraction)?;
+    Some((if negative { -v } else { v }, false))
+}
+
+/// [`fast_decimal`] of any field it reads (an exponent included).
+fn general_decimal(field: &[u8]) -> Option<(f64, bool)> {
     let (negative, mut rest) = match field.first()? {
         b'-' => (true, &field[1..]),
         b'+' => (false, &field[1..]),
