@@ -225,7 +225,11 @@ fn fit(positions: &[[f64; 3]], fixes: &[(usize, Fix)]) -> Option<Solution> {
 
 /// A baseline's measured length less its declared one, over its sd (the two positions'
 /// sds along it).
-fn baseline_z(positions: &[[f64; 3]], (i, fi): (usize, Fix), (j, fj): (usize, Fix)) -> f64 {
+pub(super) fn baseline_z(
+    positions: &[[f64; 3]],
+    (i, fi): (usize, Fix),
+    (j, fj): (usize, Fix),
+) -> f64 {
     let d = sub(fi.ned_m, fj.ned_m);
     let length = norm(d);
     let u = d.map(|v| v / length);

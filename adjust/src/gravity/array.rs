@@ -41,8 +41,9 @@ pub(super) struct AttitudeRow {
 pub(super) struct ArrayTrack {
     /// The accelerometers' positions with their sds, at the epochs solved.
     pub epochs: Vec<Epoch>,
-    /// The attitude at the same epochs, with its covariance.
-    pub attitude: SpilledAttitude,
+    /// The attitude at the same epochs, with its covariance; None from two antennas (no
+    /// roll: the track is reduced as without an attitude).
+    pub attitude: Option<SpilledAttitude>,
     /// Each antenna's lines set aside, by antenna.
     pub bad: Vec<(usize, Vec<BadLine>)>,
     /// What gravity.json says of it.
@@ -162,9 +163,10 @@ fn white_noise(epochs: &[Epoch]) -> [f64; 3] {
     d.map(|d| Some(d.sd()).filter(|s| *s > 0.0).unwrap_or(f64::NAN))
 }
 
-/// Reads session `s`'s antennas and fits every epoch where at least three give a position
-/// (two: refused, heading and pitch not carrying the track), each baseline checked at
-/// `[survey] baseline_length_sigmas`; the attitude samples written aside into `dir`.
+/// Reads session `s`'s antennas and fits every epoch where at least three give a position,
+/// or, with two antennas fore and aft, takes heading and pitch where both do
+/// ([`Solved::two`]); each baseline checked at `[survey] baseline_length_sigmas`; the
+/// attitude samples written aside into `dir`.
 pub(super) fn read_array(
     s: &ResolvedSession,
     survey: &SurveyConfig,
@@ -176,16 +178,6 @@ pub(super) fn read_array(
         .as_ref()
         .expect("an array session has its antennas");
     let antennas = &src.antennas;
-    if antennas.len() < 3 {
-        return Err(GravityError::Refused {
-            message: format!(
-                "session {}: two antennas give heading and pitch only; the reduction needs the \
-                 roll as well (the lever arm to each antenna turns with it): add a third \
-                 antenna not in line with them",
-                s.session.id
-            ),
-        });
-    }
     let (mut per, mut bad, mut dropped) = (Vec::new(), Vec::new(), BTreeMap::new());
     for (k, a) in antennas.iter().enumerate() {
         let (mut kept, lines) = antenna_epochs(s, a, skip)?;
@@ -215,9 +207,20 @@ pub(super) fn read_array(
                 at[k] = Some((k, e[cursor[k]]));
             }
         }
-        out.epoch(t, &at, (&positions, &noise), survey.baseline_length_sigmas);
+        match antennas.len() {
+            2 => out.two(t, &at, (&positions, &noise), survey.baseline_length_sigmas),
+            _ => out.epoch(t, &at, (&positions, &noise), survey.baseline_length_sigmas),
+        }
     }
-    let attitude = super::attitude::spill_derived(&src.path, out.samples.iter().copied(), dir)?;
+    let two = antennas.len() == 2;
+    let attitude = match two {
+        true => None,
+        false => Some(super::attitude::spill_derived(
+            &src.path,
+            out.samples.iter().copied(),
+            dir,
+        )?),
+    };
     let used = AntennasUsed {
         ids: antennas.iter().map(|a| a.id.clone()).collect(),
         epochs_read: per.iter().map(|e| e.len() as u64).collect(),
@@ -229,7 +232,13 @@ pub(super) fn read_array(
             .filter(|(_, n)| **n > 0)
             .map(|(a, n)| (a.id.clone(), *n))
             .collect(),
-        median_sd_hpr_deg: std::array::from_fn(|k| median(out.samples.iter().map(|s| s.sd_deg[k]))),
+        median_sd_hpr_deg: std::array::from_fn(|k| {
+            Some(median(out.rows.iter().map(|r| r.values[3 + k]))).filter(|v| !v.is_nan())
+        }),
+        not_given: match two {
+            true => BTreeMap::from([("roll".to_owned(), TWO_ANTENNAS.to_owned())]),
+            false => BTreeMap::new(),
+        },
         median_sd_position_m: std::array::from_fn(|k| {
             median(out.epochs.iter().filter_map(|e| e.2.map(|sd| sd[k])))
         }),
@@ -244,8 +253,14 @@ pub(super) fn read_array(
     })
 }
 
+/// Why two antennas give no roll (gravity.json's `antennas.not_given`).
+pub(super) const TWO_ANTENNAS: &str = "two antennas fore and aft give heading and pitch; \
+     roll turns the vehicle about their baseline: north and east are not given, and down is \
+     reduced as without an attitude (docs/formats.md 10.2.1)";
+
+/// The median of the values not NaN (NaN for none).
 fn median(v: impl Iterator<Item = f64>) -> f64 {
-    let mut v: Vec<f64> = v.collect();
+    let mut v: Vec<f64> = v.filter(|x| !x.is_nan()).collect();
     if v.is_empty() {
         return f64::NAN;
     }
@@ -326,6 +341,69 @@ impl Solved {
         });
     }
 
+    /// The epoch at `t` from two antennas fore and aft (`at`, `positions`, `noise` as for
+    /// [`Solved::epoch`]): where both give a position and their baseline's length holds,
+    /// heading and pitch from it ([`antennas::heading_pitch`]), roll not given (NaN); the
+    /// accelerometers' position the mean of each antenna less its position turned by
+    /// heading and pitch (roll taken as 0 for it: the lever arms' vertical part z moves the
+    /// position by z sin(roll) across and z (1 - cos(roll)) down, which its sds do not
+    /// carry), its sd the antennas' mean's with the angles' errors through the lever arms.
+    fn two(
+        &mut self,
+        t: i64,
+        at: &[Option<(usize, Epoch)>],
+        (positions, noise): (&[[f64; 3]], &[[f64; 3]]),
+        limit: f64,
+    ) {
+        self.set_aside.resize(positions.len(), 0);
+        let (Some((_, a)), Some((_, b))) = (at[0], at[1]) else {
+            self.too_few += 1;
+            return;
+        };
+        let origin = a.1;
+        let fix = |k: usize, (_, llh, sd): Epoch| Fix {
+            ned_m: ned_of(origin, llh),
+            sd_m: sd
+                .filter(|s| s.iter().all(|v| *v > 0.0))
+                .unwrap_or(noise[k]),
+        };
+        let (fa, fb) = (fix(0, a), fix(1, b));
+        let fore = positions[1][0] > positions[0][0];
+        let (aft, ahead) = if fore { (fa, fb) } else { (fb, fa) };
+        if antennas::baseline_z(positions, (0, fa), (1, fb)).abs() > limit {
+            self.count_set_aside(0b11);
+            self.too_few += 1;
+            return;
+        }
+        let ([h, p], [sd_h, sd_p]) = antennas::heading_pitch(aft, ahead, true);
+        let c = super::attitude::rotation(h, p, 0.0);
+        let lever: [f64; 3] = std::array::from_fn(|k| (positions[0][k] + positions[1][k]) / 2.0);
+        let turned = super::attitude::apply(&c, lever);
+        let ned: [f64; 3] = std::array::from_fn(|k| (fa.ned_m[k] + fb.ned_m[k]) / 2.0 - turned[k]);
+        // Heading turns the lever arm about down; pitch about the vehicle's y axis, level.
+        let by_heading = [-turned[1], turned[0], 0.0];
+        let y = [-h.sin(), h.cos(), 0.0];
+        let by_pitch = [
+            y[1] * turned[2] - y[2] * turned[1],
+            y[2] * turned[0] - y[0] * turned[2],
+            y[0] * turned[1] - y[1] * turned[0],
+        ];
+        let sd: [f64; 3] = std::array::from_fn(|k| {
+            ((fa.sd_m[k].powi(2) + fb.sd_m[k].powi(2)) / 4.0
+                + (sd_h * by_heading[k]).powi(2)
+                + (sd_p * by_pitch[k]).powi(2))
+            .sqrt()
+        });
+        self.epochs.push((t, llh_of(origin, ned), Some(sd)));
+        let nan = f64::NAN;
+        let [h, p, sd_h, sd_p] = [h, p, sd_h, sd_p].map(f64::to_degrees);
+        self.rows.push(AttitudeRow {
+            time_gps_ns: t,
+            values: [h, p, nan, sd_h, sd_p, nan, 0.0, nan, nan],
+            masks: [0b11, 0],
+        });
+    }
+
     fn count_set_aside(&mut self, mask: u32) {
         for (k, n) in self.set_aside.iter_mut().enumerate() {
             *n += u64::from(mask >> k & 1);
@@ -356,9 +434,12 @@ pub(super) fn write_attitude_table(
                 rows.iter().map(|r| r.time_gps_ns).collect::<Vec<_>>(),
             )),
         ];
+        // A value the array does not give (NaN: two antennas' roll) is null.
         for c in 0..attitude::FLOATS.len() {
             columns.push(Arc::new(Float64Array::from(
-                rows.iter().map(|r| r.values[c]).collect::<Vec<_>>(),
+                rows.iter()
+                    .map(|r| Some(r.values[c]).filter(|v| !v.is_nan()))
+                    .collect::<Vec<_>>(),
             )));
         }
         for m in 0..attitude::MASKS.len() {

@@ -2083,15 +2083,23 @@ fn antennas_line(a: &ingest::contract::gravity_ledger::AntennasUsed) -> String {
             .flat_map(|(id, d)| d.iter().map(move |(why, n)| format!("{id}: {n} {why}")))
             .collect(),
     );
-    let [h, p, r] = a.median_sd_hpr_deg;
+    let angles: Vec<String> = ["heading", "pitch", "roll"]
+        .iter()
+        .zip(a.median_sd_hpr_deg)
+        .map(|(name, sd)| match (sd, a.not_given.get(*name)) {
+            (Some(sd), _) => format!("{name} {sd:.3} deg"),
+            (None, Some(why)) => format!("{name} not given ({why})"),
+            (None, None) => format!("{name} none"),
+        })
+        .collect();
     let [n, e, d] = a.median_sd_position_m.map(|v| v * 100.0);
     format!(
         "antennas {}: attitude and position at {} epochs; dropped by an antenna's time gate: \
-         {gated}; set aside (baseline length): {aside}; median sd heading {h:.3}, pitch \
-         {p:.3}, roll {r:.3} deg, position north {n:.2}, east {e:.2}, down {d:.2} cm \
-         (OUT/gravity/attitude.parquet)",
+         {gated}; set aside (baseline length): {aside}; median sd {}, position north \
+         {n:.2}, east {e:.2}, down {d:.2} cm (OUT/gravity/attitude.parquet)",
         a.ids.join(", "),
         a.epochs_solved,
+        angles.join(", "),
     )
 }
 

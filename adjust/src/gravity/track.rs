@@ -232,7 +232,7 @@ fn array_track<'a>(
     (survey, dir): (&SurveyConfig, &Path),
 ) -> Result<Track<'a>, GravityError> {
     let array = super::array::read_array(s, survey, skip, dir)?;
-    let derived = (Some(&array.attitude), Some(&array.epochs[..]));
+    let derived = (array.attitude.as_ref(), Some(&array.epochs[..]));
     let (mut track, _) = gated((index, s), derived, ([0.0; 3], skip), dir)?;
     let antennas = &s.trajectory.as_ref().expect("an array").antennas;
     for (k, lines) in &array.bad {
@@ -248,7 +248,7 @@ fn array_track<'a>(
             .insert(dropped::TOO_FEW_ANTENNAS.to_owned(), array.too_few);
     }
     track.epochs_read += array.too_few;
-    track.attitude = Some(array.attitude);
+    track.attitude = array.attitude;
     track.array = Some((array.used, array.rows));
     Ok(track)
 }

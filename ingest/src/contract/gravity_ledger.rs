@@ -12,7 +12,7 @@ pub const STAGE_DIR: &str = "gravity";
 /// The ledger's file name.
 pub const LEDGER_FILE: &str = "gravity.json";
 /// The ledger's format tag.
-pub const LEDGER_FORMAT: &str = "gravcal-gravity/4";
+pub const LEDGER_FORMAT: &str = "gravcal-gravity/5";
 
 /// The error models the sigmas were propagated with.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -72,8 +72,12 @@ pub struct AntennasUsed {
     /// Per antenna, the epochs it was set aside at, its baselines' lengths off by more
     /// than `[survey] baseline_length_sigmas` (`baseline_length`).
     pub set_aside: BTreeMap<String, u64>,
-    /// The solved epochs' median sds of heading, pitch and roll, deg.
-    pub median_sd_hpr_deg: [f64; 3],
+    /// The solved epochs' median sds of heading, pitch and roll, deg (None for an angle
+    /// the array does not give).
+    pub median_sd_hpr_deg: [Option<f64>; 3],
+    /// The angles the array does not give, with why (two antennas: roll).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub not_given: BTreeMap<String, String>,
     /// Their median sds of the accelerometers' position north, east, down, m.
     pub median_sd_position_m: [f64; 3],
 }

@@ -646,6 +646,9 @@ pub mod gravity {
 /// | heading_deg, pitch_deg, roll_deg | float64 | C_v^n = Rz(heading) Ry(pitch) Rx(roll), deg |
 /// | sd_heading_deg, sd_pitch_deg, sd_roll_deg | float64 | their sds, deg |
 /// | corr_heading_pitch, corr_heading_roll, corr_pitch_roll | float64 | their correlations |
+///
+/// A value the array does not give is null: two antennas' roll, its sd and correlations
+/// (gravity.json's `antennas.not_given` says why).
 /// | antennas_used | uint32 | bit k: the session's k-th antenna in the fit |
 /// | antennas_set_aside | uint32 | bit k: set aside, its baselines' lengths off |
 pub mod attitude {
@@ -674,7 +677,7 @@ pub mod attitude {
             Field::new(TIME_GPS_NS, DataType::Int64, false),
         ];
         for name in FLOATS {
-            fields.push(Field::new(name, DataType::Float64, false));
+            fields.push(Field::new(name, DataType::Float64, true));
         }
         for name in MASKS {
             fields.push(Field::new(name, DataType::UInt32, false));
