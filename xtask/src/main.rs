@@ -5,6 +5,7 @@ mod bench;
 mod bench_apply;
 mod bench_gravity;
 mod check;
+mod digest;
 mod init;
 mod preflight;
 mod show;
@@ -128,9 +129,18 @@ enum Cmd {
         #[arg(long, default_value = "docs/report-first-screen.png")]
         png: PathBuf,
     },
-    /// Runs the pipeline on every committed fixture and prints the SHA-256 of each output:
-    /// run before and after a refactor, the two lists must be equal (`diff`).
-    Digest,
+    /// Runs the six stages on every fixture and prints a summary of each output (each
+    /// table's columns' sums, each ledger's values, each other file's SHA-256); `--check`
+    /// compares it with a committed one at a tolerance, `--write` writes it
+    /// (the README's "Other commands").
+    Digest {
+        /// Compare with this summary (fixtures/digests.txt); differences fail, by key.
+        #[arg(long)]
+        check: Option<PathBuf>,
+        /// Write the summary to this file.
+        #[arg(long)]
+        write: Option<PathBuf>,
+    },
     /// Prints a Parquet table the pipeline wrote: its schema and rows, or CSV.
     Show {
         /// The table (e.g. out/esgt-2005/align/observations.parquet).
@@ -230,39 +240,6 @@ fn run_stages(args: &DatasetArgs, which: &[&str]) -> Result<()> {
         eprintln!("{name}: {:.2} s", t0.elapsed().as_secs_f64());
     }
     Ok(())
-}
-
-/// Every fixture through the pipeline into a scratch folder; each output's SHA-256 printed
-/// as `fixture/stage/file hash`, in a fixed order.
-fn digest() -> Result<()> {
-    let scratch = std::env::temp_dir().join(format!("gravcal-digest-{}", std::process::id()));
-    let result = (|| -> Result<()> {
-        for name in fixtures::catalog::ALL {
-            let out = scratch.join(name);
-            let args = DatasetArgs {
-                dataset: fixtures::dataset_dir(name),
-                out: Some(out.clone()),
-            };
-            run_stages(&args, &["ingest", "align", "adjust", "report"])?;
-            let mut files = Vec::new();
-            for stage in ["ingest", "align", "adjust", "report"] {
-                for entry in std::fs::read_dir(out.join(stage))? {
-                    let p = entry?.path();
-                    if p.is_file() {
-                        files.push(p);
-                    }
-                }
-            }
-            files.sort();
-            for p in files {
-                let rel = p.strip_prefix(&scratch).unwrap_or(&p).display().to_string();
-                println!("{rel} {}", ingest::contract::custody::sha256_file(&p)?);
-            }
-        }
-        Ok(())
-    })();
-    let _ = std::fs::remove_dir_all(&scratch);
-    result
 }
 
 /// The pipeline on `dataset` into a scratch folder, then its report's first screen.
@@ -538,7 +515,18 @@ fn run(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
-        Cmd::Digest => digest(),
+        Cmd::Digest { check, write } => {
+            let run = |d: &Path, o: &Path, which: &[&str]| {
+                run_stages(
+                    &DatasetArgs {
+                        dataset: d.to_path_buf(),
+                        out: Some(o.to_path_buf()),
+                    },
+                    which,
+                )
+            };
+            digest::command(&run, (check.as_deref(), write.as_deref()))
+        }
         Cmd::Verdicts { replicas } => verdicts::run(&workspace_root(), replicas),
         Cmd::Check { dataset } => {
             let mut out = std::io::stdout().lock();
