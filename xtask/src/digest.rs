@@ -76,10 +76,8 @@ pub fn summarise(scratch: &Path, run: Stages<'_>) -> Result<Vec<String>> {
             if !dir.is_dir() {
                 continue;
             }
-            let mut files: Vec<_> = std::fs::read_dir(&dir)?
-                .map(|e| e.map(|e| e.path()))
-                .collect::<std::io::Result<_>>()?;
-            files.retain(|p| p.is_file());
+            let mut files = Vec::new();
+            files_under(&dir, &mut files)?;
             files.sort();
             for p in files {
                 let rel = p.strip_prefix(scratch).unwrap_or(&p).display().to_string();
@@ -90,6 +88,18 @@ pub fn summarise(scratch: &Path, run: Stages<'_>) -> Result<Vec<String>> {
         }
     }
     Ok(lines)
+}
+
+/// Every file under `dir`, its subfolders' (the report's plots) included.
+fn files_under(dir: &Path, out: &mut Vec<std::path::PathBuf>) -> std::io::Result<()> {
+    for e in std::fs::read_dir(dir)? {
+        let p = e?.path();
+        match p.is_dir() {
+            true => files_under(&p, out)?,
+            false => out.push(p),
+        }
+    }
+    Ok(())
 }
 
 /// `value` with the scratch folder and the workspace written as `$OUT` and `$ROOT`, which
