@@ -178,40 +178,8 @@ pub(super) fn read_array(
         .as_ref()
         .expect("an array session has its antennas");
     let antennas = &src.antennas;
-    let (mut per, mut bad, mut dropped) = (Vec::new(), Vec::new(), BTreeMap::new());
-    for (k, a) in antennas.iter().enumerate() {
-        let (mut kept, lines) = antenna_epochs(s, a, skip)?;
-        if !lines.is_empty() {
-            let bad_line = ingest::contract::gravity_ledger::dropped::BAD_LINE.to_owned();
-            kept.dropped.insert(bad_line, lines.len() as u64);
-        }
-        bad.push((k, lines));
-        per.push(kept.epochs);
-        if !kept.dropped.is_empty() {
-            dropped.insert(a.id.clone(), kept.dropped);
-        }
-    }
-    let noise: Vec<[f64; 3]> = per.iter().map(|e| white_noise(e)).collect();
-    let positions: Vec<[f64; 3]> = antennas.iter().map(|a| a.position_m).collect();
-    let times: std::collections::BTreeSet<i64> =
-        per.iter().flat_map(|e| e.iter().map(|x| x.0)).collect();
-    let mut cursor = vec![0usize; per.len()];
-    let mut out = Solved::default();
-    for t in times {
-        let mut at: Vec<Option<(usize, Epoch)>> = vec![None; per.len()];
-        for (k, e) in per.iter().enumerate() {
-            while cursor[k] < e.len() && e[cursor[k]].0 < t {
-                cursor[k] += 1;
-            }
-            if cursor[k] < e.len() && e[cursor[k]].0 == t {
-                at[k] = Some((k, e[cursor[k]]));
-            }
-        }
-        match antennas.len() {
-            2 => out.two(t, &at, (&positions, &noise), survey.baseline_length_sigmas),
-            _ => out.epoch(t, &at, (&positions, &noise), survey.baseline_length_sigmas),
-        }
-    }
+    let read = read_antennas(s, antennas, skip)?;
+    let out = solve_epochs(&read.epochs, antennas, survey.baseline_length_sigmas);
     let two = antennas.len() == 2;
     let attitude = match two {
         true => None,
@@ -223,8 +191,8 @@ pub(super) fn read_array(
     };
     let used = AntennasUsed {
         ids: antennas.iter().map(|a| a.id.clone()).collect(),
-        epochs_read: per.iter().map(|e| e.len() as u64).collect(),
-        dropped,
+        epochs_read: read.epochs.iter().map(|e| e.len() as u64).collect(),
+        dropped: read.dropped,
         epochs_solved: out.epochs.len() as u64,
         set_aside: antennas
             .iter()
@@ -246,11 +214,73 @@ pub(super) fn read_array(
     Ok(ArrayTrack {
         epochs: out.epochs,
         attitude,
-        bad,
+        bad: read.bad,
         used,
         too_few: out.too_few,
         rows: out.rows,
     })
+}
+
+/// Each antenna's epochs after its own time gate, what the gates dropped and the lines set
+/// aside, by antenna.
+struct AntennasRead {
+    epochs: Vec<Vec<Epoch>>,
+    dropped: BTreeMap<String, BTreeMap<String, u64>>,
+    bad: Vec<(usize, Vec<BadLine>)>,
+}
+
+/// Reads each of `antennas` through its own time gate ([`antenna_epochs`]).
+fn read_antennas(
+    s: &ResolvedSession,
+    antennas: &[Antenna],
+    skip: bool,
+) -> Result<AntennasRead, GravityError> {
+    let mut read = AntennasRead {
+        epochs: Vec::new(),
+        dropped: BTreeMap::new(),
+        bad: Vec::new(),
+    };
+    for (k, a) in antennas.iter().enumerate() {
+        let (mut kept, lines) = antenna_epochs(s, a, skip)?;
+        if !lines.is_empty() {
+            let bad_line = ingest::contract::gravity_ledger::dropped::BAD_LINE.to_owned();
+            kept.dropped.insert(bad_line, lines.len() as u64);
+        }
+        read.bad.push((k, lines));
+        read.epochs.push(kept.epochs);
+        if !kept.dropped.is_empty() {
+            read.dropped.insert(a.id.clone(), kept.dropped);
+        }
+    }
+    Ok(read)
+}
+
+/// Every epoch any antenna gives, matched by time across `per` (each antenna's epochs),
+/// solved ([`Solved::epoch`], or [`Solved::two`] for two antennas) with each baseline
+/// checked at `limit` sds.
+fn solve_epochs(per: &[Vec<Epoch>], antennas: &[Antenna], limit: f64) -> Solved {
+    let noise: Vec<[f64; 3]> = per.iter().map(|e| white_noise(e)).collect();
+    let positions: Vec<[f64; 3]> = antennas.iter().map(|a| a.position_m).collect();
+    let times: std::collections::BTreeSet<i64> =
+        per.iter().flat_map(|e| e.iter().map(|x| x.0)).collect();
+    let mut cursor = vec![0usize; per.len()];
+    let mut out = Solved::default();
+    for t in times {
+        let mut at: Vec<Option<(usize, Epoch)>> = vec![None; per.len()];
+        for (k, e) in per.iter().enumerate() {
+            while cursor[k] < e.len() && e[cursor[k]].0 < t {
+                cursor[k] += 1;
+            }
+            if cursor[k] < e.len() && e[cursor[k]].0 == t {
+                at[k] = Some((k, e[cursor[k]]));
+            }
+        }
+        match antennas.len() {
+            2 => out.two(t, &at, (&positions, &noise), limit),
+            _ => out.epoch(t, &at, (&positions, &noise), limit),
+        }
+    }
+    out
 }
 
 /// Why two antennas give no roll (gravity.json's `antennas.not_given`).

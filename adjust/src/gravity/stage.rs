@@ -61,28 +61,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
         path: dir.clone(),
         source: e,
     })?;
-    // Apply, then the meters' own records, on the second core while the first reads the
-    // trajectories: none reads what another writes (the lock is re-entrant, and held here
-    // across them). Apply's error is the one told when several fail, as when it came first.
-    let (applied, tracks) = std::thread::scope(|scope| {
-        let applying = scope.spawn(|| {
-            let applied = crate::apply::stream::run(dataset, out, &opts.apply)?;
-            Ok::<_, GravityError>((applied, super::track::read_meters(&ds)?))
-        });
-        let tracks = read_tracks(&ds, &survey, opts.skip_bad_lines, &dir);
-        let applied = applying
-            .join()
-            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (applied, tracks)
-    });
-    let (applied, meters) = applied?;
-    let mut tracks = tracks?;
-    // A meter's record read with its trajectory (track::meter_in_trajectory) is None here.
-    for (track, meter) in tracks.iter_mut().zip(meters) {
-        if meter.is_some() {
-            track.meter = meter;
-        }
-    }
+    let (applied, tracks) = applied_and_tracks(&ds, (dataset, out, &dir), &survey, opts)?;
     let force = down_force(&applied, &survey, opts.accelerometer)?;
     let triad = triad_function(&applied, opts.apply.calibration)?;
     refuse_attitude_with_an_axis(&force, &tracks)?;
@@ -133,6 +112,39 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
         ingest::write_json_atomically(&dir.join(LEDGER_FILE), &report)?;
         Ok(report)
     })
+}
+
+/// Apply run on `dataset` into `out`, and the survey's tracks read (their kept epochs into
+/// `dir`), with the meters' own records. Apply, then the meters' records, run on the second
+/// core while the first reads the trajectories: none reads what another writes (the lock is
+/// re-entrant, and held by [`run`] across them). Apply's error is the one told when several
+/// fail, as when it came first.
+fn applied_and_tracks<'a>(
+    ds: &'a Dataset,
+    (dataset, out, dir): (&Path, &Path, &Path),
+    survey: &SurveyConfig,
+    opts: &Options<'_>,
+) -> Result<(ApplyReport, Vec<Track<'a>>), GravityError> {
+    let (applied, tracks) = std::thread::scope(|scope| {
+        let applying = scope.spawn(|| {
+            let applied = crate::apply::stream::run(dataset, out, &opts.apply)?;
+            Ok::<_, GravityError>((applied, super::track::read_meters(ds)?))
+        });
+        let tracks = read_tracks(ds, survey, opts.skip_bad_lines, dir);
+        let applied = applying
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (applied, tracks)
+    });
+    let (applied, meters) = applied?;
+    let mut tracks = tracks?;
+    // A meter's record read with its trajectory (track::meter_in_trajectory) is None here.
+    for (track, meter) in tracks.iter_mut().zip(meters) {
+        if meter.is_some() {
+            track.meter = meter;
+        }
+    }
+    Ok((applied, tracks))
 }
 
 /// attitude.parquet written in `dir` from the array sessions' fits (its rows and SHA-256),
@@ -734,28 +746,7 @@ fn reduce_track(
     let interval = track.interval_ns;
     let expected = ctx.samples_per_s * interval as f64 * 1e-9;
     filter_longer_than_epochs(track, interval, ctx.survey.filter_s)?;
-    let mut summary = SessionGravity {
-        id: track.session.session.id.clone(),
-        epochs_read: track.epochs_read,
-        epochs_used: 0,
-        dropped: track.dropped.clone(),
-        flagged: BTreeMap::new(),
-        gaps: 0,
-        bad_lines: track.bad_lines.clone(),
-        attitude_dropped: track.attitude_dropped.clone(),
-        position_noise_m: track.noise_neu_m,
-        position_sd_given_m: track.sd_given_median_m,
-        sample_noise_mgal: ctx.sample_noise.sd_mgal,
-        sample_noise_from: ctx.sample_noise.from.clone(),
-        cross_coupling: None,
-        antennas: track.array.as_ref().map(|(used, _)| used.clone()),
-        meter_status: track
-            .meter
-            .as_ref()
-            .map(|_| MeterStatus::declared(ctx.survey)),
-        quantities: Quantities::new(track.heights, ctx.survey.geoid_height_m),
-        stretches: Vec::new(),
-    };
+    let mut summary = session_summary(track, ctx);
     let (spans, gaps) = stretches(
         &track.times,
         bins,
@@ -806,6 +797,33 @@ fn reduce_track(
         });
     }
     Ok(summary)
+}
+
+/// A session's summary before its stretches are reduced: what its track read and dropped,
+/// its noise, antennas and meter status as declared.
+fn session_summary(track: &Track<'_>, ctx: &Context<'_>) -> SessionGravity {
+    SessionGravity {
+        id: track.session.session.id.clone(),
+        epochs_read: track.epochs_read,
+        epochs_used: 0,
+        dropped: track.dropped.clone(),
+        flagged: BTreeMap::new(),
+        gaps: 0,
+        bad_lines: track.bad_lines.clone(),
+        attitude_dropped: track.attitude_dropped.clone(),
+        position_noise_m: track.noise_neu_m,
+        position_sd_given_m: track.sd_given_median_m,
+        sample_noise_mgal: ctx.sample_noise.sd_mgal,
+        sample_noise_from: ctx.sample_noise.from.clone(),
+        cross_coupling: None,
+        antennas: track.array.as_ref().map(|(used, _)| used.clone()),
+        meter_status: track
+            .meter
+            .as_ref()
+            .map(|_| MeterStatus::declared(ctx.survey)),
+        quantities: Quantities::new(track.heights, ctx.survey.geoid_height_m),
+        stretches: Vec::new(),
+    }
 }
 
 /// The blocks a stretch of `n` epochs is reduced in: pairs of the epochs reduced and, within
