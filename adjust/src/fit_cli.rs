@@ -1,6 +1,6 @@
 //! The general fitting command (docs/formats.md 7): its arguments and the CSV table it reads.
 
-use super::*;
+use super::{Error, Path, PathBuf, fit};
 
 /// Arguments of the `fit` command (docs/formats.md section 7), shared by the stage binary and
 /// `cargo xtask fit`.

@@ -2,7 +2,11 @@
 //! accelerometer and session (or all sessions), each fitted on its own rayon task, and the
 //! reason a fit could not be made.
 
-use super::*;
+use super::{
+    AlignReport, CalError, CalibrationResult, ColouredAdc, Dataset, LeftOut, Misalignment,
+    ModelDecl, ModelKind, Obs, Per, Skipped, Terms, VarianceComponent, calibrate, components, io,
+    result_of, vector_note,
+};
 use ingest::contract::calibration::FitScope;
 
 /// The models to fit: the manifest's, or the defaults (docs/formats.md section 2): `linear`, plus

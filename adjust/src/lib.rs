@@ -31,11 +31,14 @@ mod results;
 
 pub use fit_cli::{FitArgs, fit_csv};
 pub use jobs::models;
-use jobs::*;
+use jobs::{
+    Job, component_of, fit_job, plan_jobs, range_of, residual_rows_of, roll_directions,
+    session_mean_temperatures, skip_reason,
+};
 pub use outputs::print_summary;
-use outputs::*;
-use results::*;
+use outputs::write_outputs;
 pub use results::{barely_estimable, misalignment_vector, vector_note};
+use results::{earth_tide_note, kalibr_noise, result_of, thermal_effects};
 
 use calibrate::{CalError, LeftOut, Obs};
 use correlated::ColouredAdc;

@@ -1,7 +1,10 @@
 //! calibration.json and residuals.parquet written with their chain of custody, and the
 //! console's summary.
 
-use super::*;
+use super::{
+    CALIBRATION_FILE, Calibration, CalibrationResult, Custody, Dataset, Error, Folders, Parameter,
+    Path, Root, STAGE_DIR, align_ledger, ingest_ledger, io, triad_fits,
+};
 
 /// Writes residuals.parquet and calibration.json, with the chain of custody: every file
 /// adjust read and the table it wrote.

@@ -30,9 +30,12 @@ mod stations;
 mod units;
 
 pub use observe::print_summary;
-use observe::*;
-use positions::*;
-use stations::*;
+use observe::{Formed, Setup, observe_session, write_outputs};
+use positions::{allan_row, multi_positions, print_positions};
+use stations::{
+    Pending, StationSigma, StillInterval, adc_noise, coloured_variance, fill_windows, open_windows,
+    station_sigmas, still_intervals,
+};
 
 use ingest::contract::align_ledger::{
     AdcNoise, AlignReport, AllanRow, Counts, DRIFT_T_LIMIT, Disconnected, LEDGER_FILE,

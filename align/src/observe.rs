@@ -2,7 +2,13 @@
 //! exclusion reasons), align.json written with its chain of custody, and the console's
 //! summary.
 
-use super::*;
+use super::{
+    AdcNoise, AlignConfig, AlignReport, BTreeMap, Counts, Custody, DRIFT_T_LIMIT, Dataset,
+    Disconnected, Folders, LEDGER_FILE, LEDGER_FORMAT, Location, MultiPosition, Observation, Path,
+    Pending, ReadingUnit, Result, Root, STAGE_DIR, StationSigma, Thermometers, WindowStats,
+    WindowSums, coloured_variance, ingest_ledger, interpolate, print_positions, read, reason,
+    station_sigmas, tables, thermometer, tide, window,
+};
 
 /// What forming observations needs, from the manifest.
 pub(crate) struct Setup {

@@ -1,7 +1,10 @@
 //! The static positions of multi-position sessions: listed in the manifest or found by the
 //! detector, their means and sigmas, and the console's summary of them.
 
-use super::*;
+use super::{
+    AllanRow, Dataset, Error, MultiPosition, Path, Result, SessionKind, Setup, StaticNoise,
+    StaticPosition, allan, manifest, read, statics, tables, thermometer,
+};
 
 /// The static positions of every multi-position session: listed in the manifest, or found
 /// by [`statics::detect`]; an interval of fewer than [`statics::MIN_POSITION_SAMPLES`] or with an

@@ -2,7 +2,10 @@
 //! opened in time order, filled in one pass over the samples, sigma_Dz per station, and the
 //! ADC noise from the still intervals.
 
-use super::*;
+use super::{
+    AdcNoise, BTreeMap, Dataset, Path, Result, SigmaDzMethod, WindowSums, allan, allan_row, read,
+    sample_sd, sigma_source, status, weights,
+};
 
 /// A reading with its windows being filled.
 pub(crate) struct Pending {

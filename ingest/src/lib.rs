@@ -43,7 +43,7 @@ mod session;
 
 pub use probes::{cpu_seconds, peak_rss_kb, print_usage};
 pub use session::RATE_TOLERANCE;
-use session::*;
+use session::{Writers, ingest_session};
 
 pub use error::{Error, Result};
 

@@ -2,7 +2,10 @@
 //! theodolite log read into the tables, each file's ledger, and what makes the session
 //! unusable as a whole.
 
-use super::*;
+use super::{
+    Acquisition, Dataset, Error, FileLedger, IsTerminal, Options, Path, Result, SessionSummary,
+    StreamWriter, contract, csvlog, gcb, labstream, lines, manifest, theodolite, time,
+};
 
 pub(crate) fn relative(ds: &Dataset, p: &Path) -> String {
     p.strip_prefix(&ds.dir)

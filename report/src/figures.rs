@@ -1,7 +1,9 @@
 //! The plots: residual small multiples, calibration curves, the sigma of one reading, the
 //! tide and the Allan deviation.
 
-use super::*;
+use super::{
+    CalibrationResult, Error, Section, Stages, Table, align_ledger, param, plots, section,
+};
 
 /// Points of a plot.
 pub(crate) type Points = Vec<(f64, f64)>;

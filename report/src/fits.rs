@@ -2,7 +2,7 @@
 //! advice, every fit's parameters with correlations on demand, the extra terms' significance
 //! and data snooping.
 
-use super::*;
+use super::{Section, Stages, Table, gps, param, section, t_critical};
 use ingest::contract::precision::{rounded_to_sigma, two_digits};
 
 /// Results in the form of the paper's Table 1.

@@ -12,12 +12,17 @@ mod plots;
 mod render;
 mod summary;
 
-use figures::*;
-use fits::*;
-use models::*;
+use figures::{Plot, noise_section, plots_section};
+use fits::{
+    components_section, extra_terms_section, parameters_section, repeatability_section,
+    snooping_section, table1_section,
+};
+use models::{comparison_section, misalignment_section, triad_section};
 use render::section;
 pub use render::{Section, Table, html, markdown};
-use summary::*;
+use summary::{
+    custody_section, dataset_section, function_section, ledger_section, summary_section,
+};
 
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{self, Calibration, CalibrationResult, Parameter};

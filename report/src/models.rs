@@ -1,7 +1,10 @@
 //! What the richer models hold: the fits compared against temperature, the misalignment
 //! vector and the triad.
 
-use super::*;
+use super::{
+    CalibrationResult, Error, Plot, Section, Stages, Table, calibration, ingest_ledger, param,
+    plots, section,
+};
 use arrow_array::Array;
 use ingest::contract::align_ledger::MultiPosition;
 

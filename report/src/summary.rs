@@ -1,7 +1,10 @@
 //! The answer first (every fit's calibration with its verdict and advice), the dataset, the
 //! calibration function, the ledgers, and the chain of custody as an appendix.
 
-use super::*;
+use super::{
+    Calibration, IngestReport, Parameter, Section, Stages, Table, calibration, custody_table,
+    section,
+};
 
 /// A fit's one-line verdict from its global test.
 pub(crate) fn verdict(test: &calibration::GlobalTest) -> &'static str {

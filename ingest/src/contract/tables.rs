@@ -52,7 +52,7 @@ pub fn session_type() -> DataType {
 
 /// `acceleration.parquet`.
 pub mod acceleration {
-    use super::*;
+    use super::{DataType, Field, SESSION_INDEX, STATUS, SchemaRef, TIME_GPS_NS, with_sessions};
     /// File name.
     pub const FILE: &str = "acceleration.parquet";
     /// Counts of channels 1..3.
@@ -75,7 +75,7 @@ pub mod acceleration {
 
 /// `temperature.parquet`.
 pub mod temperature {
-    use super::*;
+    use super::{DataType, Field, SESSION_INDEX, STATUS, SchemaRef, TIME_GPS_NS, with_sessions};
     /// File name.
     pub const FILE: &str = "temperature.parquet";
     /// Temperatures of channels 1..3, degC.
@@ -110,7 +110,7 @@ pub mod temperature {
 /// | value_ch1..3 | float64, null | the reading; null where the line gave `nan` |
 /// | line | uint64 | the sample's line in its stream |
 pub mod lab {
-    use super::*;
+    use super::{DataType, Field, SESSION_INDEX, SchemaRef, TIME_GPS_NS, with_sessions};
     /// File name.
     pub const FILE: &str = "lab.parquet";
     /// Readings of channels 1..3.
@@ -135,7 +135,7 @@ pub mod lab {
 
 /// `theodolite.parquet`.
 pub mod theodolite {
-    use super::*;
+    use super::{Arc, DataType, Field, SESSION, Schema, SchemaRef, TIME_GPS_NS, session_type};
     /// File name.
     pub const FILE: &str = "theodolite.parquet";
     /// Station id.
@@ -198,7 +198,7 @@ pub mod theodolite {
 /// | gravity_mgal | float64 | gravity at the proof masses at the reading: g (+ tide), mGal |
 /// | excluded | utf8, null | why the observation is not used; null when used |
 pub mod observations {
-    use super::*;
+    use super::{Arc, DataType, Field, SESSION, Schema, SchemaRef, TIME_GPS_NS, session_type};
     /// File name.
     pub const FILE: &str = "observations.parquet";
     /// Accelerometer id.
@@ -297,7 +297,7 @@ pub mod observations {
 /// | w | float64 | normalised residual, its Dz referred to the station's sigma_dz without it, as the normal quantile of its tail (at removal, for a removed observation) |
 /// | removed | boolean | removed by data snooping |
 pub mod residuals {
-    use super::*;
+    use super::{Arc, DataType, Field, SESSION, Schema, SchemaRef, TIME_GPS_NS, session_type};
     /// File name.
     pub const FILE: &str = "residuals.parquet";
     /// Model name.
@@ -374,7 +374,9 @@ pub mod residuals {
 /// With a triad model the table has instead the vector `triad_x/y/z_mgal` in the body frame,
 /// the six elements of its covariance `triad_cov_xx..zz_mgal2`, and `triad_flags`.
 pub mod applied {
-    use super::*;
+    use super::{
+        Arc, DataType, Field, SESSION_INDEX, Schema, SchemaRef, TIME_GPS_NS, with_sessions,
+    };
     /// File name.
     pub const FILE: &str = "acceleration.parquet";
     /// Schema metadata key holding the accelerometer ids, in column order, as a JSON array.
@@ -490,7 +492,7 @@ pub mod applied {
 /// | flags | uint8 | the bits of this module's flags, or-ed |
 /// | meter_status | uint32, null | a platform meter's status word at the epoch (its lines' within half an epoch interval, or-ed; docs/formats.md 11.1), null where the session's samples carry none |
 pub mod gravity {
-    use super::*;
+    use super::{DataType, Field, SESSION_INDEX, SchemaRef, TIME_GPS_NS, with_sessions};
     /// File name.
     pub const FILE: &str = "gravity.parquet";
     /// The epoch's specific force was extrapolated beyond the calibration's range.
@@ -652,7 +654,7 @@ pub mod gravity {
 /// | antennas_used | uint32 | bit k: the session's k-th antenna in the fit |
 /// | antennas_set_aside | uint32 | bit k: set aside, its baselines' lengths off |
 pub mod attitude {
-    use super::*;
+    use super::{DataType, Field, SESSION_INDEX, SchemaRef, TIME_GPS_NS, with_sessions};
     /// File name.
     pub const FILE: &str = "attitude.parquet";
     /// The Float64 columns after session_index and time_gps_ns, in order.
