@@ -521,13 +521,7 @@ pub fn calibrate_with(
             .as_ref()
             .map(|noise| misclosure_excess(&s, &used, noise));
         s.w_test = left_out_w_tests(&s, &used, coloured.as_deref());
-        let worst = s
-            .w_test
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| s.redundancy[*i] > 1e-6)
-            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
-        if let Some((k, &w)) = worst
+        if let Some((k, w)) = worst_w_test(&s)
             && w.abs() > W_CRITICAL
             && removed.len() < max_removals
             && s.dof > 1
@@ -545,6 +539,17 @@ pub fn calibrate_with(
             .map(|fit| CalibrationSolution { removed, ..fit })
             .map_err(to_cal);
     }
+}
+
+/// The largest w-test of `s` in magnitude among the observations with redundancy (its
+/// index and value).
+fn worst_w_test<const K: usize>(s: &gh::Solution<K>) -> Option<(usize, f64)> {
+    s.w_test
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| s.redundancy[*i] > 1e-6)
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .map(|(k, w)| (k, *w))
 }
 
 /// The station of `obs[removed]` weighed without it: every reading of the station takes

@@ -76,6 +76,30 @@ fn field(f: &str) -> &str {
     clippy::type_complexity,
     reason = "four columns and their rows' lines, once"
 )]
+/// The column of the header `names` called `name`; none, or two, is an error naming it.
+fn column_index(path: &Path, names: &[&str], name: &str) -> Result<usize, Error> {
+    let bad = |message: String| Error::Fit {
+        path: path.to_path_buf(),
+        line: None,
+        message,
+    };
+    let mut at = names.iter().enumerate().filter(|(_, n)| **n == name);
+    let (first, _) = at.next().ok_or_else(|| {
+        bad(format!(
+            "no column `{name}` (columns: {})",
+            names.join(", ")
+        ))
+    })?;
+    if let Some((second, _)) = at.next() {
+        return Err(bad(format!(
+            "two columns are named `{name}` (columns {} and {}): which one is meant?",
+            first + 1,
+            second + 1
+        )));
+    }
+    Ok(first)
+}
+
 fn read_columns(
     path: &Path,
     wanted: [Option<&str>; 4],
@@ -103,31 +127,9 @@ fn read_columns(
         message: "no header line".to_owned(),
     })?;
     let names: Vec<&str> = header.split(',').map(field).collect();
-    let index = |name: &str| {
-        let bad = |message: String| Error::Fit {
-            path: path.to_path_buf(),
-            line: None,
-            message,
-        };
-        let mut at = names.iter().enumerate().filter(|(_, n)| **n == name);
-        let (first, _) = at.next().ok_or_else(|| {
-            bad(format!(
-                "no column `{name}` (columns: {})",
-                names.join(", ")
-            ))
-        })?;
-        if let Some((second, _)) = at.next() {
-            return Err(bad(format!(
-                "two columns are named `{name}` (columns {} and {}): which one is meant?",
-                first + 1,
-                second + 1
-            )));
-        }
-        Ok(first)
-    };
     let cols: Vec<Option<usize>> = wanted
         .iter()
-        .map(|w| w.map(index).transpose())
+        .map(|w| w.map(|name| column_index(path, &names, name)).transpose())
         .collect::<Result<_, _>>()?;
     let mut data: [Vec<f64>; 4] = Default::default();
     // The file's line of each data row, for messages about a row.

@@ -110,6 +110,53 @@ pub enum Error {
     },
 }
 
+/// The jobs' outcomes sorted: the results kept with their fits and residual rows, and the
+/// jobs skipped (planned so, implausible, without observations, or failed) with why.
+struct Fitted<'a> {
+    results: Vec<CalibrationResult>,
+    fits: Vec<&'a calibrate::CalibrationSolution>,
+    residual_rows: Vec<io::ResidualRow<'a>>,
+    skipped: Vec<Skipped>,
+}
+
+/// Sorts each job's outcome into [`Fitted`], after the jobs `skipped` when planned.
+fn sort_outcomes<'a>(
+    ds: &Dataset,
+    jobs: &'a [Job<'a>],
+    outcomes: &'a [Result<(CalibrationResult, calibrate::CalibrationSolution), CalError>],
+    skipped: Vec<Skipped>,
+) -> Fitted<'a> {
+    let mut out = Fitted {
+        results: Vec::new(),
+        fits: Vec::new(),
+        residual_rows: Vec::new(),
+        skipped,
+    };
+    let skip = |job: &Job<'_>, reason: String| Skipped {
+        accelerometer: job.accelerometer.clone(),
+        session: job.scope.id().to_owned(),
+        model: job.model.name.clone(),
+        reason,
+    };
+    for (job, outcome) in jobs.iter().zip(outcomes) {
+        match outcome {
+            Ok((r, f)) => match r.implausible(&ds.manifest.instrument) {
+                Some(reason) => out.skipped.push(skip(job, reason)),
+                None => {
+                    out.results.push(r.clone());
+                    out.fits.push(f);
+                    out.residual_rows.extend(residual_rows_of(job, f));
+                }
+            },
+            Err(_) if job.obs.is_empty() => {
+                out.skipped.push(skip(job, "no usable observations".to_owned()));
+            }
+            Err(e) => out.skipped.push(skip(job, skip_reason(ds, job, e))),
+        }
+    }
+    out
+}
+
 /// Runs the stage: reads OUT/ingest and OUT/align, writes OUT/adjust.
 pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let ds = Dataset::load(dataset)?;
@@ -131,33 +178,14 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
         &ds.manifest.adjust.model,
         &session_mean_temperatures(&ds, &used),
     );
-    let (jobs, mut skipped) = plan_jobs(&ds, &models, &used, &align_report);
+    let (jobs, skipped) = plan_jobs(&ds, &models, &used, &align_report);
     let outcomes: Vec<_> = jobs.par_iter().map(|job| fit_job(job, g)).collect();
-    let mut results = Vec::new();
-    let mut fits = Vec::new();
-    let mut residual_rows = Vec::new();
-    let skip = |job: &Job<'_>, reason: String| Skipped {
-        accelerometer: job.accelerometer.clone(),
-        session: job.scope.id().to_owned(),
-        model: job.model.name.clone(),
-        reason,
-    };
-    for (job, outcome) in jobs.iter().zip(&outcomes) {
-        match outcome {
-            Ok((r, f)) => match r.implausible(&ds.manifest.instrument) {
-                Some(reason) => skipped.push(skip(job, reason)),
-                None => {
-                    results.push(r.clone());
-                    fits.push(f);
-                    residual_rows.extend(residual_rows_of(job, f));
-                }
-            },
-            Err(_) if job.obs.is_empty() => {
-                skipped.push(skip(job, "no usable observations".to_owned()));
-            }
-            Err(e) => skipped.push(skip(job, skip_reason(&ds, job, e))),
-        }
-    }
+    let Fitted {
+        mut results,
+        fits,
+        residual_rows,
+        mut skipped,
+    } = sort_outcomes(&ds, &jobs, &outcomes, skipped);
     thermal_effects(&mut results, &fits);
     let unit = ds.manifest.instrument.reading_unit.name();
     for r in &mut results {
