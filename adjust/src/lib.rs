@@ -149,7 +149,8 @@ fn sort_outcomes<'a>(
                 }
             },
             Err(_) if job.obs.is_empty() => {
-                out.skipped.push(skip(job, "no usable observations".to_owned()));
+                out.skipped
+                    .push(skip(job, "no usable observations".to_owned()));
             }
             Err(e) => out.skipped.push(skip(job, skip_reason(ds, job, e))),
         }

@@ -562,54 +562,71 @@ pub fn calibrate_with_floor(
             start = s.p;
             continue;
         }
-        // The test of the weights: the fit's own, or with an estimated floor the positions'
-        // sigmas alone (the floor makes v^T P v its dof by construction).
-        let tested = match floor {
-            PositionFloor::Estimate => fit(0.0, &s.p)?,
-            _ => s.clone(),
-        };
-        let dof = tested.dof;
-        let chi2 =
-            statrs::distribution::ChiSquared::new(dof.max(1) as f64).expect("dof is positive");
-        let quantile = |q: f64| statrs::distribution::ContinuousCDF::inverse_cdf(&chi2, q);
-        let (lo, hi) = (quantile(0.025), quantile(0.975));
-        let floor_used = match floor {
-            PositionFloor::None => None,
-            PositionFloor::Mgal(v) => Some(FloorUsed {
-                mgal: v,
-                interval_mgal: None,
-            }),
-            PositionFloor::Estimate => {
-                let vtpv = |f| fit(f, &s.p).map(|s| s.vtpv);
-                Some(FloorUsed {
-                    mgal: floor_mgal,
-                    interval_mgal: Some([floor_for(&vtpv, hi)?, floor_for(&vtpv, lo)?]),
-                })
-            }
-        };
-        let n = s.p.len();
-        return Ok(TriadSolution {
+        return conclude(
             model,
-            t_ref_c,
-            sigma0: tested.sigma0(),
-            vtpv: tested.vtpv,
-            dof,
-            global_test: (lo, hi, (lo..=hi).contains(&tested.vtpv)),
-            residuals: used
-                .iter()
-                .enumerate()
-                .map(|(k, &i)| (i, s.misclosure[k], s.w_test[k]))
-                .collect(),
-            removed,
-            iterations: s.iterations,
-            sigma_apriori: (0..n)
-                .map(|j| tested.q_pp[j * n + j].max(0.0).sqrt())
-                .collect(),
-            floor: floor_used,
-            covariance: s.q_pp,
-            values: s.p,
-        });
+            (t_ref_c, floor, floor_mgal),
+            &fit,
+            s,
+            (&used, removed),
+        );
     }
+}
+
+/// The fit `s` of the positions `used` (the others `removed`), concluded: the test of its
+/// weights (the fit's own, or with an estimated floor the positions' sigmas alone, refitted
+/// by `fit` at a floor: the floor makes v^T P v its dof by construction) and the floor's
+/// interval.
+fn conclude(
+    model: TriadModel,
+    (t_ref_c, floor, floor_mgal): (Option<f64>, PositionFloor, f64),
+    fit: &dyn Fn(f64, &[f64]) -> Result<gh::Solution<7>, TriadError>,
+    s: gh::Solution<7>,
+    (used, removed): (&[usize], Vec<(usize, f64)>),
+) -> Result<TriadSolution, TriadError> {
+    let tested = match floor {
+        PositionFloor::Estimate => fit(0.0, &s.p)?,
+        _ => s.clone(),
+    };
+    let dof = tested.dof;
+    let chi2 = statrs::distribution::ChiSquared::new(dof.max(1) as f64).expect("dof is positive");
+    let quantile = |q: f64| statrs::distribution::ContinuousCDF::inverse_cdf(&chi2, q);
+    let (lo, hi) = (quantile(0.025), quantile(0.975));
+    let floor_used = match floor {
+        PositionFloor::None => None,
+        PositionFloor::Mgal(v) => Some(FloorUsed {
+            mgal: v,
+            interval_mgal: None,
+        }),
+        PositionFloor::Estimate => {
+            let vtpv = |f| fit(f, &s.p).map(|s| s.vtpv);
+            Some(FloorUsed {
+                mgal: floor_mgal,
+                interval_mgal: Some([floor_for(&vtpv, hi)?, floor_for(&vtpv, lo)?]),
+            })
+        }
+    };
+    let n = s.p.len();
+    Ok(TriadSolution {
+        model,
+        t_ref_c,
+        sigma0: tested.sigma0(),
+        vtpv: tested.vtpv,
+        dof,
+        global_test: (lo, hi, (lo..=hi).contains(&tested.vtpv)),
+        residuals: used
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| (i, s.misclosure[k], s.w_test[k]))
+            .collect(),
+        removed,
+        iterations: s.iterations,
+        sigma_apriori: (0..n)
+            .map(|j| tested.q_pp[j * n + j].max(0.0).sqrt())
+            .collect(),
+        floor: floor_used,
+        covariance: s.q_pp,
+        values: s.p,
+    })
 }
 
 /// The smallest floor f >= 0 at which `vtpv(f)` (decreasing in f) is at most `target`: 0

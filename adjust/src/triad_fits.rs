@@ -89,15 +89,8 @@ fn skip(model: &ModelDecl, session: &str, reason: String) -> Skipped {
     }
 }
 
-fn result(
-    ds: &Dataset,
-    model: &ModelDecl,
-    session: &str,
-    rows: &[(&str, &StaticPosition)],
-    positions: &[Position],
-    s: &TriadSolution,
-) -> TriadResult {
-    let unit = ds.manifest.instrument.reading_unit.name();
+/// A triad fit's parameters (in `unit`) and their correlation matrix.
+fn parameters_of(s: &TriadSolution, unit: &str) -> (Vec<Parameter>, Vec<Vec<f64>>) {
     let names = s.model.names();
     let n = names.len();
     let parameters = names
@@ -119,6 +112,19 @@ fn result(
                 .collect()
         })
         .collect();
+    (parameters, correlation)
+}
+
+fn result(
+    ds: &Dataset,
+    model: &ModelDecl,
+    session: &str,
+    rows: &[(&str, &StaticPosition)],
+    positions: &[Position],
+    s: &TriadSolution,
+) -> TriadResult {
+    let unit = ds.manifest.instrument.reading_unit.name();
+    let (parameters, correlation) = parameters_of(s, unit);
     let (lo, hi, passed) = s.global_test;
     let used: Vec<usize> = s.residuals.iter().map(|r| r.0).collect();
     let range = |values: &mut dyn Iterator<Item = f64>| {
