@@ -572,6 +572,9 @@ pub fn calibrate_with_floor(
     }
 }
 
+/// The positions refitted at a floor (mGal) from a start.
+type FitAt<'a> = &'a dyn Fn(f64, &[f64]) -> Result<gh::Solution<7>, TriadError>;
+
 /// The fit `s` of the positions `used` (the others `removed`), concluded: the test of its
 /// weights (the fit's own, or with an estimated floor the positions' sigmas alone, refitted
 /// by `fit` at a floor: the floor makes v^T P v its dof by construction) and the floor's
@@ -579,7 +582,7 @@ pub fn calibrate_with_floor(
 fn conclude(
     model: TriadModel,
     (t_ref_c, floor, floor_mgal): (Option<f64>, PositionFloor, f64),
-    fit: &dyn Fn(f64, &[f64]) -> Result<gh::Solution<7>, TriadError>,
+    fit: FitAt<'_>,
     s: gh::Solution<7>,
     (used, removed): (&[usize], Vec<(usize, f64)>),
 ) -> Result<TriadSolution, TriadError> {

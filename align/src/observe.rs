@@ -133,6 +133,32 @@ fn reading_temperature(
 
 /// The observations of one session, one per (reading, accelerometer); `never` lists the
 /// channels not connected in any sample, `temps` gives a channel's temperature series.
+/// Session `id`'s accelerometer `acc`'s counts before its `readings` are looked at.
+fn counts(id: &str, acc: &str, readings: usize, thermometer_sd_c: Option<f64>) -> Counts {
+    Counts {
+        session: id.to_owned(),
+        accelerometer: acc.to_owned(),
+        readings: readings as u64,
+        used: 0,
+        excluded: BTreeMap::new(),
+        thermometer_sd_c,
+    }
+}
+
+impl Thermometer {
+    /// A reading's thermometer: declared none by its session, logging (its channel's
+    /// `temps` hold samples), or silent.
+    fn of(declared_none: bool, temps: Option<&(Vec<i64>, Vec<f64>)>) -> Self {
+        if declared_none {
+            Thermometer::Declared
+        } else if temps.is_some_and(|(t, _)| !t.is_empty()) {
+            Thermometer::Logged
+        } else {
+            Thermometer::Silent
+        }
+    }
+}
+
 pub(crate) fn observe_session<'t>(
     ds: &Dataset,
     setup: &Setup,
@@ -160,14 +186,7 @@ pub(crate) fn observe_session<'t>(
         let thermometer_sd =
             temps.and_then(|(_, v)| given.or_else(|| thermometer::white_noise_sd(v)));
         let coloured = coloured_variance(&formed.noise, &acc.id, setup.cfg.window_s);
-        let mut c = Counts {
-            session: id.to_owned(),
-            accelerometer: acc.id.clone(),
-            readings: pending.len() as u64,
-            used: 0,
-            excluded: BTreeMap::new(),
-            thermometer_sd_c: thermometer_sd,
-        };
+        let mut c = counts(id, &acc.id, pending.len(), thermometer_sd);
         for (k, p) in pending.iter().enumerate() {
             let w = &p.sums[ch];
             let stats = w.stats(setup.floor_variance);
@@ -180,13 +199,7 @@ pub(crate) fn observe_session<'t>(
             let time = p.reading.time_gps_ns;
             let (temperature, sigma_temperature_c) =
                 reading_temperature(temps, time, setup.max_gap_ns, thermometer_sd);
-            let thermometer = if declared_none {
-                Thermometer::Declared
-            } else if temps.is_some_and(|(t, _)| !t.is_empty()) {
-                Thermometer::Logged
-            } else {
-                Thermometer::Silent
-            };
+            let thermometer = Thermometer::of(declared_none, temps);
             let excluded = setup.exclusion(w, stats, thermometer, temperature.map(|(v, _)| v));
             match excluded {
                 Some(r) => *c.excluded.entry(r.to_owned()).or_default() += 1,

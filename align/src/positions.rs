@@ -101,20 +101,7 @@ pub(crate) fn session_positions(
     };
     let intervals = find_intervals(s, data, rate, ingest_dir, &mut mp)?;
     mp.found = intervals.len() as u64;
-    // A detected interval is clear of the motion by half a window each side already; it
-    // needs the samples its sigma needs.
-    let min_samples = statics::MIN_POSITION_SAMPLES;
-    let mut kept = Vec::new();
-    for (i, j) in intervals {
-        let short = mp.method == "detected" && j - i < min_samples;
-        match (!short).then(|| statics::means(data, (i, j))).flatten() {
-            Some(stats) => kept.push(((i, j), stats)),
-            None => {
-                let why = if short { "too_short" } else { "no_samples" };
-                *mp.rejected.entry(why.to_owned()).or_default() += 1;
-            }
-        }
-    }
+    let kept = interval_means(data, intervals, &mut mp);
     let spans: Vec<(usize, usize)> = kept.iter().map(|(span, _)| *span).collect();
     let noise = statics::noise(data, &spans, 1.0 / rate);
     mp.noise = static_noise(ds, &noise);
@@ -153,6 +140,31 @@ pub(crate) fn session_positions(
     }
     mp.used = mp.positions.len() as u64;
     Ok(mp)
+}
+
+/// An interval's means, their white sds and its samples ([`statics::means`]).
+type IntervalMeans = ([f64; 3], [f64; 3], u64);
+
+/// Each interval's means (their span, and [`statics::means`]'s), the intervals rejected
+/// counted in `mp` by why: a detected interval is clear of the motion by half a window
+/// each side already, and needs the samples its sigma needs.
+fn interval_means(
+    data: &statics::Series,
+    intervals: Vec<(usize, usize)>,
+    mp: &mut MultiPosition,
+) -> Vec<((usize, usize), IntervalMeans)> {
+    let mut kept = Vec::new();
+    for (i, j) in intervals {
+        let short = mp.method == "detected" && j - i < statics::MIN_POSITION_SAMPLES;
+        match (!short).then(|| statics::means(data, (i, j))).flatten() {
+            Some(stats) => kept.push(((i, j), stats)),
+            None => {
+                let why = if short { "too_short" } else { "no_samples" };
+                *mp.rejected.entry(why.to_owned()).or_default() += 1;
+            }
+        }
+    }
+    kept
 }
 
 /// A position's temperature per channel over the sample `times` of session `w`, and their

@@ -221,52 +221,13 @@ pub(crate) fn read_acquisition(
             zero_gps_ns,
             temperature_zero_gps_ns,
         } => {
-            let config = labstream::LabConfig {
-                session: out.session,
+            let lab = LabFiles {
+                stream,
+                temperature: temperature.as_deref(),
                 zero_gps_ns: *zero_gps_ns,
-                interval_ns: acceleration_interval_ns,
-                range_ns: s.gps_range_ns(),
-                skip_bad_lines: opts.skip_bad_lines,
-                reading_limits: labstream::reading_limits(&ds.manifest.instrument),
-                columns: s.columns.adc,
-                layout: s.session.adc_format,
-                time_scale: s.times.scale,
+                temperature_zero_gps_ns: *temperature_zero_gps_ns,
             };
-            let interval = file.read(stream, "adc_csv", "lines", |ledger, pb| {
-                labstream::read_lab(stream, config, &mut out.lab, ledger, pb)
-            })?;
-            let seconds = matches!(
-                s.times.temperature,
-                time::TimeForm::S | time::TimeForm::UnixS
-            );
-            match temperature {
-                // In seconds: the stream's layout.
-                Some(path) if seconds => {
-                    let config = labstream::LabConfig {
-                        zero_gps_ns: *temperature_zero_gps_ns,
-                        columns: s.columns.temperature,
-                        layout: manifest::AdcFormat::Seconds,
-                        ..config
-                    };
-                    file.read(path, "temperature_csv", "lines", |ledger, pb| {
-                        let t = gcb::TEMPERATURE_INTERVAL_NS;
-                        labstream::read_lab_temperature(
-                            path,
-                            config,
-                            t,
-                            &mut out.streams,
-                            ledger,
-                            pb,
-                        )
-                    })?;
-                }
-                // In calendar times or GPS week + tow: a temperature CSV (9.1).
-                Some(path) => {
-                    file.temperature_csv(path, s, acceleration_interval_ns, &mut out.streams)?;
-                }
-                None => {}
-            }
-            Ok(interval)
+            file.lab(s, lab, acceleration_interval_ns, out)
         }
         Acquisition::Csv { adc, temperature } => {
             let interval = file.read(adc, "adc_csv", "lines", |ledger, pb| {
@@ -309,6 +270,14 @@ fn csv_config(
 }
 
 /// Reads a session's files one at a time, each with its ledger and progress bar.
+/// A lab session's files and their times' zeros ([`Acquisition::Lab`]).
+struct LabFiles<'a> {
+    stream: &'a Path,
+    temperature: Option<&'a Path>,
+    zero_gps_ns: i64,
+    temperature_zero_gps_ns: i64,
+}
+
 struct Reading<'a> {
     ds: &'a Dataset,
     id: &'a str,
@@ -317,6 +286,61 @@ struct Reading<'a> {
 }
 
 impl Reading<'_> {
+    /// A lab session's stream and its temperature log, if any (in seconds: the stream's
+    /// layout; in calendar times or GPS week + tow: a temperature CSV, 9.1); the stream's
+    /// interval.
+    fn lab(
+        &mut self,
+        s: &manifest::ResolvedSession,
+        lab: LabFiles<'_>,
+        acceleration_interval_ns: i64,
+        out: &mut Writers,
+    ) -> Result<Option<i64>> {
+        let LabFiles {
+            stream,
+            temperature,
+            zero_gps_ns,
+            temperature_zero_gps_ns,
+        } = lab;
+        let config = labstream::LabConfig {
+            session: out.session,
+            zero_gps_ns,
+            interval_ns: acceleration_interval_ns,
+            range_ns: s.gps_range_ns(),
+            skip_bad_lines: self.opts.skip_bad_lines,
+            reading_limits: labstream::reading_limits(&self.ds.manifest.instrument),
+            columns: s.columns.adc,
+            layout: s.session.adc_format,
+            time_scale: s.times.scale,
+        };
+        let interval = self.read(stream, "adc_csv", "lines", |ledger, pb| {
+            labstream::read_lab(stream, config, &mut out.lab, ledger, pb)
+        })?;
+        let seconds = matches!(
+            s.times.temperature,
+            time::TimeForm::S | time::TimeForm::UnixS
+        );
+        match temperature {
+            Some(path) if seconds => {
+                let config = labstream::LabConfig {
+                    zero_gps_ns: temperature_zero_gps_ns,
+                    columns: s.columns.temperature,
+                    layout: manifest::AdcFormat::Seconds,
+                    ..config
+                };
+                self.read(path, "temperature_csv", "lines", |ledger, pb| {
+                    let t = gcb::TEMPERATURE_INTERVAL_NS;
+                    labstream::read_lab_temperature(path, config, t, &mut out.streams, ledger, pb)
+                })?;
+            }
+            Some(path) => {
+                self.temperature_csv(path, s, acceleration_interval_ns, &mut out.streams)?;
+            }
+            None => {}
+        }
+        Ok(interval)
+    }
+
     /// Reads `path` (its `role` in the session, counted in `unit`) with `f`, and keeps its
     /// ledger.
     fn read<T>(
@@ -445,12 +469,27 @@ pub(crate) fn ingest_session(
             .collect(),
         measured_sample_rate_hz: interval_ns.filter(|&i| i > 0).map(|i| 1e9 / i as f64),
     };
+    let errors = ingested_errors(ds, s, &summary, files);
+    Ok((summary, errors))
+}
+
+/// What makes session `s`'s ingest fail once its `files` are read ([`session_errors`]),
+/// with a hint at the time unit where no sample was kept, and a lab stream whose stamps
+/// never move (it has no measured rate: its samples' times would be the declared rate's,
+/// not the logger's).
+fn ingested_errors(
+    ds: &Dataset,
+    s: &manifest::ResolvedSession,
+    summary: &SessionSummary,
+    files: &[FileLedger],
+) -> Vec<String> {
+    let id = s.session.id.as_str();
     let acquisition_files: Vec<String> = files
         .iter()
         .filter(|f| f.session == id && f.role != "theodolite")
         .map(|f| f.path.clone())
         .collect();
-    let mut errors = session_errors(ds, s, &summary, &acquisition_files);
+    let mut errors = session_errors(ds, s, summary, &acquisition_files);
     if summary.acceleration_samples == 0 {
         errors.extend(
             files
@@ -459,8 +498,6 @@ pub(crate) fn ingest_session(
                 .filter_map(|f| time_unit_hint(s, f)),
         );
     }
-    // A lab stream whose stamps never move has no measured rate: its samples' times would
-    // be the declared rate's, not the logger's.
     errors.extend(
         files
             .iter()
@@ -479,5 +516,5 @@ pub(crate) fn ingest_session(
                 )
             }),
     );
-    Ok((summary, errors))
+    errors
 }
