@@ -127,7 +127,11 @@ pub(crate) struct Run {
 
 /// Runs `f` `n` times; the fastest run, and the median wall time.
 pub(crate) fn best_of(n: usize, mut f: impl FnMut() -> Result<Run>) -> Result<(Run, f64)> {
-    let mut runs = (0..n).map(|_| f()).collect::<Result<Vec<_>>>()?;
+    fastest_and_median((0..n).map(|_| f()).collect::<Result<Vec<_>>>()?)
+}
+
+/// The fastest of `runs` and the median's seconds.
+pub(crate) fn fastest_and_median(mut runs: Vec<Run>) -> Result<(Run, f64)> {
     runs.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
     let median = runs.get(runs.len() / 2).context("no run")?.seconds;
     Ok((runs[0], median))

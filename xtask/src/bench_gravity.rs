@@ -162,7 +162,7 @@ pub fn marine(
         "--calibration".as_ref(),
         adjust::apply::stream::VENDOR.as_ref(),
     ];
-    let (ours, median) = super::bench::best_of(runs, || {
+    let ours = || -> Result<super::bench::Run> {
         let _ = std::fs::remove_dir_all(&out);
         let i = super::bench::stage_once_with(&bins.join("gravcal-ingest"), &dataset, &out, &[])?;
         let g =
@@ -172,32 +172,49 @@ pub fn marine(
             peak_rss_mb: i.peak_rss_mb.max(g.peak_rss_mb),
             cpu_seconds: i.cpu_seconds.zip(g.cpu_seconds).map(|(a, b)| a + b),
         })
-    })?;
-    let mut rows = vec![("gravcal ingest + gravity", ours, median)];
-    if let Some(py) = peers {
-        let script = data.join("shipgrav_reduce.py");
+    };
+    let script = data.join("shipgrav_reduce.py");
+    let csv = data.join("shipgrav-reduced.csv");
+    let (taps, cutoff) = adjust::gravity::filter::windowed_sinc_design(
+        ingest::contract::survey::FilterKind::Blackman,
+        240.0,
+    );
+    let theirs = |py: &Path| -> Result<super::bench::Run> {
+        let o = std::process::Command::new(py)
+            .arg(&script)
+            .arg(dataset.join("raw/cruise.dat"))
+            .arg(&csv)
+            .arg(taps.to_string())
+            .arg(cutoff.to_string())
+            .arg(fixtures::meter::OFFSET_MGAL.to_string())
+            .output()?;
+        if !o.status.success() {
+            bail!("shipgrav failed: {}", String::from_utf8_lossy(&o.stderr));
+        }
+        super::bench::parse_peer_run(&String::from_utf8_lossy(&o.stdout))
+    };
+    if peers.is_some() {
         std::fs::write(&script, SHIPGRAV)?;
-        let (taps, cutoff) = adjust::gravity::filter::windowed_sinc_design(
-            ingest::contract::survey::FilterKind::Blackman,
-            240.0,
-        );
-        let csv = data.join("shipgrav-reduced.csv");
-        let (theirs, median) = super::bench::best_of(runs, || {
-            let o = std::process::Command::new(py)
-                .arg(&script)
-                .arg(dataset.join("raw/cruise.dat"))
-                .arg(&csv)
-                .arg(taps.to_string())
-                .arg(cutoff.to_string())
-                .arg(fixtures::meter::OFFSET_MGAL.to_string())
-                .output()?;
-            if !o.status.success() {
-                bail!("shipgrav failed: {}", String::from_utf8_lossy(&o.stderr));
-            }
-            super::bench::parse_peer_run(&String::from_utf8_lossy(&o.stdout))
-        })?;
+    }
+    // The two in turn, run after run, so that the machine's slower minutes fall on both.
+    let (mut mine, mut peer) = (Vec::new(), Vec::new());
+    for _ in 0..runs.max(1) {
+        mine.push(ours()?);
+        if let Some(py) = peers {
+            peer.push(theirs(py)?);
+        }
+    }
+    let _ = std::fs::remove_file(&csv);
+    let ratios: Vec<f64> = mine
+        .iter()
+        .zip(&peer)
+        .map(|(a, b)| b.seconds / a.seconds)
+        .collect();
+    let (ours, median) = super::bench::fastest_and_median(mine)?;
+    let mut rows = vec![("gravcal ingest + gravity", ours, median)];
+    if peers.is_some() {
+        let (theirs, median) = super::bench::fastest_and_median(peer)?;
         rows.push(("shipgrav (its reader, FAA, scipy's FIR)", theirs, median));
-        let _ = std::fs::remove_file(&csv);
     }
     let _ = std::fs::remove_dir_all(&out);
     println!();
@@ -210,6 +227,18 @@ pub fn marine(
         println!(
             "| {hours} h, {seconds} lines | {what} | {:.2} | {median:.2} | {cpu} | {:.0} |",
             r.seconds, r.peak_rss_mb
+        );
+    }
+    if !ratios.is_empty() {
+        let (fast, slow) = ratios
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &r| (a.min(r), b.max(r)));
+        let mut sorted = ratios.clone();
+        sorted.sort_by(f64::total_cmp);
+        println!(
+            "\nshipgrav / gravcal, run by run (each pair one after the other): median {:.1}, \
+             from {fast:.1} to {slow:.1}",
+            sorted[sorted.len() / 2]
         );
     }
     Ok(())
