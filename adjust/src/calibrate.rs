@@ -486,10 +486,11 @@ pub fn calibrate_with(
         Snooping::TenthAtMost => screen_gross_errors(obs, &mut active, g_mgal, max_removals),
         Snooping::Off => Vec::new(),
     };
-    // The observations with their stations' sigma_Dz as the removals leave them.
-    let mut obs_now = obs.to_vec();
+    // The observations with their stations' sigma_Dz as the removals leave them: a copy
+    // only once one is removed.
+    let mut obs_now = std::borrow::Cow::Borrowed(obs);
     for r in &removed {
-        station_without(&mut obs_now, r.index);
+        station_without(obs_now.to_mut(), r.index);
     }
     let names = terms.names();
     // The reference temperature of b and k from all the observations given, so that it does
@@ -531,7 +532,7 @@ pub fn calibrate_with(
                 w,
                 round,
             });
-            station_without(&mut obs_now, active[k]);
+            station_without(obs_now.to_mut(), active[k]);
             active.remove(k);
             continue;
         }
@@ -712,13 +713,18 @@ fn conclude(
     options: &FitOptions,
 ) -> Result<CalibrationSolution, GhError> {
     let m = model.terms.len();
-    let (l, sigma) = observations(used);
     let map = model.to_counts();
     let groups = Groups::of(used);
+    // Without components the fit's own weights stand: `s` itself, not a copy of its
+    // per-observation vectors (a copy was a sixth of a million observations' memory).
+    let estimated;
     let (weighted, components) = if options.components {
-        estimate_components(model, &l, &sigma, s, &groups, options.coloured.as_ref())?
+        let (l, sigma) = observations(used);
+        let (w, c) = estimate_components(model, &l, &sigma, s, &groups, options.coloured.as_ref())?;
+        estimated = w;
+        (&estimated, c)
     } else {
-        (s.clone(), Vec::new())
+        (s, Vec::new())
     };
     let residuals = active
         .iter()
@@ -734,19 +740,18 @@ fn conclude(
         .collect();
     let mut q = weighted.q_pp.clone();
     if let Some(noise) = &options.coloured {
-        let extra = correlated::extra_covariance(&weighted, groups.timeline(), noise);
+        let extra = correlated::extra_covariance(weighted, groups.timeline(), noise);
         for (x, e) in q.iter_mut().zip(extra) {
             *x += e;
         }
     }
     let excess = groups.excess(s, options.coloured.as_ref(), false);
-    let (covariance, parameter_dof) =
-        t_scaled(propagate(&map, &q, m), &weighted, &components, &map);
+    let (covariance, parameter_dof) = t_scaled(propagate(&map, &q, m), weighted, &components, &map);
     let mean_temperature_c = used.iter().map(|o| o.temperature_c).sum::<f64>() / used.len() as f64;
     let thermal_gain = if model.terms.temperature {
         Vec::new()
     } else {
-        thermal_gain(&weighted, used, &map, mean_temperature_c)
+        thermal_gain(weighted, used, &map, mean_temperature_c)
     };
     Ok(CalibrationSolution {
         values: apply(&map, &weighted.p),
