@@ -517,6 +517,8 @@ pub fn calibrate_with(
         let p0 = start_values(&used, &model);
         let to_cal = |e| cal_error(e, &names, &active);
         let mut s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(to_cal)?;
+        // The conclusion forms its own where it needs them (the components).
+        drop((l, sigma));
         let coloured = options
             .coloured
             .as_ref()
