@@ -718,7 +718,7 @@ fn conclude(
     let map = model.to_counts();
     let groups = Groups::of(used);
     // Without components the fit's own weights stand: `s` itself, not a copy of its
-    // per-observation vectors (a copy was a sixth of a million observations' memory).
+    // per-observation vectors.
     let estimated;
     let (weighted, components) = if options.components {
         let (l, sigma) = observations(used);
