@@ -275,10 +275,7 @@ fn solve_epochs(per: &[Vec<Epoch>], antennas: &[Antenna], limit: f64) -> Solved 
                 at[k] = Some((k, e[cursor[k]]));
             }
         }
-        match antennas.len() {
-            2 => out.two(t, &at, (&positions, &noise), limit),
-            _ => out.epoch(t, &at, (&positions, &noise), limit),
-        }
+        out.epoch(t, &at, (&positions, &noise), limit);
     }
     out
 }
@@ -337,6 +334,9 @@ impl Solved {
                 })
             })
             .collect();
+        if positions.len() == 2 {
+            return self.two(t, (origin, [fixes[0], fixes[1]]), positions, limit);
+        }
         let s = match antennas::solve(positions, &fixes, limit) {
             Ok(s) => s,
             Err(why) => {
@@ -371,8 +371,9 @@ impl Solved {
         });
     }
 
-    /// The epoch at `t` from two antennas fore and aft (`at`, `positions`, `noise` as for
-    /// [`Solved::epoch`]): where both give a position and their baseline's length holds,
+    /// The epoch at `t` from two antennas fore and aft (their fixes in the local frame at
+    /// `origin`, and their declared `positions`): where both give a position and their
+    /// baseline's length holds,
     /// heading and pitch from it ([`antennas::heading_pitch`]), roll not given (NaN); the
     /// accelerometers' position the mean of each antenna less its position turned by
     /// heading and pitch (roll taken as 0 for it: the lever arms' vertical part z moves the
@@ -381,23 +382,14 @@ impl Solved {
     fn two(
         &mut self,
         t: i64,
-        at: &[Option<(usize, Epoch)>],
-        (positions, noise): (&[[f64; 3]], &[[f64; 3]]),
+        (origin, fixes): ([f64; 3], [Option<Fix>; 2]),
+        positions: &[[f64; 3]],
         limit: f64,
     ) {
-        self.set_aside.resize(positions.len(), 0);
-        let (Some((_, a)), Some((_, b))) = (at[0], at[1]) else {
+        let [Some(fa), Some(fb)] = fixes else {
             self.too_few += 1;
             return;
         };
-        let origin = a.1;
-        let fix = |k: usize, (_, llh, sd): Epoch| Fix {
-            ned_m: ned_of(origin, llh),
-            sd_m: sd
-                .filter(|s| s.iter().all(|v| *v > 0.0))
-                .unwrap_or(noise[k]),
-        };
-        let (fa, fb) = (fix(0, a), fix(1, b));
         let fore = positions[1][0] > positions[0][0];
         let (aft, ahead) = if fore { (fa, fb) } else { (fb, fa) };
         if antennas::baseline_z(positions, (0, fa), (1, fb)).abs() > limit {

@@ -433,13 +433,8 @@ mod tests {
     /// dot product (or the cut kernel near a short series' ends).
     #[test]
     fn four_windows_at_a_time_are_one_at_a_time_bit_for_bit() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = fixtures::rng::Rng::new(11, "dot4");
+        let mut next = move || rng.uniform() - 0.5;
         let x: Vec<f64> = (0..2000).map(|_| next() * 1e3).collect();
         for n in [1, 2, 3, 4, 5, 7, 8, 13, 241, 481] {
             let h: Vec<f64> = (0..n).map(|_| next()).collect();

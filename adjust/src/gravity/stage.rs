@@ -1444,13 +1444,14 @@ fn body_tide(s: &Stretch) -> Vec<f64> {
     if knots.last().is_some_and(|&k| k + 1 < n) {
         knots.push(n - 1);
     }
+    // Too few knots for a cubic: every epoch its own.
+    if knots.len() < 4 {
+        return (0..n).map(at).collect();
+    }
     use rayon::prelude::{IntoParallelRefIterator, ParallelIterator};
     let values: Vec<f64> = knots.par_iter().map(|&k| at(k)).collect();
-    if knots.len() < 4 || knots.len() == n {
-        return match knots.len() == n {
-            true => values,
-            false => (0..n).map(at).collect(),
-        };
+    if knots.len() == n {
+        return values;
     }
     let mut out = Vec::with_capacity(n);
     for k in 0..n {

@@ -110,25 +110,7 @@ pub(super) fn numbered_lines(
                     path: path.clone(),
                     message: format!("line {line_no}: {e}"),
                 })
-                .and_then(|mut b| {
-                    if b.last() == Some(&b'\r') {
-                        b.pop();
-                    }
-                    if line_no == 1 && b.starts_with(ingest::BOM) {
-                        b.drain(..ingest::BOM.len());
-                    }
-                    String::from_utf8(b).map_err(|e| {
-                        bad(
-                            &path,
-                            line_no,
-                            "line",
-                            format!(
-                                "not UTF-8 at byte {} of the line",
-                                e.utf8_error().valid_up_to()
-                            ),
-                        )
-                    })
-                });
+                .and_then(|b| line_text(&path, line_no, &b).map(str::to_owned));
             (line_no, l)
         }))
 }
@@ -395,7 +377,7 @@ fn lines_of(bytes: &[u8], first: u64) -> Vec<(u64, &[u8])> {
     lines
 }
 
-/// Line `line_no`'s text as [`numbered_lines`] gives it: without a `\r` at its end and, on
+/// Line `line_no`'s text (the bytes before its `\n`): without a `\r` at its end and, on
 /// the first, a UTF-8 byte-order mark; not UTF-8, a line error naming the byte.
 fn line_text<'a>(path: &Path, line_no: u64, mut l: &'a [u8]) -> Result<&'a str, GravityError> {
     if let Some(rest) = l.strip_suffix(b"\r") {
