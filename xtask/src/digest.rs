@@ -203,7 +203,7 @@ fn parquet_summary(path: &Path) -> Result<Vec<(String, String)>> {
                 .entry(i)
                 .or_insert_with(|| (field.name().clone(), 0, Some([0.0; 3])));
             entry.1 += c.null_count();
-            let doubles = arrow_cast_doubles(c.as_ref());
+            let doubles = column_doubles(c.as_ref());
             match (doubles, &mut entry.2) {
                 (Some(v), Some(acc)) => {
                     for x in v.into_iter().flatten() {
@@ -237,7 +237,7 @@ fn parquet_summary(path: &Path) -> Result<Vec<(String, String)>> {
 
 /// A numeric column's values as doubles (None where null); None for a column of another
 /// type (strings, dictionaries).
-fn arrow_cast_doubles(c: &dyn arrow_array::Array) -> Option<Vec<Option<f64>>> {
+fn column_doubles(c: &dyn arrow_array::Array) -> Option<Vec<Option<f64>>> {
     use arrow_array::cast::AsArray;
     use arrow_array::types::{
         Float32Type, Float64Type, Int8Type, Int16Type, Int32Type, Int64Type, UInt8Type, UInt16Type,
