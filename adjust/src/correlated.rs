@@ -474,6 +474,43 @@ fn pair_covariance(
 mod tests {
     use super::*;
 
+    /// A solution of `m` parameters with these cofactors and designs (A row-major, B per
+    /// observation), the rest as a test of the sums needs none of it.
+    fn solution(
+        m: usize,
+        q_pp: Vec<f64>,
+        q_ww: Vec<f64>,
+        (a, b): (Vec<f64>, Vec<[f64; 3]>),
+    ) -> Solution<3> {
+        let n = q_ww.len();
+        Solution {
+            p: vec![0.0; m],
+            q_pp,
+            v: vec![[0.0; 3]; n],
+            misclosure: vec![0.0; n],
+            q_ww,
+            q_parts: vec![[0.5, 0.5, 0.0]; n],
+            redundancy: vec![0.5; n],
+            w_test: vec![0.0; n],
+            vtpv: 0.0,
+            dof: n - m,
+            iterations: 1,
+            a,
+            b,
+        }
+    }
+
+    /// The flicker and random walk the sums are tested with.
+    fn noise() -> ColouredAdc {
+        ColouredAdc {
+            bias_instability: 0.8,
+            random_walk: 0.02,
+            window_s: 2.56,
+            bias_instability_dof: None,
+            random_walk_dof: None,
+        }
+    }
+
     /// The within-station excess is the mean and variance of the scatter form itself: window
     /// means drawn from N(0, W^-1 + C) (C the model's, a random walk and a flicker), the form
     /// sum_i w_i (y_i - y_w)^2 over 40 000 draws has mean m - 1 + excess and variance
@@ -577,28 +614,9 @@ mod tests {
         }
         let det = nm[0] * nm[3] - nm[1] * nm[2];
         let q_pp = vec![nm[3] / det, -nm[1] / det, -nm[2] / det, nm[0] / det];
-        let s = Solution {
-            p: vec![0.0; m],
-            q_pp: q_pp.clone(),
-            v: vec![[0.0; 3]; n],
-            misclosure: vec![0.0; n],
-            q_ww: q_ww.clone(),
-            q_parts: vec![[0.5, 0.5, 0.0]; n],
-            redundancy: vec![0.5; n],
-            w_test: vec![0.0; n],
-            vtpv: 0.0,
-            dof: n - m,
-            iterations: 1,
-            a: a.clone(),
-            b: (0..n).map(|i| [1.0, 0.25 + 0.01 * i as f64, 0.0]).collect(),
-        };
-        let noise = ColouredAdc {
-            bias_instability: 0.8,
-            random_walk: 0.02,
-            window_s: 2.56,
-            bias_instability_dof: None,
-            random_walk_dof: None,
-        };
+        let b = (0..n).map(|i| [1.0, 0.25 + 0.01 * i as f64, 0.0]).collect();
+        let s = solution(m, q_pp.clone(), q_ww.clone(), (a.clone(), b));
+        let noise = noise();
         let fast = between_station_excess(
             &s,
             &station,
@@ -666,30 +684,13 @@ mod tests {
         let n = 7;
         let time: Vec<f64> = vec![0.0, 3.0, 5.6, 40.0, 42.6, 900.0, 2000.0];
         let session = vec![0, 0, 0, 0, 1, 1, 1];
-        let s = Solution {
-            p: vec![0.0; m],
-            q_pp: vec![2.0, 0.3, 0.3, 1.0],
-            v: vec![[0.0; 3]; n],
-            misclosure: vec![0.0; n],
-            q_ww: (0..n).map(|i| 1.0 + 0.1 * i as f64).collect(),
-            q_parts: vec![[0.5, 0.5, 0.0]; n],
-            redundancy: vec![0.5; n],
-            w_test: vec![0.0; n],
-            vtpv: 0.0,
-            dof: n - m,
-            iterations: 1,
-            a: (0..n * m)
-                .map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.4)
-                .collect(),
-            b: (0..n).map(|i| [1.0, 0.2 + 0.05 * i as f64, 0.0]).collect(),
-        };
-        let noise = ColouredAdc {
-            bias_instability: 0.8,
-            random_walk: 0.02,
-            window_s: 2.56,
-            bias_instability_dof: None,
-            random_walk_dof: None,
-        };
+        let a = (0..n * m)
+            .map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.4)
+            .collect();
+        let b = (0..n).map(|i| [1.0, 0.2 + 0.05 * i as f64, 0.0]).collect();
+        let q_ww = (0..n).map(|i| 1.0 + 0.1 * i as f64).collect();
+        let s = solution(m, vec![2.0, 0.3, 0.3, 1.0], q_ww, (a, b));
+        let noise = noise();
         let fast = extra_covariance(
             &s,
             Timeline {

@@ -343,24 +343,35 @@ mod tests {
         assert_eq!(v.len(), 7);
     }
 
+    /// The conditions of a tilt table at 980 000 mGal, the counts centred on 1.4e6 and
+    /// scaled by 1e5, 25 degC the reference.
+    fn conditions<'a>(
+        terms: Terms,
+        tides: &'a [f64],
+        rolls: &'a [f64],
+    ) -> CalibrationConditions<'a> {
+        CalibrationConditions {
+            terms,
+            g_mgal: 980_000.0,
+            centre: 1.4e6,
+            scale: 1e5,
+            t_ref_c: 25.0,
+            tide_mgal: tides,
+            roll_rad: rolls,
+        }
+    }
+
     /// With temperature terms, the condition's derivative by the temperature (the
     /// temperature an observation) is the numerical one: b_t + k_t Ng in the scaled terms.
     #[test]
     fn temperature_derivative_is_the_numerical_one() {
         let (tides, rolls) = ([0.0], [0.0]);
-        let c = CalibrationConditions {
-            terms: Terms {
-                order: 2,
-                temperature: true,
-                misalignment: Misalignment::None,
-            },
-            g_mgal: 980_000.0,
-            centre: 1.4e6,
-            scale: 1e5,
-            t_ref_c: 25.0,
-            tide_mgal: &tides,
-            roll_rad: &rolls,
+        let terms = Terms {
+            order: 2,
+            temperature: true,
+            misalignment: Misalignment::None,
         };
+        let c = conditions(terms, &tides, &rolls);
         let p = [-29_500.0, 24_300.0, 12.0, 35.0, -4.0];
         let l = [2.1, 1.45e6, 27.3];
         let mut a = [0.0; 5];
@@ -388,15 +399,7 @@ mod tests {
             temperature: false,
             misalignment: Misalignment::Vector,
         };
-        let c = CalibrationConditions {
-            terms,
-            g_mgal: 980_000.0,
-            centre: 1.4e6,
-            scale: 1e5,
-            t_ref_c: 25.0,
-            tide_mgal: &tides,
-            roll_rad: &rolls,
-        };
+        let c = conditions(terms, &tides, &rolls);
         let p = [-29_500.0, 24_300.0, 3e-4, -2e-4];
         let l = [2.1, 1.45e6, 25.0];
         let mut a = [0.0; 4];

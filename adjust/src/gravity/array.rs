@@ -23,7 +23,7 @@ use ingest::timegate::{Position, Sink, TimeGate};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use super::track::Epoch;
+use super::trajectory::{Epoch, Values, count_dropped};
 
 /// A row of attitude.parquet: the epoch's time, the columns of
 /// [`ingest::contract::tables::attitude::FLOATS`] and of its `MASKS`.
@@ -61,26 +61,16 @@ struct Kept {
     dropped: BTreeMap<String, u64>,
 }
 
-impl Sink<([f64; 3], Option<[f64; 3]>)> for Kept {
+impl Sink<Values> for Kept {
     type Error = GravityError;
 
-    fn accept(
-        &mut self,
-        time_ns: i64,
-        (llh, sd): ([f64; 3], Option<[f64; 3]>),
-    ) -> Result<(), GravityError> {
+    fn accept(&mut self, time_ns: i64, (llh, sd): Values) -> Result<(), GravityError> {
         self.epochs.push((time_ns, llh, sd));
         Ok(())
     }
 
-    fn reject(
-        &mut self,
-        _: Position,
-        why: &'static str,
-        _: String,
-        _: ([f64; 3], Option<[f64; 3]>),
-    ) {
-        *self.dropped.entry(why.to_owned()).or_insert(0) += 1;
+    fn reject(&mut self, _: Position, why: &'static str, _: String, _: Values) {
+        count_dropped(&mut self.dropped, why);
     }
 }
 

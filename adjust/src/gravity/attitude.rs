@@ -11,7 +11,7 @@
 
 use super::reduce::Steps;
 use super::spill::{Spill, SpillWriter};
-use super::trajectory::{bad, timed_fields};
+use super::trajectory::{Columns, Values, bad, count_dropped, epoch_line};
 use super::{BadLine, GravityError, set_aside};
 use ingest::time::TimeReader;
 use ingest::timegate::{Position, Sink, TimeGate};
@@ -161,14 +161,10 @@ struct Kept {
     dropped: BTreeMap<String, u64>,
 }
 
-impl Sink<([f64; 3], Option<[f64; 3]>)> for Kept {
+impl Sink<Values> for Kept {
     type Error = std::io::Error;
 
-    fn accept(
-        &mut self,
-        time_ns: i64,
-        (hpr, sd): ([f64; 3], Option<[f64; 3]>),
-    ) -> Result<(), Self::Error> {
+    fn accept(&mut self, time_ns: i64, (hpr, sd): Values) -> Result<(), Self::Error> {
         let h = continuous(self.heading, hpr[0]);
         self.heading = Some(h);
         self.times.push(time_ns);
@@ -179,14 +175,8 @@ impl Sink<([f64; 3], Option<[f64; 3]>)> for Kept {
         ])
     }
 
-    fn reject(
-        &mut self,
-        _: Position,
-        why: &'static str,
-        _: String,
-        _: ([f64; 3], Option<[f64; 3]>),
-    ) {
-        *self.dropped.entry(why.to_owned()).or_insert(0) += 1;
+    fn reject(&mut self, _: Position, why: &'static str, _: String, _: Values) {
+        count_dropped(&mut self.dropped, why);
     }
 }
 
@@ -204,7 +194,7 @@ pub fn read_spilled(
     let mut steps = Steps::default();
     let mut first = time;
     super::trajectory::for_each_csv_line(path, |line, fields| {
-        match fields.and_then(|f| attitude_line(path, line, f, &mut first)) {
+        match fields.and_then(|f| epoch_line((path, line), f, &mut first, &ANGLE_COLUMNS)) {
             Ok((t, _, _)) => steps.push(t),
             Err(e) => set_aside(e, skip, &mut Vec::new())?,
         }
@@ -224,7 +214,7 @@ pub fn read_spilled(
     let mut gate = TimeGate::new(interval_ns, range_ns);
     let mut bad_lines = Vec::new();
     super::trajectory::for_each_csv_line(path, |line, fields| {
-        match fields.and_then(|f| attitude_line(path, line, f, &mut time)) {
+        match fields.and_then(|f| epoch_line((path, line), f, &mut time, &ANGLE_COLUMNS)) {
             Ok((t, hpr, sd)) => gate
                 .offer(t, Position::Line(line), (hpr, sd), &mut kept)
                 .map_err(io)?,
@@ -403,22 +393,13 @@ pub fn spill_derived(
     })
 }
 
-/// One line: its time, heading, pitch and roll, and their sds if given.
-type AttitudeLine = (i64, [f64; 3], Option<[f64; 3]>);
-
-fn attitude_line(
-    path: &Path,
-    line: u64,
-    f: &[&str],
-    time: &mut TimeReader,
-) -> Result<AttitudeLine, GravityError> {
-    let expected = "time, heading_deg, pitch_deg, roll_deg and optionally sd_heading_deg, \
-                    sd_pitch_deg, sd_roll_deg";
-    let (tns, values, sd) = timed_fields(path, line, f, time, expected)?;
-    let hpr = angles(path, line, values)?;
-    let sd = sd.map(|x| sds(path, line, x)).transpose()?;
-    Ok((tns, hpr, sd))
-}
+/// An attitude CSV's: time, heading, pitch and roll, and their sds if given.
+const ANGLE_COLUMNS: Columns = Columns {
+    expected: "time, heading_deg, pitch_deg, roll_deg and optionally sd_heading_deg, \
+               sd_pitch_deg, sd_roll_deg",
+    values: angles,
+    sds,
+};
 
 /// Heading in [-360, 360], pitch in [-90, 90], roll in [-180, 180].
 fn angles(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {

@@ -14,7 +14,7 @@ use super::epochs::ThirdDifferences;
 use super::meter::MeterLines;
 use super::reduce::Steps;
 use super::spill::{Spill, SpillWriter};
-use super::trajectory;
+use super::trajectory::{self, Epoch, Values, count_dropped};
 use super::{BadLine, GravityError};
 use ingest::contract::gravity_ledger::dropped;
 use ingest::contract::manifest::{AdcFormat, Dataset, ResolvedSession};
@@ -356,23 +356,16 @@ struct EpochSink<'a> {
     lever_arm_m: [f64; 3],
 }
 
-impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
+impl ingest::timegate::Sink<Values> for EpochSink<'_> {
     type Error = GravityError;
 
-    fn accept(
-        &mut self,
-        time_ns: i64,
-        (llh, sd): ([f64; 3], Option<[f64; 3]>),
-    ) -> Result<(), Self::Error> {
+    fn accept(&mut self, time_ns: i64, (llh, sd): Values) -> Result<(), Self::Error> {
         let at = match &mut self.attitude {
             None => None,
             Some(cursor) => match cursor.at(time_ns)? {
                 Some(at) => Some(at),
                 None => {
-                    *self
-                        .dropped
-                        .entry(dropped::NO_ATTITUDE.to_owned())
-                        .or_insert(0) += 1;
+                    count_dropped(&mut self.dropped, dropped::NO_ATTITUDE);
                     return Ok(());
                 }
             },
@@ -385,29 +378,20 @@ impl ingest::timegate::Sink<([f64; 3], Option<[f64; 3]>)> for EpochSink<'_> {
             .map_err(|e| spill_error(self.session, format!("its epochs written aside: {e}")))
     }
 
-    fn reject(
-        &mut self,
-        _: Position,
-        why: &'static str,
-        _: String,
-        _: ([f64; 3], Option<[f64; 3]>),
-    ) {
+    fn reject(&mut self, _: Position, why: &'static str, _: String, _: Values) {
         use ingest::contract::ingest_ledger::reason;
         let name = match why {
             reason::OUTSIDE_SESSION => dropped::OUTSIDE_SESSION,
             reason::TIME_OUTLIER => dropped::TIME_OUTLIER,
             _ => dropped::NOT_INCREASING,
         };
-        *self.dropped.entry(name.to_owned()).or_insert(0) += 1;
+        count_dropped(&mut self.dropped, name);
     }
 }
 
 /// The most epochs a trajectory's first pass keeps for its second, 16 MB: 3 days at 1 Hz,
 /// 7 h at 10 Hz. A longer trajectory is read twice.
 const HELD_EPOCHS: usize = 1 << 18;
-
-/// An epoch as a trajectory reader gives it: its GPS time (ns), position and sds if given.
-pub(super) type Epoch = (i64, [f64; 3], Option<[f64; 3]>);
 
 /// What a trajectory's first pass finds.
 struct FirstPass {

@@ -9,6 +9,7 @@
 use super::{BadLine, GravityError, set_aside};
 use ingest::contract::manifest::TimeScale;
 use ingest::time::{TimeForm, TimeReader};
+use std::collections::BTreeMap;
 use std::io::BufRead;
 use std::path::Path;
 
@@ -575,7 +576,7 @@ pub fn for_each_csv(
 ) -> Result<Vec<BadLine>, GravityError> {
     let mut bad_lines = Vec::new();
     for_each_csv_line(path, |line_no, fields| {
-        match fields.and_then(|fl| csv_line(path, line_no, fl, &mut time)) {
+        match fields.and_then(|fl| epoch_line((path, line_no), fl, &mut time, &POSITION_COLUMNS)) {
             Ok((tns, llh, sd)) => f(line_no, tns, llh, sd)?,
             Err(e) => set_aside(e, skip, &mut bad_lines)?,
         }
@@ -616,21 +617,50 @@ pub(super) fn for_each_csv_line(
     Ok(())
 }
 
-/// A trajectory line's time (GPS ns), position and sds if given.
-type Epoch = (i64, [f64; 3], Option<[f64; 3]>);
+/// An epoch's three values (a position; or heading, pitch and roll) and their sds if given.
+pub(super) type Values = ([f64; 3], Option<[f64; 3]>);
 
-/// One line of a CSV trajectory: time, position, sds if given.
-fn csv_line(
-    path: &Path,
-    line_no: u64,
+/// An epoch as a reader gives it: its GPS time (ns), its three values and their sds if given.
+pub(super) type Epoch = (i64, [f64; 3], Option<[f64; 3]>);
+
+/// Counts one more epoch the time gate dropped for `why`.
+pub(super) fn count_dropped(dropped: &mut BTreeMap<String, u64>, why: &str) {
+    *dropped.entry(why.to_owned()).or_insert(0) += 1;
+}
+
+/// A value's or an sd's check: the line's three fields (its file and line for the error)
+/// read into numbers.
+type Check = fn(&Path, u64, &[&str]) -> Result<[f64; 3], GravityError>;
+
+/// What a CSV of epochs holds after its time: the fields named for an error, the check of
+/// the three values and of their sds.
+pub(super) struct Columns {
+    /// The line's fields, as an error names them.
+    pub expected: &'static str,
+    /// The values' check.
+    pub values: Check,
+    /// The sds' check.
+    pub sds: Check,
+}
+
+/// A CSV trajectory's: time, position, sds if given.
+const POSITION_COLUMNS: Columns = Columns {
+    expected: "time, lat_deg, lon_deg, h_m and optionally sd_n_m, sd_e_m, sd_u_m",
+    values: position,
+    sds,
+};
+
+/// One line of a CSV of epochs whose fields after the time `columns` says: the epoch.
+pub(super) fn epoch_line(
+    (path, line_no): (&Path, u64),
     f: &[&str],
     time: &mut TimeReader,
+    columns: &Columns,
 ) -> Result<Epoch, GravityError> {
-    let expected = "time, lat_deg, lon_deg, h_m and optionally sd_n_m, sd_e_m, sd_u_m";
-    let (tns, values, sd) = timed_fields(path, line_no, f, time, expected)?;
-    let llh = position(path, line_no, values)?;
-    let sd = sd.map(|x| sds(path, line_no, x)).transpose()?;
-    Ok((tns, llh, sd))
+    let (tns, values, sd) = timed_fields(path, line_no, f, time, columns.expected)?;
+    let values = (columns.values)(path, line_no, values)?;
+    let sd = sd.map(|x| (columns.sds)(path, line_no, x)).transpose()?;
+    Ok((tns, values, sd))
 }
 
 /// A CSV line's time (GPS ns), its three values, and their three sds where given.
