@@ -26,7 +26,9 @@
 //!   term, normal gravity, the filter with the stretch's ends extended consistently, ties
 //!   and a drift, the sigmas apart (`tests/gravity_reduce.rs`);
 //! - [`horizontal`]: north and east along a stretch with attitude, never tied, the
-//!   attitude's part of their sigma apart;
+//!   attitude's part of their sigma apart; and the horizontal force the track gives;
+//! - [`magnitude`]: an antenna array's down from the force's magnitude and the track's
+//!   horizontal force, no tilt entering it;
 //! - [`epochs`]: apply's calibrated samples brought onto the trajectory's epochs (with
 //!   attitude, each turned into the navigation frame at its own time);
 //! - [`coupling`]: a platform meter's cross-coupling, its coefficients fitted by LaCoste's
@@ -49,6 +51,7 @@ pub mod epochs;
 pub mod errors;
 pub mod filter;
 pub mod horizontal;
+pub mod magnitude;
 pub mod meter;
 pub mod navigation;
 pub use ingest::contract::normal;

@@ -107,6 +107,8 @@ pub struct Bin {
     covariance_sum: [f64; 6],
     /// With attitude: each sample's vector turned into the navigation frame, summed.
     nav_sum: [f64; 3],
+    /// A triad's: each sample's magnitude |f|, summed (no attitude enters it).
+    norm_sum: f64,
     /// The samples' apply flags, or-ed.
     pub flags: u8,
 }
@@ -141,6 +143,11 @@ impl Bin {
         for (sum, v) in self.covariance_sum.iter_mut().zip(&v[3..]) {
             *sum += w * v.unwrap_or(0.0);
         }
+        self.norm_sum += w * v[..3]
+            .iter()
+            .map(|x| x.unwrap_or(0.0).powi(2))
+            .sum::<f64>()
+            .sqrt();
         if let Some(n) = nav {
             for (sum, v) in self.nav_sum.iter_mut().zip(n) {
                 *sum += w * v;
@@ -180,6 +187,12 @@ impl Bin {
         self.nav_sum.map(|v| v / self.value_weight)
     }
 
+    /// A triad's weighted mean magnitude of the specific force, mGal: each sample's |f|,
+    /// which no attitude enters, before the mean.
+    pub fn mean_norm(&self) -> f64 {
+        self.norm_sum / self.value_weight
+    }
+
     /// A triad's calibration sigma of the mean vector along `m` (a unit row), mGal: from
     /// the samples' mean covariance, their errors being common.
     pub fn sigma_along(&self, m: [f64; 3]) -> f64 {
@@ -198,8 +211,8 @@ impl Bin {
     }
 }
 
-/// The doubles of one [`Bin`] written aside: its sixteen sums, then its flags.
-const BIN_WIDTH: usize = 17;
+/// The doubles of one [`Bin`] written aside: its seventeen sums, then its flags.
+const BIN_WIDTH: usize = 18;
 
 impl Bin {
     fn to_record(self) -> [f64; BIN_WIDTH] {
@@ -209,7 +222,7 @@ impl Bin {
             .chain(self.vector_sum)
             .chain(self.covariance_sum)
             .chain(self.nav_sum)
-            .chain([f64::from(self.flags)]);
+            .chain([self.norm_sum, f64::from(self.flags)]);
         for (o, v) in out.iter_mut().zip(values) {
             *o = v;
         }
@@ -225,7 +238,8 @@ impl Bin {
             vector_sum: [v[4], v[5], v[6]],
             covariance_sum: [v[7], v[8], v[9], v[10], v[11], v[12]],
             nav_sum: [v[13], v[14], v[15]],
-            flags: v[16] as u8,
+            norm_sum: v[16],
+            flags: v[17] as u8,
         }
     }
 }

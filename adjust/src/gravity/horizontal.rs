@@ -27,6 +27,7 @@ use super::filter;
 use super::navigation::{coriolis_transport, longitude_step_deg, radii};
 use super::normal::GRS80;
 use super::reduce::{self, CalibrationGradient, Stretch};
+use ingest::contract::survey::FilterKind;
 
 /// What a stretch's horizontal reduction needs beyond the down component's inputs, per
 /// epoch, indexed [north, east].
@@ -131,6 +132,51 @@ fn second_difference(x: &[f64], dt: f64) -> Vec<f64> {
             (x[c + 1] - 2.0 * x[c] + x[c - 1]) / (dt * dt) * 1e5
         })
         .collect()
+}
+
+/// The horizontal specific force the track alone gives, no attitude entering it: what the
+/// down component of an antenna array's session is formed with (docs/model.md 7, "An
+/// antenna array").
+pub struct TrackForce {
+    /// North and east at each epoch, mGal: the second difference of the accelerometers'
+    /// northing and easting low-passed at the cut-off, plus the Coriolis and transport-rate
+    /// term (f = dv/dt + (2 omega_ie + omega_en) x v - g, normal gravity having no
+    /// horizontal component).
+    pub f_mgal: [Vec<f64>; 2],
+    /// The variance a white position error of 1 m^2 gives each, mGal^2: the sum of the
+    /// squares of the low-passed second difference's weights, R(0) of their
+    /// autocorrelation R.
+    pub gain_mgal2_per_m2: f64,
+    /// sqrt(sum_m R(m)^2), mGal^2 / m^2: the square of that error, |dh|^2, has a variance
+    /// density at low frequencies (what a long filter passes) of 2 s^4 sum_m R(m)^2 per
+    /// axis for a white position error of sd s.
+    pub square_gain_mgal2_per_m2: f64,
+}
+
+/// The horizontal force along `s`, its epochs `dt` s apart, the positions low-passed at
+/// `cutoff_hz` (a Butterworth's half-power point) before they are differentiated.
+pub fn track_force(s: &Stretch, dt: f64, cutoff_hz: f64) -> Result<TrackForce, GravityError> {
+    let n = s.time_gps_ns.len();
+    let sections = filter::Lowpass::design(FilterKind::Butterworth, cutoff_hz, 1.0 / dt)?;
+    let pad = reduce::padding(1.0 / cutoff_hz, dt);
+    let xy = northing_easting(s);
+    let cor = coriolis(s, &xy, dt);
+    let f_mgal = std::array::from_fn(|c| {
+        let x = sections.apply(&xy[c], pad, 1);
+        let a = second_difference(&x, dt);
+        (0..n).map(|k| a[k] + cor[c][k]).collect()
+    });
+    let row: Vec<f64> = reduce::row(&sections, reduce::reach(1.0 / cutoff_hz, dt), Some(dt))
+        .iter()
+        .map(|w| w * 1e5)
+        .collect();
+    let r = |m: usize| -> f64 { row.iter().zip(&row[m..]).map(|(a, b)| a * b).sum() };
+    let squares = r(0).powi(2) + 2.0 * (1..row.len()).map(|m| r(m).powi(2)).sum::<f64>();
+    Ok(TrackForce {
+        f_mgal,
+        gain_mgal2_per_m2: r(0),
+        square_gain_mgal2_per_m2: squares.sqrt(),
+    })
 }
 
 /// North and east along `s` (its down component's inputs: positions, noise) with `h`,

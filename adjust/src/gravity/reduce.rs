@@ -67,6 +67,10 @@ pub struct Stretch {
     /// The sd of the epoch's value from the samples' own noise (their scatter in the epoch
     /// over the square root of their number), mGal; 0 where unknown.
     pub noise_f_mgal: Vec<f64>,
+    /// Where down is formed from the force's magnitude ([`super::magnitude`]): the white sd
+    /// per epoch the horizontal force's error from the positions gives it, mGal (a part of
+    /// the positions' sigma); empty otherwise.
+    pub sd_force_mgal: Vec<f64>,
 }
 
 /// A platform meter's cross-coupling along a stretch ([`super::coupling`]).
@@ -99,7 +103,11 @@ impl Stretch {
         ] {
             cut(v, range.clone());
         }
-        for v in [&mut self.sd_up_declared_m, &mut self.tide_mgal] {
+        for v in [
+            &mut self.sd_up_declared_m,
+            &mut self.tide_mgal,
+            &mut self.sd_force_mgal,
+        ] {
             if !v.is_empty() {
                 cut(v, range.clone());
             }
@@ -526,7 +534,14 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
             *v = v.hypot(p);
         }
     }
-    out.sigma_noise_mgal = scaled(&row(&sections, reach, None), &s.noise_f_mgal);
+    let noise_row = row(&sections, reach, None);
+    if !s.sd_force_mgal.is_empty() {
+        let part = scaled(&noise_row, &s.sd_force_mgal);
+        for (v, p) in out.sigma_positions_mgal.iter_mut().zip(part) {
+            *v = v.hypot(p);
+        }
+    }
+    out.sigma_noise_mgal = scaled(&noise_row, &s.noise_f_mgal);
     out.sigma_calibration_mgal = sigma_calibration_mgal;
     out.sigma_tie_mgal = vec![0.0; n];
     out.sigma_coupling_mgal = coupling_sigma(s, (&sections, pad, pivot));

@@ -12,6 +12,7 @@ use super::crossover;
 use super::epochs::{self, BinsAt, DownForce, SpilledBins, Target};
 use super::errors::{self, AttitudeErrors};
 use super::horizontal::{self, Horizontal, ReducedHorizontal};
+use super::magnitude;
 use super::normal::MAX_DISTURBANCE_MGAL;
 use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
 use super::spectrum::{self, Floor};
@@ -24,7 +25,9 @@ use ingest::contract::gravity_ledger::{
     StretchSummary, TieUsed, dropped,
 };
 use ingest::contract::manifest::Dataset;
-use ingest::contract::survey::{ErrorModel, FilterKind, ResolvedTie, SurveyConfig, TieLevel};
+use ingest::contract::survey::{
+    ArrayDown, ErrorModel, FilterKind, ResolvedTie, SurveyConfig, TieLevel,
+};
 use ingest::contract::tables::{applied, gravity};
 use ingest::time::utc_iso;
 use std::collections::BTreeMap;
@@ -1036,7 +1039,7 @@ fn reduce_block(
     let filter_s = ctx.survey.filter_s;
     let range = st.span.start + reduced.start..st.span.start + reduced.end;
     let b = &block(track, bins, range.clone())?;
-    let mut s = stretch(track, b, range.clone(), ctx);
+    let mut s = stretch(track, b, range.clone(), ctx)?;
     s.calibration_tied = ctx
         .triad
         .zip(st.at_tie.as_deref())
@@ -1133,7 +1136,7 @@ fn tie_points(
         let hi = times.partition_point(|&t| t <= tie.time_gps_ns + half);
         let range =
             span.start + lo.saturating_sub(margin)..span.start + (hi + margin).min(times.len());
-        let s = stretch(track, &block(track, bins, range.clone())?, range, ctx);
+        let s = stretch(track, &block(track, bins, range.clone())?, range, ctx)?;
         let r = reduce::untied(&s, ctx.survey.filter_s)?;
         points.extend(reduce::tie_point(&s, &r, tie, ctx.survey.filter_s)?);
     }
@@ -1276,9 +1279,23 @@ fn stretches(
     Ok((out, gaps))
 }
 
-/// The reduction's input for the epochs `span` of `track`: with attitude, f_D from the
-/// triad's mean vector through C_b^n; levelled, the bins' own.
-fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) -> Stretch {
+/// The reduction's input for the epochs `span` of `track`: with an attitude file, f_D from
+/// the triad's mean vector through C_b^n, and with an antenna array's too unless
+/// `[survey] array_down = "magnitude"` asks for the force's magnitude ([`magnitude`]);
+/// levelled, the bins' own.
+fn stretch(
+    track: &Track<'_>,
+    b: &Block,
+    span: Range<usize>,
+    ctx: &Context<'_>,
+) -> Result<Stretch, GravityError> {
+    let interval_s = track.interval_ns as f64 * 1e-9;
+    let from_magnitude = track
+        .array
+        .as_ref()
+        .filter(|_| ctx.survey.array_down == ArrayDown::Magnitude)
+        .and_then(|(used, _)| magnitude::cutoff_hz(used, track.noise_neu_m, interval_s));
+    let (mut norms, mut var_ne) = (Vec::new(), Vec::new());
     let mut s = Stretch {
         attitude_errors: AttitudeErrors {
             // An antenna array's attitude errs as its positions do.
@@ -1307,6 +1324,18 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
             s.sd_up_declared_m.push(given[2]);
         }
         match body_to_nav(b, k, &ctx.mounting) {
+            Some(_) if from_magnitude.is_some() => {
+                // No attitude enters the magnitude: down's calibration sigma is along the
+                // body vector, and the attitude has no part in it.
+                let v = bins[k].mean_vector();
+                let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+                s.f_down_mgal.push(-norm);
+                s.sigma_f_mgal
+                    .push(bins[k].sigma_along(v.map(|x| x / norm)));
+                s.attitude_effects_mgal.push([0.0; 3]);
+                norms.push(bins[k].mean_norm());
+                var_ne.push(white[0].powi(2) + white[1].powi(2));
+            }
             Some(c) => {
                 let f = bins[k].mean_nav();
                 s.f_down_mgal.push(f[2]);
@@ -1323,6 +1352,9 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
         }
         s.noise_f_mgal.push(bins[k].noise(ctx.sample_noise.sd_mgal));
     }
+    if let Some(cutoff) = from_magnitude.filter(|_| norms.len() == s.f_down_mgal.len()) {
+        magnitude::form_down(&mut s, &norms, &var_ne, (interval_s, cutoff))?;
+    }
     if ctx.survey.earth_tide {
         s.tide_mgal = body_tide(&s);
     }
@@ -1332,7 +1364,7 @@ fn stretch(track: &Track<'_>, b: &Block, span: Range<usize>, ctx: &Context<'_>) 
             correction,
         });
     }
-    s
+    Ok(s)
 }
 
 /// A track's cross-coupling correction as `[survey] cross_coupling` asks (docs/formats.md
@@ -1376,7 +1408,7 @@ fn coupling_of(
             let mut rows = Vec::new();
             for span in spans.iter().filter(|s| s.len() >= coupling::MIN_SEGMENT) {
                 let b = block(track, bins, span.clone())?;
-                let s = stretch(track, &b, span.clone(), ctx);
+                let s = stretch(track, &b, span.clone(), ctx)?;
                 let anomaly = reduce::unfiltered_disturbance(&s)?;
                 rows.extend(coupling::segment_rows(
                     &anomaly,

@@ -114,6 +114,26 @@ pub struct SurveyConfig {
     /// length departs from its declared one by more than this many sds sets an antenna
     /// aside for the epoch.
     pub baseline_length_sigmas: f64,
+    /// How an antenna array's session forms its down component (docs/formats.md 11.1):
+    /// the force turned by the array's attitude (the default), or from its magnitude.
+    pub array_down: ArrayDown,
+}
+
+/// `[survey] array_down` (docs/model.md 7, "An antenna array").
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ArrayDown {
+    /// The specific force turned into the navigation frame by the array's attitude: its
+    /// tilt error, a few mrad an epoch, enters down (g eps^2 / 2 and eps times the
+    /// horizontal force), which down's sigma carries, conservatively.
+    #[default]
+    Attitude,
+    /// f_D = -sqrt(|f|^2 - |h|^2), |f| each sample's own and h the horizontal force the
+    /// track gives, low-passed: no tilt enters it, but a horizontal force faster than the
+    /// low-pass (a turn's onset, a vehicle's sway or turbulence) is not seen, and down's
+    /// sigma does not say so. For a vehicle whose horizontal force is slow (a ship on its
+    /// lines).
+    Magnitude,
 }
 
 /// `[survey] filter`: the zero-phase low-pass filter's kind (docs/model.md 7, "The
@@ -338,6 +358,7 @@ impl Default for SurveyConfig {
             tie_level: TieLevel::default(),
             meter_status_flag_bits: Vec::new(),
             baseline_length_sigmas: 5.0,
+            array_down: ArrayDown::default(),
         }
     }
 }
@@ -688,7 +709,8 @@ fn trajectory_time(
 }
 
 /// No lever arm beside an antenna array (its antennas' positions are from the
-/// accelerometers), and its baselines' check in range.
+/// accelerometers), its baselines' check in range, and `array_down = "magnitude"` only
+/// where an array gives a roll.
 fn check_array(
     survey: &SurveyConfig,
     sessions: &[super::manifest::ResolvedSession],
@@ -707,6 +729,16 @@ fn check_array(
                  accelerometers (`position_m`): a lever arm has nothing to add",
                 s.session.id
             ),
+        ));
+    }
+    let arrays = sessions
+        .iter()
+        .any(|s| s.trajectory.as_ref().is_some_and(|t| t.antennas.len() >= 3));
+    if survey.array_down == ArrayDown::Magnitude && !arrays {
+        return Err(err(
+            "survey.array_down".to_owned(),
+            "\"magnitude\" is for a session with three or more antennas, and none lists them"
+                .to_owned(),
         ));
     }
     if !(survey.baseline_length_sigmas >= 2.0 && survey.baseline_length_sigmas <= 1e3) {
