@@ -2703,8 +2703,11 @@ fn an_antenna_off_by_5_cm_is_set_aside_and_the_epoch_kept() {
 /// filtered, pooled over the surveys of each vehicle. North and east within 0.8 to 1.2, each
 /// angle within 0.9 to 1.1; down's sigma not too small (at most 1.2: it is conservative,
 /// docs/model.md 7, "An antenna array"). The boats again with `array_down = "magnitude"`:
-/// down a filter period from turns (where the track's force lags) within 0.8 to 1.2; its
-/// rms error over all epochs and away from turns printed.
+/// down within 0.8 to 1.2 over all epochs and a filter period from turns; and (full only)
+/// the aircraft, whose down is held to 0.8 to 1.5: the same aircraft with a perfect
+/// attitude file gives 1.3 to 1.5, a part not modelled that is not the array's (docs/model.md
+/// 7, "An antenna array"). Each survey's rms error over all epochs and away from turns
+/// printed.
 #[test]
 fn monte_carlo_of_four_antenna_surveys() {
     let full = std::env::var_os("GRAVCAL_MONTE_CARLO").is_some();
@@ -2723,12 +2726,19 @@ fn monte_carlo_of_four_antenna_surveys() {
             boats,
             true,
         ),
+        (
+            "magnitude aircraft",
+            fixtures::survey_lines::aircraft_antenna_plan(),
+            if full { 30 } else { 0 },
+            true,
+        ),
     ];
     for (vehicle, plan, n, magnitude) in vehicles {
         if n == 0 {
             continue;
         }
         let mut z2 = [0.0; 6];
+        let mut z_away2 = 0.0;
         for seed in 1..=n {
             let dir = tempfile::tempdir().expect("tempdir");
             let (plan, dataset, out) = replica(dir.path(), plan.clone(), 100 + seed);
@@ -2748,7 +2758,10 @@ fn monte_carlo_of_four_antenna_surveys() {
             let (all, z_all) = scores(&dataset, &out, r.filter.filter_s);
             let (away, z_away) = scores_away_from_turns(&dataset, &out, r.filter.filter_s);
             eprintln!("{vehicle} {seed}: down rms error {all:.3} mGal, {away:.3} away from turns");
-            let down = if magnitude { z_away } else { z_all };
+            let down = z_all;
+            if magnitude {
+                z_away2 += z_away * z_away / f64::from(u32::try_from(n).expect("count"));
+            }
             let [north, east] = horizontal_scores(&dataset, &out, r.filter.filter_s);
             let z = [
                 a[0].sqrt(),
@@ -2785,12 +2798,24 @@ fn monte_carlo_of_four_antenna_surveys() {
             "{vehicle} east: {}",
             pooled[4]
         );
-        let least = if magnitude { 0.8 } else { 0.0 };
+        let (least, most) = match (magnitude, vehicle.ends_with("aircraft")) {
+            (false, _) => (0.0, 1.2),
+            (true, false) => (0.8, 1.2),
+            (true, true) => (0.8, 1.5),
+        };
         assert!(
-            (least..1.2).contains(&pooled[5]),
+            (least..most).contains(&pooled[5]),
             "{vehicle} down: {}",
             pooled[5]
         );
+        if magnitude {
+            let away = z_away2.sqrt();
+            eprintln!("{n} {vehicle}s: down's pooled rms z a filter period from turns {away:.3}");
+            assert!(
+                (least..most).contains(&away),
+                "{vehicle} down away from turns: {away}"
+            );
+        }
     }
 }
 

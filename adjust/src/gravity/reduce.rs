@@ -71,6 +71,9 @@ pub struct Stretch {
     /// per epoch the horizontal force's error from the positions gives it, mGal (a part of
     /// the positions' sigma); empty otherwise.
     pub sd_force_mgal: Vec<f64>,
+    /// There too: the low-pass's lag taken out of down where the horizontal force changes
+    /// sharply, mGal (0 elsewhere; empty otherwise).
+    pub lag_mgal: Vec<f64>,
 }
 
 /// A platform meter's cross-coupling along a stretch ([`super::coupling`]).
@@ -107,6 +110,7 @@ impl Stretch {
             &mut self.sd_up_declared_m,
             &mut self.tide_mgal,
             &mut self.sd_force_mgal,
+            &mut self.lag_mgal,
         ] {
             if !v.is_empty() {
                 cut(v, range.clone());
@@ -537,8 +541,9 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
     let noise_row = row(&sections, reach, None);
     if !s.sd_force_mgal.is_empty() {
         let part = scaled(&noise_row, &s.sd_force_mgal);
-        for (v, p) in out.sigma_positions_mgal.iter_mut().zip(part) {
-            *v = v.hypot(p);
+        let lag = sections.apply(&s.lag_mgal, pad, pivot);
+        for ((v, p), l) in out.sigma_positions_mgal.iter_mut().zip(part).zip(lag) {
+            *v = v.hypot(p).hypot(super::magnitude::LAG_UNCERTAINTY * l);
         }
     }
     out.sigma_noise_mgal = scaled(&noise_row, &s.noise_f_mgal);
