@@ -7,9 +7,14 @@
 //!
 //! The track's force is low-passed where the positions' noise, differentiated twice,
 //! stays under what the attitude's would give: the noise densities s_p^2 (2 pi f)^4 and
-//! g^2 s_eps^2 meet at f = sqrt(g s_eps / s_p) / (2 pi), 0.35 Hz for 1 cm and 5 mrad.
-//! What the vehicle's horizontal force holds above that cut-off is not seen; its mean
-//! square over 2 g is what down would lose.
+//! g^2 s_eps^2 meet at f = sqrt(g s_eps / s_p) / (2 pi), 0.35 Hz for 1 cm and 5 mrad. The
+//! noise left adds |dh|^2 / 2 g: its mean is taken out, its fluctuation is a part of the
+//! positions' sigma. Where the force changes sharply (a turn's onset and end, a ramp's)
+//! the low-pass lags and its square misses some of |h|^2: a low-pass of half the cut-off
+//! measures the miss ([`Lag`]), which is added, half of it in the sigma. What the vehicle's
+//! horizontal force holds above the cut-off that is no sharp change (a sway, turbulence)
+//! is not seen; its mean square over 2 g is what down would lose, and the sigma does not
+//! say so: hence `[survey] array_down = "magnitude"` is declared, not the default.
 
 use super::GravityError;
 use super::filter::Lowpass;
@@ -19,8 +24,9 @@ use ingest::contract::gravity_ledger::AntennasUsed;
 use ingest::contract::survey::FilterKind;
 
 /// The lag correction's own uncertainty, as a fraction of it (its filtered value, signed,
-/// in the positions' sigma): on the simulated aircraft's turns (a step of 2.4 m/s^2 in
-/// the centripetal force) the correction took 77 to 90 % of what the low-pass missed.
+/// in the positions' sigma): a clean step is corrected to 3 % (`the_lag_at_a_turn_is_taken_
+/// out`), a turn of the simulated aircraft, which banks into it as it starts, less well;
+/// half is taken, which the aircraft's Monte-Carlo checks (docs/model.md 7).
 pub const LAG_UNCERTAINTY: f64 = 0.5;
 
 /// Gravity the cut-off is computed with, m/s^2.
@@ -44,7 +50,8 @@ pub fn cutoff_hz(used: &AntennasUsed, white_m: [f64; 3], dt: f64) -> Option<f64>
 /// north and east (`var_ne_m2`, their squares summed) put into |h|^2 (its mean, which
 /// would otherwise bias down by var / 2 g); what that error's square does about its mean,
 /// a white error per epoch of sd s^2 sqrt(sum_m R(m)^2) / |f| (two axes of sd s each:
-/// [`horizontal::TrackForce`]), into `s.sd_force_mgal`.
+/// [`horizontal::TrackForce`]), into `s.sd_force_mgal`; and near a sharp change of the
+/// force the low-pass's lag added to |h|^2 ([`Lag`]), its part of down into `s.lag_mgal`.
 pub fn form_down(
     s: &mut Stretch,
     norm_mgal: &[f64],
