@@ -2430,6 +2430,11 @@ mod antenna_array {
         down_from_magnitude(&dataset);
         let out = dir.path().join("out");
         let r = reduce(&dataset, &out);
+        assert!(
+            r.specific_force.contains("magnitude"),
+            "{}",
+            r.specific_force
+        );
         let (rms, z) = scores(&dataset, &out, r.filter.filter_s);
         eprintln!("antennas, down from the magnitude: rms error {rms:.3} mGal, rms z {z:.3}");
         assert!(rms < 0.2, "down rms error {rms}");

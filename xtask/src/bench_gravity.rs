@@ -205,6 +205,17 @@ pub fn marine(
         }
     }
     let _ = std::fs::remove_file(&csv);
+    let _ = std::fs::remove_dir_all(&out);
+    print_marine((hours, seconds), mine, peer)
+}
+
+/// The marine bench's table, `mine` and `peer` the runs in turn (`peer` empty without the
+/// peers), and the pairs' ratios.
+fn print_marine(
+    (hours, seconds): (f64, usize),
+    mine: Vec<super::bench::Run>,
+    peer: Vec<super::bench::Run>,
+) -> Result<()> {
     let ratios: Vec<f64> = mine
         .iter()
         .zip(&peer)
@@ -212,11 +223,10 @@ pub fn marine(
         .collect();
     let (ours, median) = super::bench::fastest_and_median(mine)?;
     let mut rows = vec![("gravcal ingest + gravity", ours, median)];
-    if peers.is_some() {
+    if !peer.is_empty() {
         let (theirs, median) = super::bench::fastest_and_median(peer)?;
         rows.push(("shipgrav (its reader, FAA, scipy's FIR)", theirs, median));
     }
-    let _ = std::fs::remove_dir_all(&out);
     println!();
     println!(
         "| DGS laptop file at 1 Hz | what | seconds (fastest) | seconds (median) | CPU s | peak RSS MB |"

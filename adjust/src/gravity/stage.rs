@@ -619,6 +619,24 @@ fn plausible(
 
 /// For gravity.json: how f_D was formed.
 fn describe(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> String {
+    let text = describe_turned(force, survey, tracks);
+    let magnitude: Vec<&str> = tracks
+        .iter()
+        .filter(|t| t.array.is_some() && t.attitude.is_some())
+        .map(|t| t.session.session.id.as_str())
+        .collect();
+    match survey.array_down {
+        ArrayDown::Magnitude if !magnitude.is_empty() => format!(
+            "{text}; down of the antenna arrays' sessions ({}) from the force's magnitude, \
+             f_D = -sqrt(|f|^2 - |h|^2), h the track's horizontal force ([survey] array_down)",
+            magnitude.join(", ")
+        ),
+        _ => text,
+    }
+}
+
+/// [`describe`] of the force as it is turned, or taken levelled.
+fn describe_turned(force: &DownForce, survey: &SurveyConfig, tracks: &[Track<'_>]) -> String {
     let with: Vec<&str> = tracks
         .iter()
         .filter(|t| t.attitude.is_some())
@@ -1295,7 +1313,6 @@ fn stretch(
         .as_ref()
         .filter(|_| ctx.survey.array_down == ArrayDown::Magnitude)
         .and_then(|(used, _)| magnitude::cutoff_hz(used, track.noise_neu_m, interval_s));
-    let (mut norms, mut var_ne) = (Vec::new(), Vec::new());
     let mut s = Stretch {
         attitude_errors: AttitudeErrors {
             // An antenna array's attitude errs as its positions do.
@@ -1310,8 +1327,7 @@ fn stretch(
         filter: ctx.survey.filter,
         ..Stretch::default()
     };
-    let bins = &b.bins;
-    for k in span {
+    for k in span.clone() {
         let [lat, lon, h] = b.positions.llh(k);
         s.time_gps_ns.push(track.times[k]);
         s.latitude_deg.push(lat);
@@ -1323,36 +1339,16 @@ fn stretch(
         if s.position_errors.is_some() {
             s.sd_up_declared_m.push(given[2]);
         }
-        match body_to_nav(b, k, &ctx.mounting) {
-            Some(_) if from_magnitude.is_some() => {
-                // No attitude enters the magnitude: down's calibration sigma is along the
-                // body vector, and the attitude has no part in it.
-                let v = bins[k].mean_vector();
-                let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-                s.f_down_mgal.push(-norm);
-                s.sigma_f_mgal
-                    .push(bins[k].sigma_along(v.map(|x| x / norm)));
-                s.attitude_effects_mgal.push([0.0; 3]);
-                norms.push(bins[k].mean_norm());
-                var_ne.push(white[0].powi(2) + white[1].powi(2));
-            }
-            Some(c) => {
-                let f = bins[k].mean_nav();
-                s.f_down_mgal.push(f[2]);
-                s.sigma_f_mgal.push(bins[k].sigma_along(c[2]));
-                let a = b.attitude(k);
-                let effects = a.map_or([0.0; 3], |a| attitude_effects_at(&a, f)[2]);
-                s.attitude_effects_mgal.push(effects);
-            }
-            None => {
-                s.f_down_mgal.push(bins[k].mean());
-                s.sigma_f_mgal.push(bins[k].sigma_calibration());
-                s.attitude_effects_mgal.push([0.0; 3]);
-            }
-        }
-        s.noise_f_mgal.push(bins[k].noise(ctx.sample_noise.sd_mgal));
+        push_down(&mut s, (b, k), ctx, from_magnitude.is_some());
     }
-    if let Some(cutoff) = from_magnitude.filter(|_| norms.len() == s.f_down_mgal.len()) {
+    if let Some(cutoff) = from_magnitude {
+        let norms: Vec<f64> = span.clone().map(|k| b.bins[k].mean_norm()).collect();
+        let var_ne: Vec<f64> = span
+            .map(|k| {
+                let [white, _] = position_sds(&b.positions, k, s.position_errors);
+                white[0].powi(2) + white[1].powi(2)
+            })
+            .collect();
         magnitude::form_down(&mut s, &norms, &var_ne, (interval_s, cutoff))?;
     }
     if ctx.survey.earth_tide {
@@ -1365,6 +1361,37 @@ fn stretch(
         });
     }
     Ok(s)
+}
+
+/// Epoch `k` of block `b`'s down force, its calibration sigma and the attitude's effects on
+/// it, pushed onto `s`: from the force's magnitude (`magnitude`, formed again after the
+/// stretch's epochs by [`magnitude::form_down`]; no attitude enters it, and its calibration
+/// sigma is along the body vector), turned by the attitude, or levelled.
+fn push_down(s: &mut Stretch, (b, k): (&Block, usize), ctx: &Context<'_>, magnitude: bool) {
+    let bin = &b.bins[k];
+    match body_to_nav(b, k, &ctx.mounting) {
+        _ if magnitude => {
+            let v = bin.mean_vector();
+            let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            s.f_down_mgal.push(-norm);
+            s.sigma_f_mgal.push(bin.sigma_along(v.map(|x| x / norm)));
+            s.attitude_effects_mgal.push([0.0; 3]);
+        }
+        Some(c) => {
+            let f = bin.mean_nav();
+            s.f_down_mgal.push(f[2]);
+            s.sigma_f_mgal.push(bin.sigma_along(c[2]));
+            let a = b.attitude(k);
+            let effects = a.map_or([0.0; 3], |a| attitude_effects_at(&a, f)[2]);
+            s.attitude_effects_mgal.push(effects);
+        }
+        None => {
+            s.f_down_mgal.push(bin.mean());
+            s.sigma_f_mgal.push(bin.sigma_calibration());
+            s.attitude_effects_mgal.push([0.0; 3]);
+        }
+    }
+    s.noise_f_mgal.push(bin.noise(ctx.sample_noise.sd_mgal));
 }
 
 /// A track's cross-coupling correction as `[survey] cross_coupling` asks (docs/formats.md
