@@ -27,7 +27,7 @@ struct Cli {
 struct DatasetArgs {
     /// Dataset folder (holding dataset.toml).
     dataset: PathBuf,
-    /// Output folder (default: out/<dataset name> in the workspace).
+    /// Output folder (default: out/<dataset folder name> in the workspace).
     #[arg(long)]
     out: Option<PathBuf>,
 }
@@ -173,26 +173,14 @@ fn workspace_root() -> PathBuf {
         .to_path_buf()
 }
 
-fn dataset_name(dataset: &Path) -> Result<String> {
-    let path = dataset.join("dataset.toml");
-    let text =
-        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let value: toml::Table =
-        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    value
-        .get("name")
-        .and_then(|v| v.as_str())
-        .map(str::to_owned)
-        .with_context(|| format!("{}: missing key `name`", path.display()))
-}
-
+/// OUT: `--out`, or out/<dataset folder name> in the workspace (the stage binaries' rule,
+/// [`ingest::cli::out_dir`], from the workspace's root).
 fn out_dir(args: &DatasetArgs) -> Result<PathBuf> {
-    match &args.out {
-        Some(o) => Ok(o.clone()),
-        None => Ok(workspace_root()
-            .join("out")
-            .join(dataset_name(&args.dataset)?)),
-    }
+    Ok(ingest::cli::out_dir(
+        &workspace_root(),
+        &args.dataset,
+        args.out.as_deref(),
+    ))
 }
 
 type Stage = fn(&Path, &Path) -> Result<()>;
