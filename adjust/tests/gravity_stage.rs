@@ -327,6 +327,42 @@ fn meter_status_bits_on_a_stream_without_a_status_are_refused() {
     );
 }
 
+/// A calibration.json gravcal did not write as it is read: a field it does not know (one
+/// added at the top, one in a parameter) is refused naming the field and the file, not
+/// passed over.
+#[test]
+fn a_calibration_with_a_field_not_known_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = std::fs::read_to_string(calibration()).expect("calibration");
+    for (what, edited, field) in [
+        (
+            "top",
+            text.replacen('{', "{\"made_by\": \"another tool\",", 1),
+            "made_by",
+        ),
+        (
+            "parameter",
+            text.replacen("\"sigma\":", "\"sigma_2\": 1.0, \"sigma\":", 1),
+            "sigma_2",
+        ),
+    ] {
+        assert_ne!(edited, text, "{what}");
+        let path = dir.path().join(format!("{what}.json"));
+        std::fs::write(&path, edited).expect("write");
+        let mut a = args(&fixtures::dataset_dir(fixtures::survey_lines::SURVEY_LINES));
+        a.apply.calibration = path.clone();
+        let e = a
+            .run(&dir.path().join(format!("out-{what}")))
+            .expect_err(what)
+            .to_string();
+        eprintln!("{what}: {e}");
+        assert!(
+            e.contains(&format!("unknown field `{field}`")) && e.contains(&*path.to_string_lossy()),
+            "{what}: {e}"
+        );
+    }
+}
+
 /// `[survey] array_down = "magnitude"` on a survey none of whose sessions lists three
 /// antennas (survey-lines, one trajectory) is refused by key.
 #[test]

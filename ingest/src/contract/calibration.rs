@@ -15,6 +15,7 @@ pub const CALIBRATION_FORMAT: &str = "gravcal-calibration/1";
 
 /// An input file and its hash.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Input {
     /// Path relative to the dataset.
     pub path: String,
@@ -28,6 +29,7 @@ pub struct Input {
 /// variance, which with weights estimated from the readings is wider than chi-square(dof)
 /// (docs/model.md 6.1; docs/choices.md).
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct GlobalTest {
     /// The between-station part of v^T P v.
     pub statistic: f64,
@@ -98,6 +100,7 @@ impl GlobalTest {
 
 /// One parameter.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Parameter {
     /// b, k, k2, k3, beta, b_t, k_t.
     pub name: String,
@@ -133,6 +136,7 @@ impl Parameter {
 /// A variance component: the factor the data put on one observation group's a-priori
 /// variances, and the test of whether it is 1.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct VarianceComponent {
     /// `theodolite` or `ADC`.
     pub group: String,
@@ -159,6 +163,7 @@ pub struct VarianceComponent {
 
 /// An observation removed by data snooping.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Removed {
     /// Session of the observation.
     pub session: String,
@@ -283,6 +288,7 @@ pub const TRIAD: &str = "triad";
 
 /// One fitted calibration function (docs/formats.md section 6).
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CalibrationResult {
     /// Accelerometer id.
     pub accelerometer: String,
@@ -358,6 +364,7 @@ impl CalibrationResult {
 
 /// The sensitive axis's misalignment as a magnitude and a direction in the block's frame.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MisalignmentVector {
     /// theta = sqrt(theta_x^2 + theta_y^2), rad.
     pub theta_rad: f64,
@@ -375,6 +382,7 @@ pub struct MisalignmentVector {
 
 /// A fit that has no result, with the reason.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Skipped {
     /// Accelerometer id.
     pub accelerometer: String,
@@ -389,6 +397,7 @@ pub struct Skipped {
 /// A triad calibration in imu_tk's body frame: a = T K (X - B), T upper-triangular with unit
 /// diagonal (angles a_yz, a_zy, a_zx), K = diag(s_x, s_y, s_z), B = (b_x, b_y, b_z).
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct TriadResult {
     /// Model name.
     pub model: String,
@@ -492,6 +501,7 @@ impl TriadResult {
 
 /// The position floor a triad fit used (docs/model.md 6.5).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
 pub struct PositionFloorUsed {
     /// The sd added to each position's gravity, mGal.
     pub mgal: f64,
@@ -509,6 +519,7 @@ fn order_one() -> u8 {
 
 /// One static position of a triad fit.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct TriadPosition {
     /// Session id.
     pub session: String,
@@ -530,6 +541,7 @@ pub struct TriadPosition {
 
 /// An accelerometer's noise terms in SI units, under the names of Kalibr's `imu.yaml`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct KalibrNoise {
     /// Accelerometer id.
     pub accelerometer: String,
@@ -547,6 +559,7 @@ pub struct KalibrNoise {
 /// Whether b and k of one accelerometer repeat between the sessions a model was fitted to
 /// one at a time (docs/model.md 6.9): the homogeneity test of their (b, k) at their sigmas.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Repeatability {
     /// The model, fitted per session.
     pub model: String,
@@ -765,6 +778,7 @@ impl TriadResult {
 
 /// `calibration.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Calibration {
     /// [`CALIBRATION_FORMAT`].
     pub format: String,
