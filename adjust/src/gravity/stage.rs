@@ -1363,6 +1363,18 @@ fn stretch(
     Ok(s)
 }
 
+/// Where gravity.parquet's column `name` stands among `names` (its Float64 columns, or
+/// north's and east's): a name not there is a bug of the stage's, told, not written in the
+/// wrong place.
+fn column_at(names: &[&str], name: &str) -> Result<usize, GravityError> {
+    names
+        .iter()
+        .position(|n| *n == name)
+        .ok_or_else(|| GravityError::Refused {
+            message: format!("a bug: `{name}` is not a column of gravity.parquet"),
+        })
+}
+
 /// Epoch `k` of block `b`'s down force, its calibration sigma and the attitude's effects on
 /// it, pushed onto `s`: from the force's magnitude (`magnitude`, formed again after the
 /// stretch's epochs by [`magnitude::form_down`]; no attitude enters it, and its calibration
@@ -1841,30 +1853,31 @@ impl Rows {
         self.session.extend(std::iter::repeat_n(session, n));
         append(&mut self.time, s.time_gps_ns);
         self.stretch.extend(std::iter::repeat_n(number, n));
-        let columns: [Vec<f64>; gravity::FLOATS.len()] = [
-            s.latitude_deg,
-            s.longitude_deg,
-            s.height_m,
-            r.speed_m_s,
-            r.eotvos_mgal,
-            r.normal_mgal,
-            r.tide_mgal,
-            r.coupling_mgal,
-            r.disturbance_mgal,
-            r.filtered_mgal,
-            r.sigma_mgal,
-            r.sigma_calibration_mgal,
-            r.sigma_positions_mgal,
-            r.sigma_noise_mgal,
-            r.sigma_tie_mgal,
-            r.sigma_attitude_mgal,
-            r.sigma_coupling_mgal,
-            s.height_antenna_m,
+        // Each column by its name: a series put in the wrong place would compile.
+        let columns = [
+            (gravity::LATITUDE_DEG, s.latitude_deg),
+            (gravity::LONGITUDE_DEG, s.longitude_deg),
+            (gravity::HEIGHT_M, s.height_m),
+            (gravity::SPEED_M_S, r.speed_m_s),
+            (gravity::EOTVOS_MGAL, r.eotvos_mgal),
+            (gravity::NORMAL_MGAL, r.normal_mgal),
+            (gravity::TIDE_MGAL, r.tide_mgal),
+            (gravity::CROSS_COUPLING_MGAL, r.coupling_mgal),
+            (gravity::DOWN_MGAL, r.disturbance_mgal),
+            (gravity::DOWN_FILTERED_MGAL, r.filtered_mgal),
+            (gravity::SIGMA_DOWN_MGAL, r.sigma_mgal),
+            (gravity::SIGMA_CALIBRATION_MGAL, r.sigma_calibration_mgal),
+            (gravity::SIGMA_POSITIONS_MGAL, r.sigma_positions_mgal),
+            (gravity::SIGMA_NOISE_MGAL, r.sigma_noise_mgal),
+            (gravity::SIGMA_TIE_MGAL, r.sigma_tie_mgal),
+            (gravity::SIGMA_ATTITUDE_MGAL, r.sigma_attitude_mgal),
+            (gravity::SIGMA_COUPLING_MGAL, r.sigma_coupling_mgal),
+            (gravity::HEIGHT_ANTENNA_M, s.height_antenna_m),
         ];
-        for (dst, src) in self.floats.iter_mut().zip(columns) {
-            append(dst, src);
+        for (name, src) in columns {
+            append(&mut self.floats[column_at(&gravity::FLOATS, name)?], src);
         }
-        self.push_horizontal(h, n);
+        self.push_horizontal(h, n)?;
         append(&mut self.flags, flags);
         match status {
             Some(words) => append(&mut self.status, words),
@@ -1877,9 +1890,13 @@ impl Rows {
     }
 
     /// North and east of the `n` rows just pushed (zero and not valid without attitude).
-    fn push_horizontal(&mut self, h: Option<ReducedHorizontal>, n: usize) {
+    fn push_horizontal(
+        &mut self,
+        h: Option<ReducedHorizontal>,
+        n: usize,
+    ) -> Result<(), GravityError> {
         if !self.with_horizontal {
-            return;
+            return Ok(());
         }
         match h {
             None => {
@@ -1896,14 +1913,32 @@ impl Rows {
                 let [pn, pe] = h.sigma_positions_mgal;
                 let [nn, ne] = h.sigma_noise_mgal;
                 let [an, ae] = h.sigma_attitude_mgal;
-                // In gravity::HORIZONTAL's order: north's seven, then east's.
-                let parts = [dn, fn_, sn, cn, pn, nn, an, de, fe, se, ce, pe, ne, ae];
-                for (dst, src) in self.horizontal.iter_mut().zip(parts) {
-                    append(dst, src);
+                let parts = [
+                    ("north_mgal", dn),
+                    ("north_filtered_mgal", fn_),
+                    ("sigma_north_mgal", sn),
+                    ("sigma_north_calibration_mgal", cn),
+                    ("sigma_north_positions_mgal", pn),
+                    ("sigma_north_noise_mgal", nn),
+                    ("sigma_north_attitude_mgal", an),
+                    ("east_mgal", de),
+                    ("east_filtered_mgal", fe),
+                    ("sigma_east_mgal", se),
+                    ("sigma_east_calibration_mgal", ce),
+                    ("sigma_east_positions_mgal", pe),
+                    ("sigma_east_noise_mgal", ne),
+                    ("sigma_east_attitude_mgal", ae),
+                ];
+                for (name, src) in parts {
+                    append(
+                        &mut self.horizontal[column_at(&gravity::HORIZONTAL, name)?],
+                        src,
+                    );
                 }
                 self.horizontal_valid.extend(std::iter::repeat_n(true, n));
             }
         }
+        Ok(())
     }
 
     /// Where the track crosses itself ([`crossover`]), among the rows kept.
