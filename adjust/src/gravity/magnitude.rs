@@ -25,8 +25,8 @@ use ingest::contract::survey::FilterKind;
 
 /// The lag correction's own uncertainty, as a fraction of it (its filtered value, signed,
 /// in the positions' sigma): a clean step is corrected to 3 % (`the_lag_at_a_turn_is_taken_
-/// out`), a turn of the simulated aircraft, which banks into it as it starts, less well;
-/// half is taken, which the aircraft's Monte-Carlo checks (docs/model.md 7).
+/// out`), a turn of the simulated aircraft less well, for a reason not yet found; half is
+/// taken, which the aircraft's Monte-Carlo checks (docs/model.md 7).
 pub const LAG_UNCERTAINTY: f64 = 0.5;
 
 /// Gravity the cut-off is computed with, m/s^2.
