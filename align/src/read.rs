@@ -330,7 +330,7 @@ pub struct FloatBatch<'a> {
     pub time_ns: &'a [i64],
     /// The columns asked for, in the order asked.
     pub values: Vec<&'a arrow_array::Float64Array>,
-    /// The flags column.
+    /// The flags column (empty for a table without one).
     pub flags: &'a [u8],
 }
 
@@ -354,6 +354,27 @@ pub fn float_batches_with<E: From<Error>>(
     names: &[&str],
     flags: &str,
     batch_rows: usize,
+    f: impl FnMut(FloatBatch<'_>) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    float_batches_of(path, (names, Some(flags)), batch_rows, f)
+}
+
+/// [`float_batches`] of a table without a flags column (attitude.parquet): `flags` empty,
+/// the columns nullable.
+pub fn float_batches_unflagged(
+    path: &Path,
+    names: &[&str],
+    batch_rows: usize,
+    f: impl FnMut(FloatBatch<'_>) -> Result<()>,
+) -> Result<()> {
+    float_batches_of(path, (names, None), batch_rows, f)
+}
+
+/// The batches of [`float_batches_with`], with a flags column or none.
+fn float_batches_of<E: From<Error>>(
+    path: &Path,
+    (names, flags): (&[&str], Option<&str>),
+    batch_rows: usize,
     mut f: impl FnMut(FloatBatch<'_>) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {
     for b in batches_of(path, batch_rows)? {
@@ -365,9 +386,12 @@ pub fn float_batches_with<E: From<Error>>(
                 column(path, &b, n, &DataType::Float64).map(|c| c.as_primitive::<Float64Type>())
             })
             .collect::<Result<_>>()?;
-        let flags = column(path, &b, flags, &DataType::UInt8)?
-            .as_primitive::<UInt8Type>()
-            .values();
+        let flags: &[u8] = match flags {
+            Some(name) => column(path, &b, name, &DataType::UInt8)?
+                .as_primitive::<UInt8Type>()
+                .values(),
+            None => &[],
+        };
         f(FloatBatch {
             session,
             time_ns: time,

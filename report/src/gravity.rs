@@ -9,7 +9,7 @@ use crate::plots;
 use crate::render::{Section, Table, section};
 use ingest::contract::gravity_ledger::{GravityReport, LEDGER_FILE, STAGE_DIR};
 use ingest::contract::manifest::Dataset;
-use ingest::contract::tables::gravity;
+use ingest::contract::tables::{attitude, gravity};
 use std::path::Path;
 
 /// The epochs as the section draws them.
@@ -153,7 +153,76 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
         crossovers(&r),
     ));
     s.plots.extend(plots(&epochs, quantity(&r))?);
+    if let Some((_, sha256)) = &r.attitude_table {
+        s.plots
+            .extend(attitude_plots(&dir.join(attitude::FILE), sha256)?);
+    }
     Ok(Some(s))
+}
+
+/// One row of attitude.parquet: its time (ns) and, per angle, its value and sd in deg (None
+/// where null).
+type AttitudeRow = (i64, [Option<(f64, f64)>; 3]);
+
+/// An antenna array's attitude (attitude.parquet, the one gravity.json recorded): per
+/// session and angle, the angle against time with its 1-sigma band; an angle the array does
+/// not give (two antennas' roll, null throughout) has no plot.
+fn attitude_plots(path: &Path, sha256: &str) -> Result<Vec<(String, String)>, Error> {
+    use arrow_array::Array;
+    if ingest::contract::custody::sha256_file(path)? != sha256 {
+        return Err(ingest::Error::Stale {
+            path: path.to_path_buf(),
+            message: "is not the table gravity.json recorded: re-run `cargo xtask gravity`"
+                .to_owned(),
+        }
+        .into());
+    }
+    let mut rows: std::collections::BTreeMap<u16, Vec<AttitudeRow>> =
+        std::collections::BTreeMap::new();
+    align::read::float_batches_unflagged(path, &attitude::FLOATS[..6], 1 << 16, |b| {
+        for i in 0..b.time_ns.len() {
+            let angle = |j: usize| {
+                let (v, sd) = (b.values[j], b.values[j + 3]);
+                (v.is_valid(i) && sd.is_valid(i)).then(|| (v.value(i), sd.value(i)))
+            };
+            let row = (b.time_ns[i], [angle(0), angle(1), angle(2)]);
+            rows.entry(b.session[i]).or_default().push(row);
+        }
+        Ok(())
+    })?;
+    let mut out = Vec::new();
+    for (index, r) in rows {
+        let step = r.len().div_ceil(MAX_POINTS).max(1);
+        let t0 = r[0].0;
+        for (j, name) in ["heading", "pitch", "roll"].into_iter().enumerate() {
+            let points: Vec<(f64, f64, f64)> = r
+                .iter()
+                .step_by(step)
+                .filter_map(|(t, a)| a[j].map(|(v, sd)| ((t - t0) as f64 / 60e9, v, sd)))
+                .collect();
+            if points.is_empty() {
+                continue;
+            }
+            let file = format!("attitude_{name}_{index}.svg");
+            let (title, y_label) = (
+                format!("The antennas' {name} with its 1-sigma band"),
+                format!("{name} (deg)"),
+            );
+            let svg = plots::profile(&plots::Profile {
+                title: &title,
+                x_label: "minutes from the session's first epoch",
+                y_label: &y_label,
+                legend: name,
+                stretches: &[points],
+            })
+            .map_err(|message| Error::Plot {
+                name: file.clone(),
+                message,
+            })?;
+            out.push((file, svg));
+        }
+    }
+    Ok(out)
 }
 
 /// Each crossover's two passes, the difference against its sigma; then their rms and the
@@ -571,7 +640,9 @@ fn plots(epochs: &[Epoch], quantity: &str) -> Result<Vec<(String, String)>, Erro
         );
         let svg = plots::profile(&plots::Profile {
             title: &title,
+            x_label: "distance along the track (km)",
             y_label: &y_label,
+            legend: "filtered",
             stretches: &stretches,
         })
         .map_err(plot_err(&profile_name))?;

@@ -464,14 +464,18 @@ pub fn track_map(m: &TrackMap<'_>) -> Result<String, String> {
     })
 }
 
-/// A value along a track (distance, value, sigma) drawn as a line with its 1-sigma band,
-/// one piece per stretch (no line across a gap).
+/// A value along a track or in time (x, value, sigma) drawn as a line with its 1-sigma
+/// band, one piece per stretch (no line across a gap).
 pub struct Profile<'a> {
     /// Title.
     pub title: &'a str,
+    /// x axis label with unit.
+    pub x_label: &'a str,
     /// y axis label with unit.
     pub y_label: &'a str,
-    /// Per stretch, (distance km, value, sigma).
+    /// The line's name in the legend.
+    pub legend: &'a str,
+    /// Per stretch, (x, value, sigma).
     pub stretches: &'a [Vec<(f64, f64, f64)>],
 }
 
@@ -481,7 +485,7 @@ pub fn profile(p: &Profile<'_>) -> Result<String, String> {
     let frame = Frame {
         size: (600, 360),
         title: p.title,
-        axes: ("distance along the track (km)", p.y_label),
+        axes: (p.x_label, p.y_label),
         y_label_area: 72,
         x: range(all().map(|q| q.0)),
         y: range(all().flat_map(|q| [q.1 - q.2, q.1 + q.2])),
@@ -491,7 +495,7 @@ pub fn profile(p: &Profile<'_>) -> Result<String, String> {
             line_with_band(chart, s, BLUE_CB)?;
         }
         Ok(vec![
-            (Mark::Line(BLUE_CB), "filtered".to_owned()),
+            (Mark::Line(BLUE_CB), p.legend.to_owned()),
             (Mark::Band(BLUE_CB), "its 1-sigma band".to_owned()),
         ])
     })

@@ -454,6 +454,64 @@ fn gravity(
     .run(out)
 }
 
+/// An antenna array's attitude is plotted, each angle against time with its 1-sigma band:
+/// heading, pitch and roll from four antennas, heading and pitch alone from two (the roll
+/// they do not give has no plot); attitude.parquet changed is named.
+#[test]
+fn the_arrays_attitude_is_plotted_with_its_sigma() {
+    let cal_out = tempfile::tempdir().expect("tempdir");
+    let multipos = fixtures::dataset_dir(fixtures::triad::MULTIPOS);
+    ingest::run(&multipos, cal_out.path()).expect("ingest");
+    align::run(&multipos, cal_out.path()).expect("align");
+    adjust::run(&multipos, cal_out.path()).expect("adjust");
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, plan, angles) in [
+        (
+            "four",
+            fixtures::survey_lines::antenna_plan(),
+            &["heading", "pitch", "roll"][..],
+        ),
+        (
+            "two",
+            fixtures::survey_lines::two_antenna_plan(),
+            &["heading", "pitch"][..],
+        ),
+    ] {
+        let dataset = dir.path().join(name);
+        fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+        let out = pipeline(&dataset);
+        gravity(&dataset, cal_out.path(), out.path()).expect("gravity");
+        report::run(&dataset, out.path()).expect("report");
+        let plots = out.path().join("report/plots");
+        for angle in ["heading", "pitch", "roll"] {
+            let file = plots.join(format!("attitude_{angle}_0.svg"));
+            if angles.contains(&angle) {
+                let svg = std::fs::read_to_string(&file)
+                    .unwrap_or_else(|e| panic!("{name} {angle}: {e}"));
+                assert!(
+                    svg.matches("<polyline").count() + svg.matches("<path").count() >= 2,
+                    "{name} {angle}"
+                );
+                assert!(svg.contains("1-sigma band"), "{name} {angle}");
+            } else {
+                assert!(!file.exists(), "{name}: {angle} has no plot");
+            }
+        }
+        let table = out.path().join("gravity/attitude.parquet");
+        let mut bytes = std::fs::read(&table).expect("table");
+        let last = bytes.len() - 100;
+        bytes[last] ^= 1;
+        std::fs::write(&table, bytes).expect("write");
+        let e = report::run(&dataset, out.path())
+            .expect_err("stale")
+            .to_string();
+        assert!(
+            e.contains("attitude.parquet") && e.contains("re-run"),
+            "{name}: {e}"
+        );
+    }
+}
+
 #[test]
 fn the_gravity_section_shows_the_track() {
     let cal_out = tempfile::tempdir().expect("tempdir");
