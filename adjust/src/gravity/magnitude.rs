@@ -167,7 +167,7 @@ impl Lag {
             .collect()
     }
 
-    /// The epochs near a sharp change: where the difference's mean over a tenth of a
+    /// The epochs near a sharp change: where the difference's mean over a fifth of a
     /// period of the half cut-off, in units of the sd `sd` its noise has where nothing
     /// changes, stands out of those units' own scatter over the stretch (six of their
     /// median absolute deviations, which scale for the mean's averaging), and `reach`
