@@ -114,7 +114,7 @@ pub struct SurveyConfig {
     /// length departs from its declared one by more than this many sds sets an antenna
     /// aside for the epoch.
     pub baseline_length_sigmas: f64,
-    /// How an antenna array's session forms its down component (docs/formats.md 11.1):
+    /// How an antenna array's session forms its down component (docs/formats.md 10.2.1):
     /// the force turned by the array's attitude (the default), or from its magnitude.
     pub array_down: ArrayDown,
 }
@@ -129,10 +129,10 @@ pub enum ArrayDown {
     #[default]
     Attitude,
     /// f_D = -sqrt(|f|^2 - |h|^2), |f| each sample's own and h the horizontal force the
-    /// track gives, low-passed: no tilt enters it, but a horizontal force faster than the
-    /// low-pass (a turn's onset, a vehicle's sway or turbulence) is not seen, and down's
-    /// sigma does not say so. For a vehicle whose horizontal force is slow (a ship on its
-    /// lines).
+    /// track gives, low-passed (the lag at a sharp change, a turn's onset or end, taken
+    /// out): no tilt enters it, but a horizontal force faster than the low-pass that is no
+    /// sharp change (a vehicle's sway or turbulence) is not seen, and down's sigma does not
+    /// say so. For a vehicle whose horizontal force is slow (a ship on its lines).
     Magnitude,
 }
 
