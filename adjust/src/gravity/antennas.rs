@@ -1,4 +1,4 @@
-//! The attitude from several GNSS antennas on the vehicle (docs/formats.md 11.1, docs/model.md
+//! The attitude from several GNSS antennas on the vehicle (docs/formats.md 10.2.1, docs/model.md
 //! 7, "An antenna array"): per epoch, the rotation C_v^n and the accelerometers' position p
 //! that best map the antennas' declared positions b_i (vehicle frame, from the
 //! accelerometers to each antenna's phase centre) onto their measured ones d_i (a local

@@ -1,4 +1,4 @@
-//! An antenna array's session (docs/formats.md 11.1): each antenna's trajectory read as a
+//! An antenna array's session (docs/formats.md 10.2.1): each antenna's trajectory read as a
 //! session's one trajectory is (the same readers, its own pass through ingest's time gate
 //! at its median interval, its bad lines set aside), the antennas' epochs matched by time,
 //! each epoch fitted ([`super::antennas`]), and the fit given to the session's track: the

@@ -55,7 +55,7 @@ pub mod dropped {
     pub const TOO_FEW_ANTENNAS: &str = "too_few_antennas";
 }
 
-/// An antenna array's session: what its antennas gave (docs/formats.md 11.1).
+/// An antenna array's session: what its antennas gave (docs/formats.md 10.2.1).
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct AntennasUsed {
     /// The antennas, in the manifest's order (bit k of attitude.parquet's masks).

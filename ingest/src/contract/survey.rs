@@ -110,7 +110,7 @@ pub struct SurveyConfig {
     /// epoch `meter_status` when set in it (docs/formats.md 11.1): the meter's map of them
     /// is the user's to know; none by default.
     pub meter_status_flag_bits: Vec<u8>,
-    /// An antenna array's baseline check (docs/formats.md 11.1): a baseline whose measured
+    /// An antenna array's baseline check (docs/formats.md 10.2.1): a baseline whose measured
     /// length departs from its declared one by more than this many sds sets an antenna
     /// aside for the epoch.
     pub baseline_length_sigmas: f64,
@@ -407,7 +407,7 @@ pub struct TrajectorySource {
     pub time: Option<TimeForm>,
     /// The attitude file (docs/formats.md 10.2), if any, and how it writes its times.
     pub attitude: Option<(PathBuf, TimeForm)>,
-    /// The session's antennas (docs/formats.md 11.1), when it lists them: the attitude and
+    /// The session's antennas (docs/formats.md 10.2.1), when it lists them: the attitude and
     /// the accelerometers' position come from their baselines, and `path`, `format` and
     /// `time` above are the first antenna's, the session's reference (empty: one
     /// trajectory at the antenna the lever arm starts from).

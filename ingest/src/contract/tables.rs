@@ -638,7 +638,7 @@ pub mod gravity {
     }
 }
 
-/// `OUT/gravity/attitude.parquet` (docs/formats.md 11.1): the attitude an antenna array
+/// `OUT/gravity/attitude.parquet` (docs/formats.md 10.2.1): the attitude an antenna array
 /// gives, one row per epoch solved, in time order per session:
 ///
 /// | column | type | unit / meaning |
