@@ -114,14 +114,7 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
     let r: GravityReport = ingest::read_json(&ledger)?;
     ingest::contract::custody::check_dataset(&ledger, &r.dataset, &ds.manifest.name)?;
     let table = dir.join(gravity::FILE);
-    if ingest::contract::custody::sha256_file(&table)? != r.sha256 {
-        return Err(ingest::Error::Stale {
-            path: table,
-            message: "is not the table gravity.json recorded: re-run `cargo xtask gravity`"
-                .to_owned(),
-        }
-        .into());
-    }
+    recorded(&table, &r.sha256)?;
     let epochs = read(&table)?;
     let mut s = section(TITLE);
     s.text.push(answer(&r, &epochs));
@@ -160,6 +153,19 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
     Ok(Some(s))
 }
 
+/// The table at `path` is the one gravity.json recorded (its SHA-256), or it is named stale.
+fn recorded(path: &Path, sha256: &str) -> Result<(), Error> {
+    if ingest::contract::custody::sha256_file(path)? != sha256 {
+        return Err(ingest::Error::Stale {
+            path: path.to_path_buf(),
+            message: "is not the table gravity.json recorded: re-run `cargo xtask gravity`"
+                .to_owned(),
+        }
+        .into());
+    }
+    Ok(())
+}
+
 /// One row of attitude.parquet: its time (ns) and, per angle, its value and sd in deg (None
 /// where null).
 type AttitudeRow = (i64, [Option<(f64, f64)>; 3]);
@@ -169,14 +175,7 @@ type AttitudeRow = (i64, [Option<(f64, f64)>; 3]);
 /// not give (two antennas' roll, null throughout) has no plot.
 fn attitude_plots(path: &Path, sha256: &str) -> Result<Vec<(String, String)>, Error> {
     use arrow_array::Array;
-    if ingest::contract::custody::sha256_file(path)? != sha256 {
-        return Err(ingest::Error::Stale {
-            path: path.to_path_buf(),
-            message: "is not the table gravity.json recorded: re-run `cargo xtask gravity`"
-                .to_owned(),
-        }
-        .into());
-    }
+    recorded(path, sha256)?;
     let mut rows: std::collections::BTreeMap<u16, Vec<AttitudeRow>> =
         std::collections::BTreeMap::new();
     align::read::float_batches_unflagged(path, &attitude::FLOATS[..6], 1 << 16, |b| {

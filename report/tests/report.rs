@@ -454,16 +454,30 @@ fn gravity(
     .run(out)
 }
 
-/// An antenna array's attitude is plotted, each angle against time with its 1-sigma band:
-/// heading, pitch and roll from four antennas, heading and pitch alone from two (the roll
-/// they do not give has no plot); attitude.parquet changed is named.
-#[test]
-fn the_arrays_attitude_is_plotted_with_its_sigma() {
+/// triad-multipos's pipeline, for its calibration.json.
+fn multipos_calibration() -> tempfile::TempDir {
     let cal_out = tempfile::tempdir().expect("tempdir");
     let multipos = fixtures::dataset_dir(fixtures::triad::MULTIPOS);
     ingest::run(&multipos, cal_out.path()).expect("ingest");
     align::run(&multipos, cal_out.path()).expect("align");
     adjust::run(&multipos, cal_out.path()).expect("adjust");
+    cal_out
+}
+
+/// One bit of the table at `path` flipped, a hundred bytes from its end.
+fn damage(path: &Path) {
+    let mut bytes = std::fs::read(path).expect("table");
+    let last = bytes.len() - 100;
+    bytes[last] ^= 1;
+    std::fs::write(path, bytes).expect("write");
+}
+
+/// An antenna array's attitude is plotted, each angle against time with its 1-sigma band:
+/// heading, pitch and roll from four antennas, heading and pitch alone from two (the roll
+/// they do not give has no plot); attitude.parquet changed is named.
+#[test]
+fn the_arrays_attitude_is_plotted_with_its_sigma() {
+    let cal_out = multipos_calibration();
     let dir = tempfile::tempdir().expect("tempdir");
     for (name, plan, angles) in [
         (
@@ -497,11 +511,7 @@ fn the_arrays_attitude_is_plotted_with_its_sigma() {
                 assert!(!file.exists(), "{name}: {angle} has no plot");
             }
         }
-        let table = out.path().join("gravity/attitude.parquet");
-        let mut bytes = std::fs::read(&table).expect("table");
-        let last = bytes.len() - 100;
-        bytes[last] ^= 1;
-        std::fs::write(&table, bytes).expect("write");
+        damage(&out.path().join("gravity/attitude.parquet"));
         let e = report::run(&dataset, out.path())
             .expect_err("stale")
             .to_string();
@@ -514,11 +524,7 @@ fn the_arrays_attitude_is_plotted_with_its_sigma() {
 
 #[test]
 fn the_gravity_section_shows_the_track() {
-    let cal_out = tempfile::tempdir().expect("tempdir");
-    let multipos = fixtures::dataset_dir(fixtures::triad::MULTIPOS);
-    ingest::run(&multipos, cal_out.path()).expect("ingest");
-    align::run(&multipos, cal_out.path()).expect("align");
-    adjust::run(&multipos, cal_out.path()).expect("adjust");
+    let cal_out = multipos_calibration();
     let dataset = fixtures::dataset_dir(fixtures::survey_lines::SURVEY_LINES);
     let out = pipeline(&dataset);
     let g = gravity(&dataset, cal_out.path(), out.path()).expect("gravity");
@@ -583,11 +589,7 @@ fn the_gravity_section_shows_the_track() {
         assert!(svg.matches("<circle").count() + svg.matches("<polyline").count() > 10);
     }
     // The report's section stays with its table: a gravity.parquet changed is named.
-    let table = out.path().join("gravity/gravity.parquet");
-    let mut bytes = std::fs::read(&table).expect("table");
-    let last = bytes.len() - 100;
-    bytes[last] ^= 1;
-    std::fs::write(&table, bytes).expect("write");
+    damage(&out.path().join("gravity/gravity.parquet"));
     let e = report::run(&dataset, out.path())
         .expect_err("stale")
         .to_string();

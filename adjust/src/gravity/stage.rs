@@ -1327,6 +1327,7 @@ fn stretch(
         filter: ctx.survey.filter,
         ..Stretch::default()
     };
+    let mut var_ne = Vec::new();
     for k in span.clone() {
         let [lat, lon, h] = b.positions.llh(k);
         s.time_gps_ns.push(track.times[k]);
@@ -1339,16 +1340,13 @@ fn stretch(
         if s.position_errors.is_some() {
             s.sd_up_declared_m.push(given[2]);
         }
+        if from_magnitude.is_some() {
+            var_ne.push(white[0].powi(2) + white[1].powi(2));
+        }
         push_down(&mut s, (b, k), ctx, from_magnitude.is_some());
     }
     if let Some(cutoff) = from_magnitude {
-        let norms: Vec<f64> = span.clone().map(|k| b.bins[k].mean_norm()).collect();
-        let var_ne: Vec<f64> = span
-            .map(|k| {
-                let [white, _] = position_sds(&b.positions, k, s.position_errors);
-                white[0].powi(2) + white[1].powi(2)
-            })
-            .collect();
+        let norms: Vec<f64> = span.map(|k| b.bins[k].mean_norm()).collect();
         magnitude::form_down(&mut s, &norms, &var_ne, (interval_s, cutoff))?;
     }
     if ctx.survey.earth_tide {
