@@ -171,39 +171,67 @@ fn band_means(x: &[f64]) -> [f64; BANDS] {
 /// The discrete Fourier transform in place, X_k = sum_j x_j exp(-2 pi i j k / n), n a power
 /// of two (iterative radix 2).
 pub fn fft(re: &mut [f64], im: &mut [f64]) {
-    let n = re.len();
-    debug_assert!(n.is_power_of_two() && im.len() == n);
-    let mut j = 0;
-    for i in 1..n {
-        let mut bit = n >> 1;
-        while j & bit != 0 {
-            j ^= bit;
-            bit >>= 1;
-        }
-        j |= bit;
-        if i < j {
-            re.swap(i, j);
-            im.swap(i, j);
-        }
-    }
-    let mut len = 2;
-    while len <= n {
-        let angle = -std::f64::consts::TAU / len as f64;
-        // The stage's twiddles, once (the same for each of its n / len butterflies).
-        let twiddles: Vec<(f64, f64)> =
-            (0..len / 2).map(|k| (angle * k as f64).sin_cos()).collect();
-        for start in (0..n).step_by(len) {
-            for (k, &(s, c)) in twiddles.iter().enumerate() {
-                let (a, b) = (start + k, start + k + len / 2);
-                let tr = re[b] * c - im[b] * s;
-                let ti = re[b] * s + im[b] * c;
-                re[b] = re[a] - tr;
-                im[b] = im[a] - ti;
-                re[a] += tr;
-                im[a] += ti;
+    Fft::new(re.len()).run(re, im);
+}
+
+/// An [`fft`] of one power-of-two length planned once: its bit reversal and its twiddles,
+/// for a length transformed many times (the filter's blocks, [`super::filter`]).
+#[derive(Clone, Debug)]
+pub struct Fft {
+    /// exp(-2 pi i k / n) for k below n / 2, as (sin, cos).
+    twiddles: Vec<(f64, f64)>,
+    /// The index pairs the bit reversal swaps.
+    swaps: Vec<(u32, u32)>,
+}
+
+impl Fft {
+    /// The plan for length `n`, a power of two.
+    pub fn new(n: usize) -> Self {
+        debug_assert!(n.is_power_of_two());
+        let angle = -std::f64::consts::TAU / n as f64;
+        let twiddles = (0..n / 2).map(|k| (angle * k as f64).sin_cos()).collect();
+        let mut swaps = Vec::new();
+        let mut j = 0;
+        for i in 1..n {
+            let mut bit = n >> 1;
+            while j & bit != 0 {
+                j ^= bit;
+                bit >>= 1;
+            }
+            j |= bit;
+            if i < j {
+                swaps.push((i as u32, j as u32));
             }
         }
-        len <<= 1;
+        Fft { twiddles, swaps }
+    }
+
+    /// The transform of (`re`, `im`) in place, both of the planned length.
+    pub fn run(&self, re: &mut [f64], im: &mut [f64]) {
+        let n = 2 * self.twiddles.len();
+        debug_assert!(re.len() == n.max(1) && im.len() == re.len());
+        for &(i, j) in &self.swaps {
+            re.swap(i as usize, j as usize);
+            im.swap(i as usize, j as usize);
+        }
+        let mut len = 2;
+        while len <= n {
+            let (half, stride) = (len / 2, n / len);
+            for start in (0..n).step_by(len) {
+                let (lo_re, hi_re) = re[start..start + len].split_at_mut(half);
+                let (lo_im, hi_im) = im[start..start + len].split_at_mut(half);
+                for k in 0..half {
+                    let (s, c) = self.twiddles[k * stride];
+                    let tr = hi_re[k] * c - hi_im[k] * s;
+                    let ti = hi_re[k] * s + hi_im[k] * c;
+                    hi_re[k] = lo_re[k] - tr;
+                    hi_im[k] = lo_im[k] - ti;
+                    lo_re[k] += tr;
+                    lo_im[k] += ti;
+                }
+            }
+            len <<= 1;
+        }
     }
 }
 
