@@ -297,26 +297,28 @@ fn plain_decimal(field: &[u8]) -> Option<(f64, bool)> {
         b'+' => (false, &field[1..]),
         _ => (false, field),
     };
-    let (mut mantissa, mut fraction, mut point, mut digits) = (0u64, 0usize, false, 0usize);
-    for &c in rest {
-        match c {
-            b'0'..=b'9' => {
-                mantissa = mantissa * 10 + u64::from(c - b'0');
-                if mantissa >= LIMIT {
-                    return None;
-                }
-                digits += 1;
-                fraction += usize::from(point);
-            }
-            b'.' if !point => point = true,
-            _ => return None,
-        }
-    }
-    if digits == 0 {
+    let (whole, fraction) = match rest.iter().position(|&c| c == b'.') {
+        Some(p) => (&rest[..p], &rest[p + 1..]),
+        None => (rest, &[][..]),
+    };
+    if whole.len() + fraction.len() == 0 {
         return None;
     }
+    // Fifteen digits or fewer cannot reach the limit: no check per digit.
+    let short = whole.len() + fraction.len() <= 15;
+    let mut mantissa = 0u64;
+    for &c in whole.iter().chain(fraction) {
+        let d = c.wrapping_sub(b'0');
+        if d > 9 {
+            return None;
+        }
+        mantissa = mantissa * 10 + u64::from(d);
+        if !short && mantissa >= LIMIT {
+            return None;
+        }
+    }
     let m = mantissa as f64;
-    let v = m / *EXACT_POWERS.get(fraction)?;
+    let v = m / *EXACT_POWERS.get(fraction.len())?;
     Some((if negative { -v } else { v }, false))
 }
 
