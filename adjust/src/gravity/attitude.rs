@@ -275,7 +275,8 @@ impl<'a> AttitudeCursor<'a> {
                 .att
                 .values
                 .read(self.start..end)
-                .map_err(|e| self.att.io(e))?;
+                .map_err(|e| self.att.io(e))?
+                .into_owned();
         }
         let i = (k - self.start) * WIDTH;
         Ok(std::array::from_fn(|j| self.values[i + j]))

@@ -6,6 +6,7 @@
 //! of epochs, not the survey. The file has no name: it is removed when closed, a crash
 //! included.
 
+use std::borrow::Cow;
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::ops::Range;
@@ -117,8 +118,9 @@ impl Spill {
         matches!(self.store, Finished::File(_))
     }
 
-    /// The records `range`, one after another (`width` values each).
-    pub(super) fn read(&self, range: Range<usize>) -> std::io::Result<Vec<f64>> {
+    /// The records `range`, one after another (`width` values each): borrowed from memory,
+    /// read from the file.
+    pub(super) fn read(&self, range: Range<usize>) -> std::io::Result<Cow<'_, [f64]>> {
         if range.end > self.len || range.start > range.end {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::UnexpectedEof,
@@ -127,7 +129,9 @@ impl Spill {
         }
         let file = match &self.store {
             Finished::Memory(v) => {
-                return Ok(v[range.start * self.width..range.end * self.width].to_vec());
+                return Ok(Cow::Borrowed(
+                    &v[range.start * self.width..range.end * self.width],
+                ));
             }
             Finished::File(file) => file,
         };
@@ -136,10 +140,12 @@ impl Spill {
         let mut f = file;
         f.seek(SeekFrom::Start((range.start * bytes_per) as u64))?;
         f.read_exact(&mut bytes)?;
-        Ok(bytes
-            .chunks_exact(8)
-            .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
-            .collect())
+        Ok(Cow::Owned(
+            bytes
+                .chunks_exact(8)
+                .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+                .collect(),
+        ))
     }
 }
 

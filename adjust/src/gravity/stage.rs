@@ -459,7 +459,7 @@ fn tie_gradient(
     let at = block(track, bins, window.clone())?;
     let (mut reference, mut row_ref) = ([0.0; 3], [0.0; 3]);
     for k in window.clone() {
-        let v = at.bins[k].mean_vector();
+        let v = at.bins.at(k).mean_vector();
         let m = down_row(&at, k, ctx);
         for i in 0..3 {
             reference[i] += v[i] / window.len() as f64;
@@ -470,13 +470,13 @@ fn tie_gradient(
 }
 
 /// A block's epochs read back: their sums, positions and attitude.
-struct Block {
-    bins: BinsAt,
+struct Block<'a> {
+    bins: BinsAt<'a>,
     positions: super::track::Positions,
     attitude: Option<Vec<AttitudeAt>>,
 }
 
-impl Block {
+impl Block<'_> {
     /// The attitude at kept epoch `k` (None without attitude).
     fn attitude(&self, k: usize) -> Option<AttitudeAt> {
         Some(self.attitude.as_ref()?[k - self.bins.start])
@@ -484,11 +484,11 @@ impl Block {
 }
 
 /// The epochs `range` of `track` read back.
-fn block(
+fn block<'a>(
     track: &Track<'_>,
-    bins: &SpilledBins,
+    bins: &'a SpilledBins,
     range: Range<usize>,
-) -> Result<Block, GravityError> {
+) -> Result<Block<'a>, GravityError> {
     Ok(Block {
         bins: bins.read(range.clone()).map_err(|e| spill_error(bins, e))?,
         positions: track.positions(range.clone())?,
@@ -507,7 +507,7 @@ fn spill_error(bins: &SpilledBins, e: std::io::Error) -> GravityError {
 }
 
 /// The down row at kept epoch `k`: C_b^n's with attitude, the mounting's without.
-fn down_row(b: &Block, k: usize, ctx: &Context<'_>) -> [f64; 3] {
+fn down_row(b: &Block<'_>, k: usize, ctx: &Context<'_>) -> [f64; 3] {
     body_to_nav(b, k, &ctx.mounting).map_or(ctx.mounting[2], |c| c[2])
 }
 
@@ -517,14 +517,14 @@ fn down_row(b: &Block, k: usize, ctx: &Context<'_>) -> [f64; 3] {
 /// back.
 fn calibration_gradient(
     f: &TriadFunction,
-    b: &Block,
+    b: &Block<'_>,
     (range, ctx): (Range<usize>, &Context<'_>),
     at_tie: &[f64],
 ) -> Option<CalibrationGradient> {
     let mut gradient = vec![Vec::with_capacity(range.len()); at_tie.len()];
     for k in range {
         let g = f.gradient(
-            f.readings_for(b.bins[k].mean_vector())?,
+            f.readings_for(b.bins.at(k).mean_vector())?,
             down_row(b, k, ctx),
         );
         for ((series, g), g0) in gradient.iter_mut().zip(g).zip(at_tie) {
@@ -750,7 +750,7 @@ fn mounting(survey: &SurveyConfig) -> [[f64; 3]; 3] {
 }
 
 /// C_b^n at kept epoch `k` of a block with attitude: C_v^n C_b^v.
-fn body_to_nav(b: &Block, k: usize, mounting: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+fn body_to_nav(b: &Block<'_>, k: usize, mounting: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     let a = b.attitude(k)?;
     Some(attitude::product(&a.vehicle_to_nav(), mounting))
 }
@@ -1269,12 +1269,13 @@ fn stretches(
     let mut start: Option<usize> = None;
     let mut bins = spilled.read(0..0)?;
     for k in 0..=times.len() {
-        if k < times.len() && k >= bins.start + bins.bins.len() {
+        if k < times.len() && k >= bins.end() {
             bins = spilled.read(k..(k + BLOCK_EPOCHS).min(times.len()))?;
         }
-        let valid = k < times.len() && bins[k].value_weight >= need;
-        if k < times.len() && !valid {
-            let reason = if bins[k].weight >= need {
+        let bin = (k < times.len()).then(|| bins.at(k));
+        let valid = bin.as_ref().is_some_and(|b| b.value_weight >= need);
+        if let Some(bin) = bin.as_ref().filter(|_| !valid) {
+            let reason = if bin.weight >= need {
                 dropped::NO_CALIBRATED_VALUE
             } else {
                 dropped::NO_SPECIFIC_FORCE
@@ -1303,7 +1304,7 @@ fn stretches(
 /// levelled, the bins' own.
 fn stretch(
     track: &Track<'_>,
-    b: &Block,
+    b: &Block<'_>,
     span: Range<usize>,
     ctx: &Context<'_>,
 ) -> Result<Stretch, GravityError> {
@@ -1346,7 +1347,7 @@ fn stretch(
         push_down(&mut s, (b, k), ctx, from_magnitude.is_some());
     }
     if let Some(cutoff) = from_magnitude {
-        let norms: Vec<f64> = span.map(|k| b.bins[k].mean_norm()).collect();
+        let norms: Vec<f64> = span.map(|k| b.bins.at(k).mean_norm()).collect();
         magnitude::form_down(&mut s, &norms, &var_ne, (interval_s, cutoff))?;
     }
     if ctx.survey.earth_tide {
@@ -1377,8 +1378,8 @@ fn column_at(names: &[&str], name: &str) -> Result<usize, GravityError> {
 /// it, pushed onto `s`: from the force's magnitude (`magnitude`, formed again after the
 /// stretch's epochs by [`magnitude::form_down`]; no attitude enters it, and its calibration
 /// sigma is along the body vector), turned by the attitude, or levelled.
-fn push_down(s: &mut Stretch, (b, k): (&Block, usize), ctx: &Context<'_>, magnitude: bool) {
-    let bin = &b.bins[k];
+fn push_down(s: &mut Stretch, (b, k): (&Block<'_>, usize), ctx: &Context<'_>, magnitude: bool) {
+    let bin = b.bins.at(k);
     match body_to_nav(b, k, &ctx.mounting) {
         _ if magnitude => {
             let v = bin.mean_vector();
@@ -1581,7 +1582,7 @@ fn position_sds(p: &super::track::Positions, k: usize, model: Option<ErrorModel>
 /// force through C_b^n, its calibration sigma along each row (or the parameters' gradients
 /// with a triad without temperature terms), the attitude's sigma, the positions' sds.
 fn horizontal_inputs(
-    (b, att): (&Block, &[AttitudeAt]),
+    (b, att): (&Block<'_>, &[AttitudeAt]),
     span: Range<usize>,
     ctx: &Context<'_>,
 ) -> Horizontal {
@@ -1595,14 +1596,14 @@ fn horizontal_inputs(
     for k in span {
         let a = &att[k - b.bins.start];
         let c = attitude::product(&a.vehicle_to_nav(), &ctx.mounting);
-        let v = bins[k].mean_vector();
-        let f = bins[k].mean_nav();
+        let bin = bins.at(k);
+        let (v, f) = (bin.mean_vector(), bin.mean_nav());
         let effects = attitude_effects_at(a, f);
         let [sd, given] = position_sds(&b.positions, k, model);
         let x = ctx.triad.and_then(|t| t.readings_for(v));
         for i in 0..2 {
             h.f_mgal[i].push(f[i]);
-            h.sigma_calibration_mgal[i].push(bins[k].sigma_along(c[i]));
+            h.sigma_calibration_mgal[i].push(bin.sigma_along(c[i]));
             h.attitude_effects_mgal[i].push(effects[i]);
             h.sd_m[i].push(sd[i]);
             if model.is_some() {
@@ -1634,7 +1635,7 @@ fn horizontal_inputs(
 /// outlier.
 fn flags_of(
     s: &Stretch,
-    b: &Block,
+    b: &Block<'_>,
     span: Range<usize>,
     (t0, t1): (i64, i64),
     (filter_s, r): (f64, &Reduced),
@@ -1645,7 +1646,8 @@ fn flags_of(
     span.enumerate()
         .map(|(i, k)| {
             let mut f = 0;
-            if b.bins[k].flags & (applied::COUNTS_OUT_OF_RANGE | applied::TEMPERATURE_OUT_OF_RANGE)
+            if b.bins.at(k).flags
+                & (applied::COUNTS_OUT_OF_RANGE | applied::TEMPERATURE_OUT_OF_RANGE)
                 != 0
             {
                 f |= gravity::OUTSIDE_CALIBRATION;

@@ -160,7 +160,7 @@ impl Track<'_> {
         })?;
         Ok(Positions {
             start: range.start,
-            values,
+            values: values.into_owned(),
             noise_neu_m: self.noise_neu_m,
         })
     }
