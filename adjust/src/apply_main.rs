@@ -10,7 +10,7 @@ use std::process::ExitCode;
 #[command(version)]
 struct Args {
     #[command(flatten)]
-    apply: adjust::apply::stream::ApplyArgs,
+    apply: adjust::survey::apply::stream::ApplyArgs,
     /// Print `peak_rss_kb N` and `cpu_s S` at the end, for benchmarks.
     #[arg(long, hide = true)]
     report_peak_rss: bool,
@@ -20,6 +20,6 @@ fn main() -> ExitCode {
     let args = Args::parse();
     let result = args.apply.run(std::path::Path::new("."));
     ingest::cli::finish("apply", result, args.report_peak_rss, |r| {
-        adjust::apply::stream::print_summary(r, &mut std::io::stderr());
+        adjust::survey::apply::stream::print_summary(r, &mut std::io::stderr());
     })
 }

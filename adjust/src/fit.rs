@@ -1,8 +1,8 @@
 //! The general fitting command (docs/formats.md section 7): a polynomial of any degree up to 10
 //! through (x, y), with errors in y alone or in both variables (Gauss-Helmert).
 
-use crate::gh::{self, GhError, Options};
-use crate::model::{Polynomial, apply, monomial_map, propagate};
+use crate::calibration::model::{Polynomial, apply, monomial_map, propagate};
+use crate::lsq::gh::{self, GhError, Options};
 use faer::prelude::*;
 use serde::{Deserialize, Serialize};
 

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 #[command(version)]
 struct Args {
     #[command(flatten)]
-    gravity: adjust::gravity::stage::GravityArgs,
+    gravity: adjust::survey::gravity::stage::GravityArgs,
     /// Print `peak_rss_kb N` and `cpu_s S` at the end, for benchmarks.
     #[arg(long, hide = true)]
     report_peak_rss: bool,
@@ -21,6 +21,6 @@ fn main() -> ExitCode {
     let out = args.gravity.apply.out_dir(std::path::Path::new("."));
     let result = args.gravity.run(&out);
     ingest::cli::finish("gravity", result, args.report_peak_rss, |r| {
-        adjust::gravity::stage::print_summary(r, &mut std::io::stderr());
+        adjust::survey::gravity::stage::print_summary(r, &mut std::io::stderr());
     })
 }

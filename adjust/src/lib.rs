@@ -6,42 +6,32 @@
 //! and session or over all sessions, in parallel (rayon), and writes
 //! OUT/adjust/calibration.json (docs/formats.md section 6) and OUT/adjust/residuals.parquet.
 //!
-//! The mathematics does no I/O: [`gh`] is the general engine, [`model`] the condition
-//! equations, [`calibrate`] one calibration fit with data snooping, [`fit`] the general
-//! polynomial fitting command (docs/formats.md section 7).
+//! The mathematics does no I/O: [`lsq::gh`] is the general engine, [`calibration::model`]
+//! the condition equations, [`calibration::calibrate`] one calibration fit with data
+//! snooping, [`fit`] the general polynomial fitting command (docs/formats.md section 7).
+//! [`survey`] holds the apply and gravity stages, which read calibration.json.
 
-pub mod apply;
-pub mod calibrate;
-pub mod components;
-pub mod correlated;
+pub mod calibration;
 pub mod fit;
-pub mod gh;
-pub mod gravity;
-pub mod io;
-pub mod model;
-pub mod plan;
-pub mod repeatability;
-pub mod triad;
-pub mod triad_fits;
+pub mod lsq;
+pub mod survey;
 
 mod fit_cli;
-mod jobs;
-mod outputs;
-mod results;
 
-pub use fit_cli::{FitArgs, fit_csv};
-pub use jobs::models;
-use jobs::{
+pub use calibration::jobs::models;
+use calibration::jobs::{
     Job, component_of, fit_job, plan_jobs, range_of, residual_rows_of, roll_directions,
     session_mean_temperatures, skip_reason,
 };
-pub use outputs::print_summary;
-use outputs::write_outputs;
-pub use results::{barely_estimable, misalignment_vector, vector_note};
-use results::{earth_tide_note, kalibr_noise, result_of, thermal_effects};
+pub use calibration::outputs::print_summary;
+use calibration::outputs::write_outputs;
+pub use calibration::results::{barely_estimable, misalignment_vector, vector_note};
+use calibration::results::{earth_tide_note, kalibr_noise, result_of, thermal_effects};
+pub use fit_cli::{FitArgs, fit_csv};
 
-use calibrate::{CalError, LeftOut, Obs};
-use correlated::ColouredAdc;
+use calibration::calibrate::{self, CalError, LeftOut, Obs};
+use calibration::model::{Misalignment, Terms};
+use calibration::{io, repeatability, triad_fits};
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{
     CALIBRATION_FILE, CALIBRATION_FORMAT, Calibration, CalibrationResult, GlobalTest, Input,
@@ -50,7 +40,8 @@ use ingest::contract::calibration::{
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ingest_ledger::{self, IngestReport};
 use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
-use model::{Misalignment, Terms};
+use lsq::components;
+use lsq::correlated::ColouredAdc;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 

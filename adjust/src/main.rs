@@ -48,7 +48,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
         if v.len() != 4 {
             return Err(format!("line {}: 4 fields expected", n + 1));
         }
-        obs.push(adjust::calibrate::Obs {
+        obs.push(adjust::calibration::calibrate::Obs {
             dz_rad: v[0],
             sigma_dz_rad: v[1],
             sigma_dz_dof: None,
@@ -67,18 +67,18 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
     }
     // The file's text is not the adjustment's: gone before it starts.
     drop(text);
-    let terms = adjust::model::Terms {
+    let terms = adjust::calibration::model::Terms {
         order: 1,
         temperature: false,
-        misalignment: adjust::model::Misalignment::None,
+        misalignment: adjust::calibration::model::Misalignment::None,
     };
     let t0 = std::time::Instant::now();
-    let f = adjust::calibrate::calibrate_with(
+    let f = adjust::calibration::calibrate::calibrate_with(
         &obs,
         terms,
         g_mgal,
-        &adjust::calibrate::FitOptions {
-            snooping: adjust::calibrate::Snooping::Off,
+        &adjust::calibration::calibrate::FitOptions {
+            snooping: adjust::calibration::calibrate::Snooping::Off,
             coloured: None,
             components: false,
         },
@@ -87,7 +87,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
     let flagged = f
         .residuals
         .iter()
-        .filter(|r| r.w.abs() > adjust::calibrate::W_CRITICAL)
+        .filter(|r| r.w.abs() > adjust::calibration::calibrate::W_CRITICAL)
         .count();
     let seconds = t0.elapsed().as_secs_f64();
     Ok(format!(

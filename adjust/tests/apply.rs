@@ -3,7 +3,7 @@
 //! drawing parameters), the truth lies within it, and samples outside the calibrated ranges
 //! are flagged.
 
-use adjust::apply::{
+use adjust::survey::apply::{
     COUNTS_OUT_OF_RANGE, CalibrationFunction, NO_TEMPERATURE, TEMPERATURE_OUT_OF_RANGE,
 };
 use ingest::contract::calibration::CalibrationResult;
@@ -203,8 +203,8 @@ fn a_damaged_calibration_is_refused_naming_the_defect() {
 /// `--model` or `--session`, which a stated calibration has not.
 #[test]
 fn a_vendor_calibration_not_stated_is_refused_by_name() {
-    use adjust::apply::select::Choice;
-    use adjust::apply::stream::{Options, VENDOR, run};
+    use adjust::survey::apply::select::Choice;
+    use adjust::survey::apply::stream::{Options, VENDOR, run};
     let dataset = fixtures::dataset_dir("survey");
     let dir = tempfile::tempdir().expect("tempdir");
     let vendor = std::path::Path::new(VENDOR);

@@ -191,7 +191,7 @@ fn replica_recovers_the_truth() {
         assert!(
             r.removed
                 .iter()
-                .all(|x| x.w.abs() > adjust::calibrate::W_CRITICAL)
+                .all(|x| x.w.abs() > adjust::calibration::calibrate::W_CRITICAL)
         );
         assert_eq!(r.n_excluded, r.removed.len());
     }
@@ -430,10 +430,10 @@ fn one_sided_design_cannot_separate_beta_from_k2() {
 /// and misalignment.
 const MC_PARAMETERS: [&str; 5] = ["b", "k", "b_t", "k_t", "beta"];
 /// The Monte-Carlos' model: order 1 with temperature terms and misalignment.
-const MC_TERMS: adjust::model::Terms = adjust::model::Terms {
+const MC_TERMS: adjust::calibration::model::Terms = adjust::calibration::model::Terms {
     order: 1,
     temperature: true,
-    misalignment: adjust::model::Misalignment::Plane,
+    misalignment: adjust::calibration::model::Misalignment::Plane,
 };
 /// True misalignment of the Monte-Carlo, rad.
 const MC_BETA_RAD: f64 = 4.5e-4;
@@ -714,16 +714,18 @@ fn window_sigma(r: &McReading, coloured: Option<fixtures::colour::ColouredNoise>
 
 /// The fit's options, told of `coloured` noise at its generating levels (as adjust is by
 /// align's Allan deviation).
-fn told_of(coloured: Option<fixtures::colour::ColouredNoise>) -> adjust::calibrate::FitOptions {
-    adjust::calibrate::FitOptions {
-        coloured: coloured.map(|c| adjust::correlated::ColouredAdc {
+fn told_of(
+    coloured: Option<fixtures::colour::ColouredNoise>,
+) -> adjust::calibration::calibrate::FitOptions {
+    adjust::calibration::calibrate::FitOptions {
+        coloured: coloured.map(|c| adjust::lsq::correlated::ColouredAdc {
             bias_instability: c.bias_instability_bits,
             random_walk: c.random_walk_bits_per_sqrt_s,
             window_s: WINDOW_SAMPLES as f64 * SAMPLE_S,
             bias_instability_dof: None,
             random_walk_dof: None,
         }),
-        ..adjust::calibrate::FitOptions::default()
+        ..adjust::calibration::calibrate::FitOptions::default()
     }
 }
 
@@ -790,7 +792,7 @@ fn left_out_weights(
     design: &[McReading],
     dz: &[f64],
     weights: Weights,
-) -> Vec<Option<adjust::calibrate::LeftOut>> {
+) -> Vec<Option<adjust::calibration::calibrate::LeftOut>> {
     if weights == Weights::Generating {
         return vec![None; design.len()];
     }
@@ -836,16 +838,16 @@ fn left_out_weights(
                     .collect();
                 let (v, d) = own(&others);
                 out[k] = Some(match weights {
-                    Weights::StationSd => adjust::calibrate::LeftOut {
+                    Weights::StationSd => adjust::calibration::calibrate::LeftOut {
                         sigma_rad: v.sqrt(),
                         dof: Some(d),
                     },
-                    _ if m.prior_dof.is_finite() => adjust::calibrate::LeftOut {
+                    _ if m.prior_dof.is_finite() => adjust::calibration::calibrate::LeftOut {
                         sigma_rad: ((m.prior_dof * m.prior_variance + d * v) / (m.prior_dof + d))
                             .sqrt(),
                         dof: Some(m.prior_dof + d),
                     },
-                    _ => adjust::calibrate::LeftOut {
+                    _ => adjust::calibration::calibrate::LeftOut {
                         sigma_rad: m.prior_variance.sqrt(),
                         dof: Some(pooled),
                     },
@@ -938,7 +940,7 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
                 0.0
             };
         }
-        let options = adjust::calibrate::FitOptions {
+        let options = adjust::calibration::calibrate::FitOptions {
             components,
             ..told_of(match told {
                 Told::Nothing => None,
@@ -946,7 +948,12 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
                 Told::These(c) => Some(c),
             })
         };
-        let f = match adjust::calibrate::calibrate_with(&obs, terms, truth.gravity_mgal, &options) {
+        let f = match adjust::calibration::calibrate::calibrate_with(
+            &obs,
+            terms,
+            truth.gravity_mgal,
+            &options,
+        ) {
             Ok(f) => f,
             Err(e) => {
                 failed.push(e.to_string());
@@ -972,7 +979,7 @@ fn monte_carlo(replicas: usize, weights: Weights, setup: McSetup) -> MonteCarlo 
         let delta: Vec<f64> = (0..5).map(|j| f.values[idx[j]] - p_true[j]).collect();
         let missed = (0..5)
             .filter(|&j| {
-                let half = adjust::components::interval_95_sigmas(f.parameter_dof[idx[j]]);
+                let half = adjust::lsq::components::interval_95_sigmas(f.parameter_dof[idx[j]]);
                 delta[j].abs() > half * f.sigma(idx[j])
             })
             .count();
@@ -1331,7 +1338,7 @@ enum Blunder {
     /// One reading moved by Baarda's MDB for a known sigma (DELTA0).
     KnownSigmaMdb,
     /// One reading moved by the MDB at the dof its test runs on
-    /// ([`adjust::calibrate::mdb_noncentrality`]).
+    /// ([`adjust::calibration::calibrate::mdb_noncentrality`]).
     MdbAtItsDof,
 }
 
@@ -1376,11 +1383,11 @@ fn snooping_monte_carlo(
                 .collect::<Vec<_>>(),
             Weights::Generating,
         );
-        let f = adjust::calibrate::calibrate_with(
+        let f = adjust::calibration::calibrate::calibrate_with(
             &obs,
             terms,
             g,
-            &adjust::calibrate::FitOptions::default(),
+            &adjust::calibration::calibrate::FitOptions::default(),
         )
         .expect("noise-free fit");
         let mut r = vec![1.0; n];
@@ -1410,7 +1417,7 @@ fn snooping_monte_carlo(
                 .and_then(|l| l.dof)
                 .map(|d| q * q / (q_dz * q_dz / d + q_ng * q_ng / ng_dof));
             let delta = if blunder == Blunder::MdbAtItsDof {
-                adjust::calibrate::mdb_noncentrality(dof)
+                adjust::calibration::calibrate::mdb_noncentrality(dof)
             } else {
                 DELTA0
             };
@@ -1422,7 +1429,8 @@ fn snooping_monte_carlo(
         };
         let means = window_means(&design, coloured, &mut rng);
         let obs = replica_obs(&design, &dz, &means, weights);
-        let f = adjust::calibrate::calibrate_with(&obs, terms, g, &told_of(coloured)).expect("fit");
+        let f = adjust::calibration::calibrate::calibrate_with(&obs, terms, g, &told_of(coloured))
+            .expect("fit");
         out.good += n - usize::from(target.is_some());
         for r in &f.removed {
             if Some(r.index) == target {
@@ -1443,7 +1451,7 @@ fn replica_obs(
     dz: &[f64],
     means: &[WindowMean],
     weights: Weights,
-) -> Vec<adjust::calibrate::Obs> {
+) -> Vec<adjust::calibration::calibrate::Obs> {
     let w = station_weights(design, dz, weights);
     let left_out = left_out_weights(design, dz, weights);
     design
@@ -1452,7 +1460,7 @@ fn replica_obs(
         .zip(means)
         .zip(left_out)
         .map(
-            |(((r, &dz_rad), mean), sigma_dz_left_out)| adjust::calibrate::Obs {
+            |(((r, &dz_rad), mean), sigma_dz_left_out)| adjust::calibration::calibrate::Obs {
                 dz_rad,
                 sigma_dz_rad: w[r.station].0,
                 sigma_dz_dof: w[r.station].1,
@@ -1676,10 +1684,10 @@ fn per_session_study(replicas: usize, acc: usize, varied: Varied) -> ([f64; 2], 
 }
 
 /// A linear model without temperature terms or misalignment.
-const LINEAR: adjust::model::Terms = adjust::model::Terms {
+const LINEAR: adjust::calibration::model::Terms = adjust::calibration::model::Terms {
     order: 1,
     temperature: false,
-    misalignment: adjust::model::Misalignment::None,
+    misalignment: adjust::calibration::model::Misalignment::None,
 };
 
 /// One replica's design of the day's readings `day` for accelerometer `acc` (0-based):
@@ -1749,7 +1757,7 @@ fn repeatability_holds_its_level() {
     let replicas = verdict_replicas();
     let (mut trials, mut hits) = (0u64, 0u64);
     for _ in 0..replicas {
-        let estimates: Option<Vec<adjust::repeatability::Estimate>> = (0..2)
+        let estimates: Option<Vec<adjust::calibration::repeatability::Estimate>> = (0..2)
             .map(|_| {
                 let f = study_fit(
                     design.clone(),
@@ -1759,14 +1767,15 @@ fn repeatability_holds_its_level() {
                     truth.gravity_mgal,
                 )?;
                 let c = f.correlation();
-                Some(adjust::repeatability::Estimate::new(
+                Some(adjust::calibration::repeatability::Estimate::new(
                     [f.values[0], f.values[1]],
                     [f.sigma(0), f.sigma(1)],
                     c[0][1],
                 ))
             })
             .collect();
-        let Some(h) = estimates.and_then(|e| adjust::repeatability::homogeneity(&e)) else {
+        let Some(h) = estimates.and_then(|e| adjust::calibration::repeatability::homogeneity(&e))
+        else {
             continue;
         };
         trials += 1;
@@ -1780,7 +1789,7 @@ fn repeatability_holds_its_level() {
         verdict: "repeatability of b and k between sessions".to_owned(),
         replicas: "two sessions of one truth (esgt-2005 day 1, acc1, temperature held)".to_owned(),
         kind: Kind::FalseAlarm,
-        nominal: adjust::repeatability::LEVEL,
+        nominal: adjust::calibration::repeatability::LEVEL,
         trials,
         hits,
         design_effect: 1.0,
@@ -1848,11 +1857,11 @@ fn study_fit(
     design: Vec<McReading>,
     varied: Varied,
     rng: &mut fixtures::rng::Rng,
-    terms: adjust::model::Terms,
+    terms: adjust::calibration::model::Terms,
     g_mgal: f64,
-) -> Option<adjust::calibrate::CalibrationSolution> {
+) -> Option<adjust::calibration::calibrate::CalibrationSolution> {
     let obs = study_obs(design, varied, rng);
-    adjust::calibrate::calibrate(&obs, terms, g_mgal).ok()
+    adjust::calibration::calibrate::calibrate(&obs, terms, g_mgal).ok()
 }
 
 /// One study replica's observations: the stations varied, the readings and window means
@@ -1861,7 +1870,7 @@ fn study_obs(
     design: Vec<McReading>,
     varied: Varied,
     rng: &mut fixtures::rng::Rng,
-) -> Vec<adjust::calibrate::Obs> {
+) -> Vec<adjust::calibration::calibrate::Obs> {
     let design = vary_stations(design, varied, rng);
     let dz = study_readings(&design, varied, rng);
     let means = window_means(&design, None, rng);
@@ -1958,10 +1967,10 @@ fn thermal_study(replicas: usize, acc: usize, varied: Varied) -> ([f64; 4], f64)
     let a = &truth.accelerometer[acc];
     let mut keys: Vec<(&str, &str)> = Vec::new();
     let mut rng = fixtures::rng::Rng::new(20_261_127, "thermal study");
-    let terms = adjust::model::Terms {
+    let terms = adjust::calibration::model::Terms {
         order: 1,
         temperature: true,
-        misalignment: adjust::model::Misalignment::None,
+        misalignment: adjust::calibration::model::Misalignment::None,
     };
     let (mut z2, mut rejected, mut n) = ([0.0; 4], 0, 0);
     for _ in 0..replicas {
@@ -2043,22 +2052,22 @@ fn both_days_design<'t>(
 /// both, docs/model.md 6.1). The truth is b and k at the linear fit's mean temperature, the
 /// temperature its b and k are given at.
 fn per_session_with_thermal_study(replicas: usize, acc: usize, varied: Varied) -> [[f64; 2]; 2] {
-    use adjust::calibrate::{Sensitivity, calibrate};
+    use adjust::calibration::calibrate::{Sensitivity, calibrate};
     let truth = fixtures::read_truth(&fixtures::dataset_dir("esgt-2005")).expect("truth");
     let a = &truth.accelerometer[acc];
     let mut keys: Vec<(&str, &str)> = Vec::new();
     let mut rng = fixtures::rng::Rng::new(20_261_128, "per-session with thermal study");
-    let terms = |temperature| adjust::model::Terms {
+    let terms = |temperature| adjust::calibration::model::Terms {
         order: 1,
         temperature,
-        misalignment: adjust::model::Misalignment::None,
+        misalignment: adjust::calibration::model::Misalignment::None,
     };
     let g = truth.gravity_mgal;
     let (mut plain, mut widened, mut n) = ([0.0; 2], [0.0; 2], 0);
     for _ in 0..replicas {
         let design = both_days_design(&truth, acc, varied, &mut rng, &mut keys);
         let obs = study_obs(design, varied, &mut rng);
-        let day1: Vec<adjust::calibrate::Obs> =
+        let day1: Vec<adjust::calibration::calibrate::Obs> =
             obs.iter().filter(|o| o.session == 0).cloned().collect();
         let (Ok(thermal), Ok(f)) = (
             calibrate(&obs, terms(true), g),
@@ -2171,12 +2180,17 @@ fn the_w_statistic_holds_its_tail() {
                 .collect();
             let means = window_means(&design, None, &mut rng);
             let obs = replica_obs(&design, &dz, &means, weights);
-            let options = adjust::calibrate::FitOptions {
-                snooping: adjust::calibrate::Snooping::Off,
-                ..adjust::calibrate::FitOptions::default()
+            let options = adjust::calibration::calibrate::FitOptions {
+                snooping: adjust::calibration::calibrate::Snooping::Off,
+                ..adjust::calibration::calibrate::FitOptions::default()
             };
-            let f = adjust::calibrate::calibrate_with(&obs, MC_TERMS, truth.gravity_mgal, &options)
-                .expect("fit");
+            let f = adjust::calibration::calibrate::calibrate_with(
+                &obs,
+                MC_TERMS,
+                truth.gravity_mgal,
+                &options,
+            )
+            .expect("fit");
             for r in &f.residuals {
                 n += 1;
                 for (b, c) in beyond.iter_mut().zip(critical) {

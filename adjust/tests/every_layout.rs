@@ -3,8 +3,8 @@
 //! a survey logged as a lab stream is applied by an axis model to the accelerations the same
 //! samples give in counts; a counts log with a reading unit other than counts is refused.
 
-use adjust::apply::select::Choice;
-use adjust::apply::stream::{Options, run};
+use adjust::survey::apply::select::Choice;
+use adjust::survey::apply::stream::{Options, run};
 use arrow_array::types::Float64Type;
 use arrow_array::{Array, cast::AsArray};
 use ingest::contract::calibration::Calibration;

@@ -6,7 +6,7 @@
 //! gravity stage as it is, against shipgrav's free-air anomaly. Run from
 //! target/peers-venv (`bash .ci/peers-venv.sh`).
 
-use adjust::gravity::{filter, navigation, normal::GRS80};
+use adjust::survey::gravity::{filter, navigation, normal::GRS80};
 use std::path::Path;
 use std::process::Command;
 
@@ -292,8 +292,10 @@ fn dgs_reduced_into(
     );
     std::fs::write(ds.join("dataset.toml"), manifest).expect("manifest");
     let out = dir.join("out");
-    let args =
-        adjust::gravity::stage::GravityArgs::new(&ds, Path::new(adjust::apply::stream::VENDOR));
+    let args = adjust::survey::gravity::stage::GravityArgs::new(
+        &ds,
+        Path::new(adjust::survey::apply::stream::VENDOR),
+    );
     let report = args.run(&out).expect("the file reduces as it is");
     assert_eq!(report.sessions[0].epochs_used, 1001, "every epoch");
     let path = out
@@ -389,7 +391,7 @@ fn the_dgs_record_filtered_as_scipy_filters_shipgravs_anomaly() {
 /// separation (altitude plus separation), above sea level where it does not.
 #[test]
 fn ships_nmea_files_read_as_shipgrav_reads_them() {
-    use adjust::gravity::trajectory::{nmea_scan, read_nmea};
+    use adjust::survey::gravity::trajectory::{nmea_scan, read_nmea};
     use ingest::contract::survey::Heights;
     let Some(py) = peers::peers_python() else {
         return;
@@ -551,7 +553,7 @@ fn meters_serial_files_read_as_shipgrav_reads_them() {
 /// quality 0) is a bad line as well, never a position.
 #[test]
 fn a_damaged_nmea_sentence_costs_its_line_alone() {
-    use adjust::gravity::trajectory::read_nmea;
+    use adjust::survey::gravity::trajectory::read_nmea;
     let src =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/real/shipgrav-nav/AT01_nav.gps");
     let text = std::fs::read_to_string(src).expect("read");
@@ -684,7 +686,7 @@ fn a_dgs_laptop_file_reduces_as_shipgrav_reduces_it() {
 /// printed beside the ordinary ones.
 #[test]
 fn the_cross_coupling_fit_agrees_with_shipgrav() {
-    use adjust::gravity::coupling;
+    use adjust::survey::gravity::coupling;
     let Some(py) = peers::peers_python() else {
         return;
     };
@@ -734,7 +736,7 @@ fn the_dgs_record_is_corrected_for_cross_coupling_as_shipgrav_corrects_it() {
         let z = (c.coefficients[i] - rows[0][i + 1]) / c.sigma[i];
         eprintln!(
             "{}: gravcal {:.4e} +/- {:.2e}, shipgrav {:.4e}: z {z:.3}",
-            adjust::gravity::coupling::MONITORS[i],
+            adjust::survey::gravity::coupling::MONITORS[i],
             c.coefficients[i],
             c.sigma[i],
             rows[0][i + 1]
@@ -871,8 +873,10 @@ fn the_dgs_record_s_status_words_are_counted_and_flag_as_declared() {
     let ds = dir.path().join("dgs");
     std::fs::write(ds.join("raw/DGStest_laptop.dat"), clamped).expect("clamped");
     let out = dir.path().join("clamped");
-    let args =
-        adjust::gravity::stage::GravityArgs::new(&ds, Path::new(adjust::apply::stream::VENDOR));
+    let args = adjust::survey::gravity::stage::GravityArgs::new(
+        &ds,
+        Path::new(adjust::survey::apply::stream::VENDOR),
+    );
     let report = args.run(&out).expect("the clamped record reduces");
     let rows = status_column(&out);
     let flagged: Vec<usize> = (0..rows.len())

@@ -5,10 +5,10 @@
 //! (signs, Eotvos, normal gravity, differentiator), a calibration bias is removed by the
 //! two ties, and position noise scatters the result as the reported sigma says.
 
-use adjust::gravity::filter;
-use adjust::gravity::navigation::{eotvos_down, radii};
-use adjust::gravity::normal::GRS80;
-use adjust::gravity::reduce::{Stretch, Tie, reduce};
+use adjust::survey::gravity::filter;
+use adjust::survey::gravity::navigation::{eotvos_down, radii};
+use adjust::survey::gravity::normal::GRS80;
+use adjust::survey::gravity::reduce::{Stretch, Tie, reduce};
 
 const DT: f64 = 0.1;
 const QUAY_S: f64 = 300.0;

@@ -6,8 +6,8 @@
 //! every epoch is accounted for; a thermal triad is applied at its logged temperatures; an
 //! axis model calibrated on a tilt table reduces a vertical axis.
 
-use adjust::gravity::filter;
-use adjust::gravity::stage::{GravityArgs, print_summary};
+use adjust::survey::gravity::filter;
+use adjust::survey::gravity::stage::{GravityArgs, print_summary};
 use ingest::contract::gravity_ledger::GravityReport;
 use ingest::contract::survey::FilterKind;
 use ingest::contract::tables::gravity;
@@ -29,7 +29,7 @@ fn calibration() -> &'static Path {
 
 fn args(dataset: &Path) -> GravityArgs {
     GravityArgs {
-        apply: adjust::apply::stream::ApplyArgs {
+        apply: adjust::survey::apply::stream::ApplyArgs {
             dataset: dataset.to_path_buf(),
             calibration: calibration().to_path_buf(),
             model: None,
@@ -1098,7 +1098,7 @@ fn a_vertical_axis_calibrated_on_a_tilt_table_is_recovered_within_its_sigmas() {
     align::run(&table, &cal).expect("align");
     adjust::run(&table, &cal).expect("adjust");
     let axis = |dataset: &Path, id: &str| GravityArgs {
-        apply: adjust::apply::stream::ApplyArgs {
+        apply: adjust::survey::apply::stream::ApplyArgs {
             dataset: dataset.to_path_buf(),
             calibration: cal.join("adjust").join("calibration.json"),
             model: Some("linear".to_owned()),
@@ -1673,7 +1673,7 @@ fn with_positions_edited(
 ) -> (
     PathBuf,
     PathBuf,
-    Result<GravityReport, adjust::gravity::GravityError>,
+    Result<GravityReport, adjust::survey::gravity::GravityError>,
 ) {
     let dataset = dir.join("lines");
     fixtures::copy_dataset(fixtures::survey_lines::SURVEY_LINES, &dataset, |m| m).expect("copy");
@@ -1870,7 +1870,7 @@ mod cross_coupling {
     //! covariance is honest; the corrected, filtered anomaly is held to the truth within its
     //! sigma.
 
-    use adjust::gravity::stage::GravityArgs;
+    use adjust::survey::gravity::stage::GravityArgs;
     use fixtures::meter::Cruise;
     use ingest::contract::gravity_ledger::GravityReport;
     use ingest::contract::tables::gravity;
@@ -1888,12 +1888,12 @@ mod cross_coupling {
         let truth =
             fixtures::meter::write_cruise(&dataset, cruise, cross_coupling).expect("cruise");
         let out = dir.join("out");
-        let report = GravityArgs::new(&dataset, Path::new(adjust::apply::stream::VENDOR))
+        let report = GravityArgs::new(&dataset, Path::new(adjust::survey::apply::stream::VENDOR))
             .run(&out)
             .expect("reduced");
         let (sections, pad, pivot) = (
-            adjust::gravity::filter::butterworth(
-                adjust::gravity::filter::ORDER,
+            adjust::survey::gravity::filter::butterworth(
+                adjust::survey::gravity::filter::ORDER,
                 1.0 / report.filter.filter_s,
                 1.0,
             )
@@ -1901,7 +1901,7 @@ mod cross_coupling {
             720,
             240,
         );
-        let truth_filtered = adjust::gravity::filter::filtfilt_pivoted(
+        let truth_filtered = adjust::survey::gravity::filter::filtfilt_pivoted(
             &sections,
             &truth.disturbance_mgal,
             pad,
@@ -1958,7 +1958,7 @@ mod cross_coupling {
             let z = (c.coefficients[i] - fixtures::meter::COUPLING[i]) / c.sigma[i];
             eprintln!(
                 "{}: {:.4e} +/- {:.2e} (OLS {:.2e}), truth {:.4e}: z {z:.2}",
-                adjust::gravity::coupling::MONITORS[i],
+                adjust::survey::gravity::coupling::MONITORS[i],
                 c.coefficients[i],
                 c.sigma[i],
                 c.ols_sigma.expect("a fit's")[i],
@@ -2070,7 +2070,7 @@ mod cross_coupling {
         fixtures::meter::write_cruise(&dataset, Cruise::new(3600, 3), "none").expect("cruise");
         let laptop = std::fs::read_to_string(dataset.join("raw/cruise.dat")).expect("dat");
         std::fs::write(dataset.join("raw/nav.nmea"), nmea_of_laptop(&laptop)).expect("nmea");
-        let vendor = Path::new(adjust::apply::stream::VENDOR);
+        let vendor = Path::new(adjust::survey::apply::stream::VENDOR);
         let own = dir.path().join("own");
         GravityArgs::new(&dataset, vendor)
             .run(&own)
@@ -2164,7 +2164,7 @@ mod cross_coupling {
     /// field (`checksum`, `counts`).
     #[test]
     fn a_cruise_logged_as_raw_serial_reduces_as_its_laptop_file() {
-        let vendor = Path::new(adjust::apply::stream::VENDOR);
+        let vendor = Path::new(adjust::survey::apply::stream::VENDOR);
         for (meter, coupling) in [("dgs-raw", "fit"), ("bgm3", "none")] {
             let dir = tempfile::tempdir().expect("tempdir");
             let dataset = dir.path().join("cruise");
@@ -2225,7 +2225,7 @@ mod cross_coupling {
                     let z = (c.coefficients[i] - l.coefficients[i]) / l.sigma[i];
                     eprintln!(
                         "{}: {:.4e} against the laptop file's {:.4e}: {z:.3} sigma",
-                        adjust::gravity::coupling::MONITORS[i],
+                        adjust::survey::gravity::coupling::MONITORS[i],
                         c.coefficients[i],
                         l.coefficients[i]
                     );
@@ -2532,9 +2532,9 @@ mod antenna_array {
         }
         // The planner (`cargo xtask plan` on an `[array]`) for this array, level, heading
         // east as the lines run: the stage's median sds within 3 % of its prediction.
-        let array = adjust::gravity::array_plan::ArrayPlan {
+        let array = adjust::survey::gravity::array_plan::ArrayPlan {
             description: String::new(),
-            array: adjust::gravity::array_plan::PlanArray {
+            array: adjust::survey::gravity::array_plan::PlanArray {
                 positions_m: fixtures::survey_lines::four_antennas().positions_m,
                 sd_m: plan.position_sd_m,
                 rate_hz: plan.rates_hz[1],
@@ -2542,7 +2542,7 @@ mod antenna_array {
                 g_mgal: 980_000.0,
             },
         };
-        let east = &adjust::gravity::array_plan::predict(&array).expect("plan")[2];
+        let east = &adjust::survey::gravity::array_plan::predict(&array).expect("plan")[2];
         let [north_sigma, east_sigma] =
             horizontal_scores(&dataset, &out, r.filter.filter_s).map(|s| s[2]);
         let pairs = [

@@ -68,12 +68,12 @@ fn the_lab_logger_calibrates_and_applies_within_its_sigmas() {
     // The day's linear model applied to the drive, a lab stream.
     let cal_path = out.path().join("adjust/calibration.json");
     let applied_out = tempfile::tempdir().expect("tempdir");
-    adjust::apply::stream::run(
+    adjust::survey::apply::stream::run(
         &dataset,
         applied_out.path(),
-        &adjust::apply::stream::Options {
+        &adjust::survey::apply::stream::Options {
             calibration: &cal_path,
-            choice: adjust::apply::select::Choice {
+            choice: adjust::survey::apply::select::Choice {
                 model: Some("linear"),
                 session: Some("table"),
             },

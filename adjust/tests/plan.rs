@@ -2,8 +2,8 @@
 //! same adjustment on simulated data of the same plan, and the scatter of that adjustment's
 //! estimates over many replicas.
 
-use adjust::calibrate::{FitOptions, Obs, Snooping};
-use adjust::plan::{Plan, observations, predict};
+use adjust::calibration::calibrate::{FitOptions, Obs, Snooping};
+use adjust::calibration::plan::{Plan, observations, predict};
 
 fn plan(name: &str) -> Plan {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -23,9 +23,9 @@ fn replica(obs: &[(String, Obs)], rng: &mut fixtures::rng::Rng) -> Vec<Obs> {
         .collect()
 }
 
-fn fit(plan: &Plan, obs: &[Obs]) -> adjust::calibrate::CalibrationSolution {
+fn fit(plan: &Plan, obs: &[Obs]) -> adjust::calibration::calibrate::CalibrationSolution {
     let m = &plan.model[0];
-    let terms = adjust::model::Terms {
+    let terms = adjust::calibration::model::Terms {
         order: usize::from(m.order),
         temperature: m.temperature,
         misalignment: m.misalignment,
@@ -35,7 +35,8 @@ fn fit(plan: &Plan, obs: &[Obs]) -> adjust::calibrate::CalibrationSolution {
         coloured: None,
         components: false,
     };
-    adjust::calibrate::calibrate_with(obs, terms, plan.site.g_mgal, &options).expect("fits")
+    adjust::calibration::calibrate::calibrate_with(obs, terms, plan.site.g_mgal, &options)
+        .expect("fits")
 }
 
 /// On one replica of the two-roll plan the adjustment's a-priori sigmas are the planner's
@@ -129,7 +130,8 @@ fn the_papers_design_names_what_it_cannot_determine() {
     // dof for 15 readings a station), and Baarda's with sigma_Dz known: larger by the ratio
     // of their non-centralities.
     let mdb = linear.mdb.as_ref().expect("an MDB");
-    let ratio = adjust::calibrate::mdb_noncentrality(Some(13.0)) / adjust::plan::DELTA_0;
+    let ratio = adjust::calibration::calibrate::mdb_noncentrality(Some(13.0))
+        / adjust::calibration::plan::DELTA_0;
     for (t, known) in [
         (mdb.dz_arcsec[0], mdb.dz_arcsec_known[0]),
         (mdb.ng_counts[0], mdb.ng_counts_known[0]),
@@ -167,10 +169,10 @@ fn misaligned(p: &Plan, theta: f64, psi_deg: f64) -> Vec<(String, Obs)> {
 #[test]
 fn the_direction_is_honest_or_withheld() {
     let p = plan("two-rolls.toml");
-    let terms = adjust::model::Terms {
+    let terms = adjust::calibration::model::Terms {
         order: 1,
         temperature: true,
-        misalignment: adjust::model::Misalignment::Vector,
+        misalignment: adjust::calibration::model::Misalignment::Vector,
     };
     let mut rng = fixtures::rng::Rng::new(13, "plan-psi");
     let n = 500;

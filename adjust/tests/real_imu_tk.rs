@@ -135,7 +135,7 @@ fn imu_tk_choice(
     g_mgal: f64,
     by_multiple: &[Vec<(f64, f64)>],
 ) -> (usize, Vec<f64>) {
-    use adjust::triad::{Position, PositionFloor, TriadModel, calibrate_with_floor};
+    use adjust::calibration::triad::{Position, PositionFloor, TriadModel, calibrate_with_floor};
     let floor = 1e5;
     let mut best: Option<(f64, usize, Vec<f64>)> = None;
     for (i, intervals) in by_multiple.iter().enumerate() {

@@ -6,8 +6,8 @@
 //! refuse a foreign instrument and an ambiguous model, and DuckDB reads the table to the
 //! same per-minute means.
 
-use adjust::apply::select::Choice;
-use adjust::apply::stream::{Options, run};
+use adjust::survey::apply::select::Choice;
+use adjust::survey::apply::stream::{Options, run};
 use arrow_array::types::{Float64Type, Int64Type, UInt8Type};
 use arrow_array::{Array, cast::AsArray};
 use ingest::contract::apply_ledger::ApplyReport;

@@ -3,7 +3,7 @@
 //! global test; too few positions and positions in one plane named; and a second opinion,
 //! scipy.optimize.least_squares on the same static means, written in Python beside it.
 
-use adjust::triad::{self, NAMES, Position, TriadError, TriadModel};
+use adjust::calibration::triad::{self, NAMES, Position, TriadError, TriadModel};
 use fixtures::rng::Rng;
 use fixtures::triad::{StaticPosition, Triad, positions};
 
@@ -380,7 +380,7 @@ fn the_committed_lab_session_calibrates_the_triad() {
     // A scale damaged to 1e300 would make every applied vector inf (and the gravity
     // stage's every value NaN): refused where the function is meant to be used, as an
     // axis function's is.
-    use adjust::apply::triad_stream::TriadFunction;
+    use adjust::survey::apply::triad_stream::TriadFunction;
     TriadFunction::new(r).expect("the real result applies");
     let mut bad = r.clone();
     bad.parameters[3].value = 1e300;
@@ -998,12 +998,12 @@ fn applied_z(
     use arrow_array::{Array, cast::AsArray};
     use ingest::contract::tables::applied::TRIAD_COLUMNS;
     let cal = out.join("adjust/calibration.json");
-    let report = adjust::apply::stream::run(
+    let report = adjust::survey::apply::stream::run(
         dataset,
         out,
-        &adjust::apply::stream::Options {
+        &adjust::survey::apply::stream::Options {
             calibration: &cal,
-            choice: adjust::apply::select::Choice {
+            choice: adjust::survey::apply::select::Choice {
                 model: Some("triad"),
                 session: Some("lab"),
             },

@@ -308,7 +308,7 @@ pub(crate) fn snooping_section(st: &Stages<'_>) -> Section {
     let mut s = section("Global test and data snooping");
     s.text.push(format!(
         "Data snooping removed, one at a time, the observation with the largest normalised residual |w| > {} (alpha = 0.001) and re-adjusted. Every removal:",
-        adjust::calibrate::W_CRITICAL
+        adjust::calibration::calibrate::W_CRITICAL
     ));
     let mut removed = Table::new(&[
         "model",
@@ -346,7 +346,7 @@ pub(crate) fn repeatability_section(st: &Stages<'_>) -> Section {
     let mut s = section("Repeatability between sessions");
     s.text.push(format!(
         "For each model fitted one session at a time, the sessions' (b, k) are tested for one common value at their sigmas and correlation: chi-square on 2 (sessions - 1) dof, a change reported below p = {}. The test's false-alarm rate on two sessions of one truth is measured by `cargo xtask verdicts` (docs/model.md 6.9).",
-        adjust::repeatability::LEVEL,
+        adjust::calibration::repeatability::LEVEL,
     ));
     let mut t = Table::new(&[
         "model",

@@ -607,7 +607,7 @@ fn plots(epochs: &[Epoch], quantity: &str) -> Result<Vec<(String, String)>, Erro
         let k_lon = 111.2 * lat0.to_radians().cos();
         // East from the first epoch the short way round (a track across the antimeridian).
         let xy = |x: &Epoch| {
-            let d_lon = adjust::gravity::navigation::longitude_step_deg(lon0, x.lon);
+            let d_lon = adjust::survey::gravity::navigation::longitude_step_deg(lon0, x.lon);
             (d_lon * k_lon, (x.lat - lat0) * k_lat)
         };
         let map: Vec<(f64, f64, f64)> = e

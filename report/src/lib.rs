@@ -68,7 +68,7 @@ fn param<'a>(r: &'a CalibrationResult, name: &str) -> Option<&'a Parameter> {
 }
 
 fn t_critical(dof: usize) -> f64 {
-    adjust::components::t_quantile(0.975, dof.max(1) as f64)
+    adjust::lsq::components::t_quantile(0.975, dof.max(1) as f64)
 }
 
 fn gps(ns: i64) -> String {
@@ -115,8 +115,8 @@ struct Stages<'a> {
     cal: Calibration,
     ingest_report: IngestReport,
     align_report: AlignReport,
-    residuals: Vec<adjust::io::ResidualRecord>,
-    observations: Vec<adjust::io::ObservationRow>,
+    residuals: Vec<adjust::calibration::io::ResidualRecord>,
+    observations: Vec<adjust::calibration::io::ObservationRow>,
 }
 
 /// Builds the report's sections from the stage outputs under `out`, one function a section.
@@ -127,8 +127,10 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         cal: Calibration::load_verified(ds, out)?,
         ingest_report: IngestReport::load(&out.join(ingest_ledger::STAGE_DIR))?,
         align_report: AlignReport::load(&out.join(align_ledger::STAGE_DIR))?,
-        residuals: adjust::io::read_residuals(&out.join(calibration::STAGE_DIR))?,
-        observations: adjust::io::read_observations(&out.join(align_ledger::STAGE_DIR))?,
+        residuals: adjust::calibration::io::read_residuals(&out.join(calibration::STAGE_DIR))?,
+        observations: adjust::calibration::io::read_observations(
+            &out.join(align_ledger::STAGE_DIR),
+        )?,
     };
     // The answer first; then what each kind of model holds, only where the dataset has one;
     // the ledgers and the chain of custody last.

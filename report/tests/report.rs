@@ -438,9 +438,10 @@ fn gravity(
     dataset: &Path,
     cal: &Path,
     out: &Path,
-) -> Result<ingest::contract::gravity_ledger::GravityReport, adjust::gravity::GravityError> {
-    adjust::gravity::stage::GravityArgs {
-        apply: adjust::apply::stream::ApplyArgs {
+) -> Result<ingest::contract::gravity_ledger::GravityReport, adjust::survey::gravity::GravityError>
+{
+    adjust::survey::gravity::stage::GravityArgs {
+        apply: adjust::survey::apply::stream::ApplyArgs {
             dataset: dataset.to_path_buf(),
             calibration: cal.join("adjust/calibration.json"),
             model: None,

@@ -160,7 +160,7 @@ pub fn marine(
     let out = data.join(format!("out-meter-{hours}h"));
     let vendor = [
         "--calibration".as_ref(),
-        adjust::apply::stream::VENDOR.as_ref(),
+        adjust::survey::apply::stream::VENDOR.as_ref(),
     ];
     let ours = || -> Result<super::bench::Run> {
         let _ = std::fs::remove_dir_all(&out);
@@ -175,7 +175,7 @@ pub fn marine(
     };
     let script = data.join("shipgrav_reduce.py");
     let csv = data.join("shipgrav-reduced.csv");
-    let (taps, cutoff) = adjust::gravity::filter::windowed_sinc_design(
+    let (taps, cutoff) = adjust::survey::gravity::filter::windowed_sinc_design(
         ingest::contract::survey::FilterKind::Blackman,
         240.0,
     );

@@ -137,7 +137,7 @@ fn peek_all(ds: &Dataset, copy: &Path, out: &Path, w: &mut impl Write) -> Result
 /// their epochs, first and last time and rate, or the error naming file, line and field.
 /// Returns whether they read.
 fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Result<bool> {
-    use adjust::gravity::trajectory::{read_csv, read_dgs_laptop, read_nmea, read_rtklib};
+    use adjust::survey::gravity::trajectory::{read_csv, read_dgs_laptop, read_nmea, read_rtklib};
     use ingest::contract::survey::TrajectoryFormat;
     let Some(src) = &s.trajectory else {
         return Ok(true);
@@ -159,7 +159,7 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
             ("CSV", read_csv(&src.path, s.times.reader(form), false))
         }
         TrajectoryFormat::Nmea => (
-            match adjust::gravity::trajectory::nmea_scan(&src.path) {
+            match adjust::survey::gravity::trajectory::nmea_scan(&src.path) {
                 Ok(scan) if scan.gga => match scan.heights {
                     ingest::contract::survey::Heights::Ellipsoidal => {
                         "NMEA, GGA fixes, heights above the ellipsoid (altitude plus separation)"
@@ -191,8 +191,12 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
         .unwrap_or(path)
         .display()
         .to_string();
-    let read =
-        adjust::gravity::attitude::read_csv(path, s.times.reader(*form), s.gps_range_ns(), false);
+    let read = adjust::survey::gravity::attitude::read_csv(
+        path,
+        s.times.reader(*form),
+        s.gps_range_ns(),
+        false,
+    );
     match read {
         Ok(a) => {
             let what = format!("(session {}, attitude; CSV)", s.session.id);

@@ -115,7 +115,7 @@ fn placed(value: &str, scratch: &Path) -> String {
 /// Apply (and gravity, where `s` says) on `dataset` into `out`, with the calibration the
 /// fixture whose output folder is `from` fitted.
 fn survey(dataset: &Path, out: &Path, s: &Survey, from: &Path) -> Result<()> {
-    let apply = adjust::apply::stream::ApplyArgs {
+    let apply = adjust::survey::apply::stream::ApplyArgs {
         dataset: dataset.to_path_buf(),
         calibration: from.join("adjust").join("calibration.json"),
         model: s.model.map(str::to_owned),
@@ -127,7 +127,7 @@ fn survey(dataset: &Path, out: &Path, s: &Survey, from: &Path) -> Result<()> {
         return Ok(());
     }
     // Gravity runs apply itself.
-    let gravity = adjust::gravity::stage::GravityArgs {
+    let gravity = adjust::survey::gravity::stage::GravityArgs {
         apply,
         accelerometer: None,
         skip_bad_lines: false,

@@ -94,9 +94,9 @@ enum Cmd {
     /// Stage outputs to the report (OUT/report/).
     Report(DatasetArgs),
     /// A calibration applied to a dataset's (survey's) samples (OUT/apply/; docs/formats.md 8.5).
-    Apply(adjust::apply::stream::ApplyArgs),
+    Apply(adjust::survey::apply::stream::ApplyArgs),
     /// A survey reduced to gravity along the track (OUT/gravity/; docs/formats.md 10).
-    Gravity(adjust::gravity::stage::GravityArgs),
+    Gravity(adjust::survey::gravity::stage::GravityArgs),
     /// Writes the committed fixture datasets, checks them, or writes a large benchmark log.
     Fixtures(FixturesArgs),
     /// Fits a polynomial to two columns of a CSV table (docs/formats.md section 7); prints JSON.
@@ -432,7 +432,7 @@ fn ci_pipelines() -> Result<()> {
         eprintln!("pipeline on {name}: ok");
     }
     // The README's second command: esgt-2005's calibration applied to the survey.
-    let apply = adjust::apply::stream::ApplyArgs {
+    let apply = adjust::survey::apply::stream::ApplyArgs {
         dataset: fixtures::dataset_dir("survey"),
         calibration: scratch.join("esgt-2005/adjust/calibration.json"),
         model: Some("thermal".to_owned()),
@@ -443,8 +443,8 @@ fn ci_pipelines() -> Result<()> {
     let report = result.context("apply of esgt-2005's calibration to fixture survey");
     // The third: triad-multipos's calibration reducing survey-lines to gravity.
     let lines = fixtures::survey_lines::SURVEY_LINES;
-    let gravity = adjust::gravity::stage::GravityArgs {
-        apply: adjust::apply::stream::ApplyArgs {
+    let gravity = adjust::survey::gravity::stage::GravityArgs {
+        apply: adjust::survey::apply::stream::ApplyArgs {
             dataset: fixtures::dataset_dir(lines),
             calibration: scratch.join("triad-multipos/adjust/calibration.json"),
             model: None,
@@ -467,10 +467,10 @@ fn ci_pipelines() -> Result<()> {
     });
     let _ = std::fs::remove_dir_all(&scratch);
     let report = report?;
-    adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
+    adjust::survey::apply::stream::print_summary(&report, &mut std::io::stderr());
     eprintln!("apply on survey: ok");
     let gravity = gravity?;
-    adjust::gravity::stage::print_summary(&gravity, &mut std::io::stderr());
+    adjust::survey::gravity::stage::print_summary(&gravity, &mut std::io::stderr());
     eprintln!("gravity on {lines}: ok");
     Ok(())
 }
@@ -551,7 +551,7 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 /// `cargo xtask apply`: the calibration applied to a dataset's survey samples.
-fn apply(mut a: adjust::apply::stream::ApplyArgs) -> Result<()> {
+fn apply(mut a: adjust::survey::apply::stream::ApplyArgs) -> Result<()> {
     a.out = Some(out_dir(&DatasetArgs {
         dataset: a.dataset.clone(),
         out: a.out.clone(),
@@ -560,14 +560,14 @@ fn apply(mut a: adjust::apply::stream::ApplyArgs) -> Result<()> {
     let report = a
         .run(&workspace_root())
         .with_context(|| format!("apply on {}", a.dataset.display()))?;
-    adjust::apply::stream::print_summary(&report, &mut std::io::stderr());
+    adjust::survey::apply::stream::print_summary(&report, &mut std::io::stderr());
     eprintln!("apply: {:.2} s", t0.elapsed().as_secs_f64());
     Ok(())
 }
 
 /// `cargo xtask gravity`: the survey dataset's own pipeline first (its report gains the
 /// gravity section), then apply and gravity, then the report again.
-fn gravity(a: &adjust::gravity::stage::GravityArgs) -> Result<()> {
+fn gravity(a: &adjust::survey::gravity::stage::GravityArgs) -> Result<()> {
     let args = DatasetArgs {
         dataset: a.apply.dataset.clone(),
         out: a.apply.out.clone(),
@@ -578,7 +578,7 @@ fn gravity(a: &adjust::gravity::stage::GravityArgs) -> Result<()> {
     let report = a
         .run(&out)
         .with_context(|| format!("gravity on {}", a.apply.dataset.display()))?;
-    adjust::gravity::stage::print_summary(&report, &mut std::io::stderr());
+    adjust::survey::gravity::stage::print_summary(&report, &mut std::io::stderr());
     eprintln!("gravity: {:.2} s", t0.elapsed().as_secs_f64());
     run_stages(&args, &["report"])
 }
@@ -635,7 +635,7 @@ fn plan_command(plan: &Path, json: bool) -> Result<()> {
         std::fs::read_to_string(plan).with_context(|| format!("reading {}", plan.display()))?;
     // An antenna array's plan (docs/planning.md, "An antenna array"): its own table.
     if toml::from_str::<toml::Table>(&text).is_ok_and(|t| t.contains_key("array")) {
-        use adjust::gravity::array_plan;
+        use adjust::survey::gravity::array_plan;
         let parsed: array_plan::ArrayPlan =
             toml::from_str(&text).with_context(|| format!("{}", plan.display()))?;
         let rows = array_plan::predict(&parsed).with_context(|| format!("{}", plan.display()))?;
@@ -644,14 +644,14 @@ fn plan_command(plan: &Path, json: bool) -> Result<()> {
             false => print_stdout(&array_plan::render(&parsed, &rows)),
         };
     }
-    let parsed: adjust::plan::Plan =
+    let parsed: adjust::calibration::plan::Plan =
         toml::from_str(&text).with_context(|| format!("{}", plan.display()))?;
-    let predictions =
-        adjust::plan::predict(&parsed).with_context(|| format!("{}", plan.display()))?;
+    let predictions = adjust::calibration::plan::predict(&parsed)
+        .with_context(|| format!("{}", plan.display()))?;
     if json {
         print_stdout(&serde_json::to_string_pretty(&predictions)?)
     } else {
-        print_stdout(&adjust::plan::render(&predictions))
+        print_stdout(&adjust::calibration::plan::render(&predictions))
     }
 }
 

@@ -204,7 +204,8 @@ fn coarsely_logged(method: &str) {
     let c =
         ingest::contract::calibration::Calibration::load(&out.join("adjust")).expect("calibration");
     let floor = (0.001f64).to_radians() / 12f64.sqrt();
-    let rows = adjust::io::read_observations(&out.join("align")).expect("observations");
+    let rows =
+        adjust::calibration::io::read_observations(&out.join("align")).expect("observations");
     assert!(rows.len() > 600, "{} observations", rows.len());
     assert!(rows.iter().all(|o| o.sigma_dz_rad >= floor * (1.0 - 1e-9)));
     if method == "station" {
@@ -391,7 +392,8 @@ fn byte_order_marks_and_bad_encodings() {
     let out = out_of(&dir);
     ingest::run(&ds, &out).expect("ingest");
     align::run(&ds, &out).expect("align");
-    let rows = adjust::io::read_observations(&out.join("align")).expect("observations");
+    let rows =
+        adjust::calibration::io::read_observations(&out.join("align")).expect("observations");
     assert!(!rows.is_empty(), "observations from the log with a BOM");
     assert!(
         rows.iter().all(|o| o.station.starts_with('T')),

@@ -319,10 +319,10 @@ fn another_datasets_output_folder_is_refused() {
     let survey = fixtures::dataset_dir("survey");
     let cal = dir.path().join("calibration.json");
     std::fs::write(&cal, "{}").expect("write");
-    let e = adjust::apply::stream::run(
+    let e = adjust::survey::apply::stream::run(
         &survey,
         &out,
-        &adjust::apply::stream::Options {
+        &adjust::survey::apply::stream::Options {
             calibration: &cal,
             choice: Default::default(),
         },
@@ -343,11 +343,11 @@ fn another_datasets_output_folder_is_refused() {
 fn the_planner_is_validated_like_a_manifest() {
     let plan = std::fs::read_to_string(xtask_root().join("fixtures/plans/paper.toml"))
         .expect("paper.toml");
-    let parse = |text: &str| -> Result<adjust::plan::Plan, String> {
+    let parse = |text: &str| -> Result<adjust::calibration::plan::Plan, String> {
         toml::from_str(text).map_err(|e| e.to_string())
     };
     let ok = parse(&plan).expect("the paper's plan parses");
-    adjust::plan::predict(&ok).expect("the paper's plan predicts");
+    adjust::calibration::plan::predict(&ok).expect("the paper's plan predicts");
     let first_model = plan.find("[[model]]").expect("a model");
     let with_model = |extra: &str| {
         let mut p = plan.clone();
@@ -404,7 +404,7 @@ fn the_planner_is_validated_like_a_manifest() {
         assert_ne!(text, plan, "the case changed the plan ({says})");
         let e = match parse(&text) {
             Err(e) => e,
-            Ok(p) => adjust::plan::predict(&p)
+            Ok(p) => adjust::calibration::plan::predict(&p)
                 .map(|_| ())
                 .expect_err(says)
                 .to_string(),
@@ -464,8 +464,8 @@ fn fit_says_what_it_cannot_do() {
 /// OUT/apply), naming the calibration file and the defect.
 #[test]
 fn apply_refuses_a_damaged_calibration_before_any_work() {
-    use adjust::apply::select::Choice;
-    use adjust::apply::stream::{Options, run};
+    use adjust::survey::apply::select::Choice;
+    use adjust::survey::apply::stream::{Options, run};
     let dir = tempfile::tempdir().expect("tempdir");
     let cases: [(&str, &str, &str, Option<&str>, &str); 2] = [
         ("esgt-2005", "survey", "thermal", None, "`k4`"),
@@ -570,12 +570,12 @@ fn readings_in_two_units_are_refused() {
     align::run(&esgt, &cal_out).expect("align");
     adjust::run(&esgt, &cal_out).expect("adjust");
     let out = dir.path().join("out");
-    let e = adjust::apply::stream::run(
+    let e = adjust::survey::apply::stream::run(
         &survey,
         &out,
-        &adjust::apply::stream::Options {
+        &adjust::survey::apply::stream::Options {
             calibration: &cal_out.join("adjust/calibration.json"),
-            choice: adjust::apply::select::Choice {
+            choice: adjust::survey::apply::select::Choice {
                 model: Some("thermal"),
                 session: None,
             },

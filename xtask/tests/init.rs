@@ -242,9 +242,12 @@ fn a_dgs_meters_file_is_drafted_as_a_survey_of_its_own_navigation() {
     let o = xtask(&["check", ds.to_str().expect("utf-8")]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stdout));
     let out = dir.path().join("out");
-    let r = adjust::gravity::stage::GravityArgs::new(&ds, Path::new(adjust::apply::stream::VENDOR))
-        .run(&out)
-        .expect("reduced");
+    let r = adjust::survey::gravity::stage::GravityArgs::new(
+        &ds,
+        Path::new(adjust::survey::apply::stream::VENDOR),
+    )
+    .run(&out)
+    .expect("reduced");
     assert_eq!(r.sessions[0].epochs_used, 1001);
     assert!(
         r.sessions[0].quantities.free_air_anomaly,

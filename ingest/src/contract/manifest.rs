@@ -145,7 +145,7 @@ pub struct Accelerometer {
 /// A calibration its maker states: the meter's gravity is `offset_mgal + scale * reading`,
 /// mGal, with the sds the maker gives (none: taken as exact, its sigma 0). Not a fit: it
 /// has no observations, residuals or tests. Apply gives it in the axis models' convention,
-/// minus the specific force along an axis pointing up (`adjust::apply`).
+/// minus the specific force along an axis pointing up (`adjust::survey::apply`).
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct VendorCalibration {

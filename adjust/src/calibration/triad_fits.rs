@@ -1,9 +1,9 @@
 //! The triad models of a dataset (docs/formats.md 8.4): align's static positions of its
-//! multi-position sessions through [`crate::triad::calibrate`], per session or over all,
+//! multi-position sessions through [`crate::calibration::triad::calibrate`], per session or over all,
 //! into calibration.json's `triad` results (or `skipped`, with the reason), and each
 //! result's imu_tk `.calib` text. No I/O.
 
-use crate::triad::{self, Position, TriadModel, TriadSolution};
+use crate::calibration::triad::{self, Position, TriadModel, TriadSolution};
 use ingest::contract::align_ledger::{AlignReport, MultiPosition, StaticPosition};
 use ingest::contract::calibration::{
     ALL_SESSIONS, FitScope, GlobalTest, Parameter, PositionFloorUsed, Skipped, TRIAD,

@@ -266,8 +266,8 @@ mod tests {
 #[cfg(test)]
 mod lag_tests {
     use super::*;
-    use crate::gravity::navigation::radii;
-    use crate::gravity::normal::GRS80;
+    use crate::survey::gravity::navigation::radii;
+    use crate::survey::gravity::normal::GRS80;
 
     /// An aircraft's half-circle turn at 60 m/s (1500 m radius) on the equator (no Coriolis
     /// force north or east there), no noise, the epochs' |f|^2 as their triangles see the

@@ -1,7 +1,7 @@
 //! calibration.json and residuals.parquet written with their chain of custody, and the
 //! console's summary.
 
-use super::{
+use crate::{
     CALIBRATION_FILE, Calibration, CalibrationResult, Custody, Dataset, Error, Folders, Parameter,
     Path, Root, STAGE_DIR, align_ledger, ingest_ledger, io, triad_fits,
 };

@@ -8,7 +8,7 @@
 //! the observations: the model's covariances are sums of exponentials and a minimum, both
 //! separable in time order. Sessions are independent. No I/O.
 
-use crate::gh::Solution;
+use crate::lsq::gh::Solution;
 use align::colour::{Flicker, WindowedFlicker};
 
 /// The coloured ADC noise of one accelerometer, in counts.

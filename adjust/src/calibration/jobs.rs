@@ -2,7 +2,7 @@
 //! accelerometer and session (or all sessions), each fitted on its own rayon task, and the
 //! reason a fit could not be made.
 
-use super::{
+use crate::{
     AlignReport, CalError, CalibrationResult, ColouredAdc, Dataset, LeftOut, Misalignment,
     ModelDecl, ModelKind, Obs, Per, Skipped, Terms, VarianceComponent, calibrate, components, io,
     result_of, vector_note,

@@ -3,10 +3,10 @@
 //! alpha = 0.001, critical value 3.29), the global test, and the parameters mapped back to
 //! counts. No I/O.
 
-use crate::components::{self, Component, ScaledChi2};
-use crate::correlated::{self, ColouredAdc, Timeline};
-use crate::gh::{self, GhError, Options};
-use crate::model::{CalibrationConditions, Terms, apply, propagate};
+use crate::calibration::model::{CalibrationConditions, Terms, apply, propagate};
+use crate::lsq::components::{self, Component, ScaledChi2};
+use crate::lsq::correlated::{self, ColouredAdc, Timeline};
+use crate::lsq::gh::{self, GhError, Options};
 
 /// Critical value of the w-test (two-sided, alpha = 0.001).
 pub const W_CRITICAL: f64 = 3.29;
@@ -447,7 +447,7 @@ pub struct FitOptions {
     /// Data snooping.
     pub snooping: Snooping,
     /// The accelerometer's coloured ADC noise, propagated into the parameters' covariance
-    /// ([`crate::correlated`]); None: white.
+    /// ([`crate::lsq::correlated`]); None: white.
     pub coloured: Option<ColouredAdc>,
     /// Estimate the variance components (and adjust again at them); off, one adjustment and
     /// no components (for benchmarks of the adjustment itself).
@@ -824,7 +824,11 @@ fn t_scaled(
 }
 
 /// An adjustment's failure as a fit's, naming the parameter or observation.
-fn cal_error(e: GhError, names: &[crate::model::ParamName], active: &[usize]) -> CalError {
+fn cal_error(
+    e: GhError,
+    names: &[crate::calibration::model::ParamName],
+    active: &[usize],
+) -> CalError {
     match e {
         GhError::NotEstimable { index } => CalError::NotEstimable {
             parameter: names[index].name,
@@ -1008,7 +1012,7 @@ mod tests {
         Terms {
             order,
             temperature,
-            misalignment: crate::model::Misalignment::None,
+            misalignment: crate::calibration::model::Misalignment::None,
         }
     }
 

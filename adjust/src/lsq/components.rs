@@ -172,7 +172,11 @@ struct Station {
 /// Station-level sums of a solution, by station index (a station without observations is
 /// all zeros): `station[i]` groups observation i, `dof[i]` is the dof of its sigma_Dz
 /// (None: known).
-fn stations(s: &crate::gh::Solution<3>, station: &[usize], dof: &[Option<f64>]) -> Vec<Station> {
+fn stations(
+    s: &crate::lsq::gh::Solution<3>,
+    station: &[usize],
+    dof: &[Option<f64>],
+) -> Vec<Station> {
     let count = station.iter().max().map_or(0, |m| m + 1);
     let mut out = vec![Station::default(); count];
     for (i, &j) in station.iter().enumerate() {
@@ -204,7 +208,7 @@ impl Station {
 }
 
 /// The theodolite's share of each station's variance, by station index.
-pub fn shares(s: &crate::gh::Solution<3>, station: &[usize]) -> Vec<f64> {
+pub fn shares(s: &crate::lsq::gh::Solution<3>, station: &[usize]) -> Vec<f64> {
     stations(s, station, &vec![None; station.len()])
         .iter()
         .map(|x| x.share)
@@ -214,7 +218,7 @@ pub fn shares(s: &crate::gh::Solution<3>, station: &[usize]) -> Vec<f64> {
 /// The global test of a solution: the between-station part of v^T P v against its scaled
 /// chi-square; `excess` is its expected part from noise the weights do not carry.
 pub fn lack_of_fit(
-    s: &crate::gh::Solution<3>,
+    s: &crate::lsq::gh::Solution<3>,
     station: &[usize],
     dof: &[Option<f64>],
     excess: f64,
@@ -278,7 +282,7 @@ impl Component {
 /// `Q (sum_i a_i a_i^T u_ig / q_i^2) Q`, u_ig its share of condition i's variance q_i (the
 /// parts sum to Q).
 pub fn parameter_dof(
-    s: &crate::gh::Solution<3>,
+    s: &crate::lsq::gh::Solution<3>,
     components: &[Component],
     map: &[f64],
     covariance: &[f64],
@@ -309,7 +313,7 @@ pub fn parameter_dof(
     }
     let mut denominator = vec![0.0; m];
     for ((_, dof), part) in estimated.iter().zip(&parts) {
-        let reported = crate::model::propagate(map, part, m);
+        let reported = crate::calibration::model::propagate(map, part, m);
         for (j, d) in denominator.iter_mut().enumerate() {
             *d += reported[j * m + j].powi(2) / dof;
         }
@@ -328,7 +332,7 @@ pub fn parameter_dof(
 /// at the current components (`excess`: the share-weighted part of noise the weights do not
 /// carry); the test is meaningful at the a-priori weights.
 pub fn theodolite_step(
-    s: &crate::gh::Solution<3>,
+    s: &crate::lsq::gh::Solution<3>,
     station: &[usize],
     dof: &[Option<f64>],
     excess: f64,
@@ -345,7 +349,11 @@ pub fn theodolite_step(
 /// 2 for known sigmas): the dof, 2 / that, are sum_j s_j^2 r_j where every share is 1 and
 /// fewer as the other groups take more of the stations' variance (a 0.1 K thermometer
 /// leaves the theodolite half of it, and a quarter of the dof the form's own would say).
-pub fn theodolite_dof(s: &crate::gh::Solution<3>, station: &[usize], dof: &[Option<f64>]) -> f64 {
+pub fn theodolite_dof(
+    s: &crate::lsq::gh::Solution<3>,
+    station: &[usize],
+    dof: &[Option<f64>],
+) -> f64 {
     let st = stations(s, station, dof);
     share_weighted_dof(st.iter().map(|x| (x.share, x.redundancy, x.t2_variance)))
 }
@@ -409,7 +417,7 @@ pub fn adc_component(
     sigma_ng: &[f64],
     dof: &[Option<f64>],
     station: &[usize],
-    excess: crate::correlated::Excess,
+    excess: crate::lsq::correlated::Excess,
 ) -> Component {
     let count = station.iter().max().map_or(0, |m| m + 1);
     // Two passes: the weighted mean of each station (with its windows' f and c), then the
@@ -471,7 +479,7 @@ pub fn adc_component(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::correlated::Excess;
+    use crate::lsq::correlated::Excess;
 
     /// A weighted mean of n conditions, each with a theodolite part u0 and an ADC part u1 of
     /// its variance: the parameter's dof is Welch-Satterthwaite's (u0 + u1)^2 / (u0^2 /
@@ -536,7 +544,7 @@ mod tests {
     fn a_parameters_dof_is_welch_satterthwaites() {
         let (n, u0, u1, nu0, nu1) = (8, 3.0, 1.0, 12.0, 40.0);
         let q = u0 + u1;
-        let s = crate::gh::Solution::<3> {
+        let s = crate::lsq::gh::Solution::<3> {
             p: vec![0.0],
             q_pp: vec![q / n as f64],
             v: vec![[0.0; 3]; n],

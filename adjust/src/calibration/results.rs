@@ -2,7 +2,7 @@
 //! what the design barely determines, the misalignment vector, the noise in Kalibr's
 //! names, and what was done about the Earth tide.
 
-use super::{
+use crate::{
     AlignReport, CalibrationResult, GlobalTest, Job, KalibrNoise, Misalignment, MisalignmentVector,
     Parameter, Removed, Terms, calibrate, component_of, io, range_of, roll_directions,
 };

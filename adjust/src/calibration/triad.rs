@@ -16,14 +16,14 @@
 //! its residual is the report's |a| - g per position). Each condition has six observations
 //! of its own: the three means with their sigmas, and the three axes' temperatures with the
 //! sds align gives them from the thermometer's noise (exact, sd 0, when it gives none or the
-//! model has no temperature terms): a Gauss-Helmert model on [`crate::gh`] with K = 6, data
+//! model has no temperature terms): a Gauss-Helmert model on [`crate::lsq::gh`] with K = 6, data
 //! snooping on the
 //! positions (w-test, alpha 0.001), the global test, and the parameters the positions
 //! cannot determine named (too few positions; orientations in one plane; one temperature
 //! for temperature terms). No I/O.
 
-use crate::calibrate::W_CRITICAL;
-use crate::gh::{self, Conditions, GhError};
+use crate::calibration::calibrate::W_CRITICAL;
+use crate::lsq::gh::{self, Conditions, GhError};
 pub use ingest::contract::manifest::PositionFloor;
 
 /// The linear model's parameter names, in order: the three non-orthogonality angles (rad),

@@ -1,7 +1,7 @@
 //! Pre-analysis (docs/model.md 6.6): what an experiment will determine before it is run. The
 //! a-priori covariance (A^T Q_ww^-1 A)^-1 depends on the design alone, so the planner builds
 //! the plan's noise-free observations and runs the very adjustment a calibration runs
-//! ([`crate::calibrate::calibrate_with`], same conditions, same design check, no snooping,
+//! ([`crate::calibration::calibrate::calibrate_with`], same conditions, same design check, no snooping,
 //! no variance components): the predicted sigmas are the a-priori sigmas of that
 //! adjustment. Also each parameter's correlations, the minimal detectable bias of a
 //! theodolite reading and of a window mean (alpha 0.001, power 0.80: as the pipeline's
@@ -9,8 +9,8 @@
 //! parameter the plan cannot determine, what would fix it. The plan's format is in
 //! docs/planning.md. No I/O.
 
-use crate::calibrate::{self, CalError, FitOptions, Obs, Snooping};
-use crate::model::{Misalignment, Terms};
+use crate::calibration::calibrate::{self, CalError, FitOptions, Obs, Snooping};
+use crate::calibration::model::{Misalignment, Terms};
 use ingest::contract::calibration::ALL_SESSIONS;
 use serde::{Deserialize, Serialize};
 

@@ -1,14 +1,14 @@
 //! A triad calibration applied (docs/model.md 6.7: "for a triad, the vector and its 3x3
 //! covariance"): every sample's three readings (and, with temperature terms, the axes'
 //! temperatures interpolated as align does) to the calibrated vector in the body frame
-//! ([`crate::triad::TriadModel::evaluate`]), its covariance J C J^T from the fit's
+//! ([`crate::calibration::triad::TriadModel::evaluate`]), its covariance J C J^T from the fit's
 //! parameter covariance, and flags (a reading or temperature outside the range the
 //! positions saw; saturated, not connected or no temperature: no value). Both sources of
 //! samples are streamed a row group at a time: ingest's acceleration table (counts) and its
 //! lab table (a lab logger's readings).
 
 use crate::Error;
-use crate::triad::{MAX_PARAMS, TriadModel};
+use crate::calibration::triad::{MAX_PARAMS, TriadModel};
 use align::read::{self, Temperatures};
 use align::window::Interpolator;
 use arrow_array::Array;

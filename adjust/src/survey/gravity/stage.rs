@@ -17,7 +17,7 @@ use super::normal::MAX_DISTURBANCE_MGAL;
 use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
 use super::spectrum::{self, Floor};
 use super::track::{Track, read_tracks};
-use crate::apply::triad_stream::TriadFunction;
+use crate::survey::apply::triad_stream::TriadFunction;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
     CouplingUsed, Crossover, DriftFitted, ErrorModelsUsed, FilterUsed, GravityReport, Input,
@@ -38,7 +38,7 @@ use std::path::Path;
 #[derive(Clone, Debug)]
 pub struct Options<'a> {
     /// What to apply.
-    pub apply: crate::apply::stream::Options<'a>,
+    pub apply: crate::survey::apply::stream::Options<'a>,
     /// With an axis model: the accelerometer taken as the vertical axis.
     pub accelerometer: Option<&'a str>,
     /// Set aside a trajectory's or attitude's line that breaks the format (counted and
@@ -131,7 +131,7 @@ fn applied_and_tracks<'a>(
 ) -> Result<(ApplyReport, Vec<Track<'a>>), GravityError> {
     let (applied, tracks) = std::thread::scope(|scope| {
         let applying = scope.spawn(|| {
-            let applied = crate::apply::stream::run(dataset, out, &opts.apply)?;
+            let applied = crate::survey::apply::stream::run(dataset, out, &opts.apply)?;
             Ok::<_, GravityError>((applied, super::track::read_meters(ds)?))
         });
         let tracks = read_tracks(ds, survey, opts.skip_bad_lines, dir);
@@ -375,7 +375,7 @@ fn down_force(
         .filter(|a| a.not_calibrated.is_none())
         .map(|a| a.id.as_str())
         .collect();
-    if applied.quantity == crate::apply::stream::TRIAD_QUANTITY {
+    if applied.quantity == crate::survey::apply::stream::TRIAD_QUANTITY {
         if accelerometer.is_some() {
             return Err(refused(
                 "--accelerometer chooses one axis of an axis model; a triad model gives the \
@@ -419,7 +419,7 @@ fn triad_function(
     applied: &ApplyReport,
     calibration: &Path,
 ) -> Result<Option<TriadFunction>, GravityError> {
-    if applied.quantity != crate::apply::stream::TRIAD_QUANTITY {
+    if applied.quantity != crate::survey::apply::stream::TRIAD_QUANTITY {
         return Ok(None);
     }
     let cal: ingest::contract::calibration::Calibration = ingest::read_json(calibration)?;
@@ -2090,7 +2090,7 @@ fn coupling_line(c: &CouplingUsed) -> String {
 pub struct GravityArgs {
     /// The survey, the calibration and the output folder, as apply takes them.
     #[command(flatten)]
-    pub apply: crate::apply::stream::ApplyArgs,
+    pub apply: crate::survey::apply::stream::ApplyArgs,
     /// With an axis model of several accelerometers: the one taken as vertical.
     #[arg(long)]
     pub accelerometer: Option<String>,
@@ -2108,10 +2108,10 @@ pub struct GravityArgs {
 
 impl GravityArgs {
     /// `dataset` reduced with `calibration` (a calibration.json, or
-    /// [`crate::apply::stream::VENDOR`]), every option at its default.
+    /// [`crate::survey::apply::stream::VENDOR`]), every option at its default.
     pub fn new(dataset: &Path, calibration: &Path) -> Self {
         GravityArgs {
-            apply: crate::apply::stream::ApplyArgs {
+            apply: crate::survey::apply::stream::ApplyArgs {
                 dataset: dataset.to_path_buf(),
                 calibration: calibration.to_path_buf(),
                 model: None,

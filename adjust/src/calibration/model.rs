@@ -3,7 +3,7 @@
 //! `x = (Ng - centre) / scale` so that powers stay near 1, and the exact linear map back to
 //! the parameters in counts (b, k, k2, k3, b_t, k_t) with their covariance.
 
-use crate::gh::Conditions;
+use crate::lsq::gh::Conditions;
 pub use ingest::contract::manifest::Misalignment;
 
 /// Which terms a calibration model has.

@@ -544,7 +544,7 @@ mod tests {
             .map(|_| 980_000.0 + 1e3 * (rng.uniform() - 0.5))
             .collect();
         for taps in [64, 481, 1201] {
-            let kernel = Lowpass::Kernel(windowed_sinc(FilterKind::Blackman, (taps / 2) as f64));
+            let kernel = Lowpass::Kernel(windowed_sinc(FilterKind::Blackman, f64::from(taps / 2)));
             let Lowpass::Kernel(h) = &kernel else {
                 unreachable!()
             };
