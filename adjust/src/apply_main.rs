@@ -19,7 +19,7 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let result = args.apply.run(std::path::Path::new("."));
-    ingest::cli::finish("apply", result, args.report_peak_rss, |r| {
+    ingest::base::cli::finish("apply", result, args.report_peak_rss, |r| {
         adjust::survey::apply::stream::print_summary(r, &mut std::io::stderr());
     })
 }

@@ -20,7 +20,7 @@ fn main() -> ExitCode {
     let args = Args::parse();
     let out = args.gravity.apply.out_dir(std::path::Path::new("."));
     let result = args.gravity.run(&out);
-    ingest::cli::finish("gravity", result, args.report_peak_rss, |r| {
+    ingest::base::cli::finish("gravity", result, args.report_peak_rss, |r| {
         adjust::survey::gravity::stage::print_summary(r, &mut std::io::stderr());
     })
 }

@@ -152,7 +152,7 @@ fn sort_outcomes<'a>(
 /// Runs the stage: reads OUT/ingest and OUT/align, writes OUT/adjust.
 pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let ds = Dataset::load(dataset)?;
-    let _lock = ingest::lock::OutputLock::acquire(out)?;
+    let _lock = ingest::base::lock::OutputLock::acquire(out)?;
     let ingest_report = IngestReport::load_verified(&ds, out)?;
     let align_report = AlignReport::load_verified(&ds, out)?;
     let rows = io::read_observations(&out.join(align_ledger::STAGE_DIR))?;

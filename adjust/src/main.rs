@@ -136,12 +136,12 @@ fn main() -> ExitCode {
             }
         },
         (None, Some(dataset)) => {
-            let stage = ingest::cli::StageArgs {
+            let stage = ingest::base::cli::StageArgs {
                 dataset,
                 out: args.out,
             };
             let result = adjust::run(&stage.dataset, &stage.out_dir());
-            ingest::cli::finish("adjust", result, false, |c| {
+            ingest::base::cli::finish("adjust", result, false, |c| {
                 adjust::print_summary(c, &mut std::io::stderr());
             })
         }

@@ -476,7 +476,7 @@ fn ships_nmea_files_read_as_shipgrav_reads_them() {
 #[test]
 fn meters_serial_files_read_as_shipgrav_reads_them() {
     use ingest::contract::manifest::TimeScale;
-    use ingest::meter_serial::{parse_bgm3, parse_dgs_raw};
+    use ingest::readers::meter_serial::{parse_bgm3, parse_dgs_raw};
     let Some(py) = peers::peers_python() else {
         return;
     };
@@ -544,7 +544,7 @@ fn meters_serial_files_read_as_shipgrav_reads_them() {
         ride.split(|&c| c == b'\n').next().expect("a line"),
         TimeScale::Utc,
     );
-    let at = ingest::time::iso_gps_ns("2023-06-16T00:00:00.857719Z", TimeScale::Utc);
+    let at = ingest::base::time::iso_gps_ns("2023-06-16T00:00:00.857719Z", TimeScale::Utc);
     assert_eq!(first.map(|l| l.gps_ns).ok(), at.ok());
 }
 

@@ -403,7 +403,7 @@ fn start_gps_ns(manifest: &str) -> i64 {
         .find_map(|l| l.strip_prefix("start = \""))
         .and_then(|l| l.split('"').next())
         .expect("start");
-    ingest::time::iso_gps_ns(start, TimeScale::Utc).expect("start")
+    ingest::base::time::iso_gps_ns(start, TimeScale::Utc).expect("start")
 }
 
 /// The share of imu_tk's intervals `theirs` (at multiple `mult`) that are the same still

@@ -146,7 +146,7 @@ pub struct Observation {
 /// Aligns the dataset: reads OUT/ingest, writes OUT/align. Returns the ledger.
 pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let ds = Dataset::load(dataset)?;
-    let _lock = ingest::lock::OutputLock::acquire(out)?;
+    let _lock = ingest::base::lock::OutputLock::acquire(out)?;
     let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
     let ingest_report = ingest_ledger::IngestReport::load_verified(&ds, out)?;
     let setup = Setup::new(&ds);

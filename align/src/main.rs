@@ -9,7 +9,7 @@ use std::process::ExitCode;
 #[command(version)]
 struct Args {
     #[command(flatten)]
-    stage: ingest::cli::StageArgs,
+    stage: ingest::base::cli::StageArgs,
     /// Print `peak_rss_kb N` (the process's peak resident memory) and `cpu_s S` (its CPU
     /// time) at the end, for benchmarks.
     #[arg(long, hide = true)]
@@ -19,7 +19,7 @@ struct Args {
 fn main() -> ExitCode {
     let args = Args::parse();
     let result = align::run(&args.stage.dataset, &args.stage.out_dir());
-    ingest::cli::finish("align", result, args.report_peak_rss, |r| {
+    ingest::base::cli::finish("align", result, args.report_peak_rss, |r| {
         align::print_summary(r, &mut std::io::stderr());
     })
 }

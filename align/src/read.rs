@@ -416,11 +416,11 @@ pub fn acceleration(dir: &Path, mut f: impl FnMut(u16, i64, [Option<i32>; 3], u8
 /// Writes `observations.parquet` into `dir`; returns the rows written.
 pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
     use arrow_array::{Float64Array, Int64Array, UInt8Array, UInt32Array};
-    let mut table = ingest::table::TableWriter::create(
+    let mut table = ingest::parquet_io::table::TableWriter::create(
         dir,
         tables::observations::FILE,
         tables::observations::schema(),
-        ingest::table::Encodings {
+        ingest::parquet_io::table::Encodings {
             dictionary: &[
                 tables::SESSION,
                 tables::observations::ACCELEROMETER,
@@ -430,8 +430,8 @@ pub fn write_observations(dir: &Path, obs: &[Observation]) -> Result<u64> {
         },
     )?;
     let cols: Vec<ArrayRef> = vec![
-        ingest::table::dictionary_column(obs.iter().map(|o| o.session.as_str())),
-        ingest::table::dictionary_column(obs.iter().map(|o| o.accelerometer.as_str())),
+        ingest::parquet_io::table::dictionary_column(obs.iter().map(|o| o.session.as_str())),
+        ingest::parquet_io::table::dictionary_column(obs.iter().map(|o| o.accelerometer.as_str())),
         Arc::new(UInt8Array::from_iter_values(obs.iter().map(|o| o.channel))),
         Arc::new(StringArray::from_iter_values(
             obs.iter().map(|o| o.station.as_str()),

@@ -4,8 +4,8 @@
 //! interpreter; `GRAVCAL_SKIP_PEERS=1` leaves this test out and says so).
 
 use align::tide::{Site, body_tide_mgal, utc_seconds_of_gps};
+use ingest::base::time::{gps_ns, parse_calendar};
 use ingest::contract::manifest::TimeScale;
-use ingest::time::{gps_ns, parse_calendar};
 mod peers;
 
 use peers::peers_python;

@@ -1,4 +1,4 @@
-//! Times ingest's DELTA_BINARY_PACKED encoder (`ingest::encoding::put_delta`) alone on the
+//! Times ingest's DELTA_BINARY_PACKED encoder (`ingest::parquet_io::encoding::put_delta`) alone on the
 //! counts and times of an acceleration table ingest wrote:
 //!
 //! ```text
@@ -13,16 +13,16 @@ use arrow_array::{Array, Int32Array, Int64Array, RecordBatch};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::time::Instant;
 
-fn time<T: ingest::encoding::DeltaValue>(name: &str, values: &[T]) {
+fn time<T: ingest::parquet_io::encoding::DeltaValue>(name: &str, values: &[T]) {
     let mut best = f64::INFINITY;
     let mut bytes = 0;
     let mut out = Vec::new();
     for _ in 0..5 {
         let t0 = Instant::now();
         bytes = 0;
-        for page in values.chunks(ingest::table::OWN_PAGE_ROWS) {
+        for page in values.chunks(ingest::parquet_io::table::OWN_PAGE_ROWS) {
             out.clear();
-            ingest::encoding::put_delta(page, &mut out);
+            ingest::parquet_io::encoding::put_delta(page, &mut out);
             bytes += out.len();
         }
         best = best.min(t0.elapsed().as_secs_f64());

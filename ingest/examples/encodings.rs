@@ -56,7 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     .set_compression(compression)
                     .set_dictionary_enabled(false)
                     .set_encoding(encoding)
-                    .set_max_row_group_row_count(Some(ingest::table::ROWS_PER_GROUP))
+                    .set_max_row_group_row_count(Some(ingest::parquet_io::table::ROWS_PER_GROUP))
                     .build();
                 let mut best = f64::INFINITY;
                 let mut bytes = 0;

@@ -17,7 +17,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(r) => r.parse()?,
         None => 250.0,
     };
-    let config = ingest::gcb::ScanConfig {
+    let config = ingest::readers::gcb::ScanConfig {
         reference_week: 1310,
         acceleration_interval_ns: (1e9 / rate_hz).round() as i64,
         range_ns: (0, i64::MAX),
@@ -27,11 +27,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut frames = 0u64;
     for _ in 0..3 {
         let t0 = Instant::now();
-        let mut scanner = ingest::gcb::FrameScanner::new(config);
+        let mut scanner = ingest::readers::gcb::FrameScanner::new(config);
         let mut ledger = ingest::contract::ingest_ledger::FileLedger::default();
         let mut n = 0u64;
-        let mut count = |f: ingest::gcb::Frame| -> Result<(), ()> {
-            n += u64::from(matches!(f, ingest::gcb::Frame::Acceleration { .. }));
+        let mut count = |f: ingest::readers::gcb::Frame| -> Result<(), ()> {
+            n += u64::from(matches!(
+                f,
+                ingest::readers::gcb::Frame::Acceleration { .. }
+            ));
             Ok(())
         };
         for chunk in bytes.chunks(1 << 20) {

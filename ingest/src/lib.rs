@@ -18,45 +18,33 @@
 //! # Ok::<(), ingest::Error>(())
 //! ```
 
-pub mod cli;
+pub mod base;
 pub mod contract;
-mod csvlog;
-pub mod dgs;
-pub mod encoding;
 mod error;
-pub mod gcb;
-pub mod labstream;
-mod lines;
-pub mod nmea;
-pub use lines::BOM;
-pub mod lock;
-pub mod meter_serial;
-mod streams;
-pub mod table;
-pub mod theodolite;
-pub mod time;
-pub mod timegate;
-
-mod probes;
-mod rowgroup;
+pub mod parquet_io;
+pub mod readers;
 mod session;
 
-pub use probes::{cpu_seconds, peak_rss_kb, print_usage};
+pub use base::probes::{cpu_seconds, peak_rss_kb, print_usage};
+pub use readers::lines::BOM;
 pub use session::RATE_TOLERANCE;
 use session::{Writers, ingest_session};
 
 pub use error::{Error, Result};
 
+use base::{lock, time};
 use contract::custody;
 use contract::ingest_ledger::{
     FileLedger, IngestReport, LEDGER_FILE, LEDGER_FORMAT, MANIFEST_FILE, STAGE_DIR, SessionSummary,
 };
 use contract::manifest::{self, Acquisition, Dataset};
 use contract::tables;
+use parquet_io::streams::StreamWriter;
+use parquet_io::table;
+use readers::{csvlog, gcb, labstream, lines, theodolite};
 use serde::Serialize;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use streams::StreamWriter;
 
 /// How to ingest.
 #[derive(Clone, Debug, Default)]

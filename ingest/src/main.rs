@@ -9,7 +9,7 @@ use std::process::ExitCode;
 #[command(version)]
 struct Args {
     #[command(flatten)]
-    stage: ingest::cli::StageArgs,
+    stage: ingest::base::cli::StageArgs,
     /// Count and list malformed text lines instead of stopping at the first one.
     #[arg(long)]
     skip_bad_lines: bool,
@@ -26,7 +26,7 @@ fn main() -> ExitCode {
         progress: true,
     };
     let result = ingest::run_with(&args.stage.dataset, &args.stage.out_dir(), &opts);
-    ingest::cli::finish("ingest", result, args.report_peak_rss, |r| {
+    ingest::base::cli::finish("ingest", result, args.report_peak_rss, |r| {
         ingest::print_summary(r, &mut std::io::stderr());
     })
 }

@@ -1,11 +1,11 @@
-//! The columns ingest encodes itself (`ingest::encoding`, written by `ColumnTableWriter`):
+//! The columns ingest encodes itself (`ingest::parquet_io::encoding`, written by `ColumnTableWriter`):
 //! delta-encoded integers and byte-stream-split doubles read back through parquet-rs and
 //! Arrow as the values, nulls, statistics and page index that parquet-rs's own writer gives
 //! for the same data.
 
 use arrow_array::{ArrayRef, Float64Array, Int32Array, Int64Array, RecordBatch};
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
-use ingest::table::{ColumnTableWriter, ColumnValues, Encodings, OWN_PAGE_ROWS};
+use ingest::parquet_io::table::{ColumnTableWriter, ColumnValues, Encodings, OWN_PAGE_ROWS};
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::{ArrowReaderOptions, ParquetRecordBatchReaderBuilder};
 use parquet::basic::{Compression, Encoding, ZstdLevel};

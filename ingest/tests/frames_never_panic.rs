@@ -4,10 +4,10 @@
 
 use fixtures::gcb::{Frame, TYPE_ACCELERATION, TYPE_TEMPERATURE};
 use ingest::contract::ingest_ledger::FileLedger;
-use ingest::gcb::{FrameScanner, ScanConfig};
+use ingest::readers::gcb::{FrameScanner, ScanConfig};
 use proptest::prelude::*;
 
-fn scan(bytes: &[u8], chunk: usize) -> (Vec<ingest::gcb::Frame>, FileLedger) {
+fn scan(bytes: &[u8], chunk: usize) -> (Vec<ingest::readers::gcb::Frame>, FileLedger) {
     let mut s = FrameScanner::new(ScanConfig {
         reference_week: 1310,
         acceleration_interval_ns: 32_000_000,

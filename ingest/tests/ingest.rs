@@ -558,11 +558,12 @@ fn a_counts_csv_in_the_wrong_time_unit_is_named() {
         .lines()
         .map(|l| match l.split_once(',') {
             Some((t, rest)) if t.starts_with("20") => {
-                let gps = ingest::time::iso_gps_ns(t, ingest::contract::manifest::TimeScale::Utc)
-                    .expect("iso");
-                let written = ingest::time::as_written(
+                let gps =
+                    ingest::base::time::iso_gps_ns(t, ingest::contract::manifest::TimeScale::Utc)
+                        .expect("iso");
+                let written = ingest::base::time::as_written(
                     gps,
-                    ingest::time::TimeForm::UnixS,
+                    ingest::base::time::TimeForm::UnixS,
                     ingest::contract::manifest::TimeScale::Utc,
                     None,
                 );
@@ -629,7 +630,7 @@ fn a_lab_temperature_log_counts_its_own_seconds() {
         .map(|l| match l.split_once(' ') {
             Some((t, rest)) if t.parse::<f64>().is_ok() => {
                 let ms = (t.parse::<f64>().expect("t") * 1e3).round() as i64;
-                let (y, mo, d) = ingest::time::civil_from_days(ms.div_euclid(86_400_000));
+                let (y, mo, d) = ingest::base::time::civil_from_days(ms.div_euclid(86_400_000));
                 let ms = ms.rem_euclid(86_400_000);
                 format!(
                     "{y:04}-{mo:02}-{d:02}T{:02}:{:02}:{:02}.{:03}Z,{}",

@@ -119,8 +119,8 @@ fn imu_tk_ascii_with_coarse_stamps_keeps_every_sample() {
     );
     assert!((x[1999].expect("x") - (9.80665 + 0.1999)).abs() < 1e-12);
     // The start 2023-01-05T02:52:39 UTC is 18 leap seconds behind GPS time.
-    let start = ingest::time::gps_ns(
-        ingest::time::parse_calendar("2023-01-05T02:52:57").expect("calendar"),
+    let start = ingest::base::time::gps_ns(
+        ingest::base::time::parse_calendar("2023-01-05T02:52:57").expect("calendar"),
         ingest::contract::manifest::TimeScale::Gpst,
     )
     .expect("gps");
@@ -165,8 +165,8 @@ fn comma_separated_unix_times_with_a_header() {
     assert!(readings(&out, 1).iter().all(|v| *v == Some(0.2)));
     // 1672887159 s Unix is 2023-01-05T02:52:39 UTC.
     let (times, _) = table(&out);
-    let want = ingest::time::gps_ns(
-        ingest::time::parse_calendar("2023-01-05T02:52:39").expect("calendar"),
+    let want = ingest::base::time::gps_ns(
+        ingest::base::time::parse_calendar("2023-01-05T02:52:39").expect("calendar"),
         ingest::contract::manifest::TimeScale::Utc,
     )
     .expect("gps");

@@ -5,8 +5,8 @@
 //! acceleration and temperature tables byte for byte, the same readings at the same times.
 //! Before, `2026-03-14T09:12:03Z` was rejected with no hint.
 
+use ingest::base::time::NS_PER_WEEK;
 use ingest::contract::ingest_ledger::IngestReport;
-use ingest::time::NS_PER_WEEK;
 use std::path::Path;
 
 /// GPS minus UTC in February 2005 (leap seconds; hifitime's table says the same, and the
@@ -17,7 +17,7 @@ const GPS_EPOCH_UNIX_S: i64 = 315_964_800;
 
 /// A GPS-week time as UTC: (Unix ns, ISO calendar text with `offset_min` applied).
 fn utc_of(week: i64, tow_s: &str, offset_min: i64) -> (i64, String) {
-    let tow_ns = ingest::time::parse_seconds_ns(tow_s.as_bytes()).expect("tow");
+    let tow_ns = ingest::base::time::parse_seconds_ns(tow_s.as_bytes()).expect("tow");
     let gps = week * NS_PER_WEEK + tow_ns;
     let unix_ns = gps + GPS_EPOCH_UNIX_S * 1_000_000_000 - LEAP_2005_NS;
     (unix_ns, calendar(unix_ns + offset_min * 60_000_000_000))
@@ -26,7 +26,7 @@ fn utc_of(week: i64, tow_s: &str, offset_min: i64) -> (i64, String) {
 /// `YYYY-MM-DDTHH:MM:SS.mmm` of Unix ns.
 fn calendar(unix_ns: i64) -> String {
     let day = unix_ns.div_euclid(86_400_000_000_000);
-    let (y, m, d) = ingest::time::civil_from_days(day);
+    let (y, m, d) = ingest::base::time::civil_from_days(day);
     let ns = unix_ns.rem_euclid(86_400_000_000_000);
     let (s, frac) = (ns / 1_000_000_000, (ns % 1_000_000_000) / 1_000_000);
     format!(
@@ -104,10 +104,11 @@ fn every_time_form_gives_the_same_tables() {
             if l.starts_with('#') || f.len() != 3 {
                 return l.to_owned();
             }
-            let (c, _) = ingest::time::parse_iso(f[1]).expect("calendar");
-            let unix_s = (ingest::time::gps_ns(c, ingest::contract::manifest::TimeScale::Gpst)
-                .expect("ns"))
-                + GPS_EPOCH_UNIX_S * 1_000_000_000;
+            let (c, _) = ingest::base::time::parse_iso(f[1]).expect("calendar");
+            let unix_s =
+                (ingest::base::time::gps_ns(c, ingest::contract::manifest::TimeScale::Gpst)
+                    .expect("ns"))
+                    + GPS_EPOCH_UNIX_S * 1_000_000_000;
             format!(
                 "{} {}+01:00 {}",
                 f[0],
@@ -181,8 +182,8 @@ fn time_keys_are_checked() {
 }
 
 mod iso_fast_path {
+    use ingest::base::time::{TimeForm, TimeReader, gps_ns, parse_iso};
     use ingest::contract::manifest::TimeScale;
-    use ingest::time::{TimeForm, TimeReader, gps_ns, parse_iso};
     use proptest::prelude::*;
 
     /// The general parser's answer: calendar and zone, then hifitime.

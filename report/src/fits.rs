@@ -291,13 +291,13 @@ pub(crate) fn extra_terms_section(st: &Stages<'_>) -> Section {
 /// form and scale: docs/formats.md 9.1).
 fn written(st: &Stages<'_>, session: &str, gps_ns: i64) -> String {
     match st.ds.sessions.iter().find(|s| s.session.id == session) {
-        Some(s) => ingest::time::as_written(
+        Some(s) => ingest::base::time::as_written(
             gps_ns,
             s.times.theodolite,
             s.times.scale,
             s.times.start_gps_ns,
         ),
-        None => ingest::time::utc_iso(gps_ns),
+        None => ingest::base::time::utc_iso(gps_ns),
     }
 }
 

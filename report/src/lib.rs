@@ -72,8 +72,8 @@ fn t_critical(dof: usize) -> f64 {
 }
 
 fn gps(ns: i64) -> String {
-    let week = ns.div_euclid(ingest::time::NS_PER_WEEK);
-    let tow = ns.rem_euclid(ingest::time::NS_PER_WEEK) as f64 * 1e-9;
+    let week = ns.div_euclid(ingest::base::time::NS_PER_WEEK);
+    let tow = ns.rem_euclid(ingest::base::time::NS_PER_WEEK) as f64 * 1e-9;
     format!("{week} / {tow:.3}")
 }
 
@@ -219,7 +219,7 @@ pub struct Written {
 /// Builds the report from OUT/ingest, OUT/align and OUT/adjust; writes OUT/report.
 pub fn run(dataset: &Path, out: &Path) -> Result<Written, Error> {
     let ds = Dataset::load(dataset)?;
-    let _lock = ingest::lock::OutputLock::acquire(out)?;
+    let _lock = ingest::base::lock::OutputLock::acquire(out)?;
     let sections = build(&ds, out)?;
     let dir = out.join("report");
     let plot_dir = dir.join("plots");

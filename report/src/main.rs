@@ -9,13 +9,13 @@ use std::process::ExitCode;
 #[command(version)]
 struct Args {
     #[command(flatten)]
-    stage: ingest::cli::StageArgs,
+    stage: ingest::base::cli::StageArgs,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     let result = report::run(&args.stage.dataset, &args.stage.out_dir());
-    ingest::cli::finish("report", result, false, |w| {
+    ingest::base::cli::finish("report", result, false, |w| {
         eprintln!(
             "report: wrote {} and {} ({} plots)",
             w.html.display(),

@@ -303,8 +303,8 @@ fn lab_twin(csv_twin: &Path) -> Result<PathBuf> {
             .split('-')
             .map(|x| x.parse())
             .collect::<Result<_, _>>()?;
-        let midnight = ingest::time::gps_ns(
-            ingest::time::Calendar::midnight((ymd[0], ymd[1] as u8, ymd[2] as u8)),
+        let midnight = ingest::base::time::gps_ns(
+            ingest::base::time::Calendar::midnight((ymd[0], ymd[1] as u8, ymd[2] as u8)),
             ingest::contract::manifest::TimeScale::Utc,
         )
         .context("date")?;
@@ -390,13 +390,18 @@ fn iso_twin(csv_twin: &Path) -> Result<PathBuf> {
             };
             let (Ok(week), Some(tow_ns)) = (
                 week.parse::<i64>(),
-                ingest::time::parse_seconds_ns(tow.as_bytes()),
+                ingest::base::time::parse_seconds_ns(tow.as_bytes()),
             ) else {
                 continue;
             };
-            let gps_ns = week * ingest::time::NS_PER_WEEK + tow_ns;
+            let gps_ns = week * ingest::base::time::NS_PER_WEEK + tow_ns;
             let rest: Vec<&str> = f.collect();
-            writeln!(out, "{},{}", ingest::time::utc_iso(gps_ns), rest.join(","))?;
+            writeln!(
+                out,
+                "{},{}",
+                ingest::base::time::utc_iso(gps_ns),
+                rest.join(",")
+            )?;
         }
         out.flush()?;
         std::fs::rename(&tmp, &iso)?;

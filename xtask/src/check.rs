@@ -155,7 +155,7 @@ fn print_trajectory(ds: &Dataset, s: &ResolvedSession, w: &mut impl Write) -> Re
             read_dgs_laptop(&src.path, false),
         ),
         TrajectoryFormat::Csv => {
-            let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
+            let form = src.time.unwrap_or(ingest::base::time::TimeForm::Iso);
             ("CSV", read_csv(&src.path, s.times.reader(form), false))
         }
         TrajectoryFormat::Nmea => (
@@ -228,8 +228,8 @@ fn print_epochs(rel: &str, what: &str, times: &[i64], w: &mut impl Write) -> Res
         .map_or(String::new(), |(a, b)| {
             format!(
                 ", first {} last {}",
-                ingest::time::utc_iso(*a),
-                ingest::time::utc_iso(*b)
+                ingest::base::time::utc_iso(*a),
+                ingest::base::time::utc_iso(*b)
             )
         });
     writeln!(w, "{rel} {what}: read whole; {n} epochs{span}, {rate}")?;
@@ -239,8 +239,8 @@ fn print_epochs(rel: &str, what: &str, times: &[i64], w: &mut impl Write) -> Res
 /// Every log of a session: its path, whether it is a binary log, how it writes its times.
 fn logs(s: &ResolvedSession) -> Vec<(PathBuf, bool, String)> {
     let t = &s.times;
-    let text = |p: &PathBuf, form: ingest::time::TimeForm| {
-        let scale = if form == ingest::time::TimeForm::Iso {
+    let text = |p: &PathBuf, form: ingest::base::time::TimeForm| {
+        let scale = if form == ingest::base::time::TimeForm::Iso {
             format!(" (zone-less times in {})", scale_name(t.scale))
         } else {
             String::new()
@@ -307,7 +307,7 @@ pub(crate) fn trim(from: &Path, to: &Path, binary: bool) -> Result<u64> {
     let mut f = std::fs::File::create(to).with_context(|| format!("writing {}", to.display()))?;
     if binary {
         // Cut at frame boundaries of a log that starts with a frame.
-        let frame = ingest::gcb::FRAME_LEN as u64;
+        let frame = ingest::readers::gcb::FRAME_LEN as u64;
         let head = PEEK_BYTES - PEEK_BYTES % frame;
         let tail = n - PEEK_BYTES - (n - PEEK_BYTES) % frame;
         f.write_all(&read_at(&mut src, 0, head)?)?;
@@ -387,7 +387,7 @@ fn print_file(
     for r in f.rejections.iter().filter(|r| !hole(&r.at)).take(3) {
         writeln!(w, "  {} {}: {}", r.at, r.reason, r.detail)?;
     }
-    let time = |t: i64| ingest::time::utc_iso(t);
+    let time = |t: i64| ingest::base::time::utc_iso(t);
     for (what, span) in spans.of(&f.session, &f.role) {
         writeln!(
             w,
@@ -481,7 +481,7 @@ impl Spans {
 
 /// Where the binary copy's hole starts: the head's end, cut at a frame boundary.
 fn hole_start() -> u64 {
-    let frame = ingest::gcb::FRAME_LEN as u64;
+    let frame = ingest::readers::gcb::FRAME_LEN as u64;
     PEEK_BYTES - PEEK_BYTES % frame
 }
 

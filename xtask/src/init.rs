@@ -10,9 +10,9 @@
 //! manifest.
 
 use anyhow::{Context, Result, bail};
+use ingest::base::time::{TimeForm, TimeReader, parse_iso};
 use ingest::contract::manifest::{AdcFormat, TimeScale};
 use ingest::contract::survey::TrajectoryFormat;
-use ingest::time::{TimeForm, TimeReader, parse_iso};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -152,7 +152,7 @@ fn recognise(path: &Path) -> Result<Found> {
         "raw/{}",
         path.file_name().unwrap_or_default().to_string_lossy()
     );
-    if head.starts_with(&ingest::gcb::SYNC) {
+    if head.starts_with(&ingest::readers::gcb::SYNC) {
         return Ok(binary(rel, &head, &tail));
     }
     let head = String::from_utf8_lossy(&head).into_owned();
@@ -171,7 +171,7 @@ fn recognise(path: &Path) -> Result<Found> {
 /// or a DGS's raw records; one channel, in counts. The stamps without a zone are taken as
 /// UTC here (only the span and rate are drafted).
 fn meter_serial(rel: &str, head: &str, tail: &str) -> Option<Found> {
-    use ingest::meter_serial::{parse_bgm3, parse_dgs_raw};
+    use ingest::readers::meter_serial::{parse_bgm3, parse_dgs_raw};
     let lines = |text: &str| -> Vec<String> {
         text.lines()
             .map(str::trim)
@@ -243,8 +243,8 @@ fn trajectory_found(
 /// parser ingest reads it with; the meter's gravity and its navigation, one channel.
 fn dgs_laptop(rel: &str, head: &str, tail: &str) -> Option<Found> {
     let time = |l: &str| {
-        ingest::dgs::split(l.trim_end().as_bytes())
-            .and_then(|f| ingest::dgs::parse_laptop(&f))
+        ingest::readers::dgs::split(l.trim_end().as_bytes())
+            .and_then(|f| ingest::readers::dgs::parse_laptop(&f))
             .ok()
             .map(|r| r.gps_ns)
     };
@@ -269,7 +269,7 @@ fn dgs_laptop(rel: &str, head: &str, tail: &str) -> Option<Found> {
 /// GGA or RMC's time of day on the date of the first ZDA or RMC (none: the span is left to
 /// the session's date).
 fn nmea(rel: &str, head: &str, tail: &str) -> Option<Found> {
-    use ingest::nmea::{Sentence, find, parse};
+    use ingest::readers::nmea::{Sentence, find, parse};
     let sentences = |text: &str| -> Vec<Sentence> {
         text.lines()
             .filter_map(|l| find(l.as_bytes()).and_then(|s| parse(s).ok()))
@@ -288,8 +288,9 @@ fn nmea(rel: &str, head: &str, tail: &str) -> Option<Found> {
         Sentence::Zda { date, .. } | Sentence::Rmc { date, .. } => Some(*date),
         _ => None,
     });
-    let midnight = date
-        .and_then(|d| ingest::time::gps_ns(ingest::time::Calendar::midnight(d), TimeScale::Utc));
+    let midnight = date.and_then(|d| {
+        ingest::base::time::gps_ns(ingest::base::time::Calendar::midnight(d), TimeScale::Utc)
+    });
     let times: Vec<i64> = match midnight {
         Some(m) => first.iter().filter_map(fix_time).map(|t| m + t).collect(),
         None => Vec::new(),
@@ -358,7 +359,9 @@ fn csv_epochs(
     let form = time_form(lines.get(1).filter(|f| !f.is_empty())?, "");
     let time = |f: &Vec<&str>| match form {
         TimeForm::Iso => iso_ns(f.first()?),
-        TimeForm::UnixS => unix_to_gps_ns(ingest::time::parse_seconds_ns(f.first()?.as_bytes())?),
+        TimeForm::UnixS => {
+            unix_to_gps_ns(ingest::base::time::parse_seconds_ns(f.first()?.as_bytes())?)
+        }
         _ => None,
     };
     let times: Vec<i64> = lines.iter().skip(1).filter_map(time).collect();
@@ -384,15 +387,15 @@ fn ends(path: &Path) -> std::io::Result<(Vec<u8>, Vec<u8>)> {
 /// The acceleration frames' times (10-bit week, tow) at each end of a binary log.
 fn binary(rel: String, head: &[u8], tail: &[u8]) -> Found {
     let frames = |b: &[u8]| -> Vec<(u16, u32)> {
-        let n = ingest::gcb::FRAME_LEN;
+        let n = ingest::readers::gcb::FRAME_LEN;
         let mut out = Vec::new();
         let mut i = 0;
         while i + n <= b.len() {
             let f = &b[i..i + n];
             let crc = u16::from_le_bytes([f[n - 2], f[n - 1]]);
-            if f[..2] == ingest::gcb::SYNC
+            if f[..2] == ingest::readers::gcb::SYNC
                 && f[2] == 1
-                && ingest::gcb::crc16_ccitt_false(&f[2..n - 2]) == crc
+                && ingest::readers::gcb::crc16_ccitt_false(&f[2..n - 2]) == crc
             {
                 out.push((
                     u16::from_le_bytes([f[4], f[5]]),
@@ -409,8 +412,9 @@ fn binary(rel: String, head: &[u8], tail: &[u8]) -> Found {
     let tail = frames(tail);
     let ms: Vec<i64> = head.iter().map(|&(_, t)| i64::from(t)).collect();
     // Times stay relative to the 10-bit week until the session's date resolves it.
-    let week_ns =
-        |(w, t): (u16, u32)| i64::from(w) * ingest::time::NS_PER_WEEK + i64::from(t) * 1_000_000;
+    let week_ns = |(w, t): (u16, u32)| {
+        i64::from(w) * ingest::base::time::NS_PER_WEEK + i64::from(t) * 1_000_000
+    };
     Found {
         rel,
         layout: Layout::Binary,
@@ -485,11 +489,11 @@ fn text(rel: String, head: &str, tail: &str) -> Result<Found> {
         match form {
             TimeForm::GpsWeekTow => {
                 let w: i64 = f.first()?.parse().ok()?;
-                let tow = ingest::time::parse_seconds_ns(f.get(1)?.as_bytes())?;
-                Some(w * ingest::time::NS_PER_WEEK + tow)
+                let tow = ingest::base::time::parse_seconds_ns(f.get(1)?.as_bytes())?;
+                Some(w * ingest::base::time::NS_PER_WEEK + tow)
             }
             TimeForm::Iso => iso_ns(f.first()?),
-            _ => ingest::time::parse_seconds_ns(f.first()?.as_bytes()),
+            _ => ingest::base::time::parse_seconds_ns(f.first()?.as_bytes()),
         }
     };
     let skip = form.fields();
@@ -629,15 +633,16 @@ fn time_form(first: &[&str], names: &str) -> TimeForm {
 /// An ISO 8601 time as GPS ns (zone-less times taken as UTC: only the date is used).
 fn iso_ns(s: &str) -> Option<i64> {
     let (c, offset_min) = parse_iso(s).ok()?;
-    let ns = ingest::time::gps_ns(c, TimeScale::Utc)?;
+    let ns = ingest::base::time::gps_ns(c, TimeScale::Utc)?;
     Some(ns - i64::from(offset_min.unwrap_or(0)) * 60_000_000_000)
 }
 
 /// Unix time (ns) as GPS ns, with the leap seconds of hifitime's table.
 fn unix_to_gps_ns(unix_ns: i64) -> Option<i64> {
     let days = unix_ns.div_euclid(86_400_000_000_000);
-    let date = ingest::time::civil_from_days(days);
-    let midnight = ingest::time::gps_ns(ingest::time::Calendar::midnight(date), TimeScale::Utc)?;
+    let date = ingest::base::time::civil_from_days(days);
+    let midnight =
+        ingest::base::time::gps_ns(ingest::base::time::Calendar::midnight(date), TimeScale::Utc)?;
     Some(midnight + unix_ns.rem_euclid(86_400_000_000_000))
 }
 
@@ -985,8 +990,8 @@ fn list_files(t: &mut String, files: &[&Found]) {
             Layout::Binary => " (times by the 10-bit week)".to_owned(),
             _ => format!(
                 ", {} to {}",
-                ingest::time::utc_iso(a),
-                ingest::time::utc_iso(b)
+                ingest::base::time::utc_iso(a),
+                ingest::base::time::utc_iso(b)
             ),
         });
         let _ = writeln!(
@@ -1108,7 +1113,7 @@ fn date(files: &[&Found]) -> String {
         .filter_map(|f| f.span_ns.map(|s| s.0))
         .min();
     match first {
-        Some(ns) => format!("\"{}\"", &ingest::time::utc_iso(ns)[..10]),
+        Some(ns) => format!("\"{}\"", &ingest::base::time::utc_iso(ns)[..10]),
         None => format!(
             "{FILL}                # YYYY-MM-DD (UTC) of the first sample: no log of the session \
              writes a calendar time (a binary log's 10-bit week repeats every 1024 weeks)"

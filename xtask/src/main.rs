@@ -174,9 +174,9 @@ fn workspace_root() -> PathBuf {
 }
 
 /// OUT: `--out`, or out/<dataset folder name> in the workspace (the stage binaries' rule,
-/// [`ingest::cli::out_dir`], from the workspace's root).
+/// [`ingest::base::cli::out_dir`], from the workspace's root).
 fn out_dir(args: &DatasetArgs) -> Result<PathBuf> {
-    Ok(ingest::cli::out_dir(
+    Ok(ingest::base::cli::out_dir(
         &workspace_root(),
         &args.dataset,
         args.out.as_deref(),
@@ -220,7 +220,7 @@ const STAGES: [(&str, Stage); 4] = [
 fn run_stages(args: &DatasetArgs, which: &[&str]) -> Result<()> {
     let out = out_dir(args)?;
     // Held across the stages, so no other run slips in between them.
-    let _lock = ingest::lock::OutputLock::acquire(&out)?;
+    let _lock = ingest::base::lock::OutputLock::acquire(&out)?;
     for (name, stage) in STAGES.iter().filter(|(n, _)| which.contains(n)) {
         let t0 = std::time::Instant::now();
         stage(&args.dataset, &out)

@@ -24,7 +24,7 @@ fn edit_frame(path: &Path, index: usize, edit: impl FnOnce(&mut [u8])) {
     let f = &mut bytes[index * 25..(index + 1) * 25];
     assert_eq!(&f[..2], &[0xA5, 0x5A], "an intact frame at index {index}");
     edit(f);
-    let crc = ingest::gcb::crc16_ccitt_false(&f[2..23]);
+    let crc = ingest::readers::gcb::crc16_ccitt_false(&f[2..23]);
     f[23..25].copy_from_slice(&crc.to_le_bytes());
     std::fs::write(path, bytes).expect("write log");
 }
@@ -298,7 +298,7 @@ fn a_second_run_into_the_same_folder_fails_at_once() {
     let table = out.join("ingest/acceleration.parquet");
     let before = std::fs::read(&table).expect("table");
     // This process holds the lock, as a running pipeline would; another process is refused.
-    let _held = ingest::lock::OutputLock::acquire(&out).expect("lock");
+    let _held = ingest::base::lock::OutputLock::acquire(&out).expect("lock");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_xtask"))
         .args(["ingest", ds.to_str().expect("utf-8"), "--out"])
         .arg(&out)

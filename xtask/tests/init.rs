@@ -346,7 +346,7 @@ fn an_attitude_file_is_drafted_beside_its_trajectory() {
         .and_then(|t| t.attitude.clone())
         .expect("attitude");
     assert!(attitude.0.ends_with("raw/lines_att.csv"), "{attitude:?}");
-    assert_eq!(attitude.1, ingest::time::TimeForm::UnixS);
+    assert_eq!(attitude.1, ingest::base::time::TimeForm::UnixS);
     // check reads it whole with the gravity stage's reader.
     let o = xtask(&["check", ds.to_str().expect("utf-8")]);
     let said = String::from_utf8_lossy(&o.stdout);

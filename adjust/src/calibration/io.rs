@@ -7,7 +7,7 @@ use arrow_array::{
     cast::AsArray,
 };
 use ingest::contract::tables::{self, observations as col};
-use ingest::table::dictionary_column;
+use ingest::parquet_io::table::dictionary_column;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::path::Path;
 use std::sync::Arc;
@@ -229,11 +229,11 @@ pub struct ResidualRow<'a> {
 
 /// Writes residuals.parquet into `dir`.
 pub fn write_residuals(dir: &Path, rows: &[ResidualRow<'_>]) -> Result<u64, Error> {
-    let mut t = ingest::table::TableWriter::create(
+    let mut t = ingest::parquet_io::table::TableWriter::create(
         dir,
         tables::residuals::FILE,
         tables::residuals::schema(),
-        ingest::table::Encodings {
+        ingest::parquet_io::table::Encodings {
             dictionary: &[
                 tables::residuals::MODEL,
                 tables::residuals::ACCELEROMETER,

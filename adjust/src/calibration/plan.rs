@@ -235,7 +235,7 @@ impl Plan {
                 .map_err(|e| bad(format!("session[{i}].id"), e))?;
             ids.insert(&s.id, "id")
                 .map_err(|e| bad(format!("session[{i}].id"), e))?;
-            let t = ingest::labstream::TEMPERATURE_LIMITS;
+            let t = ingest::readers::labstream::TEMPERATURE_LIMITS;
             if !(t.lo..=t.hi).contains(&s.temperature_c) {
                 return Err(bad(
                     format!("session[{i}].temperature_c"),

@@ -35,12 +35,12 @@ pub mod reason {
     /// A record timed outside its session's range (`ResolvedSession::gps_range_ns`: from 00:00
     /// UTC of its date for `days` days).
     pub const OUTSIDE_SESSION: &str = "outside_session";
-    /// A record whose time jumps ahead of its neighbours and back ([`crate::timegate`]).
+    /// A record whose time jumps ahead of its neighbours and back ([`crate::base::timegate`]).
     pub const TIME_OUTLIER: &str = "time_outlier";
     /// A temperature outside [-100, 200] degC on a connected channel.
     pub const TEMPERATURE_OUT_OF_RANGE: &str = "temperature_out_of_range";
     /// A lab stream's reading outside what the instrument can produce in its declared
-    /// `reading_unit` ([`crate::labstream::reading_limits`]).
+    /// `reading_unit` ([`crate::readers::labstream::reading_limits`]).
     pub const READING_OUT_OF_RANGE: &str = "reading_out_of_range";
 }
 

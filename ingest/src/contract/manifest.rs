@@ -1,8 +1,8 @@
 //! The dataset manifest, `dataset.toml` (docs/formats.md section 2): parsed strictly (unknown keys
 //! are errors) and validated, with every error naming the key and the file.
 
+pub use crate::base::time::TimeForm;
 use crate::error::{Error, Result};
-pub use crate::time::TimeForm;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -268,17 +268,17 @@ pub enum AdcFormat {
     /// space (docs/formats.md 8.3; imu_tk's ASCII layout).
     Seconds,
     /// A DGS marine gravimeter's "laptop" file: 26 fields a line, the raw gravity (mGal) the
-    /// reading of channel 1, its own UTC calendar time (docs/formats.md 11.1, `crate::dgs`).
+    /// reading of channel 1, its own UTC calendar time (docs/formats.md 11.1, `crate::readers::dgs`).
     #[serde(rename = "dgs-laptop")]
     DgsLaptop,
     /// A DGS meter's raw serial output as a ship's logger writes it: the logger's time stamp,
     /// then the meter's `$AT1M` record, its gravity in AD units the reading of channel 1
-    /// (docs/formats.md 11.2, `crate::meter_serial`).
+    /// (docs/formats.md 11.2, `crate::readers::meter_serial`).
     #[serde(rename = "dgs-raw")]
     DgsRaw,
     /// A BGM-3 meter's serial output as a ship's logger writes it: the logger's time stamp,
     /// then `PP:CCCCCC SS`, the counts the reading of channel 1 (docs/formats.md 11.2,
-    /// `crate::meter_serial`).
+    /// `crate::readers::meter_serial`).
     #[serde(rename = "bgm3")]
     Bgm3,
 }
@@ -607,8 +607,8 @@ pub struct SessionTimes {
 
 impl SessionTimes {
     /// A reader of times in `form`, as this session gives them.
-    pub fn reader(&self, form: TimeForm) -> crate::time::TimeReader {
-        crate::time::TimeReader::new(form, self.scale, self.start_gps_ns)
+    pub fn reader(&self, form: TimeForm) -> crate::base::time::TimeReader {
+        crate::base::time::TimeReader::new(form, self.scale, self.start_gps_ns)
     }
 }
 
@@ -924,7 +924,7 @@ fn lab_acquisition(
     let zero_of = |form: TimeForm| match (form, times.start_gps_ns) {
         (TimeForm::S, Some(start)) => start,
         // Unix times: the epoch, with the leap seconds of the session's date.
-        _ => midnight - crate::time::days_from_civil(date) * 86_400_000_000_000,
+        _ => midnight - crate::base::time::days_from_civil(date) * 86_400_000_000_000,
     };
     let temperature = s
         .temperature_csv
@@ -1060,7 +1060,8 @@ fn start_gps_ns(
         )),
         (None, false) => Ok(None),
         (Some(start), true) => {
-            let t = crate::time::iso_gps_ns(start, scale).map_err(|m| err(key("start"), m))?;
+            let t =
+                crate::base::time::iso_gps_ns(start, scale).map_err(|m| err(key("start"), m))?;
             Ok(Some(t))
         }
     }
@@ -1070,7 +1071,9 @@ fn start_gps_ns(
 /// the line.
 fn parse(manifest_path: &Path) -> Result<Manifest> {
     let bytes = std::fs::read(manifest_path).map_err(|e| Error::io(manifest_path, e))?;
-    let bytes = bytes.strip_prefix(crate::lines::BOM).unwrap_or(&bytes);
+    let bytes = bytes
+        .strip_prefix(crate::readers::lines::BOM)
+        .unwrap_or(&bytes);
     let text = std::str::from_utf8(bytes).map_err(|e| Error::Manifest {
         path: manifest_path.to_path_buf(),
         key: format!("byte {}", e.valid_up_to()),
@@ -1339,13 +1342,14 @@ fn resolve_session(
             format!("`{}` is not a date YYYY-MM-DD", s.date),
         )
     })?;
-    let start_gps_ns = crate::time::gps_ns(crate::time::Calendar::midnight(date), TimeScale::Utc)
-        .ok_or_else(|| {
-        err(
-            format!("session[{i}].date"),
-            format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
-        )
-    })?;
+    let start_gps_ns =
+        crate::base::time::gps_ns(crate::base::time::Calendar::midnight(date), TimeScale::Utc)
+            .ok_or_else(|| {
+                err(
+                    format!("session[{i}].date"),
+                    format!("`{}` is before the GPS epoch (1980-01-06)", s.date),
+                )
+            })?;
     let (unit, what) = match s.adc_format {
         AdcFormat::DgsLaptop => (
             ReadingUnit::MilliGal,

@@ -3,8 +3,8 @@
 //! manifest and validated here, every error naming the key.
 
 use super::manifest::{Session, SessionKind, TimeScale};
+use crate::base::time::TimeForm;
 use crate::error::{Error, Result};
-use crate::time::TimeForm;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -971,7 +971,8 @@ fn no_overlap(ties: &[ResolvedTie], err: &impl Fn(String, String) -> Error) -> R
 /// Tie `k` resolved.
 fn tie(k: usize, t: &TieDecl, err: &impl Fn(String, String) -> Error) -> Result<ResolvedTie> {
     let key = |f: &str| format!("survey.tie[{k}].{f}");
-    let gps = crate::time::iso_gps_ns(&t.time, TimeScale::Utc).map_err(|m| err(key("time"), m))?;
+    let gps =
+        crate::base::time::iso_gps_ns(&t.time, TimeScale::Utc).map_err(|m| err(key("time"), m))?;
     if !(t.duration_s.is_finite() && (1.0..=86_400.0).contains(&t.duration_s)) {
         return Err(err(
             key("duration_s"),

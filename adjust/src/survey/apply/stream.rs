@@ -25,7 +25,9 @@ use ingest::contract::ingest_ledger::{self, IngestReport};
 use ingest::contract::manifest::Dataset;
 use ingest::contract::status;
 use ingest::contract::tables::{self, applied};
-use ingest::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP};
+use ingest::parquet_io::table::{
+    ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP,
+};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -48,7 +50,7 @@ pub struct Options<'a> {
 /// calibration against the dataset comes before any work.
 pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport, Error> {
     let ds = Dataset::load(dataset)?;
-    let _lock = ingest::lock::OutputLock::acquire(out)?;
+    let _lock = ingest::base::lock::OutputLock::acquire(out)?;
     ingest::contract::custody::check_out_folder(out, &ds.manifest.name)?;
     let refused = |message| Error::Apply {
         path: opts.calibration.to_path_buf(),
@@ -671,7 +673,7 @@ pub struct ApplyArgs {
 impl ApplyArgs {
     /// OUT: `--out`, or out/<dataset folder name> under `root`.
     pub fn out_dir(&self, root: &Path) -> std::path::PathBuf {
-        ingest::cli::out_dir(root, &self.dataset, self.out.as_deref())
+        ingest::base::cli::out_dir(root, &self.dataset, self.out.as_deref())
     }
 
     /// Runs the stage with these arguments.

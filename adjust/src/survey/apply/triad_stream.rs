@@ -15,7 +15,9 @@ use arrow_array::Array;
 use ingest::contract::calibration::TriadResult;
 use ingest::contract::status;
 use ingest::contract::tables::{self, applied};
-use ingest::table::{ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP};
+use ingest::parquet_io::table::{
+    ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP,
+};
 use std::path::Path;
 
 /// A calibrated vector and the six elements of its covariance (xx, xy, xz, yy, yz, zz).

@@ -16,10 +16,10 @@ use super::antennas::{self, Fix};
 use super::attitude::{DerivedSample, SpilledAttitude};
 use super::epochs::ThirdDifferences;
 use super::{BadLine, GravityError};
+use ingest::base::timegate::{Position, Sink, TimeGate};
 use ingest::contract::gravity_ledger::AntennasUsed;
 use ingest::contract::manifest::ResolvedSession;
 use ingest::contract::survey::{Antenna, SurveyConfig, TrajectorySource};
-use ingest::timegate::{Position, Sink, TimeGate};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -433,11 +433,11 @@ pub(super) fn write_attitude_table(
     use arrow_array::{ArrayRef, Float64Array, Int64Array, UInt16Array, UInt32Array};
     use ingest::contract::tables::attitude;
     use std::sync::Arc;
-    let mut w = ingest::table::TableWriter::create(
+    let mut w = ingest::parquet_io::table::TableWriter::create(
         dir,
         attitude::FILE,
         attitude::schema(sessions),
-        ingest::table::Encodings::default(),
+        ingest::parquet_io::table::Encodings::default(),
     )?;
     for (index, rows) in tables {
         let mut columns: Vec<ArrayRef> = vec![

@@ -13,8 +13,8 @@ use super::reduce::Steps;
 use super::spill::{Spill, SpillWriter};
 use super::trajectory::{Columns, Values, bad, count_dropped, epoch_line};
 use super::{BadLine, GravityError, set_aside};
-use ingest::time::TimeReader;
-use ingest::timegate::{Position, Sink, TimeGate};
+use ingest::base::time::TimeReader;
+use ingest::base::timegate::{Position, Sink, TimeGate};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -445,8 +445,8 @@ fn sds(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use ingest::base::time::TimeForm;
     use ingest::contract::manifest::TimeScale;
-    use ingest::time::TimeForm;
 
     fn read(text: &str) -> Result<Attitude, GravityError> {
         let d = tempfile::tempdir().expect("tempdir");

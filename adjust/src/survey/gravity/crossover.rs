@@ -21,8 +21,8 @@
 //! on a levelled platform) and cancels to first order, so it is left out.
 
 use super::navigation::{longitude_step_deg, longitude_wrapped_like};
+use ingest::base::time::utc_iso;
 use ingest::contract::gravity_ledger::{Crossover, Pass};
-use ingest::time::utc_iso;
 use std::collections::{HashMap, HashSet};
 
 /// The epochs written, as the stage gathered them (rows of gravity.parquet, in order).

@@ -381,7 +381,7 @@ impl<'a> Target<'a> {
             message: format!(
                 "the attitude at {} cannot be interpolated again where it was when the \
                  epoch was kept",
-                ingest::time::utc_iso(t)
+                ingest::base::time::utc_iso(t)
             ),
         })?;
         self.cached = [self.cached[1], Some((k, a))];
@@ -573,7 +573,7 @@ pub fn fill(
             message: format!(
                 "a sample at {} comes after later ones of its session: the table is not in \
                  time order (written by another version of apply?)",
-                ingest::time::utc_iso(t)
+                ingest::base::time::utc_iso(t)
             ),
         });
     }

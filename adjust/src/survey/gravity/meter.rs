@@ -51,7 +51,7 @@ impl MeterLines {
     }
 
     /// A DGS laptop line added ([`MeterLines::push`]).
-    pub fn push_laptop(&mut self, r: &ingest::dgs::LaptopLine) {
+    pub fn push_laptop(&mut self, r: &ingest::readers::dgs::LaptopLine) {
         self.push(r.gps_ns, Some(r.monitors), r.status);
     }
 
@@ -112,8 +112,8 @@ pub fn is_meter_file(format: AdcFormat) -> bool {
     )
 }
 
-/// A meter's record from its laptop file ([`ingest::dgs`]) or its raw serial output
-/// ([`ingest::meter_serial`], the logger's stamps without a zone in `scale`); None for a
+/// A meter's record from its laptop file ([`ingest::readers::dgs`]) or its raw serial output
+/// ([`ingest::readers::meter_serial`], the logger's stamps without a zone in `scale`); None for a
 /// stream of another `format`. The lines that do not parse, or do not move time on, are
 /// passed over: ingest rejects and counts them, naming them, when it reads the same file
 /// for the meter's gravity.
@@ -138,10 +138,10 @@ pub fn read(
         let Ok(l) = l else { continue };
         let line = l.as_bytes();
         let read = match format {
-            AdcFormat::DgsRaw => ingest::meter_serial::parse_dgs_raw(line, scale)
+            AdcFormat::DgsRaw => ingest::readers::meter_serial::parse_dgs_raw(line, scale)
                 .ok()
                 .map(|r| (r.gps_ns, r.monitors, r.status)),
-            _ => ingest::meter_serial::parse_bgm3(line, scale)
+            _ => ingest::readers::meter_serial::parse_bgm3(line, scale)
                 .ok()
                 .map(|r| (r.gps_ns, None, r.status)),
         };

@@ -646,7 +646,7 @@ pub fn tie_point(
                  where the track is then ({:.5}, {:.5} deg, {:.1} m), beyond any \
                  disturbance on the Earth ({MAX_DISTURBANCE_MGAL} mGal): is it this \
                  place's gravity, and the trajectory's position?",
-                ingest::time::utc_iso(tie.time_gps_ns),
+                ingest::base::time::utc_iso(tie.time_gps_ns),
                 tie.g_mgal,
                 s.latitude_deg[k],
                 s.longitude_deg[k],
@@ -795,7 +795,7 @@ fn still(tie: &Tie, s: &Stretch, dt: f64) -> Result<(), GravityError> {
                 "the tie at {}: the vehicle moves at {median:.1} m/s (the median over its {} \
                  s window), where a tie's window must be still (below {STILL_M_S} m/s): is \
                  its time right?",
-                ingest::time::utc_iso(tie.time_gps_ns),
+                ingest::base::time::utc_iso(tie.time_gps_ns),
                 tie.duration_s
             ),
         });

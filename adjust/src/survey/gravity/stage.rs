@@ -18,6 +18,7 @@ use super::reduce::{self, CalibrationGradient, Reduced, Stretch, Tie};
 use super::spectrum::{self, Floor};
 use super::track::{Track, read_tracks};
 use crate::survey::apply::triad_stream::TriadFunction;
+use ingest::base::time::utc_iso;
 use ingest::contract::apply_ledger::{self, ApplyReport};
 use ingest::contract::gravity_ledger::{
     CouplingUsed, Crossover, DriftFitted, ErrorModelsUsed, FilterUsed, GravityReport, Input,
@@ -29,7 +30,6 @@ use ingest::contract::survey::{
     ArrayDown, ErrorModel, FilterKind, ResolvedTie, SurveyConfig, TieLevel,
 };
 use ingest::contract::tables::{applied, gravity};
-use ingest::time::utc_iso;
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::Path;
@@ -57,7 +57,7 @@ pub const BLOCK_EPOCHS: usize = 1 << 16;
 /// Runs the stage on `dataset` into `out`.
 pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityReport, GravityError> {
     let ds = Dataset::load(dataset)?;
-    let _lock = ingest::lock::OutputLock::acquire(out)?;
+    let _lock = ingest::base::lock::OutputLock::acquire(out)?;
     let survey = ds.manifest.survey.clone().unwrap_or_default();
     let table = out.join(apply_ledger::STAGE_DIR).join(applied::FILE);
     let dir = out.join(STAGE_DIR);
@@ -1801,7 +1801,7 @@ fn append<T: Copy>(dst: &mut Vec<T>, src: Vec<T>) {
 /// [`BLOCK_EPOCHS`], then written as a row group; what the crossover search and the
 /// filter's resolution need of them kept as they pass (a row in [`crossover::step`]).
 struct Rows {
-    writer: ingest::table::TableWriter,
+    writer: ingest::parquet_io::table::TableWriter,
     session: Vec<u16>,
     time: Vec<i64>,
     stretch: Vec<u32>,
@@ -1826,11 +1826,11 @@ struct Rows {
 impl Rows {
     /// Starts gravity.parquet in `dir`, for the sessions `names`.
     fn create(dir: &Path, names: &[String], with_horizontal: bool) -> Result<Self, GravityError> {
-        let writer = ingest::table::TableWriter::create(
+        let writer = ingest::parquet_io::table::TableWriter::create(
             dir,
             gravity::FILE,
             gravity::schema(names),
-            ingest::table::Encodings::default(),
+            ingest::parquet_io::table::Encodings::default(),
         )?;
         Ok(Rows {
             writer,

@@ -16,10 +16,10 @@ use super::reduce::Steps;
 use super::spill::{Spill, SpillWriter};
 use super::trajectory::{self, Epoch, Values, count_dropped};
 use super::{BadLine, GravityError};
+use ingest::base::timegate::{Position, TimeGate};
 use ingest::contract::gravity_ledger::dropped;
 use ingest::contract::manifest::{AdcFormat, Dataset, ResolvedSession};
 use ingest::contract::survey::{Heights, SurveyConfig, TrajectoryFormat};
-use ingest::timegate::{Position, TimeGate};
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::Path;
@@ -142,7 +142,7 @@ impl Track<'_> {
                     format!(
                         "the attitude at {} cannot be interpolated again where it was when \
                          the epoch was kept",
-                        ingest::time::utc_iso(t)
+                        ingest::base::time::utc_iso(t)
                     ),
                 )
             })?);
@@ -339,7 +339,7 @@ fn each_epoch_and_meter(
             trajectory::for_each_nmea(&src.path, (scan, s.date), skip, g)
         }
         TrajectoryFormat::Csv => {
-            let form = src.time.unwrap_or(ingest::time::TimeForm::Iso);
+            let form = src.time.unwrap_or(ingest::base::time::TimeForm::Iso);
             trajectory::for_each_csv(&src.path, s.times.reader(form), skip, g)
         }
     }
@@ -356,7 +356,7 @@ struct EpochSink<'a> {
     lever_arm_m: [f64; 3],
 }
 
-impl ingest::timegate::Sink<Values> for EpochSink<'_> {
+impl ingest::base::timegate::Sink<Values> for EpochSink<'_> {
     type Error = GravityError;
 
     fn accept(&mut self, time_ns: i64, (llh, sd): Values) -> Result<(), Self::Error> {

@@ -7,8 +7,8 @@
 //! resampling here: epochs as written, in time order.
 
 use super::{BadLine, GravityError, set_aside};
+use ingest::base::time::{TimeForm, TimeReader};
 use ingest::contract::manifest::TimeScale;
-use ingest::time::{TimeForm, TimeReader};
 use std::collections::BTreeMap;
 use std::io::BufRead;
 use std::path::Path;
@@ -266,7 +266,7 @@ pub fn read_csv(path: &Path, time: TimeReader, skip: bool) -> Result<Trajectory,
 }
 
 /// Reads a DGS laptop file's navigation (docs/formats.md 11.1): each line's latitude and
-/// longitude through the parser ingest reads its gravity with ([`ingest::dgs`]), at height
+/// longitude through the parser ingest reads its gravity with ([`ingest::readers::dgs`]), at height
 /// 0 (the file has none: the sea surface), without sds.
 pub fn read_dgs_laptop(path: &Path, skip: bool) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
@@ -284,7 +284,7 @@ pub fn read_dgs_laptop(path: &Path, skip: bool) -> Result<Trajectory, GravityErr
 pub fn for_each_dgs_laptop(
     path: &Path,
     skip: bool,
-    mut f: impl FnMut(u64, &ingest::dgs::LaptopLine) -> Result<(), GravityError>,
+    mut f: impl FnMut(u64, &ingest::readers::dgs::LaptopLine) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
     let mut bad_lines = Vec::new();
     let parse = |line_no: u64, l: Result<&str, GravityError>| {
@@ -292,8 +292,8 @@ pub fn for_each_dgs_laptop(
             if l.trim().is_empty() {
                 return Ok(None);
             }
-            ingest::dgs::split(l.as_bytes())
-                .and_then(|fields| ingest::dgs::parse_laptop(&fields))
+            ingest::readers::dgs::split(l.as_bytes())
+                .and_then(|fields| ingest::readers::dgs::parse_laptop(&fields))
                 .map(Some)
                 .map_err(|(field, m)| bad(path, line_no, field, m))
         })
@@ -411,7 +411,7 @@ pub struct NmeaScan {
 /// An NMEA file's first pass ([`NmeaScan`]); lines that do not parse are left to
 /// [`for_each_nmea`].
 pub fn nmea_scan(path: &Path) -> Result<NmeaScan, GravityError> {
-    use ingest::nmea::{Sentence, find, parse};
+    use ingest::readers::nmea::{Sentence, find, parse};
     let (mut gga, mut separated) = (false, true);
     for (_, l) in numbered_lines(path)? {
         let Ok(l) = l else { continue };
@@ -462,11 +462,11 @@ pub fn for_each_nmea(
     let mut bad_lines = Vec::new();
     for (line_no, l) in numbered_lines(path)? {
         let fix = l.and_then(|l| {
-            let Some(sentence) = ingest::nmea::find(l.as_bytes()) else {
+            let Some(sentence) = ingest::readers::nmea::find(l.as_bytes()) else {
                 return Ok(None);
             };
-            let sentence =
-                ingest::nmea::parse(sentence).map_err(|(field, m)| bad(path, line_no, field, m))?;
+            let sentence = ingest::readers::nmea::parse(sentence)
+                .map_err(|(field, m)| bad(path, line_no, field, m))?;
             nmea_fix(sentence, scan, &mut clock).map_err(|(field, m)| bad(path, line_no, field, m))
         });
         match fix {
@@ -498,8 +498,9 @@ impl NmeaClock {
 
     /// A date sentence's (ZDA, RMC) date.
     fn date(&mut self, d: (i32, u8, u8)) {
-        self.day_gps_ns = ingest::time::gps_ns(ingest::time::Calendar::midnight(d), TimeScale::Utc)
-            .unwrap_or(i64::MIN);
+        self.day_gps_ns =
+            ingest::base::time::gps_ns(ingest::base::time::Calendar::midnight(d), TimeScale::Utc)
+                .unwrap_or(i64::MIN);
         self.last_of_day = None;
     }
 
@@ -520,11 +521,11 @@ impl NmeaClock {
 /// The fix a sentence gives (GPS time, position), if any, as [`for_each_nmea`] takes them;
 /// a fix that is none, or a height beyond [-10 km, 100 km], is refused naming the field.
 fn nmea_fix(
-    sentence: ingest::nmea::Sentence,
+    sentence: ingest::readers::nmea::Sentence,
     scan: NmeaScan,
     clock: &mut NmeaClock,
-) -> Result<Option<(i64, [f64; 3])>, ingest::nmea::Bad> {
-    use ingest::nmea::Sentence;
+) -> Result<Option<(i64, [f64; 3])>, ingest::readers::nmea::Bad> {
+    use ingest::readers::nmea::Sentence;
     let no_fix = |what: &str| ("quality", format!("{what}: no fix"));
     let (time_of_day_ns, llh) = match sentence {
         Sentence::Zda { date, .. } => {

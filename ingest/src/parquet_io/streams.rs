@@ -4,8 +4,8 @@
 use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::contract::tables;
 use crate::error::{Error, Result};
-use crate::rowgroup::{N, Spare, column, nullable, session_values, whole};
-use crate::table::{
+use crate::parquet_io::rowgroup::{N, Spare, column, nullable, session_values, whole};
+use crate::parquet_io::table::{
     ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, STREAM_ROWS_PER_GROUP,
     Written,
 };

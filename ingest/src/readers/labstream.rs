@@ -17,15 +17,17 @@
 //! Times are read exactly from their decimal digits (a Unix time with microseconds has 16
 //! significant digits, more than an f64 holds); only scientific notation goes through f64.
 
+use crate::base::time::parse_seconds_ns;
+use crate::base::timegate::{Position, Sink, TimeGate};
 use crate::contract::ingest_ledger::{FileLedger, LabStreamReport, reason};
 use crate::contract::manifest::{AdcFormat, MAX_VALUE_COLUMNS, ValueColumns};
 use crate::contract::tables;
 use crate::error::{Error, Result};
-use crate::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
-use crate::rowgroup::{N, Spare, column, nullable, session_values, whole};
-use crate::table::{ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Written};
-use crate::time::parse_seconds_ns;
-use crate::timegate::{Position, Sink, TimeGate};
+use crate::parquet_io::rowgroup::{N, Spare, column, nullable, session_values, whole};
+use crate::parquet_io::table::{
+    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Written,
+};
+use crate::readers::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
 use std::collections::{BTreeMap, VecDeque};
 use std::path::Path;
 use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
@@ -783,10 +785,10 @@ pub fn reading_limits(instrument: &crate::contract::manifest::Instrument) -> Lim
 }
 
 /// A DGS laptop line's GPS time, raw gravity (mGal) and the bytes of its calendar fields
-/// (19 to 24), split by [`crate::dgs::split`].
+/// (19 to 24), split by [`crate::readers::dgs::split`].
 fn laptop_record(line: &[u8]) -> std::result::Result<(i64, f64, std::ops::Range<usize>), Bad> {
-    let fields = crate::dgs::split(line)?;
-    let record = crate::dgs::parse_laptop(&fields)?;
+    let fields = crate::readers::dgs::split(line)?;
+    let record = crate::readers::dgs::parse_laptop(&fields)?;
     // The fields are slices of `line`: their offsets in it.
     let at = |f: &[u8]| f.as_ptr() as usize - line.as_ptr() as usize;
     let calendar = at(fields[19])..at(fields[24]) + fields[24].len();
@@ -838,8 +840,8 @@ impl<'c> Lines<'c> {
         })
     }
 
-    /// A platform meter's line (a DGS laptop line, [`crate::dgs`]; a BGM-3's or DGS's serial
-    /// line as a logger writes it, [`crate::meter_serial`]): its reading on channel 1,
+    /// A platform meter's line (a DGS laptop line, [`crate::readers::dgs`]; a BGM-3's or DGS's serial
+    /// line as a logger writes it, [`crate::readers::meter_serial`]): its reading on channel 1,
     /// judged as any line; the time field in messages is the line's calendar fields or the
     /// logger's stamp.
     fn meter_data<'l>(
@@ -860,10 +862,9 @@ impl<'c> Lines<'c> {
                 self.comma_separated = true;
                 laptop_record(line)
             }
-            AdcFormat::Bgm3 => {
-                crate::meter_serial::parse_bgm3(line, scale).map(|r| (r.gps_ns, r.reading, r.stamp))
-            }
-            _ => crate::meter_serial::parse_dgs_raw(line, scale)
+            AdcFormat::Bgm3 => crate::readers::meter_serial::parse_bgm3(line, scale)
+                .map(|r| (r.gps_ns, r.reading, r.stamp)),
+            _ => crate::readers::meter_serial::parse_dgs_raw(line, scale)
                 .map(|r| (r.gps_ns, r.reading, r.stamp)),
         };
         let (gps_ns, reading, time_field) = match record {
@@ -1020,7 +1021,7 @@ impl<'c> Lines<'c> {
 /// Reads one "seconds" stream into `out`, filling in `ledger`; returns the median interval
 /// between samples (ns) measured from stamps that move (None when no two do).
 ///
-/// Each run of lines sharing a stamp passes the time gate ([`crate::timegate`]) as one
+/// Each run of lines sharing a stamp passes the time gate ([`crate::base::timegate`]) as one
 /// record, so a line stamped far ahead (or behind) of its neighbours is the one rejected,
 /// never the lines after it.
 pub fn read_lab(
@@ -1100,7 +1101,7 @@ pub fn read_lab(
 
 /// The temperature log's side of the time gate: kept lines go to the temperature table.
 struct TemperatureSink<'a> {
-    streams: &'a mut crate::streams::StreamWriter,
+    streams: &'a mut crate::parquet_io::streams::StreamWriter,
     ledger: &'a mut FileLedger,
     intervals: Histogram,
     last: Option<i64>,
@@ -1137,7 +1138,7 @@ pub fn read_lab_temperature(
     path: &Path,
     config: LabConfig,
     interval_ns: i64,
-    streams: &mut crate::streams::StreamWriter,
+    streams: &mut crate::parquet_io::streams::StreamWriter,
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
 ) -> Result<Option<i64>> {

@@ -6,15 +6,15 @@
 //! field is a channel not connected, and a count at either end of the 24-bit range is taken
 //! as over range (saturated).
 
+use crate::base::time::NS_PER_WEEK;
+use crate::base::time::{TimeForm, TimeReader};
+use crate::base::timegate::{Position, Sink, TimeGate};
 use crate::contract::ingest_ledger::{FileLedger, reason};
 use crate::contract::manifest::{MAX_VALUE_COLUMNS, ValueColumns};
 use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::error::{Error, Result};
-use crate::lines::{digits, read_lines, strip_comment, text};
-use crate::streams::StreamWriter;
-use crate::time::NS_PER_WEEK;
-use crate::time::{TimeForm, TimeReader};
-use crate::timegate::{Position, Sink, TimeGate};
+use crate::parquet_io::streams::StreamWriter;
+use crate::readers::lines::{digits, read_lines, strip_comment, text};
 use std::path::Path;
 
 const COUNT_MIN: i64 = -8_388_608;
@@ -23,9 +23,10 @@ const COUNT_MAX: i64 = 8_388_607;
 /// of a real log, and its time in ns would not fit an i64 far beyond it. A week inside
 /// this range but outside the session is rejected by the time gate instead.
 const MAX_WEEK: i64 = 9_999;
-/// Plausible temperatures, degC: every reader's ([`crate::labstream::TEMPERATURE_LIMITS`]).
-const CELSIUS_RANGE: std::ops::RangeInclusive<f64> =
-    crate::labstream::TEMPERATURE_LIMITS.lo..=crate::labstream::TEMPERATURE_LIMITS.hi;
+/// Plausible temperatures, degC: every reader's ([`crate::readers::labstream::TEMPERATURE_LIMITS`]).
+const CELSIUS_RANGE: std::ops::RangeInclusive<f64> = crate::readers::labstream::TEMPERATURE_LIMITS
+    .lo
+    ..=crate::readers::labstream::TEMPERATURE_LIMITS.hi;
 
 /// Which of the two CSV logs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

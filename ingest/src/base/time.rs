@@ -2,7 +2,7 @@
 //! Leap seconds come from hifitime's maintained table, not from a list written here.
 
 use crate::contract::manifest::TimeScale;
-use crate::lines::text;
+use crate::readers::lines::text;
 use hifitime::Epoch;
 
 /// Nanoseconds in a GPS week.
@@ -143,10 +143,10 @@ impl TimeReader {
         let mut p = 19;
         let mut nanos = 0i64;
         if line.get(p) == Some(&b'.') {
-            // The fraction's digits eight at a time ([`crate::lines::digits`]).
+            // The fraction's digits eight at a time ([`crate::readers::lines::digits`]).
             p += 1;
-            let frac = crate::lines::digits(line, &mut p, 9)?;
-            nanos = frac * crate::lines::POWERS_OF_TEN[9 - (p - 20)];
+            let frac = crate::readers::lines::digits(line, &mut p, 9)?;
+            nanos = frac * crate::readers::lines::POWERS_OF_TEN[9 - (p - 20)];
         }
         let zulu = matches!(line.get(p), Some(b'Z' | b'z'));
         p += usize::from(zulu);

@@ -7,13 +7,13 @@
 //! streams, where the Arrow path's per-value index lists and casts cost a third of the
 //! writing. It encodes a row group's columns in parallel, into memory, and then appends
 //! them to the file in schema order, so the bytes do not depend on the threads.
-//! Delta-encoded integer columns it encodes itself ([`crate::encoding`]), pages, offset
+//! Delta-encoded integer columns it encodes itself ([`crate::parquet_io::encoding`]), pages, offset
 //! index, statistics and column index as parquet-rs's column writer makes them
 //! (`tests/delta_columns.rs` compares the two); parquet-rs's delta encoder was a quarter of
 //! ingest's CPU time.
 
-use crate::encoding::{self, DeltaValue};
 use crate::error::{Error, Result};
+use crate::parquet_io::encoding::{self, DeltaValue};
 use arrow_array::types::Int32Type;
 use arrow_array::{ArrayRef, DictionaryArray, Int32Array, RecordBatch, StringArray};
 use arrow_schema::SchemaRef;
@@ -503,7 +503,7 @@ fn ones(levels: &[i16]) -> usize {
 }
 
 /// Writes a delta-encoded integer column chunk as parquet-rs's column writer would, with
-/// ingest's own encoders ([`crate::encoding`]): version 1 data pages of
+/// ingest's own encoders ([`crate::parquet_io::encoding`]): version 1 data pages of
 /// [`OWN_PAGE_ROWS`] rows, definition levels RLE-encoded, values DELTA_BINARY_PACKED,
 /// zstd-compressed if the column is; the offset index; and, where statistics are enabled,
 /// the chunk's min, max and null count and a column index of each page's. Not written (they

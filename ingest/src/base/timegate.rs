@@ -80,8 +80,8 @@ pub struct TimeGate<T> {
 
 /// A GPS time as `week W tow S s`, for messages.
 pub fn describe_gps(time_ns: i64) -> String {
-    let week = time_ns.div_euclid(crate::time::NS_PER_WEEK);
-    let tow = time_ns.rem_euclid(crate::time::NS_PER_WEEK);
+    let week = time_ns.div_euclid(crate::base::time::NS_PER_WEEK);
+    let tow = time_ns.rem_euclid(crate::base::time::NS_PER_WEEK);
     format!("GPS week {week} tow {:.3} s", tow as f64 * 1e-9)
 }
 
@@ -148,7 +148,7 @@ impl<T> TimeGate<T> {
                     reason::TIME_BACKWARDS,
                     format!(
                         "{} ms before the record accepted before it",
-                        (last - t) / crate::time::NS_PER_MS
+                        (last - t) / crate::base::time::NS_PER_MS
                     ),
                 ))),
                 Some(last) if t - last <= self.max_step_ns => Some(Ok(())),

@@ -3,7 +3,7 @@
 //! [`STREAM_ROWS_PER_GROUP`] values filled in place, and the buffers of written row groups
 //! kept for the next ones.
 
-use crate::table::{ColumnValues, STREAM_ROWS_PER_GROUP};
+use crate::parquet_io::table::{ColumnValues, STREAM_ROWS_PER_GROUP};
 
 /// Rows of a stream row group.
 pub(crate) const N: usize = STREAM_ROWS_PER_GROUP;

@@ -16,8 +16,8 @@
 //! One parser serves ingest (the reading) and the gravity stage (the positions), so the two
 //! see the same lines the same way. No I/O.
 
+use crate::base::time::{Calendar, gps_ns};
 use crate::contract::manifest::TimeScale;
-use crate::time::{Calendar, gps_ns};
 
 /// Fields a laptop line has.
 pub const FIELDS: usize = 26;
@@ -47,11 +47,11 @@ fn text(f: &[u8]) -> String {
 }
 
 /// A field's decimal: on the lab streams' exact fast path where its digits allow
-/// (`crate::labstream::fast_decimal`, the double `str::parse` gives), through `str::parse`
+/// (`crate::readers::labstream::fast_decimal`, the double `str::parse` gives), through `str::parse`
 /// otherwise.
 fn number(fields: &[&[u8]], k: usize, name: &'static str) -> Result<f64, Bad> {
     let f = fields[k].trim_ascii();
-    crate::labstream::fast_decimal(f)
+    crate::readers::labstream::fast_decimal(f)
         .map(|(v, _)| v)
         .or_else(|| std::str::from_utf8(f).ok()?.parse::<f64>().ok())
         .filter(|v| v.is_finite())
@@ -309,13 +309,13 @@ mod tests {
             bits(&[0.81098, -0.001_845_585_113, 0.10784, 0.25429])
         );
         let midnight = gps_ns(
-            crate::time::parse_calendar("2019-07-11T00:00:00").expect("calendar"),
+            crate::base::time::parse_calendar("2019-07-11T00:00:00").expect("calendar"),
             TimeScale::Utc,
         )
         .expect("gps");
         assert_eq!(l.gps_ns, midnight);
         let gpst = gps_ns(
-            crate::time::parse_calendar("2019-07-11T00:00:18").expect("calendar"),
+            crate::base::time::parse_calendar("2019-07-11T00:00:18").expect("calendar"),
             TimeScale::Gpst,
         );
         assert_eq!(Some(l.gps_ns), gpst);

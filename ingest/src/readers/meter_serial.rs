@@ -61,7 +61,7 @@ pub struct SerialLine {
     /// The meter's reading: BGM-3 counts, or the DGS's gravity in AD units.
     pub reading: f64,
     /// The cross-coupling monitors VE, VCC, AL, AX (a DGS's, scaled by 1e-5), in the order
-    /// of the laptop file's ([`crate::dgs::LaptopLine::monitors`]); None for a BGM-3.
+    /// of the laptop file's ([`crate::readers::dgs::LaptopLine::monitors`]); None for a BGM-3.
     pub monitors: Option<[f64; 4]>,
     /// The meter's status word: a DGS's status field, a BGM-3's `SS`, as integers.
     pub status: u32,
@@ -131,7 +131,7 @@ pub fn logger_time(
             ),
         )
     })?;
-    let t = crate::time::iso_gps_ns(&iso, scale).map_err(|m| ("time", m))?;
+    let t = crate::base::time::iso_gps_ns(&iso, scale).map_err(|m| ("time", m))?;
     Ok((t, form, range))
 }
 
@@ -176,8 +176,8 @@ fn day_of_year(t: &[u8]) -> Option<String> {
     }
     let year: i32 = std::str::from_utf8(&t[..4]).ok()?.parse().ok()?;
     let doy: i64 = std::str::from_utf8(&t[5..8]).ok()?.parse().ok()?;
-    let jan1 = crate::time::days_from_civil((year, 1, 1));
-    let (y, m, d) = crate::time::civil_from_days(jan1 + doy - 1);
+    let jan1 = crate::base::time::days_from_civil((year, 1, 1));
+    let (y, m, d) = crate::base::time::civil_from_days(jan1 + doy - 1);
     (doy >= 1 && y == year).then(|| format!("{y:04}-{m:02}-{d:02}T{}", text(clock)))
 }
 
@@ -293,7 +293,7 @@ mod tests {
     use super::*;
 
     fn utc(iso: &str) -> i64 {
-        crate::time::iso_gps_ns(iso, TimeScale::Utc).expect("time")
+        crate::base::time::iso_gps_ns(iso, TimeScale::Utc).expect("time")
     }
 
     /// Each of the four loggers' stamps of shipgrav's BGM-3 samples: the time, the form, the

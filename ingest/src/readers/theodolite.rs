@@ -1,13 +1,13 @@
 //! Reader of the theodolite log (docs/formats.md section 5): station, time in the session's time
 //! scale, zenith distance in the session's unit. Times leave as GPS time; angles as radians.
 
+use crate::base::time::TimeReader;
 use crate::contract::ingest_ledger::{FileLedger, reason};
 use crate::contract::manifest::{AngleUnit, ResolvedSession, TimeScale};
 use crate::contract::tables;
 use crate::error::{Error, Result};
-use crate::lines::{read_lines, strip_comment};
-use crate::table::{TableWriter, session_column};
-use crate::time::TimeReader;
+use crate::parquet_io::table::{TableWriter, session_column};
+use crate::readers::lines::{read_lines, strip_comment};
 use arrow_array::{ArrayRef, Float64Array, Int64Array, StringArray, UInt32Array};
 use std::path::Path;
 use std::sync::Arc;
@@ -160,7 +160,7 @@ impl TheodoliteWriter {
                 dir,
                 tables::theodolite::FILE,
                 tables::theodolite::schema(),
-                crate::table::Encodings {
+                crate::parquet_io::table::Encodings {
                     dictionary: &[
                         tables::SESSION,
                         tables::theodolite::STATION,
@@ -215,7 +215,7 @@ impl TheodoliteWriter {
     }
 
     /// Closes and renames the table; returns its rows and SHA-256.
-    pub fn finish(self) -> Result<crate::table::Written> {
+    pub fn finish(self) -> Result<crate::parquet_io::table::Written> {
         self.table.finish_hashed()
     }
 }

@@ -8,10 +8,10 @@
 //! (duplicate, time going backwards, reserved status bits, time of week out of range, count
 //! out of the 24-bit range) are rejected whole. It never panics on any byte sequence.
 
+use crate::base::time::{NS_PER_MS, NS_PER_WEEK, resolve_week};
+use crate::base::timegate::{Position, Sink, TimeGate};
 use crate::contract::ingest_ledger::{ByteLedger, FileLedger, MAX_LISTED, Rejection, reason};
 use crate::contract::status::{RESERVED_BITS, not_connected};
-use crate::time::{NS_PER_MS, NS_PER_WEEK, resolve_week};
-use crate::timegate::{Position, Sink, TimeGate};
 
 /// Frame sync word.
 pub const SYNC: [u8; 2] = [0xA5, 0x5A];
