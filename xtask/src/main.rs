@@ -1,15 +1,11 @@
 //! `cargo xtask`: runs the pipeline or one stage on a dataset, writes and checks the fixtures,
 //! runs what CI runs, and the benchmarks.
 
-mod bench;
-mod bench_apply;
-mod bench_gravity;
-mod check;
-mod digest;
-mod init;
-mod preflight;
-mod show;
-mod verdicts;
+mod dev;
+mod user;
+
+use dev::{bench, bench_apply, bench_gravity, digest, verdicts};
+use user::{check, init, show};
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};

@@ -117,7 +117,7 @@ pub fn run(dataset: &Path) -> Result<PathBuf> {
         .iter()
         .map(|f| (dataset.join(&f.rel), f.layout == Layout::Binary))
         .collect();
-    let findings = crate::preflight::findings(dataset, &logs, &text)?;
+    let findings = crate::user::preflight::findings(dataset, &logs, &text)?;
     if !findings.is_empty() {
         let mut said = String::from(
             "# What `cargo xtask check` says of these logs as drafted (every \"FILL IN\"\n\

@@ -2,7 +2,7 @@
 //! would refuse, init says. The draft's `"FILL IN"` values are stood in for by values any
 //! log passes (the benchmark's gravity, a unit, a time scale, a session kind that asks for
 //! no theodolite log), the logs are trimmed into a scratch dataset as check trims them
-//! (their ends kept, their middles blank, [`crate::check::trim`]), and check runs on it.
+//! (their ends kept, their middles blank, [`crate::user::check::trim`]), and check runs on it.
 //! Where a value cannot be stood in for (a session's date or start: the times depend on
 //! them), the draft is not checked, and init says which key waits.
 
@@ -28,7 +28,7 @@ fn stand_in(key: &str) -> Option<&'static str> {
 
 /// The draft `text` with every `"FILL IN"` stood in for, or the first key none can be.
 fn stood_in(text: &str) -> Result<String, String> {
-    let mark = format!("= {}", crate::init::FILL);
+    let mark = format!("= {}", crate::user::init::FILL);
     text.lines()
         .map(|line| match line.split_once(&mark) {
             Some((key, _)) => {
@@ -88,9 +88,9 @@ fn check_copy(
 ) -> Result<Option<Vec<u8>>> {
     for (f, binary) in files {
         let rel = f.strip_prefix(dataset).unwrap_or(f);
-        crate::check::trim(f, &copy.join(rel), *binary)?;
+        crate::user::check::trim(f, &copy.join(rel), *binary)?;
     }
     std::fs::write(copy.join("dataset.toml"), draft).context("writing the stood-in draft")?;
     let mut out = Vec::new();
-    Ok((!crate::check::run(copy, &mut out)?).then_some(out))
+    Ok((!crate::user::check::run(copy, &mut out)?).then_some(out))
 }
