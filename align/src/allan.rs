@@ -8,6 +8,8 @@
 //! Confidence intervals come from chi-square with the equivalent degrees of freedom of
 //! white frequency noise (NIST SP 1065, Table 5; allantools' `edf_simple` with alpha = 0).
 
+use faer::linalg::solvers::DenseSolveCore;
+use faer::prelude::*;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// One point of an Allan deviation curve.
@@ -425,16 +427,7 @@ fn correlated_inverse(points: &[AllanPoint], correlation: &[f64], model: &[f64])
     let cov: Vec<f64> = (0..p * p)
         .map(|i| correlation[i] * sd[i / p] * sd[i % p])
         .collect();
-    let mut inverse = vec![0.0; p * p];
-    for col in 0..p {
-        let mut a = cov.clone();
-        let mut e = vec![0.0; p];
-        e[col] = 1.0;
-        for (r, x) in solve_small(&mut a, &mut e, p).into_iter().enumerate() {
-            inverse[r * p + col] = x;
-        }
-    }
-    inverse
+    inverse_small(&cov, p)
 }
 
 /// The generalised least-squares fit of the terms `idx` to the variances `v` with the
@@ -464,19 +457,14 @@ fn generalised_fit(
             }
         }
     }
-    let normal = ata.clone();
-    let c = solve_small(&mut ata, &mut atb, k);
+    let c = solve_small(&ata, &atb, k);
     let mut coef = [0.0; 3];
     for (a, &j) in idx.iter().enumerate() {
         coef[j] = c[a];
     }
+    let normal_inverse = inverse_small(&ata, k);
     let se = (0..k)
-        .map(|a| {
-            let mut e = vec![0.0; k];
-            e[a] = 1.0;
-            let mut n = normal.clone();
-            solve_small(&mut n, &mut e, k)[a].max(0.0).sqrt()
-        })
+        .map(|a| normal_inverse[a * k + a].max(0.0).sqrt())
         .collect();
     (coef, se)
 }
@@ -504,7 +492,7 @@ fn weighted_fit(points: &[AllanPoint], mut active: [bool; 3]) -> NoiseTerms {
                 }
             }
         }
-        let c = solve_small(&mut ata, &mut atb, k);
+        let c = solve_small(&ata, &atb, k);
         let mut coef = [0.0; 3];
         for (a, &j) in idx.iter().enumerate() {
             coef[j] = c[a];
@@ -522,36 +510,32 @@ fn weighted_fit(points: &[AllanPoint], mut active: [bool; 3]) -> NoiseTerms {
     }
 }
 
-/// Solves the k x k system `a c = b` by Gaussian elimination with partial pivoting (k <= 3);
-/// a singular system gives zeros.
-fn solve_small(a: &mut [f64], b: &mut [f64], k: usize) -> Vec<f64> {
-    for col in 0..k {
-        let Some(piv) =
-            (col..k).max_by(|&i, &j| a[i * k + col].abs().total_cmp(&a[j * k + col].abs()))
-        else {
-            return vec![0.0; k];
-        };
-        if a[piv * k + col].abs() < 1e-300 {
-            return vec![0.0; k];
-        }
-        for c in 0..k {
-            a.swap(col * k + c, piv * k + c);
-        }
-        b.swap(col, piv);
-        for r in col + 1..k {
-            let f = a[r * k + col] / a[col * k + col];
-            for c in col..k {
-                a[r * k + c] -= f * a[col * k + c];
-            }
-            b[r] -= f * b[col];
-        }
+/// Solves the k x k system `a c = b` (row-major `a`) by faer's LU with partial pivoting; a
+/// singular system (a solution not finite) gives zeros.
+fn solve_small(a: &[f64], b: &[f64], k: usize) -> Vec<f64> {
+    let m = Mat::<f64>::from_fn(k, k, |i, j| a[i * k + j]);
+    let rhs = Mat::<f64>::from_fn(k, 1, |i, _| b[i]);
+    let x = m.partial_piv_lu().solve(&rhs);
+    let x: Vec<f64> = (0..k).map(|i| x[(i, 0)]).collect();
+    if x.iter().all(|v| v.is_finite()) {
+        x
+    } else {
+        vec![0.0; k]
     }
-    let mut x = vec![0.0; k];
-    for r in (0..k).rev() {
-        let s: f64 = (r + 1..k).map(|c| a[r * k + c] * x[c]).sum();
-        x[r] = (b[r] - s) / a[r * k + r];
+}
+
+/// The inverse of the p x p matrix `a` (row-major) by faer's LU with partial pivoting, row
+/// major; a singular matrix (an inverse not finite) gives zeros.
+fn inverse_small(a: &[f64], p: usize) -> Vec<f64> {
+    let inv = Mat::<f64>::from_fn(p, p, |i, j| a[i * p + j])
+        .partial_piv_lu()
+        .inverse();
+    let out: Vec<f64> = (0..p * p).map(|i| inv[(i / p, i % p)]).collect();
+    if out.iter().all(|v| v.is_finite()) {
+        out
+    } else {
+        vec![0.0; p * p]
     }
-    x
 }
 
 #[cfg(test)]

@@ -14,34 +14,20 @@ pub(crate) const NOTE_CORRELATION: f64 = 0.999;
 /// Multiple correlation of each parameter with all the others, from the correlation matrix
 /// `C`: `sqrt(1 - 1 / (C^-1)_jj)`. 1 where `C` is numerically singular.
 pub(crate) fn multiple_correlation(c: &[Vec<f64>]) -> Vec<f64> {
+    use faer::linalg::solvers::DenseSolveCore;
     let n = c.len();
-    // Cholesky C = L L^T; (C^-1)_jj = sum_k (L^-1)_kj^2.
-    let mut l = vec![vec![0.0; n]; n];
-    for i in 0..n {
-        for j in 0..=i {
-            let s: f64 = c[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                if s <= 1e-15 {
-                    return vec![1.0; n];
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
+    // faer's Cholesky C = L L^T; numerically singular where a pivot L_jj^2 is at most
+    // 1e-15 (a correlation matrix's diagonal is 1).
+    let m = faer::Mat::<f64>::from_fn(n, n, |i, j| c[i][j]);
+    let Ok(llt) = m.llt(faer::Side::Lower) else {
+        return vec![1.0; n];
+    };
+    if (0..n).any(|j| llt.L()[(j, j)].powi(2) <= 1e-15) {
+        return vec![1.0; n];
     }
-    let mut inv = vec![vec![0.0; n]; n];
-    for col in 0..n {
-        for i in col..n {
-            let s: f64 = (col..i).map(|k| l[i][k] * inv[k][col]).sum();
-            inv[i][col] = (if i == col { 1.0 } else { 0.0 } - s) / l[i][i];
-        }
-    }
+    let inv = llt.inverse();
     (0..n)
-        .map(|j| {
-            let d: f64 = (0..n).map(|k| inv[k][j] * inv[k][j]).sum();
-            (1.0 - 1.0 / d).max(0.0).sqrt()
-        })
+        .map(|j| (1.0 - 1.0 / inv[(j, j)]).max(0.0).sqrt())
         .collect()
 }
 

@@ -132,20 +132,13 @@ impl<const K: usize> Solution<K> {
 /// Changes below this many sds that no longer contract are rounding, not iteration.
 const ROUNDING_FLOOR: f64 = 1e-6;
 
-/// Inverse of an upper-triangular m x m matrix (row-major).
+/// Inverse of an upper-triangular m x m matrix (row-major): faer's triangular solve of
+/// R X = I.
 fn invert_upper(r: &[f64], m: usize) -> Vec<f64> {
-    let mut inv = vec![0.0; m * m];
-    for j in 0..m {
-        inv[j * m + j] = 1.0 / r[j * m + j];
-        for i in (0..j).rev() {
-            let mut s = 0.0;
-            for k in i + 1..=j {
-                s += r[i * m + k] * inv[k * m + j];
-            }
-            inv[i * m + j] = -s / r[i * m + i];
-        }
-    }
-    inv
+    let upper = Mat::<f64>::from_fn(m, m, |i, j| if j >= i { r[i * m + j] } else { 0.0 });
+    let mut inv = Mat::<f64>::identity(m, m);
+    upper.as_ref().solve_upper_triangular_in_place(inv.as_mut());
+    (0..m * m).map(|k| inv[(k / m, k % m)]).collect()
 }
 
 /// Adjusts the conditions `c` for observations `l` with sds `sigma`, from parameters `p0`.
