@@ -38,7 +38,9 @@ enum Cmd {
 
 fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
     let text = std::fs::read_to_string(input).map_err(|e| format!("{}: {e}", input.display()))?;
-    let mut obs = Vec::new();
+    // As many as the lines less the header: a vector grown by doubling to a million
+    // observations held 5 % more than it needed.
+    let mut obs = Vec::with_capacity(text.lines().count().saturating_sub(1));
     for (n, line) in text.lines().enumerate().skip(1) {
         let v: Vec<f64> = line
             .split(',')

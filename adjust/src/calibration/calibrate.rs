@@ -728,6 +728,17 @@ fn conclude(
     } else {
         (s, Vec::new())
     };
+    let mut q = weighted.q_pp.clone();
+    if let Some(noise) = &options.coloured {
+        let extra = correlated::extra_covariance(weighted, groups.timeline(), noise);
+        for (x, e) in q.iter_mut().zip(extra) {
+            *x += e;
+        }
+    }
+    let excess = groups.excess(s, options.coloured.as_ref(), false);
+    // The global test's per-station sums before the residuals are formed: the two are each
+    // 48 bytes an observation, a million observations' peak held one of them.
+    let global_test = components::lack_of_fit(s, &groups.station, &groups.dof, excess);
     let residuals = active
         .iter()
         .enumerate()
@@ -740,14 +751,6 @@ fn conclude(
             w: s.w_test[k],
         })
         .collect();
-    let mut q = weighted.q_pp.clone();
-    if let Some(noise) = &options.coloured {
-        let extra = correlated::extra_covariance(weighted, groups.timeline(), noise);
-        for (x, e) in q.iter_mut().zip(extra) {
-            *x += e;
-        }
-    }
-    let excess = groups.excess(s, options.coloured.as_ref(), false);
     let (covariance, parameter_dof) = t_scaled(propagate(&map, &q, m), weighted, &components, &map);
     let mean_temperature_c = used.iter().map(|o| o.temperature_c).sum::<f64>() / used.len() as f64;
     let thermal_gain = if model.terms.temperature {
@@ -766,7 +769,7 @@ fn conclude(
         iterations: s.iterations,
         t_ref_c: model.t_ref_c,
         mean_temperature_c,
-        global_test: components::lack_of_fit(s, &groups.station, &groups.dof, excess),
+        global_test,
         components,
         removed: Vec::new(),
         residuals,
