@@ -202,23 +202,12 @@ fn attitude_plots(path: &Path, sha256: &str) -> Result<Vec<(String, String)>, Er
             if points.is_empty() {
                 continue;
             }
-            let file = format!("attitude_{name}_{index}.svg");
-            let (title, y_label) = (
-                format!("The antennas' {name} with its 1-sigma band"),
-                format!("{name} (deg)"),
-            );
-            let svg = plots::profile(&plots::Profile {
-                title: &title,
-                x_label: "minutes from the session's first epoch",
-                y_label: &y_label,
-                legend: name,
-                stretches: &[points],
-            })
-            .map_err(|message| Error::Plot {
-                name: file.clone(),
-                message,
-            })?;
-            out.push((file, svg));
+            out.push(band_plot(
+                format!("attitude_{name}_{index}.svg"),
+                (&format!("The antennas' {name}"), name, "deg"),
+                ("minutes from the session's first epoch", name),
+                &[points],
+            )?);
         }
     }
     Ok(out)
@@ -632,20 +621,38 @@ fn plots(epochs: &[Epoch], quantity: &str) -> Result<Vec<(String, String)>, Erro
         })
         .map_err(plot_err(&map_name))?;
         out.push((map_name, svg));
-        let profile_name = format!("gravity_profile_{index}.svg");
-        let (title, y_label) = (
-            format!("Filtered {quantity} with its 1-sigma band"),
-            format!("{quantity} (mGal)"),
-        );
-        let svg = plots::profile(&plots::Profile {
-            title: &title,
-            x_label: "distance along the track (km)",
-            y_label: &y_label,
-            legend: "filtered",
-            stretches: &stretches,
-        })
-        .map_err(plot_err(&profile_name))?;
-        out.push((profile_name, svg));
+        out.push(band_plot(
+            format!("gravity_profile_{index}.svg"),
+            (&format!("Filtered {quantity}"), quantity, "mGal"),
+            ("distance along the track (km)", "filtered"),
+            &stretches,
+        )?);
     }
     Ok(out)
+}
+
+/// A profile with its 1-sigma band, as `file`: titled "`subject` with its 1-sigma band",
+/// its y axis `what (unit)`, against `x_label`, its line `legend`.
+fn band_plot(
+    file: String,
+    (subject, what, unit): (&str, &str, &str),
+    (x_label, legend): (&str, &str),
+    stretches: &[Vec<(f64, f64, f64)>],
+) -> Result<(String, String), Error> {
+    let (title, y_label) = (
+        format!("{subject} with its 1-sigma band"),
+        format!("{what} ({unit})"),
+    );
+    let svg = plots::profile(&plots::Profile {
+        title: &title,
+        x_label,
+        y_label: &y_label,
+        legend,
+        stretches,
+    })
+    .map_err(|message| Error::Plot {
+        name: file.clone(),
+        message,
+    })?;
+    Ok((file, svg))
 }
