@@ -936,16 +936,13 @@ fn reduce_stretch(
         match pair {
             [a, b] => {
                 let (a, b) = rayon::join(|| one(&st, a), || one(&st, b));
-                done.extend([a?, b?]);
+                done.extend([a, b]);
             }
-            _ => {
-                for block in pair {
-                    done.push(one(&st, block)?);
-                }
-            }
+            _ => done.extend(pair.iter().map(|block| one(&st, block))),
         }
+        // In order, as one after the other: the first block's error or shortness first.
         for reduced in done.drain(..) {
-            let Some(rows_of) = reduced else {
+            let Some(rows_of) = reduced? else {
                 return Ok(None);
             };
             push_block(rows_of, (track, number, ctx), (rows, summary), &mut st)?;
@@ -962,34 +959,29 @@ fn push_block(
     (rows, summary): (&mut Rows, &mut SessionGravity),
     st: &mut Reducing<'_>,
 ) -> Result<(), GravityError> {
-    {
-        let filter_s = ctx.survey.filter_s;
-        let interval_s = track.interval_ns as f64 * 1e-9;
-        st.level.get_or_insert(level);
-        let BlockRows {
-            s,
-            r,
-            h,
-            flags,
-            status,
-        } = block;
-        if let (Some(m), Some(words)) = (&mut summary.meter_status, &status) {
-            super::meter::count(m, words);
-        }
-        for (name, n) in count_flags(&flags) {
-            *summary.flagged.entry(name).or_insert(0) += n;
-        }
-        summary.epochs_used += s.time_gps_ns.len() as u64;
-        let step = crossover::step(filter_s, interval_s);
-        let named = track.named(ctx.survey);
-        rows.push(
-            (track.index, number, step),
-            named,
-            (s, r, h),
-            (flags, status),
-        )?;
+    let interval_s = track.interval_ns as f64 * 1e-9;
+    st.level.get_or_insert(level);
+    let BlockRows {
+        s,
+        r,
+        h,
+        flags,
+        status,
+    } = block;
+    if let (Some(m), Some(words)) = (&mut summary.meter_status, &status) {
+        super::meter::count(m, words);
     }
-    Ok(())
+    for (name, n) in count_flags(&flags) {
+        *summary.flagged.entry(name).or_insert(0) += n;
+    }
+    summary.epochs_used += s.time_gps_ns.len() as u64;
+    let step = crossover::step(ctx.survey.filter_s, interval_s);
+    rows.push(
+        (track.index, number, step),
+        track.named(ctx.survey),
+        (s, r, h),
+        (flags, status),
+    )
 }
 
 /// The filtered values and their sigmas withheld (NaN) at the epochs flagged `edge`: within
