@@ -1,6 +1,7 @@
 //! The general fitting command (docs/formats.md 7): its arguments and the CSV table it reads.
 
-use super::{Error, Path, PathBuf, fit};
+use crate::{Error, fit};
+use std::path::{Path, PathBuf};
 
 /// Arguments of the `fit` command (docs/formats.md section 7), shared by the stage binary and
 /// `cargo xtask fit`.

@@ -20,28 +20,23 @@ mod fit_cli;
 
 pub use calibration::jobs::models;
 use calibration::jobs::{
-    Job, component_of, fit_job, plan_jobs, range_of, residual_rows_of, roll_directions,
-    session_mean_temperatures, skip_reason,
+    Job, fit_job, plan_jobs, residual_rows_of, session_mean_temperatures, skip_reason,
 };
 pub use calibration::outputs::print_summary;
 use calibration::outputs::write_outputs;
 pub use calibration::results::{barely_estimable, misalignment_vector, vector_note};
-use calibration::results::{earth_tide_note, kalibr_noise, result_of, thermal_effects};
+use calibration::results::{earth_tide_note, kalibr_noise, thermal_effects};
 pub use fit_cli::{FitArgs, fit_csv};
 
-use calibration::calibrate::{self, CalError, LeftOut, Obs};
-use calibration::model::{Misalignment, Terms};
+use calibration::calibrate::{self, CalError};
 use calibration::{io, repeatability, triad_fits};
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{
-    CALIBRATION_FILE, CALIBRATION_FORMAT, Calibration, CalibrationResult, GlobalTest, Input,
-    KalibrNoise, MisalignmentVector, Parameter, Removed, STAGE_DIR, Skipped, VarianceComponent,
+    CALIBRATION_FORMAT, Calibration, CalibrationResult, Input, Skipped,
 };
-use ingest::contract::custody::{Custody, Folders, Root};
-use ingest::contract::ingest_ledger::{self, IngestReport};
-use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
-use lsq::components;
-use lsq::correlated::ColouredAdc;
+use ingest::contract::custody::Custody;
+use ingest::contract::ingest_ledger::IngestReport;
+use ingest::contract::manifest::{Dataset, Per};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 

@@ -32,18 +32,17 @@ use session::{Writers, ingest_session};
 
 pub use error::{Error, Result};
 
-use base::{lock, time};
+use base::lock;
 use contract::custody;
 use contract::ingest_ledger::{
-    FileLedger, IngestReport, LEDGER_FILE, LEDGER_FORMAT, MANIFEST_FILE, STAGE_DIR, SessionSummary,
+    FileLedger, IngestReport, LEDGER_FILE, LEDGER_FORMAT, MANIFEST_FILE, STAGE_DIR,
 };
-use contract::manifest::{self, Acquisition, Dataset};
+use contract::manifest::Dataset;
 use contract::tables;
 use parquet_io::streams::StreamWriter;
 use parquet_io::table;
-use readers::{csvlog, gcb, labstream, lines, theodolite};
+use readers::{labstream, theodolite};
 use serde::Serialize;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 /// How to ingest.

@@ -2,10 +2,14 @@
 //! theodolite log read into the tables, each file's ledger, and what makes the session
 //! unusable as a whole.
 
-use super::{
-    Acquisition, Dataset, Error, FileLedger, IsTerminal, Options, Path, Result, SessionSummary,
-    StreamWriter, contract, csvlog, gcb, labstream, lines, manifest, theodolite, time,
-};
+use crate::base::time;
+use crate::contract::ingest_ledger::{FileLedger, SessionSummary};
+use crate::contract::manifest::{self, Acquisition, Dataset};
+use crate::parquet_io::streams::StreamWriter;
+use crate::readers::{csvlog, gcb, labstream, lines, theodolite};
+use crate::{Error, Options, Result, contract};
+use std::io::IsTerminal;
+use std::path::Path;
 
 pub(crate) fn relative(ds: &Dataset, p: &Path) -> String {
     p.strip_prefix(&ds.dir)

@@ -2,12 +2,16 @@
 //! accelerometer and session (or all sessions), each fitted on its own rayon task, and the
 //! reason a fit could not be made.
 
-use crate::{
-    AlignReport, CalError, CalibrationResult, ColouredAdc, Dataset, LeftOut, Misalignment,
-    ModelDecl, ModelKind, Obs, Per, Skipped, Terms, VarianceComponent, calibrate, components, io,
-    result_of, vector_note,
-};
+use super::calibrate::{self, CalError, LeftOut, Obs};
+use super::io;
+use super::model::{Misalignment, Terms};
+use super::results::{result_of, vector_note};
+use crate::lsq::components;
+use crate::lsq::correlated::ColouredAdc;
+use ingest::contract::align_ledger::AlignReport;
 use ingest::contract::calibration::FitScope;
+use ingest::contract::calibration::{CalibrationResult, Skipped, VarianceComponent};
+use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
 
 /// The models to fit: the manifest's, or the defaults (docs/formats.md section 2): `linear`, plus
 /// `thermal` when the sessions' mean temperatures differ by more than 1 degree C.

@@ -1,10 +1,16 @@
 //! calibration.json and residuals.parquet written with their chain of custody, and the
 //! console's summary.
 
-use crate::{
-    CALIBRATION_FILE, Calibration, CalibrationResult, Custody, Dataset, Error, Folders, Parameter,
-    Path, Root, STAGE_DIR, align_ledger, ingest_ledger, io, triad_fits,
+use super::{io, triad_fits};
+use crate::Error;
+use ingest::contract::align_ledger;
+use ingest::contract::calibration::{
+    CALIBRATION_FILE, Calibration, CalibrationResult, Parameter, STAGE_DIR,
 };
+use ingest::contract::custody::{Custody, Folders, Root};
+use ingest::contract::ingest_ledger;
+use ingest::contract::manifest::Dataset;
+use std::path::Path;
 
 /// Writes residuals.parquet and calibration.json, with the chain of custody: every file
 /// adjust read and the table it wrote.

@@ -2,9 +2,13 @@
 //! what the design barely determines, the misalignment vector, the noise in Kalibr's
 //! names, and what was done about the Earth tide.
 
-use crate::{
-    AlignReport, CalibrationResult, GlobalTest, Job, KalibrNoise, Misalignment, MisalignmentVector,
-    Parameter, Removed, Terms, calibrate, component_of, io, range_of, roll_directions,
+use super::calibrate;
+use super::io;
+use super::jobs::{Job, component_of, range_of, roll_directions};
+use super::model::{Misalignment, Terms};
+use ingest::contract::align_ledger::AlignReport;
+use ingest::contract::calibration::{
+    CalibrationResult, GlobalTest, KalibrNoise, MisalignmentVector, Parameter, Removed,
 };
 
 /// A parameter (beyond b and k) whose multiple correlation with the others is above this is
