@@ -137,7 +137,7 @@ fn band_range(b: usize) -> std::ops::Range<usize> {
     lo + b * width..lo + (b + 1) * width
 }
 
-/// One segment's mean periodogram in each band.
+/// One segment's mean periodogram in each band (`x` of [`SEGMENT`] values).
 fn band_means(x: &[f64]) -> [f64; BANDS] {
     let n = x.len();
     // Detrended (a least-squares line), Hann-windowed.
@@ -158,7 +158,9 @@ fn band_means(x: &[f64]) -> [f64; BANDS] {
         re[i] = w * (v - mean - slope * (i as f64 - mid));
         sum_w2 += w * w;
     }
-    fft(&mut re, &mut im);
+    // One plan of a segment's transform for every segment of the run.
+    static PLAN: std::sync::OnceLock<Fft> = std::sync::OnceLock::new();
+    PLAN.get_or_init(|| Fft::new(SEGMENT)).run(&mut re, &mut im);
     std::array::from_fn(|b| {
         let r = band_range(b);
         let len = r.len() as f64;

@@ -1410,14 +1410,17 @@ fn column_at(names: &[&str], name: &str) -> Result<usize, GravityError> {
 /// sigma is along the body vector), turned by the attitude, or levelled.
 fn push_down(s: &mut Stretch, (b, k): (&Block<'_>, usize), ctx: &Context<'_>, magnitude: bool) {
     let bin = b.bins.at(k);
+    s.noise_f_mgal.push(bin.noise(ctx.sample_noise.sd_mgal));
+    if magnitude {
+        // No attitude is turned for it.
+        let v = bin.mean_vector();
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        s.f_down_mgal.push(-norm);
+        s.sigma_f_mgal.push(bin.sigma_along(v.map(|x| x / norm)));
+        s.attitude_effects_mgal.push([0.0; 3]);
+        return;
+    }
     match body_to_nav(b, k, &ctx.mounting) {
-        _ if magnitude => {
-            let v = bin.mean_vector();
-            let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-            s.f_down_mgal.push(-norm);
-            s.sigma_f_mgal.push(bin.sigma_along(v.map(|x| x / norm)));
-            s.attitude_effects_mgal.push([0.0; 3]);
-        }
         Some(c) => {
             let f = bin.mean_nav();
             s.f_down_mgal.push(f[2]);
@@ -1432,7 +1435,6 @@ fn push_down(s: &mut Stretch, (b, k): (&Block<'_>, usize), ctx: &Context<'_>, ma
             s.attitude_effects_mgal.push([0.0; 3]);
         }
     }
-    s.noise_f_mgal.push(bin.noise(ctx.sample_noise.sd_mgal));
 }
 
 /// A track's cross-coupling correction as `[survey] cross_coupling` asks (docs/formats.md
