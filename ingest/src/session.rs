@@ -256,12 +256,9 @@ fn csv_config(
     acceleration_interval_ns: i64,
 ) -> csvlog::CsvConfig {
     let (form, interval_ns, columns) = match kind {
-        csvlog::CsvKind::Adc => (s.times.adc, acceleration_interval_ns, s.columns.adc),
-        csvlog::CsvKind::Temperature => (
-            s.times.temperature,
-            gcb::TEMPERATURE_INTERVAL_NS,
-            s.columns.temperature,
-        ),
+        csvlog::CsvKind::Adc => (s.times.adc, Some(acceleration_interval_ns), s.columns.adc),
+        // A temperature log's rate is its logger's, declared nowhere: the gate learns it.
+        csvlog::CsvKind::Temperature => (s.times.temperature, None, s.columns.temperature),
     };
     csvlog::CsvConfig {
         kind,
@@ -333,8 +330,7 @@ impl Reading<'_> {
                     ..config
                 };
                 self.read(path, "temperature_csv", "lines", |ledger, pb| {
-                    let t = gcb::TEMPERATURE_INTERVAL_NS;
-                    labstream::read_lab_temperature(path, config, t, &mut out.streams, ledger, pb)
+                    labstream::read_lab_temperature(path, config, &mut out.streams, ledger, pb)
                 })?;
             }
             Some(path) => {

@@ -424,8 +424,9 @@ pub struct CsvConfig {
     pub kind: CsvKind,
     /// Count and list malformed lines instead of failing.
     pub skip_bad_lines: bool,
-    /// Nominal interval between rows, ns.
-    pub interval_ns: i64,
+    /// Nominal interval between rows, ns; `None` for a log whose interval nobody declares,
+    /// which the time gate learns ([`TimeGate::learning`]).
+    pub interval_ns: Option<i64>,
     /// The session's range of GPS time, ns.
     pub range_ns: (i64, i64),
     /// How the log writes its times.
@@ -583,7 +584,10 @@ pub fn read_csv(
         header_seen: false,
         other: 0,
     };
-    let mut gate = TimeGate::new(config.interval_ns, config.range_ns);
+    let mut gate = match config.interval_ns {
+        Some(interval_ns) => TimeGate::new(interval_ns, config.range_ns),
+        None => TimeGate::learning(config.range_ns),
+    };
     let mut sink = RowSink { streams, ledger };
     let (sha, bytes) = read_lines(path, progress, |line_no, raw| {
         match lines.row(line_no, raw, sink.ledger)? {

@@ -1132,18 +1132,18 @@ impl Sink<[Option<f64>; 3]> for TemperatureSink<'_> {
 /// Reads a "seconds" session's temperature log (`t T1 T2 T3`, degC, times as the session's
 /// stream gives them) into the temperature table through `streams`, filling in `ledger`:
 /// lines pass the time gate (a line out of place is the one rejected), temperatures
-/// outside [-100, 200] degC are rejected, `nan` stored as null and counted. Returns the
-/// median interval between kept samples (ns).
+/// outside [-100, 200] degC are rejected, `nan` stored as null and counted. The log's
+/// interval is its logger's, declared nowhere: the gate learns it ([`TimeGate::learning`]).
+/// Returns the median interval between kept samples (ns).
 pub fn read_lab_temperature(
     path: &Path,
     config: LabConfig,
-    interval_ns: i64,
     streams: &mut crate::parquet_io::streams::StreamWriter,
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
 ) -> Result<Option<i64>> {
     let mut lines = Lines::new(path, ["t", "T1", "T2", "T3"], &config, TEMPERATURE_LIMITS);
-    let mut gate = TimeGate::new(interval_ns, config.range_ns);
+    let mut gate = TimeGate::learning(config.range_ns);
     let mut sink = TemperatureSink {
         streams,
         ledger,
