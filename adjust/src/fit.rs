@@ -87,10 +87,12 @@ pub fn fit(
         scale,
     };
     let p0 = vec![0.0; degree + 1];
-    let s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(|e| match e {
-        GhError::NotEstimable { index } => FitError::NotEstimable { index },
-        other => FitError::Adjustment(other),
-    })?;
+    let s = gh::solve(&model, &gh::Held::new(&l, &sigma), &p0, &Options::default()).map_err(
+        |e| match e {
+            GhError::NotEstimable { index } => FitError::NotEstimable { index },
+            other => FitError::Adjustment(other),
+        },
+    )?;
     let m = monomial_map(degree, centre, scale);
     let mut p = apply(&m, &s.p);
     if sigma_x.is_none_or(|sx| sx.iter().all(|&v| v == 0.0)) {

@@ -3,7 +3,7 @@
 //! alpha = 0.001, critical value 3.29), the global test, and the parameters mapped back to
 //! counts. No I/O.
 
-use crate::calibration::model::{CalibrationConditions, Terms, apply, propagate};
+use crate::calibration::model::{CalibrationConditions, Misalignment, Terms, apply, propagate};
 use crate::lsq::components::{self, Component, ScaledChi2};
 use crate::lsq::correlated::{self, ColouredAdc, Timeline};
 use crate::lsq::gh::{self, GhError, Options};
@@ -502,8 +502,18 @@ pub fn calibrate_with(
         round += 1;
         let used: Vec<&Obs> = active.iter().map(|&i| &obs_now[i]).collect();
         let (centre, scale) = counts_centre_and_scale(&used);
-        let tides: Vec<f64> = used.iter().map(|o| o.tide_mgal).collect();
-        let rolls: Vec<f64> = used.iter().map(|o| o.roll_rad).collect();
+        // Neither is held when it enters nothing: a million observations' bench has no tide
+        // and no vector misalignment.
+        let tides: Vec<f64> = if used.iter().any(|o| o.tide_mgal != 0.0) {
+            used.iter().map(|o| o.tide_mgal).collect()
+        } else {
+            Vec::new()
+        };
+        let rolls: Vec<f64> = if terms.misalignment == Misalignment::Vector {
+            used.iter().map(|o| o.roll_rad).collect()
+        } else {
+            Vec::new()
+        };
         let model = CalibrationConditions {
             terms,
             g_mgal,
@@ -513,17 +523,17 @@ pub fn calibrate_with(
             tide_mgal: &tides,
             roll_rad: &rolls,
         };
-        let (l, sigma) = observations(&used);
         let p0 = start_values(&used, &model);
         let to_cal = |e| cal_error(e, &names, &active);
-        let mut s = gh::solve(&model, &l, &sigma, &p0, &Options::default()).map_err(to_cal)?;
-        // The conclusion forms its own where it needs them (the components).
-        drop((l, sigma));
+        let readings = Readings(&used);
+        let mut s = gh::solve(&model, &readings, &p0, &Options::default()).map_err(to_cal)?;
         let coloured = options
             .coloured
             .as_ref()
             .map(|noise| misclosure_excess(&s, &used, noise));
-        s.w_test = left_out_w_tests(&s, &used, coloured.as_deref());
+        let mut w_test = std::mem::take(&mut s.w_test);
+        left_out_w_tests(&s, &used, coloured.as_deref(), &mut w_test);
+        s.w_test = w_test;
         if let Some((k, w)) = worst_w_test(&s)
             && w.abs() > W_CRITICAL
             && removed.len() < max_removals
@@ -538,7 +548,7 @@ pub fn calibrate_with(
             active.remove(k);
             continue;
         }
-        return conclude(&model, &used, &active, &s, options)
+        return conclude(&model, &used, &active, s, options)
             .map(|fit| CalibrationSolution { removed, ..fit })
             .map_err(to_cal);
     }
@@ -635,73 +645,92 @@ fn misclosure_excess(s: &gh::Solution<3>, used: &[&Obs], noise: &ColouredAdc) ->
 /// 0.972 with the fitted shares (`the_w_statistic_holds_its_tail`, docs/model.md 6.8).
 /// `coloured`: what the coloured ADC noise adds to each misclosure's variance
 /// ([`correlated::misclosure_excess`]), known as the window means' variance is.
-fn left_out_w_tests(s: &gh::Solution<3>, used: &[&Obs], coloured: Option<&[f64]>) -> Vec<f64> {
+fn left_out_w_tests(
+    s: &gh::Solution<3>,
+    used: &[&Obs],
+    coloured: Option<&[f64]>,
+    w_test: &mut [f64],
+) {
     use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
     let normal = Normal::standard();
-    used.iter()
-        .enumerate()
-        .map(|(i, o)| {
-            let r = s.redundancy[i];
-            if r <= 1e-9 {
-                return 0.0;
-            }
-            let fitted = o.sigma_dz_rad.powi(2) * components::predictive_factor(o.sigma_dz_dof);
-            let (sigma, dof) = o
-                .sigma_dz_left_out
-                .map_or((o.sigma_dz_rad, o.sigma_dz_dof), |l| (l.sigma_rad, l.dof));
-            let q_dz = s.q_parts[i][0] * sigma.powi(2) / fitted;
-            // The misclosure's variance is q r; the coloured noise's share, over r, joins
-            // the known part (kept positive: an excess is a small correction).
-            let extra = coloured.map_or(0.0, |c| c[i] / r);
-            let q_known = s.q_parts[i][1] + s.q_parts[i][2];
-            let q = q_dz + (q_known + extra).max(0.5 * q_known);
-            let w = s.misclosure[i] / (q * r).sqrt();
-            // Welch-Satterthwaite over the estimated shares: the left-out sigma_Dz's and the
-            // window mean's sd (estimated from its own samples; a t's tail at 3.29 is far
-            // from the normal's even on 79 dof).
-            let share = |part: f64, dof: Option<f64>| {
-                dof.filter(|d| d.is_finite() && *d > 0.0)
-                    .map(|d| part * part / d)
-            };
-            let q_dz_fitted = s.q_parts[i][0] * o.sigma_dz_rad.powi(2) / fitted;
-            let parts = [
-                share(q_dz_fitted, dof),
-                share(s.q_parts[i][1], o.sigma_ng_dof),
-            ];
-            if parts.iter().all(Option::is_none) {
-                return w;
-            }
-            let q_fitted = q - q_dz + q_dz_fitted;
-            let nu = q_fitted * q_fitted / parts.iter().flatten().sum::<f64>();
-            let tail = StudentsT::new(0.0, 1.0, nu).map_or(f64::NAN, |t| t.cdf(-w.abs()));
-            if tail.is_finite() && tail > 0.0 {
-                -normal.inverse_cdf(tail) * w.signum()
-            } else {
-                w
-            }
-        })
-        .collect()
+    let each = used.iter().enumerate().map(|(i, o)| {
+        let r = s.redundancy[i];
+        if r <= 1e-9 {
+            return 0.0;
+        }
+        let fitted = o.sigma_dz_rad.powi(2) * components::predictive_factor(o.sigma_dz_dof);
+        let (sigma, dof) = o
+            .sigma_dz_left_out
+            .map_or((o.sigma_dz_rad, o.sigma_dz_dof), |l| (l.sigma_rad, l.dof));
+        let q_dz = s.q_parts[i][0] * sigma.powi(2) / fitted;
+        // The misclosure's variance is q r; the coloured noise's share, over r, joins
+        // the known part (kept positive: an excess is a small correction).
+        let extra = coloured.map_or(0.0, |c| c[i] / r);
+        let q_known = s.q_parts[i][1] + s.q_parts[i][2];
+        let q = q_dz + (q_known + extra).max(0.5 * q_known);
+        let w = s.misclosure[i] / (q * r).sqrt();
+        // Welch-Satterthwaite over the estimated shares: the left-out sigma_Dz's and the
+        // window mean's sd (estimated from its own samples; a t's tail at 3.29 is far
+        // from the normal's even on 79 dof).
+        let share = |part: f64, dof: Option<f64>| {
+            dof.filter(|d| d.is_finite() && *d > 0.0)
+                .map(|d| part * part / d)
+        };
+        let q_dz_fitted = s.q_parts[i][0] * o.sigma_dz_rad.powi(2) / fitted;
+        let parts = [
+            share(q_dz_fitted, dof),
+            share(s.q_parts[i][1], o.sigma_ng_dof),
+        ];
+        if parts.iter().all(Option::is_none) {
+            return w;
+        }
+        let q_fitted = q - q_dz + q_dz_fitted;
+        let nu = q_fitted * q_fitted / parts.iter().flatten().sum::<f64>();
+        let tail = StudentsT::new(0.0, 1.0, nu).map_or(f64::NAN, |t| t.cdf(-w.abs()));
+        if tail.is_finite() && tail > 0.0 {
+            -normal.inverse_cdf(tail) * w.signum()
+        } else {
+            w
+        }
+    });
+    // Into the solution's own vector, which the left-out tests replace: a second one was
+    // a million observations' peak.
+    for (w, x) in w_test.iter_mut().zip(each) {
+        *w = x;
+    }
 }
 
 /// Observations and their sds as the adjustment takes them: Dz weighed by its predictive
-/// variance, then Ng, then the temperature with its sd from the thermometer's noise.
-fn observations(used: &[&Obs]) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
-    let l = used
-        .iter()
-        .map(|o| [o.dz_rad, o.ng, o.temperature_c])
-        .collect();
-    let sigma = used
-        .iter()
-        .map(|o| {
-            let factor = components::predictive_factor(o.sigma_dz_dof);
+/// variance, then Ng, then the temperature with its sd from the thermometer's noise; formed
+/// from the readings on each call, not copied.
+struct Readings<'a>(&'a [&'a Obs]);
+
+impl gh::Observations<3> for Readings<'_> {
+    fn count(&self) -> usize {
+        self.0.len()
+    }
+
+    #[inline]
+    fn get(&self, i: usize) -> ([f64; 3], [f64; 3]) {
+        let o = self.0[i];
+        let factor = components::predictive_factor(o.sigma_dz_dof);
+        (
+            [o.dz_rad, o.ng, o.temperature_c],
             [
                 o.sigma_dz_rad * factor.sqrt(),
                 o.sigma_ng,
                 o.sigma_temperature_c,
-            ]
-        })
-        .collect();
-    (l, sigma)
+            ],
+        )
+    }
+}
+
+/// [`Readings`] held, for the components' re-adjustments at scaled sds.
+fn observations(used: &[&Obs]) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let readings = Readings(used);
+    (0..used.len())
+        .map(|i| gh::Observations::get(&readings, i))
+        .unzip()
 }
 
 /// The fit from the final round's adjustment `s` of `used` (indices `active` into the fit's
@@ -711,7 +740,7 @@ fn conclude(
     model: &CalibrationConditions<'_>,
     used: &[&Obs],
     active: &[usize],
-    s: &gh::Solution<3>,
+    mut s: gh::Solution<3>,
     options: &FitOptions,
 ) -> Result<CalibrationSolution, GhError> {
     let m = model.terms.len();
@@ -719,15 +748,15 @@ fn conclude(
     let groups = Groups::of(used);
     // Without components the fit's own weights stand: `s` itself, not a copy of its
     // per-observation vectors.
-    let estimated;
-    let (weighted, components) = if options.components {
+    let (estimated, components) = if options.components {
         let (l, sigma) = observations(used);
-        let (w, c) = estimate_components(model, &l, &sigma, s, &groups, options.coloured.as_ref())?;
-        estimated = w;
-        (&estimated, c)
+        let (w, c) =
+            estimate_components(model, &l, &sigma, &s, &groups, options.coloured.as_ref())?;
+        (Some(w), c)
     } else {
-        (s, Vec::new())
+        (None, Vec::new())
     };
+    let weighted = estimated.as_ref().unwrap_or(&s);
     let mut q = weighted.q_pp.clone();
     if let Some(noise) = &options.coloured {
         let extra = correlated::extra_covariance(weighted, groups.timeline(), noise);
@@ -735,22 +764,7 @@ fn conclude(
             *x += e;
         }
     }
-    let excess = groups.excess(s, options.coloured.as_ref(), false);
-    // The global test's per-station sums before the residuals are formed: the two are each
-    // 48 bytes an observation, a million observations' peak held one of them.
-    let global_test = components::lack_of_fit(s, &groups.station, &groups.dof, excess);
-    let residuals = active
-        .iter()
-        .enumerate()
-        .map(|(k, &index)| Residual {
-            index,
-            v_dz_rad: s.v[k][0],
-            v_ng: s.v[k][1],
-            misclosure_mgal: s.misclosure[k],
-            redundancy: s.redundancy[k],
-            w: s.w_test[k],
-        })
-        .collect();
+    let excess = groups.excess(&s, options.coloured.as_ref(), false);
     let (covariance, parameter_dof) = t_scaled(propagate(&map, &q, m), weighted, &components, &map);
     let mean_temperature_c = used.iter().map(|o| o.temperature_c).sum::<f64>() / used.len() as f64;
     let thermal_gain = if model.terms.temperature {
@@ -758,8 +772,16 @@ fn conclude(
     } else {
         thermal_gain(weighted, used, &map, mean_temperature_c)
     };
-    Ok(CalibrationSolution {
-        values: apply(&map, &weighted.p),
+    let values = apply(&map, &weighted.p);
+    // What is left needs neither design: gone before the global test's stations and the
+    // residuals are formed (at a million observations a design and B are 40 MB).
+    drop(estimated);
+    s.a = Vec::new();
+    s.b = Vec::new();
+    let global_test = components::lack_of_fit(&s, groups.station(), groups.dof(), excess);
+    drop(groups);
+    let fit = CalibrationSolution {
+        values,
         covariance,
         parameter_dof,
         covariance_apriori: propagate(&map, &s.q_pp, m),
@@ -772,9 +794,41 @@ fn conclude(
         global_test,
         components,
         removed: Vec::new(),
-        residuals,
+        residuals: Vec::new(),
         thermal_gain,
+    };
+    Ok(CalibrationSolution {
+        residuals: residuals(active, s),
+        ..fit
     })
+}
+
+/// The residuals of `s`'s conditions (indices `active` into the fit's observations), formed
+/// last, once what else `s` holds is gone: at a million observations the two together
+/// were the fit's peak.
+fn residuals(active: &[usize], s: gh::Solution<3>) -> Vec<Residual> {
+    let gh::Solution {
+        v,
+        misclosure,
+        redundancy,
+        w_test,
+        q_parts,
+        q_ww,
+        ..
+    } = s;
+    drop((q_parts, q_ww));
+    active
+        .iter()
+        .enumerate()
+        .map(|(k, &index)| Residual {
+            index,
+            v_dz_rad: v[k][0],
+            v_ng: v[k][1],
+            misclosure_mgal: misclosure[k],
+            redundancy: redundancy[k],
+            w: w_test[k],
+        })
+        .collect()
 }
 
 /// What a thermal effect `(b_t + k_t Ng_i) (T_i - mean_t)` the model does not include moves
@@ -847,46 +901,73 @@ fn cal_error(
     }
 }
 
-/// The observations of a fit by station, with what the components need of them.
-struct Groups {
+/// The observations of a fit by station, with what the components and the coloured noise
+/// need of them, formed when first asked for: a fit without either (a million observations'
+/// bench) holds only the stations and the sigma_Dz dofs, 24 bytes an observation, not 72.
+struct Groups<'a> {
+    used: &'a [&'a Obs],
     /// Station per observation, compacted to 0..stations.
-    station: Vec<usize>,
+    station: std::cell::OnceCell<Vec<usize>>,
     /// Dof of each sigma_Dz.
-    dof: Vec<Option<f64>>,
-    /// Window means, their a-priori sds and the sds' dof.
+    dof: std::cell::OnceCell<Vec<Option<f64>>>,
+    windows: std::cell::OnceCell<Windows>,
+    times: std::cell::OnceCell<(Vec<f64>, Vec<usize>)>,
+}
+
+/// The window means, their a-priori sds and the sds' dof, per observation.
+struct Windows {
     ng: Vec<f64>,
     sigma_ng: Vec<f64>,
     sigma_ng_dof: Vec<Option<f64>>,
-    /// Session and time of each observation.
-    session: Vec<usize>,
-    time_s: Vec<f64>,
 }
 
-impl Groups {
+impl<'a> Groups<'a> {
     /// When each observation was read, for the coloured noise.
     fn timeline(&self) -> Timeline<'_> {
-        Timeline {
-            time_s: &self.time_s,
-            session: &self.session,
+        let (time_s, session) = self.times.get_or_init(|| {
+            let time_s = self.used.iter().map(|o| o.time_s).collect();
+            let session = self.used.iter().map(|o| o.session).collect();
+            (time_s, session)
+        });
+        Timeline { time_s, session }
+    }
+
+    /// The window means and their sds.
+    fn windows(&self) -> &Windows {
+        self.windows.get_or_init(|| Windows {
+            ng: self.used.iter().map(|o| o.ng).collect(),
+            sigma_ng: self.used.iter().map(|o| o.sigma_ng).collect(),
+            sigma_ng_dof: self.used.iter().map(|o| o.sigma_ng_dof).collect(),
+        })
+    }
+
+    fn of(used: &'a [&'a Obs]) -> Self {
+        Self {
+            used,
+            station: std::cell::OnceCell::new(),
+            dof: std::cell::OnceCell::new(),
+            windows: std::cell::OnceCell::new(),
+            times: std::cell::OnceCell::new(),
         }
     }
 
-    fn of(used: &[&Obs]) -> Self {
-        let mut ids: Vec<usize> = used.iter().map(|o| o.station).collect();
-        ids.sort_unstable();
-        ids.dedup();
-        Self {
-            station: used
+    /// Station per observation, compacted to 0..stations.
+    fn station(&self) -> &[usize] {
+        self.station.get_or_init(|| {
+            let mut ids: Vec<usize> = self.used.iter().map(|o| o.station).collect();
+            ids.sort_unstable();
+            ids.dedup();
+            self.used
                 .iter()
                 .map(|o| ids.binary_search(&o.station).unwrap_or(0))
-                .collect(),
-            dof: used.iter().map(|o| o.sigma_dz_dof).collect(),
-            ng: used.iter().map(|o| o.ng).collect(),
-            sigma_ng: used.iter().map(|o| o.sigma_ng).collect(),
-            sigma_ng_dof: used.iter().map(|o| o.sigma_ng_dof).collect(),
-            session: used.iter().map(|o| o.session).collect(),
-            time_s: used.iter().map(|o| o.time_s).collect(),
-        }
+                .collect()
+        })
+    }
+
+    /// Dof of each sigma_Dz.
+    fn dof(&self) -> &[Option<f64>] {
+        self.dof
+            .get_or_init(|| self.used.iter().map(|o| o.sigma_dz_dof).collect())
     }
 
     /// The expected part of solution `s`'s between-station form due to coloured ADC noise
@@ -895,11 +976,11 @@ impl Groups {
     fn excess(&self, s: &gh::Solution<3>, noise: Option<&ColouredAdc>, shared: bool) -> f64 {
         noise.map_or(0.0, |noise| {
             let share = if shared {
-                components::shares(s, &self.station)
+                components::shares(s, self.station())
             } else {
-                vec![1.0; self.station.iter().max().map_or(0, |m| m + 1)]
+                vec![1.0; self.station().iter().max().map_or(0, |m| m + 1)]
             };
-            correlated::between_station_excess(s, &self.station, &share, self.timeline(), noise)
+            correlated::between_station_excess(s, self.station(), &share, self.timeline(), noise)
         })
     }
 }
@@ -916,28 +997,28 @@ fn estimate_components(
     l: &[[f64; 3]],
     sigma: &[[f64; 3]],
     s: &gh::Solution<3>,
-    groups: &Groups,
+    groups: &Groups<'_>,
     coloured: Option<&ColouredAdc>,
 ) -> Result<(gh::Solution<3>, Vec<Component>), GhError> {
     let within = coloured.map_or(correlated::Excess::default(), |noise| {
         correlated::within_station_excess(
-            &groups.station,
-            &groups.sigma_ng,
+            groups.station(),
+            &groups.windows().sigma_ng,
             groups.timeline(),
             noise,
         )
     });
     let adc = components::adc_component(
-        &groups.ng,
-        &groups.sigma_ng,
-        &groups.sigma_ng_dof,
-        &groups.station,
+        &groups.windows().ng,
+        &groups.windows().sigma_ng,
+        &groups.windows().sigma_ng_dof,
+        groups.station(),
         within,
     );
     let at_one = components::theodolite_step(
         s,
-        &groups.station,
-        &groups.dof,
+        groups.station(),
+        groups.dof(),
         groups.excess(s, coloured, true),
     );
     let refit = |theta: f64, from: &gh::Solution<3>| {
@@ -945,17 +1026,22 @@ fn estimate_components(
             .iter()
             .map(|x| [x[0] * theta.sqrt(), x[1] * adc.estimate.sqrt(), x[2]])
             .collect();
-        gh::solve(model, l, &scaled, &from.p, &Options::default())
+        gh::solve(
+            model,
+            &gh::Held::new(l, &scaled),
+            &from.p,
+            &Options::default(),
+        )
     };
     let mut theta = 1.0;
     let mut sol = refit(theta, s)?;
-    let mut step = components::theodolite_step(&sol, &groups.station, &groups.dof, 0.0);
+    let mut step = components::theodolite_step(&sol, groups.station(), groups.dof(), 0.0);
     // Whether the component is estimated is decided here, at its a-priori weight: its
     // degrees of freedom grow with its estimate, and deciding at the converged one kept the
     // high estimates and held the low ones at 1 (a 0.1 K thermometer's share left about 3
     // dof, and the kept estimates averaged 1.7). The dof are the estimate's own
     // ([`components::theodolite_dof`]), not the form's.
-    let apriori_dof = components::theodolite_dof(&sol, &groups.station, &groups.dof);
+    let apriori_dof = components::theodolite_dof(&sol, groups.station(), groups.dof());
     if apriori_dof >= components::MIN_COMPONENT_DOF {
         for _ in 0..MAX_COMPONENT_ITERATIONS {
             // The theodolite's part of the form is what the coloured noise does not explain.
@@ -964,13 +1050,13 @@ fn estimate_components(
             let settled = (next / theta - 1.0).abs() < 1e-5;
             theta = next;
             sol = refit(theta, &sol)?;
-            step = components::theodolite_step(&sol, &groups.station, &groups.dof, 0.0);
+            step = components::theodolite_step(&sol, groups.station(), groups.dof(), 0.0);
             if settled {
                 break;
             }
         }
     }
-    let dof = components::theodolite_dof(&sol, &groups.station, &groups.dof);
+    let dof = components::theodolite_dof(&sol, groups.station(), groups.dof());
     let theodolite = components::theodolite_component(theta, (apriori_dof, dof), at_one);
     Ok((sol, vec![theodolite, adc]))
 }

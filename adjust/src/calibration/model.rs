@@ -164,9 +164,10 @@ pub struct CalibrationConditions<'a> {
     pub scale: f64,
     /// Reference temperature, degC.
     pub t_ref_c: f64,
-    /// Body tide at each observation, mGal (all 0 when none is applied).
+    /// Body tide at each observation, mGal; empty when none is applied (all 0).
     pub tide_mgal: &'a [f64],
-    /// Roll of the block at each observation, rad (the vector misalignment only).
+    /// Roll of the block at each observation, rad; read by the vector misalignment only,
+    /// and empty without it.
     pub roll_rad: &'a [f64],
 }
 
@@ -229,7 +230,12 @@ impl Conditions<3> for CalibrationConditions<'_> {
             by_t = p[at] + p[at + 1] * x;
             at += 2;
         }
-        let g = self.g_mgal + self.tide_mgal[i];
+        let tide = if self.tide_mgal.is_empty() {
+            0.0
+        } else {
+            self.tide_mgal[i]
+        };
+        let g = self.g_mgal + tide;
         let (dz, sl) = (l[0], slope / self.scale);
         match self.terms.misalignment {
             Misalignment::Vector => {

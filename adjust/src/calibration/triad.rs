@@ -485,8 +485,7 @@ fn adjust_positions(
             model,
             t_ref_c: t_ref_c.unwrap_or(0.0),
         },
-        &l,
-        &sigma,
+        &gh::Held::new(&l, &sigma),
         start,
         &gh::Options::default(),
     )

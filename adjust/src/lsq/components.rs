@@ -180,24 +180,70 @@ fn stations(
     let count = station.iter().max().map_or(0, |m| m + 1);
     let mut out = vec![Station::default(); count];
     for (i, &j) in station.iter().enumerate() {
-        let w = 1.0 / s.q_ww[i];
-        let st = &mut out[j];
-        st.sum_we += w * s.misclosure[i];
-        st.sum_w += w;
-        st.redundancy += s.redundancy[i] - 1.0;
-        st.share += s.q_parts[i][0] / s.q_ww[i];
-        st.n += 1.0;
-        st.t2_variance = st.t2_variance.max(t2_variance(dof[i]));
+        out[j].add(s, i, dof[i]);
     }
     for st in out.iter_mut().filter(|st| st.n > 0.0) {
-        // n_j - 1 of the station's redundancy lies within it.
-        st.redundancy = (st.redundancy + 1.0).max(0.0);
-        st.share /= st.n;
+        st.close();
     }
     out
 }
 
+/// Each station's sums, in the order of their indices: formed one at a time when the
+/// observations come station by station (as readings do), so that a million stations of
+/// one observation each hold no vector of them; otherwise [`stations`]' vector, whose
+/// stations without observations are all zeros.
+fn each_station(
+    s: &crate::lsq::gh::Solution<3>,
+    station: &[usize],
+    dof: &[Option<f64>],
+    mut visit: impl FnMut(&Station),
+) {
+    if !station.windows(2).all(|w| w[0] <= w[1]) {
+        return stations(s, station, dof).iter().for_each(visit);
+    }
+    let mut current: Option<(usize, Station)> = None;
+    for (i, &j) in station.iter().enumerate() {
+        match &mut current {
+            Some((k, st)) if *k == j => st.add(s, i, dof[i]),
+            _ => {
+                if let Some((k, mut st)) = current.take() {
+                    st.close();
+                    visit(&st);
+                    // A station index skipped over has no observations.
+                    (k + 1..j).for_each(|_| visit(&Station::default()));
+                }
+                let mut st = Station::default();
+                st.add(s, i, dof[i]);
+                current = Some((j, st));
+            }
+        }
+    }
+    if let Some((_, mut st)) = current {
+        st.close();
+        visit(&st);
+    }
+}
+
 impl Station {
+    /// Adds observation `i` of `s`, its sigma_Dz on `dof`.
+    #[inline]
+    fn add(&mut self, s: &crate::lsq::gh::Solution<3>, i: usize, dof: Option<f64>) {
+        let w = 1.0 / s.q_ww[i];
+        self.sum_we += w * s.misclosure[i];
+        self.sum_w += w;
+        self.redundancy += s.redundancy[i] - 1.0;
+        self.share += s.q_parts[i][0] / s.q_ww[i];
+        self.n += 1.0;
+        self.t2_variance = self.t2_variance.max(t2_variance(dof));
+    }
+
+    /// After the last of its observations.
+    fn close(&mut self) {
+        // n_j - 1 of the station's redundancy lies within it.
+        self.redundancy = (self.redundancy + 1.0).max(0.0);
+        self.share /= self.n;
+    }
+
     fn between(&self) -> f64 {
         if self.sum_w > 0.0 {
             self.sum_we * self.sum_we / self.sum_w
@@ -223,20 +269,38 @@ pub fn lack_of_fit(
     dof: &[Option<f64>],
     excess: f64,
 ) -> ScaledChi2 {
-    between_form(&stations(s, station, dof), |_| 1.0, excess)
+    let mut sums = BetweenSums::default();
+    each_station(s, station, dof, |x| sums.add(x, 1.0));
+    sums.test(excess)
+}
+
+/// The between-station form, its redundancy and its t-inflated variance's part, summed
+/// station by station.
+#[derive(Default)]
+struct BetweenSums {
+    form: f64,
+    redundancy: f64,
+    t2: f64,
+}
+
+impl BetweenSums {
+    fn add(&mut self, x: &Station, weight: f64) {
+        self.form += x.between() * weight;
+        self.redundancy += x.redundancy * weight;
+        self.t2 += x.redundancy * weight.powi(2) * x.t2_variance;
+    }
+
+    fn test(self, excess: f64) -> ScaledChi2 {
+        ScaledChi2::with_excess(self.form, self.redundancy, self.t2, excess)
+    }
 }
 
 /// The between-station form with each station's part weighted by `weight`, against its
 /// scaled chi-square.
 fn between_form(st: &[Station], weight: impl Fn(&Station) -> f64, excess: f64) -> ScaledChi2 {
-    ScaledChi2::with_excess(
-        st.iter().map(|x| x.between() * weight(x)).sum(),
-        st.iter().map(|x| x.redundancy * weight(x)).sum(),
-        st.iter()
-            .map(|x| x.redundancy * weight(x).powi(2) * x.t2_variance)
-            .sum(),
-        excess,
-    )
+    let mut sums = BetweenSums::default();
+    st.iter().for_each(|x| sums.add(x, weight(x)));
+    sums.test(excess)
 }
 
 /// A variance component: the factor on a group's a-priori variances.

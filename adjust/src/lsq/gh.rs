@@ -4,11 +4,58 @@
 //!
 //! Each iteration linearises at the current parameters and the current *adjusted*
 //! observations, `A dp + B v + w = 0` with `w = f(p0; l + v0) - B v0`, and solves the
-//! weighted least-squares problem `min || Q_ww^-1/2 (A dp + w) ||` by a Householder QR of
-//! the column-equilibrated design (faer): no normal matrix is inverted and no N x N matrix
-//! is formed (`Q_ww` is diagonal). Time O(N m^2), memory O(N m).
+//! weighted least-squares problem `min || Q_ww^-1/2 (A dp + w) ||` by a QR of the
+//! column-equilibrated design with the right-hand side as its last column: no normal matrix
+//! is inverted and no N x N matrix is formed (`Q_ww` is diagonal). The QR is taken by blocks
+//! of [`QR_BLOCK`] rows (a tall-skinny QR: each block's Householder QR, faer's, taken with the
+//! triangle of the blocks before it), so the weighted design is formed a block at a time
+//! from `A` and never held whole. Time O(N m^2), memory O(N (m + 3 K)): `A`, the
+//! residuals, `B` and each condition's misclosure and variance; the observations themselves
+//! are the caller's ([`Observations`]).
 
 use faer::prelude::*;
+
+/// Rows of the weighted design taken into the QR at a time.
+pub const QR_BLOCK: usize = 1024;
+
+/// The observations of a problem: each condition's `K` values and their sds, held as slices
+/// ([`Held`]) or formed from the caller's own records on each call, so that a large problem
+/// keeps no copy of them.
+pub trait Observations<const K: usize>: Sync {
+    /// Number of conditions.
+    fn count(&self) -> usize;
+    /// Condition `i`'s observations and their sds.
+    fn get(&self, i: usize) -> ([f64; K], [f64; K]);
+}
+
+/// Observations and their sds held as slices, a row a condition.
+#[derive(Clone, Copy, Debug)]
+pub struct Held<'a, const K: usize> {
+    l: &'a [[f64; K]],
+    sigma: &'a [[f64; K]],
+}
+
+impl<'a, const K: usize> Held<'a, K> {
+    /// `l` with sds `sigma`, of one length.
+    pub fn new(l: &'a [[f64; K]], sigma: &'a [[f64; K]]) -> Self {
+        assert_eq!(
+            sigma.len(),
+            l.len(),
+            "one set of sigmas per condition's observations"
+        );
+        Held { l, sigma }
+    }
+}
+
+impl<const K: usize> Observations<K> for Held<'_, K> {
+    fn count(&self) -> usize {
+        self.l.len()
+    }
+    #[inline]
+    fn get(&self, i: usize) -> ([f64; K], [f64; K]) {
+        (self.l[i], self.sigma[i])
+    }
+}
 
 /// The conditions of a problem, each on `K` observations of its own.
 pub trait Conditions<const K: usize = 2>: Sync {
@@ -141,21 +188,15 @@ fn invert_upper(r: &[f64], m: usize) -> Vec<f64> {
     (0..m * m).map(|k| inv[(k / m, k % m)]).collect()
 }
 
-/// Adjusts the conditions `c` for observations `l` with sds `sigma`, from parameters `p0`.
+/// Adjusts the conditions `c` for observations `obs`, from parameters `p0`.
 pub fn solve<const K: usize>(
     c: &impl Conditions<K>,
-    l: &[[f64; K]],
-    sigma: &[[f64; K]],
+    obs: &impl Observations<K>,
     p0: &[f64],
     opts: &Options,
 ) -> Result<Solution<K>, GhError> {
-    let n = l.len();
+    let n = obs.count();
     let m = c.n_params();
-    assert_eq!(
-        sigma.len(),
-        n,
-        "one set of sigmas per condition's observations"
-    );
     assert_eq!(p0.len(), m, "one start value per parameter");
     if n < m {
         return Err(GhError::TooFewObservations { n, m });
@@ -165,8 +206,8 @@ pub fn solve<const K: usize>(
     let mut lin = Linearised::<K>::new(n, m);
     let mut last_change = f64::INFINITY;
     for iteration in 1..=opts.max_iterations {
-        lin.at(c, l, sigma, &p, &v)?;
-        let step = Step::solve(&mut lin.design, &lin.rhs, opts, iteration)?;
+        lin.at(c, obs, &p, &v)?;
+        let step = Step::solve(&lin, opts, iteration)?;
         for j in 0..m {
             p[j] += step.dp[j];
         }
@@ -181,7 +222,7 @@ pub fn solve<const K: usize>(
             .enumerate()
             .map(|(j, d)| d.abs() / step.q_pp[j * m + j].sqrt())
             .fold(0.0, f64::max);
-        let after = lin.residuals(&step, l, sigma, &mut v, opts, iteration)?;
+        let after = lin.residuals(&step, obs, &mut v, opts, iteration)?;
         settled &= after.settled;
         change = change.max(after.change);
         // At the rounding floor of an ill-conditioned problem the changes stop contracting a
@@ -190,26 +231,7 @@ pub fn solve<const K: usize>(
         settled |= change <= ROUNDING_FLOOR && change > 0.5 * last_change;
         last_change = change;
         if settled {
-            let (redundancy, w_test) = lin.redundancy(&step, &after.misclosure);
-            let a = (0..n)
-                .flat_map(|i| (0..m).map(move |j| (i, j)))
-                .map(|(i, j)| lin.design[(i, j)] * step.scale[j] * lin.q[i].sqrt())
-                .collect();
-            return Ok(Solution {
-                p,
-                q_pp: step.q_pp,
-                v,
-                misclosure: after.misclosure,
-                q_ww: lin.q,
-                q_parts: lin.q_parts,
-                redundancy,
-                w_test,
-                vtpv: after.vtpv,
-                dof: n - m,
-                iterations: iteration,
-                a,
-                b: lin.b,
-            });
+            return Ok(lin.solution(obs, step, p, v, after.vtpv, iteration));
         }
     }
     Err(GhError::NotConverged {
@@ -217,21 +239,20 @@ pub fn solve<const K: usize>(
     })
 }
 
-/// The conditions linearised at the parameters and the adjusted observations: the weighted
-/// design and right-hand side, and per condition its misclosure w, its B row and its
-/// variance q = B Sigma B^T, in parts by observed quantity.
+/// The conditions linearised at the parameters and the adjusted observations: the design
+/// `A` (row-major n x m), and per condition its misclosure w (after a step, the misclosure
+/// the residuals take up), its B row and its variance q = B Sigma B^T; the weighted
+/// design's column norms.
 struct Linearised<const K: usize> {
-    design: Mat<f64>,
-    rhs: Mat<f64>,
+    a: Vec<f64>,
     w: Vec<f64>,
     b: Vec<[f64; K]>,
     q: Vec<f64>,
-    q_parts: Vec<[f64; K]>,
-    a_row: Vec<f64>,
+    norms: Vec<f64>,
 }
 
 /// One Gauss-Newton step from the linearised conditions: the parameters' change and
-/// covariance, and the equilibrated design's R and column scales.
+/// covariance, and the equilibrated design's R (row-major m x m) and column scales.
 struct Step {
     dp: Vec<f64>,
     q_pp: Vec<f64>,
@@ -239,10 +260,9 @@ struct Step {
     scale: Vec<f64>,
 }
 
-/// The observations' residuals after a step: the conditions' misclosures, v^T P v, and
-/// whether the residuals settled (their largest change in units of their sds).
+/// The observations' residuals after a step: v^T P v, and whether the residuals settled
+/// (their largest change in units of their sds).
 struct AfterStep {
-    misclosure: Vec<f64>,
     vtpv: f64,
     settled: bool,
     change: f64,
@@ -251,84 +271,124 @@ struct AfterStep {
 impl<const K: usize> Linearised<K> {
     fn new(n: usize, m: usize) -> Self {
         Linearised {
-            design: Mat::<f64>::zeros(n, m),
-            rhs: Mat::<f64>::zeros(n, 1),
+            a: vec![0.0; n * m],
             w: vec![0.0; n],
             b: vec![[0.0; K]; n],
             q: vec![0.0; n],
-            q_parts: vec![[0.0; K]; n],
-            a_row: vec![0.0; m],
+            norms: vec![0.0; m],
         }
+    }
+
+    fn m(&self) -> usize {
+        self.norms.len()
     }
 
     /// Linearises the conditions at `p` and the observations `l + v`.
     fn at(
         &mut self,
         c: &impl Conditions<K>,
-        l: &[[f64; K]],
-        sigma: &[[f64; K]],
+        obs: &impl Observations<K>,
         p: &[f64],
         v: &[[f64; K]],
     ) -> Result<(), GhError> {
-        let m = self.a_row.len();
-        for i in 0..l.len() {
-            let l0: [f64; K] = std::array::from_fn(|t| l[i][t] + v[i][t]);
-            let (f, bi) = c.eval(i, p, l0, &mut self.a_row);
+        let m = self.m();
+        let mut squares = vec![0.0; m];
+        for (i, a_row) in self.a.chunks_exact_mut(m).enumerate() {
+            let (l, sigma) = obs.get(i);
+            let l0: [f64; K] = std::array::from_fn(|t| l[t] + v[i][t]);
+            let (f, bi) = c.eval(i, p, l0, a_row);
             let wi = (0..K).fold(f, |acc, t| acc - bi[t] * v[i][t]);
-            let parts: [f64; K] = std::array::from_fn(|t| (bi[t] * sigma[i][t]).powi(2));
-            let qi = parts.iter().skip(1).fold(parts[0], |acc, x| acc + x);
+            let qi = (0..K).fold(0.0, |acc, t| acc + (bi[t] * sigma[t]).powi(2));
             if qi <= 0.0 || !qi.is_finite() {
                 return Err(GhError::ZeroVariance { index: i });
             }
-            let s = qi.sqrt().recip();
-            for j in 0..m {
-                self.design[(i, j)] = self.a_row[j] * s;
+            for (s, x) in squares.iter_mut().zip(a_row.iter()) {
+                *s += x * x / qi;
             }
-            self.rhs[(i, 0)] = -wi * s;
             self.w[i] = wi;
             self.b[i] = bi;
             self.q[i] = qi;
-            self.q_parts[i] = parts;
+        }
+        for (norm, s) in self.norms.iter_mut().zip(squares) {
+            *norm = s.sqrt();
         }
         Ok(())
     }
 
-    /// New residuals from the Lagrange multipliers of `step`, written into `v`.
+    /// Row `i` of the weighted, equilibrated design, `a_ij / (sqrt(q_i) scale_j)`.
+    #[inline]
+    fn design(&self, i: usize, j: usize, scale: &[f64]) -> f64 {
+        self.a[i * self.m() + j] / (self.q[i].sqrt() * scale[j])
+    }
+
+    /// The upper triangle R (row-major (m + 1) x (m + 1)) of the QR of the weighted,
+    /// equilibrated design with the weighted right-hand side `-w / sqrt(q)` as its last
+    /// column: each block of [`QR_BLOCK`] rows is factored with the triangle of the blocks
+    /// before it stacked on top.
+    fn triangle(&self, scale: &[f64]) -> Vec<f64> {
+        let (n, m) = (self.q.len(), self.m());
+        let cols = m + 1;
+        let mut r = vec![0.0; cols * cols];
+        let mut start = 0;
+        while start < n {
+            let rows = QR_BLOCK.min(n - start);
+            let top = if start == 0 { 0 } else { cols };
+            let block = Mat::<f64>::from_fn(top + rows, cols, |i, j| {
+                if i < top {
+                    r[i * cols + j]
+                } else if j < m {
+                    self.design(start + i - top, j, scale)
+                } else {
+                    let k = start + i - top;
+                    -self.w[k] / self.q[k].sqrt()
+                }
+            });
+            let qr = block.qr();
+            let t = qr.thin_R();
+            r.fill(0.0);
+            for i in 0..t.nrows() {
+                for j in i..cols {
+                    r[i * cols + j] = t[(i, j)];
+                }
+            }
+            start += rows;
+        }
+        r
+    }
+
+    /// New residuals from the Lagrange multipliers of `step`, written into `v`; the
+    /// misclosures they take up replace `w`.
     fn residuals(
-        &self,
+        &mut self,
         step: &Step,
-        l: &[[f64; K]],
-        sigma: &[[f64; K]],
+        obs: &impl Observations<K>,
         v: &mut [[f64; K]],
         opts: &Options,
         iteration: usize,
     ) -> Result<AfterStep, GhError> {
-        let n = l.len();
         let m = step.dp.len();
         let rounding = 1e-13;
         let mut after = AfterStep {
-            misclosure: vec![0.0; n],
             vtpv: 0.0,
             settled: true,
             change: 0.0,
         };
-        for i in 0..n {
-            let adp: f64 = (0..m)
-                .map(|j| self.design[(i, j)] * step.scale[j] * self.q[i].sqrt() * step.dp[j])
-                .sum();
+        for (i, a_row) in self.a.chunks_exact(m).enumerate() {
+            let (l, sigma) = obs.get(i);
+            let adp: f64 = a_row.iter().zip(&step.dp).map(|(a, d)| a * d).sum();
             let e = self.w[i] + adp;
             let k = -e / self.q[i];
-            let nv: [f64; K] = std::array::from_fn(|t| sigma[i][t].powi(2) * self.b[i][t] * k);
+            let nv: [f64; K] = std::array::from_fn(|t| sigma[t].powi(2) * self.b[i][t] * k);
             for t in 0..K {
-                let limit = opts.tolerance * sigma[i][t] + rounding * l[i][t].abs();
-                if sigma[i][t] > 0.0 && (nv[t] - v[i][t]).abs() > limit {
+                let limit = opts.tolerance * sigma[t] + rounding * l[t].abs();
+                if sigma[t] > 0.0 && (nv[t] - v[i][t]).abs() > limit {
                     after.settled = false;
-                    after.change = after.change.max((nv[t] - v[i][t]).abs() / sigma[i][t]);
+                    after.change = after.change.max((nv[t] - v[i][t]).abs() / sigma[t]);
                 }
             }
             v[i] = nv;
             after.vtpv += e * e / self.q[i];
-            after.misclosure[i] = -e;
+            self.w[i] = -e;
         }
         if !after.vtpv.is_finite() {
             return Err(GhError::NonFinite { iteration });
@@ -337,9 +397,9 @@ impl<const K: usize> Linearised<K> {
     }
 
     /// Each condition's redundancy 1 - h_i, with the leverage h_i = || R^-T a~_i ||^2 of
-    /// the equilibrated, weighted design row, and its w-test.
-    fn redundancy(&self, step: &Step, misclosure: &[f64]) -> (Vec<f64>, Vec<f64>) {
-        let n = misclosure.len();
+    /// the equilibrated, weighted design row, and its w-test (`w` holding the misclosures).
+    fn redundancy(&self, step: &Step) -> (Vec<f64>, Vec<f64>) {
+        let n = self.q.len();
         let m = step.dp.len();
         let r = &step.r;
         let mut redundancy = vec![0.0; n];
@@ -347,7 +407,7 @@ impl<const K: usize> Linearised<K> {
         let mut z = vec![0.0; m];
         for i in 0..n {
             for k in 0..m {
-                let mut s = self.design[(i, k)];
+                let mut s = self.design(i, k, &step.scale);
                 for t in 0..k {
                     s -= r[t * m + k] * z[t];
                 }
@@ -357,42 +417,74 @@ impl<const K: usize> Linearised<K> {
             let ri = (1.0 - h).max(0.0);
             redundancy[i] = ri;
             w_test[i] = if ri > 1e-9 {
-                misclosure[i] / (self.q[i] * ri).sqrt()
+                self.w[i] / (self.q[i] * ri).sqrt()
             } else {
                 0.0
             };
         }
         (redundancy, w_test)
     }
+
+    /// The solution at the settled step: the linearisation's vectors become its own.
+    fn solution(
+        self,
+        obs: &impl Observations<K>,
+        step: Step,
+        p: Vec<f64>,
+        v: Vec<[f64; K]>,
+        vtpv: f64,
+        iterations: usize,
+    ) -> Solution<K> {
+        let (redundancy, w_test) = self.redundancy(&step);
+        let q_parts = self
+            .b
+            .iter()
+            .enumerate()
+            .map(|(i, bi)| {
+                let sigma = obs.get(i).1;
+                std::array::from_fn(|t| (bi[t] * sigma[t]).powi(2))
+            })
+            .collect();
+        let n = self.q.len();
+        Solution {
+            p,
+            q_pp: step.q_pp,
+            v,
+            misclosure: self.w,
+            q_ww: self.q,
+            q_parts,
+            redundancy,
+            w_test,
+            vtpv,
+            dof: n - step.dp.len(),
+            iterations,
+            a: self.a,
+            b: self.b,
+        }
+    }
 }
 
 impl Step {
-    /// Equilibrates the design's columns (in place), then QR: the step, and the
-    /// parameters' cofactor matrix Q_pp = D^-1 R^-1 R^-T D^-1.
-    fn solve(
-        design: &mut Mat<f64>,
-        rhs: &Mat<f64>,
+    /// The QR of the equilibrated design with its right-hand side ([`Linearised::triangle`]):
+    /// the step, and the parameters' cofactor matrix Q_pp = D^-1 R^-1 R^-T D^-1.
+    fn solve<const K: usize>(
+        lin: &Linearised<K>,
         opts: &Options,
         iteration: usize,
     ) -> Result<Step, GhError> {
-        let (n, m) = (design.nrows(), design.ncols());
-        let mut scale = vec![0.0; m];
-        for j in 0..m {
-            let norm = (0..n).map(|i| design[(i, j)].powi(2)).sum::<f64>().sqrt();
-            if norm == 0.0 || !norm.is_finite() {
+        let m = lin.m();
+        let cols = m + 1;
+        for (j, norm) in lin.norms.iter().enumerate() {
+            if *norm == 0.0 || !norm.is_finite() {
                 return Err(GhError::NotEstimable { index: j });
             }
-            scale[j] = norm;
-            for i in 0..n {
-                design[(i, j)] /= norm;
-            }
         }
-        let qr = design.qr();
-        let r_mat = qr.thin_R();
+        let scale = lin.norms.clone();
+        let augmented = lin.triangle(&scale);
         let mut r = vec![0.0; m * m];
         for i in 0..m {
             for j in i..m {
-                r[i * m + j] = r_mat[(i, j)];
+                r[i * m + j] = augmented[i * cols + j];
             }
         }
         for j in 0..m {
@@ -401,12 +493,19 @@ impl Step {
                 return Err(GhError::NotEstimable { index: j });
             }
         }
-        let sol = qr.solve_lstsq(rhs);
-        let dp: Vec<f64> = (0..m).map(|j| sol[(j, 0)] / scale[j]).collect();
+        let r_inv = invert_upper(&r, m);
+        // R dp~ = Q^T rhs, the triangle's last column.
+        let dp: Vec<f64> = (0..m)
+            .map(|i| {
+                let x: f64 = (i..m)
+                    .map(|k| r_inv[i * m + k] * augmented[k * cols + m])
+                    .sum();
+                x / scale[i]
+            })
+            .collect();
         if dp.iter().any(|x| !x.is_finite()) {
             return Err(GhError::NonFinite { iteration });
         }
-        let r_inv = invert_upper(&r, m);
         let mut q_pp = vec![0.0; m * m];
         for i in 0..m {
             for j in 0..m {
@@ -450,7 +549,13 @@ mod tests {
             .map(|(&x, e)| [x, 2.0 + 0.5 * x + e])
             .collect();
         let sigma = vec![[0.0, 1.0]; 20];
-        let s = solve(&Line, &l, &sigma, &[0.0, 0.0], &Options::default()).expect("solves");
+        let s = solve(
+            &Line,
+            &Held::new(&l, &sigma),
+            &[0.0, 0.0],
+            &Options::default(),
+        )
+        .expect("solves");
         // Residuals are orthogonal to the design: sum v = 0 and sum x v = 0.
         let sv: f64 = s.v.iter().map(|v| v[1]).sum();
         let sxv: f64 = s.v.iter().zip(&x).map(|(v, x)| v[1] * x).sum();
@@ -483,8 +588,7 @@ mod tests {
             .collect();
         let e = solve(
             &Twice,
-            &l,
-            &[[0.0, 1.0]; 9],
+            &Held::new(&l, &[[0.0, 1.0]; 9]),
             &[0.0, 0.0],
             &Options::default(),
         )
