@@ -1101,7 +1101,7 @@ mod tests {
         Terms {
             order,
             temperature,
-            misalignment: crate::calibration::model::Misalignment::None,
+            misalignment: Misalignment::None,
         }
     }
 
