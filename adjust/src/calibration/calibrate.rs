@@ -271,12 +271,19 @@ pub const MIN_TEMPERATURE_SPREAD_C: f64 = 1.0;
 /// adjustment still catches exact rank loss (e.g. beta with tilts on one side only).
 pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
     let names = terms.names();
+    // The element a sort would put in the middle, without the sort (total_cmp is a total
+    // order: equal values are the same bits, so neither this nor the unstable sort below
+    // can differ from a stable sort's).
     let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(0.0)
+        let mid = v.len() / 2;
+        if v.is_empty() {
+            0.0
+        } else {
+            *v.select_nth_unstable_by(mid, f64::total_cmp).1
+        }
     };
     let mut dz: Vec<f64> = obs.iter().map(|o| o.dz_rad).collect();
-    dz.sort_by(f64::total_cmp);
+    dz.sort_unstable_by(f64::total_cmp);
     let separation = LEVEL_SEPARATION_SIGMAS * median(obs.iter().map(|o| o.sigma_dz_rad).collect());
     // Positions as bins of the separation's width from the lowest Dz: a new one begins
     // where Dz passes the current one's start by more than the separation. Chaining
