@@ -545,6 +545,40 @@ mod tests {
     use super::*;
     use crate::lsq::correlated::Excess;
 
+    /// Observations that come station by station are summed one station at a time, and give
+    /// the vector's stations, a station index with no observation (3) included as zeros.
+    #[test]
+    fn stations_streamed_are_the_vectors() {
+        let n = 7;
+        let s = crate::lsq::gh::Solution::<3> {
+            p: vec![0.0; 2],
+            q_pp: vec![1.0, 0.0, 0.0, 1.0],
+            v: vec![[0.0; 3]; n],
+            misclosure: (0..n).map(|i| 0.1 * i as f64 - 0.3).collect(),
+            q_ww: (0..n).map(|i| 1.0 + 0.2 * i as f64).collect(),
+            q_parts: (0..n).map(|i| [0.5 + 0.05 * i as f64, 0.5, 0.0]).collect(),
+            redundancy: (0..n).map(|i| 0.6 + 0.03 * i as f64).collect(),
+            w_test: vec![0.0; n],
+            vtpv: 0.0,
+            dof: n - 2,
+            iterations: 1,
+            a: vec![0.0; 2 * n],
+            b: vec![[0.0; 3]; n],
+        };
+        let station = [0, 0, 1, 1, 1, 2, 4];
+        let dof = [None, Some(9.0), None, Some(4.0), None, None, Some(30.0)];
+        let vector = stations(&s, &station, &dof);
+        let mut streamed = Vec::new();
+        each_station(&s, &station, &dof, |x| streamed.push(x.clone()));
+        assert_eq!(format!("{streamed:?}"), format!("{vector:?}"));
+        assert_eq!(streamed.len(), 5);
+        assert_eq!(streamed[3].n, 0.0);
+        // Out of order, the vector itself.
+        let mut shuffled = Vec::new();
+        each_station(&s, &[1, 0, 0, 1, 1, 2, 4], &dof, |x| shuffled.push(x.n));
+        assert_eq!(shuffled, [2.0, 3.0, 1.0, 0.0, 1.0]);
+    }
+
     /// A weighted mean of n conditions, each with a theodolite part u0 and an ADC part u1 of
     /// its variance: the parameter's dof is Welch-Satterthwaite's (u0 + u1)^2 / (u0^2 /
     /// nu0 + u1^2 / nu1); a held component counts as known, and with both held there is
