@@ -572,7 +572,7 @@ mod tests {
         each_station(&s, &station, &dof, |x| streamed.push(x.clone()));
         assert_eq!(format!("{streamed:?}"), format!("{vector:?}"));
         assert_eq!(streamed.len(), 5);
-        assert_eq!(streamed[3].n, 0.0);
+        assert!(streamed[3].n == 0.0 && streamed[3].sum_w == 0.0);
         // Out of order, the vector itself.
         let mut shuffled = Vec::new();
         each_station(&s, &[1, 0, 0, 1, 1, 2, 4], &dof, |x| shuffled.push(x.n));
