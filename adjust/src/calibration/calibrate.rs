@@ -651,7 +651,8 @@ fn misclosure_excess(s: &gh::Solution<3>, used: &[&Obs], noise: &ColouredAdc) ->
 /// chance: on esgt-2005's design at the stations' own sds, 1.067 alpha beyond 3.29 before,
 /// 0.972 with the fitted shares (`the_w_statistic_holds_its_tail`, docs/model.md 6.8).
 /// `coloured`: what the coloured ADC noise adds to each misclosure's variance
-/// ([`correlated::misclosure_excess`]), known as the window means' variance is.
+/// ([`correlated::misclosure_excess`]), known as the window means' variance is. Written into
+/// `w_test`, one per condition.
 fn left_out_w_tests(
     s: &gh::Solution<3>,
     used: &[&Obs],
