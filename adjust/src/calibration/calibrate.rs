@@ -626,16 +626,7 @@ fn counts_centre_and_scale(used: &[&Obs]) -> (f64, f64) {
 /// What the coloured ADC noise adds to the variance of each of `used`'s misclosures
 /// ([`correlated::misclosure_excess`]).
 fn misclosure_excess(s: &gh::Solution<3>, used: &[&Obs], noise: &ColouredAdc) -> Vec<f64> {
-    let time_s: Vec<f64> = used.iter().map(|o| o.time_s).collect();
-    let session: Vec<usize> = used.iter().map(|o| o.session).collect();
-    correlated::misclosure_excess(
-        s,
-        Timeline {
-            time_s: &time_s,
-            session: &session,
-        },
-        noise,
-    )
+    correlated::misclosure_excess(s, Groups::of(used).timeline(), noise)
 }
 
 /// Baarda's w of each condition with its reading's Dz referred to the left-out sigma_Dz
