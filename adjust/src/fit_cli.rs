@@ -112,10 +112,8 @@ fn read_columns(
             message: "is a folder, not a CSV file".to_owned(),
         });
     }
-    let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })?;
+    let text =
+        std::fs::read_to_string(path).map_err(|e| ingest::Error::io(path.to_path_buf(), e))?;
     // A byte-order mark (spreadsheets write one) is not part of the first column's name.
     let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     let mut lines = text

@@ -44,20 +44,13 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// Reading the manifest or an upstream ledger, or writing a table.
+    /// Reading the manifest or an upstream ledger, writing a table, or reading or writing a
+    /// file.
     #[error(transparent)]
     Ingest(#[from] ingest::Error),
     /// Reading align's outputs.
     #[error(transparent)]
     Align(#[from] align::Error),
-    /// A file could not be read or written.
-    #[error("{}: {source}", path.display())]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
-    },
     /// An input table is not what align writes.
     #[error("{}: {message}", path.display())]
     Table {

@@ -36,7 +36,7 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// Reading the manifest or ingest's ledger.
+    /// Reading the manifest or ingest's ledger, or reading or writing a file.
     #[error(transparent)]
     Ingest(#[from] ingest::Error),
     /// Reading align's ledger.
@@ -45,14 +45,6 @@ pub enum Error {
     /// Reading adjust's outputs.
     #[error(transparent)]
     Adjust(#[from] adjust::Error),
-    /// Writing a file.
-    #[error("{}: {source}", path.display())]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
-    },
     /// Drawing a plot failed.
     #[error("plot {name}: {message}")]
     Plot {
@@ -199,10 +191,7 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
 }
 
 fn write_atomically(path: &Path, text: &str) -> Result<(), Error> {
-    ingest::write_atomically(path, text.as_bytes()).map_err(|e| Error::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })
+    ingest::write_atomically(path, text.as_bytes()).map_err(|e| ingest::Error::io(path, e).into())
 }
 
 /// Where the report went.
@@ -223,10 +212,7 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Written, Error> {
     let sections = build(&ds, out)?;
     let dir = out.join("report");
     let plot_dir = dir.join("plots");
-    std::fs::create_dir_all(&plot_dir).map_err(|e| Error::Io {
-        path: plot_dir.clone(),
-        source: e,
-    })?;
+    std::fs::create_dir_all(&plot_dir).map_err(|e| ingest::Error::io(plot_dir.clone(), e))?;
     let mut plots = 0;
     // Plot names join a model's name, an accelerometer's id and a session's with `-`, which
     // names may hold: `a-b` with `c` and `a` with `b-c` would write one file, the report

@@ -500,27 +500,13 @@ pub fn calibrate_with(
         station_without(obs_now.to_mut(), r.index);
     }
     let names = terms.names();
-    // The reference temperature of b and k from all the observations given, so that it does
-    // not move with what snooping removes.
-    let all_t = obs.iter().map(|o| o.temperature_c).sum::<f64>() / obs.len() as f64;
-    let t_ref_c = (all_t * 100.0).round() / 100.0;
+    let t_ref_c = reference_temperature(obs);
     let mut round = 0;
     loop {
         round += 1;
         let used: Vec<&Obs> = active.iter().map(|&i| &obs_now[i]).collect();
         let (centre, scale) = counts_centre_and_scale(&used);
-        // Neither is held when it enters nothing: a million observations' bench has no tide
-        // and no vector misalignment.
-        let tides: Vec<f64> = if used.iter().any(|o| o.tide_mgal != 0.0) {
-            used.iter().map(|o| o.tide_mgal).collect()
-        } else {
-            Vec::new()
-        };
-        let rolls: Vec<f64> = if terms.misalignment == Misalignment::Vector {
-            used.iter().map(|o| o.roll_rad).collect()
-        } else {
-            Vec::new()
-        };
+        let (tides, rolls) = tides_and_rolls(&used, terms);
         let model = CalibrationConditions {
             terms,
             g_mgal,
@@ -559,6 +545,30 @@ pub fn calibrate_with(
             .map(|fit| CalibrationSolution { removed, ..fit })
             .map_err(to_cal);
     }
+}
+
+/// The reference temperature of b and k: the mean of all the observations given (to 0.01
+/// degC), so that it does not move with what snooping removes.
+fn reference_temperature(obs: &[Obs]) -> f64 {
+    let all_t = obs.iter().map(|o| o.temperature_c).sum::<f64>() / obs.len() as f64;
+    (all_t * 100.0).round() / 100.0
+}
+
+/// The tides and rolls the conditions hold for `used`. Neither is held when it enters
+/// nothing (an empty slice): a million observations' bench has no tide and no vector
+/// misalignment.
+fn tides_and_rolls(used: &[&Obs], terms: Terms) -> (Vec<f64>, Vec<f64>) {
+    let tides = if used.iter().any(|o| o.tide_mgal != 0.0) {
+        used.iter().map(|o| o.tide_mgal).collect()
+    } else {
+        Vec::new()
+    };
+    let rolls = if terms.misalignment == Misalignment::Vector {
+        used.iter().map(|o| o.roll_rad).collect()
+    } else {
+        Vec::new()
+    };
+    (tides, rolls)
 }
 
 /// The largest w-test of `s` in magnitude among the observations with redundancy (its

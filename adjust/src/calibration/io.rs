@@ -60,10 +60,7 @@ fn bad(path: &Path, message: String) -> Error {
 
 /// The record batches of a Parquet table.
 fn batches(path: &Path) -> Result<Vec<RecordBatch>, Error> {
-    let f = std::fs::File::open(path).map_err(|e| Error::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })?;
+    let f = std::fs::File::open(path).map_err(|e| ingest::Error::io(path.to_path_buf(), e))?;
     ParquetRecordBatchReaderBuilder::try_new(f)
         .and_then(|b| b.build())
         .map_err(|e| bad(path, e.to_string()))?

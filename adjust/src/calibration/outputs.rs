@@ -21,10 +21,7 @@ pub(crate) fn write_outputs(
     residual_rows: &[io::ResidualRow<'_>],
 ) -> Result<Calibration, Error> {
     let dir = out.join(STAGE_DIR);
-    std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
-        path: dir.clone(),
-        source: e,
-    })?;
+    std::fs::create_dir_all(&dir).map_err(|e| ingest::Error::io(dir.clone(), e))?;
     let cal_path = dir.join(CALIBRATION_FILE);
     ingest::remove_stale(&cal_path)?;
     io::write_residuals(&dir, residual_rows)?;
@@ -67,12 +64,8 @@ pub(crate) fn write_outputs(
                 t.model, t.session
             ),
         })?;
-        ingest::write_atomically(&path, triad_fits::calib_text(t).as_bytes()).map_err(|e| {
-            Error::Io {
-                path: path.clone(),
-                source: e,
-            }
-        })?;
+        ingest::write_atomically(&path, triad_fits::calib_text(t).as_bytes())
+            .map_err(|e| ingest::Error::io(path.clone(), e))?;
         outputs.push(folders.record(Root::Out, &format!("{STAGE_DIR}/{file}"))?);
     }
     calibration.custody = Custody { inputs, outputs };

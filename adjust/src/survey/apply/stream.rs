@@ -89,10 +89,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<ApplyReport
     };
     nothing_to_apply(&ds, &ingest_report).map_err(refused)?;
     let dir = out.join(STAGE_DIR);
-    std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
-        path: dir.clone(),
-        source: e,
-    })?;
+    std::fs::create_dir_all(&dir).map_err(|e| ingest::Error::io(dir.clone(), e))?;
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
     let used = match &cal {
@@ -407,10 +404,11 @@ fn write_table<'t>(
     let (_, sha256) = match writing {
         Ok(written) => written?,
         Err(_) => {
-            return Err(Error::Io {
-                path: dir.join(applied::FILE),
-                source: std::io::Error::other("the writer thread panicked"),
-            });
+            return Err(ingest::Error::io(
+                dir.join(applied::FILE),
+                std::io::Error::other("the writer thread panicked"),
+            )
+            .into());
         }
     };
     reading?;

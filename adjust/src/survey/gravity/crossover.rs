@@ -26,33 +26,12 @@ use ingest::contract::gravity_ledger::{Crossover, Pass};
 use std::collections::{HashMap, HashSet};
 
 /// The epochs written, as the stage gathered them (rows of gravity.parquet, in order).
+#[derive(Clone, Copy, Debug)]
 pub struct Epochs<'a> {
-    /// The session's index into `names`.
-    pub session: &'a [u16],
-    /// Session ids.
+    /// The rows.
+    pub rows: &'a [Row],
+    /// Session ids, indexed by a row's `session`.
     pub names: &'a [String],
-    /// The stretch's number within its session.
-    pub stretch: &'a [u32],
-    /// GPS ns.
-    pub time_gps_ns: &'a [i64],
-    /// Deg.
-    pub latitude_deg: &'a [f64],
-    /// Deg.
-    pub longitude_deg: &'a [f64],
-    /// m/s.
-    pub speed_m_s: &'a [f64],
-    /// The filtered disturbance down, mGal.
-    pub filtered_mgal: &'a [f64],
-    /// Its sigma, all parts.
-    pub sigma_mgal: &'a [f64],
-    /// The noise's part.
-    pub sigma_noise_mgal: &'a [f64],
-    /// The positions' part.
-    pub sigma_positions_mgal: &'a [f64],
-    /// The tie's part.
-    pub sigma_tie_mgal: &'a [f64],
-    /// gravity.parquet's flags.
-    pub flags: &'a [u8],
 }
 
 /// Slowest speed at which an epoch may take part, m/s.
@@ -95,11 +74,7 @@ pub struct Row {
 /// row: 4 MB for a day of epochs with a 100 s filter.
 #[derive(Clone, Debug, Default)]
 pub struct Kept {
-    session: Vec<u16>,
-    stretch: Vec<u32>,
-    time: Vec<i64>,
-    floats: [Vec<f64>; 8],
-    flags: Vec<u8>,
+    rows: Vec<Row>,
     /// Rows of the run taking part so far.
     run: usize,
 }
@@ -112,8 +87,10 @@ pub fn step(filter_s: f64, interval_s: f64) -> usize {
 impl Kept {
     /// Offers the next row written, its epochs `step` rows per kept row.
     pub fn push(&mut self, r: &Row, step: usize) {
-        let same_stretch =
-            self.session.last() == Some(&r.session) && self.stretch.last() == Some(&r.stretch);
+        let same_stretch = self
+            .rows
+            .last()
+            .is_some_and(|l| l.session == r.session && l.stretch == r.stretch);
         if !same_stretch {
             self.run = 0;
         }
@@ -128,42 +105,14 @@ impl Kept {
         if !keep {
             return;
         }
-        self.session.push(r.session);
-        self.stretch.push(r.stretch);
-        self.time.push(r.time_gps_ns);
-        let values = [
-            r.latitude_deg,
-            r.longitude_deg,
-            r.speed_m_s,
-            r.filtered_mgal,
-            r.sigma_mgal,
-            r.sigma_noise_mgal,
-            r.sigma_positions_mgal,
-            r.sigma_tie_mgal,
-        ];
-        for (dst, v) in self.floats.iter_mut().zip(values) {
-            dst.push(v);
-        }
-        self.flags.push(r.flags);
+        self.rows.push(*r);
     }
 
     /// The rows kept, for [`crossovers`].
     pub fn epochs<'a>(&'a self, names: &'a [String]) -> Epochs<'a> {
-        let f = &self.floats;
         Epochs {
-            session: &self.session,
+            rows: &self.rows,
             names,
-            stretch: &self.stretch,
-            time_gps_ns: &self.time,
-            latitude_deg: &f[0],
-            longitude_deg: &f[1],
-            speed_m_s: &f[2],
-            filtered_mgal: &f[3],
-            sigma_mgal: &f[4],
-            sigma_noise_mgal: &f[5],
-            sigma_positions_mgal: &f[6],
-            sigma_tie_mgal: &f[7],
-            flags: &self.flags,
         }
     }
 }
@@ -184,7 +133,7 @@ pub fn crossovers(
         for (x, &a) in members.iter().enumerate() {
             for &b in &members[x + 1..] {
                 let (a, b) = (a.min(b), a.max(b));
-                if (e.time_gps_ns[b] - e.time_gps_ns[a]).abs() < separation_ns
+                if (e.rows[b].time_gps_ns - e.rows[a].time_gps_ns).abs() < separation_ns
                     || !tested.insert((a, b))
                 {
                     continue;
@@ -205,13 +154,13 @@ pub fn crossovers(
 
 /// The segments: epoch k to k + 1, both taking part, on one stretch.
 fn segments(e: &Epochs<'_>) -> Vec<usize> {
-    let takes_part = |k: usize| e.flags[k] == 0 && e.speed_m_s[k] > MOVING_M_S;
-    (0..e.time_gps_ns.len().saturating_sub(1))
+    let takes_part = |k: usize| e.rows[k].flags == 0 && e.rows[k].speed_m_s > MOVING_M_S;
+    (0..e.rows.len().saturating_sub(1))
         .filter(|&k| {
             takes_part(k)
                 && takes_part(k + 1)
-                && e.session[k] == e.session[k + 1]
-                && e.stretch[k] == e.stretch[k + 1]
+                && e.rows[k].session == e.rows[k + 1].session
+                && e.rows[k].stretch == e.rows[k + 1].stretch
         })
         .collect()
 }
@@ -225,8 +174,8 @@ fn merged(
     let mut kept: Vec<(usize, f64, usize, f64)> = Vec::new();
     for f in found {
         let near = kept.iter().any(|k| {
-            (e.time_gps_ns[k.0] - e.time_gps_ns[f.0]).abs() < window_ns
-                && (e.time_gps_ns[k.2] - e.time_gps_ns[f.2]).abs() < window_ns
+            (e.rows[k.0].time_gps_ns - e.rows[f.0].time_gps_ns).abs() < window_ns
+                && (e.rows[k.2].time_gps_ns - e.rows[f.2].time_gps_ns).abs() < window_ns
         });
         if !near {
             kept.push(f);
@@ -244,16 +193,16 @@ struct Plane {
 impl Plane {
     /// The plane of `e`'s positions, its cells sized by `segments`' median length.
     fn new(e: &Epochs<'_>, segments: &[usize]) -> Self {
-        let n = e.latitude_deg.len();
-        let mean = e.latitude_deg.iter().sum::<f64>() / n.max(1) as f64;
+        let n = e.rows.len();
+        let mean = e.rows.iter().map(|r| r.latitude_deg).sum::<f64>() / n.max(1) as f64;
         let c = mean.to_radians().cos();
         // Longitudes from the first epoch's, the short way round: a survey across the
         // antimeridian stays one piece of plane.
-        let lon0 = e.longitude_deg.first().copied().unwrap_or(0.0);
+        let lon0 = e.rows.first().map_or(0.0, |r| r.longitude_deg);
         let xy: Vec<[f64; 2]> = (0..n)
             .map(|k| {
-                let x = longitude_step_deg(lon0, e.longitude_deg[k]);
-                [x * c, e.latitude_deg[k]]
+                let x = longitude_step_deg(lon0, e.rows[k].longitude_deg);
+                [x * c, e.rows[k].latitude_deg]
             })
             .collect();
         let mut lengths: Vec<f64> = segments
@@ -322,14 +271,17 @@ impl Plane {
 
     /// The displacement from 5 s before segment `k` to 5 s after, on its stretch.
     fn course(&self, e: &Epochs<'_>, k: usize) -> [f64; 2] {
-        let same = |j: usize| e.session[j] == e.session[k] && e.stretch[j] == e.stretch[k];
-        let within = |j: usize| (e.time_gps_ns[j] - e.time_gps_ns[k]).abs() <= 5_000_000_000;
+        let same = |j: usize| {
+            e.rows[j].session == e.rows[k].session && e.rows[j].stretch == e.rows[k].stretch
+        };
+        let within =
+            |j: usize| (e.rows[j].time_gps_ns - e.rows[k].time_gps_ns).abs() <= 5_000_000_000;
         let mut lo = k;
         while lo > 0 && same(lo - 1) && within(lo - 1) {
             lo -= 1;
         }
         let mut hi = k + 1;
-        while hi + 1 < e.time_gps_ns.len() && same(hi + 1) && within(hi + 1) {
+        while hi + 1 < e.rows.len() && same(hi + 1) && within(hi + 1) {
             hi += 1;
         }
         sub(self.xy[hi], self.xy[lo])
@@ -345,19 +297,21 @@ fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
 }
 
 /// `v` interpolated a fraction `s` from epoch k to k + 1.
-fn at(v: &[f64], k: usize, s: f64) -> f64 {
-    v[k] + s * (v[k + 1] - v[k])
+fn at(e: &Epochs<'_>, field: impl Fn(&Row) -> f64, k: usize, s: f64) -> f64 {
+    let (a, b) = (field(&e.rows[k]), field(&e.rows[k + 1]));
+    a + s * (b - a)
 }
 
 fn pass(e: &Epochs<'_>, k: usize, s: f64) -> Pass {
-    let t = e.time_gps_ns[k] + (s * (e.time_gps_ns[k + 1] - e.time_gps_ns[k]) as f64) as i64;
+    let t = e.rows[k].time_gps_ns
+        + (s * (e.rows[k + 1].time_gps_ns - e.rows[k].time_gps_ns) as f64) as i64;
     Pass {
-        session: e.names[usize::from(e.session[k])].clone(),
-        stretch: e.stretch[k],
+        session: e.names[usize::from(e.rows[k].session)].clone(),
+        stretch: e.rows[k].stretch,
         time: utc_iso(t),
         time_gps_ns: t,
-        filtered_mgal: at(e.filtered_mgal, k, s),
-        sigma_mgal: at(e.sigma_mgal, k, s),
+        filtered_mgal: at(e, |r| r.filtered_mgal, k, s),
+        sigma_mgal: at(e, |r| r.sigma_mgal, k, s),
     }
 }
 
@@ -368,19 +322,20 @@ fn crossover(
     (b, u): (usize, f64),
     rate_sigma: &impl Fn(u16, u32) -> Option<f64>,
 ) -> Crossover {
-    let ((a, s), (b, u)) = if e.time_gps_ns[b] < e.time_gps_ns[a] {
+    let ((a, s), (b, u)) = if e.rows[b].time_gps_ns < e.rows[a].time_gps_ns {
         ((b, u), (a, s))
     } else {
         ((a, s), (b, u))
     };
-    let independent =
-        |k: usize, f: f64| at(e.sigma_noise_mgal, k, f).hypot(at(e.sigma_positions_mgal, k, f));
-    let same = e.session[a] == e.session[b] && e.stretch[a] == e.stretch[b];
+    let independent = |k: usize, f: f64| {
+        at(e, |r| r.sigma_noise_mgal, k, f).hypot(at(e, |r| r.sigma_positions_mgal, k, f))
+    };
+    let same = e.rows[a].session == e.rows[b].session && e.rows[a].stretch == e.rows[b].stretch;
     let tie = if same {
-        let hours = (e.time_gps_ns[b] - e.time_gps_ns[a]) as f64 / 3.6e12;
-        rate_sigma(e.session[a], e.stretch[a]).unwrap_or(0.0) * hours
+        let hours = (e.rows[b].time_gps_ns - e.rows[a].time_gps_ns) as f64 / 3.6e12;
+        rate_sigma(e.rows[a].session, e.rows[a].stretch).unwrap_or(0.0) * hours
     } else {
-        at(e.sigma_tie_mgal, a, s).hypot(at(e.sigma_tie_mgal, b, u))
+        at(e, |r| r.sigma_tie_mgal, a, s).hypot(at(e, |r| r.sigma_tie_mgal, b, u))
     };
     let sigma = independent(a, s).hypot(independent(b, u)).hypot(tie);
     let point = plane.along(a, s);
@@ -388,8 +343,9 @@ fn crossover(
     Crossover {
         latitude_deg: point[1],
         longitude_deg: longitude_wrapped_like(
-            e.longitude_deg[a] + s * longitude_step_deg(e.longitude_deg[a], e.longitude_deg[a + 1]),
-            e.longitude_deg[a],
+            e.rows[a].longitude_deg
+                + s * longitude_step_deg(e.rows[a].longitude_deg, e.rows[a + 1].longitude_deg),
+            e.rows[a].longitude_deg,
         ),
         angle_deg: plane.angle_deg(e, a, b),
         difference_mgal: second.filtered_mgal - first.filtered_mgal,
@@ -405,72 +361,39 @@ mod tests {
 
     /// Two straight passes: east along latitude 43 and back north-west across it, epochs
     /// every 0.5 s, with a disturbance that is x on the first and x + 1 on the second.
-    struct Track {
-        session: Vec<u16>,
-        stretch: Vec<u32>,
-        time: Vec<i64>,
-        lat: Vec<f64>,
-        lon: Vec<f64>,
-        speed: Vec<f64>,
-        value: Vec<f64>,
-        sigma: Vec<f64>,
-        flags: Vec<u8>,
-    }
-
-    fn track(wander: f64) -> Track {
-        let mut t = Track {
-            session: vec![],
-            stretch: vec![],
-            time: vec![],
-            lat: vec![],
-            lon: vec![],
-            speed: vec![],
-            value: vec![],
-            sigma: vec![],
-            flags: vec![],
+    fn track(wander: f64) -> Vec<Row> {
+        let row = |k: usize, lat: f64, lon: f64, v: f64| Row {
+            session: 0,
+            stretch: 0,
+            time_gps_ns: k as i64 * 500_000_000,
+            latitude_deg: lat,
+            longitude_deg: lon,
+            speed_m_s: 5.0,
+            filtered_mgal: v,
+            sigma_mgal: 0.3,
+            sigma_noise_mgal: 0.3,
+            sigma_positions_mgal: 0.3,
+            sigma_tie_mgal: 0.3,
+            flags: 0,
         };
-        let mut push = |k: usize, lat: f64, lon: f64, v: f64| {
-            t.session.push(0);
-            t.stretch.push(0);
-            t.time.push(k as i64 * 500_000_000);
-            t.lat.push(lat);
-            t.lon.push(lon);
-            t.speed.push(5.0);
-            t.value.push(v);
-            t.sigma.push(0.3);
-            t.flags.push(0);
-        };
+        let mut t = Vec::new();
         // 2000 epochs east from lon 5.0 to 5.02, then 2000 back crossing at lon 5.01.
         for k in 0..2000 {
             let lon = 5.0 + 1e-5 * k as f64;
-            push(k, 43.0, lon, lon);
+            t.push(row(k, 43.0, lon, lon));
         }
         for k in 0..2000 {
             let lon = 5.02 - 1e-5 * k as f64;
             // Crosses latitude 43 at k = 1000; a wander of `wander` deg about the line.
             let jitter = if k % 2 == 0 { wander } else { -wander };
             let lat = 43.0 + 1e-6 * (1000.0 - k as f64) + jitter;
-            push(2000 + k, lat, lon, lon + 1.0);
+            t.push(row(2000 + k, lat, lon, lon + 1.0));
         }
         t
     }
 
-    fn epochs<'a>(t: &'a Track, names: &'a [String]) -> Epochs<'a> {
-        Epochs {
-            session: &t.session,
-            names,
-            stretch: &t.stretch,
-            time_gps_ns: &t.time,
-            latitude_deg: &t.lat,
-            longitude_deg: &t.lon,
-            speed_m_s: &t.speed,
-            filtered_mgal: &t.value,
-            sigma_mgal: &t.sigma,
-            sigma_noise_mgal: &t.sigma,
-            sigma_positions_mgal: &t.sigma,
-            sigma_tie_mgal: &t.sigma,
-            flags: &t.flags,
-        }
+    fn epochs<'a>(rows: &'a [Row], names: &'a [String]) -> Epochs<'a> {
+        Epochs { rows, names }
     }
 
     #[test]
@@ -507,10 +430,10 @@ mod tests {
         let mut t = track(0.0);
         let wrap = |lon: f64| (lon + 180.0).rem_euclid(360.0) - 180.0;
         for k in 0..2000 {
-            t.lon[k] = wrap(179.99 + 3e-6 + 1e-5 * k as f64);
+            t[k].longitude_deg = wrap(179.99 + 3e-6 + 1e-5 * k as f64);
             let lon = 180.01 + 3e-6 - 1e-5 * k as f64;
-            t.lon[2000 + k] = wrap(lon);
-            t.lat[2000 + k] = 43.0 + 1e-6 * (1000.2 - k as f64);
+            t[2000 + k].longitude_deg = wrap(lon);
+            t[2000 + k].latitude_deg = 43.0 + 1e-6 * (1000.2 - k as f64);
         }
         let names = ["s".to_owned()];
         let found = crossovers(&epochs(&t, &names), 100.0, |_, _| None);
@@ -530,7 +453,7 @@ mod tests {
         assert!(crossovers(&e, 600.0, |_, _| None).is_empty());
         let mut t = track(0.0);
         for k in 2990..3010 {
-            t.flags[k] = 2;
+            t[k].flags = 2;
         }
         assert!(crossovers(&epochs(&t, &names), 100.0, |_, _| None).is_empty());
     }
@@ -542,29 +465,20 @@ mod tests {
     fn the_rows_kept_find_the_crossover_and_keep_the_runs_apart() {
         let t = track(0.0);
         let row = |k: usize| Row {
-            session: t.session[k],
-            stretch: t.stretch[k] + u32::from(k >= 3500),
-            time_gps_ns: t.time[k],
-            latitude_deg: t.lat[k],
-            longitude_deg: t.lon[k],
-            speed_m_s: t.speed[k],
-            filtered_mgal: t.value[k],
-            sigma_mgal: t.sigma[k],
-            sigma_noise_mgal: t.sigma[k],
-            sigma_positions_mgal: t.sigma[k],
-            sigma_tie_mgal: t.sigma[k],
+            stretch: t[k].stretch + u32::from(k >= 3500),
             flags: u8::from((500..510).contains(&k)),
+            ..t[k]
         };
         let mut kept = Kept::default();
-        for k in 0..t.time.len() {
+        for k in 0..t.len() {
             kept.push(&row(k), 10);
         }
         let names = ["s".to_owned()];
         let e = kept.epochs(&names);
         // Rows 0-499 (50 kept), the first of the ten flagged, rows 510-3499 as one run (299),
         // and the second stretch's 500 (50).
-        assert_eq!(e.time_gps_ns.len(), 50 + 1 + 299 + 50);
-        assert_eq!(e.flags.iter().filter(|f| **f != 0).count(), 1);
+        assert_eq!(e.rows.len(), 50 + 1 + 299 + 50);
+        assert_eq!(e.rows.iter().filter(|r| r.flags != 0).count(), 1);
         let found = crossovers(&e, 100.0, |_, _| Some(0.5));
         let all = crossovers(&epochs(&t, &names), 100.0, |_, _| Some(0.5));
         assert_eq!(found.len(), 1, "{found:?}");

@@ -61,10 +61,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     let survey = ds.manifest.survey.clone().unwrap_or_default();
     let table = out.join(apply_ledger::STAGE_DIR).join(applied::FILE);
     let dir = out.join(STAGE_DIR);
-    std::fs::create_dir_all(&dir).map_err(|e| crate::Error::Io {
-        path: dir.clone(),
-        source: e,
-    })?;
+    std::fs::create_dir_all(&dir).map_err(|e| ingest::Error::io(dir.clone(), e))?;
     let (applied, tracks) = applied_and_tracks(&ds, (dataset, out, &dir), &survey, opts)?;
     let force = down_force(&applied, &survey, opts.accelerometer)?;
     let triad = triad_function(&applied, opts.apply.calibration)?;
