@@ -236,17 +236,9 @@ pub(crate) fn noise_section(st: &Stages<'_>) -> Result<Section, Error> {
         (true, None) => format!("{x:.4}"),
         (false, _) => "not determined".to_owned(),
     };
-    let mut t = Table::new(&[
-        "accelerometer",
-        "still intervals",
-        "samples",
-        "N (counts/sqrt(Hz))",
-        "B (counts)",
-        "K (counts sqrt(Hz))",
-        "accelerometer_noise_density (m/s^2/sqrt(Hz))",
-        "accelerometer_random_walk (m/s^3/sqrt(Hz))",
-        "scale from",
-    ]);
+    let mut t = Table::headed(
+        "accelerometer | still intervals | samples | N (counts/sqrt(Hz)) | B (counts) | K (counts sqrt(Hz)) | accelerometer_noise_density (m/s^2/sqrt(Hz)) | accelerometer_random_walk (m/s^3/sqrt(Hz)) | scale from",
+    );
     for n in &st.align_report.noise {
         let si = st
             .cal

@@ -17,22 +17,9 @@ pub(crate) fn table1_section(st: &Stages<'_>) -> Section {
          scaled chi-square, since the weights were estimated from the readings within the stations."
             .to_owned(),
     );
-    let mut t1 = Table::new(&[
-        "session",
-        "accelerometer",
-        "values",
-        "T (degC)",
-        "b (mGal)",
-        "k (mGal/kbit)",
-        "sigma b (mGal)",
-        "sigma k (mGal/kbit)",
-        "a priori sigma b (mGal)",
-        "a priori sigma k (mGal/kbit)",
-        "corr(b,k)",
-        "sigma0",
-        "removed",
-        "global test",
-    ]);
+    let mut t1 = Table::headed(
+        "session | accelerometer | values | T (degC) | b (mGal) | k (mGal/kbit) | sigma b (mGal) | sigma k (mGal/kbit) | a priori sigma b (mGal) | a priori sigma k (mGal/kbit) | corr(b,k) | sigma0 | removed | global test",
+    );
     for r in cal
         .results
         .iter()
@@ -112,17 +99,9 @@ pub(crate) fn components_section(st: &Stages<'_>) -> Section {
          is not estimated."
             .to_owned(),
     );
-    let mut t = Table::new(&[
-        "model",
-        "accelerometer",
-        "session",
-        "group",
-        "factor",
-        "sigma",
-        "dof",
-        "test: statistic in [2.5 %, 97.5 %]",
-        "verdict",
-    ]);
+    let mut t = Table::headed(
+        "model | accelerometer | session | group | factor | sigma | dof | test: statistic in [2.5 %, 97.5 %] | verdict",
+    );
     for r in &cal.results {
         for c in &r.variance_components {
             let verdict = match (&c.not_estimable, c.passed) {
@@ -161,14 +140,7 @@ pub(crate) fn parameters_section(st: &Stages<'_>) -> Section {
             .to_owned(),
     );
     for r in &st.cal.results {
-        let mut t = Table::new(&[
-            "parameter",
-            "value",
-            "sigma",
-            "dof",
-            "sigma a priori",
-            "unit",
-        ]);
+        let mut t = Table::headed("parameter | value | sigma | dof | sigma a priori | unit");
         for p in &r.parameters {
             let (value, sigma) = rounded_to_sigma(p.value, p.sigma);
             t.rows.push(vec![
@@ -236,19 +208,9 @@ pub(crate) fn extra_terms_section(st: &Stages<'_>) -> Section {
         "Each term beyond b and k with its t = value/sigma against Student's t at 5 % (two-sided): a term is significant when |t| exceeds the critical value."
             .to_owned(),
     );
-    let mut extra = Table::new(&[
-        "model",
-        "accelerometer",
-        "session",
-        "t_ref (degC)",
-        "parameter",
-        "value",
-        "sigma",
-        "unit",
-        "t",
-        "critical",
-        "significant",
-    ]);
+    let mut extra = Table::headed(
+        "model | accelerometer | session | t_ref (degC) | parameter | value | sigma | unit | t | critical | significant",
+    );
     for r in &cal.results {
         for p in r
             .parameters
@@ -310,17 +272,9 @@ pub(crate) fn snooping_section(st: &Stages<'_>) -> Section {
         "Data snooping removed, one at a time, the observation with the largest normalised residual |w| > {} (alpha = 0.001) and re-adjusted. Every removal:",
         adjust::calibration::calibrate::W_CRITICAL
     ));
-    let mut removed = Table::new(&[
-        "model",
-        "accelerometer",
-        "fit",
-        "session",
-        "station",
-        "line",
-        "time, as its log writes it",
-        "GPS week / tow (s)",
-        "w",
-    ]);
+    let mut removed = Table::headed(
+        "model | accelerometer | fit | session | station | line | time, as its log writes it | GPS week / tow (s) | w",
+    );
     for r in &cal.results {
         for x in &r.removed {
             removed.rows.push(vec![
@@ -348,15 +302,7 @@ pub(crate) fn repeatability_section(st: &Stages<'_>) -> Section {
         "For each model fitted one session at a time, the sessions' (b, k) are tested for one common value at their sigmas and correlation: chi-square on 2 (sessions - 1) dof, a change reported below p = {}. The test's false-alarm rate on two sessions of one truth is measured by `cargo xtask verdicts` (docs/model.md 6.9).",
         adjust::calibration::repeatability::LEVEL,
     ));
-    let mut t = Table::new(&[
-        "model",
-        "accelerometer",
-        "sessions",
-        "chi-square",
-        "dof",
-        "p",
-        "b and k",
-    ]);
+    let mut t = Table::headed("model | accelerometer | sessions | chi-square | dof | p | b and k");
     for r in &st.cal.repeatability {
         t.rows.push(vec![
             r.model.clone(),

@@ -217,15 +217,9 @@ fn attitude_plots(path: &Path, sha256: &str) -> Result<Vec<(String, String)>, Er
 /// rms of difference over sigma (near 1 when the sigmas are honest), or a row saying the
 /// track does not cross itself.
 fn crossovers(r: &GravityReport) -> Table {
-    let mut t = Table::new(&[
-        "where (lat, lon)",
-        "first pass",
-        "second pass",
-        "angle (deg)",
-        "difference",
-        "sigma",
-        "difference / sigma",
-    ]);
+    let mut t = Table::headed(
+        "where (lat, lon) | first pass | second pass | angle (deg) | difference | sigma | difference / sigma",
+    );
     let pass = |p: &ingest::contract::gravity_ledger::Pass| {
         format!(
             "{} {} #{}: {:.3} ± {:.3}",
@@ -306,15 +300,8 @@ fn counts(m: &std::collections::BTreeMap<String, u64>) -> String {
 }
 
 fn reduced(r: &GravityReport) -> Table {
-    let mut t = Table::new(&[
-        "session",
-        "epochs read",
-        "used",
-        "dropped",
-        "flagged",
-        "stretches",
-        "gaps",
-    ]);
+    let mut t =
+        Table::headed("session | epochs read | used | dropped | flagged | stretches | gaps");
     for s in &r.sessions {
         t.rows.push(vec![
             s.id.clone(),
@@ -338,15 +325,8 @@ fn reduced(r: &GravityReport) -> Table {
 }
 
 fn ties(r: &GravityReport) -> Table {
-    let mut t = Table::new(&[
-        "session",
-        "from",
-        "to",
-        "epochs",
-        "ties",
-        "offset (mGal)",
-        "drift (mGal/h)",
-    ]);
+    let mut t =
+        Table::headed("session | from | to | epochs | ties | offset (mGal) | drift (mGal/h)");
     for s in &r.sessions {
         for st in &s.stretches {
             let (n, offset, drift) = match &st.drift {
@@ -396,18 +376,9 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn disturbance(ds: &Dataset, epochs: &[Epoch]) -> Table {
-    let mut t = Table::new(&[
-        "session",
-        "min",
-        "max",
-        "median sigma",
-        "calibration",
-        "positions",
-        "noise",
-        "tie",
-        "attitude",
-        "cross-coupling",
-    ]);
+    let mut t = Table::headed(
+        "session | min | max | median sigma | calibration | positions | noise | tie | attitude | cross-coupling",
+    );
     for (index, s) in ds.sessions.iter().enumerate() {
         let e: Vec<&Epoch> = epochs
             .iter()
@@ -468,17 +439,9 @@ fn horizontal(ds: &Dataset, path: &Path) -> Result<Option<Table>, Error> {
     if per.is_empty() {
         return Ok(None);
     }
-    let mut t = Table::new(&[
-        "session",
-        "component",
-        "min",
-        "max",
-        "median sigma",
-        "calibration",
-        "positions",
-        "noise",
-        "attitude",
-    ]);
+    let mut t = Table::headed(
+        "session | component | min | max | median sigma | calibration | positions | noise | attitude",
+    );
     for (index, cols) in per {
         let id = ds
             .sessions

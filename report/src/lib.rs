@@ -36,15 +36,10 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// Reading the manifest or ingest's ledger, or reading or writing a file.
+    /// An upstream stage's error, as adjust carries it: reading the manifest, a ledger or
+    /// adjust's outputs, or reading or writing a file (ingest's and align's errors too).
     #[error(transparent)]
-    Ingest(#[from] ingest::Error),
-    /// Reading align's ledger.
-    #[error(transparent)]
-    Align(#[from] align::Error),
-    /// Reading adjust's outputs.
-    #[error(transparent)]
-    Adjust(#[from] adjust::Error),
+    Upstream(#[from] adjust::Error),
     /// Drawing a plot failed.
     #[error("plot {name}: {message}")]
     Plot {
@@ -53,6 +48,18 @@ pub enum Error {
         /// What failed.
         message: String,
     },
+}
+
+impl From<ingest::Error> for Error {
+    fn from(e: ingest::Error) -> Self {
+        Error::Upstream(e.into())
+    }
+}
+
+impl From<align::Error> for Error {
+    fn from(e: align::Error) -> Self {
+        Error::Upstream(e.into())
+    }
 }
 
 fn param<'a>(r: &'a CalibrationResult, name: &str) -> Option<&'a Parameter> {
@@ -75,7 +82,7 @@ fn custody_table(
     align_report: &AlignReport,
     cal: &Calibration,
 ) -> Table {
-    let mut t = Table::new(&["stage", "read or wrote", "file", "SHA-256"]);
+    let mut t = Table::headed("stage | read or wrote | file | SHA-256");
     for (stage, custody) in [
         ("ingest", &ingest_report.custody),
         ("align", &align_report.custody),

@@ -15,14 +15,9 @@ pub(crate) const ELLIPSE_95: f64 = 2.447_746_830_680_816;
 /// (theta_x, theta_y) with its 95 % error ellipse. Empty when no model has one.
 pub(crate) fn misalignment_section(st: &Stages<'_>) -> Result<Section, Error> {
     let mut s = section("Misalignment vector");
-    let mut t = Table::new(&[
-        "model",
-        "accelerometer",
-        "theta (mrad)",
-        "sigma theta (mrad)",
-        "psi (deg)",
-        "sigma psi (deg)",
-    ]);
+    let mut t = Table::headed(
+        "model | accelerometer | theta (mrad) | sigma theta (mrad) | psi (deg) | sigma psi (deg)",
+    );
     for r in &st.cal.results {
         let Some(v) = &r.misalignment_vector else {
             continue;
@@ -131,7 +126,7 @@ pub(crate) fn triad_section(st: &Stages<'_>) -> Result<Section, Error> {
         s.plots.extend(stillness_plot(st, mp)?);
     }
     for r in &st.cal.triad {
-        let mut t = Table::new(&["parameter", "value", "sigma", "unit"]);
+        let mut t = Table::headed("parameter | value | sigma | unit");
         for p in r.parameters.iter().chain(&r.non_orthogonality_mrad) {
             let (value, sigma) = ingest::contract::precision::rounded_to_sigma(p.value, p.sigma);
             t.rows

@@ -13,6 +13,15 @@ pub struct Table {
 }
 
 impl Table {
+    /// A table with the headings `spec` writes as its Markdown would: separated by ` | `.
+    pub(crate) fn headed(spec: &str) -> Self {
+        Table {
+            header: spec.split(" | ").map(str::to_owned).collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// A table with the headings `header`.
     pub(crate) fn new(header: &[&str]) -> Self {
         Table {
             header: header.iter().map(|s| (*s).to_owned()).collect(),
@@ -195,4 +204,30 @@ pub fn html(name: &str, sections: &[Section]) -> String {
     }
     s.push_str("</body></html>\n");
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Table;
+
+    /// The headings a table is given in Markdown's form are the ones its Markdown writes.
+    #[test]
+    fn headings_given_as_markdown_are_written_as_given() {
+        let t = Table::headed(
+            "where (lat, lon) | difference / sigma | test: statistic in [2.5 %, 97.5 %]",
+        );
+        assert_eq!(t.header.len(), 3, "{:?}", t.header);
+        assert_eq!(
+            t.header,
+            Table::new(&[
+                "where (lat, lon)",
+                "difference / sigma",
+                "test: statistic in [2.5 %, 97.5 %]"
+            ])
+            .header
+        );
+        assert!(t.markdown().starts_with(
+            "| where (lat, lon) | difference / sigma | test: statistic in [2.5 %, 97.5 %] |\n"
+        ));
+    }
 }

@@ -30,7 +30,7 @@ pub(crate) fn summary_section(st: &Stages<'_>) -> Section {
     }
     s.text.extend(global_test_advice(cal));
     if !cal.skipped.is_empty() {
-        let mut k = Table::new(&["model", "accelerometer", "session", "why not"]);
+        let mut k = Table::headed("model | accelerometer | session | why not");
         for f in &cal.skipped {
             k.rows.push(vec![
                 f.model.clone(),
@@ -75,16 +75,9 @@ fn models_sentence(cal: &Calibration, surveys: &[String]) -> String {
 /// One row per fit, axis and triad: what was fitted, its parameters with sigmas, and its
 /// statistics.
 fn calibrations_table(cal: &Calibration) -> Table {
-    let mut t = Table::new(&[
-        "model",
-        "accelerometer",
-        "session",
-        "calibration (value +/- sigma)",
-        "sigma0",
-        "global test",
-        "used / removed",
-        "verdict",
-    ]);
+    let mut t = Table::headed(
+        "model | accelerometer | session | calibration (value +/- sigma) | sigma0 | global test | used / removed | verdict",
+    );
     for r in &cal.results {
         t.rows.push(summary_row(
             [&r.model, &r.accelerometer, &r.session],
@@ -152,7 +145,7 @@ fn global_test_advice(cal: &Calibration) -> Vec<String> {
 /// Appendix: the inputs' hashes and the chain of custody.
 pub(crate) fn custody_section(st: &Stages<'_>) -> Section {
     let mut s = section("Appendix: inputs and chain of custody");
-    let mut inputs = Table::new(&["file", "SHA-256", "bytes"]);
+    let mut inputs = Table::headed("file | SHA-256 | bytes");
     for f in &st.ingest_report.files {
         inputs
             .rows
@@ -230,7 +223,7 @@ pub(crate) fn ledger_section(st: &Stages<'_>) -> Section {
     let mut s = section("What was read, used and excluded");
     s.tables
         .push(("Ingest".to_owned(), ingest_table(ingest_report)));
-    let mut al = Table::new(&["session", "accelerometer", "readings", "used", "excluded"]);
+    let mut al = Table::headed("session | accelerometer | readings | used | excluded");
     for c in &align_report.counts {
         let ex: Vec<String> = c.excluded.iter().map(|(r, n)| format!("{n} {r}")).collect();
         al.rows.push(vec![
@@ -277,15 +270,8 @@ pub(crate) fn ledger_section(st: &Stages<'_>) -> Section {
 /// Ingest's ledger per file: what was read, accepted and rejected (by reason), the bytes
 /// skipped resynchronising and the values stored as null.
 fn ingest_table(report: &IngestReport) -> Table {
-    let mut files = Table::new(&[
-        "file",
-        "role",
-        "read",
-        "accepted",
-        "rejected",
-        "bytes skipped",
-        "null values",
-    ]);
+    let mut files =
+        Table::headed("file | role | read | accepted | rejected | bytes skipped | null values");
     for f in &report.files {
         let rejected: Vec<String> = f.rejected.iter().map(|(r, n)| format!("{n} {r}")).collect();
         let nulls: Vec<String> = f
