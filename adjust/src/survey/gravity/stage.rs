@@ -433,17 +433,21 @@ fn triad_function(
 }
 
 /// The gradient by the calibration's parameters of its error at the drift's reference: the
-/// first tie `inside` the stretch (the track's epochs `span`) with a window of two epochs or
+/// first tie inside the stretch `of` with a window of two epochs or
 /// more, its window's mean vector read back into readings, along the window's mean down row
 /// (the mounting's, or C_b^n's with attitude). None without such a tie or where the vector
 /// cannot be read back.
 fn tie_gradient(
     f: &TriadFunction,
-    track: &Track<'_>,
-    bins: &SpilledBins,
-    (span, ctx): (Range<usize>, &Context<'_>),
-    inside: &[(usize, Tie)],
+    of: &StretchOf<'_>,
+    ctx: &Context<'_>,
 ) -> Result<Option<Vec<f64>>, GravityError> {
+    let StretchOf {
+        track,
+        bins,
+        span,
+        inside,
+    } = of;
     let times = &track.times[span.clone()];
     let window = inside.iter().find_map(|(_, tie)| {
         let half = (tie.duration_s * 0.5e9) as i64;
@@ -516,7 +520,8 @@ fn down_row(b: &Block<'_>, k: usize, ctx: &Context<'_>) -> [f64; 3] {
 fn calibration_gradient(
     f: &TriadFunction,
     b: &Block<'_>,
-    (range, ctx): (Range<usize>, &Context<'_>),
+    range: Range<usize>,
+    ctx: &Context<'_>,
     at_tie: &[f64],
 ) -> Option<CalibrationGradient> {
     let mut gradient = vec![Vec::with_capacity(range.len()); at_tie.len()];
@@ -572,9 +577,9 @@ fn plausible(
     r: &Reduced,
     flags: &[u8],
     drift: Option<&reduce::Drift>,
-    (track, number): (&Track<'_>, u32),
+    id: &str,
+    number: u32,
 ) -> Result<(), GravityError> {
-    let id = &track.session.session.id;
     let causes = "a mounting_deg, lever arm or attitude that is not the instrument's, a \
                   calibration of other accelerometers, or a tie's g_mgal mistyped";
     let refuse = |what: String| {
@@ -766,13 +771,8 @@ fn reduce_track(
     let expected = ctx.samples_per_s * interval as f64 * 1e-9;
     filter_longer_than_epochs(track, interval, ctx.survey.filter_s)?;
     let mut summary = session_summary(track, ctx);
-    let (spans, gaps) = stretches(
-        &track.times,
-        bins,
-        (interval, expected),
-        &mut summary.dropped,
-    )
-    .map_err(|e| spill_error(bins, e))?;
+    let (spans, gaps) = stretches(&track.times, bins, interval, expected, &mut summary.dropped)
+        .map_err(|e| spill_error(bins, e))?;
     summary.gaps = gaps;
     let (correction, used) = coupling_of(track, bins, &spans, ctx)?;
     summary.cross_coupling = used;
@@ -787,8 +787,13 @@ fn reduce_track(
     for span in spans {
         let inside = ties_inside(ctx.ties, &track.times[span.clone()]);
         let number = summary.stretches.len() as u32;
-        let which = (span.clone(), &inside[..], session.as_ref());
-        let Some(drift) = reduce_stretch(track, bins, which, ctx, number, (rows, &mut summary))?
+        let of = StretchOf {
+            track,
+            bins,
+            span: span.clone(),
+            inside: &inside,
+        };
+        let Some(drift) = reduce_stretch(of, session.as_ref(), ctx, number, rows, &mut summary)?
         else {
             *summary
                 .dropped
@@ -869,21 +874,22 @@ fn margin(filter_s: f64, interval_s: f64) -> usize {
     reduce::reach(2.0 * filter_s, interval_s) + (5.0 / interval_s).ceil() as usize + 2
 }
 
-/// One stretch (the track's epochs `span`, with the ties `inside` it) reduced a block at a
-/// time ([`blocks`]) and its rows pushed into `rows`, the flags counted into `summary`:
+/// One stretch `of` a track (number `number` of its session) reduced a block at a time
+/// ([`blocks`]) and its rows pushed into `rows`, the flags counted into `summary`:
 /// the drift fitted (Some(None) untied), or None for a stretch too short for the filter.
 /// A stretch of more than one block is tied first, each tie's window reduced with the
 /// filter's reach either side: every block then removes the same drift, and the blocks,
 /// independent, are reduced two at a time on the two cores (a day at 1 Hz: its two blocks
 /// at once), their rows pushed in order.
 fn reduce_stretch(
-    track: &Track<'_>,
-    bins: &SpilledBins,
-    (span, inside, session): (Range<usize>, &[(usize, Tie)], Option<&SessionTies>),
+    of: StretchOf<'_>,
+    session: Option<&SessionTies>,
     ctx: &Context<'_>,
     number: u32,
-    (rows, summary): (&mut Rows, &mut SessionGravity),
+    rows: &mut Rows,
+    summary: &mut SessionGravity,
 ) -> Result<Option<Option<reduce::Drift>>, GravityError> {
+    let (track, span) = (of.track, &of.span);
     let filter_s = ctx.survey.filter_s;
     let interval_s = track.interval_ns as f64 * 1e-9;
     if span.len() as f64 * interval_s < filter_s {
@@ -899,18 +905,12 @@ fn reduce_stretch(
         Some(t) => (t.at_tie.clone(), Some(t.level)),
         None => (
             match ctx.triad {
-                Some(f) => tie_gradient(f, track, bins, (span.clone(), ctx), inside)?,
+                Some(f) => tie_gradient(f, &of, ctx)?,
                 None => None,
             },
             match plan.len() {
                 1 => None,
-                _ => Some(reduce::level(&tie_points(
-                    track,
-                    bins,
-                    (span.clone(), inside),
-                    ctx,
-                    margin,
-                )?)),
+                _ => Some(reduce::level(&tie_points(&of, ctx, margin)?)),
             },
         ),
     };
@@ -918,12 +918,12 @@ fn reduce_stretch(
         at_tie,
         level,
         ends: (track.times[span.start], track.times[span.end - 1]),
-        span,
-        inside,
+        number,
+        of,
     };
     let one = |st: &Reducing<'_>, (reduced, keep): &(Range<usize>, Range<usize>)| {
         let cut = keep.start - reduced.start..keep.end - reduced.start;
-        reduce_block(track, bins, ctx, st, (reduced.clone(), cut), number)
+        reduce_block(ctx, st, reduced.clone(), cut)
     };
     // With the level fixed before the first block (a stretch of several), its blocks are
     // independent: two at a time, one on each core, and their rows written in order.
@@ -942,7 +942,7 @@ fn reduce_stretch(
             let Some(rows_of) = reduced? else {
                 return Ok(None);
             };
-            push_block(rows_of, (track, number, ctx), (rows, summary), &mut st)?;
+            push_block(rows_of, ctx, &mut st, rows, summary)?;
         }
     }
     Ok(Some(st.level.flatten().map(|l| l.drift)))
@@ -951,34 +951,28 @@ fn reduce_stretch(
 /// A block's rows counted into `summary` and pushed into `rows`; the first block of a
 /// stretch of one fixes its level in `st`.
 fn push_block(
-    (block, level): (BlockRows, Option<reduce::Level>),
-    (track, number, ctx): (&Track<'_>, u32, &Context<'_>),
-    (rows, summary): (&mut Rows, &mut SessionGravity),
+    block: BlockRows,
+    ctx: &Context<'_>,
     st: &mut Reducing<'_>,
+    rows: &mut Rows,
+    summary: &mut SessionGravity,
 ) -> Result<(), GravityError> {
+    let track = st.of.track;
     let interval_s = track.interval_ns as f64 * 1e-9;
-    st.level.get_or_insert(level);
-    let BlockRows {
-        s,
-        r,
-        h,
-        flags,
-        status,
-    } = block;
-    if let (Some(m), Some(words)) = (&mut summary.meter_status, &status) {
+    st.level.get_or_insert(block.level);
+    if let (Some(m), Some(words)) = (&mut summary.meter_status, &block.status) {
         super::meter::count(m, words);
     }
-    for (name, n) in count_flags(&flags) {
+    for (name, n) in count_flags(&block.flags) {
         *summary.flagged.entry(name).or_insert(0) += n;
     }
-    summary.epochs_used += s.time_gps_ns.len() as u64;
-    let step = crossover::step(ctx.survey.filter_s, interval_s);
-    rows.push(
-        (track.index, number, step),
-        track.named(ctx.survey),
-        (s, r, h),
-        (flags, status),
-    )
+    summary.epochs_used += block.s.time_gps_ns.len() as u64;
+    let at = RowsOf {
+        session: track.index,
+        stretch: st.number,
+        step: crossover::step(ctx.survey.filter_s, interval_s),
+    };
+    rows.push(at, track.named(ctx.survey), block)
 }
 
 /// The filtered values and their sigmas withheld (NaN) at the epochs flagged `edge`: within
@@ -1045,8 +1039,20 @@ fn sensible_block(block: usize, filter_s: f64, track: &Track<'_>) -> Result<usiz
     })
 }
 
+/// Whose rows a block's are: its session's index, its stretch's number, and one in how many
+/// of them the crossover search keeps ([`crossover::step`]).
+#[derive(Clone, Copy, Debug)]
+struct RowsOf {
+    session: u16,
+    stretch: u32,
+    step: usize,
+}
+
 /// A block reduced.
 struct BlockRows {
+    /// The level its ties fix: the stretch's (the block is one of several), or its own (the
+    /// stretch's only block).
+    level: Option<reduce::Level>,
     /// The stretch's series.
     s: Stretch,
     /// The reduction's.
@@ -1059,11 +1065,22 @@ struct BlockRows {
     status: Option<Vec<Option<u32>>>,
 }
 
-/// A stretch being reduced: its epochs and ties, the calibration's gradient at its drift's
-/// reference, the level its ties fix (None until known), its first and last epochs' times.
-struct Reducing<'a> {
+/// A stretch of a track: its epochs `span` and the ties `inside` it, with the track and the
+/// epochs' sums they are read from.
+#[derive(Clone)]
+struct StretchOf<'a> {
+    track: &'a Track<'a>,
+    bins: &'a SpilledBins,
     span: Range<usize>,
     inside: &'a [(usize, Tie)],
+}
+
+/// A stretch being reduced: its epochs and ties, its number in its session, the
+/// calibration's gradient at its drift's reference, the level its ties fix (None until
+/// known), its first and last epochs' times.
+struct Reducing<'a> {
+    of: StretchOf<'a>,
+    number: u32,
     at_tie: Option<Vec<f64>>,
     level: Option<Option<reduce::Level>>,
     ends: (i64, i64),
@@ -1074,21 +1091,25 @@ struct Reducing<'a> {
 /// flags, the meter's status, and the level it was tied to; None when too short for the
 /// filter. The block of a stretch of one block fixes the level from its own reduction.
 fn reduce_block(
-    track: &Track<'_>,
-    bins: &SpilledBins,
     ctx: &Context<'_>,
     st: &Reducing<'_>,
-    (reduced, cut): (Range<usize>, Range<usize>),
-    number: u32,
-) -> Result<Option<(BlockRows, Option<reduce::Level>)>, GravityError> {
+    reduced: Range<usize>,
+    cut: Range<usize>,
+) -> Result<Option<BlockRows>, GravityError> {
+    let StretchOf {
+        track,
+        bins,
+        span,
+        inside,
+    } = &st.of;
     let filter_s = ctx.survey.filter_s;
-    let range = st.span.start + reduced.start..st.span.start + reduced.end;
+    let range = span.start + reduced.start..span.start + reduced.end;
     let b = &block(track, bins, range.clone())?;
     let mut s = stretch(track, b, range.clone(), ctx)?;
     s.calibration_tied = ctx
         .triad
         .zip(st.at_tie.as_deref())
-        .and_then(|(f, g)| calibration_gradient(f, b, (range.clone(), ctx), g));
+        .and_then(|(f, g)| calibration_gradient(f, b, range.clone(), ctx, g));
     let mut r = match reduce::untied(&s, filter_s) {
         Ok(r) => r,
         Err(GravityError::TooShort { .. }) => return Ok(None),
@@ -1098,7 +1119,7 @@ fn reduce_block(
         Some(level) => level,
         None => {
             let mut points = Vec::new();
-            for (_, tie) in st.inside {
+            for (_, tie) in *inside {
                 points.extend(reduce::tie_point(&s, &r, tie, filter_s)?);
             }
             reduce::level(&points)
@@ -1109,12 +1130,12 @@ fn reduce_block(
     s.calibration_tied = None;
     let mut h = match &b.attitude {
         Some(att) => {
-            let inputs = horizontal_inputs((b, att), range.clone(), ctx);
+            let inputs = horizontal_inputs(b, att, range.clone(), ctx);
             Some(horizontal::reduce_horizontal(&s, &inputs, filter_s)?)
         }
         None => None,
     };
-    let mut flags = flags_of(&s, b, range, st.ends, (filter_s, &r), &track.replaced);
+    let mut flags = flags_of(&s, b, range, st.ends, filter_s, &r, &track.replaced);
     let mut status = meter_status(track, &s.time_gps_ns, ctx.survey, &mut flags);
     s.keep(cut.clone());
     r.keep(cut.clone());
@@ -1131,16 +1152,17 @@ fn reduce_block(
         &r,
         &flags,
         level.as_ref().map(|l| &l.drift),
-        (track, number),
+        &track.session.session.id,
+        st.number,
     )?;
-    let rows = BlockRows {
+    Ok(Some(BlockRows {
+        level,
         s,
         r,
         h,
         flags,
         status,
-    };
-    Ok(Some((rows, level)))
+    }))
 }
 
 /// The meter's status word at each of the epochs `times` of `track` (None for a session
@@ -1162,20 +1184,24 @@ fn meter_status(
     Some(words)
 }
 
-/// What the ties `inside` a stretch say of its level (fitted as one stretch's when it is
+/// What the ties inside the stretch `of` say of its level (fitted as one stretch's when it is
 /// reduced in several blocks, or with the session's other ties): each tie's window reduced with
 /// `margin` epochs either side (the filter's reach: what lies beyond does not change the
 /// window's values), its point taken there.
 fn tie_points(
-    track: &Track<'_>,
-    bins: &SpilledBins,
-    (span, inside): (Range<usize>, &[(usize, Tie)]),
+    of: &StretchOf<'_>,
     ctx: &Context<'_>,
     margin: usize,
 ) -> Result<Vec<reduce::TiePoint>, GravityError> {
+    let StretchOf {
+        track,
+        bins,
+        span,
+        inside,
+    } = of;
     let times = &track.times[span.clone()];
     let mut points = Vec::new();
-    for (_, tie) in inside {
+    for (_, tie) in *inside {
         let half = (tie.duration_s * 0.5e9) as i64;
         let lo = times.partition_point(|&t| t < tie.time_gps_ns - half);
         let hi = times.partition_point(|&t| t <= tie.time_gps_ns + half);
@@ -1216,18 +1242,18 @@ fn session_ties(
         if inside.is_empty() {
             continue;
         }
+        let of = StretchOf {
+            track,
+            bins,
+            span: span.clone(),
+            inside: &inside,
+        };
         if at_tie.is_none()
             && let Some(f) = ctx.triad
         {
-            at_tie = tie_gradient(f, track, bins, (span.clone(), ctx), &inside)?;
+            at_tie = tie_gradient(f, &of, ctx)?;
         }
-        points.extend(tie_points(
-            track,
-            bins,
-            (span.clone(), &inside),
-            ctx,
-            margin,
-        )?);
+        points.extend(tie_points(&of, ctx, margin)?);
     }
     Ok(SessionTies {
         level: reduce::level(&points),
@@ -1287,7 +1313,8 @@ fn ties_inside(ties: &[ResolvedTie], times: &[i64]) -> Vec<(usize, Tie)> {
 fn stretches(
     times: &[i64],
     spilled: &SpilledBins,
-    (interval, expected): (i64, f64),
+    interval: i64,
+    expected: f64,
     dropped: &mut BTreeMap<String, u64>,
 ) -> std::io::Result<(Vec<Range<usize>>, u64)> {
     let need = (0.5 * expected).max(1.0);
@@ -1611,7 +1638,8 @@ fn position_sds(p: &super::track::Positions, k: usize, model: Option<ErrorModel>
 /// force through C_b^n, its calibration sigma along each row (or the parameters' gradients
 /// with a triad without temperature terms), the attitude's sigma, the positions' sds.
 fn horizontal_inputs(
-    (b, att): (&Block<'_>, &[AttitudeAt]),
+    b: &Block<'_>,
+    att: &[AttitudeAt],
     span: Range<usize>,
     ctx: &Context<'_>,
 ) -> Horizontal {
@@ -1667,7 +1695,8 @@ fn flags_of(
     b: &Block<'_>,
     span: Range<usize>,
     (t0, t1): (i64, i64),
-    (filter_s, r): (f64, &Reduced),
+    filter_s: f64,
+    r: &Reduced,
     replaced: &[usize],
 ) -> Vec<u8> {
     let turning = turning(s, &r.speed_m_s);
@@ -1841,15 +1870,27 @@ impl Rows {
         })
     }
 
-    /// Appends a block's rows (of session `session`, stretch `number`, a row in `step`
-    /// sampled), taking its series, flags and meter status; writes a row group once [`BLOCK_EPOCHS`] are gathered.
+    /// Appends a block's rows (whose, `at`), taking its series, flags and meter status;
+    /// writes a row group once [`BLOCK_EPOCHS`] are gathered.
     fn push(
         &mut self,
-        (session, number, step): (u16, u32, usize),
+        at: RowsOf,
         named: reduce::Named,
-        (s, r, h): (Stretch, Reduced, Option<ReducedHorizontal>),
-        (flags, status): (Vec<u8>, Option<Vec<Option<u32>>>),
+        block: BlockRows,
     ) -> Result<(), GravityError> {
+        let RowsOf {
+            session,
+            stretch: number,
+            step,
+        } = at;
+        let BlockRows {
+            s,
+            r,
+            h,
+            flags,
+            status,
+            level: _,
+        } = block;
         let n = s.time_gps_ns.len();
         for k in 0..n {
             self.kept.push(
@@ -2449,21 +2490,30 @@ mod tests {
         let dir = tempfile::tempdir().expect("dir");
         let names = ["a".to_owned(), "b".to_owned()];
         let mut without = Rows::create(dir.path(), &names, false).expect("rows");
-        let (s, r, _) = rows_of(2);
+        let block = |n: usize, with_horizontal: bool| {
+            let (s, r, h) = rows_of(n);
+            BlockRows {
+                level: None,
+                s,
+                r,
+                h: with_horizontal.then_some(h),
+                flags: vec![0; n],
+                status: None,
+            }
+        };
+        let at = |session, stretch| RowsOf {
+            session,
+            stretch,
+            step: 1,
+        };
         without
-            .push((0, 0, 1), NAMED, (s, r, None), (vec![0, 0], None))
+            .push(at(0, 0), NAMED, block(2, false))
             .expect("pushed");
         assert!(without.horizontal_valid.is_empty() && without.horizontal[0].is_empty());
         let mut rows = Rows::create(dir.path(), &names, true).expect("rows");
-        let (s, r, _) = rows_of(2);
-        rows.push((0, 0, 1), NAMED, (s, r, None), (vec![0, 0], None))
-            .expect("pushed");
-        let (s, r, h) = rows_of(3);
-        rows.push((1, 0, 1), NAMED, (s, r, Some(h)), (vec![0; 3], None))
-            .expect("pushed");
-        let (s, r, _) = rows_of(1);
-        rows.push((0, 1, 1), NAMED, (s, r, None), (vec![0], None))
-            .expect("pushed");
+        rows.push(at(0, 0), NAMED, block(2, false)).expect("pushed");
+        rows.push(at(1, 0), NAMED, block(3, true)).expect("pushed");
+        rows.push(at(0, 1), NAMED, block(1, false)).expect("pushed");
         assert_eq!(
             rows.horizontal_valid,
             [false, false, true, true, true, false]
