@@ -194,15 +194,16 @@ pub(super) fn read_tracks<'a>(
             None => None,
         };
         if !src.antennas.is_empty() {
-            tracks.push(array_track(ds, (index, s), skip, (survey, dir))?);
+            tracks.push(array_track(ds, index, s, skip, survey, dir)?);
             continue;
         }
-        let (mut track, bad) = gated(
-            (index, s),
-            (attitude.as_ref(), None),
-            (survey.lever_arm_m, skip),
-            dir,
-        )?;
+        let along = Along {
+            attitude: attitude.as_ref(),
+            derived: None,
+            lever_arm_m: survey.lever_arm_m,
+            skip,
+        };
+        let (mut track, bad) = gated(index, s, &along, dir)?;
         track.bad_lines = listed(ds, &src.path, &bad);
         if let (Some(a), Some((path, _))) = (&attitude, &src.attitude) {
             track.bad_lines.extend(listed(ds, path, &a.bad_lines));
@@ -227,13 +228,20 @@ pub(super) fn read_tracks<'a>(
 /// the antennas give, through the time gate as a trajectory's, with the attitude they give.
 fn array_track<'a>(
     ds: &Dataset,
-    (index, s): (usize, &'a ResolvedSession),
+    index: usize,
+    s: &'a ResolvedSession,
     skip: bool,
-    (survey, dir): (&SurveyConfig, &Path),
+    survey: &SurveyConfig,
+    dir: &Path,
 ) -> Result<Track<'a>, GravityError> {
     let array = super::array::read_array(s, survey, skip, dir)?;
-    let derived = (array.attitude.as_ref(), Some(&array.epochs[..]));
-    let (mut track, _) = gated((index, s), derived, ([0.0; 3], skip), dir)?;
+    let along = Along {
+        attitude: array.attitude.as_ref(),
+        derived: Some(&array.epochs[..]),
+        lever_arm_m: [0.0; 3],
+        skip,
+    };
+    let (mut track, _) = gated(index, s, &along, dir)?;
     let antennas = &s.trajectory.as_ref().expect("an array").antennas;
     for (k, lines) in &array.bad {
         track
@@ -306,13 +314,14 @@ pub(super) fn each_epoch(
     skip: bool,
     f: impl FnMut(i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
-    each_epoch_and_meter(s, (nmea, None), skip, f)
+    each_epoch_and_meter(s, nmea, None, skip, f)
 }
 
 /// [`each_epoch`], a DGS laptop file's lines also added to `meter` where given.
 fn each_epoch_and_meter(
     s: &ResolvedSession,
-    (nmea, meter): (Option<trajectory::NmeaScan>, Option<&mut MeterLines>),
+    nmea: Option<trajectory::NmeaScan>,
+    meter: Option<&mut MeterLines>,
     skip: bool,
     mut f: impl FnMut(i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
@@ -427,7 +436,7 @@ fn first_pass(
     }
     let mut held = Some(Vec::new());
     let mut meter = meter_in_trajectory(s).then(|| MeterLines::empty(AdcFormat::DgsLaptop));
-    let bad = each_epoch_and_meter(s, (nmea, meter.as_mut()), skip, |t, llh, sd| {
+    let bad = each_epoch_and_meter(s, nmea, meter.as_mut(), skip, |t, llh, sd| {
         steps.push(t);
         match &mut held {
             Some(h) if h.len() < HELD_EPOCHS => h.push((t, llh, sd)),
@@ -454,6 +463,18 @@ fn nmea_scan(s: &ResolvedSession) -> Result<Option<trajectory::NmeaScan>, Gravit
     }
 }
 
+/// What a trajectory's epochs are taken along to the accelerometers by: the attitude that
+/// turns the lever arm (a file's, spilled), the epochs an antenna array derived (read in
+/// place of a trajectory file, their positions already the accelerometers'), the lever arm,
+/// and whether bad lines are skipped.
+#[derive(Clone, Copy)]
+struct Along<'a> {
+    attitude: Option<&'a SpilledAttitude>,
+    derived: Option<&'a [Epoch]>,
+    lever_arm_m: [f64; 3],
+    skip: bool,
+}
+
 /// The track of session `s` (the `index`-th), its trajectory in two passes (over the epochs
 /// held in memory, [`HELD_EPOCHS`], or the file again): the median
 /// interval between its epochs in file order, then each epoch through ingest's time gate
@@ -462,11 +483,17 @@ fn nmea_scan(s: &ResolvedSession) -> Result<Option<trajectory::NmeaScan>, Gravit
 /// attitude, dropped where none can be interpolated; each dropped epoch counted, each kept
 /// moved by the lever arm and written aside into `dir`; the trajectory's lines set aside.
 fn gated<'a>(
-    (index, s): (usize, &'a ResolvedSession),
-    (attitude, derived): (Option<&SpilledAttitude>, Option<&[Epoch]>),
-    (lever_arm_m, skip): ([f64; 3], bool),
+    index: usize,
+    s: &'a ResolvedSession,
+    along: &Along<'_>,
     dir: &Path,
 ) -> Result<(Track<'a>, Vec<BadLine>), GravityError> {
+    let Along {
+        attitude,
+        derived,
+        lever_arm_m,
+        skip,
+    } = *along;
     let nmea = nmea_scan(s)?;
     let first = first_pass(s, nmea, skip, derived)?;
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
