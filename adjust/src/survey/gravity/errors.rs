@@ -90,14 +90,18 @@ pub fn attitude_effects_of_covariance(c: &[[f64; 3]; 3], f: [f64; 3]) -> [[f64; 
 }
 
 /// The sd of each epoch's filtered attitude error, mGal, from the signed one-sd effects `b`
-/// of the three angles at each epoch (epochs `dt` s apart), under `errors`. The filter is
-/// `sections` with the stretch's ends treated as the value's are (`pad`, `pivot`).
+/// of the three angles at each epoch (epochs `dt` s apart, the first the `first_epoch`-th of
+/// its grid, [`epoch_number`]), under `errors`. The filter (period `filter_s`) is applied
+/// with the stretch's ends treated as the value's are.
 pub fn attitude_sigma(
     b: &[[f64; 3]],
     errors: AttitudeErrors,
-    (sections, pad, pivot): (&filter::Lowpass, usize, usize),
-    (first_epoch, dt, filter_s): (i64, f64, f64),
+    filter: &filter::StretchFilter,
+    first_epoch: i64,
+    dt: f64,
+    filter_s: f64,
 ) -> Vec<f64> {
+    let sections = &filter.lowpass;
     let n = b.len();
     let angles: Vec<Vec<f64>> = (0..3)
         .map(|a| b.iter().map(|v| v[a]).collect::<Vec<f64>>())
@@ -107,10 +111,7 @@ pub fn attitude_sigma(
     // (white errors need none of it).
     let systematic: Vec<Vec<f64>> = match errors.model {
         ErrorModel::White => Vec::new(),
-        _ => angles
-            .iter()
-            .map(|x| sections.apply(x, pad, pivot))
-            .collect(),
+        _ => angles.iter().map(|x| filter.apply(x)).collect(),
     };
     let squares = |k: usize| systematic.iter().map(|y| y[k] * y[k]).sum::<f64>();
     let grid = Grid {
@@ -363,7 +364,12 @@ mod tests {
                 model,
                 interval_s: dt,
             };
-            let want = attitude_sigma(&b, errors, (&sections, 0, 1), (0, dt, filter_s))[n / 2];
+            let unpadded = filter::StretchFilter {
+                lowpass: sections.clone(),
+                pad: 0,
+                pivot: 1,
+            };
+            let want = attitude_sigma(&b, errors, &unpadded, 0, dt, filter_s)[n / 2];
             let runs = 1500;
             let mut sum2 = 0.0;
             for _ in 0..runs {
@@ -397,7 +403,11 @@ mod tests {
     #[test]
     fn a_faster_white_input_averages_within_the_epoch() {
         let (dt, filter_s) = (1.0, 50.0);
-        let sections = filter_of(filter_s, dt);
+        let unpadded = filter::StretchFilter {
+            lowpass: filter_of(filter_s, dt),
+            pad: 0,
+            pivot: 1,
+        };
         let b = vec![[0.0, 1.0, 0.0]; 1000];
         let sd = |interval_s| {
             attitude_sigma(
@@ -406,8 +416,10 @@ mod tests {
                     model: ErrorModel::White,
                     interval_s,
                 },
-                (&sections, 0, 1),
-                (0, dt, filter_s),
+                &unpadded,
+                0,
+                dt,
+                filter_s,
             )[500]
         };
         assert!((sd(1.0) / sd(0.1) - 10f64.sqrt()).abs() < 1e-9);

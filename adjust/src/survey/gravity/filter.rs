@@ -26,6 +26,25 @@ pub enum Lowpass {
     Kernel(Vec<f64>),
 }
 
+/// A low-pass as a stretch's series take it ([`Lowpass::apply`]): the stretch's ends
+/// extended by `pad` samples reflected through the Hann-weighted mean of `pivot` samples.
+#[derive(Clone, Debug)]
+pub struct StretchFilter {
+    /// The low-pass.
+    pub lowpass: Lowpass,
+    /// Samples added at each end.
+    pub pad: usize,
+    /// Samples whose mean the reflection pivots on.
+    pub pivot: usize,
+}
+
+impl StretchFilter {
+    /// `x` filtered.
+    pub fn apply(&self, x: &[f64]) -> Vec<f64> {
+        self.lowpass.apply(x, self.pad, self.pivot)
+    }
+}
+
 impl Lowpass {
     /// `kind` with its response 0.5 at `cutoff_hz`, for samples at `rate_hz`.
     pub fn design(kind: FilterKind, cutoff_hz: f64, rate_hz: f64) -> Result<Self, GravityError> {

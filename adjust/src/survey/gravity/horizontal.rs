@@ -188,23 +188,22 @@ pub fn reduce_horizontal(
 ) -> Result<ReducedHorizontal, GravityError> {
     let n = s.time_gps_ns.len();
     let dt = reduce::interval_s(&s.time_gps_ns)?;
-    let sections = filter::Lowpass::design(s.filter, 1.0 / filter_s, 1.0 / dt)?;
-    let pad = reduce::padding(filter_s, dt);
-    let pivot = ((filter_s / dt).round() as usize).min(n);
+    let filter = reduce::filter_of(s.filter, filter_s, dt, n)?;
+    let sections = &filter.lowpass;
     let xy = northing_easting(s);
     let cor = coriolis(s, &xy, dt);
     let reach = reduce::reach(filter_s, dt);
     let (positions_row, noise_row) = (
-        reduce::row(&sections, reach, Some(dt)),
-        reduce::row(&sections, reach, None),
+        reduce::row(sections, reach, Some(dt)),
+        reduce::row(sections, reach, None),
     );
     let mut out = ReducedHorizontal::default();
     for c in 0..2 {
         let a = second_difference(&xy[c], dt);
         out.disturbance_mgal[c] = (0..n).map(|k| a[k] - h.f_mgal[c][k] + cor[c][k]).collect();
         let rest: Vec<f64> = (0..n).map(|k| -h.f_mgal[c][k] + cor[c][k]).collect();
-        let mut f = sections.apply(&rest, pad, pivot);
-        let x = sections.apply(&xy[c], pad, 1);
+        let mut f = filter.apply(&rest);
+        let x = sections.apply(&xy[c], filter.pad, 1);
         for (v, a) in f.iter_mut().zip(second_difference(&x, dt)) {
             *v += a;
         }
@@ -220,14 +219,16 @@ pub fn reduce_horizontal(
         }
         out.sigma_noise_mgal[c] = reduce::scaled(&noise_row, &s.noise_f_mgal);
         out.sigma_calibration_mgal[c] = match &h.calibration[c] {
-            Some(g) => g.filtered_sigma(&sections, pad, pivot),
-            None => sections.apply(&h.sigma_calibration_mgal[c], pad, pivot),
+            Some(g) => g.filtered_sigma(&filter),
+            None => filter.apply(&h.sigma_calibration_mgal[c]),
         };
         out.sigma_attitude_mgal[c] = errors::attitude_sigma(
             &h.attitude_effects_mgal[c],
             s.attitude_errors,
-            (&sections, pad, pivot),
-            (errors::epoch_number(&s.time_gps_ns, dt), dt, filter_s),
+            &filter,
+            errors::epoch_number(&s.time_gps_ns, dt),
+            dt,
+            filter_s,
         );
         out.sigma_mgal[c] = (0..n)
             .map(|k| {

@@ -163,17 +163,8 @@ pub struct CalibrationGradient {
 impl CalibrationGradient {
     /// The sd at each epoch of the filtered error: the gradients filtered (the filter is
     /// linear and the parameters common to all epochs), then g C g^T.
-    pub(super) fn filtered_sigma(
-        &self,
-        sections: &filter::Lowpass,
-        pad: usize,
-        pivot: usize,
-    ) -> Vec<f64> {
-        let g: Vec<Vec<f64>> = self
-            .gradient
-            .iter()
-            .map(|x| sections.apply(x, pad, pivot))
-            .collect();
+    pub(super) fn filtered_sigma(&self, filter: &filter::StretchFilter) -> Vec<f64> {
+        let g: Vec<Vec<f64>> = self.gradient.iter().map(|x| filter.apply(x)).collect();
         let n = g.len();
         let epochs = g.first().map_or(0, Vec::len);
         (0..epochs)
@@ -436,13 +427,7 @@ pub fn unfiltered_disturbance(s: &Stretch) -> Result<Vec<f64>, GravityError> {
 /// heights' and the two cancel in the padding as in the series. Filtering the unfiltered
 /// disturbance itself would put a second difference of cm position noise (hundreds of Gal)
 /// at each end as a step of velocity: a transient of hundreds of mGal for a filter period.
-fn filtered(
-    s: &Stretch,
-    sections: &filter::Lowpass,
-    out: &Reduced,
-    (pad, pivot): (usize, usize),
-    dt: f64,
-) -> Vec<f64> {
+fn filtered(s: &Stretch, filter: &filter::StretchFilter, out: &Reduced, dt: f64) -> Vec<f64> {
     let n = s.time_gps_ns.len();
     let rest: Vec<f64> = (0..n)
         .map(|k| {
@@ -450,8 +435,8 @@ fn filtered(
                 + out.coupling_mgal[k]
         })
         .collect();
-    let mut f = sections.apply(&rest, pad, pivot);
-    let h = sections.apply(&s.height_m, pad, 1);
+    let mut f = filter.apply(&rest);
+    let h = filter.lowpass.apply(&s.height_m, filter.pad, 1);
     for (k, v) in f.iter_mut().enumerate() {
         let c = k.clamp(1, n - 2);
         *v -= (h[c + 1] - 2.0 * h[c] + h[c - 1]) / (dt * dt) * 1e5;
@@ -468,17 +453,19 @@ pub(super) fn padding(filter_s: f64, dt: f64) -> usize {
     (3.0 * filter_s / dt).ceil() as usize
 }
 
-/// The filter of a stretch of epochs `dt` apart: its sections, the padding at each end and
-/// the pivot's length ([`filter::filtfilt_pivoted`]) for a stretch of `n` epochs.
-fn filter_of(
+/// The filter of a stretch of `n` epochs `dt` apart: the low-pass, the padding at each end
+/// and the pivot's length ([`filter::filtfilt_pivoted`]).
+pub(super) fn filter_of(
     kind: FilterKind,
     filter_s: f64,
     dt: f64,
     n: usize,
-) -> Result<(filter::Lowpass, usize, usize), GravityError> {
-    let sections = filter::Lowpass::design(kind, 1.0 / filter_s, 1.0 / dt)?;
-    let pivot = ((filter_s / dt).round() as usize).min(n);
-    Ok((sections, padding(filter_s, dt), pivot))
+) -> Result<filter::StretchFilter, GravityError> {
+    Ok(filter::StretchFilter {
+        lowpass: filter::Lowpass::design(kind, 1.0 / filter_s, 1.0 / dt)?,
+        pad: padding(filter_s, dt),
+        pivot: ((filter_s / dt).round() as usize).min(n),
+    })
 }
 
 /// The down gravity disturbance along `s`, filtered with cut-off period `filter_s`, tied
@@ -510,7 +497,7 @@ pub fn reduce(s: &Stretch, filter_s: f64, ties: &[Tie]) -> Result<Reduced, Gravi
 pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
     let n = s.time_gps_ns.len();
     let dt = interval_s(&s.time_gps_ns)?;
-    let (sections, pad, pivot) = filter_of(s.filter, filter_s, dt, n)?;
+    let filter = filter_of(s.filter, filter_s, dt, n)?;
     if (n as f64) * dt < filter_s {
         return Err(GravityError::TooShort {
             epochs: n,
@@ -523,13 +510,13 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
     // The value and the calibration's sigma filtered on two cores (three passes of the
     // filter's kernel over the stretch, a tenth of a day at 1 Hz's stage).
     let (filtered_mgal, sigma_calibration_mgal) = rayon::join(
-        || filtered(s, &sections, &out, (pad, pivot), dt),
-        || sections.apply(&s.sigma_f_mgal, pad, pivot),
+        || filtered(s, &filter, &out, dt),
+        || filter.apply(&s.sigma_f_mgal),
     );
     out.filtered_mgal = filtered_mgal;
     let reach = reach(filter_s, dt);
     let heights: Vec<f64> = s.sd_up_m.iter().map(|sd| sd * 1e5).collect();
-    let positions_row = row(&sections, reach, Some(dt));
+    let positions_row = row(&filter.lowpass, reach, Some(dt));
     out.sigma_positions_mgal = propagated_sd(&positions_row, &heights);
     if let Some(model) = s.position_errors {
         let declared: Vec<f64> = s.sd_up_declared_m.iter().map(|sd| sd * 1e5).collect();
@@ -538,10 +525,10 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
             *v = v.hypot(p);
         }
     }
-    let noise_row = row(&sections, reach, None);
+    let noise_row = row(&filter.lowpass, reach, None);
     if !s.sd_force_mgal.is_empty() {
         let part = scaled(&noise_row, &s.sd_force_mgal);
-        let lag = sections.apply(&s.lag_mgal, pad, pivot);
+        let lag = filter.apply(&s.lag_mgal);
         for ((v, p), l) in out.sigma_positions_mgal.iter_mut().zip(part).zip(lag) {
             *v = v.hypot(p).hypot(super::magnitude::LAG_UNCERTAINTY * l);
         }
@@ -549,13 +536,15 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
     out.sigma_noise_mgal = scaled(&noise_row, &s.noise_f_mgal);
     out.sigma_calibration_mgal = sigma_calibration_mgal;
     out.sigma_tie_mgal = vec![0.0; n];
-    out.sigma_coupling_mgal = coupling_sigma(s, (&sections, pad, pivot));
+    out.sigma_coupling_mgal = coupling_sigma(s, &filter);
     out.sigma_attitude_mgal = if s.attitude_effects_mgal.iter().flatten().any(|v| *v != 0.0) {
         errors::attitude_sigma(
             &s.attitude_effects_mgal,
             s.attitude_errors,
-            (&sections, pad, pivot),
-            (errors::epoch_number(&s.time_gps_ns, dt), dt, filter_s),
+            &filter,
+            errors::epoch_number(&s.time_gps_ns, dt),
+            dt,
+            filter_s,
         )
     } else {
         vec![0.0; n]
@@ -565,10 +554,7 @@ pub fn untied(s: &Stretch, filter_s: f64) -> Result<Reduced, GravityError> {
 
 /// The sd the cross-coupling coefficients' errors give each filtered value: the monitors
 /// filtered as the value is, through the coefficients' covariance (0 without a correction).
-fn coupling_sigma(
-    s: &Stretch,
-    (sections, pad, pivot): (&filter::Lowpass, usize, usize),
-) -> Vec<f64> {
+fn coupling_sigma(s: &Stretch, filter: &filter::StretchFilter) -> Vec<f64> {
     let n = s.time_gps_ns.len();
     let Some(c) = &s.coupling else {
         return vec![0.0; n];
@@ -576,7 +562,7 @@ fn coupling_sigma(
     let filtered: Vec<Vec<f64>> = (0..4)
         .map(|i| {
             let series: Vec<f64> = c.monitors.iter().map(|m| m[i]).collect();
-            sections.apply(&series, pad, pivot)
+            filter.apply(&series)
         })
         .collect();
     (0..n)
@@ -655,8 +641,8 @@ pub fn tie_point(
         });
     }
     let mean = idx.iter().map(|&k| r.filtered_mgal[k]).sum::<f64>() / n - disturbance;
-    let (sections, pad, _) = filter_of(s.filter, filter_s, dt, t.len())?;
-    let sd = window_mean_sd(s, &idx, (&sections, dt, pad));
+    let filter = filter_of(s.filter, filter_s, dt, t.len())?;
+    let sd = window_mean_sd(s, &idx, &filter.lowpass, dt, filter.pad);
     let calibration = nearest(t, tie.time_gps_ns).map_or(0.0, |k| r.sigma_calibration_mgal[k]);
     Ok(Some(TiePoint {
         time_gps_ns: tie.time_gps_ns,
@@ -694,9 +680,8 @@ pub fn apply_level(
         let d = &level.drift;
         let tied = match &s.calibration_tied {
             Some(c) => {
-                let (sections, pad, pivot) =
-                    filter_of(s.filter, filter_s, interval_s(&s.time_gps_ns)?, n)?;
-                Some(c.filtered_sigma(&sections, pad, pivot))
+                let filter = filter_of(s.filter, filter_s, interval_s(&s.time_gps_ns)?, n)?;
+                Some(c.filtered_sigma(&filter))
             }
             None => None,
         };
@@ -821,7 +806,9 @@ fn nearest(t: &[i64], t0: i64) -> Option<usize> {
 fn window_mean_sd(
     s: &Stretch,
     window: &[usize],
-    (sections, dt, margin): (&filter::Lowpass, f64, usize),
+    sections: &filter::Lowpass,
+    dt: f64,
+    margin: usize,
 ) -> f64 {
     let n = s.time_gps_ns.len();
     let len = window.len() as f64;
