@@ -356,7 +356,7 @@ pub fn float_batches_with<E: From<Error>>(
     batch_rows: usize,
     f: impl FnMut(FloatBatch<'_>) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {
-    float_batches_of(path, (names, Some(flags)), batch_rows, f)
+    float_batches_of(path, names, Some(flags), batch_rows, f)
 }
 
 /// [`float_batches`] of a table without a flags column (attitude.parquet): `flags` empty,
@@ -367,13 +367,14 @@ pub fn float_batches_unflagged(
     batch_rows: usize,
     f: impl FnMut(FloatBatch<'_>) -> Result<()>,
 ) -> Result<()> {
-    float_batches_of(path, (names, None), batch_rows, f)
+    float_batches_of(path, names, None, batch_rows, f)
 }
 
 /// The batches of [`float_batches_with`], with a flags column or none.
 fn float_batches_of<E: From<Error>>(
     path: &Path,
-    (names, flags): (&[&str], Option<&str>),
+    names: &[&str],
+    flags: Option<&str>,
     batch_rows: usize,
     mut f: impl FnMut(FloatBatch<'_>) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {

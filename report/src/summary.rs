@@ -79,19 +79,29 @@ fn calibrations_table(cal: &Calibration) -> Table {
         "model | accelerometer | session | calibration (value +/- sigma) | sigma0 | global test | used / removed | verdict",
     );
     for r in &cal.results {
+        let fit = Fit {
+            parameters: &r.parameters,
+            t_ref: r.t_ref_c,
+            gt: &r.global_test,
+            sigma0: r.sigma0,
+        };
         t.rows.push(summary_row(
             [&r.model, &r.accelerometer, &r.session],
-            (&r.parameters, r.t_ref_c),
-            (&r.global_test, r.sigma0),
+            &fit,
             format!("{} / {}", r.n_observations, r.n_excluded),
         ));
     }
     for r in &cal.triad {
         let removed = r.positions.iter().filter(|p| p.removed).count();
+        let fit = Fit {
+            parameters: &r.parameters,
+            t_ref: None,
+            gt: &r.global_test,
+            sigma0: r.sigma0,
+        };
         let mut row = summary_row(
             [&r.model, "triad (x, y, z)", &r.session],
-            (&r.parameters, None),
-            (&r.global_test, r.sigma0),
+            &fit,
             format!("{} positions / {removed}", r.positions_used),
         );
         if let (Some(f), Some(cell)) = (r.estimated_floor(), row.last_mut()) {
@@ -105,13 +115,23 @@ fn calibrations_table(cal: &Calibration) -> Table {
     t
 }
 
-/// A row of the calibrations' table.
-fn summary_row(
-    who: [&str; 3],
-    (parameters, t_ref): (&[Parameter], Option<f64>),
-    (gt, sigma0): (&calibration::GlobalTest, f64),
-    used: String,
-) -> Vec<String> {
+/// What the calibrations' table shows of a fit: its parameters, their reference temperature
+/// (None without temperature terms), its global test and sigma0.
+struct Fit<'a> {
+    parameters: &'a [Parameter],
+    t_ref: Option<f64>,
+    gt: &'a calibration::GlobalTest,
+    sigma0: f64,
+}
+
+/// A row of the calibrations' table: who was fitted, the `fit`, the observations `used`.
+fn summary_row(who: [&str; 3], fit: &Fit<'_>, used: String) -> Vec<String> {
+    let Fit {
+        parameters,
+        t_ref,
+        gt,
+        sigma0,
+    } = *fit;
     let calibration = parameters
         .iter()
         .map(Parameter::with_sigma)

@@ -481,8 +481,7 @@ fn bench_smoke() -> Result<()> {
     bench::align(&root, 5, 10, dev).context("bench align on a small dataset")?;
     bench::adjust(&root, 20_000, false, dev).context("bench adjust on 20 000 observations")?;
     bench_apply::apply(&root, 0.05, false, 1, dev).context("bench apply on a small log")?;
-    bench_gravity::gravity(&root, 0.4, (1, None), dev)
-        .context("bench gravity on a short survey")?;
+    bench_gravity::gravity(&root, 0.4, 1, None, dev).context("bench gravity on a short survey")?;
     eprintln!("benchmarks on small sizes: ok");
     Ok(())
 }
@@ -667,11 +666,11 @@ fn bench_command(a: &BenchArgs) -> Result<()> {
                 peers_venv()?;
                 Some(root.join("target/peers-venv/bin/python")).filter(|p| p.exists())
             };
-            let runs = (a.runs.max(1), py.as_deref());
+            let (runs, py) = (a.runs.max(1), py.as_deref());
             if a.what == "marine" {
-                bench_gravity::marine(&root, a.hours, runs, release)
+                bench_gravity::marine(&root, a.hours, runs, py, release)
             } else {
-                bench_gravity::gravity(&root, a.hours, runs, release)
+                bench_gravity::gravity(&root, a.hours, runs, py, release)
             }
         }
         "smoke" => bench_smoke(),

@@ -476,7 +476,8 @@ fn reference_temperature(positions: &[Position]) -> Result<f64, TriadError> {
 fn adjust_positions(
     model: TriadModel,
     positions: &[Position],
-    (t_ref_c, floor_mgal): (Option<f64>, f64),
+    t_ref_c: Option<f64>,
+    floor_mgal: f64,
     start: &[f64],
 ) -> Result<gh::Solution<7>, TriadError> {
     let (l, sigma) = position_observations(positions, t_ref_c, floor_mgal);
@@ -534,7 +535,7 @@ pub fn calibrate_with_floor(
     let mut start = p0;
     loop {
         let kept: Vec<Position> = used.iter().map(|&i| positions[i]).collect();
-        let fit = |f: f64, start: &[f64]| adjust_positions(model, &kept, (t_ref_c, f), start);
+        let fit = |f: f64, start: &[f64]| adjust_positions(model, &kept, t_ref_c, f, start);
         let floor_mgal = match floor {
             PositionFloor::None => 0.0,
             PositionFloor::Mgal(v) => v,
@@ -561,14 +562,22 @@ pub fn calibrate_with_floor(
             start = s.p;
             continue;
         }
-        return conclude(
-            model,
-            (t_ref_c, floor, floor_mgal),
-            &fit,
-            s,
-            (&used, removed),
-        );
+        let weighting = Weighting {
+            t_ref_c,
+            floor,
+            floor_mgal,
+        };
+        return conclude(model, weighting, &fit, s, &used, removed);
     }
+}
+
+/// How a triad's fit is weighted: the reference temperature of its temperature terms (None
+/// without), the position floor asked for, and the floor it was fitted at (mGal).
+#[derive(Clone, Copy, Debug)]
+struct Weighting {
+    t_ref_c: Option<f64>,
+    floor: PositionFloor,
+    floor_mgal: f64,
 }
 
 /// The positions refitted at a floor (mGal) from a start.
@@ -580,11 +589,17 @@ type FitAt<'a> = &'a dyn Fn(f64, &[f64]) -> Result<gh::Solution<7>, TriadError>;
 /// interval.
 fn conclude(
     model: TriadModel,
-    (t_ref_c, floor, floor_mgal): (Option<f64>, PositionFloor, f64),
+    weighting: Weighting,
     fit: FitAt<'_>,
     s: gh::Solution<7>,
-    (used, removed): (&[usize], Vec<(usize, f64)>),
+    used: &[usize],
+    removed: Vec<(usize, f64)>,
 ) -> Result<TriadSolution, TriadError> {
+    let Weighting {
+        t_ref_c,
+        floor,
+        floor_mgal,
+    } = weighting;
     let tested = match floor {
         PositionFloor::Estimate => fit(0.0, &s.p)?,
         _ => s.clone(),

@@ -865,21 +865,18 @@ pub fn check(
             format!("{f} is out of range [1, 100000] s"),
         ));
     }
+    let (attitude, position) = (survey.attitude_errors, survey.position_errors);
     error_model(
-        (
-            "attitude",
-            survey.attitude_errors,
-            survey.attitude_correlation_s,
-        ),
+        "attitude",
+        attitude,
+        survey.attitude_correlation_s,
         true,
         err,
     )?;
     error_model(
-        (
-            "position",
-            survey.position_errors,
-            survey.position_correlation_s,
-        ),
+        "position",
+        position,
+        survey.position_correlation_s,
         false,
         err,
     )?;
@@ -919,7 +916,9 @@ fn geoid_height(v: Option<f64>, err: &impl Fn(String, String) -> Error) -> Resul
 /// An error model's keys: a correlation time only with `"correlated"`, in (0, 1e6] s, and
 /// required there unless it has a default.
 fn error_model(
-    (what, kind, correlation_s): (&str, ErrorKind, Option<f64>),
+    what: &str,
+    kind: ErrorKind,
+    correlation_s: Option<f64>,
     has_default: bool,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<()> {

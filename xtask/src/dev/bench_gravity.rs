@@ -36,7 +36,8 @@ fn calibration(dir: &Path) -> Result<PathBuf> {
 pub fn gravity(
     root: &Path,
     hours: f64,
-    (runs, peers): (usize, Option<&Path>),
+    runs: usize,
+    peers: Option<&Path>,
     build: Build,
 ) -> Result<()> {
     let bin = build.stage_binaries(root)?.join("gravcal-gravity");
@@ -102,7 +103,7 @@ pub fn gravity(
             r.peak_rss_mb
         );
     }
-    marine(root, hours, (runs, peers), build)
+    marine(root, hours, runs, peers, build)
 }
 
 /// shipgrav's reduction of a DGS laptop file, timed by itself: argv the file, the CSV to
@@ -137,7 +138,8 @@ print(time.time() - t0, ru.ru_maxrss, ru.ru_utime + ru.ru_stime)
 pub fn marine(
     root: &Path,
     hours: f64,
-    (runs, peers): (usize, Option<&Path>),
+    runs: usize,
+    peers: Option<&Path>,
     build: Build,
 ) -> Result<()> {
     let bins = build.stage_binaries(root)?;
@@ -206,13 +208,14 @@ pub fn marine(
     }
     let _ = std::fs::remove_file(&csv);
     let _ = std::fs::remove_dir_all(&out);
-    print_marine((hours, seconds), mine, peer)
+    print_marine(hours, seconds, mine, peer)
 }
 
 /// The marine bench's table, `mine` and `peer` the runs in turn (`peer` empty without the
 /// peers), and the pairs' ratios.
 fn print_marine(
-    (hours, seconds): (f64, usize),
+    hours: f64,
+    seconds: usize,
     mine: Vec<super::bench::Run>,
     peer: Vec<super::bench::Run>,
 ) -> Result<()> {

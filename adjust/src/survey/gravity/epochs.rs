@@ -522,7 +522,8 @@ pub fn fill(
     path: &Path,
     force: &DownForce,
     targets: &mut [Target<'_>],
-    (interval_ns, dir): (i64, &Path),
+    interval_ns: i64,
+    dir: &Path,
 ) -> Result<Filled, GravityError> {
     let spill = |e| spill_error(dir, e);
     let mut fillings = targets

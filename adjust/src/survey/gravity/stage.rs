@@ -62,7 +62,7 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
     let table = out.join(apply_ledger::STAGE_DIR).join(applied::FILE);
     let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| ingest::Error::io(dir.clone(), e))?;
-    let (applied, tracks) = applied_and_tracks(&ds, (dataset, out, &dir), &survey, opts)?;
+    let (applied, tracks) = applied_and_tracks(&ds, dataset, out, &dir, &survey, opts)?;
     let force = down_force(&applied, &survey, opts.accelerometer)?;
     let triad = triad_function(&applied, opts.apply.calibration)?;
     refuse_attitude_with_an_axis(&force, &tracks)?;
@@ -122,7 +122,9 @@ pub fn run(dataset: &Path, out: &Path, opts: &Options<'_>) -> Result<GravityRepo
 /// fail, as when it came first.
 fn applied_and_tracks<'a>(
     ds: &'a Dataset,
-    (dataset, out, dir): (&Path, &Path, &Path),
+    dataset: &Path,
+    out: &Path,
+    dir: &Path,
     survey: &SurveyConfig,
     opts: &Options<'_>,
 ) -> Result<(ApplyReport, Vec<Track<'a>>), GravityError> {
@@ -203,7 +205,7 @@ fn reduce_and_write(r: &Reading<'_>) -> Result<Reduction, GravityError> {
         })
         .collect();
     let interval_ns = (1e9 / ds.manifest.instrument.sample_rate_hz).round() as i64;
-    let filled = epochs::fill(table, force, &mut targets, (interval_ns, dir))?;
+    let filled = epochs::fill(table, force, &mut targets, interval_ns, dir)?;
     ingest::remove_stale(&dir.join(LEDGER_FILE))?;
     let names: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let with_horizontal = tracks.iter().any(|t| t.attitude.is_some());

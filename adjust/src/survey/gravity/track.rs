@@ -345,7 +345,7 @@ fn each_epoch_and_meter(
                 Some(scan) => scan,
                 None => trajectory::nmea_scan(&src.path)?,
             };
-            trajectory::for_each_nmea(&src.path, (scan, s.date), skip, g)
+            trajectory::for_each_nmea(&src.path, scan, s.date, skip, g)
         }
         TrajectoryFormat::Csv => {
             let form = src.time.unwrap_or(ingest::base::time::TimeForm::Iso);

@@ -438,7 +438,7 @@ pub fn read_nmea(
 ) -> Result<Trajectory, GravityError> {
     let mut out = Trajectory::default();
     let scan = nmea_scan(path)?;
-    out.bad_lines = for_each_nmea(path, (scan, session_date), skip, |line, t, llh, sd| {
+    out.bad_lines = for_each_nmea(path, scan, session_date, skip, |line, t, llh, sd| {
         out.push(t, llh, sd, line);
         Ok(())
     })?;
@@ -454,7 +454,8 @@ pub fn read_nmea(
 /// `skip`.
 pub fn for_each_nmea(
     path: &Path,
-    (scan, session_date): (NmeaScan, (i32, u8, u8)),
+    scan: NmeaScan,
+    session_date: (i32, u8, u8),
     skip: bool,
     mut f: impl FnMut(u64, i64, [f64; 3], Option<[f64; 3]>) -> Result<(), GravityError>,
 ) -> Result<Vec<BadLine>, GravityError> {
