@@ -1894,25 +1894,7 @@ impl Rows {
             level: _,
         } = block;
         let n = s.time_gps_ns.len();
-        for k in 0..n {
-            self.kept.push(
-                &crossover::Row {
-                    session,
-                    stretch: number,
-                    time_gps_ns: s.time_gps_ns[k],
-                    latitude_deg: s.latitude_deg[k],
-                    longitude_deg: s.longitude_deg[k],
-                    speed_m_s: r.speed_m_s[k],
-                    filtered_mgal: r.filtered_mgal[k],
-                    sigma_mgal: r.sigma_mgal[k],
-                    sigma_noise_mgal: r.sigma_noise_mgal[k],
-                    sigma_positions_mgal: r.sigma_positions_mgal[k],
-                    sigma_tie_mgal: r.sigma_tie_mgal[k],
-                    flags: flags[k],
-                },
-                step,
-            );
-        }
+        self.keep_for_crossovers(at, &s, &r, &flags);
         let (r, h) = withhold_edges(r, h, &flags);
         for k in 0..n {
             let values = named.at(s.latitude_deg[k], s.height_m[k], r.filtered_mgal[k]);
@@ -1959,6 +1941,29 @@ impl Rows {
             self.write()?;
         }
         Ok(())
+    }
+
+    /// A block's rows offered to the crossover search ([`crossover::Kept`]).
+    fn keep_for_crossovers(&mut self, at: RowsOf, s: &Stretch, r: &Reduced, flags: &[u8]) {
+        for k in 0..s.time_gps_ns.len() {
+            self.kept.push(
+                &crossover::Row {
+                    session: at.session,
+                    stretch: at.stretch,
+                    time_gps_ns: s.time_gps_ns[k],
+                    latitude_deg: s.latitude_deg[k],
+                    longitude_deg: s.longitude_deg[k],
+                    speed_m_s: r.speed_m_s[k],
+                    filtered_mgal: r.filtered_mgal[k],
+                    sigma_mgal: r.sigma_mgal[k],
+                    sigma_noise_mgal: r.sigma_noise_mgal[k],
+                    sigma_positions_mgal: r.sigma_positions_mgal[k],
+                    sigma_tie_mgal: r.sigma_tie_mgal[k],
+                    flags: flags[k],
+                },
+                at.step,
+            );
+        }
     }
 
     /// North and east of the `n` rows just pushed (zero and not valid without attitude).

@@ -488,22 +488,16 @@ fn gated<'a>(
     along: &Along<'_>,
     dir: &Path,
 ) -> Result<(Track<'a>, Vec<BadLine>), GravityError> {
-    let Along {
-        attitude,
-        derived,
-        lever_arm_m,
-        skip,
-    } = *along;
     let nmea = nmea_scan(s)?;
-    let first = first_pass(s, nmea, skip, derived)?;
+    let first = first_pass(s, nmea, along.skip, along.derived)?;
     let io = |e: std::io::Error| spill_error(s, format!("its epochs written aside: {e}"));
     let mut sink = EpochSink {
         session: s,
         times: Vec::new(),
         out: SpillWriter::new(dir, WIDTH).map_err(io)?,
         dropped: BTreeMap::new(),
-        attitude: attitude.map(AttitudeCursor::new),
-        lever_arm_m,
+        attitude: along.attitude.map(AttitudeCursor::new),
+        lever_arm_m: along.lever_arm_m,
     };
     let mut gate = TimeGate::new(first.interval_ns, s.gps_range_ns());
     let mut read = 0u64;
@@ -518,7 +512,7 @@ fn gated<'a>(
             first.bad
         }
         // Too long to hold: read again.
-        None => each_epoch(s, nmea, skip, |t, llh, sd| offer((t, llh, sd)))?,
+        None => each_epoch(s, nmea, along.skip, |t, llh, sd| offer((t, llh, sd)))?,
     };
     gate.finish(&mut sink)?;
     let EpochSink {
