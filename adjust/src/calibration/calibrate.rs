@@ -282,29 +282,19 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
             *v.select_nth_unstable_by(mid, f64::total_cmp).1
         }
     };
-    let mut dz: Vec<f64> = obs.iter().map(|o| o.dz_rad).collect();
-    dz.sort_unstable_by(f64::total_cmp);
     let separation = LEVEL_SEPARATION_SIGMAS * median(obs.iter().map(|o| o.sigma_dz_rad).collect());
-    // Positions as bins of the separation's width from the lowest Dz: a new one begins
-    // where Dz passes the current one's start by more than the separation. Chaining
-    // neighbours instead made a continuous spread of Dz (a motorised table read at many
-    // angles) one "position".
-    let mut levels = 0usize;
-    let mut start = f64::NEG_INFINITY;
-    for &d in &dz {
-        if levels == 0 || d - start > separation.max(1e-9) {
-            levels += 1;
-            start = d;
-        }
-    }
+    let levels = tilt_levels(obs, separation.max(1e-9), terms.order + 1);
     if levels < terms.order + 1 && !obs.is_empty() {
+        let dz = || obs.iter().map(|o| o.dz_rad);
+        let lowest = dz().min_by(f64::total_cmp).unwrap_or(0.0);
+        let highest = dz().max_by(f64::total_cmp).unwrap_or(0.0);
         return Err(CalError::NotEstimable {
             parameter: names[levels].name,
             why: format!(
                 "the observations come from {levels} tilt position(s) (Dz {:.4} to {:.4} deg); \
                  a polynomial of order {} needs {} positions at different Dz",
-                dz[0].to_degrees(),
-                dz[dz.len() - 1].to_degrees(),
+                lowest.to_degrees(),
+                highest.to_degrees(),
                 terms.order,
                 terms.order + 1
             ),
@@ -344,6 +334,27 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
         }
     }
     Ok(())
+}
+
+/// The tilt positions among `obs`, counted up to `most`: bins of width `separation` from
+/// the lowest Dz, a new one beginning at the lowest Dz past the current one's start by more
+/// than the separation (the bins a pass over the sorted Dz would open, found by one pass
+/// per bin instead of a sort of every observation). Chaining neighbours instead made a
+/// continuous spread of Dz (a motorised table read at many angles) one "position".
+fn tilt_levels(obs: &[Obs], separation: f64, most: usize) -> usize {
+    let mut levels = 0usize;
+    let mut start = f64::NEG_INFINITY;
+    while levels < most {
+        let next = obs
+            .iter()
+            .map(|o| o.dz_rad)
+            .filter(|d| levels == 0 || d - start > separation)
+            .min_by(f64::total_cmp);
+        let Some(d) = next else { break };
+        levels += 1;
+        start = d;
+    }
+    levels
 }
 
 /// A misclosure further than this many robust sds from a robust straight line of
@@ -1104,6 +1115,45 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// The bins a pass per bin opens are those a pass over the sorted Dz opens, on spreads
+    /// of Dz in any order: clustered positions, an even spread, and values on a bin's edge.
+    #[test]
+    fn tilt_levels_are_the_sorted_passes_bins() {
+        let sorted_pass = |obs: &[Obs], separation: f64| {
+            let mut dz: Vec<f64> = obs.iter().map(|o| o.dz_rad).collect();
+            dz.sort_unstable_by(f64::total_cmp);
+            let (mut levels, mut start) = (0usize, f64::NEG_INFINITY);
+            for d in dz {
+                if levels == 0 || d - start > separation {
+                    levels += 1;
+                    start = d;
+                }
+            }
+            levels
+        };
+        let clustered: Vec<f64> = (0..60)
+            .map(|i| [120.0, 0.0, 240.0][i % 3] + 1e-5 * i as f64)
+            .collect();
+        let spread: Vec<f64> = (0..97u32).map(|i| f64::from((i * 37) % 97) * 0.5).collect();
+        let edges: Vec<f64> = (0..20u32).map(|i| f64::from((i * 7) % 20)).collect();
+        for (dz, separation) in [
+            (clustered, 1e-3),
+            (spread, 1.2_f64.to_radians()),
+            (edges, 1.0_f64.to_radians()),
+        ] {
+            let obs = design(&dz, None, 20.0);
+            let all = sorted_pass(&obs, separation);
+            assert!(all > 2, "{all}");
+            for most in 1..=all + 2 {
+                assert_eq!(
+                    tilt_levels(&obs, separation, most),
+                    all.min(most),
+                    "{most} of {all}"
+                );
+            }
+        }
     }
 
     fn terms(order: usize, temperature: bool) -> Terms {
