@@ -445,17 +445,11 @@ fn tie_gradient(
     ctx: &Context<'_>,
 ) -> Result<Option<Vec<f64>>, GravityError> {
     let StretchOf {
-        track,
-        bins,
-        span,
-        inside,
+        track, bins, span, ..
     } = of;
-    let times = &track.times[span.clone()];
-    let window = inside.iter().find_map(|(_, tie)| {
-        let half = (tie.duration_s * 0.5e9) as i64;
-        let lo = times.partition_point(|&t| t < tie.time_gps_ns - half);
-        let hi = times.partition_point(|&t| t <= tie.time_gps_ns + half);
-        (hi >= lo + 2).then_some(span.start + lo..span.start + hi)
+    let window = of.inside.iter().find_map(|(_, tie)| {
+        let w = of.window(tie);
+        (w.len() >= 2).then_some(span.start + w.start..span.start + w.end)
     });
     let Some(window) = window else {
         return Ok(None);
@@ -1077,6 +1071,18 @@ struct StretchOf<'a> {
     inside: &'a [(usize, Tie)],
 }
 
+impl StretchOf<'_> {
+    /// The epochs of the stretch within `tie`'s window (its time, half its duration either
+    /// side), counted from the stretch's first.
+    fn window(&self, tie: &Tie) -> Range<usize> {
+        let times = &self.track.times[self.span.clone()];
+        let half = (tie.duration_s * 0.5e9) as i64;
+        let lo = times.partition_point(|&t| t < tie.time_gps_ns - half);
+        let hi = times.partition_point(|&t| t <= tie.time_gps_ns + half);
+        lo..hi
+    }
+}
+
 /// A stretch being reduced: its epochs and ties, its number in its session, the
 /// calibration's gradient at its drift's reference, the level its ties fix (None until
 /// known), its first and last epochs' times.
@@ -1196,19 +1202,13 @@ fn tie_points(
     margin: usize,
 ) -> Result<Vec<reduce::TiePoint>, GravityError> {
     let StretchOf {
-        track,
-        bins,
-        span,
-        inside,
+        track, bins, span, ..
     } = of;
-    let times = &track.times[span.clone()];
     let mut points = Vec::new();
-    for (_, tie) in *inside {
-        let half = (tie.duration_s * 0.5e9) as i64;
-        let lo = times.partition_point(|&t| t < tie.time_gps_ns - half);
-        let hi = times.partition_point(|&t| t <= tie.time_gps_ns + half);
-        let range =
-            span.start + lo.saturating_sub(margin)..span.start + (hi + margin).min(times.len());
+    for (_, tie) in of.inside {
+        let w = of.window(tie);
+        let range = span.start + w.start.saturating_sub(margin)
+            ..span.start + (w.end + margin).min(span.len());
         let s = stretch(track, &block(track, bins, range.clone())?, range, ctx)?;
         let r = reduce::untied(&s, ctx.survey.filter_s)?;
         points.extend(reduce::tie_point(&s, &r, tie, ctx.survey.filter_s)?);
