@@ -6,7 +6,6 @@
 //! crate root's `run` drives.
 
 pub mod calibrate;
-pub mod io;
 pub mod model;
 pub mod plan;
 pub mod repeatability;

@@ -27,9 +27,10 @@ use calibration::outputs::write_outputs;
 pub use calibration::results::{barely_estimable, misalignment_vector, vector_note};
 use calibration::results::{earth_tide_note, kalibr_noise, thermal_effects};
 pub use fit_cli::{FitArgs, fit_csv};
+use ingest::contract::tables;
 
 use calibration::calibrate::{self, CalError};
-use calibration::{io, repeatability, triad_fits};
+use calibration::{repeatability, triad_fits};
 use ingest::contract::align_ledger::{self, AlignReport};
 use ingest::contract::calibration::{
     CALIBRATION_FORMAT, Calibration, CalibrationResult, Input, Skipped,
@@ -94,7 +95,7 @@ pub enum Error {
 struct Fitted<'a> {
     results: Vec<CalibrationResult>,
     fits: Vec<&'a calibrate::CalibrationSolution>,
-    residual_rows: Vec<io::ResidualRow<'a>>,
+    residual_rows: Vec<tables::residuals::Fitted<'a>>,
     skipped: Vec<Skipped>,
 }
 
@@ -143,9 +144,9 @@ pub fn run(dataset: &Path, out: &Path) -> Result<Calibration, Error> {
     let _lock = ingest::base::lock::OutputLock::acquire(out)?;
     let ingest_report = IngestReport::load_verified(&ds, out)?;
     let align_report = AlignReport::load_verified(&ds, out)?;
-    let rows = io::read_observations(&out.join(align_ledger::STAGE_DIR))?;
+    let rows = tables::observations::read(&out.join(align_ledger::STAGE_DIR))?;
     let g = ds.manifest.site.gravity_mgal();
-    let used: Vec<&io::ObservationRow> = rows
+    let used: Vec<&tables::observations::Observation> = rows
         .iter()
         .filter(|o| {
             // A reading without a temperature is used only where its session declares no

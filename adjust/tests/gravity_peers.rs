@@ -302,7 +302,7 @@ fn dgs_reduced_into(
         .join("gravity")
         .join(ingest::contract::tables::gravity::FILE);
     let mut ours = Vec::new();
-    align::read::float_batches(
+    ingest::contract::tables::float_batches(
         &path,
         &[
             "down_mgal",
@@ -338,7 +338,7 @@ fn the_dgs_record_filtered_as_scipy_filters_shipgravs_anomaly() {
     let (record, _, _) = dgs_reduced_into(dir.path(), "filter = \"blackman\"\n");
     let path = dir.path().join("out/gravity").join(gravity::FILE);
     let mut ours = Vec::new();
-    align::read::float_batches(
+    ingest::contract::tables::float_batches(
         &path,
         &["down_filtered_mgal"],
         gravity::FLAGS,
@@ -601,7 +601,7 @@ fn the_dgs_record_gives_the_free_air_anomaly_and_with_a_geoid_height_the_disturb
         let mut rows = Vec::new();
         let path = dir.path().join("out/gravity").join(gravity::FILE);
         let names = ["down_filtered_mgal", gravity::NAMED[0], gravity::NAMED[1]];
-        align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+        ingest::contract::tables::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
             for i in 0..b.time_ns.len() {
                 let at = |c: usize| (!b.values[c].is_null(i)).then(|| b.values[c].value(i));
                 rows.push((b.values[0].value(i), at(1), at(2)));

@@ -54,7 +54,7 @@ fn rows(out: &Path) -> Vec<Row> {
     let path = out.join("gravity").join(gravity::FILE);
     let names = ["down_filtered_mgal", "sigma_down_mgal"];
     let mut rows = Vec::new();
-    align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+    ingest::contract::tables::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
         for i in 0..b.time_ns.len() {
             rows.push(Row {
                 time_s: b.time_ns[i] as f64 * 1e-9,
@@ -393,7 +393,7 @@ fn horizontal_scores(dataset: &Path, out: &Path, filter_s: f64) -> [[f64; 4]; 2]
         "sigma_east_attitude_mgal",
     ];
     let (mut time, mut values, mut flags) = (Vec::new(), vec![Vec::new(); 6], Vec::new());
-    align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+    ingest::contract::tables::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
         use arrow_array::Array;
         for i in 0..b.time_ns.len() {
             time.push(b.time_ns[i] as f64 * 1e-9);
@@ -516,7 +516,7 @@ fn without_attitude_sds_north_and_east_have_no_sigma() {
         "sigma_east_attitude_mgal",
     ];
     let mut counts = [0usize; 4];
-    align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+    ingest::contract::tables::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
         use arrow_array::Array;
         for (c, v) in b.values.iter().enumerate() {
             counts[c] += v.len() - v.null_count();
@@ -1491,7 +1491,7 @@ fn monte_carlo_of_correlated_positions() {
 fn median_column(out: &Path, name: &str) -> f64 {
     let path = out.join("gravity").join(gravity::FILE);
     let mut v = Vec::new();
-    align::read::float_batches(&path, &[name], gravity::FLAGS, 1 << 16, |b| {
+    ingest::contract::tables::float_batches(&path, &[name], gravity::FLAGS, 1 << 16, |b| {
         for i in 0..b.time_ns.len() {
             if b.flags[i] & gravity::EDGE == 0 {
                 v.push(b.values[0].value(i));
@@ -1911,7 +1911,7 @@ mod cross_coupling {
         let names = ["down_filtered_mgal", "sigma_down_mgal"];
         let path = out.join("gravity").join(gravity::FILE);
         let mut k = 0;
-        align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+        ingest::contract::tables::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
             for i in 0..b.time_ns.len() {
                 let (v, s) = (b.values[0].value(i), b.values[1].value(i));
                 if v.is_finite() {
@@ -2036,7 +2036,7 @@ mod cross_coupling {
         let path = out.join("gravity").join(gravity::FILE);
         let mut v = Vec::new();
         let names = ["free_air_anomaly_filtered_mgal"];
-        align::read::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
+        ingest::contract::tables::float_batches(&path, &names, gravity::FLAGS, 1 << 16, |b| {
             v.extend((0..b.time_ns.len()).map(|i| {
                 assert!(!b.values[0].is_null(i), "formed");
                 b.values[0].value(i)

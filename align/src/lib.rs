@@ -17,7 +17,7 @@
 
 pub mod allan;
 pub mod colour;
-pub mod read;
+pub mod samples;
 pub mod statics;
 pub mod thermometer;
 pub mod tide;
@@ -88,60 +88,9 @@ pub enum Error {
 /// Result with this crate's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-/// One observation.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Observation {
-    /// Session id.
-    pub session: String,
-    /// Accelerometer id.
-    pub accelerometer: String,
-    /// Channel 1..3.
-    pub channel: u8,
-    /// Station id.
-    pub station: String,
-    /// Line in the theodolite log.
-    pub line: u32,
-    /// GPS time of the reading, ns.
-    pub time_gps_ns: i64,
-    /// Zenith distance, rad.
-    pub dz_rad: f64,
-    /// Sd of one reading at the station, rad.
-    pub sigma_dz_rad: f64,
-    /// `moderated`, `station_sd`, `manifest` or `resolution`.
-    pub sigma_dz_source: &'static str,
-    /// Degrees of freedom of sigma_dz when estimated from readings: the moderated
-    /// variance's prior dof plus the station's own, or the station's own (eq. 4); None when
-    /// taken as known (manifest, resolution floor).
-    pub sigma_dz_dof: Option<f64>,
-    /// sigma_Dz of the station formed without this reading (the w-test's reference), rad.
-    pub sigma_dz_loo_rad: f64,
-    /// Its degrees of freedom; None when taken as known.
-    pub sigma_dz_loo_dof: Option<f64>,
-    /// g |sin Dz| sigma_Dz, mGal.
-    pub sigma_am_mgal: f64,
-    /// Mean count.
-    pub ng: Option<f64>,
-    /// Sd of the mean count.
-    pub sigma_ng: Option<f64>,
-    /// Its degrees of freedom; None when taken as known.
-    pub sigma_ng_dof: Option<f64>,
-    /// Valid samples in the window.
-    pub n_samples: u32,
-    /// Samples a full window holds.
-    pub expected_samples: f64,
-    /// Temperature at the reading, degC.
-    pub temperature_c: Option<f64>,
-    /// Its sd from the thermometer's noise, degC.
-    pub sigma_temperature_c: Option<f64>,
-    /// Trend t statistic.
-    pub drift_t: Option<f64>,
-    /// Why it is not used.
-    pub excluded: Option<&'static str>,
-    /// Body tide at the reading's time, mGal (None when no tide is applied).
-    pub tide_mgal: Option<f64>,
-    /// Gravity at the proof masses at the reading: g, plus the tide when applied, mGal.
-    pub gravity_mgal: f64,
-}
+/// One observation: a theodolite reading and one accelerometer's window around it, as
+/// observations.parquet holds it.
+pub use ingest::contract::tables::observations::Observation;
 
 /// Aligns the dataset: reads OUT/ingest, writes OUT/align. Returns the ledger.
 pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
@@ -150,8 +99,8 @@ pub fn run(dataset: &Path, out: &Path) -> Result<AlignReport> {
     let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
     let ingest_report = ingest_ledger::IngestReport::load_verified(&ds, out)?;
     let setup = Setup::new(&ds);
-    let temperatures = read::temperatures(&ingest_dir)?;
-    let mut pending = open_windows(&ds, &read::theodolite(&ingest_dir)?, setup.half_ns);
+    let temperatures = tables::temperature::read(&ingest_dir)?;
+    let mut pending = open_windows(&ds, &tables::theodolite::read(&ingest_dir)?, setup.half_ns);
     let mut still: Vec<Vec<StillInterval>> = pending.iter().map(|p| still_intervals(p)).collect();
     let tau0_s = 1.0 / ds.manifest.instrument.sample_rate_hz;
     fill_windows(

@@ -6,7 +6,7 @@ use super::{
     AdcNoise, AlignConfig, AlignReport, BTreeMap, Counts, Custody, DRIFT_T_LIMIT, Dataset,
     Disconnected, Folders, LEDGER_FILE, LEDGER_FORMAT, Location, MultiPosition, Observation, Path,
     Pending, ReadingUnit, Result, Root, STAGE_DIR, StationSigma, Thermometers, WindowStats,
-    WindowSums, coloured_variance, ingest_ledger, interpolate, print_positions, read, reason,
+    WindowSums, coloured_variance, ingest_ledger, interpolate, print_positions, reason,
     station_sigmas, tables, thermometer, tide, window,
 };
 
@@ -215,7 +215,7 @@ pub(crate) fn observe_session<'t>(
                 time_gps_ns: time,
                 dz_rad: p.reading.dz_rad,
                 sigma_dz_rad,
-                sigma_dz_source: source,
+                sigma_dz_source: source.to_owned(),
                 sigma_dz_dof,
                 sigma_dz_loo_rad: left_out.sigma_rad,
                 sigma_dz_loo_dof: left_out.dof,
@@ -228,7 +228,7 @@ pub(crate) fn observe_session<'t>(
                 temperature_c: temperature.map(|(v, _)| v),
                 sigma_temperature_c,
                 drift_t: stats.map(|s| s.drift_t),
-                excluded,
+                excluded: excluded.map(str::to_owned),
                 tide_mgal,
                 gravity_mgal: setup.g + tide_mgal.unwrap_or(0.0),
             });
@@ -252,7 +252,7 @@ pub(crate) fn write_outputs(
     })?;
     let ledger_path = dir.join(LEDGER_FILE);
     ingest::remove_stale(&ledger_path)?;
-    let rows = read::write_observations(&dir, &formed.observations)?;
+    let rows = tables::observations::write(&dir, &formed.observations)?;
     let folders = Folders {
         dataset: &ds.dir,
         out,

@@ -3,7 +3,7 @@
 
 use super::{
     AllanRow, Dataset, Error, MultiPosition, Path, Result, SessionKind, Setup, StaticNoise,
-    StaticPosition, allan, manifest, read, statics, tables, thermometer,
+    StaticPosition, allan, manifest, statics, tables, thermometer,
 };
 
 /// The static positions of every multi-position session: listed in the manifest, or found
@@ -17,7 +17,7 @@ pub(crate) fn multi_positions(
     ds: &Dataset,
     setup: &Setup,
     ingest_dir: &Path,
-    temperatures: &read::Temperatures,
+    temperatures: &tables::temperature::Temperatures,
 ) -> Result<Vec<MultiPosition>> {
     let wanted: Vec<u16> = ds
         .sessions
@@ -29,7 +29,7 @@ pub(crate) fn multi_positions(
     if wanted.is_empty() {
         return Ok(Vec::new());
     }
-    let mut series = read::series(ingest_dir, &wanted)?;
+    let mut series = crate::samples::series(ingest_dir, &wanted)?;
     wanted
         .into_iter()
         .map(|w| {
@@ -74,7 +74,7 @@ pub(crate) fn session_positions(
     setup: &Setup,
     ingest_dir: &Path,
     (w, data): (u16, &statics::Series),
-    temperatures: &read::Temperatures,
+    temperatures: &tables::temperature::Temperatures,
 ) -> Result<MultiPosition> {
     let s = &ds.sessions[usize::from(w)];
     let rate = ds.manifest.instrument.sample_rate_hz;
@@ -170,7 +170,7 @@ fn interval_means(
 /// A position's temperature per channel over the sample `times` of session `w`, and their
 /// sds from the thermometer's noise `thermometer_sd_c`: none unless every channel has one.
 fn position_temperatures(
-    temperatures: &read::Temperatures,
+    temperatures: &tables::temperature::Temperatures,
     w: u16,
     (times, max_gap_ns): (&[i64], i64),
     thermometer_sd_c: [Option<f64>; 3],

@@ -3,13 +3,13 @@
 //! ADC noise from the still intervals.
 
 use super::{
-    AdcNoise, BTreeMap, Dataset, Path, Result, SigmaDzMethod, WindowSums, allan, allan_row, read,
-    sample_sd, sigma_source, status, weights,
+    AdcNoise, BTreeMap, Dataset, Path, Result, SigmaDzMethod, WindowSums, allan, allan_row,
+    sample_sd, sigma_source, status, tables, weights,
 };
 
 /// A reading with its windows being filled.
 pub(crate) struct Pending {
-    pub(crate) reading: read::TheodoliteRow,
+    pub(crate) reading: tables::theodolite::Reading,
     pub(crate) start_ns: i64,
     pub(crate) end_ns: i64,
     pub(crate) sums: [WindowSums; 3],
@@ -210,13 +210,13 @@ pub(crate) fn station_sigmas(
 /// The windows of every session's readings, in time order.
 pub(crate) fn open_windows(
     ds: &Dataset,
-    theodolite: &BTreeMap<String, Vec<read::TheodoliteRow>>,
+    theodolite: &BTreeMap<String, Vec<tables::theodolite::Reading>>,
     half_ns: i64,
 ) -> Vec<Vec<Pending>> {
     ds.sessions
         .iter()
         .map(|s| {
-            let mut rows: Vec<read::TheodoliteRow> =
+            let mut rows: Vec<tables::theodolite::Reading> =
                 theodolite.get(&s.session.id).cloned().unwrap_or_default();
             rows.sort_by_key(|r| (r.time_gps_ns, r.line));
             rows.into_iter()
@@ -241,7 +241,7 @@ pub(crate) fn fill_windows(
 ) -> Result<()> {
     let mut cursor: Vec<(usize, usize)> = vec![(0, 0); pending.len()]; // (first active, next to open)
     let mut still_cursor = vec![0usize; still.len()];
-    read::samples(ingest_dir, |session, time_ns, counts, status| {
+    crate::samples::samples(ingest_dir, |session, time_ns, counts, status| {
         let si = usize::from(session);
         if si >= pending.len() {
             return;

@@ -37,7 +37,7 @@ pub enum Error {
         /// The underlying error.
         source: std::io::Error,
     },
-    /// Writing a Parquet table failed.
+    /// Writing or opening a Parquet table failed.
     #[error("{}: {source}", path.display())]
     Parquet {
         /// The table being written.
@@ -61,6 +61,15 @@ pub enum Error {
         /// The file.
         path: PathBuf,
         /// What differs and what to re-run.
+        message: String,
+    },
+    /// A table does not read as its schema in `contract::tables` says (a column missing or
+    /// of another type, an unknown unit, a batch that does not decode).
+    #[error("{}: {message}", path.display())]
+    Table {
+        /// The table's file.
+        path: PathBuf,
+        /// What is wrong with it.
         message: String,
     },
     /// Building an Arrow batch failed (a bug: the batches are built to their schema).

@@ -12,7 +12,7 @@ pub(crate) type Points = Vec<(f64, f64)>;
 pub(crate) type Axis<'a> = (
     &'a str,
     &'a str,
-    Box<dyn Fn(&adjust::calibration::io::ResidualRecord) -> f64 + 'a>,
+    Box<dyn Fn(&ingest::contract::tables::residuals::Residual) -> f64 + 'a>,
 );
 
 /// Residual plots, calibration curves, the sigma of one reading and the tide.
@@ -52,7 +52,7 @@ pub(crate) fn fit_plots(
     let g = st.cal.gravity_mgal;
     let residuals = &st.residuals;
     let mut plots = Vec::new();
-    let mine: Vec<&adjust::calibration::io::ResidualRecord> = residuals
+    let mine: Vec<&ingest::contract::tables::residuals::Residual> = residuals
         .iter()
         .filter(|x| {
             x.model == r.model && x.accelerometer == r.accelerometer && x.fit_session == r.session
@@ -61,24 +61,25 @@ pub(crate) fn fit_plots(
     if mine.is_empty() {
         return Ok(Vec::new());
     }
-    let misclosure = |x: &adjust::calibration::io::ResidualRecord| -> f64 {
+    let misclosure = |x: &ingest::contract::tables::residuals::Residual| -> f64 {
         x.residual_mgal
             .unwrap_or_else(|| -predict_misclosure(r, g, x))
     };
     let t0 = mine.iter().map(|x| x.time_gps_ns).min().unwrap_or(0);
-    let split = |f: &dyn Fn(&adjust::calibration::io::ResidualRecord) -> f64| -> (Points, Points) {
-        let used = mine
-            .iter()
-            .filter(|x| !x.removed)
-            .map(|x| (f(x), misclosure(x)))
-            .collect();
-        let removed = mine
-            .iter()
-            .filter(|x| x.removed)
-            .map(|x| (f(x), misclosure(x)))
-            .collect();
-        (used, removed)
-    };
+    let split =
+        |f: &dyn Fn(&ingest::contract::tables::residuals::Residual) -> f64| -> (Points, Points) {
+            let used = mine
+                .iter()
+                .filter(|x| !x.removed)
+                .map(|x| (f(x), misclosure(x)))
+                .collect();
+            let removed = mine
+                .iter()
+                .filter(|x| x.removed)
+                .map(|x| (f(x), misclosure(x)))
+                .collect();
+            (used, removed)
+        };
     let name = format!("{}-{}-{}", r.model, r.accelerometer, r.session);
     let axes: [Axis<'_>; 3] = [
         ("dz", "Dz (deg)", Box::new(|x| x.dz_rad.to_degrees())),
@@ -126,7 +127,7 @@ pub(crate) fn fit_plots(
 pub(crate) fn calibration_curve(
     r: &CalibrationResult,
     g: f64,
-    mine: &[&adjust::calibration::io::ResidualRecord],
+    mine: &[&ingest::contract::tables::residuals::Residual],
     name: &str,
 ) -> Result<Option<Plot>, Error> {
     let (Some(b), Some(k)) = (param(r, "b"), param(r, "k")) else {
@@ -272,7 +273,7 @@ pub(crate) fn tide_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Error
     let Some(first) = st.ds.manifest.instrument.accelerometer.first() else {
         return Ok(None);
     };
-    let mine: Vec<&adjust::calibration::io::ObservationRow> = st
+    let mine: Vec<&ingest::contract::tables::observations::Observation> = st
         .observations
         .iter()
         .filter(|o| o.session == id && o.accelerometer == first.id)
@@ -352,7 +353,7 @@ pub(crate) fn sigma_plot(st: &Stages<'_>, id: &str) -> Result<Option<Plot>, Erro
 pub(crate) fn predict_misclosure(
     r: &CalibrationResult,
     g: f64,
-    x: &adjust::calibration::io::ResidualRecord,
+    x: &ingest::contract::tables::residuals::Residual,
 ) -> f64 {
     let v = |name: &str| param(r, name).map_or(0.0, |p| p.value);
     let tau = r.t_ref_c.map_or(0.0, |t| x.temperature_c - t);

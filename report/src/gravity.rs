@@ -178,17 +178,22 @@ fn attitude_plots(path: &Path, sha256: &str) -> Result<Vec<(String, String)>, Er
     recorded(path, sha256)?;
     let mut rows: std::collections::BTreeMap<u16, Vec<AttitudeRow>> =
         std::collections::BTreeMap::new();
-    align::read::float_batches_unflagged(path, &attitude::FLOATS[..6], 1 << 16, |b| {
-        for i in 0..b.time_ns.len() {
-            let angle = |j: usize| {
-                let (v, sd) = (b.values[j], b.values[j + 3]);
-                (v.is_valid(i) && sd.is_valid(i)).then(|| (v.value(i), sd.value(i)))
-            };
-            let row = (b.time_ns[i], [angle(0), angle(1), angle(2)]);
-            rows.entry(b.session[i]).or_default().push(row);
-        }
-        Ok(())
-    })?;
+    ingest::contract::tables::float_batches_unflagged(
+        path,
+        &attitude::FLOATS[..6],
+        1 << 16,
+        |b| {
+            for i in 0..b.time_ns.len() {
+                let angle = |j: usize| {
+                    let (v, sd) = (b.values[j], b.values[j + 3]);
+                    (v.is_valid(i) && sd.is_valid(i)).then(|| (v.value(i), sd.value(i)))
+                };
+                let row = (b.time_ns[i], [angle(0), angle(1), angle(2)]);
+                rows.entry(b.session[i]).or_default().push(row);
+            }
+            Ok(())
+        },
+    )?;
     let mut out = Vec::new();
     for (index, r) in rows {
         let step = r.len().div_ceil(MAX_POINTS).max(1);
@@ -417,7 +422,7 @@ fn horizontal(ds: &Dataset, path: &Path) -> Result<Option<Table>, Error> {
     let names = gravity::HORIZONTAL;
     // Per session, per column, the values of the rows that have them.
     let mut per: std::collections::BTreeMap<u16, Vec<Vec<f64>>> = Default::default();
-    align::read::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {
+    ingest::contract::tables::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {
         for i in 0..b.time_ns.len() {
             if b.values[0].is_null(i) || b.flags[i] & gravity::EDGE != 0 {
                 continue;
@@ -492,7 +497,7 @@ fn read(path: &Path) -> Result<Vec<Epoch>, Error> {
         gravity::SIGMA_COUPLING_MGAL,
     ];
     let mut out = Vec::new();
-    align::read::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {
+    ingest::contract::tables::float_batches(path, &names, gravity::FLAGS, 1 << 16, |b| {
         for i in 0..b.time_ns.len() {
             let v = |k: usize| b.values[k].value(i);
             // Within a filter period of a stretch's ends no filtered value is given.

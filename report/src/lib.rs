@@ -114,8 +114,8 @@ struct Stages<'a> {
     cal: Calibration,
     ingest_report: IngestReport,
     align_report: AlignReport,
-    residuals: Vec<adjust::calibration::io::ResidualRecord>,
-    observations: Vec<adjust::calibration::io::ObservationRow>,
+    residuals: Vec<ingest::contract::tables::residuals::Residual>,
+    observations: Vec<ingest::contract::tables::observations::Observation>,
 }
 
 /// Builds the report's sections from the stage outputs under `out`, one function a section.
@@ -126,8 +126,8 @@ pub fn build(ds: &Dataset, out: &Path) -> Result<Vec<Section>, Error> {
         cal: Calibration::load_verified(ds, out)?,
         ingest_report: IngestReport::load(&out.join(ingest_ledger::STAGE_DIR))?,
         align_report: AlignReport::load(&out.join(align_ledger::STAGE_DIR))?,
-        residuals: adjust::calibration::io::read_residuals(&out.join(calibration::STAGE_DIR))?,
-        observations: adjust::calibration::io::read_observations(
+        residuals: ingest::contract::tables::residuals::read(&out.join(calibration::STAGE_DIR))?,
+        observations: ingest::contract::tables::observations::read(
             &out.join(align_ledger::STAGE_DIR),
         )?,
     };

@@ -180,7 +180,7 @@ fn stillness_plot(st: &Stages<'_>, mp: &MultiPosition) -> Result<Option<Plot>, E
     // the session's length).
     let mut bins: Vec<(u64, f64, f64)> = Vec::new();
     let (mut t0, mut width_ns) = (None::<i64>, 10_000_000i64);
-    align::read::lab_batches(&st.out.join(ingest_ledger::STAGE_DIR), 1 << 16, |b| {
+    ingest::contract::tables::lab::batches(&st.out.join(ingest_ledger::STAGE_DIR), 1 << 16, |b| {
         for i in (0..b.session.len()).filter(|&i| b.session[i] == w) {
             let v = b.values.map(|c| c.is_valid(i).then(|| c.value(i)));
             let [Some(x), Some(y), Some(z)] = v else {
@@ -201,7 +201,7 @@ fn stillness_plot(st: &Stages<'_>, mp: &MultiPosition) -> Result<Option<Plot>, E
                 width_ns *= 2;
             }
         }
-        Ok(())
+        Ok::<(), ingest::Error>(())
     })?;
     let Some(t0) = t0 else {
         return Ok(None);

@@ -205,7 +205,7 @@ fn coarsely_logged(method: &str) {
         ingest::contract::calibration::Calibration::load(&out.join("adjust")).expect("calibration");
     let floor = (0.001f64).to_radians() / 12f64.sqrt();
     let rows =
-        adjust::calibration::io::read_observations(&out.join("align")).expect("observations");
+        ingest::contract::tables::observations::read(&out.join("align")).expect("observations");
     assert!(rows.len() > 600, "{} observations", rows.len());
     assert!(rows.iter().all(|o| o.sigma_dz_rad >= floor * (1.0 - 1e-9)));
     if method == "station" {
@@ -393,7 +393,7 @@ fn byte_order_marks_and_bad_encodings() {
     ingest::run(&ds, &out).expect("ingest");
     align::run(&ds, &out).expect("align");
     let rows =
-        adjust::calibration::io::read_observations(&out.join("align")).expect("observations");
+        ingest::contract::tables::observations::read(&out.join("align")).expect("observations");
     assert!(!rows.is_empty(), "observations from the log with a BOM");
     assert!(
         rows.iter().all(|o| o.station.starts_with('T')),

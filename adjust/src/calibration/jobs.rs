@@ -3,7 +3,6 @@
 //! reason a fit could not be made.
 
 use super::calibrate::{self, CalError, LeftOut, Obs};
-use super::io;
 use super::model::{Misalignment, Terms};
 use super::results::{result_of, vector_note};
 use crate::lsq::components;
@@ -12,6 +11,7 @@ use ingest::contract::align_ledger::AlignReport;
 use ingest::contract::calibration::FitScope;
 use ingest::contract::calibration::{CalibrationResult, Skipped, VarianceComponent};
 use ingest::contract::manifest::{Dataset, ModelDecl, ModelKind, Per};
+use ingest::contract::tables;
 
 /// The models to fit: the manifest's, or the defaults (docs/formats.md section 2): `linear`, plus
 /// `thermal` when the sessions' mean temperatures differ by more than 1 degree C.
@@ -51,7 +51,7 @@ pub(crate) struct Job<'a> {
     pub(crate) model: &'a ModelDecl,
     pub(crate) accelerometer: String,
     pub(crate) scope: FitScope,
-    pub(crate) obs: Vec<&'a io::ObservationRow>,
+    pub(crate) obs: Vec<&'a tables::observations::Observation>,
     /// The accelerometer's coloured ADC noise from align's Allan deviation (None: white).
     pub(crate) coloured: Option<ColouredAdc>,
     /// Roll of the block at each observation, rad.
@@ -81,7 +81,10 @@ pub(crate) fn skip_reason(ds: &Dataset, job: &Job<'_>, e: &CalError) -> String {
 }
 
 /// Each session's mean temperature over the observations used (sessions without any left out).
-pub(crate) fn session_mean_temperatures(ds: &Dataset, used: &[&io::ObservationRow]) -> Vec<f64> {
+pub(crate) fn session_mean_temperatures(
+    ds: &Dataset,
+    used: &[&tables::observations::Observation],
+) -> Vec<f64> {
     ds.sessions
         .iter()
         .filter_map(|s| {
@@ -100,7 +103,7 @@ pub(crate) fn session_mean_temperatures(ds: &Dataset, used: &[&io::ObservationRo
 pub(crate) fn plan_jobs<'a>(
     ds: &Dataset,
     models: &'a [ModelDecl],
-    used: &[&'a io::ObservationRow],
+    used: &[&'a tables::observations::Observation],
     align_report: &AlignReport,
 ) -> (Vec<Job<'a>>, Vec<Skipped>) {
     let mut jobs = Vec::new();
@@ -131,7 +134,7 @@ pub(crate) fn plan_jobs<'a>(
                     });
                     continue;
                 }
-                let obs: Vec<&io::ObservationRow> = used
+                let obs: Vec<&tables::observations::Observation> = used
                     .iter()
                     .copied()
                     .filter(|o| o.accelerometer == acc.id && scope.covers(&o.session))
@@ -269,8 +272,8 @@ pub(crate) fn fit_job(
             dz_rad: o.dz_rad,
             sigma_dz_rad: o.sigma_dz_rad,
             sigma_dz_dof: o.sigma_dz_dof,
-            sigma_dz_left_out: o.sigma_dz_loo_rad.map(|sigma_rad| LeftOut {
-                sigma_rad,
+            sigma_dz_left_out: Some(LeftOut {
+                sigma_rad: o.sigma_dz_loo_rad,
                 dof: o.sigma_dz_loo_dof,
             }),
             station: stations
@@ -299,8 +302,8 @@ pub(crate) fn fit_job(
 pub(crate) fn residual_rows_of<'a>(
     job: &'a Job<'a>,
     f: &calibrate::CalibrationSolution,
-) -> Vec<io::ResidualRow<'a>> {
-    let row = |index: usize, w: f64| io::ResidualRow {
+) -> Vec<tables::residuals::Fitted<'a>> {
+    let row = |index: usize, w: f64| tables::residuals::Fitted {
         model: &job.model.name,
         accelerometer: &job.accelerometer,
         fit_session: job.scope.id(),
@@ -312,7 +315,7 @@ pub(crate) fn residual_rows_of<'a>(
         w,
         removed: true,
     };
-    let used = f.residuals.iter().map(|res| io::ResidualRow {
+    let used = f.residuals.iter().map(|res| tables::residuals::Fitted {
         v_dz_rad: Some(res.v_dz_rad),
         v_ng: Some(res.v_ng),
         residual_mgal: Some(res.misclosure_mgal),

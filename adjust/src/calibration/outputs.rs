@@ -1,7 +1,7 @@
 //! calibration.json and residuals.parquet written with their chain of custody, and the
 //! console's summary.
 
-use super::{io, triad_fits};
+use super::triad_fits;
 use crate::Error;
 use ingest::contract::align_ledger;
 use ingest::contract::calibration::{
@@ -10,6 +10,7 @@ use ingest::contract::calibration::{
 use ingest::contract::custody::{Custody, Folders, Root};
 use ingest::contract::ingest_ledger;
 use ingest::contract::manifest::Dataset;
+use ingest::contract::tables;
 use std::path::Path;
 
 /// Writes residuals.parquet and calibration.json, with the chain of custody: every file
@@ -18,13 +19,13 @@ pub(crate) fn write_outputs(
     ds: &Dataset,
     out: &Path,
     mut calibration: Calibration,
-    residual_rows: &[io::ResidualRow<'_>],
+    residual_rows: &[tables::residuals::Fitted<'_>],
 ) -> Result<Calibration, Error> {
     let dir = out.join(STAGE_DIR);
     std::fs::create_dir_all(&dir).map_err(|e| ingest::Error::io(dir.clone(), e))?;
     let cal_path = dir.join(CALIBRATION_FILE);
     ingest::remove_stale(&cal_path)?;
-    io::write_residuals(&dir, residual_rows)?;
+    tables::residuals::write(&dir, residual_rows)?;
     let folders = Folders {
         dataset: &ds.dir,
         out,
@@ -37,17 +38,13 @@ pub(crate) fn write_outputs(
             ingest_ledger::LEDGER_FILE
         ),
         format!("{}/{}", align_ledger::STAGE_DIR, align_ledger::LEDGER_FILE),
-        format!(
-            "{}/{}",
-            align_ledger::STAGE_DIR,
-            ingest::contract::tables::observations::FILE
-        ),
+        format!("{}/{}", align_ledger::STAGE_DIR, tables::observations::FILE),
     ] {
         inputs.push(folders.record(Root::Out, &file)?);
     }
     let mut outputs = vec![folders.record(
         Root::Out,
-        &format!("{STAGE_DIR}/{}", ingest::contract::tables::residuals::FILE),
+        &format!("{STAGE_DIR}/{}", tables::residuals::FILE),
     )?];
     // A file name joins a model's name and a session's id with `-`, which they may hold.
     let mut names = ingest::contract::manifest::Names::default();

@@ -3,13 +3,13 @@
 //! names, and what was done about the Earth tide.
 
 use super::calibrate;
-use super::io;
 use super::jobs::{Job, component_of, range_of, roll_directions};
 use super::model::{Misalignment, Terms};
 use ingest::contract::align_ledger::AlignReport;
 use ingest::contract::calibration::{
     CalibrationResult, GlobalTest, KalibrNoise, MisalignmentVector, Parameter, Removed,
 };
+use ingest::contract::tables;
 
 /// A parameter (beyond b and k) whose multiple correlation with the others is above this is
 /// noted as barely estimable.
@@ -178,7 +178,7 @@ pub(crate) fn kalibr_noise(
 
 /// What calibration.json says of the body tide: applied, with its range over the
 /// observations used, or not, with its size (docs/formats.md 8.1).
-pub(crate) fn earth_tide_note(used: &[&io::ObservationRow]) -> String {
+pub(crate) fn earth_tide_note(used: &[&tables::observations::Observation]) -> String {
     let tides: Vec<f64> = used.iter().filter_map(|o| o.tide_mgal).collect();
     if tides.is_empty() {
         return "no body tide applied: the site has no latitude_deg and longitude_deg (or earth_tide = false); \

@@ -439,14 +439,16 @@ impl Spans {
         let ids: Vec<&str> = ds.sessions.iter().map(|s| s.session.id.as_str()).collect();
         let id = |i: u16| ids.get(usize::from(i)).copied().unwrap_or("?");
         let mut spans = Spans::default();
-        align::read::acceleration(dir, |s, t, _, _| spans.add(id(s), "acceleration", t))?;
-        align::read::lab_batches(dir, 1 << 16, |b| {
+        ingest::contract::tables::acceleration::for_each(dir, |s, t, _, _| {
+            spans.add(id(s), "acceleration", t)
+        })?;
+        ingest::contract::tables::lab::batches(dir, 1 << 16, |b| {
             for (&s, &t) in b.session.iter().zip(b.time_ns) {
                 spans.add(id(s), "lab readings", t);
             }
-            Ok(())
+            Ok::<(), ingest::Error>(())
         })?;
-        for ((s, _), (times, _)) in align::read::temperatures(dir)? {
+        for ((s, _), (times, _)) in ingest::contract::tables::temperature::read(dir)? {
             // Every channel's series has the same times: count one channel's.
             if spans.0.contains_key(&(id(s).to_owned(), "temperature")) {
                 continue;
@@ -455,7 +457,7 @@ impl Spans {
                 spans.add(id(s), "temperature", t);
             }
         }
-        for (session, rows) in align::read::theodolite(dir)? {
+        for (session, rows) in ingest::contract::tables::theodolite::read(dir)? {
             for r in rows {
                 spans.add(&session, "readings", r.time_gps_ns);
             }

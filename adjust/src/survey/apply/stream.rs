@@ -13,7 +13,6 @@
 use super::CalibrationFunction;
 use super::select::{Choice, Selection, Target, select};
 use crate::Error;
-use align::read::{self, AccelerationBatch, Temperatures};
 use align::window::Interpolator;
 use arrow_array::Array;
 use ingest::contract::apply_ledger::{
@@ -24,6 +23,7 @@ use ingest::contract::custody::{Custody, FileHash, Folders, Root, sha256_file};
 use ingest::contract::ingest_ledger::{self, IngestReport};
 use ingest::contract::manifest::Dataset;
 use ingest::contract::status;
+use ingest::contract::tables::temperature::Temperatures;
 use ingest::contract::tables::{self, applied};
 use ingest::parquet_io::table::{
     ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP,
@@ -140,7 +140,7 @@ fn apply_axes(
     selection: &Selection,
 ) -> Result<ApplyReport, Error> {
     let ingest_dir = out.join(ingest_ledger::STAGE_DIR);
-    let temperatures = read::temperatures(&ingest_dir)?;
+    let temperatures = tables::temperature::read(&ingest_dir)?;
     let max_gap_ns = (ds.manifest.align.max_temperature_gap_s * 1e9).round() as i64;
     let written = write_table(
         ds,
@@ -394,9 +394,9 @@ fn write_table<'t>(
         };
         // The counts table, then the lab table (a survey logged as a lab stream).
         let reading =
-            read::acceleration_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| send.batch(&b))
+            tables::acceleration::batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| send.batch(&b))
                 .and_then(|()| {
-                    read::lab_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| send.batch(&b))
+                    tables::lab::batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| send.batch(&b))
                 });
         drop(tx);
         (reading, writing.join())
@@ -501,7 +501,7 @@ trait SampleBatch: Sync {
     fn reading(&self, ch: usize, i: usize) -> Result<f64, u8>;
 }
 
-impl SampleBatch for AccelerationBatch<'_> {
+impl SampleBatch for tables::acceleration::Batch<'_> {
     fn session(&self) -> &[u16] {
         self.session
     }
@@ -522,7 +522,7 @@ impl SampleBatch for AccelerationBatch<'_> {
     }
 }
 
-impl SampleBatch for read::LabBatch<'_> {
+impl SampleBatch for tables::lab::Batch<'_> {
     fn session(&self) -> &[u16] {
         self.session
     }

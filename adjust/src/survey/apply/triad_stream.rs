@@ -9,11 +9,11 @@
 
 use crate::Error;
 use crate::calibration::triad::{MAX_PARAMS, TriadModel};
-use align::read::{self, Temperatures};
 use align::window::Interpolator;
 use arrow_array::Array;
 use ingest::contract::calibration::TriadResult;
 use ingest::contract::status;
+use ingest::contract::tables::temperature::Temperatures;
 use ingest::contract::tables::{self, applied};
 use ingest::parquet_io::table::{
     ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP,
@@ -369,7 +369,7 @@ pub fn write(
     max_gap_ns: i64,
 ) -> Result<TriadWritten, Error> {
     let series = if f.needs_temperature() {
-        read::temperatures(ingest_dir)?
+        tables::temperature::read(ingest_dir)?
     } else {
         Temperatures::new()
     };
@@ -395,7 +395,7 @@ pub fn write(
             by_flags: [0; 256],
         },
     };
-    read::acceleration_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
+    tables::acceleration::batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
         for i in 0..b.time_ns.len() {
             let x = channels.map(|ch| {
                 let c = b.counts[ch];
@@ -405,10 +405,9 @@ pub fn write(
             to.one((b.session[i], b.time_ns[i]), x, flags);
         }
         let (n, c) = to.cols.take();
-        writer.write_row_group(n, &c)?;
-        Ok(())
+        writer.write_row_group(n, &c)
     })?;
-    read::lab_batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
+    tables::lab::batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
         for i in 0..b.time_ns.len() {
             let x = channels.map(|ch| {
                 let v = b.values[ch];
@@ -417,8 +416,7 @@ pub fn write(
             to.one((b.session[i], b.time_ns[i]), x, 0);
         }
         let (n, c) = to.cols.take();
-        writer.write_row_group(n, &c)?;
-        Ok(())
+        writer.write_row_group(n, &c)
     })?;
     let (_, sha256) = writer.finish_hashed()?;
     to.out.sha256 = sha256;

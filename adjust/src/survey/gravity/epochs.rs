@@ -500,12 +500,12 @@ pub struct Filled {
 
 /// Why filling stopped: the table could not be read, or one of its samples not used.
 enum Stop {
-    Table(align::Error),
+    Table(ingest::Error),
     Stage(GravityError),
 }
 
-impl From<align::Error> for Stop {
-    fn from(e: align::Error) -> Self {
+impl From<ingest::Error> for Stop {
+    fn from(e: ingest::Error) -> Self {
         Stop::Table(e)
     }
 }
@@ -540,7 +540,7 @@ pub fn fill(
     let (names, flags) = force.columns();
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let mut values = vec![None; refs.len()];
-    align::read::float_batches_with(path, &refs, &flags, 1 << 17, |b| {
+    ingest::contract::tables::float_batches_with(path, &refs, &flags, 1 << 17, |b| {
         use arrow_array::Array;
         for i in 0..b.time_ns.len() {
             let Some(ti) = targets.iter().position(|t| t.session == b.session[i]) else {
