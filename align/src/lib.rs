@@ -66,14 +66,6 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
-    /// Reading a Parquet table failed.
-    #[error("{}: {source}", path.display())]
-    Parquet {
-        /// The table.
-        path: PathBuf,
-        /// The underlying error.
-        source: parquet::errors::ParquetError,
-    },
     /// A session's theodolite readings fit another unit than the manifest declares
     /// (align/src/units.rs).
     #[error("session `{session}`: {message}")]
