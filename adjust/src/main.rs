@@ -74,6 +74,7 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
         temperature: false,
         misalignment: adjust::calibration::model::Misalignment::None,
     };
+    let cpu0 = ingest::cpu_seconds();
     let t0 = std::time::Instant::now();
     let f = adjust::calibration::calibrate::calibrate_with(
         &obs,
@@ -92,8 +93,12 @@ fn bench_fit(input: &std::path::Path, g_mgal: f64) -> Result<String, String> {
         .filter(|r| r.w.abs() > adjust::calibration::calibrate::W_CRITICAL)
         .count();
     let seconds = t0.elapsed().as_secs_f64();
+    // CPU time of all threads over the fit (null where /proc is not there).
+    let cpu = cpu0
+        .zip(ingest::cpu_seconds())
+        .map_or("null".to_owned(), |(a, b)| format!("{}", b - a));
     Ok(format!(
-        "{{\"observations\": {}, \"seconds\": {seconds}, \"iterations\": {}, \"flagged\": {flagged}, \"b\": {}, \"k\": {}, \"peak_rss_kb\": {}}}",
+        "{{\"observations\": {}, \"seconds\": {seconds}, \"cpu_seconds\": {cpu}, \"iterations\": {}, \"flagged\": {flagged}, \"b\": {}, \"k\": {}, \"peak_rss_kb\": {}}}",
         obs.len(),
         f.iterations,
         f.values[0],

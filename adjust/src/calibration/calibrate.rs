@@ -7,6 +7,9 @@ use crate::calibration::model::{CalibrationConditions, Misalignment, Terms, appl
 use crate::lsq::components::{self, Component, ScaledChi2};
 use crate::lsq::correlated::{self, ColouredAdc, Timeline};
 use crate::lsq::gh::{self, GhError, Options};
+use rayon::prelude::{
+    IndexedParallelIterator, IntoParallelRefIterator, IntoParallelRefMutIterator, ParallelIterator,
+};
 
 /// Critical value of the w-test (two-sided, alpha = 0.001).
 pub const W_CRITICAL: f64 = 3.29;
@@ -274,15 +277,18 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
     // The element a sort would put in the middle, without the sort (total_cmp is a total
     // order: equal values are the same bits, so neither this nor the unstable sort below
     // can differ from a stable sort's).
-    let median = |mut v: Vec<f64>| {
-        let mid = v.len() / 2;
-        if v.is_empty() {
+    // One buffer for both medians, filled on the pool (the pass over a million readings).
+    let mut buffer = Vec::new();
+    let mut median = |value: fn(&Obs) -> f64| {
+        obs.par_iter().map(value).collect_into_vec(&mut buffer);
+        let mid = buffer.len() / 2;
+        if buffer.is_empty() {
             0.0
         } else {
-            *v.select_nth_unstable_by(mid, f64::total_cmp).1
+            *buffer.select_nth_unstable_by(mid, f64::total_cmp).1
         }
     };
-    let separation = LEVEL_SEPARATION_SIGMAS * median(obs.iter().map(|o| o.sigma_dz_rad).collect());
+    let separation = LEVEL_SEPARATION_SIGMAS * median(|o| o.sigma_dz_rad);
     let levels = tilt_levels(obs, separation.max(1e-9), terms.order + 1);
     if levels < terms.order + 1 && !obs.is_empty() {
         let dz = || obs.iter().map(|o| o.dz_rad);
@@ -301,11 +307,16 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
         });
     }
     let (lo, hi) = obs
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), o| {
-            (a.min(o.ng), b.max(o.ng))
-        });
-    let noise = median(obs.iter().map(|o| o.sigma_ng).collect());
+        .par_iter()
+        .fold(
+            || (f64::INFINITY, f64::NEG_INFINITY),
+            |(a, b), o| (a.min(o.ng), b.max(o.ng)),
+        )
+        .reduce(
+            || (f64::INFINITY, f64::NEG_INFINITY),
+            |(a, b), (c, d)| (a.min(c), b.max(d)),
+        );
+    let noise = median(|o| o.sigma_ng);
     if hi - lo <= COUNT_SPREAD_SIGMAS * noise {
         return Err(CalError::NotEstimable {
             parameter: names[1].name,
@@ -346,7 +357,7 @@ fn tilt_levels(obs: &[Obs], separation: f64, most: usize) -> usize {
     let mut start = f64::NEG_INFINITY;
     while levels < most {
         let next = obs
-            .iter()
+            .par_iter()
             .map(|o| o.dz_rad)
             .filter(|d| levels == 0 || d - start > separation)
             .min_by(f64::total_cmp);
@@ -435,17 +446,23 @@ fn screen_gross_errors(
 fn start_values(used: &[&Obs], model: &CalibrationConditions<'_>) -> Vec<f64> {
     let mut p = vec![0.0; model.terms.len()];
     let n = used.len() as f64;
-    let xs: Vec<f64> = used
-        .iter()
-        .map(|o| (o.ng - model.centre) / model.scale)
-        .collect();
+    // The counts scaled on the fly; -g cos Dz formed in parallel once (the sums in order).
+    let x = |o: &Obs| (o.ng - model.centre) / model.scale;
     let ys: Vec<f64> = used
-        .iter()
+        .par_iter()
+        .with_min_len(4096)
         .map(|o| -model.g_mgal * o.dz_rad.cos())
         .collect();
-    let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
-    let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
-    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
+    let (mx, my) = (
+        used.iter().map(|o| x(o)).sum::<f64>() / n,
+        ys.iter().sum::<f64>() / n,
+    );
+    let sxx: f64 = used.iter().map(|o| (x(o) - mx).powi(2)).sum();
+    let sxy: f64 = used
+        .iter()
+        .zip(&ys)
+        .map(|(o, y)| (x(o) - mx) * (y - my))
+        .sum();
     let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
     // The condition is g cos Dz + c = 0: c(x) is the line of -g cos Dz on x.
     p[0] = my - slope * mx;
@@ -673,7 +690,7 @@ fn left_out_w_tests(
 ) {
     use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
     let normal = Normal::standard();
-    let each = used.iter().enumerate().map(|(i, o)| {
+    let each = |(i, o): (usize, &&Obs)| {
         let r = s.redundancy[i];
         if r <= 1e-9 {
             return 0.0;
@@ -712,12 +729,14 @@ fn left_out_w_tests(
         } else {
             w
         }
-    });
+    };
     // Into the solution's own vector, which the left-out tests replace: a second one was
     // a million observations' peak.
-    for (w, x) in w_test.iter_mut().zip(each) {
-        *w = x;
-    }
+    w_test
+        .par_iter_mut()
+        .zip(used.par_iter().enumerate())
+        .with_min_len(4096)
+        .for_each(|(w, x)| *w = each(x));
 }
 
 /// Observations and their sds as the adjustment takes them: Dz weighed by its predictive
@@ -974,6 +993,18 @@ impl<'a> Groups<'a> {
     /// Station per observation, compacted to 0..stations.
     fn station(&self) -> &[usize] {
         self.station.get_or_init(|| {
+            // Readings in station order (as align writes them): compacted in one pass.
+            if self.used.windows(2).all(|w| w[0].station <= w[1].station) {
+                let mut compact = 0;
+                return (0..self.used.len())
+                    .map(|i| {
+                        if i > 0 && self.used[i].station != self.used[i - 1].station {
+                            compact += 1;
+                        }
+                        compact
+                    })
+                    .collect();
+            }
             let mut ids: Vec<usize> = self.used.iter().map(|o| o.station).collect();
             ids.sort_unstable();
             ids.dedup();

@@ -14,9 +14,17 @@
 //! are the caller's ([`Observations`]).
 
 use faer::prelude::*;
+use rayon::prelude::{
+    IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
+    ParallelSlice, ParallelSliceMut,
+};
 
 /// Rows of the weighted design taken into the QR at a time.
 pub const QR_BLOCK: usize = 1024;
+
+/// Rows a parallel task takes (linearising, residuals, redundancy): fixed, so that what is
+/// summed is summed in the same order on any number of cores.
+const TASK_ROWS: usize = 16_384;
 
 /// The observations of a problem: each condition's `K` values and their sds, held as slices
 /// ([`Held`]) or formed from the caller's own records on each call, so that a large problem
@@ -188,6 +196,73 @@ fn invert_upper(r: &[f64], m: usize) -> Vec<f64> {
     (0..m * m).map(|k| inv[(k / m, k % m)]).collect()
 }
 
+/// A workspace for the thin QRs of stacked blocks of `cols` columns (at most `rows` rows):
+/// faer's Householder QR in place, sequential, in buffers kept from one block to the next.
+/// `Mat::qr` copied each block, allocated its Householder factors and scratch, and split
+/// out Q and R: a third of a million observations' adjustment.
+struct Householder {
+    x: Mat<f64>,
+    q_coeff: Mat<f64>,
+    scratch: faer::dyn_stack::MemBuffer,
+}
+
+impl Householder {
+    fn new(rows: usize, cols: usize) -> Self {
+        use faer::linalg::qr::no_pivoting::factor;
+        let block = factor::recommended_block_size::<f64>(rows, cols);
+        let req = factor::qr_in_place_scratch::<f64>(rows, cols, block, Par::Seq, default_spec());
+        Householder {
+            x: Mat::zeros(rows, cols),
+            q_coeff: Mat::zeros(cols, cols),
+            scratch: faer::dyn_stack::MemBuffer::new(req),
+        }
+    }
+
+    /// The upper triangle (row-major `cols` x `cols`) of the thin QR of the first `rows`
+    /// rows, once [`Householder::fill`] has set them.
+    fn upper(&mut self, rows: usize) -> Vec<f64> {
+        use faer::linalg::qr::no_pivoting::factor;
+        let cols = self.x.ncols();
+        let size = rows.min(cols);
+        let block = factor::recommended_block_size::<f64>(rows, cols);
+        let x = self.x.as_mut().subrows_mut(0, rows);
+        let q = self
+            .q_coeff
+            .as_mut()
+            .subrows_mut(0, block)
+            .subcols_mut(0, size);
+        factor::qr_in_place(
+            x,
+            q,
+            Par::Seq,
+            faer::dyn_stack::MemStack::new(&mut self.scratch),
+            default_spec(),
+        );
+        let mut r = vec![0.0; cols * cols];
+        for i in 0..size {
+            for j in i..cols {
+                r[i * cols + j] = self.x[(i, j)];
+            }
+        }
+        r
+    }
+
+    /// Sets the first `rows` rows to `value(i, j)`.
+    #[inline]
+    fn fill(&mut self, rows: usize, value: impl Fn(usize, usize) -> f64) {
+        for j in 0..self.x.ncols() {
+            for i in 0..rows {
+                self.x[(i, j)] = value(i, j);
+            }
+        }
+    }
+}
+
+/// faer's default settings of the QR.
+fn default_spec() -> faer::Spec<faer::linalg::qr::no_pivoting::factor::QrParams, f64> {
+    Default::default()
+}
+
 /// Adjusts the conditions `c` for observations `obs`, from parameters `p0`.
 pub fn solve<const K: usize>(
     c: &impl Conditions<K>,
@@ -202,7 +277,10 @@ pub fn solve<const K: usize>(
         return Err(GhError::TooFewObservations { n, m });
     }
     let mut p = p0.to_vec();
-    let mut v = vec![[0.0f64; K]; n];
+    // Zeroed by writing, here: a calloc's pages were faulted in by the first residuals'
+    // parallel writes, two cores contending for them.
+    let mut v = Vec::with_capacity(n);
+    v.resize(n, [0.0f64; K]);
     let mut lin = Linearised::<K>::new(n, m);
     let mut last_change = f64::INFINITY;
     for iteration in 1..=opts.max_iterations {
@@ -283,7 +361,9 @@ impl<const K: usize> Linearised<K> {
         self.norms.len()
     }
 
-    /// Linearises the conditions at `p` and the observations `l + v`.
+    /// Linearises the conditions at `p` and the observations `l + v`: the rows in parallel,
+    /// [`TASK_ROWS`] a task, the column norms summed in row order (the same bits as one
+    /// pass).
     fn at(
         &mut self,
         c: &impl Conditions<K>,
@@ -292,22 +372,39 @@ impl<const K: usize> Linearised<K> {
         v: &[[f64; K]],
     ) -> Result<(), GhError> {
         let m = self.m();
+        let zero_variance = self
+            .a
+            .par_chunks_mut(m * TASK_ROWS)
+            .zip(self.w.par_chunks_mut(TASK_ROWS))
+            .zip(self.b.par_chunks_mut(TASK_ROWS))
+            .zip(self.q.par_chunks_mut(TASK_ROWS))
+            .enumerate()
+            .filter_map(|(task, (((a, w), b), q))| {
+                let start = task * TASK_ROWS;
+                for (k, a_row) in a.chunks_exact_mut(m).enumerate() {
+                    let i = start + k;
+                    let (l, sigma) = obs.get(i);
+                    let l0: [f64; K] = std::array::from_fn(|t| l[t] + v[i][t]);
+                    let (f, bi) = c.eval(i, p, l0, a_row);
+                    let qi = (0..K).fold(0.0, |acc, t| acc + (bi[t] * sigma[t]).powi(2));
+                    if qi <= 0.0 || !qi.is_finite() {
+                        return Some(i);
+                    }
+                    w[k] = (0..K).fold(f, |acc, t| acc - bi[t] * v[i][t]);
+                    b[k] = bi;
+                    q[k] = qi;
+                }
+                None
+            })
+            .min();
+        if let Some(index) = zero_variance {
+            return Err(GhError::ZeroVariance { index });
+        }
         let mut squares = vec![0.0; m];
-        for (i, a_row) in self.a.chunks_exact_mut(m).enumerate() {
-            let (l, sigma) = obs.get(i);
-            let l0: [f64; K] = std::array::from_fn(|t| l[t] + v[i][t]);
-            let (f, bi) = c.eval(i, p, l0, a_row);
-            let wi = (0..K).fold(f, |acc, t| acc - bi[t] * v[i][t]);
-            let qi = (0..K).fold(0.0, |acc, t| acc + (bi[t] * sigma[t]).powi(2));
-            if qi <= 0.0 || !qi.is_finite() {
-                return Err(GhError::ZeroVariance { index: i });
-            }
-            for (s, x) in squares.iter_mut().zip(a_row.iter()) {
+        for (a_row, qi) in self.a.chunks_exact(m).zip(&self.q) {
+            for (s, x) in squares.iter_mut().zip(a_row) {
                 *s += x * x / qi;
             }
-            self.w[i] = wi;
-            self.b[i] = bi;
-            self.q[i] = qi;
         }
         for (norm, s) in self.norms.iter_mut().zip(squares) {
             *norm = s.sqrt();
@@ -323,17 +420,22 @@ impl<const K: usize> Linearised<K> {
 
     /// The upper triangle R (row-major (m + 1) x (m + 1)) of the QR of the weighted,
     /// equilibrated design with the weighted right-hand side `-w / sqrt(q)` as its last
-    /// column: each block of [`QR_BLOCK`] rows is factored with the triangle of the blocks
-    /// before it stacked on top.
+    /// column: each block of [`QR_BLOCK`] rows factored with the triangle of the blocks
+    /// before it stacked on top. On the calling thread, not the pool's: faer's kernels leave
+    /// the thread that ran them with the vector registers' upper halves in use, and scalar
+    /// code after them on that thread ran 10x slower (the next linearisation's sin and cos,
+    /// 250 ms where 25; `cargo xtask bench adjust`), so the rows are linearised on the pool
+    /// and factored here.
     fn triangle(&self, scale: &[f64]) -> Vec<f64> {
         let (n, m) = (self.q.len(), self.m());
         let cols = m + 1;
         let mut r = vec![0.0; cols * cols];
+        let mut qr = Householder::new(QR_BLOCK + cols, cols);
         let mut start = 0;
         while start < n {
             let rows = QR_BLOCK.min(n - start);
             let top = if start == 0 { 0 } else { cols };
-            let block = Mat::<f64>::from_fn(top + rows, cols, |i, j| {
+            qr.fill(top + rows, |i, j| {
                 if i < top {
                     r[i * cols + j]
                 } else if j < m {
@@ -343,21 +445,15 @@ impl<const K: usize> Linearised<K> {
                     -self.w[k] / self.q[k].sqrt()
                 }
             });
-            let qr = block.qr();
-            let t = qr.thin_R();
-            r.fill(0.0);
-            for i in 0..t.nrows() {
-                for j in i..cols {
-                    r[i * cols + j] = t[(i, j)];
-                }
-            }
+            r = qr.upper(top + rows);
             start += rows;
         }
         r
     }
 
     /// New residuals from the Lagrange multipliers of `step`, written into `v`; the
-    /// misclosures they take up replace `w`.
+    /// misclosures they take up replace `w`. The rows in parallel, `v^T P v` summed in row
+    /// order.
     fn residuals(
         &mut self,
         step: &Step,
@@ -368,32 +464,51 @@ impl<const K: usize> Linearised<K> {
     ) -> Result<AfterStep, GhError> {
         let m = step.dp.len();
         let rounding = 1e-13;
-        let mut after = AfterStep {
-            vtpv: 0.0,
-            settled: true,
-            change: 0.0,
-        };
-        for (i, a_row) in self.a.chunks_exact(m).enumerate() {
-            let (l, sigma) = obs.get(i);
-            let adp: f64 = a_row.iter().zip(&step.dp).map(|(a, d)| a * d).sum();
-            let e = self.w[i] + adp;
-            let k = -e / self.q[i];
-            let nv: [f64; K] = std::array::from_fn(|t| sigma[t].powi(2) * self.b[i][t] * k);
-            for t in 0..K {
-                let limit = opts.tolerance * sigma[t] + rounding * l[t].abs();
-                if sigma[t] > 0.0 && (nv[t] - v[i][t]).abs() > limit {
-                    after.settled = false;
-                    after.change = after.change.max((nv[t] - v[i][t]).abs() / sigma[t]);
+        let (settled, change) = self
+            .a
+            .par_chunks(m * TASK_ROWS)
+            .zip(self.w.par_chunks_mut(TASK_ROWS))
+            .zip(v.par_chunks_mut(TASK_ROWS))
+            .enumerate()
+            .map(|(task, ((a, w), v))| {
+                let start = task * TASK_ROWS;
+                let mut settled = true;
+                let mut change: f64 = 0.0;
+                for (k, a_row) in a.chunks_exact(m).enumerate() {
+                    let i = start + k;
+                    let (l, sigma) = obs.get(i);
+                    let adp: f64 = a_row.iter().zip(&step.dp).map(|(a, d)| a * d).sum();
+                    let e = w[k] + adp;
+                    let lambda = -e / self.q[i];
+                    let nv: [f64; K] =
+                        std::array::from_fn(|t| sigma[t].powi(2) * self.b[i][t] * lambda);
+                    for t in 0..K {
+                        let limit = opts.tolerance * sigma[t] + rounding * l[t].abs();
+                        if sigma[t] > 0.0 && (nv[t] - v[k][t]).abs() > limit {
+                            settled = false;
+                            change = change.max((nv[t] - v[k][t]).abs() / sigma[t]);
+                        }
+                    }
+                    v[k] = nv;
+                    w[k] = -e;
                 }
-            }
-            v[i] = nv;
-            after.vtpv += e * e / self.q[i];
-            self.w[i] = -e;
-        }
-        if !after.vtpv.is_finite() {
+                (settled, change)
+            })
+            .reduce(|| (true, 0.0), |x, y| (x.0 && y.0, x.1.max(y.1)));
+        let vtpv = self
+            .w
+            .iter()
+            .zip(&self.q)
+            .map(|(w, q)| w * w / q)
+            .sum::<f64>();
+        if !vtpv.is_finite() {
             return Err(GhError::NonFinite { iteration });
         }
-        Ok(after)
+        Ok(AfterStep {
+            vtpv,
+            settled,
+            change,
+        })
     }
 
     /// Each condition's redundancy 1 - h_i, with the leverage h_i = || R^-T a~_i ||^2 of
@@ -402,27 +517,30 @@ impl<const K: usize> Linearised<K> {
         let n = self.q.len();
         let m = step.dp.len();
         let r = &step.r;
-        let mut redundancy = vec![0.0; n];
-        let mut w_test = vec![0.0; n];
-        let mut z = vec![0.0; m];
-        for i in 0..n {
-            for k in 0..m {
-                let mut s = self.design(i, k, &step.scale);
-                for t in 0..k {
-                    s -= r[t * m + k] * z[t];
-                }
-                z[k] = s / r[k * m + k];
-            }
-            let h: f64 = z.iter().map(|x| x * x).sum();
-            let ri = (1.0 - h).max(0.0);
-            redundancy[i] = ri;
-            w_test[i] = if ri > 1e-9 {
-                self.w[i] / (self.q[i] * ri).sqrt()
-            } else {
-                0.0
-            };
-        }
-        (redundancy, w_test)
+        (0..n)
+            .into_par_iter()
+            .with_min_len(TASK_ROWS)
+            .map_init(
+                || vec![0.0; m],
+                |z, i| {
+                    for k in 0..m {
+                        let mut s = self.design(i, k, &step.scale);
+                        for t in 0..k {
+                            s -= r[t * m + k] * z[t];
+                        }
+                        z[k] = s / r[k * m + k];
+                    }
+                    let h: f64 = z.iter().map(|x| x * x).sum();
+                    let ri = (1.0 - h).max(0.0);
+                    let w = if ri > 1e-9 {
+                        self.w[i] / (self.q[i] * ri).sqrt()
+                    } else {
+                        0.0
+                    };
+                    (ri, w)
+                },
+            )
+            .unzip()
     }
 
     /// The solution at the settled step: the linearisation's vectors become its own.
@@ -438,7 +556,8 @@ impl<const K: usize> Linearised<K> {
         let (redundancy, w_test) = self.redundancy(&step);
         let q_parts = self
             .b
-            .iter()
+            .par_iter()
+            .with_min_len(TASK_ROWS)
             .enumerate()
             .map(|(i, bi)| {
                 let sigma = obs.get(i).1;
