@@ -423,9 +423,9 @@ impl<const K: usize> Linearised<K> {
     /// column: each block of [`QR_BLOCK`] rows factored with the triangle of the blocks
     /// before it stacked on top. On the calling thread, not the pool's: faer's kernels leave
     /// the thread that ran them with the vector registers' upper halves in use, and scalar
-    /// code after them on that thread ran 10x slower (the next linearisation's sin and cos,
-    /// 250 ms where 25; `cargo xtask bench adjust`), so the rows are linearised on the pool
-    /// and factored here.
+    /// code after them on that thread ran several times slower (the next linearisation's
+    /// sin and cos; docs/benchmarks.md, Adjust), so the rows are linearised on the pool and
+    /// factored here.
     fn triangle(&self, scale: &[f64]) -> Vec<f64> {
         let (n, m) = (self.q.len(), self.m());
         let cols = m + 1;
