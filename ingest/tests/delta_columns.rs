@@ -100,11 +100,11 @@ impl Table {
             w.write_row_group(
                 end - start,
                 &[
-                    ColumnValues::Int64(self.t[start..end].to_vec(), None),
-                    ColumnValues::Int32(c, cl),
-                    ColumnValues::Int32(z, zl),
-                    ColumnValues::Int64(wv, wl),
-                    ColumnValues::Double(d, dl),
+                    ("t", ColumnValues::Int64(self.t[start..end].to_vec(), None)),
+                    ("c", ColumnValues::Int32(c, cl)),
+                    ("z", ColumnValues::Int32(z, zl)),
+                    ("w", ColumnValues::Int64(wv, wl)),
+                    ("d", ColumnValues::Double(d, dl)),
                 ],
             )
             .expect("row group");

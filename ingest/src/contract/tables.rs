@@ -48,11 +48,11 @@ fn with_sessions(fields: Vec<Field>, sessions: &[String]) -> SchemaRef {
 /// A table's columns given by name, put in its schema's order: a column named twice, one
 /// the schema lacks or one not given is an error naming the table (a bug, never data), so a
 /// reordered list can never write one column's values under another's name.
-pub(crate) fn in_schema_order(
+pub(crate) fn in_schema_order<'s>(
     path: &std::path::Path,
-    schema: &Schema,
+    schema: &'s Schema,
     columns: Vec<(&str, arrow_array::ArrayRef)>,
-) -> crate::Result<Vec<arrow_array::ArrayRef>> {
+) -> crate::Result<Vec<(&'s str, arrow_array::ArrayRef)>> {
     let bad = |message: String| crate::Error::Table {
         path: path.to_path_buf(),
         message,
@@ -69,7 +69,10 @@ pub(crate) fn in_schema_order(
     slots
         .into_iter()
         .zip(schema.fields())
-        .map(|(c, f)| c.ok_or_else(|| bad(format!("column `{}` not given", f.name()))))
+        .map(|(c, f)| {
+            c.map(|c| (f.name().as_str(), c))
+                .ok_or_else(|| bad(format!("column `{}` not given", f.name())))
+        })
         .collect()
 }
 
@@ -164,7 +167,9 @@ mod tests {
         let path = std::path::Path::new("t.parquet");
         let ordered = in_schema_order(path, &schema, vec![("b", col(2.0)), ("a", col(1.0))])
             .expect("both given");
-        assert_eq!(ordered[0].as_ref(), col(1.0).as_ref());
+        assert_eq!(ordered[0].0, "a");
+        assert_eq!(ordered[0].1.as_ref(), col(1.0).as_ref());
+        assert_eq!(ordered[1].0, "b");
         for (given, says) in [
             (vec![("a", col(1.0))], "column `b` not given"),
             (

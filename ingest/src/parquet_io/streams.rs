@@ -6,8 +6,8 @@ use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::parquet_io::rowgroup::{N, Spare, column, nullable, session_values, whole};
 use crate::parquet_io::table::{
-    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, STREAM_ROWS_PER_GROUP,
-    Written,
+    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Named,
+    STREAM_ROWS_PER_GROUP, Written, buffers,
 };
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -85,8 +85,8 @@ pub struct SessionStats {
 
 enum Message {
     /// A row group: rows and columns.
-    Acceleration(usize, Vec<ColumnValues>),
-    Temperature(usize, Vec<ColumnValues>),
+    Acceleration(usize, Named),
+    Temperature(usize, Named),
     /// All row groups sent: close the files and rename them into place.
     Finish,
 }
@@ -105,7 +105,7 @@ fn write_tables(
             Message::Acceleration(rows, cols) => {
                 acceleration.write_row_group(rows, &cols)?;
                 // The reader may have gone; then the buffers are simply freed.
-                let _ = spent.send(cols);
+                let _ = spent.send(buffers(cols));
             }
             Message::Temperature(rows, cols) => temperature.write_row_group(rows, &cols)?,
             Message::Finish => {
@@ -300,8 +300,11 @@ impl StreamWriter {
         // Nearly always no status bit is set in a whole row group: nothing to look at per row.
         let any_bit = status.iter().fold(0u8, |a, &s| a | s);
         let mut cols = Vec::with_capacity(6);
-        cols.push(session_values(self.session, n, self.spare.int32()));
-        cols.push(ColumnValues::Int64(time, None));
+        cols.push((
+            tables::SESSION_INDEX,
+            session_values(self.session, n, self.spare.int32()),
+        ));
+        cols.push((tables::TIME_GPS_NS, ColumnValues::Int64(time, None)));
         for (ch, values) in counts.into_iter().enumerate() {
             let (nc, or) = (not_connected_bit(ch), over_range_bit(ch));
             let (values, levels) = if any_bit & (nc | or) == 0 {
@@ -325,9 +328,12 @@ impl StreamWriter {
                     .collect();
                 nullable(values, &valid)
             };
-            cols.push(ColumnValues::Int32(values, levels));
+            cols.push((
+                tables::acceleration::COUNTS[ch],
+                ColumnValues::Int32(values, levels),
+            ));
         }
-        cols.push(status_values(status, self.spare.int32()));
+        cols.push((tables::STATUS, status_values(status, self.spare.int32())));
         self.send(Message::Acceleration(n, cols))
     }
 
@@ -338,14 +344,22 @@ impl StreamWriter {
         let c = self.temp.take();
         let n = c.time.len();
         let mut cols = vec![
-            session_values(self.session, n, Vec::new()),
-            ColumnValues::Int64(c.time, None),
+            (
+                tables::SESSION_INDEX,
+                session_values(self.session, n, Vec::new()),
+            ),
+            (tables::TIME_GPS_NS, ColumnValues::Int64(c.time, None)),
         ];
-        for (values, valid) in c.values.into_iter().zip(&c.valid) {
+        for ((values, valid), name) in c
+            .values
+            .into_iter()
+            .zip(&c.valid)
+            .zip(tables::temperature::TEMPERATURE_C)
+        {
             let (values, levels) = nullable(values, valid);
-            cols.push(ColumnValues::Double(values, levels));
+            cols.push((name, ColumnValues::Double(values, levels)));
         }
-        cols.push(status_values(&c.status, Vec::new()));
+        cols.push((tables::STATUS, status_values(&c.status, Vec::new())));
         self.send(Message::Temperature(n, cols))
     }
 

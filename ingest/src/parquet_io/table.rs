@@ -203,8 +203,26 @@ impl TableWriter {
         })
     }
 
-    /// Appends one batch built from `columns` (in schema order).
-    pub fn write(&mut self, columns: Vec<ArrayRef>) -> Result<()> {
+    /// Appends one batch built from `columns`, in schema order, each with its name: one
+    /// under another name than the schema's at its place is an error naming both (a column
+    /// count that differs is Arrow's error).
+    pub fn write<S: AsRef<str>>(&mut self, columns: Vec<(S, ArrayRef)>) -> Result<()> {
+        let fields = self.schema.fields();
+        if let Some((index, (given, _))) = columns
+            .iter()
+            .enumerate()
+            .find(|(i, (name, _))| fields.get(*i).is_none_or(|f| f.name() != name.as_ref()))
+        {
+            return Err(Error::Table {
+                path: self.file.path.clone(),
+                message: format!(
+                    "column {index} is given as {}, the schema's is {}",
+                    given.as_ref(),
+                    fields.get(index).map_or("none", |f| f.name().as_str())
+                ),
+            });
+        }
+        let columns = columns.into_iter().map(|(_, c)| c).collect();
         let batch =
             RecordBatch::try_new(self.schema.clone(), columns).map_err(|source| Error::Arrow {
                 path: self.file.path.clone(),
@@ -320,9 +338,16 @@ impl ColumnTableWriter {
         self
     }
 
-    /// Writes one row group of `rows` rows; `columns` in schema order. A group of no rows is
-    /// not written.
-    pub fn write_row_group(&mut self, rows: usize, columns: &[ColumnValues]) -> Result<()> {
+    /// Writes one row group of `rows` rows; `columns` in schema order, each with its name:
+    /// a column given under another name than the schema's at its place is an error naming
+    /// both (every column of a table of doubles is a double, so an order slipped between
+    /// the producer and the schema would otherwise write wrong data without a word). A group
+    /// of no rows is not written.
+    pub fn write_row_group<S: AsRef<str> + Sync>(
+        &mut self,
+        rows: usize,
+        columns: &[(S, ColumnValues)],
+    ) -> Result<()> {
         let parquet_error = |e| self.file.parquet_error(e);
         let w = &mut self.writer;
         let schema = w.schema_descr();
@@ -333,11 +358,22 @@ impl ColumnTableWriter {
                 schema.num_columns()
             ))));
         }
+        if let Some((index, (given, _))) = columns
+            .iter()
+            .enumerate()
+            .find(|(i, (name, _))| schema.column(*i).name() != name.as_ref())
+        {
+            return Err(parquet_error(ParquetError::General(format!(
+                "column {index} is given as {}, the schema's is {}",
+                given.as_ref(),
+                schema.column(index).name()
+            ))));
+        }
         if rows == 0 {
             return Ok(());
         }
         let props = w.properties().clone();
-        let encode = |(index, values): (usize, &ColumnValues)| {
+        let encode = |(index, (_, values)): (usize, &(S, ColumnValues))| {
             encode_column(schema.column(index), props.clone(), values)
                 .map_err(|e| ParquetError::General(format!("column {index}: {e}")))
         };
@@ -391,6 +427,15 @@ impl ColumnTableWriter {
         let sha256 = self.file.commit(self.writer.into_inner())?;
         Ok((self.rows, sha256))
     }
+}
+
+/// A row group's columns with their names, as [`ColumnTableWriter::write_row_group`] takes
+/// them.
+pub type Named = Vec<(&'static str, ColumnValues)>;
+
+/// The columns of a row group without their names: their buffers, for the next row group.
+pub fn buffers<S>(columns: Vec<(S, ColumnValues)>) -> Vec<ColumnValues> {
+    columns.into_iter().map(|(_, c)| c).collect()
 }
 
 /// Rows per data page of the columns ingest encodes itself (`encode_own_pages`): a
@@ -871,6 +916,11 @@ mod tests {
         ))
     }
 
+    /// `columns` named as [`schema`]'s, in its order.
+    fn named(columns: Vec<ColumnValues>) -> Vec<(&'static str, ColumnValues)> {
+        ["s", "t", "c", "x", "b"].into_iter().zip(columns).collect()
+    }
+
     /// A column table `t.parquet` of [`schema`] in `dir`.
     fn writer(dir: &Path, encodings: Encodings<'_>) -> ColumnTableWriter {
         ColumnTableWriter::create(dir, "t.parquet", schema(), encodings).expect("create")
@@ -898,8 +948,8 @@ mod tests {
                 ColumnValues::Int32(vec![0, 0b0010_0000, 255], None),
             ]
         };
-        w.write_row_group(3, &group(10)).expect("group 1");
-        w.write_row_group(3, &group(20)).expect("group 2");
+        w.write_row_group(3, &named(group(10))).expect("group 1");
+        w.write_row_group(3, &named(group(20))).expect("group 2");
         assert!(
             !dir.path().join("t.parquet").exists(),
             "renamed only at the end"
@@ -963,13 +1013,13 @@ mod tests {
         );
         w.write_row_group(
             2,
-            &[
+            &named(vec![
                 ColumnValues::Int32(vec![1, 2], None),
                 ColumnValues::Int64(vec![3, 4], None),
                 ColumnValues::Int32(vec![5, 6], None),
                 ColumnValues::Double(vec![7.5, 8.5], None),
                 ColumnValues::Int32(vec![9, 10], None),
-            ],
+            ]),
         )
         .expect("row group");
         w.finish().expect("finish");
@@ -1025,12 +1075,12 @@ mod tests {
                 "column 1: Parquet error: definition levels for a required column",
             ),
         ] {
-            let e = w.write_row_group(2, &columns).expect_err(message);
+            let e = w.write_row_group(2, &named(columns)).expect_err(message);
             assert!(e.to_string().contains(message), "{e}");
         }
         // Columns of other lengths than the row group's.
         let e = w
-            .write_row_group(3, &group(None, vec![5, 6], None))
+            .write_row_group(3, &named(group(None, vec![5, 6], None)))
             .expect_err("3 rows");
         assert!(
             e.to_string()
@@ -1038,9 +1088,35 @@ mod tests {
             "{e}"
         );
         // None of it touched the file.
-        w.write_row_group(2, &group(None, vec![5, 6], None))
+        w.write_row_group(2, &named(group(None, vec![5, 6], None)))
             .expect("a good row group after the bad ones");
         assert_eq!(w.finish().expect("finish"), 2);
+    }
+
+    /// The Arrow writer takes columns by name too: a slipped order is refused naming the
+    /// column and the table, and the table stays good for the next batch.
+    #[test]
+    fn table_writer_refuses_columns_under_other_names() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut w = TableWriter::create(dir.path(), "t.parquet", schema(), Encodings::default())
+            .expect("create");
+        let columns = |c: &'static str, x: &'static str| -> Vec<(&'static str, ArrayRef)> {
+            vec![
+                ("s", Arc::new(UInt16Array::from(vec![1]))),
+                ("t", Arc::new(Int64Array::from(vec![2]))),
+                (c, Arc::new(Int32Array::from(vec![3]))),
+                (x, Arc::new(Float64Array::from(vec![4.5]))),
+                ("b", Arc::new(UInt8Array::from(vec![5]))),
+            ]
+        };
+        let e = w.write(columns("x", "c")).expect_err("names slipped");
+        assert!(
+            e.to_string()
+                .contains("t.parquet: column 2 is given as x, the schema's is c"),
+            "{e}"
+        );
+        w.write(columns("c", "x")).expect("the right names");
+        assert_eq!(w.finish().expect("finish"), 1);
     }
 
     /// Values of the wrong type, or more columns than the schema has, are errors naming the
@@ -1051,7 +1127,7 @@ mod tests {
         let create = || writer(dir.path(), Encodings::default());
         let mut w = create();
         let e = w
-            .write_row_group(1, &[ColumnValues::Int64(vec![1], None)])
+            .write_row_group(1, &[("s", ColumnValues::Int64(vec![1], None))])
             .expect_err("wrong type");
         assert!(
             e.to_string()
@@ -1060,18 +1136,30 @@ mod tests {
         );
         drop(w);
         let mut w = create();
-        let mut six = vec![
+        let six = vec![
             ColumnValues::Int32(vec![1], None),
             ColumnValues::Int64(vec![1], None),
             ColumnValues::Int32(vec![1], Some(vec![1])),
             ColumnValues::Double(vec![1.0], Some(vec![1])),
             ColumnValues::Int32(vec![1], None),
         ];
-        six.push(ColumnValues::Int32(vec![1], None));
+        let mut six = named(six);
+        six.push(("y", ColumnValues::Int32(vec![1], None)));
         let e = w.write_row_group(1, &six).expect_err("six columns");
         assert!(e.to_string().contains("6 columns given"), "{e}");
         six.pop();
-        six.swap(0, 1);
+        // Columns in another order than the schema's, each under its own name: refused by
+        // name before any value is looked at.
+        six.swap(2, 3);
+        let e = w.write_row_group(1, &six).expect_err("a slipped order");
+        assert!(
+            e.to_string()
+                .contains("t.parquet: Parquet error: column 2 is given as x, the schema's is c"),
+            "{e}"
+        );
+        six.swap(2, 3);
+        let (first, rest) = six.split_at_mut(1);
+        std::mem::swap(&mut first[0].1, &mut rest[0].1);
         let e = w.write_row_group(1, &six).expect_err("wrong types");
         assert!(
             e.to_string().contains(

@@ -25,7 +25,7 @@ use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::parquet_io::rowgroup::{N, Spare, column, nullable, session_values, whole};
 use crate::parquet_io::table::{
-    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Written,
+    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Named, Written, buffers,
 };
 use crate::readers::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
 use std::collections::{BTreeMap, VecDeque};
@@ -60,7 +60,7 @@ struct LabColumns {
 /// What the lab table's writer thread is told.
 enum ToWriter {
     /// A row group: rows and columns.
-    RowGroup(usize, Vec<ColumnValues>),
+    RowGroup(usize, Named),
     /// Close the table and rename it into place.
     Finish,
 }
@@ -78,7 +78,7 @@ fn write_lab(
             ToWriter::RowGroup(rows, columns) => {
                 table.write_row_group(rows, &columns)?;
                 // The reader may have gone; then the buffers are simply freed.
-                let _ = spent.send(columns);
+                let _ = spent.send(buffers(columns));
             }
             ToWriter::Finish => return table.finish_hashed(),
         }
@@ -181,8 +181,11 @@ impl LabWriter {
         // Nearly always no reading of a row group is null: nothing to look at per row.
         let any_null = nulls.iter().fold(0u8, |a, &s| a | s);
         let mut columns = Vec::with_capacity(6);
-        columns.push(session_values(rows.session, n, spare.int32()));
-        columns.push(ColumnValues::Int64(time, None));
+        columns.push((
+            tables::SESSION_INDEX,
+            session_values(rows.session, n, spare.int32()),
+        ));
+        columns.push((tables::TIME_GPS_NS, ColumnValues::Int64(time, None)));
         for (ch, values) in rows.values.iter_mut().enumerate() {
             let values = column(std::mem::replace(values, whole(spare.double())), n);
             let bit = 1u8 << ch;
@@ -192,9 +195,12 @@ impl LabWriter {
                 let valid: Vec<bool> = nulls.iter().map(|&s| s & bit == 0).collect();
                 nullable(values, &valid)
             };
-            columns.push(ColumnValues::Double(values, levels));
+            columns.push((
+                tables::lab::VALUES[ch],
+                ColumnValues::Double(values, levels),
+            ));
         }
-        columns.push(ColumnValues::Int64(line, None));
+        columns.push((tables::lab::LINE, ColumnValues::Int64(line, None)));
         rows.len = 0;
         let sent = self
             .to_writer

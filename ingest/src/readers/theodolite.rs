@@ -182,34 +182,59 @@ impl TheodoliteWriter {
         readings: &[Reading],
     ) -> Result<()> {
         let n = readings.len();
-        let cols: Vec<ArrayRef> = vec![
-            session_column(session, n),
-            Arc::new(StringArray::from_iter_values(
-                readings.iter().map(|r| r.station.as_str()),
-            )),
-            Arc::new(Int64Array::from_iter_values(
-                readings.iter().map(|r| r.time_gps_ns),
-            )),
-            Arc::new(Float64Array::from_iter_values(
-                readings.iter().map(|r| r.dz_rad),
-            )),
-            Arc::new(Float64Array::from_iter_values(
-                readings.iter().map(|r| r.dz_value),
-            )),
-            Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
-                unit.name(),
-                n,
-            ))),
-            Arc::new(StringArray::from_iter_values(
-                readings.iter().map(|r| r.time_as_read.as_str()),
-            )),
-            Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
-                scale_name(scale),
-                n,
-            ))),
-            Arc::new(UInt32Array::from_iter_values(
-                readings.iter().map(|r| r.line),
-            )),
+        use crate::contract::tables::{SESSION, TIME_GPS_NS, theodolite};
+        let cols: Vec<(&str, ArrayRef)> = vec![
+            (SESSION, session_column(session, n)),
+            (
+                theodolite::STATION,
+                Arc::new(StringArray::from_iter_values(
+                    readings.iter().map(|r| r.station.as_str()),
+                )),
+            ),
+            (
+                TIME_GPS_NS,
+                Arc::new(Int64Array::from_iter_values(
+                    readings.iter().map(|r| r.time_gps_ns),
+                )),
+            ),
+            (
+                theodolite::DZ_RAD,
+                Arc::new(Float64Array::from_iter_values(
+                    readings.iter().map(|r| r.dz_rad),
+                )),
+            ),
+            (
+                theodolite::DZ_VALUE,
+                Arc::new(Float64Array::from_iter_values(
+                    readings.iter().map(|r| r.dz_value),
+                )),
+            ),
+            (
+                theodolite::DZ_UNIT,
+                Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
+                    unit.name(),
+                    n,
+                ))),
+            ),
+            (
+                theodolite::TIME_AS_READ,
+                Arc::new(StringArray::from_iter_values(
+                    readings.iter().map(|r| r.time_as_read.as_str()),
+                )),
+            ),
+            (
+                theodolite::TIME_SCALE,
+                Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
+                    scale_name(scale),
+                    n,
+                ))),
+            ),
+            (
+                theodolite::LINE,
+                Arc::new(UInt32Array::from_iter_values(
+                    readings.iter().map(|r| r.line),
+                )),
+            ),
         ];
         self.table.write(cols)
     }

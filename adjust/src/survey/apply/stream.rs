@@ -376,7 +376,7 @@ fn write_table<'t>(
     let mut rows = 0u64;
     // The writer encodes and writes a row group on its own thread while the next one is
     // read and calibrated.
-    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Vec<ColumnValues>)>(1);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Vec<(String, ColumnValues)>)>(1);
     let (reading, writing) = std::thread::scope(|scope| {
         let writing = scope.spawn(move || -> Result<(u64, String), ingest::Error> {
             for (n, columns) in rx {
@@ -454,7 +454,7 @@ fn applied_writer(
 struct Sender<'a, 't> {
     rows: &'a mut u64,
     lanes: &'a mut [Lane<'t>],
-    tx: &'a std::sync::mpsc::SyncSender<(usize, Vec<ColumnValues>)>,
+    tx: &'a std::sync::mpsc::SyncSender<(usize, Vec<(String, ColumnValues)>)>,
     max_gap_ns: i64,
     table: &'a Path,
 }
@@ -465,8 +465,14 @@ impl Sender<'_, '_> {
         let n = b.session().len();
         *self.rows += n as u64;
         let mut columns = vec![
-            ColumnValues::Int32(b.session().iter().map(|&s| i32::from(s)).collect(), None),
-            ColumnValues::Int64(b.time_ns().to_vec(), None),
+            (
+                tables::SESSION_INDEX.to_owned(),
+                ColumnValues::Int32(b.session().iter().map(|&s| i32::from(s)).collect(), None),
+            ),
+            (
+                tables::TIME_GPS_NS.to_owned(),
+                ColumnValues::Int64(b.time_ns().to_vec(), None),
+            ),
         ];
         let max_gap_ns = self.max_gap_ns;
         let per: Vec<[ColumnValues; 4]> = self
@@ -474,7 +480,9 @@ impl Sender<'_, '_> {
             .par_iter_mut()
             .map(|lane| lane.calibrate(b, max_gap_ns))
             .collect();
-        columns.extend(per.into_iter().flatten());
+        for (lane, values) in self.lanes.iter().zip(per) {
+            columns.extend(lane.names.iter().cloned().zip(values));
+        }
         // A closed channel means the writer failed: reading stops, and the writer's error
         // is the one reported.
         self.tx.send((n, columns)).map_err(|_| align::Error::Table {
@@ -545,6 +553,8 @@ impl SampleBatch for tables::lab::Batch<'_> {
 struct Lane<'t> {
     /// Channel, 0-based.
     channel: usize,
+    /// Its four columns' names in the applied table ([`applied::columns`]).
+    names: [String; 4],
     function: Option<&'t CalibrationFunction>,
     /// Per session index: the interpolator over its temperature series.
     temperatures: Vec<Option<Interpolator<'t>>>,
@@ -558,6 +568,7 @@ impl<'t> Lane<'t> {
         let channel = target.accelerometer.channel;
         Lane {
             channel: usize::from(channel).saturating_sub(1),
+            names: applied::columns(&target.accelerometer.id),
             function: target.function.as_ref().ok(),
             temperatures: (0..sessions)
                 .map(|s| {

@@ -254,21 +254,32 @@ impl Columns {
         self.flags.push(i32::from(flags));
     }
 
-    fn take(&mut self) -> (usize, Vec<ColumnValues>) {
+    /// The row group's columns, each named for its column of the triad table.
+    fn take(&mut self) -> (usize, ingest::parquet_io::table::Named) {
+        use ingest::contract::tables::{SESSION_INDEX, TIME_GPS_NS, applied::TRIAD_COLUMNS};
         let n = self.time.len();
         let all = self.values[0].len() == n;
         let def = std::mem::take(&mut self.def);
         let mut cols = vec![
-            ColumnValues::Int32(std::mem::take(&mut self.session), None),
-            ColumnValues::Int64(std::mem::take(&mut self.time), None),
+            (
+                SESSION_INDEX,
+                ColumnValues::Int32(std::mem::take(&mut self.session), None),
+            ),
+            (
+                TIME_GPS_NS,
+                ColumnValues::Int64(std::mem::take(&mut self.time), None),
+            ),
         ];
-        for v in &mut self.values {
-            cols.push(ColumnValues::Double(
-                std::mem::take(v),
-                (!all).then(|| def.clone()),
+        for (v, name) in self.values.iter_mut().zip(TRIAD_COLUMNS) {
+            cols.push((
+                name,
+                ColumnValues::Double(std::mem::take(v), (!all).then(|| def.clone())),
             ));
         }
-        cols.push(ColumnValues::Int32(std::mem::take(&mut self.flags), None));
+        cols.push((
+            TRIAD_COLUMNS[9],
+            ColumnValues::Int32(std::mem::take(&mut self.flags), None),
+        ));
         (n, cols)
     }
 }

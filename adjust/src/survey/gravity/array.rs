@@ -440,24 +440,30 @@ pub(super) fn write_attitude_table(
         ingest::parquet_io::table::Encodings::default(),
     )?;
     for (index, rows) in tables {
-        let mut columns: Vec<ArrayRef> = vec![
-            Arc::new(UInt16Array::from(vec![*index; rows.len()])),
-            Arc::new(Int64Array::from(
-                rows.iter().map(|r| r.time_gps_ns).collect::<Vec<_>>(),
-            )),
+        use ingest::contract::tables::{SESSION_INDEX, TIME_GPS_NS};
+        let mut columns: Vec<(&str, ArrayRef)> = vec![
+            (
+                SESSION_INDEX,
+                Arc::new(UInt16Array::from(vec![*index; rows.len()])),
+            ),
+            (
+                TIME_GPS_NS,
+                Arc::new(Int64Array::from(
+                    rows.iter().map(|r| r.time_gps_ns).collect::<Vec<_>>(),
+                )),
+            ),
         ];
         // A value the array does not give (NaN: two antennas' roll) is null.
-        for c in 0..attitude::FLOATS.len() {
-            columns.push(Arc::new(Float64Array::from(
-                rows.iter()
-                    .map(|r| Some(r.values[c]).filter(|v| !v.is_nan()))
-                    .collect::<Vec<_>>(),
-            )));
+        for (c, name) in attitude::FLOATS.into_iter().enumerate() {
+            let values: Vec<Option<f64>> = rows
+                .iter()
+                .map(|r| Some(r.values[c]).filter(|v| !v.is_nan()))
+                .collect();
+            columns.push((name, Arc::new(Float64Array::from(values))));
         }
-        for m in 0..attitude::MASKS.len() {
-            columns.push(Arc::new(UInt32Array::from(
-                rows.iter().map(|r| r.masks[m]).collect::<Vec<_>>(),
-            )));
+        for (m, name) in attitude::MASKS.into_iter().enumerate() {
+            let masks: Vec<u32> = rows.iter().map(|r| r.masks[m]).collect();
+            columns.push((name, Arc::new(UInt32Array::from(masks))));
         }
         w.write(columns)?;
     }

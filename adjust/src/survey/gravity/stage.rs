@@ -2048,13 +2048,23 @@ impl Rows {
         if n_rows == 0 {
             return Ok(());
         }
-        let mut columns: Vec<ArrayRef> = vec![
-            Arc::new(UInt16Array::from(std::mem::take(&mut self.session))),
-            Arc::new(Int64Array::from(std::mem::take(&mut self.time))),
-            Arc::new(UInt32Array::from(std::mem::take(&mut self.stretch))),
+        use ingest::contract::tables::{SESSION_INDEX, TIME_GPS_NS};
+        let mut columns: Vec<(&str, ArrayRef)> = vec![
+            (
+                SESSION_INDEX,
+                Arc::new(UInt16Array::from(std::mem::take(&mut self.session))),
+            ),
+            (
+                TIME_GPS_NS,
+                Arc::new(Int64Array::from(std::mem::take(&mut self.time))),
+            ),
+            (
+                gravity::STRETCH,
+                Arc::new(UInt32Array::from(std::mem::take(&mut self.stretch))),
+            ),
         ];
-        for f in &mut self.floats {
-            columns.push(Arc::new(Float64Array::from(std::mem::take(f))));
+        for (f, name) in self.floats.iter_mut().zip(gravity::FLOATS) {
+            columns.push((name, Arc::new(Float64Array::from(std::mem::take(f)))));
         }
         let flags = std::mem::take(&mut self.flags);
         // A sigma that needs the attitude's sds is null where the file gives none.
@@ -2070,25 +2080,26 @@ impl Rows {
         });
         for (f, name) in self.horizontal.iter_mut().zip(gravity::HORIZONTAL) {
             let f = std::mem::take(f);
-            columns.push(Arc::new(match &valid {
+            let column = match &valid {
                 Some((v, _)) if !gravity::NEEDS_ATTITUDE_SD.contains(&name) => {
                     Float64Array::new(f.into(), Some(v.clone()))
                 }
                 Some((_, v)) => Float64Array::new(f.into(), Some(v.clone())),
                 None => Float64Array::new_null(n_rows),
-            }));
+            };
+            columns.push((name, Arc::new(column)));
         }
-        for (f, valid) in self.named.iter_mut().zip(&mut self.named_valid) {
+        let named = self.named.iter_mut().zip(&mut self.named_valid);
+        for ((f, valid), name) in named.zip(gravity::NAMED) {
             let valid = arrow_buffer::NullBuffer::from(std::mem::take(valid));
-            columns.push(Arc::new(Float64Array::new(
-                std::mem::take(f).into(),
-                Some(valid),
-            )));
+            let column = Float64Array::new(std::mem::take(f).into(), Some(valid));
+            columns.push((name, Arc::new(column)));
         }
-        columns.push(Arc::new(UInt8Array::from(flags)));
-        columns.push(Arc::new(UInt32Array::from(std::mem::take(
-            &mut self.status,
-        ))));
+        columns.push((gravity::FLAGS, Arc::new(UInt8Array::from(flags))));
+        columns.push((
+            gravity::METER_STATUS_WORD,
+            Arc::new(UInt32Array::from(std::mem::take(&mut self.status))),
+        ));
         self.writer.write(columns)?;
         self.writer.flush()?;
         Ok(())

@@ -169,7 +169,7 @@ pub fn write(dir: &std::path::Path, obs: &[Observation]) -> crate::Result<u64> {
     let mut table = TableWriter::create(
         dir,
         FILE,
-        schema,
+        schema.clone(),
         Encodings {
             dictionary: &[SESSION, ACCELEROMETER, STATION],
             ..Default::default()

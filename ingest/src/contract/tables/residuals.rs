@@ -171,7 +171,7 @@ pub fn write(dir: &std::path::Path, rows: &[Fitted<'_>]) -> crate::Result<u64> {
     let mut t = TableWriter::create(
         dir,
         FILE,
-        schema,
+        schema.clone(),
         Encodings {
             dictionary: &[MODEL, ACCELEROMETER, FIT_SESSION, SESSION, STATION],
             ..Default::default()
