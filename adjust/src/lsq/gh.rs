@@ -11,7 +11,9 @@
 //! triangle of the blocks before it), so the weighted design is formed a block at a time
 //! from `A` and never held whole. Time O(N m^2), memory O(N (m + 3 K)): `A`, the
 //! residuals, `B` and each condition's misclosure and variance; the observations themselves
-//! are the caller's ([`Observations`]).
+//! are the caller's ([`Observations`]). The per-condition passes (linearising, residuals,
+//! redundancy) run on the rayon pool in fixed tasks of [`TASK_ROWS`] rows, their sums taken
+//! in row order; the QR on the calling thread ([`Linearised::triangle`] says why).
 
 use faer::prelude::*;
 use rayon::prelude::{
@@ -198,8 +200,8 @@ fn invert_upper(r: &[f64], m: usize) -> Vec<f64> {
 
 /// A workspace for the thin QRs of stacked blocks of `cols` columns (at most `rows` rows):
 /// faer's Householder QR in place, sequential, in buffers kept from one block to the next.
-/// `Mat::qr` copied each block, allocated its Householder factors and scratch, and split
-/// out Q and R: a third of a million observations' adjustment.
+/// (`Mat::qr` copies each block, allocates its Householder factors and scratch, and splits
+/// out Q and R.)
 struct Householder {
     x: Mat<f64>,
     q_coeff: Mat<f64>,
