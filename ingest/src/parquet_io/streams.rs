@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::parquet_io::rowgroup::{N, Spare, column, nullable, session_values, whole};
 use crate::parquet_io::table::{
     ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Named,
-    STREAM_ROWS_PER_GROUP, Written, buffers,
+    STREAM_ROWS_PER_GROUP, Written, unnamed,
 };
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -105,7 +105,7 @@ fn write_tables(
             Message::Acceleration(rows, cols) => {
                 acceleration.write_row_group(rows, &cols)?;
                 // The reader may have gone; then the buffers are simply freed.
-                let _ = spent.send(buffers(cols));
+                let _ = spent.send(unnamed(cols));
             }
             Message::Temperature(rows, cols) => temperature.write_row_group(rows, &cols)?,
             Message::Finish => {

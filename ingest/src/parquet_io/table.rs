@@ -207,22 +207,14 @@ impl TableWriter {
     /// under another name than the schema's at its place is an error naming both (a column
     /// count that differs is Arrow's error).
     pub fn write<S: AsRef<str>>(&mut self, columns: Vec<(S, ArrayRef)>) -> Result<()> {
-        let fields = self.schema.fields();
-        if let Some((index, (given, _))) = columns
-            .iter()
-            .enumerate()
-            .find(|(i, (name, _))| fields.get(*i).is_none_or(|f| f.name() != name.as_ref()))
-        {
+        let schema_names = self.schema.fields().iter().map(|f| f.name().as_str());
+        if let Some(message) = misnamed(&columns, schema_names) {
             return Err(Error::Table {
                 path: self.file.path.clone(),
-                message: format!(
-                    "column {index} is given as {}, the schema's is {}",
-                    given.as_ref(),
-                    fields.get(index).map_or("none", |f| f.name().as_str())
-                ),
+                message,
             });
         }
-        let columns = columns.into_iter().map(|(_, c)| c).collect();
+        let columns = unnamed(columns);
         let batch =
             RecordBatch::try_new(self.schema.clone(), columns).map_err(|source| Error::Arrow {
                 path: self.file.path.clone(),
@@ -358,16 +350,9 @@ impl ColumnTableWriter {
                 schema.num_columns()
             ))));
         }
-        if let Some((index, (given, _))) = columns
-            .iter()
-            .enumerate()
-            .find(|(i, (name, _))| schema.column(*i).name() != name.as_ref())
-        {
-            return Err(parquet_error(ParquetError::General(format!(
-                "column {index} is given as {}, the schema's is {}",
-                given.as_ref(),
-                schema.column(index).name()
-            ))));
+        let schema_names = schema.columns().iter().map(|c| c.name());
+        if let Some(message) = misnamed(columns, schema_names) {
+            return Err(parquet_error(ParquetError::General(message)));
         }
         if rows == 0 {
             return Ok(());
@@ -433,9 +418,27 @@ impl ColumnTableWriter {
 /// them.
 pub type Named = Vec<(&'static str, ColumnValues)>;
 
-/// The columns of a row group without their names: their buffers, for the next row group.
-pub fn buffers<S>(columns: Vec<(S, ColumnValues)>) -> Vec<ColumnValues> {
+/// Columns without their names (a row group's buffers, for the next row group).
+pub fn unnamed<S, T>(columns: Vec<(S, T)>) -> Vec<T> {
     columns.into_iter().map(|(_, c)| c).collect()
+}
+
+/// The first of `columns` whose name is not the schema's at its place (`schema_names` in
+/// order), as the writers' error says it; None when every name is the schema's.
+fn misnamed<'a, S: AsRef<str>, T>(
+    columns: &[(S, T)],
+    mut schema_names: impl Iterator<Item = &'a str>,
+) -> Option<String> {
+    columns.iter().enumerate().find_map(|(index, (given, _))| {
+        let expected = schema_names.next();
+        (expected != Some(given.as_ref())).then(|| {
+            format!(
+                "column {index} is given as {}, the schema's is {}",
+                given.as_ref(),
+                expected.unwrap_or("none")
+            )
+        })
+    })
 }
 
 /// Rows per data page of the columns ingest encodes itself (`encode_own_pages`): a

@@ -25,7 +25,7 @@ use crate::contract::tables;
 use crate::error::{Error, Result};
 use crate::parquet_io::rowgroup::{N, Spare, column, nullable, session_values, whole};
 use crate::parquet_io::table::{
-    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Named, Written, buffers,
+    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Named, Written, unnamed,
 };
 use crate::readers::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
 use std::collections::{BTreeMap, VecDeque};
@@ -78,7 +78,7 @@ fn write_lab(
             ToWriter::RowGroup(rows, columns) => {
                 table.write_row_group(rows, &columns)?;
                 // The reader may have gone; then the buffers are simply freed.
-                let _ = spent.send(buffers(columns));
+                let _ = spent.send(unnamed(columns));
             }
             ToWriter::Finish => return table.finish_hashed(),
         }
