@@ -41,7 +41,7 @@ use contract::manifest::Dataset;
 use contract::tables;
 use parquet_io::streams::StreamWriter;
 use parquet_io::table;
-use readers::{labstream, theodolite};
+use readers::labstream;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -127,7 +127,7 @@ pub fn run_with(dataset: &Path, out: &Path, opts: &Options) -> Result<IngestRepo
     let ids: Vec<String> = ds.sessions.iter().map(|s| s.session.id.clone()).collect();
     let mut out_tables = Writers {
         streams: StreamWriter::create(&dir, &ids)?,
-        theo: theodolite::TheodoliteWriter::create(&dir)?,
+        theo: tables::theodolite::Writer::create(&dir)?,
         lab: labstream::LabWriter::create(&dir, &ids)?,
         session: 0,
     };

@@ -188,7 +188,7 @@ fn time_unit_hint(s: &manifest::ResolvedSession, f: &FileLedger) -> Option<Strin
 /// The tables a run writes, and the session being read.
 pub(crate) struct Writers {
     pub(crate) streams: StreamWriter,
-    pub(crate) theo: theodolite::TheodoliteWriter,
+    pub(crate) theo: contract::tables::theodolite::Writer,
     pub(crate) lab: labstream::LabWriter,
     /// Index of the session being read.
     pub(crate) session: u16,
@@ -386,7 +386,11 @@ pub(crate) fn read_with_theodolite(
     opts: &Options,
     out: &mut Writers,
     files: &mut Vec<FileLedger>,
-) -> Result<(Vec<theodolite::Reading>, Option<i64>, FileLedger)> {
+) -> Result<(
+    Vec<contract::tables::theodolite::Logged>,
+    Option<i64>,
+    FileLedger,
+)> {
     // The theodolite log is independent of the acquisition log, and the Parquet writer is
     // idle while the first row group fills.
     let mut ledger = new_ledger(ds, path, &s.session.id, "theodolite", "lines");

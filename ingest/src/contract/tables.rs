@@ -45,6 +45,18 @@ fn with_sessions(fields: Vec<Field>, sessions: &[String]) -> SchemaRef {
     ))
 }
 
+/// The schema of a sample stream's table (acceleration, temperature, lab): the session
+/// index, the GPS time, channels 1..3 of type `ty` (nullable), then `last`.
+fn three_channels(names: [&str; 3], ty: DataType, last: Field, sessions: &[String]) -> SchemaRef {
+    let mut fields = vec![
+        Field::new(SESSION_INDEX, DataType::UInt16, false),
+        Field::new(TIME_GPS_NS, DataType::Int64, false),
+    ];
+    fields.extend(names.map(|n| Field::new(n, ty.clone(), true)));
+    fields.push(last);
+    with_sessions(fields, sessions)
+}
+
 /// A table's columns given by name, put in its schema's order: a column named twice, one
 /// the schema lacks or one not given is an error naming the table (a bug, never data), so a
 /// reordered list can never write one column's values under another's name.
@@ -92,7 +104,9 @@ pub mod temperature;
 pub mod theodolite;
 
 mod read;
+mod write;
 pub use read::{FloatBatch, float_batches, float_batches_unflagged, float_batches_with};
+pub use write::{GroupWriter, Nullable, RowGroup};
 
 #[cfg(test)]
 mod tests {

@@ -47,10 +47,10 @@ pub(crate) fn nullable<T: Copy>(values: Vec<T>, valid: &[bool]) -> (Vec<T>, Opti
 
 /// The session index of `n` rows, stored as Parquet INT32 (UInt16 in the Arrow schema), in
 /// `buf` (whatever it held).
-pub(crate) fn session_values(session: u16, n: usize, mut buf: Vec<i32>) -> ColumnValues {
+pub(crate) fn session_values(session: u16, n: usize, mut buf: Vec<i32>) -> Vec<i32> {
     buf.clear();
     buf.resize(n, i32::from(session));
-    ColumnValues::Int32(buf, None)
+    buf
 }
 
 /// Buffers of written row groups, as they came back, for the next ones: fresh buffers for

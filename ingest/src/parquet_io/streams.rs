@@ -3,12 +3,12 @@
 
 use crate::contract::status::{not_connected_bit, over_range_bit};
 use crate::contract::tables;
+use crate::contract::tables::acceleration::RowGroup as AccelerationGroup;
+use crate::contract::tables::temperature::RowGroup as TemperatureGroup;
+use crate::contract::tables::{GroupWriter, Nullable};
 use crate::error::{Error, Result};
 use crate::parquet_io::rowgroup::{N, Spare, column, nullable, session_values, whole};
-use crate::parquet_io::table::{
-    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Named,
-    STREAM_ROWS_PER_GROUP, Written, unnamed,
-};
+use crate::parquet_io::table::{ColumnValues, STREAM_ROWS_PER_GROUP, Written};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
@@ -62,10 +62,10 @@ impl AccelerationColumns {
 
 /// Status bits, stored as Parquet INT32 (UInt8 in the Arrow schema), in `buf` (whatever it
 /// held).
-fn status_values(status: &[u8], mut buf: Vec<i32>) -> ColumnValues {
+fn status_values(status: &[u8], mut buf: Vec<i32>) -> Vec<i32> {
     buf.clear();
     buf.extend(status.iter().map(|&s| i32::from(s)));
-    ColumnValues::Int32(buf, None)
+    buf
 }
 
 /// What the current session's streams held.
@@ -84,9 +84,9 @@ pub struct SessionStats {
 }
 
 enum Message {
-    /// A row group: rows and columns.
-    Acceleration(usize, Named),
-    Temperature(usize, Named),
+    /// A row group of either table.
+    Acceleration(AccelerationGroup),
+    Temperature(TemperatureGroup),
     /// All row groups sent: close the files and rename them into place.
     Finish,
 }
@@ -95,19 +95,21 @@ enum Message {
 /// columns' buffers back for the next row groups. If the sender goes away without `Finish`
 /// (the reading failed), the tables are dropped and their partial files removed.
 fn write_tables(
-    mut acceleration: ColumnTableWriter,
-    mut temperature: ColumnTableWriter,
+    mut acceleration: GroupWriter<AccelerationGroup>,
+    mut temperature: GroupWriter<TemperatureGroup>,
     rx: Receiver<Message>,
     spent: Sender<Vec<ColumnValues>>,
 ) -> Result<(Written, Written)> {
     for m in rx {
         match m {
-            Message::Acceleration(rows, cols) => {
-                acceleration.write_row_group(rows, &cols)?;
+            Message::Acceleration(group) => {
+                let buffers = acceleration.write(group)?;
                 // The reader may have gone; then the buffers are simply freed.
-                let _ = spent.send(unnamed(cols));
+                let _ = spent.send(buffers);
             }
-            Message::Temperature(rows, cols) => temperature.write_row_group(rows, &cols)?,
+            Message::Temperature(group) => {
+                temperature.write(group)?;
+            }
             Message::Finish => {
                 return Ok((acceleration.finish_hashed()?, temperature.finish_hashed()?));
             }
@@ -140,40 +142,8 @@ pub struct StreamWriter {
 impl StreamWriter {
     /// Starts both tables in `dir`, for a dataset with `sessions` (ids in manifest order).
     pub fn create(dir: &Path, sessions: &[String]) -> Result<Self> {
-        let acceleration = ColumnTableWriter::create(
-            dir,
-            tables::acceleration::FILE,
-            tables::acceleration::schema(sessions),
-            // Measured on a 250 Hz day (`cargo run --release -p ingest --example
-            // encodings`): the counts cost least delta-encoded and not compressed. Session
-            // and status, nearly constant, are delta-encoded too, by ingest's own encoder
-            // (`table::encode_delta_column`), which costs less than parquet-rs's plain
-            // encoding and zstd on 4 bytes a row; zstd then shrinks them to almost nothing.
-            Encodings {
-                dictionary: &[],
-                byte_stream_split: &[],
-                delta: &[
-                    tables::SESSION_INDEX,
-                    tables::acceleration::COUNTS[0],
-                    tables::acceleration::COUNTS[1],
-                    tables::acceleration::COUNTS[2],
-                    tables::STATUS,
-                ],
-                uncompressed: &tables::acceleration::COUNTS,
-                lz4: &[],
-                no_statistics: &tables::acceleration::COUNTS,
-            },
-        )?
-        .one_column_at_a_time()
-        .sync_every(INGEST_GROUPS_PER_SYNC);
-        let temperature = ColumnTableWriter::create(
-            dir,
-            tables::temperature::FILE,
-            tables::temperature::schema(sessions),
-            Encodings::default(),
-        )?
-        .one_column_at_a_time()
-        .sync_every(INGEST_GROUPS_PER_SYNC);
+        let acceleration = tables::acceleration::writer(dir, sessions)?;
+        let temperature = tables::temperature::writer(dir, sessions)?;
         // Two row groups queued keep both threads busy.
         let (tx, rx) = sync_channel(2);
         let (spent_tx, spent) = channel();
@@ -299,42 +269,38 @@ impl StreamWriter {
         self.stats.last_gps_ns = Some(last);
         // Nearly always no status bit is set in a whole row group: nothing to look at per row.
         let any_bit = status.iter().fold(0u8, |a, &s| a | s);
-        let mut cols = Vec::with_capacity(6);
-        cols.push((
-            tables::SESSION_INDEX,
-            session_values(self.session, n, self.spare.int32()),
-        ));
-        cols.push((tables::TIME_GPS_NS, ColumnValues::Int64(time, None)));
-        for (ch, values) in counts.into_iter().enumerate() {
+        let mut columns: [Nullable<i32>; 3] = Default::default();
+        for ((ch, values), out) in counts.into_iter().enumerate().zip(&mut columns) {
             let (nc, or) = (not_connected_bit(ch), over_range_bit(ch));
-            let (values, levels) = if any_bit & (nc | or) == 0 {
+            if any_bit & (nc | or) == 0 {
                 self.stats.connected_seen[ch] = true;
-                (values, None)
-            } else {
-                let valid: Vec<bool> = status
-                    .iter()
-                    .map(|&s| {
-                        if s & nc != 0 {
-                            self.nulls[0][ch] += 1;
-                            false
-                        } else {
-                            self.stats.connected_seen[ch] = true;
-                            if s & or != 0 {
-                                self.nulls[1][ch] += 1;
-                            }
-                            s & or == 0
+                *out = (values, None);
+                continue;
+            }
+            let valid: Vec<bool> = status
+                .iter()
+                .map(|&s| {
+                    if s & nc != 0 {
+                        self.nulls[0][ch] += 1;
+                        false
+                    } else {
+                        self.stats.connected_seen[ch] = true;
+                        if s & or != 0 {
+                            self.nulls[1][ch] += 1;
                         }
-                    })
-                    .collect();
-                nullable(values, &valid)
-            };
-            cols.push((
-                tables::acceleration::COUNTS[ch],
-                ColumnValues::Int32(values, levels),
-            ));
+                        s & or == 0
+                    }
+                })
+                .collect();
+            *out = nullable(values, &valid);
         }
-        cols.push((tables::STATUS, status_values(status, self.spare.int32())));
-        self.send(Message::Acceleration(n, cols))
+        let group = AccelerationGroup {
+            session_index: session_values(self.session, n, self.spare.int32()),
+            time_gps_ns: time,
+            counts: columns,
+            status: status_values(status, self.spare.int32()),
+        };
+        self.send(Message::Acceleration(group))
     }
 
     fn flush_temperature(&mut self) -> Result<()> {
@@ -343,24 +309,17 @@ impl StreamWriter {
         }
         let c = self.temp.take();
         let n = c.time.len();
-        let mut cols = vec![
-            (
-                tables::SESSION_INDEX,
-                session_values(self.session, n, Vec::new()),
-            ),
-            (tables::TIME_GPS_NS, ColumnValues::Int64(c.time, None)),
-        ];
-        for ((values, valid), name) in c
-            .values
-            .into_iter()
-            .zip(&c.valid)
-            .zip(tables::temperature::TEMPERATURE_C)
-        {
-            let (values, levels) = nullable(values, valid);
-            cols.push((name, ColumnValues::Double(values, levels)));
+        let mut temperature_c: [Nullable<f64>; 3] = Default::default();
+        for ((values, valid), out) in c.values.into_iter().zip(&c.valid).zip(&mut temperature_c) {
+            *out = nullable(values, valid);
         }
-        cols.push((tables::STATUS, status_values(&c.status, Vec::new())));
-        self.send(Message::Temperature(n, cols))
+        let group = TemperatureGroup {
+            session_index: session_values(self.session, n, Vec::new()),
+            time_gps_ns: c.time,
+            temperature_c,
+            status: status_values(&c.status, Vec::new()),
+        };
+        self.send(Message::Temperature(group))
     }
 
     /// Hands a message to the writer thread; if it has stopped, returns its error.

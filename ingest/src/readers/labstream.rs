@@ -22,11 +22,10 @@ use crate::base::timegate::{Position, Sink, TimeGate};
 use crate::contract::ingest_ledger::{FileLedger, LabStreamReport, reason};
 use crate::contract::manifest::{AdcFormat, MAX_VALUE_COLUMNS, ValueColumns};
 use crate::contract::tables;
+use crate::contract::tables::GroupWriter;
 use crate::error::{Error, Result};
 use crate::parquet_io::rowgroup::{N, Spare, column, nullable, session_values, whole};
-use crate::parquet_io::table::{
-    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC, Named, Written, unnamed,
-};
+use crate::parquet_io::table::{ColumnValues, Written};
 use crate::readers::lines::{POWERS_OF_TEN, digits, read_lines, strip_comment, text};
 use std::collections::{BTreeMap, VecDeque};
 use std::path::Path;
@@ -59,8 +58,8 @@ struct LabColumns {
 
 /// What the lab table's writer thread is told.
 enum ToWriter {
-    /// A row group: rows and columns.
-    RowGroup(usize, Named),
+    /// A row group.
+    RowGroup(tables::lab::RowGroup),
     /// Close the table and rename it into place.
     Finish,
 }
@@ -69,16 +68,16 @@ enum ToWriter {
 /// If the sender goes away without `Finish` (a run that failed), the table is dropped and
 /// its partial file removed.
 fn write_lab(
-    mut table: ColumnTableWriter,
+    mut table: GroupWriter<tables::lab::RowGroup>,
     rx: Receiver<ToWriter>,
     spent: Sender<Vec<ColumnValues>>,
 ) -> Result<Written> {
     for message in rx {
         match message {
-            ToWriter::RowGroup(rows, columns) => {
-                table.write_row_group(rows, &columns)?;
+            ToWriter::RowGroup(group) => {
+                let buffers = table.write(group)?;
                 // The reader may have gone; then the buffers are simply freed.
-                let _ = spent.send(unnamed(columns));
+                let _ = spent.send(buffers);
             }
             ToWriter::Finish => return table.finish_hashed(),
         }
@@ -92,26 +91,7 @@ fn write_lab(
 impl LabWriter {
     /// Starts the table in `dir` for the dataset's `sessions`.
     pub fn create(dir: &Path, sessions: &[String]) -> Result<Self> {
-        let table = ColumnTableWriter::create(
-            dir,
-            tables::lab::FILE,
-            tables::lab::schema(sessions),
-            // Chosen by measurement (`cargo xtask bench ingest`, docs/benchmarks.md): the
-            // session, time and line columns by ingest's own delta encoder; the readings
-            // split by byte stream, which lets a compressor find what their high bytes
-            // share, compressed with LZ4 (zstd cost 9 % more of the run's CPU, for a table
-            // 27 % smaller), and without min/max statistics (a tenth of their writing, and
-            // nobody filters on them).
-            Encodings {
-                delta: &[tables::SESSION_INDEX, tables::lab::LINE],
-                byte_stream_split: &tables::lab::VALUES,
-                lz4: &tables::lab::VALUES,
-                no_statistics: &tables::lab::VALUES,
-                ..Encodings::default()
-            },
-        )?
-        .one_column_at_a_time()
-        .sync_every(INGEST_GROUPS_PER_SYNC);
+        let table = tables::lab::writer(dir, sessions)?;
         // Two row groups queued keep both threads busy.
         let (to_writer, rx) = sync_channel(2);
         let (spent_tx, spent) = channel();
@@ -180,32 +160,30 @@ impl LabWriter {
         let nulls = &rows.nulls[..n];
         // Nearly always no reading of a row group is null: nothing to look at per row.
         let any_null = nulls.iter().fold(0u8, |a, &s| a | s);
-        let mut columns = Vec::with_capacity(6);
-        columns.push((
-            tables::SESSION_INDEX,
-            session_values(rows.session, n, spare.int32()),
-        ));
-        columns.push((tables::TIME_GPS_NS, ColumnValues::Int64(time, None)));
-        for (ch, values) in rows.values.iter_mut().enumerate() {
-            let values = column(std::mem::replace(values, whole(spare.double())), n);
+        let values = std::array::from_fn(|ch| {
+            let values = column(
+                std::mem::replace(&mut rows.values[ch], whole(spare.double())),
+                n,
+            );
             let bit = 1u8 << ch;
-            let (values, levels) = if any_null & bit == 0 {
+            if any_null & bit == 0 {
                 (values, None)
             } else {
                 let valid: Vec<bool> = nulls.iter().map(|&s| s & bit == 0).collect();
                 nullable(values, &valid)
-            };
-            columns.push((
-                tables::lab::VALUES[ch],
-                ColumnValues::Double(values, levels),
-            ));
-        }
-        columns.push((tables::lab::LINE, ColumnValues::Int64(line, None)));
+            }
+        });
+        let group = tables::lab::RowGroup {
+            session_index: session_values(rows.session, n, spare.int32()),
+            time_gps_ns: time,
+            values,
+            line,
+        };
         rows.len = 0;
         let sent = self
             .to_writer
             .as_ref()
-            .map(|w| w.send(ToWriter::RowGroup(n, columns)));
+            .map(|w| w.send(ToWriter::RowGroup(group)));
         if !matches!(sent, Some(Ok(()))) {
             // The writer stopped: its error says why.
             return self.join().map(|_| ());

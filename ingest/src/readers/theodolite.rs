@@ -3,39 +3,11 @@
 
 use crate::base::time::TimeReader;
 use crate::contract::ingest_ledger::{FileLedger, reason};
-use crate::contract::manifest::{AngleUnit, ResolvedSession, TimeScale};
-use crate::contract::tables;
+use crate::contract::manifest::{AngleUnit, ResolvedSession};
+use crate::contract::tables::theodolite::Logged;
 use crate::error::{Error, Result};
-use crate::parquet_io::table::{TableWriter, session_column};
 use crate::readers::lines::{read_lines, strip_comment};
-use arrow_array::{ArrayRef, Float64Array, Int64Array, StringArray, UInt32Array};
 use std::path::Path;
-use std::sync::Arc;
-
-/// One reading.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Reading {
-    /// Station id.
-    pub station: String,
-    /// GPS time, ns.
-    pub time_gps_ns: i64,
-    /// Zenith distance, rad, in [0, 2 pi).
-    pub dz_rad: f64,
-    /// Zenith distance as read.
-    pub dz_value: f64,
-    /// The time field as written.
-    pub time_as_read: String,
-    /// 1-based line number.
-    pub line: u32,
-}
-
-fn scale_name(s: TimeScale) -> &'static str {
-    match s {
-        TimeScale::Utc => "UTC",
-        TimeScale::Gpst => "GPST",
-        TimeScale::Tai => "TAI",
-    }
-}
 
 /// One reading from a data line (`station time... dz`, white space between): Err with the
 /// field and what is wrong.
@@ -44,7 +16,7 @@ fn parse_reading(
     line: &[u8],
     time: &mut TimeReader,
     unit: AngleUnit,
-) -> std::result::Result<Reading, (&'static str, String)> {
+) -> std::result::Result<Logged, (&'static str, String)> {
     let time_fields = time.form.fields();
     let text = std::str::from_utf8(line).map_err(|_| ("line", "not UTF-8".to_owned()))?;
     let f: Vec<&str> = text.split_whitespace().collect();
@@ -79,7 +51,7 @@ fn parse_reading(
         ));
     }
     let line = u32::try_from(line_no).map_err(|_| ("line", "more than 2^32 lines".to_owned()))?;
-    Ok(Reading {
+    Ok(Logged {
         station: f[0].to_owned(),
         time_gps_ns,
         dz_rad: unit.to_rad(dz_value),
@@ -98,7 +70,7 @@ pub fn read_theodolite(
     skip_bad_lines: bool,
     ledger: &mut FileLedger,
     progress: &indicatif::ProgressBar,
-) -> Result<Vec<Reading>> {
+) -> Result<Vec<Logged>> {
     let mut time = session.times.reader(session.times.theodolite);
     let unit = session.session.theodolite_unit;
     let range = session.gps_range_ns();
@@ -145,102 +117,4 @@ pub fn read_theodolite(
     ledger.bytes = bytes;
     ledger.comment_blank_or_header_lines = Some(other);
     Ok(out)
-}
-
-/// Writes `theodolite.parquet`, session by session.
-pub struct TheodoliteWriter {
-    table: TableWriter,
-}
-
-impl TheodoliteWriter {
-    /// Starts the table in `dir`.
-    pub fn create(dir: &Path) -> Result<Self> {
-        Ok(TheodoliteWriter {
-            table: TableWriter::create(
-                dir,
-                tables::theodolite::FILE,
-                tables::theodolite::schema(),
-                crate::parquet_io::table::Encodings {
-                    dictionary: &[
-                        tables::SESSION,
-                        tables::theodolite::STATION,
-                        tables::theodolite::DZ_UNIT,
-                        tables::theodolite::TIME_SCALE,
-                    ],
-                    ..Default::default()
-                },
-            )?,
-        })
-    }
-
-    /// Appends one session's readings.
-    pub fn write(
-        &mut self,
-        session: &str,
-        unit: AngleUnit,
-        scale: TimeScale,
-        readings: &[Reading],
-    ) -> Result<()> {
-        let n = readings.len();
-        use crate::contract::tables::{SESSION, TIME_GPS_NS, theodolite};
-        let cols: Vec<(&str, ArrayRef)> = vec![
-            (SESSION, session_column(session, n)),
-            (
-                theodolite::STATION,
-                Arc::new(StringArray::from_iter_values(
-                    readings.iter().map(|r| r.station.as_str()),
-                )),
-            ),
-            (
-                TIME_GPS_NS,
-                Arc::new(Int64Array::from_iter_values(
-                    readings.iter().map(|r| r.time_gps_ns),
-                )),
-            ),
-            (
-                theodolite::DZ_RAD,
-                Arc::new(Float64Array::from_iter_values(
-                    readings.iter().map(|r| r.dz_rad),
-                )),
-            ),
-            (
-                theodolite::DZ_VALUE,
-                Arc::new(Float64Array::from_iter_values(
-                    readings.iter().map(|r| r.dz_value),
-                )),
-            ),
-            (
-                theodolite::DZ_UNIT,
-                Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
-                    unit.name(),
-                    n,
-                ))),
-            ),
-            (
-                theodolite::TIME_AS_READ,
-                Arc::new(StringArray::from_iter_values(
-                    readings.iter().map(|r| r.time_as_read.as_str()),
-                )),
-            ),
-            (
-                theodolite::TIME_SCALE,
-                Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
-                    scale_name(scale),
-                    n,
-                ))),
-            ),
-            (
-                theodolite::LINE,
-                Arc::new(UInt32Array::from_iter_values(
-                    readings.iter().map(|r| r.line),
-                )),
-            ),
-        ];
-        self.table.write(cols)
-    }
-
-    /// Closes and renames the table; returns its rows and SHA-256.
-    pub fn finish(self) -> Result<crate::parquet_io::table::Written> {
-        self.table.finish_hashed()
-    }
 }

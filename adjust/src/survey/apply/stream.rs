@@ -25,9 +25,7 @@ use ingest::contract::manifest::Dataset;
 use ingest::contract::status;
 use ingest::contract::tables::temperature::Temperatures;
 use ingest::contract::tables::{self, applied};
-use ingest::parquet_io::table::{
-    ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP,
-};
+use ingest::parquet_io::table::STREAM_ROWS_PER_GROUP;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -367,7 +365,7 @@ fn write_table<'t>(
         .iter()
         .map(|t| t.accelerometer.id.clone())
         .collect();
-    let mut writer = applied_writer(dir, &sessions, &ids)?;
+    let mut writer = applied::writer(dir, &sessions, &ids)?;
     let mut lanes: Vec<Lane<'t>> = selection
         .targets
         .iter()
@@ -376,11 +374,11 @@ fn write_table<'t>(
     let mut rows = 0u64;
     // The writer encodes and writes a row group on its own thread while the next one is
     // read and calibrated.
-    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Vec<(String, ColumnValues)>)>(1);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<applied::RowGroup>(1);
     let (reading, writing) = std::thread::scope(|scope| {
         let writing = scope.spawn(move || -> Result<(u64, String), ingest::Error> {
-            for (n, columns) in rx {
-                writer.write_row_group(n, &columns)?;
+            for group in rx {
+                writer.write(group)?;
             }
             writer.finish_hashed()
         });
@@ -419,42 +417,11 @@ fn write_table<'t>(
     })
 }
 
-/// The applied table's writer: its schema for `sessions` and accelerometers `ids`, and the
-/// encodings chosen by measurement on the 250 Hz benchmark day (`cargo xtask bench apply`).
-fn applied_writer(
-    dir: &Path,
-    sessions: &[String],
-    ids: &[String],
-) -> Result<ColumnTableWriter, Error> {
-    let names: Vec<[String; 4]> = ids.iter().map(|id| applied::columns(id)).collect();
-    let mut delta: Vec<&str> = vec![tables::SESSION_INDEX, tables::TIME_GPS_NS];
-    delta.extend(names.iter().map(|c| c[3].as_str()));
-    // The acceleration and its sigma vary in their low bytes only, so split into byte
-    // streams zstd shrinks them where plain it gained a fifth.
-    let split: Vec<&str> = names
-        .iter()
-        .flat_map(|c| [c[0].as_str(), c[1].as_str()])
-        .collect();
-    // Nobody filters on a sigma: its min/max statistics were a twentieth of the time.
-    let sigmas: Vec<&str> = names.iter().map(|c| c[1].as_str()).collect();
-    Ok(ColumnTableWriter::create(
-        dir,
-        applied::FILE,
-        applied::schema(sessions, ids),
-        Encodings {
-            delta: &delta,
-            byte_stream_split: &split,
-            no_statistics: &sigmas,
-            ..Encodings::default()
-        },
-    )?)
-}
-
 /// Calibrates batches and hands them to the writer thread.
 struct Sender<'a, 't> {
     rows: &'a mut u64,
     lanes: &'a mut [Lane<'t>],
-    tx: &'a std::sync::mpsc::SyncSender<(usize, Vec<(String, ColumnValues)>)>,
+    tx: &'a std::sync::mpsc::SyncSender<applied::RowGroup>,
     max_gap_ns: i64,
     table: &'a Path,
 }
@@ -464,28 +431,20 @@ impl Sender<'_, '_> {
     fn batch<B: SampleBatch>(&mut self, b: &B) -> Result<(), align::Error> {
         let n = b.session().len();
         *self.rows += n as u64;
-        let mut columns = vec![
-            (
-                tables::SESSION_INDEX.to_owned(),
-                ColumnValues::Int32(b.session().iter().map(|&s| i32::from(s)).collect(), None),
-            ),
-            (
-                tables::TIME_GPS_NS.to_owned(),
-                ColumnValues::Int64(b.time_ns().to_vec(), None),
-            ),
-        ];
         let max_gap_ns = self.max_gap_ns;
-        let per: Vec<[ColumnValues; 4]> = self
+        let accelerometers = self
             .lanes
             .par_iter_mut()
             .map(|lane| lane.calibrate(b, max_gap_ns))
             .collect();
-        for (lane, values) in self.lanes.iter().zip(per) {
-            columns.extend(lane.names.iter().cloned().zip(values));
-        }
+        let group = applied::RowGroup {
+            session_index: b.session().iter().map(|&s| i32::from(s)).collect(),
+            time_gps_ns: b.time_ns().to_vec(),
+            accelerometers,
+        };
         // A closed channel means the writer failed: reading stops, and the writer's error
         // is the one reported.
-        self.tx.send((n, columns)).map_err(|_| align::Error::Table {
+        self.tx.send(group).map_err(|_| align::Error::Table {
             path: self.table.to_path_buf(),
             message: "the writer stopped".to_owned(),
         })
@@ -553,8 +512,8 @@ impl SampleBatch for tables::lab::Batch<'_> {
 struct Lane<'t> {
     /// Channel, 0-based.
     channel: usize,
-    /// Its four columns' names in the applied table ([`applied::columns`]).
-    names: [String; 4],
+    /// Its id, which names its four columns in the applied table ([`applied::columns`]).
+    id: String,
     function: Option<&'t CalibrationFunction>,
     /// Per session index: the interpolator over its temperature series.
     temperatures: Vec<Option<Interpolator<'t>>>,
@@ -568,7 +527,7 @@ impl<'t> Lane<'t> {
         let channel = target.accelerometer.channel;
         Lane {
             channel: usize::from(channel).saturating_sub(1),
-            names: applied::columns(&target.accelerometer.id),
+            id: target.accelerometer.id.clone(),
             function: target.function.as_ref().ok(),
             temperatures: (0..sessions)
                 .map(|s| {
@@ -607,7 +566,7 @@ impl<'t> Lane<'t> {
     }
 
     /// Its four columns for one batch: acceleration, sigma, temperature, flags.
-    fn calibrate<B: SampleBatch>(&mut self, b: &B, max_gap_ns: i64) -> [ColumnValues; 4] {
+    fn calibrate<B: SampleBatch>(&mut self, b: &B, max_gap_ns: i64) -> applied::Accelerometer {
         let n = b.session().len();
         let (mut acc, mut sigma, mut temp) = (
             Vec::with_capacity(n),
@@ -634,12 +593,13 @@ impl<'t> Lane<'t> {
         let levels = |values: &Vec<f64>, def: Vec<i16>| (values.len() < n).then_some(def);
         let acc_levels = levels(&acc, acc_def);
         let temp_levels = levels(&temp, temp_def);
-        [
-            ColumnValues::Double(acc, acc_levels.clone()),
-            ColumnValues::Double(sigma, acc_levels),
-            ColumnValues::Double(temp, temp_levels),
-            ColumnValues::Int32(flags, None),
-        ]
+        applied::Accelerometer {
+            id: self.id.clone(),
+            acceleration_mgal: (acc, acc_levels.clone()),
+            sigma_mgal: (sigma, acc_levels),
+            temperature_c: (temp, temp_levels),
+            flags,
+        }
     }
 
     /// What apply.json says of this accelerometer.

@@ -15,9 +15,7 @@ use ingest::contract::calibration::TriadResult;
 use ingest::contract::status;
 use ingest::contract::tables::temperature::Temperatures;
 use ingest::contract::tables::{self, applied};
-use ingest::parquet_io::table::{
-    ColumnTableWriter, ColumnValues, Encodings, STREAM_ROWS_PER_GROUP,
-};
+use ingest::parquet_io::table::STREAM_ROWS_PER_GROUP;
 use std::path::Path;
 
 /// A calibrated vector and the six elements of its covariance (xx, xy, xz, yy, yz, zz).
@@ -233,7 +231,8 @@ pub struct TriadWritten {
 struct Columns {
     session: Vec<i32>,
     time: Vec<i64>,
-    values: [Vec<f64>; 9],
+    vector: [Vec<f64>; 3],
+    covariance: [Vec<f64>; 6],
     def: Vec<i16>,
     flags: Vec<i32>,
 }
@@ -243,44 +242,30 @@ impl Columns {
         self.session.push(i32::from(session));
         self.time.push(time);
         if let Some((a, c)) = sample {
-            for k in 0..3 {
-                self.values[k].push(a[k]);
+            for (column, x) in self.vector.iter_mut().zip(a) {
+                column.push(x);
             }
-            for k in 0..6 {
-                self.values[3 + k].push(c[k]);
+            for (column, x) in self.covariance.iter_mut().zip(c) {
+                column.push(x);
             }
         }
         self.def.push(i16::from(sample.is_some()));
         self.flags.push(i32::from(flags));
     }
 
-    /// The row group's columns, each named for its column of the triad table.
-    fn take(&mut self) -> (usize, ingest::parquet_io::table::Named) {
-        use ingest::contract::tables::{SESSION_INDEX, TIME_GPS_NS, applied::TRIAD_COLUMNS};
-        let n = self.time.len();
-        let all = self.values[0].len() == n;
+    /// The row group's columns, each under its field of the triad table's row group.
+    fn take(&mut self) -> applied::TriadRowGroup {
+        let all = self.def.iter().all(|&d| d == 1);
         let def = std::mem::take(&mut self.def);
-        let mut cols = vec![
-            (
-                SESSION_INDEX,
-                ColumnValues::Int32(std::mem::take(&mut self.session), None),
-            ),
-            (
-                TIME_GPS_NS,
-                ColumnValues::Int64(std::mem::take(&mut self.time), None),
-            ),
-        ];
-        for (v, name) in self.values.iter_mut().zip(TRIAD_COLUMNS) {
-            cols.push((
-                name,
-                ColumnValues::Double(std::mem::take(v), (!all).then(|| def.clone())),
-            ));
+        let levels = || (!all).then(|| def.clone());
+        let nullable = |v: &mut Vec<f64>| (std::mem::take(v), levels());
+        applied::TriadRowGroup {
+            session_index: std::mem::take(&mut self.session),
+            time_gps_ns: std::mem::take(&mut self.time),
+            vector_mgal: self.vector.each_mut().map(nullable),
+            covariance_mgal2: self.covariance.each_mut().map(nullable),
+            flags: std::mem::take(&mut self.flags),
         }
-        cols.push((
-            TRIAD_COLUMNS[9],
-            ColumnValues::Int32(std::mem::take(&mut self.flags), None),
-        ));
-        (n, cols)
     }
 }
 
@@ -384,17 +369,7 @@ pub fn write(
     } else {
         Temperatures::new()
     };
-    let names = applied::TRIAD_COLUMNS;
-    let mut writer = ColumnTableWriter::create(
-        dir,
-        applied::FILE,
-        applied::triad_schema(sessions),
-        Encodings {
-            delta: &[tables::SESSION_INDEX, tables::TIME_GPS_NS, names[9]],
-            byte_stream_split: &names[..9],
-            ..Encodings::default()
-        },
-    )?;
+    let mut writer = applied::triad_writer(dir, sessions)?;
     let mut to = Applier {
         f,
         temperatures: AxisTemperatures::new(&series, sessions.len(), channels, max_gap_ns),
@@ -415,8 +390,7 @@ pub fn write(
             let flags = status_flags(b.status[i], channels);
             to.one((b.session[i], b.time_ns[i]), x, flags);
         }
-        let (n, c) = to.cols.take();
-        writer.write_row_group(n, &c)
+        writer.write(to.cols.take()).map(drop)
     })?;
     tables::lab::batches(ingest_dir, STREAM_ROWS_PER_GROUP, |b| {
         for i in 0..b.time_ns.len() {
@@ -426,8 +400,7 @@ pub fn write(
             });
             to.one((b.session[i], b.time_ns[i]), x, 0);
         }
-        let (n, c) = to.cols.take();
-        writer.write_row_group(n, &c)
+        writer.write(to.cols.take()).map(drop)
     })?;
     let (_, sha256) = writer.finish_hashed()?;
     to.out.sha256 = sha256;

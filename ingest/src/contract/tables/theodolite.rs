@@ -1,6 +1,10 @@
 //! `theodolite.parquet`.
 
 use super::{Arc, DataType, Field, SESSION, Schema, SchemaRef, TIME_GPS_NS, session_type};
+use crate::contract::manifest::{AngleUnit, TimeScale};
+use crate::parquet_io::table::{Encodings, TableWriter, Written, session_column};
+use arrow_array::{ArrayRef, Float64Array, Int64Array, StringArray, UInt32Array};
+use std::path::Path;
 /// File name.
 pub const FILE: &str = "theodolite.parquet";
 /// Station id.
@@ -30,6 +34,123 @@ pub fn schema() -> SchemaRef {
         Field::new(TIME_SCALE, DataType::Utf8, false),
         Field::new(LINE, DataType::UInt32, false),
     ]))
+}
+
+/// A reading as the log gave it, as ingest writes it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Logged {
+    /// Station id.
+    pub station: String,
+    /// GPS time, ns.
+    pub time_gps_ns: i64,
+    /// Zenith distance, rad, in [0, 2 pi).
+    pub dz_rad: f64,
+    /// Zenith distance as read.
+    pub dz_value: f64,
+    /// The time field as written.
+    pub time_as_read: String,
+    /// 1-based line number.
+    pub line: u32,
+}
+
+fn scale_name(s: TimeScale) -> &'static str {
+    match s {
+        TimeScale::Utc => "UTC",
+        TimeScale::Gpst => "GPST",
+        TimeScale::Tai => "TAI",
+    }
+}
+
+/// Writes `theodolite.parquet`, session by session.
+pub struct Writer {
+    table: TableWriter,
+}
+
+impl Writer {
+    /// Starts the table in `dir`.
+    pub fn create(dir: &Path) -> crate::Result<Self> {
+        Ok(Writer {
+            table: TableWriter::create(
+                dir,
+                FILE,
+                schema(),
+                Encodings {
+                    dictionary: &[SESSION, STATION, DZ_UNIT, TIME_SCALE],
+                    ..Default::default()
+                },
+            )?,
+        })
+    }
+
+    /// Appends one session's readings.
+    pub fn write(
+        &mut self,
+        session: &str,
+        unit: AngleUnit,
+        scale: TimeScale,
+        readings: &[Logged],
+    ) -> crate::Result<()> {
+        let n = readings.len();
+        let cols: Vec<(&str, ArrayRef)> = vec![
+            (SESSION, session_column(session, n)),
+            (
+                STATION,
+                Arc::new(StringArray::from_iter_values(
+                    readings.iter().map(|r| r.station.as_str()),
+                )),
+            ),
+            (
+                TIME_GPS_NS,
+                Arc::new(Int64Array::from_iter_values(
+                    readings.iter().map(|r| r.time_gps_ns),
+                )),
+            ),
+            (
+                DZ_RAD,
+                Arc::new(Float64Array::from_iter_values(
+                    readings.iter().map(|r| r.dz_rad),
+                )),
+            ),
+            (
+                DZ_VALUE,
+                Arc::new(Float64Array::from_iter_values(
+                    readings.iter().map(|r| r.dz_value),
+                )),
+            ),
+            (
+                DZ_UNIT,
+                Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
+                    unit.name(),
+                    n,
+                ))),
+            ),
+            (
+                TIME_AS_READ,
+                Arc::new(StringArray::from_iter_values(
+                    readings.iter().map(|r| r.time_as_read.as_str()),
+                )),
+            ),
+            (
+                TIME_SCALE,
+                Arc::new(StringArray::from_iter_values(std::iter::repeat_n(
+                    scale_name(scale),
+                    n,
+                ))),
+            ),
+            (
+                LINE,
+                Arc::new(UInt32Array::from_iter_values(
+                    readings.iter().map(|r| r.line),
+                )),
+            ),
+        ];
+        self.table.write(cols)
+    }
+
+    /// Closes and renames the table; returns its rows and SHA-256.
+    pub fn finish(self) -> crate::Result<Written> {
+        self.table.finish_hashed()
+    }
 }
 
 /// A theodolite reading as ingest wrote it.
@@ -62,9 +183,7 @@ pub fn logged_step(value: f64) -> f64 {
 }
 
 /// `dir`'s theodolite table: the readings per session.
-pub fn read(
-    dir: &std::path::Path,
-) -> crate::Result<std::collections::BTreeMap<String, Vec<Reading>>> {
+pub fn read(dir: &Path) -> crate::Result<std::collections::BTreeMap<String, Vec<Reading>>> {
     use super::read::{bad, batches_of, column, floats, sessions};
     use crate::contract::manifest::AngleUnit;
     use arrow_array::cast::AsArray;
