@@ -481,7 +481,14 @@ fn bench_smoke() -> Result<()> {
     bench::align(&root, 5, 10, dev).context("bench align on a small dataset")?;
     bench::adjust(&root, 20_000, false, dev).context("bench adjust on 20 000 observations")?;
     bench_apply::apply(&root, 0.05, false, 1, dev).context("bench apply on a small log")?;
-    bench_gravity::gravity(&root, 0.4, 1, None, dev).context("bench gravity on a short survey")?;
+    let survey = bench_gravity::SurveyBench {
+        root: &root,
+        hours: 0.4,
+        runs: 1,
+        peers: None,
+        build: dev,
+    };
+    bench_gravity::gravity(&survey).context("bench gravity on a short survey")?;
     eprintln!("benchmarks on small sizes: ok");
     Ok(())
 }
@@ -666,11 +673,17 @@ fn bench_command(a: &BenchArgs) -> Result<()> {
                 peers_venv()?;
                 Some(root.join("target/peers-venv/bin/python")).filter(|p| p.exists())
             };
-            let (runs, py) = (a.runs.max(1), py.as_deref());
+            let bench = bench_gravity::SurveyBench {
+                root: &root,
+                hours: a.hours,
+                runs: a.runs.max(1),
+                peers: py.as_deref(),
+                build: release,
+            };
             if a.what == "marine" {
-                bench_gravity::marine(&root, a.hours, runs, py, release)
+                bench_gravity::marine(&bench)
             } else {
-                bench_gravity::gravity(&root, a.hours, runs, py, release)
+                bench_gravity::gravity(&bench)
             }
         }
         "smoke" => bench_smoke(),

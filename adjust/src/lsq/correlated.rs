@@ -600,6 +600,10 @@ mod tests {
         let (n, m) = (8, 2);
         let time: Vec<f64> = vec![0.0, 5.0, 10.0, 130.0, 135.0, 140.0, 400.0, 410.0];
         let session = vec![0; n];
+        let at = Timeline {
+            time_s: &time,
+            session: &session,
+        };
         let station = vec![0, 0, 0, 1, 1, 1, 2, 2];
         let share = vec![0.9, 0.8, 0.95];
         let a: Vec<f64> = (0..n).flat_map(|i| [1.0, 0.3 * i as f64 - 1.0]).collect();
@@ -617,16 +621,7 @@ mod tests {
         let b = (0..n).map(|i| [1.0, 0.25 + 0.01 * i as f64, 0.0]).collect();
         let s = solution(m, q_pp.clone(), q_ww.clone(), (a.clone(), b));
         let noise = noise();
-        let fast = between_station_excess(
-            &s,
-            &station,
-            &share,
-            Timeline {
-                time_s: &time,
-                session: &session,
-            },
-            &noise,
-        );
+        let fast = between_station_excess(&s, &station, &share, at, &noise);
         let flicker = Flicker::new(noise.bias_instability);
         let windows = flicker.windowed(noise.window_s);
         let cov = |i: usize, j: usize| {
@@ -660,14 +655,7 @@ mod tests {
         }
         assert!((fast - slow).abs() < 1e-9 * slow.abs(), "{fast} vs {slow}");
         // Each misclosure's excess: (R S R^T)_ii.
-        let fast = misclosure_excess(
-            &s,
-            Timeline {
-                time_s: &time,
-                session: &session,
-            },
-            &noise,
-        );
+        let fast = misclosure_excess(&s, at, &noise);
         for (i, f) in fast.iter().enumerate() {
             let slow: f64 = (0..n)
                 .map(|k| (0..n).map(|l| r(i, k) * cov(k, l) * r(i, l)).sum::<f64>())
@@ -684,6 +672,10 @@ mod tests {
         let n = 7;
         let time: Vec<f64> = vec![0.0, 3.0, 5.6, 40.0, 42.6, 900.0, 2000.0];
         let session = vec![0, 0, 0, 0, 1, 1, 1];
+        let at = Timeline {
+            time_s: &time,
+            session: &session,
+        };
         let a = (0..n * m)
             .map(|k| ((k * 7919) % 13) as f64 / 13.0 - 0.4)
             .collect();
@@ -691,14 +683,7 @@ mod tests {
         let q_ww = (0..n).map(|i| 1.0 + 0.1 * i as f64).collect();
         let s = solution(m, vec![2.0, 0.3, 0.3, 1.0], q_ww, (a, b));
         let noise = noise();
-        let fast = extra_covariance(
-            &s,
-            Timeline {
-                time_s: &time,
-                session: &session,
-            },
-            &noise,
-        );
+        let fast = extra_covariance(&s, at, &noise);
         let flicker = Flicker::new(noise.bias_instability);
         let windows = flicker.windowed(noise.window_s);
         let gain = |i: usize| -> Vec<f64> {

@@ -62,6 +62,28 @@ pub mod stage;
 mod track;
 pub mod trajectory;
 
+/// What the readers' tests share: a log written to a scratch folder, and the time form
+/// their CSV logs are written in.
+#[cfg(test)]
+mod test_logs {
+    use ingest::base::time::{TimeForm, TimeReader};
+    use ingest::contract::manifest::TimeScale;
+
+    /// `text` written as `name` in a new scratch folder (removed when the folder is
+    /// dropped).
+    pub(super) fn written(name: &str, text: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+        let d = tempfile::tempdir().expect("tempdir");
+        let p = d.path().join(name);
+        std::fs::write(&p, text).expect("write");
+        (d, p)
+    }
+
+    /// Times in Unix seconds, UTC.
+    pub(super) fn unix_utc() -> TimeReader {
+        TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None)
+    }
+}
+
 /// What can go wrong in the gravity stage.
 #[derive(Debug, thiserror::Error)]
 pub enum GravityError {

@@ -58,8 +58,8 @@ struct LabColumns {
 
 /// What the lab table's writer thread is told.
 enum ToWriter {
-    /// A row group.
-    RowGroup(tables::lab::RowGroup),
+    /// A row group (boxed: the message is a few pointers either way).
+    RowGroup(Box<tables::lab::RowGroup>),
     /// Close the table and rename it into place.
     Finish,
 }
@@ -75,7 +75,7 @@ fn write_lab(
     for message in rx {
         match message {
             ToWriter::RowGroup(group) => {
-                let buffers = table.write(group)?;
+                let buffers = table.write(*group)?;
                 // The reader may have gone; then the buffers are simply freed.
                 let _ = spent.send(buffers);
             }
@@ -183,7 +183,7 @@ impl LabWriter {
         let sent = self
             .to_writer
             .as_ref()
-            .map(|w| w.send(ToWriter::RowGroup(group)));
+            .map(|w| w.send(ToWriter::RowGroup(Box::new(group))));
         if !matches!(sent, Some(Ok(()))) {
             // The writer stopped: its error says why.
             return self.join().map(|_| ());

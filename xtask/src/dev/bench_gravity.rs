@@ -31,15 +31,31 @@ fn calibration(dir: &Path) -> Result<PathBuf> {
     Ok(cal)
 }
 
+/// What a survey benchmark is run on and how.
+#[derive(Clone, Copy)]
+pub struct SurveyBench<'a> {
+    /// The workspace.
+    pub root: &'a Path,
+    /// The survey's length, h.
+    pub hours: f64,
+    /// Runs of each program, the fastest kept.
+    pub runs: usize,
+    /// The peers' Python, where shipgrav runs beside.
+    pub peers: Option<&'a Path>,
+    /// The stage binaries' profile.
+    pub build: Build,
+}
+
 /// The gravity benchmark on `hours` and `hours / 4`, then the marine cruise of `hours`
 /// beside shipgrav when `peers` names the peers' Python.
-pub fn gravity(
-    root: &Path,
-    hours: f64,
-    runs: usize,
-    peers: Option<&Path>,
-    build: Build,
-) -> Result<()> {
+pub fn gravity(bench: &SurveyBench<'_>) -> Result<()> {
+    let SurveyBench {
+        root,
+        hours,
+        runs,
+        peers: _,
+        build,
+    } = *bench;
     let bin = build.stage_binaries(root)?.join("gravcal-gravity");
     let data = root.join("target/bench-data");
     std::fs::create_dir_all(&data)?;
@@ -103,7 +119,7 @@ pub fn gravity(
             r.peak_rss_mb
         );
     }
-    marine(root, hours, runs, peers, build)
+    marine(bench)
 }
 
 /// shipgrav's reduction of a DGS laptop file, timed by itself: argv the file, the CSV to
@@ -135,13 +151,14 @@ print(time.time() - t0, ru.ru_maxrss, ru.ru_utime + ru.ru_stime)
 "#;
 
 /// The marine cruise of `hours` at 1 Hz: gravcal (ingest, then gravity) and shipgrav.
-pub fn marine(
-    root: &Path,
-    hours: f64,
-    runs: usize,
-    peers: Option<&Path>,
-    build: Build,
-) -> Result<()> {
+pub fn marine(bench: &SurveyBench<'_>) -> Result<()> {
+    let SurveyBench {
+        root,
+        hours,
+        runs,
+        peers,
+        build,
+    } = *bench;
     let bins = build.stage_binaries(root)?;
     let data = root.join("target/bench-data");
     let seconds = (hours * 3600.0).round() as usize;

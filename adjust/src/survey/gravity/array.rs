@@ -20,22 +20,11 @@ use ingest::base::timegate::{Position, Sink, TimeGate};
 use ingest::contract::gravity_ledger::AntennasUsed;
 use ingest::contract::manifest::ResolvedSession;
 use ingest::contract::survey::{Antenna, SurveyConfig, TrajectorySource};
+use ingest::contract::tables::attitude::Row as AttitudeRow;
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use super::trajectory::{Epoch, Values, count_dropped};
-
-/// A row of attitude.parquet: the epoch's time, the columns of
-/// [`ingest::contract::tables::attitude::FLOATS`] and of its `MASKS`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct AttitudeRow {
-    /// GPS time, ns.
-    pub time_gps_ns: i64,
-    /// Heading, pitch, roll, their sds (deg) and their correlations.
-    pub values: [f64; 9],
-    /// The antennas used and set aside.
-    pub masks: [u32; 2],
-}
 
 /// What an array gives its session's track.
 pub(super) struct ArrayTrack {
@@ -191,7 +180,8 @@ pub(super) fn read_array(
             .map(|(a, n)| (a.id.clone(), *n))
             .collect(),
         median_sd_hpr_deg: std::array::from_fn(|k| {
-            Some(median(out.rows.iter().map(|r| r.values[3 + k]))).filter(|v| !v.is_nan())
+            let sd = |r: &AttitudeRow| [r.sd_heading_deg, r.sd_pitch_deg, r.sd_roll_deg][k];
+            Some(median(out.rows.iter().map(sd))).filter(|v| !v.is_nan())
         }),
         not_given: match two {
             true => BTreeMap::from([("roll".to_owned(), TWO_ANTENNAS.to_owned())]),
@@ -356,8 +346,17 @@ impl Solved {
         let [a, b, cc] = sd_deg;
         self.rows.push(AttitudeRow {
             time_gps_ns: t,
-            values: [h, p, r, a, b, cc, corr(0, 1), corr(0, 2), corr(1, 2)],
-            masks: [s.used, s.set_aside],
+            heading_deg: h,
+            pitch_deg: p,
+            roll_deg: r,
+            sd_heading_deg: a,
+            sd_pitch_deg: b,
+            sd_roll_deg: cc,
+            corr_heading_pitch: corr(0, 1),
+            corr_heading_roll: corr(0, 2),
+            corr_pitch_roll: corr(1, 2),
+            antennas_used: s.used,
+            antennas_set_aside: s.set_aside,
         });
     }
 
@@ -411,8 +410,17 @@ impl Solved {
         let [h, p, sd_h, sd_p] = [h, p, sd_h, sd_p].map(f64::to_degrees);
         self.rows.push(AttitudeRow {
             time_gps_ns: t,
-            values: [h, p, nan, sd_h, sd_p, nan, 0.0, nan, nan],
-            masks: [0b11, 0],
+            heading_deg: h,
+            pitch_deg: p,
+            roll_deg: nan,
+            sd_heading_deg: sd_h,
+            sd_pitch_deg: sd_p,
+            sd_roll_deg: nan,
+            corr_heading_pitch: 0.0,
+            corr_heading_roll: nan,
+            corr_pitch_roll: nan,
+            antennas_used: 0b11,
+            antennas_set_aside: 0,
         });
     }
 
@@ -421,53 +429,6 @@ impl Solved {
             *n += u64::from(mask >> k & 1);
         }
     }
-}
-
-/// Writes `OUT/gravity/attitude.parquet` in `dir`: every array session's rows, as
-/// (session index, rows).
-pub(super) fn write_attitude_table(
-    dir: &Path,
-    sessions: &[String],
-    tables: &[(u16, &[AttitudeRow])],
-) -> Result<(u64, String), GravityError> {
-    use arrow_array::{ArrayRef, Float64Array, Int64Array, UInt16Array, UInt32Array};
-    use ingest::contract::tables::attitude;
-    use std::sync::Arc;
-    let mut w = ingest::parquet_io::table::TableWriter::create(
-        dir,
-        attitude::FILE,
-        attitude::schema(sessions),
-        ingest::parquet_io::table::Encodings::default(),
-    )?;
-    for (index, rows) in tables {
-        use ingest::contract::tables::{SESSION_INDEX, TIME_GPS_NS};
-        let mut columns: Vec<(&str, ArrayRef)> = vec![
-            (
-                SESSION_INDEX,
-                Arc::new(UInt16Array::from(vec![*index; rows.len()])),
-            ),
-            (
-                TIME_GPS_NS,
-                Arc::new(Int64Array::from(
-                    rows.iter().map(|r| r.time_gps_ns).collect::<Vec<_>>(),
-                )),
-            ),
-        ];
-        // A value the array does not give (NaN: two antennas' roll) is null.
-        for (c, name) in attitude::FLOATS.into_iter().enumerate() {
-            let values: Vec<Option<f64>> = rows
-                .iter()
-                .map(|r| Some(r.values[c]).filter(|v| !v.is_nan()))
-                .collect();
-            columns.push((name, Arc::new(Float64Array::from(values))));
-        }
-        for (m, name) in attitude::MASKS.into_iter().enumerate() {
-            let masks: Vec<u32> = rows.iter().map(|r| r.masks[m]).collect();
-            columns.push((name, Arc::new(UInt32Array::from(masks))));
-        }
-        w.write(columns)?;
-    }
-    Ok(w.finish_hashed()?)
 }
 
 #[cfg(test)]

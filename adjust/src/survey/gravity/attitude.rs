@@ -444,32 +444,21 @@ fn sds(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_logs::{unix_utc, written};
     use super::*;
-    use ingest::base::time::TimeForm;
-    use ingest::contract::manifest::TimeScale;
 
     fn read(text: &str) -> Result<Attitude, GravityError> {
-        let d = tempfile::tempdir().expect("tempdir");
-        let p = d.path().join("att.csv");
-        std::fs::write(&p, text).expect("write");
-        read_csv(
-            &p,
-            TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None),
-            (i64::MIN, i64::MAX),
-            false,
-        )
+        let (_d, p) = written("att.csv", text);
+        read_csv(&p, unix_utc(), (i64::MIN, i64::MAX), false)
     }
 
     #[test]
     fn headings_across_north_interpolate_the_short_way() {
-        let d = tempfile::tempdir().expect("tempdir");
-        let p = d.path().join("att.csv");
         let text = "time,heading_deg,pitch_deg,roll_deg,sd_heading_deg,sd_pitch_deg,sd_roll_deg\n\
                     1773479523.0,359.0,1.0,-2.0,0.1,0.01,0.01\n\
                     1773479523.1,1.0,1.2,-2.2,0.1,0.01,0.01\n";
-        std::fs::write(&p, text).expect("write");
-        let reader = TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None);
-        let a = read_spilled(&p, reader, (i64::MIN, i64::MAX), false, d.path()).expect("reads");
+        let (d, p) = written("att.csv", text);
+        let a = read_spilled(&p, unix_utc(), (i64::MIN, i64::MAX), false, d.path()).expect("reads");
         let t0 = a.times[0];
         let mut cursor = AttitudeCursor::new(&a);
         let at: Vec<Option<AttitudeAt>> =
@@ -522,15 +511,11 @@ mod tests {
             .to_string();
         assert!(e.contains(":1: line: 3 fields"), "{e}");
         // With skip, a line that breaks the format is set aside and the rest read.
-        let d = tempfile::tempdir().expect("tempdir");
-        let p = d.path().join("att.csv");
-        std::fs::write(
-            &p,
+        let (_d, p) = written(
+            "att.csv",
             "1773479523.0,10.0,1.0,0.0\n1773479523.1,10.0,95.0,0.0\n1773479523.2,10.0,1.0,0.0\n",
-        )
-        .expect("write");
-        let r = TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None);
-        let a = read_csv(&p, r, (i64::MIN, i64::MAX), true).expect("skips");
+        );
+        let a = read_csv(&p, unix_utc(), (i64::MIN, i64::MAX), true).expect("skips");
         assert_eq!(a.time_gps_ns.len(), 2);
         assert_eq!(
             (a.bad_lines[0].line, a.bad_lines[0].field.as_str()),

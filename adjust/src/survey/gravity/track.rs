@@ -60,7 +60,7 @@ pub(super) struct Track<'a> {
     /// An antenna array's session: what its antennas gave, and its attitude.parquet rows.
     pub array: Option<(
         ingest::contract::gravity_ledger::AntennasUsed,
-        Vec<super::array::AttitudeRow>,
+        Vec<ingest::contract::tables::attitude::Row>,
     )>,
     /// What its heights are measured from (the format's, or an NMEA file's own).
     pub heights: Heights,

@@ -700,10 +700,7 @@ mod tests {
     use super::*;
 
     fn write(text: &str) -> (tempfile::TempDir, std::path::PathBuf) {
-        let d = tempfile::tempdir().expect("tempdir");
-        let p = d.path().join("t.pos");
-        std::fs::write(&p, text).expect("write");
-        (d, p)
+        super::super::test_logs::written("t.pos", text)
     }
 
     /// The lines read a chunk at a time and parsed on the cores are the lines read one at a
@@ -838,14 +835,11 @@ mod tests {
 
     #[test]
     fn a_csv_in_unix_seconds() {
-        let d = tempfile::tempdir().expect("tempdir");
-        let p = d.path().join("t.csv");
-        std::fs::write(
-            &p,
+        let (_d, p) = super::super::test_logs::written(
+            "t.csv",
             "time,lat_deg,lon_deg,h_m,sd_n_m,sd_e_m,sd_u_m\n1773479523.5,48.0,0.1,60.0,0.01,0.01,0.02\n1773479523.6,48.0,0.1,nan,0.01,0.01,0.02\n",
-        )
-        .expect("write");
-        let r = TimeReader::new(TimeForm::UnixS, TimeScale::Utc, None);
+        );
+        let r = super::super::test_logs::unix_utc();
         let e = read_csv(&p, r, false).expect_err("nan height").to_string();
         assert!(e.contains(":3: height:"), "{e}");
         // Set aside, the line before still read.

@@ -23,7 +23,12 @@
 //! | flags | uint8 | the bits of this module's flags, or-ed |
 //! | meter_status | uint32, null | a platform meter's status word at the epoch (its lines' within half an epoch interval, or-ed; docs/formats.md 11.1), null where the session's samples carry none |
 
-use super::{DataType, Field, SESSION_INDEX, SchemaRef, TIME_GPS_NS, with_sessions};
+use super::{Arc, DataType, Field, SESSION_INDEX, SchemaRef, TIME_GPS_NS, with_sessions};
+use crate::parquet_io::table::{Encodings, TableWriter, Written};
+use arrow_array::{ArrayRef, Float64Array, Int64Array, UInt8Array, UInt16Array, UInt32Array};
+use arrow_buffer::NullBuffer;
+use std::mem::take;
+use std::path::Path;
 /// File name.
 pub const FILE: &str = "gravity.parquet";
 /// The epoch's specific force was extrapolated beyond the calibration's range.
@@ -166,4 +171,313 @@ pub fn schema(sessions: &[String]) -> SchemaRef {
     fields.push(Field::new(FLAGS, DataType::UInt8, false));
     fields.push(Field::new(METER_STATUS_WORD, DataType::UInt32, true));
     with_sessions(fields, sessions)
+}
+
+/// A block's values of the [`FLOATS`] columns, a field per column.
+#[derive(Default)]
+pub struct Floats {
+    /// `latitude_deg`.
+    pub latitude_deg: Vec<f64>,
+    /// `longitude_deg`.
+    pub longitude_deg: Vec<f64>,
+    /// `height_m`.
+    pub height_m: Vec<f64>,
+    /// `speed_m_s`.
+    pub speed_m_s: Vec<f64>,
+    /// `eotvos_mgal`.
+    pub eotvos_mgal: Vec<f64>,
+    /// `normal_mgal`.
+    pub normal_mgal: Vec<f64>,
+    /// `tide_mgal`.
+    pub tide_mgal: Vec<f64>,
+    /// `cross_coupling_mgal`.
+    pub cross_coupling_mgal: Vec<f64>,
+    /// `down_mgal`.
+    pub down_mgal: Vec<f64>,
+    /// `down_filtered_mgal`.
+    pub down_filtered_mgal: Vec<f64>,
+    /// `sigma_down_mgal`.
+    pub sigma_down_mgal: Vec<f64>,
+    /// `sigma_calibration_mgal`.
+    pub sigma_calibration_mgal: Vec<f64>,
+    /// `sigma_positions_mgal`.
+    pub sigma_positions_mgal: Vec<f64>,
+    /// `sigma_noise_mgal`.
+    pub sigma_noise_mgal: Vec<f64>,
+    /// `sigma_tie_mgal`.
+    pub sigma_tie_mgal: Vec<f64>,
+    /// `sigma_attitude_mgal`.
+    pub sigma_attitude_mgal: Vec<f64>,
+    /// `sigma_coupling_mgal`.
+    pub sigma_coupling_mgal: Vec<f64>,
+    /// `height_antenna_m`.
+    pub height_antenna_m: Vec<f64>,
+}
+
+impl Floats {
+    /// Each field under its column's name (in any order: the writer puts them in the
+    /// schema's).
+    fn named(self) -> [(&'static str, Vec<f64>); 18] {
+        [
+            (LATITUDE_DEG, self.latitude_deg),
+            (LONGITUDE_DEG, self.longitude_deg),
+            (HEIGHT_M, self.height_m),
+            (SPEED_M_S, self.speed_m_s),
+            (EOTVOS_MGAL, self.eotvos_mgal),
+            (NORMAL_MGAL, self.normal_mgal),
+            (TIDE_MGAL, self.tide_mgal),
+            (CROSS_COUPLING_MGAL, self.cross_coupling_mgal),
+            (DOWN_MGAL, self.down_mgal),
+            (DOWN_FILTERED_MGAL, self.down_filtered_mgal),
+            (SIGMA_DOWN_MGAL, self.sigma_down_mgal),
+            (SIGMA_CALIBRATION_MGAL, self.sigma_calibration_mgal),
+            (SIGMA_POSITIONS_MGAL, self.sigma_positions_mgal),
+            (SIGMA_NOISE_MGAL, self.sigma_noise_mgal),
+            (SIGMA_TIE_MGAL, self.sigma_tie_mgal),
+            (SIGMA_ATTITUDE_MGAL, self.sigma_attitude_mgal),
+            (SIGMA_COUPLING_MGAL, self.sigma_coupling_mgal),
+            (HEIGHT_ANTENNA_M, self.height_antenna_m),
+        ]
+    }
+}
+
+/// A block's values of one horizontal component's seven columns (north's or east's), a
+/// field per column.
+#[derive(Default)]
+pub struct Component {
+    /// `<side>_mgal`: the disturbance, unfiltered.
+    pub mgal: Vec<f64>,
+    /// `<side>_filtered_mgal`.
+    pub filtered_mgal: Vec<f64>,
+    /// `sigma_<side>_mgal`.
+    pub sigma_mgal: Vec<f64>,
+    /// `sigma_<side>_calibration_mgal`.
+    pub sigma_calibration_mgal: Vec<f64>,
+    /// `sigma_<side>_positions_mgal`.
+    pub sigma_positions_mgal: Vec<f64>,
+    /// `sigma_<side>_noise_mgal`.
+    pub sigma_noise_mgal: Vec<f64>,
+    /// `sigma_<side>_attitude_mgal`.
+    pub sigma_attitude_mgal: Vec<f64>,
+}
+
+impl Component {
+    /// Each field under its column's name for `side` (north or east).
+    fn named(self, side: &str) -> [(String, Vec<f64>); 7] {
+        [
+            (format!("{side}_mgal"), self.mgal),
+            (format!("{side}_filtered_mgal"), self.filtered_mgal),
+            (format!("sigma_{side}_mgal"), self.sigma_mgal),
+            (
+                format!("sigma_{side}_calibration_mgal"),
+                self.sigma_calibration_mgal,
+            ),
+            (
+                format!("sigma_{side}_positions_mgal"),
+                self.sigma_positions_mgal,
+            ),
+            (format!("sigma_{side}_noise_mgal"), self.sigma_noise_mgal),
+            (
+                format!("sigma_{side}_attitude_mgal"),
+                self.sigma_attitude_mgal,
+            ),
+        ]
+    }
+}
+
+/// A block of consecutive epochs of one stretch, a field per column.
+pub struct Block {
+    /// The session's index.
+    pub session_index: u16,
+    /// The stretch's number in its session.
+    pub stretch: u32,
+    /// GPS time per epoch, ns.
+    pub time_gps_ns: Vec<i64>,
+    /// The [`FLOATS`] columns.
+    pub floats: Floats,
+    /// North and east ([`HORIZONTAL`]), none where the block has no attitude.
+    pub horizontal: Option<[Component; 2]>,
+    /// The [`NAMED`] quantities per epoch: the filtered disturbance and free-air anomaly,
+    /// none where the session cannot form them.
+    pub named: Vec<[Option<f64>; 2]>,
+    /// Flags per epoch.
+    pub flags: Vec<u8>,
+    /// The meter's status word per epoch, none where the session's samples carry none.
+    pub meter_status: Option<Vec<Option<u32>>>,
+}
+
+/// gravity.parquet being written: blocks gathered, then written as row groups.
+pub struct Writer {
+    table: TableWriter,
+    /// Whether any track has attitude: then north and east are held, and whether each row
+    /// has them; otherwise their columns are null throughout.
+    with_horizontal: bool,
+    session: Vec<u16>,
+    time: Vec<i64>,
+    stretch: Vec<u32>,
+    floats: [Vec<f64>; FLOATS.len()],
+    horizontal: [Vec<f64>; HORIZONTAL.len()],
+    horizontal_valid: Vec<bool>,
+    named: [Vec<f64>; NAMED.len()],
+    named_valid: [Vec<bool>; NAMED.len()],
+    flags: Vec<u8>,
+    status: Vec<Option<u32>>,
+}
+
+/// Appends `src` to `dst`, taking it whole where `dst` is empty.
+fn append<T: Copy>(dst: &mut Vec<T>, src: Vec<T>) {
+    if dst.is_empty() {
+        *dst = src;
+    } else {
+        dst.extend_from_slice(&src);
+    }
+}
+
+/// Where column `name` stands in `names` (a bug if it is not there).
+fn column_at(names: &[&str], name: &str) -> crate::Result<usize> {
+    names
+        .iter()
+        .position(|n| *n == name)
+        .ok_or_else(|| crate::Error::Table {
+            path: FILE.into(),
+            message: format!("a bug: `{name}` is not a column of {FILE}"),
+        })
+}
+
+impl Writer {
+    /// Starts the table in `dir` for the dataset's `sessions`; north and east are held
+    /// `with_horizontal` (any track has attitude).
+    pub fn create(dir: &Path, sessions: &[String], with_horizontal: bool) -> crate::Result<Self> {
+        Ok(Writer {
+            table: TableWriter::create(dir, FILE, schema(sessions), Encodings::default())?,
+            with_horizontal,
+            session: Vec::new(),
+            time: Vec::new(),
+            stretch: Vec::new(),
+            floats: Default::default(),
+            horizontal: Default::default(),
+            horizontal_valid: Vec::new(),
+            named: Default::default(),
+            named_valid: Default::default(),
+            flags: Vec::new(),
+            status: Vec::new(),
+        })
+    }
+
+    /// The epochs gathered and not yet written.
+    pub fn gathered(&self) -> usize {
+        self.time.len()
+    }
+
+    /// Gathers a block's epochs.
+    pub fn push(&mut self, b: Block) -> crate::Result<()> {
+        let n = b.time_gps_ns.len();
+        self.session.extend(std::iter::repeat_n(b.session_index, n));
+        append(&mut self.time, b.time_gps_ns);
+        self.stretch.extend(std::iter::repeat_n(b.stretch, n));
+        for (name, src) in b.floats.named() {
+            append(&mut self.floats[column_at(&FLOATS, name)?], src);
+        }
+        self.push_horizontal(b.horizontal, n)?;
+        for values in b.named {
+            let columns = self.named.iter_mut().zip(&mut self.named_valid);
+            for ((dst, valid), v) in columns.zip(values) {
+                dst.push(v.unwrap_or(0.0));
+                valid.push(v.is_some());
+            }
+        }
+        append(&mut self.flags, b.flags);
+        match b.meter_status {
+            Some(words) => append(&mut self.status, words),
+            None => self.status.extend(std::iter::repeat_n(None, n)),
+        }
+        Ok(())
+    }
+
+    /// North and east of the `n` epochs just pushed (zero and not valid without).
+    fn push_horizontal(&mut self, h: Option<[Component; 2]>, n: usize) -> crate::Result<()> {
+        if !self.with_horizontal {
+            return Ok(());
+        }
+        let Some([north, east]) = h else {
+            for dst in &mut self.horizontal {
+                dst.extend(std::iter::repeat_n(0.0, n));
+            }
+            self.horizontal_valid.extend(std::iter::repeat_n(false, n));
+            return Ok(());
+        };
+        for (name, src) in north.named("north").into_iter().chain(east.named("east")) {
+            append(&mut self.horizontal[column_at(&HORIZONTAL, &name)?], src);
+        }
+        self.horizontal_valid.extend(std::iter::repeat_n(true, n));
+        Ok(())
+    }
+
+    /// Writes the epochs gathered as one row group (none if there are none).
+    pub fn write(&mut self) -> crate::Result<()> {
+        let n_rows = self.time.len();
+        if n_rows == 0 {
+            return Ok(());
+        }
+        let mut columns: Vec<(&str, ArrayRef)> = vec![
+            (
+                SESSION_INDEX,
+                Arc::new(UInt16Array::from(take(&mut self.session))),
+            ),
+            (
+                TIME_GPS_NS,
+                Arc::new(Int64Array::from(take(&mut self.time))),
+            ),
+            (
+                STRETCH,
+                Arc::new(UInt32Array::from(take(&mut self.stretch))),
+            ),
+        ];
+        for (f, name) in self.floats.iter_mut().zip(FLOATS) {
+            columns.push((name, Arc::new(Float64Array::from(take(f)))));
+        }
+        let flags = take(&mut self.flags);
+        // A sigma that needs the attitude's sds is null where the file gives none.
+        let horizontal_valid = take(&mut self.horizontal_valid);
+        let sd_known: Vec<bool> = (horizontal_valid.iter().zip(&flags))
+            .map(|(v, f)| *v && f & ATTITUDE_SD_UNKNOWN == 0)
+            .collect();
+        let valid = self.with_horizontal.then(|| {
+            (
+                NullBuffer::from(horizontal_valid),
+                NullBuffer::from(sd_known),
+            )
+        });
+        for (f, name) in self.horizontal.iter_mut().zip(HORIZONTAL) {
+            let f = take(f);
+            let column = match &valid {
+                Some((v, _)) if !NEEDS_ATTITUDE_SD.contains(&name) => {
+                    Float64Array::new(f.into(), Some(v.clone()))
+                }
+                Some((_, v)) => Float64Array::new(f.into(), Some(v.clone())),
+                None => Float64Array::new_null(n_rows),
+            };
+            columns.push((name, Arc::new(column)));
+        }
+        let named = self.named.iter_mut().zip(&mut self.named_valid);
+        for ((f, valid), name) in named.zip(NAMED) {
+            let valid = NullBuffer::from(take(valid));
+            columns.push((
+                name,
+                Arc::new(Float64Array::new(take(f).into(), Some(valid))),
+            ));
+        }
+        columns.push((FLAGS, Arc::new(UInt8Array::from(flags))));
+        let status = UInt32Array::from(take(&mut self.status));
+        columns.push((METER_STATUS_WORD, Arc::new(status)));
+        self.table.write(columns)?;
+        self.table.flush()
+    }
+
+    /// Writes what is gathered and closes the table; returns its rows and SHA-256 (hashed
+    /// as it was written).
+    pub fn finish_hashed(mut self) -> crate::Result<Written> {
+        self.write()?;
+        self.table.finish_hashed()
+    }
 }
