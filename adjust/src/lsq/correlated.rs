@@ -688,14 +688,7 @@ mod tests {
         let windows = flicker.windowed(noise.window_s);
         let gain = |i: usize| -> Vec<f64> {
             let f = -s.b[i][1] / s.q_ww[i];
-            (0..m)
-                .map(|r| {
-                    (0..m)
-                        .map(|c| s.q_pp[r * m + c] * s.a[i * m + c])
-                        .sum::<f64>()
-                        * f
-                })
-                .collect()
+            q_pp_a(&s, i).into_iter().map(|x| x * f).collect()
         };
         let mut slow = vec![0.0; m * m];
         for i in 0..n {

@@ -106,7 +106,7 @@ pub mod theodolite;
 mod read;
 mod write;
 pub use read::{FloatBatch, float_batches, float_batches_unflagged, float_batches_with};
-pub use write::{GroupWriter, Nullable, RowGroup};
+pub use write::{GroupWriter, Nullable, RowGroup, Stored, StreamNames, StreamRows};
 
 #[cfg(test)]
 mod tests {

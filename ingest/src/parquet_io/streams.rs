@@ -297,8 +297,8 @@ impl StreamWriter {
         let group = AccelerationGroup {
             session_index: session_values(self.session, n, self.spare.int32()),
             time_gps_ns: time,
-            counts: columns,
-            status: status_values(status, self.spare.int32()),
+            channels: columns,
+            last: status_values(status, self.spare.int32()),
         };
         self.send(Message::Acceleration(group))
     }
@@ -316,8 +316,8 @@ impl StreamWriter {
         let group = TemperatureGroup {
             session_index: session_values(self.session, n, Vec::new()),
             time_gps_ns: c.time,
-            temperature_c,
-            status: status_values(&c.status, Vec::new()),
+            channels: temperature_c,
+            last: status_values(&c.status, Vec::new()),
         };
         self.send(Message::Temperature(group))
     }

@@ -176,8 +176,8 @@ impl LabWriter {
         let group = tables::lab::RowGroup {
             session_index: session_values(rows.session, n, spare.int32()),
             time_gps_ns: time,
-            values,
-            line,
+            channels: values,
+            last: line,
         };
         rows.len = 0;
         let sent = self

@@ -11,7 +11,7 @@
 
 use super::reduce::Steps;
 use super::spill::{Spill, SpillWriter};
-use super::trajectory::{Columns, Values, bad, count_dropped, epoch_line};
+use super::trajectory::{Columns, Values, bad, count_dropped, epoch_line, three_within};
 use super::{BadLine, GravityError, set_aside};
 use ingest::base::time::TimeReader;
 use ingest::base::timegate::{Position, Sink, TimeGate};
@@ -405,25 +405,8 @@ const ANGLE_COLUMNS: Columns = Columns {
 /// Heading in [-360, 360], pitch in [-90, 90], roll in [-180, 180].
 fn angles(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
     let names = ["heading_deg", "pitch_deg", "roll_deg"];
-    let limits = [360.0, 90.0, 180.0];
-    let mut out = [0.0; 3];
-    for k in 0..3 {
-        let v: f64 = f[k]
-            .parse()
-            .ok()
-            .filter(|v: &f64| v.is_finite())
-            .ok_or_else(|| bad(path, line, names[k], format!("`{}` is not a number", f[k])))?;
-        if v.abs() > limits[k] {
-            return Err(bad(
-                path,
-                line,
-                names[k],
-                format!("{v} is outside [-{0}, {0}] deg", limits[k]),
-            ));
-        }
-        out[k] = v;
-    }
-    Ok(out)
+    let limits = [(-360.0, 360.0), (-90.0, 90.0), (-180.0, 180.0)];
+    three_within(path, line, f, (names, limits, " deg"))
 }
 
 /// Three sds (deg), each finite, not negative and under 90.

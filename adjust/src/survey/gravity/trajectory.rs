@@ -57,6 +57,17 @@ pub(super) fn bad(path: &Path, line: u64, field: &str, message: String) -> Gravi
 fn position(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError> {
     let names = ["latitude", "longitude", "height"];
     let limits = [(-90.0, 90.0), (-180.0, 360.0), (-1.0e4, 1.0e5)];
+    three_within(path, line, f, (names, limits, ""))
+}
+
+/// A line's first three fields, each a finite number within its closed range: `names`,
+/// `limits` and the unit the message gives after the range ("" or " deg").
+pub(super) fn three_within(
+    path: &Path,
+    line: u64,
+    f: &[&str],
+    (names, limits, unit): ([&str; 3], [(f64, f64); 3], &str),
+) -> Result<[f64; 3], GravityError> {
     let mut out = [0.0; 3];
     for k in 0..3 {
         let v: f64 = f[k]
@@ -64,13 +75,10 @@ fn position(path: &Path, line: u64, f: &[&str]) -> Result<[f64; 3], GravityError
             .ok()
             .filter(|v: &f64| v.is_finite())
             .ok_or_else(|| bad(path, line, names[k], format!("`{}` is not a number", f[k])))?;
-        if !(limits[k].0..=limits[k].1).contains(&v) {
-            return Err(bad(
-                path,
-                line,
-                names[k],
-                format!("{v} is outside [{}, {}]", limits[k].0, limits[k].1),
-            ));
+        let (lo, hi) = limits[k];
+        if !(lo..=hi).contains(&v) {
+            let message = format!("{v} is outside [{lo}, {hi}]{unit}");
+            return Err(bad(path, line, names[k], message));
         }
         out[k] = v;
     }

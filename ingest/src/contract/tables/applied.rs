@@ -135,10 +135,12 @@ pub struct RowGroup {
 
 impl super::RowGroup for RowGroup {
     type Name = String;
+    /// Each accelerometer's id comes with its columns.
+    type Names = ();
     fn rows(&self) -> usize {
         self.time_gps_ns.len()
     }
-    fn named(self) -> Vec<(String, ColumnValues)> {
+    fn named(self, (): &()) -> Vec<(String, ColumnValues)> {
         let mut named = vec![
             (
                 SESSION_INDEX.to_owned(),
@@ -195,7 +197,7 @@ pub fn writer(
             ..Encodings::default()
         },
     )?;
-    Ok(GroupWriter::new(table))
+    Ok(GroupWriter::new(table, ()))
 }
 
 /// A row group of a triad model's table, a field per column.
@@ -214,10 +216,12 @@ pub struct TriadRowGroup {
 
 impl super::RowGroup for TriadRowGroup {
     type Name = &'static str;
+    /// The names are [`TRIAD_COLUMNS`].
+    type Names = ();
     fn rows(&self) -> usize {
         self.time_gps_ns.len()
     }
-    fn named(self) -> Vec<(&'static str, ColumnValues)> {
+    fn named(self, (): &()) -> Vec<(&'static str, ColumnValues)> {
         let mut named = vec![
             (SESSION_INDEX, ColumnValues::Int32(self.session_index, None)),
             (TIME_GPS_NS, ColumnValues::Int64(self.time_gps_ns, None)),
@@ -244,5 +248,5 @@ pub fn triad_writer(dir: &Path, sessions: &[String]) -> crate::Result<GroupWrite
             ..Encodings::default()
         },
     )?;
-    Ok(GroupWriter::new(table))
+    Ok(GroupWriter::new(table, ()))
 }

@@ -8,12 +8,12 @@
 //! | value_ch1..3 | float64, null | the reading; null where the line gave `nan` |
 //! | line | uint64 | the sample's line in its stream |
 
-use super::{DataType, Field, GroupWriter, SESSION_INDEX, SchemaRef, TIME_GPS_NS};
-use crate::parquet_io::table::{
-    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC,
-};
+use super::{DataType, Field, GroupWriter, SESSION_INDEX, SchemaRef};
+use crate::parquet_io::table::Encodings;
 /// File name.
 pub const FILE: &str = "lab.parquet";
+/// A row group of the table: its channels are [`VALUES`], its last column `line`.
+pub type RowGroup = super::StreamRows<f64, i64>;
 /// Readings of channels 1..3.
 pub const VALUES: [&str; 3] = ["value_ch1", "value_ch2", "value_ch3"];
 /// Line in the stream.
@@ -24,43 +24,12 @@ pub fn schema(sessions: &[String]) -> SchemaRef {
     super::three_channels(VALUES, DataType::Float64, line, sessions)
 }
 
-/// A row group of the table, a field per column.
-pub struct RowGroup {
-    /// Session index per row (UInt16, stored as INT32).
-    pub session_index: Vec<i32>,
-    /// GPS time per row, ns.
-    pub time_gps_ns: Vec<i64>,
-    /// Readings of channels 1..3, null where the line gave `nan`.
-    pub values: [super::Nullable<f64>; 3],
-    /// Line in the stream per row (UInt64, stored as INT64).
-    pub line: Vec<i64>,
-}
-
-impl super::RowGroup for RowGroup {
-    type Name = &'static str;
-    fn rows(&self) -> usize {
-        self.time_gps_ns.len()
-    }
-    fn named(self) -> Vec<(&'static str, ColumnValues)> {
-        let [v1, v2, v3] = self.values;
-        vec![
-            (SESSION_INDEX, ColumnValues::Int32(self.session_index, None)),
-            (TIME_GPS_NS, ColumnValues::Int64(self.time_gps_ns, None)),
-            (VALUES[0], ColumnValues::Double(v1.0, v1.1)),
-            (VALUES[1], ColumnValues::Double(v2.0, v2.1)),
-            (VALUES[2], ColumnValues::Double(v3.0, v3.1)),
-            (LINE, ColumnValues::Int64(self.line, None)),
-        ]
-    }
-}
-
-/// Starts the table in `dir` for the dataset's `sessions`, written as ingest writes it:
-/// one column after another on the writer's thread, synced every few row groups.
+/// Starts the table in `dir` for the dataset's `sessions`, as ingest writes its streams
+/// ([`super::write::stream_writer`]).
 pub fn writer(dir: &std::path::Path, sessions: &[String]) -> crate::Result<GroupWriter<RowGroup>> {
-    let table = ColumnTableWriter::create(
+    super::write::stream_writer(
         dir,
-        FILE,
-        schema(sessions),
+        (FILE, schema(sessions), (VALUES, LINE)),
         // Chosen by measurement (`cargo xtask bench ingest`, docs/benchmarks.md): the
         // session, time and line columns by ingest's own delta encoder; the readings split
         // by byte stream, which lets a compressor find what their high bytes share,
@@ -74,10 +43,7 @@ pub fn writer(dir: &std::path::Path, sessions: &[String]) -> crate::Result<Group
             no_statistics: &VALUES,
             ..Encodings::default()
         },
-    )?
-    .one_column_at_a_time()
-    .sync_every(INGEST_GROUPS_PER_SYNC);
-    Ok(GroupWriter::new(table))
+    )
 }
 
 /// One batch of the lab table: per row the session index, GPS time (ns), and the readings
@@ -98,20 +64,17 @@ pub fn batches<E: From<crate::Error>>(
     batch_rows: usize,
     mut f: impl FnMut(Batch<'_>) -> Result<(), E>,
 ) -> Result<(), E> {
-    use super::read::{batches_of, floats, session_and_time};
+    use super::read::{floats, stream_batches};
     let path = dir.join(FILE);
-    for b in batches_of(&path, batch_rows)? {
-        let b = b?;
-        let (session, time) = session_and_time(&path, &b)?;
+    stream_batches(&path, batch_rows, |b, session, time_ns| {
         let v: Vec<_> = VALUES
             .iter()
-            .map(|n| floats(&path, &b, n))
+            .map(|n| floats(&path, b, n))
             .collect::<crate::Result<Vec<_>>>()?;
         f(Batch {
             session,
-            time_ns: time,
+            time_ns,
             values: [v[0], v[1], v[2]],
-        })?;
-    }
-    Ok(())
+        })
+    })
 }

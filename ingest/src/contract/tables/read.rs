@@ -104,6 +104,21 @@ pub(super) fn sessions(path: &Path, batch: &RecordBatch) -> Result<(Vec<String>,
     dictionary_keys(path, batch, SESSION)
 }
 
+/// The batches of a sample stream's table (acceleration, lab) at `path` in file order,
+/// `rows` at a time, each handed to `f` with its session index and GPS time columns.
+pub(super) fn stream_batches<E: From<Error>>(
+    path: &Path,
+    rows: usize,
+    mut f: impl FnMut(&RecordBatch, &[u16], &[i64]) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    for b in batches_of(path, rows)? {
+        let b = b?;
+        let (session, time) = session_and_time(path, &b)?;
+        f(&b, session, time)?;
+    }
+    Ok(())
+}
+
 /// A stream table's session index and GPS time columns.
 pub(super) fn session_and_time<'b>(
     path: &Path,

@@ -1,11 +1,11 @@
 //! `temperature.parquet`.
 
-use super::{DataType, Field, GroupWriter, SESSION_INDEX, STATUS, SchemaRef, TIME_GPS_NS};
-use crate::parquet_io::table::{
-    ColumnTableWriter, ColumnValues, Encodings, INGEST_GROUPS_PER_SYNC,
-};
+use super::{DataType, Field, GroupWriter, STATUS, SchemaRef};
+use crate::parquet_io::table::Encodings;
 /// File name.
 pub const FILE: &str = "temperature.parquet";
+/// A row group of the table: its channels are [`TEMPERATURE_C`], its last column `status`.
+pub type RowGroup = super::StreamRows<f64, i32>;
 /// Temperatures of channels 1..3, degC.
 pub const TEMPERATURE_C: [&str; 3] = [
     "temperature_ch1_c",
@@ -18,43 +18,11 @@ pub fn schema(sessions: &[String]) -> SchemaRef {
     super::three_channels(TEMPERATURE_C, DataType::Float64, status, sessions)
 }
 
-/// A row group of the table, a field per column.
-pub struct RowGroup {
-    /// Session index per row (UInt16, stored as INT32).
-    pub session_index: Vec<i32>,
-    /// GPS time per row, ns.
-    pub time_gps_ns: Vec<i64>,
-    /// Temperatures of channels 1..3, degC, null where not connected.
-    pub temperature_c: [super::Nullable<f64>; 3],
-    /// Status bits per row (UInt8, stored as INT32).
-    pub status: Vec<i32>,
-}
-
-impl super::RowGroup for RowGroup {
-    type Name = &'static str;
-    fn rows(&self) -> usize {
-        self.time_gps_ns.len()
-    }
-    fn named(self) -> Vec<(&'static str, ColumnValues)> {
-        let [t1, t2, t3] = self.temperature_c;
-        vec![
-            (SESSION_INDEX, ColumnValues::Int32(self.session_index, None)),
-            (TIME_GPS_NS, ColumnValues::Int64(self.time_gps_ns, None)),
-            (TEMPERATURE_C[0], ColumnValues::Double(t1.0, t1.1)),
-            (TEMPERATURE_C[1], ColumnValues::Double(t2.0, t2.1)),
-            (TEMPERATURE_C[2], ColumnValues::Double(t3.0, t3.1)),
-            (STATUS, ColumnValues::Int32(self.status, None)),
-        ]
-    }
-}
-
-/// Starts the table in `dir` for the dataset's `sessions`, written as ingest writes it:
-/// one column after another on the writer's thread, synced every few row groups.
+/// Starts the table in `dir` for the dataset's `sessions`, as ingest writes its streams
+/// ([`super::write::stream_writer`]).
 pub fn writer(dir: &std::path::Path, sessions: &[String]) -> crate::Result<GroupWriter<RowGroup>> {
-    let table = ColumnTableWriter::create(dir, FILE, schema(sessions), Encodings::default())?
-        .one_column_at_a_time()
-        .sync_every(INGEST_GROUPS_PER_SYNC);
-    Ok(GroupWriter::new(table))
+    let names = (TEMPERATURE_C, STATUS);
+    super::write::stream_writer(dir, (FILE, schema(sessions), names), Encodings::default())
 }
 
 /// Temperature series per (session index, channel 1..3): times (ns) and degC, non-null
