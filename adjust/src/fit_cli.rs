@@ -70,13 +70,6 @@ fn field(f: &str) -> &str {
         .map_or(f, str::trim)
 }
 
-/// The columns `wanted` (x, y and the optional sigmas, by name) of the CSV table at `path`,
-/// and the file's line of each data row: blank lines and `#` comments skipped, a
-/// byte-order mark dropped, every error naming the file, the line and the column.
-#[allow(
-    clippy::type_complexity,
-    reason = "four columns and their rows' lines, once"
-)]
 /// The column of the header `names` called `name`; none, or two, is an error naming it.
 fn column_index(path: &Path, names: &[&str], name: &str) -> Result<usize, Error> {
     let bad = |message: String| Error::Fit {
@@ -101,6 +94,13 @@ fn column_index(path: &Path, names: &[&str], name: &str) -> Result<usize, Error>
     Ok(first)
 }
 
+/// The columns `wanted` (x, y and the optional sigmas, by name) of the CSV table at `path`,
+/// and the file's line of each data row: blank lines and `#` comments skipped, a
+/// byte-order mark dropped, every error naming the file, the line and the column.
+#[allow(
+    clippy::type_complexity,
+    reason = "four columns and their rows' lines, once"
+)]
 fn read_columns(
     path: &Path,
     wanted: [Option<&str>; 4],
