@@ -9,6 +9,7 @@ use crate::lsq::correlated::{self, ColouredAdc, Timeline};
 use crate::lsq::gh::{self, GhError, Options};
 use rayon::prelude::{
     IndexedParallelIterator, IntoParallelRefIterator, IntoParallelRefMutIterator, ParallelIterator,
+    ParallelSlice, ParallelSliceMut,
 };
 
 /// Critical value of the w-test (two-sided, alpha = 0.001).
@@ -274,49 +275,34 @@ pub const MIN_TEMPERATURE_SPREAD_C: f64 = 1.0;
 /// adjustment still catches exact rank loss (e.g. beta with tilts on one side only).
 pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
     let names = terms.names();
+    let mut spread = Spread::of(obs);
     // The element a sort would put in the middle, without the sort (total_cmp is a total
-    // order: equal values are the same bits, so neither this nor the unstable sort below
-    // can differ from a stable sort's).
-    // One buffer for both medians, filled on the pool (the pass over a million readings).
-    let mut buffer = Vec::new();
-    let mut median = |value: fn(&Obs) -> f64| {
-        obs.par_iter().map(value).collect_into_vec(&mut buffer);
-        let mid = buffer.len() / 2;
-        if buffer.is_empty() {
+    // order: equal values are the same bits, so this cannot differ from a stable sort's).
+    let median = |values: &mut Vec<f64>| {
+        let mid = values.len() / 2;
+        if values.is_empty() {
             0.0
         } else {
-            *buffer.select_nth_unstable_by(mid, f64::total_cmp).1
+            *values.select_nth_unstable_by(mid, f64::total_cmp).1
         }
     };
-    let separation = LEVEL_SEPARATION_SIGMAS * median(|o| o.sigma_dz_rad);
-    let levels = tilt_levels(obs, separation.max(1e-9), terms.order + 1);
+    let separation = LEVEL_SEPARATION_SIGMAS * median(&mut spread.sigma_dz);
+    let levels = tilt_levels(obs, spread.lowest_dz, separation.max(1e-9), terms.order + 1);
     if levels < terms.order + 1 && !obs.is_empty() {
-        let dz = || obs.iter().map(|o| o.dz_rad);
-        let lowest = dz().min_by(f64::total_cmp).unwrap_or(0.0);
-        let highest = dz().max_by(f64::total_cmp).unwrap_or(0.0);
         return Err(CalError::NotEstimable {
             parameter: names[levels].name,
             why: format!(
                 "the observations come from {levels} tilt position(s) (Dz {:.4} to {:.4} deg); \
                  a polynomial of order {} needs {} positions at different Dz",
-                lowest.to_degrees(),
-                highest.to_degrees(),
+                spread.lowest_dz.to_degrees(),
+                spread.highest_dz.to_degrees(),
                 terms.order,
                 terms.order + 1
             ),
         });
     }
-    let (lo, hi) = obs
-        .par_iter()
-        .fold(
-            || (f64::INFINITY, f64::NEG_INFINITY),
-            |(a, b), o| (a.min(o.ng), b.max(o.ng)),
-        )
-        .reduce(
-            || (f64::INFINITY, f64::NEG_INFINITY),
-            |(a, b), (c, d)| (a.min(c), b.max(d)),
-        );
-    let noise = median(|o| o.sigma_ng);
+    let (lo, hi) = spread.ng;
+    let noise = median(&mut spread.sigma_ng);
     if hi - lo <= COUNT_SPREAD_SIGMAS * noise {
         return Err(CalError::NotEstimable {
             parameter: names[1].name,
@@ -347,19 +333,83 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
     Ok(())
 }
 
-/// The tilt positions among `obs`, counted up to `most`: bins of width `separation` from
-/// the lowest Dz, a new one beginning at the lowest Dz past the current one's start by more
-/// than the separation (the bins a pass over the sorted Dz would open, found by one pass
-/// per bin instead of a sort of every observation). Chaining neighbours instead made a
-/// continuous spread of Dz (a motorised table read at many angles) one "position".
-fn tilt_levels(obs: &[Obs], separation: f64, most: usize) -> usize {
-    let mut levels = 0usize;
-    let mut start = f64::NEG_INFINITY;
+/// What the design check reads of the observations, in one pass on the pool: the sds of
+/// Dz and of Ng (for their medians), the lowest and highest Dz, the lowest and highest Ng.
+struct Spread {
+    sigma_dz: Vec<f64>,
+    sigma_ng: Vec<f64>,
+    lowest_dz: f64,
+    highest_dz: f64,
+    ng: (f64, f64),
+}
+
+impl Spread {
+    fn of(obs: &[Obs]) -> Self {
+        const ROWS: usize = 16_384;
+        let mut sigma_dz = vec![0.0; obs.len()];
+        let mut sigma_ng = vec![0.0; obs.len()];
+        let none = [
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        // Lowest and highest are the same in any order: the tasks reduce as they finish.
+        let [lowest_dz, highest_dz, lo, hi] = sigma_dz
+            .par_chunks_mut(ROWS)
+            .zip(sigma_ng.par_chunks_mut(ROWS))
+            .zip(obs.par_chunks(ROWS))
+            .map(|((dz, ng), rows)| {
+                let mut ends = none;
+                for ((d, n), o) in dz.iter_mut().zip(ng).zip(rows) {
+                    (*d, *n) = (o.sigma_dz_rad, o.sigma_ng);
+                    ends = [
+                        ends[0].min(o.dz_rad),
+                        ends[1].max(o.dz_rad),
+                        ends[2].min(o.ng),
+                        ends[3].max(o.ng),
+                    ];
+                }
+                ends
+            })
+            .reduce(
+                || none,
+                |a, b| {
+                    [
+                        a[0].min(b[0]),
+                        a[1].max(b[1]),
+                        a[2].min(b[2]),
+                        a[3].max(b[3]),
+                    ]
+                },
+            );
+        Spread {
+            sigma_dz,
+            sigma_ng,
+            lowest_dz,
+            highest_dz,
+            ng: (lo, hi),
+        }
+    }
+}
+
+/// The tilt positions among `obs` (whose lowest Dz is `lowest`), counted up to `most`:
+/// bins of width `separation` from the lowest Dz, a new one beginning at the lowest Dz
+/// past the current one's start by more than the separation (the bins a pass over the
+/// sorted Dz would open, found by one pass per bin instead of a sort of every observation).
+/// Chaining neighbours instead made a continuous spread of Dz (a motorised table read at
+/// many angles) one "position".
+fn tilt_levels(obs: &[Obs], lowest: f64, separation: f64, most: usize) -> usize {
+    if obs.is_empty() || most == 0 {
+        return 0;
+    }
+    let mut levels = 1usize;
+    let mut start = lowest;
     while levels < most {
         let next = obs
             .par_iter()
             .map(|o| o.dz_rad)
-            .filter(|d| levels == 0 || d - start > separation)
+            .filter(|d| d - start > separation)
             .min_by(f64::total_cmp);
         let Some(d) = next else { break };
         levels += 1;
@@ -441,31 +491,22 @@ fn screen_gross_errors(
 }
 
 /// Start values of the scaled parameters: b and k from an ordinary least-squares line of
-/// `-g cos Dz` on `x` (so that the first linearisation sees the slope, and a reading at
-/// Dz = 0 has a variance), the rest 0.
-fn start_values(used: &[&Obs], model: &CalibrationConditions<'_>) -> Vec<f64> {
+/// `-g cos Dz` (mean `mean_y`) on `x` (so that the first linearisation sees the slope, and
+/// a reading at Dz = 0 has a variance), the rest 0. The sums in row order, two passes.
+fn start_values(used: &[&Obs], model: &CalibrationConditions<'_>, mean_y: f64) -> Vec<f64> {
     let mut p = vec![0.0; model.terms.len()];
     let n = used.len() as f64;
-    // The counts scaled on the fly; -g cos Dz formed in parallel once (the sums in order).
     let x = |o: &Obs| (o.ng - model.centre) / model.scale;
-    let ys: Vec<f64> = used
-        .par_iter()
-        .with_min_len(4096)
-        .map(|o| -model.g_mgal * o.dz_rad.cos())
-        .collect();
-    let (mx, my) = (
-        used.iter().map(|o| x(o)).sum::<f64>() / n,
-        ys.iter().sum::<f64>() / n,
-    );
-    let sxx: f64 = used.iter().map(|o| (x(o) - mx).powi(2)).sum();
-    let sxy: f64 = used
-        .iter()
-        .zip(&ys)
-        .map(|(o, y)| (x(o) - mx) * (y - my))
-        .sum();
+    let mx = used.iter().map(|o| x(o)).sum::<f64>() / n;
+    let (mut sxx, mut sxy) = (-0.0, -0.0);
+    for o in used {
+        let dx = x(o) - mx;
+        sxx += dx.powi(2);
+        sxy += dx * (-model.g_mgal * o.dz_rad.cos() - mean_y);
+    }
     let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
     // The condition is g cos Dz + c = 0: c(x) is the line of -g cos Dz on x.
-    p[0] = my - slope * mx;
+    p[0] = mean_y - slope * mx;
     p[1] = slope;
     p
 }
@@ -533,7 +574,11 @@ pub fn calibrate_with(
     loop {
         round += 1;
         let used: Vec<&Obs> = active.iter().map(|&i| &obs_now[i]).collect();
-        let (centre, scale) = counts_centre_and_scale(&used);
+        let Centres {
+            centre,
+            scale,
+            mean_y,
+        } = Centres::of(&used, g_mgal);
         let (tides, rolls) = tides_and_rolls(&used, terms);
         let model = CalibrationConditions {
             terms,
@@ -544,7 +589,7 @@ pub fn calibrate_with(
             tide_mgal: &tides,
             roll_rad: &rolls,
         };
-        let p0 = start_values(&used, &model);
+        let p0 = start_values(&used, &model, mean_y);
         let to_cal = |e| cal_error(e, &names, &active);
         let readings = Readings(&used);
         let mut s = gh::solve(&model, &readings, &p0, &Options::default()).map_err(to_cal)?;
@@ -648,17 +693,38 @@ pub fn mdb_noncentrality(dof: Option<f64>) -> f64 {
     }
 }
 
-/// The counts' mean and largest distance from it (at least 1): the model's internal
-/// parameters are scaled by them.
-fn counts_centre_and_scale(used: &[&Obs]) -> (f64, f64) {
-    let n = used.len() as f64;
-    let centre = used.iter().map(|o| o.ng).sum::<f64>() / n;
-    let scale = used
-        .iter()
-        .map(|o| (o.ng - centre).abs())
-        .fold(0.0, f64::max)
-        .max(1.0);
-    (centre, scale)
+/// What the model's scaling and the start values read of the readings, in one pass in
+/// row order (the sums' bits those of a sum of each alone): the counts' mean and largest
+/// distance from it (at least 1), by which the model's internal parameters are scaled, and
+/// the mean of `-g cos Dz`.
+struct Centres {
+    centre: f64,
+    scale: f64,
+    mean_y: f64,
+}
+
+impl Centres {
+    fn of(used: &[&Obs], g_mgal: f64) -> Self {
+        let n = used.len() as f64;
+        // From -0.0, as `Iterator::sum` starts.
+        let (mut sum_ng, mut lo, mut hi, mut sum_y) =
+            (-0.0, f64::INFINITY, f64::NEG_INFINITY, -0.0);
+        for o in used {
+            sum_ng += o.ng;
+            lo = f64::min(lo, o.ng);
+            hi = f64::max(hi, o.ng);
+            sum_y += -g_mgal * o.dz_rad.cos();
+        }
+        let centre = sum_ng / n;
+        // The largest |Ng - centre| is at the lowest or the highest Ng (a rounded
+        // difference is monotone in Ng).
+        let scale = (hi - centre).max(centre - lo).max(1.0);
+        Centres {
+            centre,
+            scale,
+            mean_y: sum_y / n,
+        }
+    }
 }
 
 /// What the coloured ADC noise adds to the variance of each of `used`'s misclosures
@@ -857,7 +923,7 @@ fn residuals(active: &[usize], s: gh::Solution<3>) -> Vec<Residual> {
     } = s;
     drop((q_parts, q_ww));
     active
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(k, &index)| Residual {
             index,
@@ -945,10 +1011,9 @@ fn cal_error(
 /// bench) holds only the stations and the sigma_Dz dofs, 24 bytes an observation, not 72.
 struct Groups<'a> {
     used: &'a [&'a Obs],
-    /// Station per observation, compacted to 0..stations.
-    station: std::cell::OnceCell<Vec<usize>>,
-    /// Dof of each sigma_Dz.
-    dof: std::cell::OnceCell<Vec<Option<f64>>>,
+    /// Station per observation, compacted to 0..stations, and the dof of each sigma_Dz:
+    /// read in one pass.
+    stations: std::cell::OnceCell<(Vec<usize>, Vec<Option<f64>>)>,
     windows: std::cell::OnceCell<Windows>,
     times: std::cell::OnceCell<(Vec<f64>, Vec<usize>)>,
 }
@@ -983,8 +1048,7 @@ impl<'a> Groups<'a> {
     fn of(used: &'a [&'a Obs]) -> Self {
         Self {
             used,
-            station: std::cell::OnceCell::new(),
-            dof: std::cell::OnceCell::new(),
+            stations: std::cell::OnceCell::new(),
             windows: std::cell::OnceCell::new(),
             times: std::cell::OnceCell::new(),
         }
@@ -992,33 +1056,24 @@ impl<'a> Groups<'a> {
 
     /// Station per observation, compacted to 0..stations.
     fn station(&self) -> &[usize] {
-        self.station.get_or_init(|| {
-            // Readings in station order (as align writes them): compacted in one pass.
-            if self.used.windows(2).all(|w| w[0].station <= w[1].station) {
-                let mut compact = 0;
-                return (0..self.used.len())
-                    .map(|i| {
-                        if i > 0 && self.used[i].station != self.used[i - 1].station {
-                            compact += 1;
-                        }
-                        compact
-                    })
-                    .collect();
-            }
-            let mut ids: Vec<usize> = self.used.iter().map(|o| o.station).collect();
-            ids.sort_unstable();
-            ids.dedup();
-            self.used
-                .iter()
-                .map(|o| ids.binary_search(&o.station).unwrap_or(0))
-                .collect()
-        })
+        &self.stations().0
     }
 
     /// Dof of each sigma_Dz.
     fn dof(&self) -> &[Option<f64>] {
-        self.dof
-            .get_or_init(|| self.used.iter().map(|o| o.sigma_dz_dof).collect())
+        &self.stations().1
+    }
+
+    fn stations(&self) -> &(Vec<usize>, Vec<Option<f64>>) {
+        self.stations.get_or_init(|| {
+            let (mut station, mut dof) = (Vec::new(), Vec::new());
+            self.used
+                .par_iter()
+                .map(|o| (o.station, o.sigma_dz_dof))
+                .unzip_into_vecs(&mut station, &mut dof);
+            compact(&mut station);
+            (station, dof)
+        })
     }
 
     /// The expected part of solution `s`'s between-station form due to coloured ADC noise
@@ -1038,6 +1093,29 @@ impl<'a> Groups<'a> {
 
 /// Most re-adjustments of the theodolite component's iteration.
 const MAX_COMPONENT_ITERATIONS: usize = 50;
+
+/// Station ids renumbered 0..stations in order of their values: readings in station order
+/// (as align writes them) in one pass, others through the sorted distinct ids.
+fn compact(station: &mut [usize]) {
+    if station.windows(2).all(|w| w[0] <= w[1]) {
+        let mut previous = station.first().copied();
+        let mut count = 0;
+        for id in station.iter_mut() {
+            if Some(*id) != previous {
+                previous = Some(*id);
+                count += 1;
+            }
+            *id = count;
+        }
+        return;
+    }
+    let mut ids = station.to_vec();
+    ids.sort_unstable();
+    ids.dedup();
+    for id in station.iter_mut() {
+        *id = ids.binary_search(id).unwrap_or(0);
+    }
+}
 
 /// The variance components ([`components`]) and the adjustment at them, from the a-priori
 /// solution `s` of observations `l` with sds `sigma`: the ADC's from the repeated window
@@ -1179,7 +1257,7 @@ mod tests {
             assert!(all > 2, "{all}");
             for most in 1..=all + 2 {
                 assert_eq!(
-                    tilt_levels(&obs, separation, most),
+                    tilt_levels(&obs, Spread::of(&obs).lowest_dz, separation, most),
                     all.min(most),
                     "{most} of {all}"
                 );
