@@ -574,22 +574,18 @@ pub fn calibrate_with(
     loop {
         round += 1;
         let used: Vec<&Obs> = active.iter().map(|&i| &obs_now[i]).collect();
-        let Centres {
-            centre,
-            scale,
-            mean_y,
-        } = Centres::of(&used, g_mgal);
-        let (tides, rolls) = tides_and_rolls(&used, terms);
+        let centres = Centres::of(&used, g_mgal);
+        let (tides, rolls) = tides_and_rolls(&used, terms, centres.tides);
         let model = CalibrationConditions {
             terms,
             g_mgal,
-            centre,
-            scale,
+            centre: centres.centre,
+            scale: centres.scale,
             t_ref_c,
             tide_mgal: &tides,
             roll_rad: &rolls,
         };
-        let p0 = start_values(&used, &model, mean_y);
+        let p0 = start_values(&used, &model, centres.mean_y);
         let to_cal = |e| cal_error(e, &names, &active);
         let readings = Readings(&used);
         let mut s = gh::solve(&model, &readings, &p0, &Options::default()).map_err(to_cal)?;
@@ -614,7 +610,13 @@ pub fn calibrate_with(
             active.remove(k);
             continue;
         }
-        return conclude(&model, &used, &active, s, options)
+        let fitted = Fitted {
+            model: &model,
+            used: &used,
+            active: &active,
+            mean_temperature_c: centres.mean_temperature_c,
+        };
+        return conclude(&fitted, s, options)
             .map(|fit| CalibrationSolution { removed, ..fit })
             .map_err(to_cal);
     }
@@ -627,11 +629,11 @@ fn reference_temperature(obs: &[Obs]) -> f64 {
     (all_t * 100.0).round() / 100.0
 }
 
-/// The tides and rolls the conditions hold for `used`. Neither is held when it enters
-/// nothing (an empty slice): a million observations' bench has no tide and no vector
-/// misalignment.
-fn tides_and_rolls(used: &[&Obs], terms: Terms) -> (Vec<f64>, Vec<f64>) {
-    let tides = if used.iter().any(|o| o.tide_mgal != 0.0) {
+/// The tides and rolls the conditions hold for `used` (`any_tide`: whether any reading has
+/// one). Neither is held when it enters nothing (an empty slice): a million observations'
+/// bench has no tide and no vector misalignment.
+fn tides_and_rolls(used: &[&Obs], terms: Terms, any_tide: bool) -> (Vec<f64>, Vec<f64>) {
+    let tides = if any_tide {
         used.iter().map(|o| o.tide_mgal).collect()
     } else {
         Vec::new()
@@ -693,27 +695,32 @@ pub fn mdb_noncentrality(dof: Option<f64>) -> f64 {
     }
 }
 
-/// What the model's scaling and the start values read of the readings, in one pass in
-/// row order (the sums' bits those of a sum of each alone): the counts' mean and largest
-/// distance from it (at least 1), by which the model's internal parameters are scaled, and
-/// the mean of `-g cos Dz`.
+/// What the model, the start values and the conclusion read of the readings, in one pass
+/// in row order (each sum's bits those of a sum of it alone): the counts' mean and largest
+/// distance from it (at least 1), by which the model's internal parameters are scaled, the
+/// mean of `-g cos Dz`, the mean temperature, and whether any reading has a tide.
 struct Centres {
     centre: f64,
     scale: f64,
     mean_y: f64,
+    mean_temperature_c: f64,
+    tides: bool,
 }
 
 impl Centres {
     fn of(used: &[&Obs], g_mgal: f64) -> Self {
         let n = used.len() as f64;
         // From -0.0, as `Iterator::sum` starts.
-        let (mut sum_ng, mut lo, mut hi, mut sum_y) =
-            (-0.0, f64::INFINITY, f64::NEG_INFINITY, -0.0);
+        let (mut sum_ng, mut sum_y, mut sum_t) = (-0.0, -0.0, -0.0);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut tides = false;
         for o in used {
             sum_ng += o.ng;
             lo = f64::min(lo, o.ng);
             hi = f64::max(hi, o.ng);
             sum_y += -g_mgal * o.dz_rad.cos();
+            sum_t += o.temperature_c;
+            tides |= o.tide_mgal != 0.0;
         }
         let centre = sum_ng / n;
         // The largest |Ng - centre| is at the lowest or the highest Ng (a rounded
@@ -723,6 +730,8 @@ impl Centres {
             centre,
             scale,
             mean_y: sum_y / n,
+            mean_temperature_c: sum_t / n,
+            tides,
         }
     }
 }
@@ -838,16 +847,28 @@ fn observations(used: &[&Obs]) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
         .unzip()
 }
 
-/// The fit from the final round's adjustment `s` of `used` (indices `active` into the fit's
-/// observations): the variance components and the adjustment at them, the coloured noise's
-/// covariance, the global test; no removals.
+/// The final round of a fit: its model, the readings it used (`active`: their indices
+/// into the fit's observations) and their mean temperature.
+struct Fitted<'a> {
+    model: &'a CalibrationConditions<'a>,
+    used: &'a [&'a Obs],
+    active: &'a [usize],
+    mean_temperature_c: f64,
+}
+
+/// The fit from the final round's adjustment `s` of `fitted`: the variance components and
+/// the adjustment at them, the coloured noise's covariance, the global test; no removals.
 fn conclude(
-    model: &CalibrationConditions<'_>,
-    used: &[&Obs],
-    active: &[usize],
+    fitted: &Fitted<'_>,
     mut s: gh::Solution<3>,
     options: &FitOptions,
 ) -> Result<CalibrationSolution, GhError> {
+    let Fitted {
+        model,
+        used,
+        active,
+        mean_temperature_c,
+    } = *fitted;
     let m = model.terms.len();
     let map = model.to_counts();
     let groups = Groups::of(used);
@@ -871,7 +892,6 @@ fn conclude(
     }
     let excess = groups.excess(&s, options.coloured.as_ref(), false);
     let (covariance, parameter_dof) = t_scaled(propagate(&map, &q, m), weighted, &components, &map);
-    let mean_temperature_c = used.iter().map(|o| o.temperature_c).sum::<f64>() / used.len() as f64;
     let thermal_gain = if model.terms.temperature {
         Vec::new()
     } else {

@@ -249,13 +249,11 @@ impl Householder {
         r
     }
 
-    /// Sets the first `rows` rows to `value(i, j)`.
+    /// Sets the first `rows` rows of each column `j` by `column(j, slice)`.
     #[inline]
-    fn fill(&mut self, rows: usize, value: impl Fn(usize, usize) -> f64) {
+    fn fill(&mut self, rows: usize, column: impl Fn(usize, &mut [f64])) {
         for j in 0..self.x.ncols() {
-            for i in 0..rows {
-                self.x[(i, j)] = value(i, j);
-            }
+            column(j, &mut self.x.col_as_slice_mut(j)[..rows]);
         }
     }
 }
@@ -437,14 +435,21 @@ impl<const K: usize> Linearised<K> {
         while start < n {
             let rows = QR_BLOCK.min(n - start);
             let top = if start == 0 { 0 } else { cols };
-            qr.fill(top + rows, |i, j| {
-                if i < top {
-                    r[i * cols + j]
-                } else if j < m {
-                    self.design(start + i - top, j, scale)
+            let (q, w) = (&self.q[start..start + rows], &self.w[start..start + rows]);
+            qr.fill(top + rows, |j, column| {
+                let (above, below) = column.split_at_mut(top);
+                for (i, x) in above.iter_mut().enumerate() {
+                    *x = r[i * cols + j];
+                }
+                if j < m {
+                    let a = self.a[start * m..(start + rows) * m].chunks_exact(m);
+                    for ((x, a), q) in below.iter_mut().zip(a).zip(q) {
+                        *x = a[j] / (q.sqrt() * scale[j]);
+                    }
                 } else {
-                    let k = start + i - top;
-                    -self.w[k] / self.q[k].sqrt()
+                    for ((x, w), q) in below.iter_mut().zip(w).zip(q) {
+                        *x = -w / q.sqrt();
+                    }
                 }
             });
             r = qr.upper(top + rows);
