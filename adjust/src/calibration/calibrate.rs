@@ -286,7 +286,11 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
             *values.select_nth_unstable_by(mid, f64::total_cmp).1
         }
     };
-    let separation = LEVEL_SEPARATION_SIGMAS * median(&mut spread.sigma_dz);
+    let (dz_median, ng_median) = rayon::join(
+        || median(&mut spread.sigma_dz),
+        || median(&mut spread.sigma_ng),
+    );
+    let separation = LEVEL_SEPARATION_SIGMAS * dz_median;
     let levels = tilt_levels(obs, spread.lowest_dz, separation.max(1e-9), terms.order + 1);
     if levels < terms.order + 1 && !obs.is_empty() {
         return Err(CalError::NotEstimable {
@@ -302,7 +306,7 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
         });
     }
     let (lo, hi) = spread.ng;
-    let noise = median(&mut spread.sigma_ng);
+    let noise = ng_median;
     if hi - lo <= COUNT_SPREAD_SIGMAS * noise {
         return Err(CalError::NotEstimable {
             parameter: names[1].name,
@@ -552,7 +556,11 @@ pub fn calibrate_with(
     if obs.len() <= m {
         return Err(CalError::TooFew { n: obs.len(), m });
     }
-    design_check(obs, terms)?;
+    // The reference temperature's sum (in row order, one thread) beside the design
+    // check's passes on the pool.
+    let (checked, t_ref_c) =
+        rayon::join(|| design_check(obs, terms), || reference_temperature(obs));
+    checked?;
     let max_removals = match snooping {
         Snooping::TenthAtMost => obs.len() / 10,
         Snooping::Off => 0,
@@ -569,11 +577,10 @@ pub fn calibrate_with(
         station_without(obs_now.to_mut(), r.index);
     }
     let names = terms.names();
-    let t_ref_c = reference_temperature(obs);
     let mut round = 0;
     loop {
         round += 1;
-        let used: Vec<&Obs> = active.iter().map(|&i| &obs_now[i]).collect();
+        let used: Vec<&Obs> = active.par_iter().map(|&i| &obs_now[i]).collect();
         let centres = Centres::of(&used, g_mgal);
         let (tides, rolls) = tides_and_rolls(&used, terms, centres.tides);
         let model = CalibrationConditions {

@@ -412,12 +412,6 @@ impl<const K: usize> Linearised<K> {
         Ok(())
     }
 
-    /// Row `i` of the weighted, equilibrated design, `a_ij / (sqrt(q_i) scale_j)`.
-    #[inline]
-    fn design(&self, i: usize, j: usize, scale: &[f64]) -> f64 {
-        self.a[i * self.m() + j] / (self.q[i].sqrt() * scale[j])
-    }
-
     /// The upper triangle R (row-major (m + 1) x (m + 1)) of the QR of the weighted,
     /// equilibrated design with the weighted right-hand side `-w / sqrt(q)` as its last
     /// column: each block of [`QR_BLOCK`] rows factored with the triangle of the blocks
@@ -530,8 +524,10 @@ impl<const K: usize> Linearised<K> {
             .map_init(
                 || vec![0.0; m],
                 |z, i| {
+                    let (row, root) = (&self.a[i * m..(i + 1) * m], self.q[i].sqrt());
                     for k in 0..m {
-                        let mut s = self.design(i, k, &step.scale);
+                        // The weighted, equilibrated design, a_ik / (sqrt(q_i) scale_k).
+                        let mut s = row[k] / (root * step.scale[k]);
                         for t in 0..k {
                             s -= r[t * m + k] * z[t];
                         }
