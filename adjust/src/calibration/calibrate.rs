@@ -594,15 +594,7 @@ pub fn calibrate_with(
         };
         let p0 = start_values(&used, &model, centres.mean_y);
         let to_cal = |e| cal_error(e, &names, &active);
-        let readings = Readings(&used);
-        let mut s = gh::solve(&model, &readings, &p0, &Options::default()).map_err(to_cal)?;
-        let coloured = options
-            .coloured
-            .as_ref()
-            .map(|noise| misclosure_excess(&s, &used, noise));
-        let mut w_test = std::mem::take(&mut s.w_test);
-        left_out_w_tests(&s, &used, coloured.as_deref(), &mut w_test);
-        s.w_test = w_test;
+        let s = adjust_and_test(&model, &used, &p0, options).map_err(to_cal)?;
         if let Some((k, w)) = worst_w_test(&s)
             && w.abs() > W_CRITICAL
             && removed.len() < max_removals
@@ -627,6 +619,25 @@ pub fn calibrate_with(
             .map(|fit| CalibrationSolution { removed, ..fit })
             .map_err(to_cal);
     }
+}
+
+/// One round's adjustment of `used` by `model` from `p0`, its w-tests referred to each
+/// reading's left-out sigma_Dz (and the coloured noise's share, when declared).
+fn adjust_and_test(
+    model: &CalibrationConditions<'_>,
+    used: &[&Obs],
+    p0: &[f64],
+    options: &FitOptions,
+) -> Result<gh::Solution<3>, GhError> {
+    let mut s = gh::solve(model, &Readings(used), p0, &Options::default())?;
+    let coloured = options
+        .coloured
+        .as_ref()
+        .map(|noise| misclosure_excess(&s, used, noise));
+    let mut w_test = std::mem::take(&mut s.w_test);
+    left_out_w_tests(&s, used, coloured.as_deref(), &mut w_test);
+    s.w_test = w_test;
+    Ok(s)
 }
 
 /// The reference temperature of b and k: the mean of all the observations given (to 0.01
