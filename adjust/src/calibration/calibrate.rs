@@ -286,7 +286,7 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
             *values.select_nth_unstable_by(mid, f64::total_cmp).1
         }
     };
-    let (dz_median, ng_median) = rayon::join(
+    let (dz_median, noise) = rayon::join(
         || median(&mut spread.sigma_dz),
         || median(&mut spread.sigma_ng),
     );
@@ -305,8 +305,7 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
             ),
         });
     }
-    let (lo, hi) = spread.ng;
-    let noise = ng_median;
+    let (lo, hi) = (spread.lowest_ng, spread.highest_ng);
     if hi - lo <= COUNT_SPREAD_SIGMAS * noise {
         return Err(CalError::NotEstimable {
             parameter: names[1].name,
@@ -344,12 +343,13 @@ struct Spread {
     sigma_ng: Vec<f64>,
     lowest_dz: f64,
     highest_dz: f64,
-    ng: (f64, f64),
+    lowest_ng: f64,
+    highest_ng: f64,
 }
 
 impl Spread {
     fn of(obs: &[Obs]) -> Self {
-        const ROWS: usize = 16_384;
+        const ROWS: usize = gh::TASK_ROWS;
         let mut sigma_dz = vec![0.0; obs.len()];
         let mut sigma_ng = vec![0.0; obs.len()];
         let none = [
@@ -359,7 +359,7 @@ impl Spread {
             f64::NEG_INFINITY,
         ];
         // Lowest and highest are the same in any order: the tasks reduce as they finish.
-        let [lowest_dz, highest_dz, lo, hi] = sigma_dz
+        let [lowest_dz, highest_dz, lowest_ng, highest_ng] = sigma_dz
             .par_chunks_mut(ROWS)
             .zip(sigma_ng.par_chunks_mut(ROWS))
             .zip(obs.par_chunks(ROWS))
@@ -392,7 +392,8 @@ impl Spread {
             sigma_ng,
             lowest_dz,
             highest_dz,
-            ng: (lo, hi),
+            lowest_ng,
+            highest_ng,
         }
     }
 }
@@ -1051,7 +1052,7 @@ struct Groups<'a> {
     used: &'a [&'a Obs],
     /// Station per observation, compacted to 0..stations, and the dof of each sigma_Dz:
     /// read in one pass.
-    stations: std::cell::OnceCell<(Vec<usize>, Vec<Option<f64>>)>,
+    station_and_dof: std::cell::OnceCell<(Vec<usize>, Vec<Option<f64>>)>,
     windows: std::cell::OnceCell<Windows>,
     times: std::cell::OnceCell<(Vec<f64>, Vec<usize>)>,
 }
@@ -1086,7 +1087,7 @@ impl<'a> Groups<'a> {
     fn of(used: &'a [&'a Obs]) -> Self {
         Self {
             used,
-            stations: std::cell::OnceCell::new(),
+            station_and_dof: std::cell::OnceCell::new(),
             windows: std::cell::OnceCell::new(),
             times: std::cell::OnceCell::new(),
         }
@@ -1094,16 +1095,17 @@ impl<'a> Groups<'a> {
 
     /// Station per observation, compacted to 0..stations.
     fn station(&self) -> &[usize] {
-        &self.stations().0
+        &self.station_and_dof().0
     }
 
     /// Dof of each sigma_Dz.
     fn dof(&self) -> &[Option<f64>] {
-        &self.stations().1
+        &self.station_and_dof().1
     }
 
-    fn stations(&self) -> &(Vec<usize>, Vec<Option<f64>>) {
-        self.stations.get_or_init(|| {
+    /// Both, read in one pass over the readings.
+    fn station_and_dof(&self) -> &(Vec<usize>, Vec<Option<f64>>) {
+        self.station_and_dof.get_or_init(|| {
             let (mut station, mut dof) = (Vec::new(), Vec::new());
             self.used
                 .par_iter()

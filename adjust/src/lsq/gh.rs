@@ -26,7 +26,7 @@ pub const QR_BLOCK: usize = 1024;
 
 /// Rows a parallel task takes (linearising, residuals, redundancy): fixed, so that what is
 /// summed is summed in the same order on any number of cores.
-const TASK_ROWS: usize = 16_384;
+pub(crate) const TASK_ROWS: usize = 16_384;
 
 /// The observations of a problem: each condition's `K` values and their sds, held as slices
 /// ([`Held`]) or formed from the caller's own records on each call, so that a large problem
