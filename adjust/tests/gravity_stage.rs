@@ -2443,6 +2443,59 @@ mod antenna_array {
         (t, hpr, sd)
     }
 
+    /// The rms z of attitude.parquet's heading, pitch and roll against `plan`'s truth.
+    fn attitude_z(plan: &fixtures::survey_lines::LinesPlan, out: &Path) -> [f64; 3] {
+        let (t, hpr, sd) = attitude_table(out);
+        let want = plan.attitude_at(&t);
+        let mut z2 = [0.0; 3];
+        for k in 0..t.len() {
+            for j in 0..3 {
+                let mut d = hpr[k][j] - want[k][j].to_degrees();
+                d = (d + 180.0).rem_euclid(360.0) - 180.0;
+                z2[j] += (d / sd[k][j]).powi(2);
+            }
+        }
+        z2.map(|v| (v / t.len() as f64).sqrt())
+    }
+
+    /// Antenna `a{k}`'s `position_m` in `dataset`'s manifest made `"estimate"`.
+    fn estimate_antenna(dataset: &Path, k: usize) {
+        let path = dataset.join("dataset.toml");
+        let m = std::fs::read_to_string(&path).expect("manifest");
+        let m = antenna_position_written(&m, k, "\"estimate\"");
+        std::fs::write(&path, m).expect("manifest");
+    }
+
+    /// The rolling boat of the test below with its fourth antenna's position declared
+    /// `"estimate"`: the other three fix the vehicle frame, the estimate is within its sds
+    /// of the truth (each axis within 4 sds, sigma0 within 0.1 of 1), and the session is
+    /// reduced as with the position declared (every epoch, the attitude's rms z 0.8 to 1.2).
+    #[test]
+    fn an_antennas_position_is_estimated_within_its_sds() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let dataset = dir.path().join("antennas");
+        let plan = fixtures::survey_lines::antenna_plan();
+        let truth = fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+        estimate_antenna(&dataset, 3);
+        let out = dir.path().join("out");
+        let r = reduce(&dataset, &out);
+        let a = r.sessions[0].antennas.clone().expect("the array's");
+        let e = a.estimated.get("a3").copied().expect("a3 estimated");
+        let want = fixtures::survey_lines::four_antennas().positions_m[3];
+        let z: [f64; 3] = std::array::from_fn(|k| (e.position_m[k] - want[k]) / e.sd_m[k]);
+        eprintln!("estimated a3: {e:?}; z {z:?}");
+        assert!(z.iter().all(|z| z.abs() < 4.0), "{e:?} against {want:?}");
+        assert!((e.sigma0 - 1.0).abs() < 0.1, "{e:?}");
+        assert!(e.screened <= 2, "{e:?}");
+        assert_eq!(a.estimated.len(), 1, "{:?}", a.estimated);
+        assert_eq!(a.epochs_solved, truth.epochs, "every epoch");
+        let z = attitude_z(&plan, &out);
+        eprintln!("with a3 estimated: attitude rms z {z:?}");
+        for (name, z) in ["heading", "pitch", "roll"].iter().zip(z) {
+            assert!((0.8..1.2).contains(&z), "{name}: rms z {z}");
+        }
+    }
+
     /// `[survey] array_down = "magnitude"` written into `dataset`'s manifest.
     pub(super) fn down_from_magnitude(dataset: &Path) {
         let path = dataset.join("dataset.toml");
@@ -2512,17 +2565,7 @@ mod antenna_array {
             r.inputs
         );
         assert!(r.attitude_table.is_some());
-        let (t, hpr, sd) = attitude_table(&out);
-        let want = plan.attitude_at(&t);
-        let mut z2 = [0.0; 3];
-        for k in 0..t.len() {
-            for j in 0..3 {
-                let mut d = hpr[k][j] - want[k][j].to_degrees();
-                d = (d + 180.0).rem_euclid(360.0) - 180.0;
-                z2[j] += (d / sd[k][j]).powi(2);
-            }
-        }
-        let z = z2.map(|v| (v / t.len() as f64).sqrt());
+        let z = attitude_z(&plan, &out);
         eprintln!(
             "derived attitude: rms z heading, pitch, roll {z:?}; median sds {:?} deg",
             a.median_sd_hpr_deg
@@ -2586,6 +2629,15 @@ mod antenna_array {
             assert!(z < 1.3 && z > 0.7, "{name} rms z {z}");
         }
     }
+}
+
+/// `manifest` with antenna `a{k}`'s `position_m` written as `value`.
+fn antenna_position_written(manifest: &str, k: usize, value: &str) -> String {
+    let m = manifest;
+    let at = m.find(&format!("id = \"a{k}\"")).expect("the antenna");
+    let start = at + m[at..].find("position_m = ").expect("its position");
+    let end = start + m[start..].find('\n').expect("its line");
+    format!("{}position_m = {value}{}", &m[..start], &m[end..])
 }
 
 /// Two antennas fore and aft (a GNSS compass on a boat whose triad is level, issue 52):
@@ -2741,6 +2793,25 @@ fn an_antenna_off_by_5_cm_is_set_aside_and_the_epoch_kept() {
             "two antennas across",
             two_across,
             "along the vehicle's x axis",
+        ),
+        (
+            "a position misspelt",
+            antenna_position_written(&manifest, 1, "\"estimated\""),
+            "antenna[1].position_m: `estimated` is not a position [x, y, z] in metres or \"estimate\"",
+        ),
+        (
+            "a position out of reach",
+            antenna_position_written(&manifest, 1, "[1e6, 0.0, 0.0]"),
+            "antenna[1].position_m",
+        ),
+        (
+            "two to estimate beside two",
+            antenna_position_written(
+                &antenna_position_written(&manifest, 1, "\"estimate\""),
+                2,
+                "\"estimate\"",
+            ),
+            "2 to estimate (a1, a2) beside 2 declared",
         ),
     ] {
         assert_ne!(m, manifest, "{what}");

@@ -141,6 +141,14 @@ pub(crate) fn gravity_section(ds: &Dataset, out: &Path) -> Result<Option<Section
             t,
         ));
     }
+    if let Some(t) = estimated_positions(&r) {
+        s.tables.push((
+            "Antennas' positions estimated from the data (vehicle frame, from the \
+             accelerometers; docs/formats.md 10.2.1)"
+                .to_owned(),
+            t,
+        ));
+    }
     s.tables.push((
         "Crossovers: where the track crosses itself (mGal)".to_owned(),
         crossovers(&r),
@@ -327,6 +335,28 @@ fn reduced(r: &GravityReport) -> Table {
         ]);
     }
     t
+}
+
+/// Each antenna whose position was estimated (`position_m = "estimate"`): the position
+/// with its sds, the epochs it rests on and those screened out, and the scatter's sigma0;
+/// None when no antenna's was.
+fn estimated_positions(r: &GravityReport) -> Option<Table> {
+    let mut t =
+        Table::headed("session | antenna | x (m) | y (m) | z (m) | epochs | screened | sigma0");
+    for s in &r.sessions {
+        let Some(a) = &s.antennas else { continue };
+        for (id, e) in &a.estimated {
+            let mut row = vec![s.id.clone(), id.clone()];
+            row.extend((0..3).map(|k| format!("{:.5} ± {:.5}", e.position_m[k], e.sd_m[k])));
+            row.extend([
+                e.epochs.to_string(),
+                e.screened.to_string(),
+                format!("{:.3}", e.sigma0),
+            ]);
+            t.rows.push(row);
+        }
+    }
+    (!t.rows.is_empty()).then_some(t)
 }
 
 fn ties(r: &GravityReport) -> Table {

@@ -475,7 +475,9 @@ fn damage(path: &Path) {
 
 /// An antenna array's attitude is plotted, each angle against time with its 1-sigma band:
 /// heading, pitch and roll from four antennas, heading and pitch alone from two (the roll
-/// they do not give has no plot); attitude.parquet changed is named.
+/// they do not give has no plot); attitude.parquet changed is named. The four's last
+/// antenna is declared `"estimate"`: its position is in the report's table of estimated
+/// positions, which the two's report has not.
 #[test]
 fn the_arrays_attitude_is_plotted_with_its_sigma() {
     let cal_out = multipos_calibration();
@@ -494,9 +496,33 @@ fn the_arrays_attitude_is_plotted_with_its_sigma() {
     ] {
         let dataset = dir.path().join(name);
         fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+        let estimated = name == "four";
+        if estimated {
+            let path = dataset.join("dataset.toml");
+            let m = std::fs::read_to_string(&path).expect("manifest");
+            let m = m.replace(
+                "position_m = [0.1, -1.2, -2.2]",
+                "position_m = \"estimate\"",
+            );
+            assert!(m.contains("\"estimate\""), "{m}");
+            std::fs::write(&path, m).expect("manifest");
+        }
         let out = pipeline(&dataset);
         gravity(&dataset, cal_out.path(), out.path()).expect("gravity");
         report::run(&dataset, out.path()).expect("report");
+        let md = std::fs::read_to_string(out.path().join("report/report.md")).expect("md");
+        let table = md.find("Antennas' positions estimated from the data");
+        assert_eq!(table.is_some(), estimated, "{name}");
+        if let Some(at) = table {
+            let row = md[at..]
+                .lines()
+                .find(|l| l.contains("| a3 |"))
+                .expect("a3's row");
+            assert!(
+                row.contains("| 0.1000") && row.contains("| -1.2000"),
+                "{row}"
+            );
+        }
         let plots = out.path().join("report/plots");
         for angle in ["heading", "pitch", "roll"] {
             let file = plots.join(format!("attitude_{angle}_0.svg"));

@@ -44,6 +44,7 @@
 pub mod antennas;
 mod array;
 pub mod array_plan;
+pub mod array_positions;
 pub mod attitude;
 pub mod coupling;
 pub mod crossover;

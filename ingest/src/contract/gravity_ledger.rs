@@ -12,7 +12,7 @@ pub const STAGE_DIR: &str = "gravity";
 /// The ledger's file name.
 pub const LEDGER_FILE: &str = "gravity.json";
 /// The ledger's format tag.
-pub const LEDGER_FORMAT: &str = "gravcal-gravity/5";
+pub const LEDGER_FORMAT: &str = "gravcal-gravity/6";
 
 /// The error models the sigmas were propagated with.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -80,6 +80,26 @@ pub struct AntennasUsed {
     pub not_given: BTreeMap<String, String>,
     /// Their median sds of the accelerometers' position north, east, down, m.
     pub median_sd_position_m: [f64; 3],
+    /// The antennas whose positions were estimated (`position_m = "estimate"`), by id
+    /// (absent when none was).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub estimated: BTreeMap<String, EstimatedPosition>,
+}
+
+/// An antenna's position on the vehicle estimated from the data (docs/formats.md 10.2.1).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EstimatedPosition {
+    /// x, y, z in the vehicle frame, m, from the accelerometers' origin.
+    pub position_m: [f64; 3],
+    /// Their sds, m: the weighted mean's, scaled by sigma0 where that is above 1.
+    pub sd_m: [f64; 3],
+    /// Epochs it rests on.
+    pub epochs: u64,
+    /// Epochs screened out (further than `[survey] baseline_length_sigmas` from the mean).
+    pub screened: u64,
+    /// sqrt(chi-square / (3 n - 3)) of the epochs kept about the mean.
+    pub sigma0: f64,
 }
 
 /// A file read, with its hash.

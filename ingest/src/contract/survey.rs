@@ -428,9 +428,22 @@ pub struct AntennaDecl {
     #[serde(default)]
     pub trajectory_time: Option<TimeForm>,
     /// Its phase centre in the vehicle frame (x forward, y right, z down), m, from the
-    /// accelerometers' origin to the antenna.
-    pub position_m: [f64; 3],
+    /// accelerometers' origin to the antenna; or `"estimate"`.
+    pub position_m: PositionDecl,
 }
+
+/// An antenna's `position_m` as written: metres, or a word (only `"estimate"` is one).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(untagged)]
+pub enum PositionDecl {
+    /// x, y, z in the vehicle frame, m.
+    Metres([f64; 3]),
+    /// A word.
+    Word(String),
+}
+
+/// The word that has an antenna's position estimated from the data.
+pub const ESTIMATE: &str = "estimate";
 
 /// An antenna of a session's array, resolved.
 #[derive(Clone, Debug, PartialEq)]
@@ -443,8 +456,9 @@ pub struct Antenna {
     pub format: TrajectoryFormat,
     /// For a CSV, how it writes its times.
     pub time: Option<TimeForm>,
-    /// Its phase centre in the vehicle frame, m, from the accelerometers.
-    pub position_m: [f64; 3],
+    /// Its phase centre in the vehicle frame, m, from the accelerometers; None: estimated
+    /// from the data, in the frame the declared antennas fix (docs/formats.md 10.2.1).
+    pub position_m: Option<[f64; 3]>,
 }
 
 /// The first of the keys that describe a `trajectory` (its format and time, the attitude
@@ -508,28 +522,23 @@ fn antennas(
         if out.iter().any(|o: &Antenna| o.id == a.id) {
             return Err(err(key("id"), format!("`{}` is listed twice", a.id)));
         }
-        if a.position_m
-            .iter()
-            .any(|v| !v.is_finite() || v.abs() > 100.0)
-        {
-            return Err(err(
-                key("position_m"),
-                format!(
-                    "{:?} is not a position on a vehicle (within 100 m)",
-                    a.position_m
-                ),
-            ));
-        }
+        let position_m = antenna_position(&a.position_m).map_err(|m| err(key("position_m"), m))?;
         let time = trajectory_time(a.trajectory_format, a.trajectory_time, &key, err)?;
         out.push(Antenna {
             id: a.id.clone(),
             path: file(key("trajectory"), &a.trajectory)?,
             format: a.trajectory_format,
             time,
-            position_m: a.position_m,
+            position_m,
         });
     }
-    array_geometry(&out, &key, err)?;
+    estimated_positions(&out, &key, err)?;
+    let declared: Vec<Antenna> = out
+        .iter()
+        .filter(|a| a.position_m.is_some())
+        .cloned()
+        .collect();
+    array_geometry(&declared, &key, err)?;
     Ok(TrajectorySource {
         path: out[0].path.clone(),
         format: out[0].format,
@@ -539,13 +548,58 @@ fn antennas(
     })
 }
 
+/// An antenna's `position_m` resolved: a position on the vehicle (within 100 m), or None
+/// for `"estimate"`; else why not.
+fn antenna_position(p: &PositionDecl) -> std::result::Result<Option<[f64; 3]>, String> {
+    match p {
+        PositionDecl::Word(w) if w == ESTIMATE => Ok(None),
+        PositionDecl::Word(w) => Err(format!(
+            "`{w}` is not a position [x, y, z] in metres or \"{ESTIMATE}\""
+        )),
+        PositionDecl::Metres(m) if m.iter().any(|v| !v.is_finite() || v.abs() > 100.0) => Err(
+            format!("{m:?} is not a position on a vehicle (within 100 m)"),
+        ),
+        PositionDecl::Metres(m) => Ok(Some(*m)),
+    }
+}
+
+/// An array with antennas to estimate checked: three or more declared beside them (their
+/// geometry is checked as an array's), which fix the vehicle frame and the accelerometers'
+/// origin that the estimated positions are in; GNSS alone gives neither.
+fn estimated_positions(
+    antennas: &[Antenna],
+    key: &impl Fn(&str) -> String,
+    err: &impl Fn(String, String) -> Error,
+) -> Result<()> {
+    let declared = antennas.iter().filter(|a| a.position_m.is_some()).count();
+    if declared == antennas.len() || declared >= 3 {
+        return Ok(());
+    }
+    let estimated: Vec<&str> = antennas
+        .iter()
+        .filter(|a| a.position_m.is_none())
+        .map(|a| a.id.as_str())
+        .collect();
+    Err(err(
+        key("antenna"),
+        format!(
+            "{} to estimate ({}) beside {declared} declared: an estimated position is found in \
+             the vehicle frame that three or more declared antennas, not in a line, fix (the \
+             antennas alone tell neither where the accelerometers are nor which way their \
+             axes point)",
+            estimated.len(),
+            estimated.join(", ")
+        ),
+    ))
+}
+
 /// An array's geometry checked: two antennas fore and aft, three or more not in a line.
 fn array_geometry(
     antennas: &[Antenna],
     key: &impl Fn(&str) -> String,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<()> {
-    let p: Vec<[f64; 3]> = antennas.iter().map(|a| a.position_m).collect();
+    let p: Vec<[f64; 3]> = antennas.iter().filter_map(|a| a.position_m).collect();
     let d = |a: [f64; 3], b: [f64; 3]| [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     let base = d(p[0], p[1]);
@@ -1106,7 +1160,7 @@ mod tests {
                     path: "a.pos".into(),
                     format: TrajectoryFormat::Rtklib,
                     time: None,
-                    position_m: *q,
+                    position_m: Some(*q),
                 })
                 .collect()
         };

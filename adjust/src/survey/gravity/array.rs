@@ -13,11 +13,12 @@
 //! the positions: white per epoch when the positions are, as the stage carries them.
 
 use super::antennas::{self, Fix};
+use super::array_positions::{self, Sighting};
 use super::attitude::{DerivedSample, SpilledAttitude};
 use super::epochs::ThirdDifferences;
 use super::{BadLine, GravityError};
 use ingest::base::timegate::{Position, Sink, TimeGate};
-use ingest::contract::gravity_ledger::AntennasUsed;
+use ingest::contract::gravity_ledger::{AntennasUsed, EstimatedPosition as Estimated};
 use ingest::contract::manifest::ResolvedSession;
 use ingest::contract::survey::{Antenna, SurveyConfig, TrajectorySource};
 use ingest::contract::tables::attitude::Row as AttitudeRow;
@@ -158,7 +159,12 @@ pub(super) fn read_array(
         .expect("an array session has its antennas");
     let antennas = &src.antennas;
     let read = read_antennas(s, antennas, skip)?;
-    let out = solve_epochs(&read.epochs, antennas, survey.baseline_length_sigmas);
+    let limit = survey.baseline_length_sigmas;
+    let Placed {
+        positions,
+        estimated,
+    } = positions(&read.epochs, antennas, limit)?;
+    let out = solve_epochs(&read.epochs, &positions, limit);
     let two = antennas.len() == 2;
     let attitude = match two {
         true => None,
@@ -190,6 +196,7 @@ pub(super) fn read_array(
         median_sd_position_m: std::array::from_fn(|k| {
             median(out.epochs.iter().filter_map(|e| e.2.map(|sd| sd[k])))
         }),
+        estimated,
     };
     Ok(ArrayTrack {
         epochs: out.epochs,
@@ -235,16 +242,12 @@ fn read_antennas(
     Ok(read)
 }
 
-/// Every epoch any antenna gives, matched by time across `per` (each antenna's epochs),
-/// solved ([`Solved::epoch`], or [`Solved::two`] for two antennas) with each baseline
-/// checked at `limit` sds.
-fn solve_epochs(per: &[Vec<Epoch>], antennas: &[Antenna], limit: f64) -> Solved {
-    let noise: Vec<[f64; 3]> = per.iter().map(|e| white_noise(e)).collect();
-    let positions: Vec<[f64; 3]> = antennas.iter().map(|a| a.position_m).collect();
+/// Every epoch any antenna gives, matched by time across `per` (each antenna's epochs):
+/// `f(t, at)` with antenna k's epoch at `at[k]` (None where it has none at `t`).
+fn each_matched(per: &[Vec<Epoch>], mut f: impl FnMut(i64, &[Option<(usize, Epoch)>])) {
     let times: std::collections::BTreeSet<i64> =
         per.iter().flat_map(|e| e.iter().map(|x| x.0)).collect();
     let mut cursor = vec![0usize; per.len()];
-    let mut out = Solved::default();
     for t in times {
         let mut at: Vec<Option<(usize, Epoch)>> = vec![None; per.len()];
         for (k, e) in per.iter().enumerate() {
@@ -255,9 +258,108 @@ fn solve_epochs(per: &[Vec<Epoch>], antennas: &[Antenna], limit: f64) -> Solved 
                 at[k] = Some((k, e[cursor[k]]));
             }
         }
-        out.epoch(t, &at, (&positions, &noise), limit);
+        f(t, &at);
     }
+}
+
+/// The antennas' fixes at an epoch in the local frame at the first antenna with one (the
+/// frame's origin, returned beside them), each weighed by its file's sds or else by its
+/// own `noise`; None where no antenna has a position.
+fn fixes_at(
+    at: &[Option<(usize, Epoch)>],
+    noise: &[[f64; 3]],
+) -> Option<([f64; 3], Vec<Option<Fix>>)> {
+    let origin = at.iter().flatten().next().map(|(_, e)| e.1)?;
+    let fixes = at
+        .iter()
+        .map(|a| {
+            a.map(|(k, (_, llh, sd))| {
+                // The file's sds are north, east, up; down's is up's.
+                let sd = sd
+                    .filter(|s| s.iter().all(|v| *v > 0.0))
+                    .unwrap_or(noise[k]);
+                Fix {
+                    ned_m: ned_of(origin, llh),
+                    sd_m: sd,
+                }
+            })
+        })
+        .collect();
+    Some((origin, fixes))
+}
+
+/// Every epoch solved ([`Solved::epoch`], or [`Solved::two`] for two antennas) with each
+/// baseline checked at `limit` sds, the antennas at `positions` (declared, or estimated).
+fn solve_epochs(per: &[Vec<Epoch>], positions: &[[f64; 3]], limit: f64) -> Solved {
+    let noise: Vec<[f64; 3]> = per.iter().map(|e| white_noise(e)).collect();
+    let mut out = Solved::default();
+    each_matched(per, |t, at| {
+        out.epoch(t, fixes_at(at, &noise), positions, limit)
+    });
     out
+}
+
+/// The antennas' positions, in the manifest's order, and those estimated, by id.
+struct Placed {
+    positions: Vec<[f64; 3]>,
+    estimated: BTreeMap<String, Estimated>,
+}
+
+/// The antennas' positions: each declared one as declared, each to estimate from its
+/// sightings at the epochs the declared ones solve ([`array_positions`]), screened at
+/// `limit`. An antenna that no two epochs see is refused, naming it.
+fn positions(per: &[Vec<Epoch>], antennas: &[Antenna], limit: f64) -> Result<Placed, GravityError> {
+    let mut positions: Vec<[f64; 3]> = antennas
+        .iter()
+        .map(|a| a.position_m.unwrap_or_default())
+        .collect();
+    if antennas.iter().all(|a| a.position_m.is_some()) {
+        return Ok(Placed {
+            positions,
+            estimated: BTreeMap::new(),
+        });
+    }
+    let noise: Vec<[f64; 3]> = per.iter().map(|e| white_noise(e)).collect();
+    let mut seen: Vec<Vec<Sighting>> = vec![Vec::new(); antennas.len()];
+    each_matched(per, |_, at| {
+        let Some((_, fixes)) = fixes_at(at, &noise) else {
+            return;
+        };
+        let declared: Vec<Option<Fix>> = fixes
+            .iter()
+            .zip(antennas)
+            .map(|(f, a)| f.filter(|_| a.position_m.is_some()))
+            .collect();
+        let Ok(s) = antennas::solve(&positions, &declared, limit) else {
+            return;
+        };
+        for (k, f) in fixes.iter().enumerate() {
+            if let (Some(f), None) = (f, antennas[k].position_m) {
+                seen[k].push(array_positions::sighting(&s, *f));
+            }
+        }
+    });
+    let mut estimated = BTreeMap::new();
+    for (k, a) in antennas.iter().enumerate() {
+        if a.position_m.is_some() {
+            continue;
+        }
+        let e =
+            array_positions::estimate(&seen[k], limit).ok_or_else(|| GravityError::Refused {
+                message: format!(
+                    "antenna `{}` (position_m = \"estimate\"): {} epoch(s) where the declared \
+                 antennas solve see it; its position needs two at least",
+                    a.id,
+                    seen[k].len()
+                ),
+            })?;
+        positions[k] = e.position_m;
+        estimated.insert(a.id.clone(), e);
+    }
+    Ok(Placed {
+        positions,
+        estimated,
+    })
 }
 
 /// Why two antennas give no roll (gravity.json's `antennas.not_given`).
@@ -286,34 +388,19 @@ struct Solved {
 }
 
 impl Solved {
-    /// The epoch at `t` fitted from the antennas `at` gives (index, epoch), the declared
-    /// `positions` and each antenna's `noise` standing in for sds its file does not give.
+    /// The epoch at `t` fitted from the antennas' `fixes` (in the local frame at the origin
+    /// beside them; [`fixes_at`]) at their `positions`.
     fn epoch(
         &mut self,
         t: i64,
-        at: &[Option<(usize, Epoch)>],
-        (positions, noise): (&[[f64; 3]], &[[f64; 3]]),
+        fixes: Option<([f64; 3], Vec<Option<Fix>>)>,
+        positions: &[[f64; 3]],
         limit: f64,
     ) {
         self.set_aside.resize(positions.len(), 0);
-        let Some(origin) = at.iter().flatten().next().map(|(_, e)| e.1) else {
+        let Some((origin, fixes)) = fixes else {
             return;
         };
-        let fixes: Vec<Option<Fix>> = at
-            .iter()
-            .map(|a| {
-                a.map(|(k, (_, llh, sd))| {
-                    // The file's sds are north, east, up; down's is up's.
-                    let sd = sd
-                        .filter(|s| s.iter().all(|v| *v > 0.0))
-                        .unwrap_or(noise[k]);
-                    Fix {
-                        ned_m: ned_of(origin, llh),
-                        sd_m: sd,
-                    }
-                })
-            })
-            .collect();
         if positions.len() == 2 {
             return self.two(t, (origin, [fixes[0], fixes[1]]), positions, limit);
         }

@@ -2136,10 +2136,25 @@ fn antennas_line(a: &ingest::contract::gravity_ledger::AntennasUsed) -> String {
         })
         .collect();
     let [n, e, d] = a.median_sd_position_m.map(|v| v * 100.0);
+    let estimated = listed(
+        a.estimated
+            .iter()
+            .map(|(id, p)| {
+                let [x, y, z] = p.position_m;
+                let [sx, sy, sz] = p.sd_m.map(|v| v * 1e3);
+                format!(
+                    "{id} at [{x:.4}, {y:.4}, {z:.4}] m, sds [{sx:.2}, {sy:.2}, {sz:.2}] mm \
+                     from {} epochs ({} screened out)",
+                    p.epochs, p.screened
+                )
+            })
+            .collect(),
+    );
     format!(
         "antennas {}: attitude and position at {} epochs; dropped by an antenna's time gate: \
-         {gated}; set aside (baseline length): {aside}; median sd {}, position north \
-         {n:.2}, east {e:.2}, down {d:.2} cm (OUT/gravity/attitude.parquet)",
+         {gated}; set aside (baseline length): {aside}; positions estimated: {estimated}; \
+         median sd {}, position north {n:.2}, east {e:.2}, down {d:.2} cm \
+         (OUT/gravity/attitude.parquet)",
         a.ids.join(", "),
         a.epochs_solved,
         angles.join(", "),
