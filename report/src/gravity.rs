@@ -341,13 +341,16 @@ fn reduced(r: &GravityReport) -> Table {
 /// with its sds, the epochs it rests on and those screened out, and the scatter's sigma0;
 /// None when no antenna's was.
 fn estimated_positions(r: &GravityReport) -> Option<Table> {
-    let mut t =
-        Table::headed("session | antenna | x (m) | y (m) | z (m) | epochs | screened | sigma0");
+    let mut t = Table::headed(
+        "session | antenna | x (m) | y (m) | z (m) | sds x, y, z (mm) | epochs | screened | sigma0",
+    );
     for s in &r.sessions {
         let Some(a) = &s.antennas else { continue };
         for (id, e) in &a.estimated {
             let mut row = vec![s.id.clone(), id.clone()];
-            row.extend((0..3).map(|k| format!("{:.5} ± {:.5}", e.position_m[k], e.sd_m[k])));
+            row.extend(e.position_m.map(|v| format!("{v:.5}")));
+            let [sx, sy, sz] = e.sd_m.map(|v| v * 1e3);
+            row.push(format!("{sx:.3}, {sy:.3}, {sz:.3}"));
             row.extend([
                 e.epochs.to_string(),
                 e.screened.to_string(),

@@ -518,10 +518,17 @@ fn the_arrays_attitude_is_plotted_with_its_sigma() {
                 .lines()
                 .find(|l| l.contains("| a3 |"))
                 .expect("a3's row");
-            assert!(
-                row.contains("| 0.1000") && row.contains("| -1.2000"),
-                "{row}"
-            );
+            // x, y and z (m) within 4 of their sds (mm) of where the antenna is.
+            let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+            let sd: Vec<f64> = cells[6]
+                .split(", ")
+                .map(|v| v.parse().expect("sd"))
+                .collect();
+            for k in 0..3 {
+                let v: f64 = cells[3 + k].parse().expect("value");
+                let want = [0.1, -1.2, -2.2][k];
+                assert!((v - want).abs() * 1e3 < 4.0 * sd[k] + 0.005, "{row}");
+            }
         }
         let plots = out.path().join("report/plots");
         for angle in ["heading", "pitch", "roll"] {
