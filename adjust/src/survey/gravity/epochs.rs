@@ -440,7 +440,9 @@ const BLOCK: u64 = 1024;
 /// samples' specific force, and the trajectory's positions.
 #[derive(Clone, Debug, Default)]
 pub(super) struct ThirdDifferences {
-    last: Vec<(i64, f64)>,
+    /// The run's last values (the first `held` of them), oldest first.
+    last: [(i64, f64); 4],
+    held: usize,
     sum_sq: f64,
     count: u64,
     blocks: Vec<f64>,
@@ -457,20 +459,19 @@ impl ThirdDifferences {
     }
 
     pub(super) fn push(&mut self, t: i64, v: f64) {
-        if self
-            .last
-            .last()
-            .is_some_and(|(p, _)| (t - p - self.interval_ns).abs() * 2 > self.interval_ns)
-        {
-            self.last.clear();
+        let previous = self.held.checked_sub(1).map(|k| self.last[k].0);
+        if previous.is_some_and(|p| (t - p - self.interval_ns).abs() * 2 > self.interval_ns) {
+            self.held = 0;
         }
-        self.last.push((t, v));
-        if self.last.len() == 4 {
-            let x: Vec<f64> = self.last.iter().map(|(_, v)| *v).collect();
+        self.last[self.held] = (t, v);
+        self.held += 1;
+        if self.held == 4 {
+            let x = self.last.map(|(_, v)| v);
             let d3 = x[3] - 3.0 * x[2] + 3.0 * x[1] - x[0];
             self.sum_sq += d3 * d3;
             self.count += 1;
-            self.last.remove(0);
+            self.last.copy_within(1.., 0);
+            self.held = 3;
             if self.count == BLOCK {
                 self.blocks.push(self.sum_sq / BLOCK as f64);
                 (self.sum_sq, self.count) = (0.0, 0);
