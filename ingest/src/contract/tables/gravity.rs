@@ -23,10 +23,8 @@
 //! | flags | uint8 | the bits of this module's flags, or-ed |
 //! | meter_status | uint32, null | a platform meter's status word at the epoch (its lines' within half an epoch interval, or-ed; docs/formats.md 11.1), null where the session's samples carry none |
 
-use super::{Arc, DataType, Field, SESSION_INDEX, SchemaRef, TIME_GPS_NS, with_sessions};
-use crate::parquet_io::table::{Encodings, TableWriter, Written};
-use arrow_array::{ArrayRef, Float64Array, Int64Array, UInt8Array, UInt16Array, UInt32Array};
-use arrow_buffer::NullBuffer;
+use super::{DataType, Field, SESSION_INDEX, SchemaRef, TIME_GPS_NS, with_sessions};
+use crate::parquet_io::table::{ColumnTableWriter, ColumnValues, Encodings, Written};
 use std::mem::take;
 use std::path::Path;
 /// File name.
@@ -308,7 +306,7 @@ pub struct Block {
 
 /// gravity.parquet being written: blocks gathered, then written as row groups.
 pub struct Writer {
-    table: TableWriter,
+    table: ColumnTableWriter,
     /// Whether any track has attitude: then north and east are held, and whether each row
     /// has them; otherwise their columns are null throughout.
     with_horizontal: bool,
@@ -349,7 +347,7 @@ impl Writer {
     /// `with_horizontal` (any track has attitude).
     pub fn create(dir: &Path, sessions: &[String], with_horizontal: bool) -> crate::Result<Self> {
         Ok(Writer {
-            table: TableWriter::create(dir, FILE, schema(sessions), Encodings::default())?,
+            table: ColumnTableWriter::create(dir, FILE, schema(sessions), Encodings::default())?,
             with_horizontal,
             session: Vec::new(),
             time: Vec::new(),
@@ -413,28 +411,29 @@ impl Writer {
         Ok(())
     }
 
-    /// Writes the epochs gathered as one row group (none if there are none).
+    /// Writes the epochs gathered as one row group (none if there are none): Parquet's
+    /// column writers on the values directly, the columns encoded on the pool (the Arrow
+    /// path's arrays and casts were a tenth of the marine benchmark's gravity stage).
     pub fn write(&mut self) -> crate::Result<()> {
         let n_rows = self.time.len();
         if n_rows == 0 {
             return Ok(());
         }
-        let mut columns: Vec<(&str, ArrayRef)> = vec![
+        let int32 = |v: Vec<i32>| ColumnValues::Int32(v, None);
+        let mut columns: Vec<(&str, ColumnValues)> = vec![
             (
                 SESSION_INDEX,
-                Arc::new(UInt16Array::from(take(&mut self.session))),
+                int32(take(&mut self.session).into_iter().map(i32::from).collect()),
             ),
-            (
-                TIME_GPS_NS,
-                Arc::new(Int64Array::from(take(&mut self.time))),
-            ),
+            (TIME_GPS_NS, ColumnValues::Int64(take(&mut self.time), None)),
             (
                 STRETCH,
-                Arc::new(UInt32Array::from(take(&mut self.stretch))),
+                // UINT_32 is stored in INT32 as its bits.
+                int32(take(&mut self.stretch).into_iter().map(|v| v as i32).collect()),
             ),
         ];
         for (f, name) in self.floats.iter_mut().zip(FLOATS) {
-            columns.push((name, Arc::new(Float64Array::from(take(f)))));
+            columns.push((name, ColumnValues::Double(take(f), None)));
         }
         let flags = take(&mut self.flags);
         // A sigma that needs the attitude's sds is null where the file gives none.
@@ -442,36 +441,25 @@ impl Writer {
         let sd_known: Vec<bool> = (horizontal_valid.iter().zip(&flags))
             .map(|(v, f)| *v && f & ATTITUDE_SD_UNKNOWN == 0)
             .collect();
-        let valid = self.with_horizontal.then(|| {
-            (
-                NullBuffer::from(horizontal_valid),
-                NullBuffer::from(sd_known),
-            )
-        });
         for (f, name) in self.horizontal.iter_mut().zip(HORIZONTAL) {
             let f = take(f);
-            let column = match &valid {
-                Some((v, _)) if !NEEDS_ATTITUDE_SD.contains(&name) => {
-                    Float64Array::new(f.into(), Some(v.clone()))
-                }
-                Some((_, v)) => Float64Array::new(f.into(), Some(v.clone())),
-                None => Float64Array::new_null(n_rows),
+            let column = match self.with_horizontal {
+                true if !NEEDS_ATTITUDE_SD.contains(&name) => nullable(f, &horizontal_valid),
+                true => nullable(f, &sd_known),
+                false => ColumnValues::Double(Vec::new(), Some(vec![0; n_rows])),
             };
-            columns.push((name, Arc::new(column)));
+            columns.push((name, column));
         }
         let named = self.named.iter_mut().zip(&mut self.named_valid);
         for ((f, valid), name) in named.zip(NAMED) {
-            let valid = NullBuffer::from(take(valid));
-            columns.push((
-                name,
-                Arc::new(Float64Array::new(take(f).into(), Some(valid))),
-            ));
+            columns.push((name, nullable(take(f), &take(valid))));
         }
-        columns.push((FLAGS, Arc::new(UInt8Array::from(flags))));
-        let status = UInt32Array::from(take(&mut self.status));
-        columns.push((METER_STATUS_WORD, Arc::new(status)));
-        self.table.write(columns)?;
-        self.table.flush()
+        columns.push((FLAGS, int32(flags.into_iter().map(i32::from).collect())));
+        let status = take(&mut self.status);
+        let levels = status.iter().map(|w| i16::from(w.is_some())).collect();
+        let words = status.into_iter().flatten().map(|w| w as i32).collect();
+        columns.push((METER_STATUS_WORD, ColumnValues::Int32(words, Some(levels))));
+        self.table.write_row_group(n_rows, &columns)
     }
 
     /// Writes what is gathered and closes the table; returns its rows and SHA-256 (hashed
@@ -480,4 +468,15 @@ impl Writer {
         self.write()?;
         self.table.finish_hashed()
     }
+}
+
+/// A nullable column of doubles: the values where `valid`, and a definition level per row.
+fn nullable(values: Vec<f64>, valid: &[bool]) -> ColumnValues {
+    let levels = valid.iter().map(|v| i16::from(*v)).collect();
+    let kept = values
+        .into_iter()
+        .zip(valid)
+        .filter_map(|(v, ok)| ok.then_some(v))
+        .collect();
+    ColumnValues::Double(kept, Some(levels))
 }
