@@ -2496,6 +2496,34 @@ mod antenna_array {
         }
     }
 
+    /// An antenna to estimate whose file holds one epoch is refused, naming it and why.
+    #[test]
+    fn an_antenna_to_estimate_that_one_epoch_sees_is_refused() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let dataset = dir.path().join("antennas");
+        let plan = fixtures::survey_lines::antenna_plan();
+        fixtures::survey_lines::write_survey_lines(&plan, &dataset).expect("survey");
+        estimate_antenna(&dataset, 3);
+        let pos = dataset.join("raw/antenna3.pos");
+        let text = std::fs::read_to_string(&pos).expect("pos");
+        let header = text.lines().take_while(|l| l.starts_with('%'));
+        let first = text
+            .lines()
+            .find(|l| !l.starts_with('%'))
+            .expect("an epoch");
+        let one: Vec<&str> = header.chain([first]).collect();
+        std::fs::write(&pos, one.join("\n") + "\n").expect("pos");
+        let e = args(&dataset)
+            .run(&dir.path().join("out"))
+            .expect_err("refused")
+            .to_string();
+        eprintln!("{e}");
+        assert!(
+            e.contains("antenna `a3`") && e.contains("two at least"),
+            "{e}"
+        );
+    }
+
     /// `[survey] array_down = "magnitude"` written into `dataset`'s manifest.
     pub(super) fn down_from_magnitude(dataset: &Path) {
         let path = dataset.join("dataset.toml");

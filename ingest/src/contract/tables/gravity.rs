@@ -429,7 +429,12 @@ impl Writer {
             (
                 STRETCH,
                 // UINT_32 is stored in INT32 as its bits.
-                int32(take(&mut self.stretch).into_iter().map(|v| v as i32).collect()),
+                int32(
+                    take(&mut self.stretch)
+                        .into_iter()
+                        .map(|v| v as i32)
+                        .collect(),
+                ),
             ),
         ];
         for (f, name) in self.floats.iter_mut().zip(FLOATS) {
