@@ -433,13 +433,48 @@ pub struct AntennaDecl {
 }
 
 /// An antenna's `position_m` as written: metres, or a word (only `"estimate"` is one).
-#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, PartialEq)]
 #[serde(untagged)]
 pub enum PositionDecl {
     /// x, y, z in the vehicle frame, m.
     Metres([f64; 3]),
     /// A word.
     Word(String),
+}
+
+impl<'de> Deserialize<'de> for PositionDecl {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        /// Three numbers or a word, anything else refused saying which is wanted.
+        struct Either;
+        impl<'de> serde::de::Visitor<'de> for Either {
+            type Value = PositionDecl;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "three numbers [x, y, z] in metres, or \"{ESTIMATE}\"")
+            }
+            fn visit_str<E: serde::de::Error>(
+                self,
+                v: &str,
+            ) -> std::result::Result<Self::Value, E> {
+                Ok(PositionDecl::Word(v.to_owned()))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                let mut xyz = [0.0; 3];
+                for (k, v) in xyz.iter_mut().enumerate() {
+                    *v = seq
+                        .next_element()?
+                        .ok_or_else(|| serde::de::Error::invalid_length(k, &self))?;
+                }
+                if seq.next_element::<f64>()?.is_some() {
+                    return Err(serde::de::Error::invalid_length(4, &self));
+                }
+                Ok(PositionDecl::Metres(xyz))
+            }
+        }
+        d.deserialize_any(Either)
+    }
 }
 
 /// The word that has an antenna's position estimated from the data.
@@ -1050,6 +1085,35 @@ fn tie(k: usize, t: &TieDecl, err: &impl Fn(String, String) -> Error) -> Result<
 
 #[cfg(test)]
 mod tests {
+    /// `position_m` is three numbers or a word; anything else is refused saying which is
+    /// wanted, with its line and column.
+    #[test]
+    fn an_antennas_position_is_three_numbers_or_a_word() {
+        let decl = |v: &str| {
+            let t = format!(
+                "id = 'a'\ntrajectory = 'x'\ntrajectory_format = 'rtklib'\nposition_m = {v}\n"
+            );
+            toml::from_str::<AntennaDecl>(&t).map(|a| a.position_m)
+        };
+        assert_eq!(
+            decl("[1.0, -2, 0.5]").expect("numbers"),
+            PositionDecl::Metres([1.0, -2.0, 0.5])
+        );
+        assert_eq!(
+            decl("\"estimate\"").expect("a word"),
+            PositionDecl::Word("estimate".to_owned())
+        );
+        let e = decl("['a', 'b', 'c']").expect_err("words").to_string();
+        assert!(e.contains("line 4") && e.contains("expected f64"), "{e}");
+        for bad in ["[1.0, 2.0]", "[1.0, 2.0, 3.0, 4.0]", "3"] {
+            let e = decl(bad).expect_err(bad).to_string();
+            assert!(
+                e.contains("line 4") && e.contains("[x, y, z] in metres, or \"estimate\""),
+                "{bad}: {e}"
+            );
+        }
+    }
+
     use super::*;
 
     /// A tie at UTC's leap second 23:59:60 lies between 23:59:59 and the next day's
