@@ -337,7 +337,7 @@ pub fn heading_pitch(a: Fix, b: Fix, fore: bool) -> ([f64; 2], [f64; 2]) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     /// Four antennas of a 3 m array, 5 mm horizontal and 10 mm vertical.
@@ -366,8 +366,9 @@ mod tests {
             .collect()
     }
 
-    /// A small generator of normals for the tests (Box-Muller on a 64-bit LCG).
-    fn normals(seed: u64) -> impl FnMut() -> f64 {
+    /// A small generator of normals for the tests (Box-Muller on a 64-bit LCG; also
+    /// `array_positions`'s).
+    pub(in crate::survey::gravity) fn normals(seed: u64) -> impl FnMut() -> f64 {
         let mut s = seed;
         move || {
             let mut u = || {

@@ -160,11 +160,12 @@ pub(super) fn read_array(
     let antennas = &src.antennas;
     let read = read_antennas(s, antennas, skip)?;
     let limit = survey.baseline_length_sigmas;
+    let noise: Vec<[f64; 3]> = read.epochs.iter().map(|e| white_noise(e)).collect();
     let Placed {
         positions,
         estimated,
-    } = positions(&read.epochs, antennas, limit)?;
-    let out = solve_epochs(&read.epochs, &positions, limit);
+    } = positions((&read.epochs, &noise), antennas, limit)?;
+    let out = solve_epochs((&read.epochs, &noise), &positions, limit);
     let two = antennas.len() == 2;
     let attitude = match two {
         true => None,
@@ -288,13 +289,17 @@ fn fixes_at(
     Some((origin, fixes))
 }
 
-/// Every epoch solved ([`Solved::epoch`], or [`Solved::two`] for two antennas) with each
-/// baseline checked at `limit` sds, the antennas at `positions` (declared, or estimated).
-fn solve_epochs(per: &[Vec<Epoch>], positions: &[[f64; 3]], limit: f64) -> Solved {
-    let noise: Vec<[f64; 3]> = per.iter().map(|e| white_noise(e)).collect();
+/// Every epoch of `per` (each antenna's epochs, and its white `noise`) solved
+/// ([`Solved::epoch`], or [`Solved::two`] for two antennas) with each baseline checked at
+/// `limit` sds, the antennas at `positions` (declared, or estimated).
+fn solve_epochs(
+    (per, noise): (&[Vec<Epoch>], &[[f64; 3]]),
+    positions: &[[f64; 3]],
+    limit: f64,
+) -> Solved {
     let mut out = Solved::default();
     each_matched(per, |t, at| {
-        out.epoch(t, fixes_at(at, &noise), positions, limit)
+        out.epoch(t, fixes_at(at, noise), positions, limit)
     });
     out
 }
@@ -306,9 +311,14 @@ struct Placed {
 }
 
 /// The antennas' positions: each declared one as declared, each to estimate from its
-/// sightings at the epochs the declared ones solve ([`array_positions`]), screened at
-/// `limit`. An antenna that no two epochs see is refused, naming it.
-fn positions(per: &[Vec<Epoch>], antennas: &[Antenna], limit: f64) -> Result<Placed, GravityError> {
+/// sightings at the epochs of `per` (with each antenna's white `noise`) that the declared
+/// ones solve ([`array_positions`]), screened at `limit`. An antenna that no two epochs see
+/// is refused, naming it.
+fn positions(
+    (per, noise): (&[Vec<Epoch>], &[[f64; 3]]),
+    antennas: &[Antenna],
+    limit: f64,
+) -> Result<Placed, GravityError> {
     let mut positions: Vec<[f64; 3]> = antennas
         .iter()
         .map(|a| a.position_m.unwrap_or_default())
@@ -319,10 +329,9 @@ fn positions(per: &[Vec<Epoch>], antennas: &[Antenna], limit: f64) -> Result<Pla
             estimated: BTreeMap::new(),
         });
     }
-    let noise: Vec<[f64; 3]> = per.iter().map(|e| white_noise(e)).collect();
     let mut seen: Vec<Vec<Sighting>> = vec![Vec::new(); antennas.len()];
     each_matched(per, |_, at| {
-        let Some((_, fixes)) = fixes_at(at, &noise) else {
+        let Some((_, fixes)) = fixes_at(at, noise) else {
             return;
         };
         let declared: Vec<Option<Fix>> = fixes

@@ -157,37 +157,22 @@ mod tests {
     use super::super::antennas::{self, Fix};
     use super::*;
 
-    /// Four antennas of a 3 m array, 5 mm horizontal and 10 mm vertical; the fourth to
-    /// estimate.
-    const ARRAY: [[f64; 3]; 4] = [
-        [1.6, 0.0, -2.1],
-        [-1.4, 0.0, -2.0],
-        [0.0, 1.3, -1.9],
-        [0.1, -1.2, -2.2],
-    ];
+    /// RTK's 5 mm horizontal and 10 mm vertical noise.
     const SD: [f64; 3] = [0.005, 0.005, 0.010];
 
-    /// A small generator of normals (Box-Muller on a 64-bit LCG).
-    fn normals(seed: u64) -> impl FnMut() -> f64 {
-        let mut s = seed;
-        move || {
-            let mut u = || {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            let (a, b) = (u(), u());
-            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-        }
+    /// The simulator's four antennas of a 3 m array; the fourth is the one to estimate.
+    fn array() -> [[f64; 3]; 4] {
+        let p = fixtures::survey_lines::four_antennas().positions_m;
+        [p[0], p[1], p[2], p[3]]
     }
 
     /// A rolling boat's `epochs` (heading turning, roll 8 deg and pitch 3 deg on the swell),
     /// the fourth antenna's sightings from the other three; `jump` adds 5 cm north to the
     /// fourth's fix at epoch 7.
     fn sightings(seed: u64, epochs: usize, jump: bool) -> Vec<Sighting> {
-        let mut noise = normals(seed);
-        let declared = [ARRAY[0], ARRAY[1], ARRAY[2], [0.0; 3]];
+        let mut noise = antennas::tests::normals(seed);
+        let a = array();
+        let declared = [a[0], a[1], a[2], [0.0; 3]];
         (0..epochs)
             .filter_map(|k| {
                 let t = k as f64;
@@ -197,7 +182,7 @@ mod tests {
                     0.14 * (t / 5.0).sin(),
                 );
                 let p = [3.0 * t, -t, 0.2 * (t / 4.0).sin()];
-                let fixes: Vec<Fix> = ARRAY
+                let fixes: Vec<Fix> = a
                     .iter()
                     .map(|b| Fix {
                         ned_m: std::array::from_fn(|i| {
@@ -227,7 +212,7 @@ mod tests {
         for seed in 0..trials {
             let e = estimate(&sightings(seed, 300, false), 5.0).expect("an estimate");
             for k in 0..3 {
-                z2[k] += ((e.position_m[k] - ARRAY[3][k]) / e.sd_m[k]).powi(2);
+                z2[k] += ((e.position_m[k] - array()[3][k]) / e.sd_m[k]).powi(2);
             }
             assert!((e.sigma0 - 1.0).abs() < 0.1, "sigma0 {}", e.sigma0);
         }
@@ -248,7 +233,7 @@ mod tests {
         assert_eq!(jumped.screened, 1, "{jumped:?}");
         assert_eq!(jumped.epochs, 299);
         for k in 0..3 {
-            let d = (jumped.position_m[k] - ARRAY[3][k]) / jumped.sd_m[k];
+            let d = (jumped.position_m[k] - array()[3][k]) / jumped.sd_m[k];
             assert!(d.abs() < 4.0, "{jumped:?}");
         }
     }
@@ -290,7 +275,7 @@ mod tests {
             let all = sightings(100 + seed, epochs, false);
             let e = estimate(&all, 5.0).expect("an estimate");
             let z = |p: [f64; 3]| -> [f64; 3] {
-                std::array::from_fn(|k| (p[k] - ARRAY[3][k]) / e.sd_m[k])
+                std::array::from_fn(|k| (p[k] - array()[3][k]) / e.sd_m[k])
             };
             eprintln!(
                 "{epochs} epochs: in the estimate's sds ({:.4?} mm), the plain mean {:.2?}, \
