@@ -109,7 +109,7 @@ pub struct Removal {
 }
 
 /// Per observation of the final adjustment.
-#[derive(Clone, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Residual {
     /// Index into the fit's observations.
     pub index: usize,
@@ -123,6 +123,92 @@ pub struct Residual {
     pub redundancy: f64,
     /// Normalised residual.
     pub w: f64,
+}
+
+/// The observations of the final adjustment with their residuals, a column per quantity:
+/// the adjustment's own vectors, taken over rather than copied into rows (at a million
+/// observations, 48 MB of fresh pages and a pass).
+#[derive(Clone, Debug, Default)]
+pub struct Residuals {
+    index: Vec<usize>,
+    v: Vec<[f64; 3]>,
+    misclosure: Vec<f64>,
+    redundancy: Vec<f64>,
+    w: Vec<f64>,
+}
+
+impl Residuals {
+    /// The residuals of `s`'s conditions, whose observations are `index` into the fit's.
+    fn of(index: Vec<usize>, s: gh::Solution<3>) -> Self {
+        Residuals {
+            index,
+            v: s.v,
+            misclosure: s.misclosure,
+            redundancy: s.redundancy,
+            w: s.w_test,
+        }
+    }
+
+    /// How many observations the adjustment used.
+    pub fn len(&self) -> usize {
+        self.index.len()
+    }
+
+    /// Whether it used none.
+    pub fn is_empty(&self) -> bool {
+        self.index.is_empty()
+    }
+
+    /// The `k`th observation used.
+    pub fn get(&self, k: usize) -> Residual {
+        Residual {
+            index: self.index[k],
+            v_dz_rad: self.v[k][0],
+            v_ng: self.v[k][1],
+            misclosure_mgal: self.misclosure[k],
+            redundancy: self.redundancy[k],
+            w: self.w[k],
+        }
+    }
+
+    /// Each observation used, in the adjustment's order.
+    pub fn iter(&self) -> ResidualIter<'_> {
+        ResidualIter { of: self, next: 0 }
+    }
+}
+
+/// The rows of [`Residuals`], by value.
+pub struct ResidualIter<'a> {
+    of: &'a Residuals,
+    next: usize,
+}
+
+impl Iterator for ResidualIter<'_> {
+    type Item = Residual;
+
+    fn next(&mut self) -> Option<Residual> {
+        let k = self.next;
+        (k < self.of.len()).then(|| {
+            self.next += 1;
+            self.of.get(k)
+        })
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        let left = self.of.len() - self.next;
+        (left, Some(left))
+    }
+}
+
+impl ExactSizeIterator for ResidualIter<'_> {}
+
+impl<'a> IntoIterator for &'a Residuals {
+    type Item = Residual;
+    type IntoIter = ResidualIter<'a>;
+
+    fn into_iter(self) -> ResidualIter<'a> {
+        self.iter()
+    }
 }
 
 /// A fitted calibration.
@@ -158,7 +244,7 @@ pub struct CalibrationSolution {
     /// Removed by snooping, in order.
     pub removed: Vec<Removal>,
     /// The observations used, with their residuals.
-    pub residuals: Vec<Residual>,
+    pub residuals: Residuals,
     /// A model without temperature terms: what a thermal sensitivity it does not include
     /// moves each parameter by, per unit of b_t (mGal/degC) and of k_t (mGal/bit/degC),
     /// the effect being `(b_t + k_t Ng) (T - mean_temperature_c)` at each observation
@@ -497,17 +583,18 @@ fn screen_gross_errors(
 
 /// Start values of the scaled parameters: b and k from an ordinary least-squares line of
 /// `-g cos Dz` (mean `mean_y`) on `x` (so that the first linearisation sees the slope, and
-/// a reading at Dz = 0 has a variance), the rest 0. The sums in row order, two passes.
-fn start_values(used: &[&Obs], model: &CalibrationConditions<'_>, mean_y: f64) -> Vec<f64> {
+/// a reading at Dz = 0 has a variance), the rest 0. The sums in row order, two passes over
+/// the readings' counts and `-g cos Dz` ([`Centres::line`]).
+fn start_values(line: &Line, model: &CalibrationConditions<'_>, mean_y: f64) -> Vec<f64> {
     let mut p = vec![0.0; model.terms.len()];
-    let n = used.len() as f64;
-    let x = |o: &Obs| (o.ng - model.centre) / model.scale;
-    let mx = used.iter().map(|o| x(o)).sum::<f64>() / n;
+    let n = line.ng.len() as f64;
+    let x = |ng: f64| (ng - model.centre) / model.scale;
+    let mx = line.ng.iter().map(|ng| x(*ng)).sum::<f64>() / n;
     let (mut sxx, mut sxy) = (-0.0, -0.0);
-    for o in used {
-        let dx = x(o) - mx;
+    for (ng, y) in line.ng.iter().zip(&line.y) {
+        let dx = x(*ng) - mx;
         sxx += dx.powi(2);
-        sxy += dx * (-model.g_mgal * o.dz_rad.cos() - mean_y);
+        sxy += dx * (y - mean_y);
     }
     let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
     // The condition is g cos Dz + c = 0: c(x) is the line of -g cos Dz on x.
@@ -593,7 +680,8 @@ pub fn calibrate_with(
             tide_mgal: &tides,
             roll_rad: &rolls,
         };
-        let p0 = start_values(&used, &model, centres.mean_y);
+        let p0 = start_values(&centres.line, &model, centres.mean_y);
+        drop(centres.line);
         let to_cal = |e| cal_error(e, &names, &active);
         let s = adjust_and_test(&model, &used, &p0, options).map_err(to_cal)?;
         if let Some((k, w)) = worst_w_test(&s)
@@ -613,12 +701,14 @@ pub fn calibrate_with(
         let fitted = Fitted {
             model: &model,
             used: &used,
-            active: &active,
             mean_temperature_c: centres.mean_temperature_c,
         };
-        return conclude(&fitted, s, options)
-            .map(|fit| CalibrationSolution { removed, ..fit })
-            .map_err(to_cal);
+        let (fit, s) = conclude(&fitted, s, options).map_err(to_cal)?;
+        return Ok(CalibrationSolution {
+            removed,
+            residuals: Residuals::of(active, s),
+            ..fit
+        });
     }
 }
 
@@ -714,43 +804,67 @@ pub fn mdb_noncentrality(dof: Option<f64>) -> f64 {
     }
 }
 
-/// What the model, the start values and the conclusion read of the readings, in one pass
-/// in row order (each sum's bits those of a sum of it alone): the counts' mean and largest
-/// distance from it (at least 1), by which the model's internal parameters are scaled, the
-/// mean of `-g cos Dz`, the mean temperature, and whether any reading has a tide.
+/// What the model, the start values and the conclusion read of the readings: the counts'
+/// mean and largest distance from it (at least 1), by which the model's internal
+/// parameters are scaled, the mean of `-g cos Dz`, the mean temperature, whether any
+/// reading has a tide, and the columns the start values' line is fitted to. The readings
+/// are read once, on the pool, into contiguous columns; each sum is then taken over its
+/// column in row order (its bits those of a sum of it alone), which is cheap where a
+/// reading's record is not.
 struct Centres {
     centre: f64,
     scale: f64,
     mean_y: f64,
     mean_temperature_c: f64,
     tides: bool,
+    /// The counts and `-g cos Dz` of each reading, for [`start_values`].
+    line: Line,
+}
+
+/// The counts and `-g cos Dz` of each reading.
+struct Line {
+    ng: Vec<f64>,
+    y: Vec<f64>,
 }
 
 impl Centres {
     fn of(used: &[&Obs], g_mgal: f64) -> Self {
         let n = used.len() as f64;
-        // From -0.0, as `Iterator::sum` starts.
-        let (mut sum_ng, mut sum_y, mut sum_t) = (-0.0, -0.0, -0.0);
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        let mut tides = false;
-        for o in used {
-            sum_ng += o.ng;
-            lo = f64::min(lo, o.ng);
-            hi = f64::max(hi, o.ng);
-            sum_y += -g_mgal * o.dz_rad.cos();
-            sum_t += o.temperature_c;
-            tides |= o.tide_mgal != 0.0;
-        }
-        let centre = sum_ng / n;
+        let (mut ng, mut y, mut t) = (
+            vec![0.0; used.len()],
+            vec![0.0; used.len()],
+            vec![0.0; used.len()],
+        );
+        let tides = ng
+            .par_chunks_mut(gh::TASK_ROWS)
+            .zip(y.par_chunks_mut(gh::TASK_ROWS))
+            .zip(t.par_chunks_mut(gh::TASK_ROWS))
+            .zip(used.par_chunks(gh::TASK_ROWS))
+            .map(|(((ng, y), t), rows)| {
+                let mut tides = false;
+                for (((ng, y), t), o) in ng.iter_mut().zip(y).zip(t).zip(rows) {
+                    (*ng, *y, *t) = (o.ng, -g_mgal * o.dz_rad.cos(), o.temperature_c);
+                    tides |= o.tide_mgal != 0.0;
+                }
+                tides
+            })
+            .reduce(|| false, |a, b| a || b);
+        let (lo, hi) = ng
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (f64::min(lo, *x), f64::max(hi, *x))
+            });
+        let centre = ng.iter().sum::<f64>() / n;
         // The largest |Ng - centre| is at the lowest or the highest Ng (a rounded
         // difference is monotone in Ng).
         let scale = (hi - centre).max(centre - lo).max(1.0);
         Centres {
             centre,
             scale,
-            mean_y: sum_y / n,
-            mean_temperature_c: sum_t / n,
+            mean_y: y.iter().sum::<f64>() / n,
+            mean_temperature_c: t.iter().sum::<f64>() / n,
             tides,
+            line: Line { ng, y },
         }
     }
 }
@@ -866,26 +980,26 @@ fn observations(used: &[&Obs]) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
         .unzip()
 }
 
-/// The final round of a fit: its model, the readings it used (`active`: their indices
-/// into the fit's observations) and their mean temperature.
+/// The final round of a fit: its model, the readings it used and their mean temperature.
 struct Fitted<'a> {
     model: &'a CalibrationConditions<'a>,
     used: &'a [&'a Obs],
-    active: &'a [usize],
     mean_temperature_c: f64,
 }
 
 /// The fit from the final round's adjustment `s` of `fitted`: the variance components and
-/// the adjustment at them, the coloured noise's covariance, the global test; no removals.
+/// the adjustment at them, the coloured noise's covariance, the global test; no removals
+/// and no residuals. With it, what of `s` the residuals are formed from (its designs and
+/// its variances' parts gone: at a million observations they and the residuals were the
+/// fit's peak).
 fn conclude(
     fitted: &Fitted<'_>,
     mut s: gh::Solution<3>,
     options: &FitOptions,
-) -> Result<CalibrationSolution, GhError> {
+) -> Result<(CalibrationSolution, gh::Solution<3>), GhError> {
     let Fitted {
         model,
         used,
-        active,
         mean_temperature_c,
     } = *fitted;
     let m = model.terms.len();
@@ -938,41 +1052,12 @@ fn conclude(
         global_test,
         components,
         removed: Vec::new(),
-        residuals: Vec::new(),
+        residuals: Residuals::default(),
         thermal_gain,
     };
-    Ok(CalibrationSolution {
-        residuals: residuals(active, s),
-        ..fit
-    })
-}
-
-/// The residuals of `s`'s conditions (indices `active` into the fit's observations), formed
-/// last, once what else `s` holds is gone: at a million observations the two together
-/// were the fit's peak.
-fn residuals(active: &[usize], s: gh::Solution<3>) -> Vec<Residual> {
-    let gh::Solution {
-        v,
-        misclosure,
-        redundancy,
-        w_test,
-        q_parts,
-        q_ww,
-        ..
-    } = s;
-    drop((q_parts, q_ww));
-    active
-        .par_iter()
-        .enumerate()
-        .map(|(k, &index)| Residual {
-            index,
-            v_dz_rad: v[k][0],
-            v_ng: v[k][1],
-            misclosure_mgal: misclosure[k],
-            redundancy: redundancy[k],
-            w: w_test[k],
-        })
-        .collect()
+    s.q_parts = Vec::new();
+    s.q_ww = Vec::new();
+    Ok((fit, s))
 }
 
 /// What a thermal effect `(b_t + k_t Ng_i) (T_i - mean_t)` the model does not include moves

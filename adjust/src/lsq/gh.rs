@@ -13,7 +13,8 @@
 //! residuals, `B` and each condition's misclosure and variance; the observations themselves
 //! are the caller's ([`Observations`]). The per-condition passes (linearising, residuals,
 //! redundancy) run on the rayon pool in fixed tasks of [`TASK_ROWS`] rows, their sums taken
-//! in row order; the QR on the calling thread ([`Linearised::triangle`] says why).
+//! in row order; the QR on the calling thread and, for a large problem, one of its own
+//! ([`Linearised::triangle`] says why).
 
 use faer::prelude::*;
 use rayon::prelude::{
@@ -23,6 +24,10 @@ use rayon::prelude::{
 
 /// Rows of the weighted design taken into the QR at a time.
 pub const QR_BLOCK: usize = 1024;
+
+/// Rows from which the QR is taken in two halves at once, each on a thread of its own
+/// ([`Linearised::triangle`]).
+const SPLIT_ROWS: usize = 16 * QR_BLOCK;
 
 /// Rows a parallel task takes (linearising, residuals, redundancy): fixed, so that what is
 /// summed is summed in the same order on any number of cores.
@@ -415,20 +420,55 @@ impl<const K: usize> Linearised<K> {
     /// The upper triangle R (row-major (m + 1) x (m + 1)) of the QR of the weighted,
     /// equilibrated design with the weighted right-hand side `-w / sqrt(q)` as its last
     /// column: each block of [`QR_BLOCK`] rows factored with the triangle of the blocks
-    /// before it stacked on top. On the calling thread, not the pool's: faer's kernels leave
-    /// the thread that ran them with the vector registers' upper halves in use, and scalar
-    /// code after them on that thread ran several times slower (the next linearisation's
-    /// sin and cos; docs/benchmarks.md, Adjust), so the rows are linearised on the pool and
-    /// factored here.
+    /// before it stacked on top; from [`SPLIT_ROWS`] rows on, the two halves' triangles at
+    /// once, then the QR of the two stacked. On the calling thread and one of its own, not
+    /// the pool's: faer's kernels leave the thread that ran them with the vector registers'
+    /// upper halves in use, and scalar code after them on that thread ran several times
+    /// slower (the next linearisation's sin and cos; docs/benchmarks.md, Adjust), so the rows
+    /// are linearised on the pool and factored here, the second half on a thread that ends
+    /// with it.
     fn triangle(&self, scale: &[f64]) -> Vec<f64> {
-        let (n, m) = (self.q.len(), self.m());
+        let n = self.q.len();
+        let cols = self.m() + 1;
+        if n < SPLIT_ROWS {
+            return self.triangle_of(scale, 0..n);
+        }
+        // Two halves, split at a block's boundary that depends on n alone: the same bits on
+        // any number of cores.
+        let half = (n / 2).div_ceil(QR_BLOCK) * QR_BLOCK;
+        let (first, second) = std::thread::scope(|s| {
+            let second = s.spawn(|| self.triangle_of(scale, half..n));
+            let first = self.triangle_of(scale, 0..half);
+            // A panic on the second thread is raised again here, as on this one.
+            (
+                first,
+                second
+                    .join()
+                    .unwrap_or_else(|p| std::panic::resume_unwind(p)),
+            )
+        });
+        let mut qr = Householder::new(2 * cols, cols);
+        qr.fill(2 * cols, |j, column| {
+            for i in 0..cols {
+                column[i] = first[i * cols + j];
+                column[cols + i] = second[i * cols + j];
+            }
+        });
+        qr.upper(2 * cols)
+    }
+
+    /// The upper triangle of the rows `rows` of the weighted, equilibrated design with its
+    /// right-hand side, a block of [`QR_BLOCK`] rows at a time.
+    fn triangle_of(&self, scale: &[f64], rows: std::ops::Range<usize>) -> Vec<f64> {
+        let m = self.m();
         let cols = m + 1;
         let mut r = vec![0.0; cols * cols];
         let mut qr = Householder::new(QR_BLOCK + cols, cols);
-        let mut start = 0;
+        let (from, n) = (rows.start, rows.end);
+        let mut start = from;
         while start < n {
             let rows = QR_BLOCK.min(n - start);
-            let top = if start == 0 { 0 } else { cols };
+            let top = if start == from { 0 } else { cols };
             let (q, w) = (&self.q[start..start + rows], &self.w[start..start + rows]);
             qr.fill(top + rows, |j, column| {
                 let (above, below) = column.split_at_mut(top);
@@ -687,6 +727,38 @@ mod tests {
         assert!((rsum - 18.0).abs() < 1e-9, "{rsum}");
         assert_eq!(s.dof, 18);
         assert!(s.iterations <= 3);
+    }
+
+    /// From [`SPLIT_ROWS`] rows on, the triangle is taken in two halves at once: the same R
+    /// (up to its rows' signs) as the blocks taken one after the other, to rounding, and
+    /// the same at any number of rows about the split.
+    #[test]
+    fn the_triangle_in_two_halves_is_the_triangle_in_one() {
+        for n in [SPLIT_ROWS, SPLIT_ROWS + 1, 3 * SPLIT_ROWS + 517] {
+            let l: Vec<[f64; 2]> = (0..n)
+                .map(|i| {
+                    let x = i as f64 / n as f64;
+                    [x, 1.0 + 3.0 * x + 0.01 * (i as f64 * 0.7).sin()]
+                })
+                .collect();
+            let sigma: Vec<[f64; 2]> = (0..n).map(|i| [0.0, 1.0 + (i % 7) as f64]).collect();
+            let mut lin = Linearised::<2>::new(n, 2);
+            let v = vec![[0.0; 2]; n];
+            lin.at(&Line, &Held::new(&l, &sigma), &[0.5, 2.0], &v)
+                .expect("linearises");
+            let scale = lin.norms.clone();
+            let (split, whole) = (lin.triangle(&scale), lin.triangle_of(&scale, 0..n));
+            for i in 0..3 {
+                let sign = split[i * 3 + i].signum() * whole[i * 3 + i].signum();
+                for j in i..3 {
+                    let (a, b) = (split[i * 3 + j], sign * whole[i * 3 + j]);
+                    assert!(
+                        (a - b).abs() <= 1e-12 * whole[i * 3 + i].abs().max(1.0),
+                        "n {n}: R[{i}][{j}] {a} against {b}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
