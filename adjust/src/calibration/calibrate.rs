@@ -360,6 +360,11 @@ pub const MIN_TEMPERATURE_SPREAD_C: f64 = 1.0;
 /// and statistically empty, and would give a number with an absurd sigma. The QR of the
 /// adjustment still catches exact rank loss (e.g. beta with tilts on one side only).
 pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
+    check_design(obs, terms).map(drop)
+}
+
+/// [`design_check`], returning what it read of the observations.
+fn check_design(obs: &[Obs], terms: Terms) -> Result<Spread, CalError> {
     let names = terms.names();
     let mut spread = Spread::of(obs);
     // The element a sort would put in the middle, without the sort (total_cmp is a total
@@ -377,7 +382,12 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
         || median(&mut spread.sigma_ng),
     );
     let separation = LEVEL_SEPARATION_SIGMAS * dz_median;
-    let levels = tilt_levels(obs, spread.lowest_dz, separation.max(1e-9), terms.order + 1);
+    let levels = tilt_levels(
+        &spread.dz,
+        spread.lowest_dz,
+        separation.max(1e-9),
+        terms.order + 1,
+    );
     if levels < terms.order + 1 && !obs.is_empty() {
         return Err(CalError::NotEstimable {
             parameter: names[levels].name,
@@ -403,10 +413,11 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
         });
     }
     if terms.temperature {
-        let (lo, hi) = obs
+        let (lo, hi) = spread
+            .t
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), o| {
-                (a.min(o.temperature_c), b.max(o.temperature_c))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| {
+                (a.min(*t), b.max(*t))
             });
         if hi - lo < MIN_TEMPERATURE_SPREAD_C {
             return Err(CalError::NotEstimable {
@@ -419,12 +430,18 @@ pub fn design_check(obs: &[Obs], terms: Terms) -> Result<(), CalError> {
             });
         }
     }
-    Ok(())
+    Ok(spread)
 }
 
-/// What the design check reads of the observations, in one pass on the pool: the sds of
-/// Dz and of Ng (for their medians), the lowest and highest Dz, the lowest and highest Ng.
+/// What the design check reads of the observations, in one pass on the pool: the Dz (for
+/// the tilt positions), the sds of Dz and of Ng (for their medians), the lowest and highest
+/// Dz, the lowest and highest Ng; and for the fit's centres ([`Columns`]), the counts, the
+/// temperatures and whether any reading has a tide.
 struct Spread {
+    dz: Vec<f64>,
+    ng: Vec<f64>,
+    t: Vec<f64>,
+    tides: bool,
     sigma_dz: Vec<f64>,
     sigma_ng: Vec<f64>,
     lowest_dz: f64,
@@ -436,23 +453,32 @@ struct Spread {
 impl Spread {
     fn of(obs: &[Obs]) -> Self {
         const ROWS: usize = gh::TASK_ROWS;
-        let mut sigma_dz = vec![0.0; obs.len()];
-        let mut sigma_ng = vec![0.0; obs.len()];
-        let none = [
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        ];
+        let column = || vec![0.0; obs.len()];
+        let (mut dz, mut ng, mut t) = (column(), column(), column());
+        let (mut sigma_dz, mut sigma_ng) = (column(), column());
+        let none = (
+            [
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ],
+            false,
+        );
         // Lowest and highest are the same in any order: the tasks reduce as they finish.
-        let [lowest_dz, highest_dz, lowest_ng, highest_ng] = sigma_dz
+        let ([lowest_dz, highest_dz, lowest_ng, highest_ng], tides) = dz
             .par_chunks_mut(ROWS)
+            .zip(ng.par_chunks_mut(ROWS))
+            .zip(t.par_chunks_mut(ROWS))
+            .zip(sigma_dz.par_chunks_mut(ROWS))
             .zip(sigma_ng.par_chunks_mut(ROWS))
             .zip(obs.par_chunks(ROWS))
-            .map(|((dz, ng), rows)| {
-                let mut ends = none;
-                for ((d, n), o) in dz.iter_mut().zip(ng).zip(rows) {
-                    (*d, *n) = (o.sigma_dz_rad, o.sigma_ng);
+            .map(|(((((dz, ng), t), sigma_dz), sigma_ng), rows)| {
+                let (mut ends, mut tides) = none;
+                for (k, o) in rows.iter().enumerate() {
+                    (dz[k], ng[k], t[k]) = (o.dz_rad, o.ng, o.temperature_c);
+                    (sigma_dz[k], sigma_ng[k]) = (o.sigma_dz_rad, o.sigma_ng);
+                    tides |= o.tide_mgal != 0.0;
                     ends = [
                         ends[0].min(o.dz_rad),
                         ends[1].max(o.dz_rad),
@@ -460,20 +486,27 @@ impl Spread {
                         ends[3].max(o.ng),
                     ];
                 }
-                ends
+                (ends, tides)
             })
             .reduce(
                 || none,
-                |a, b| {
-                    [
-                        a[0].min(b[0]),
-                        a[1].max(b[1]),
-                        a[2].min(b[2]),
-                        a[3].max(b[3]),
-                    ]
+                |(a, ta), (b, tb)| {
+                    (
+                        [
+                            a[0].min(b[0]),
+                            a[1].max(b[1]),
+                            a[2].min(b[2]),
+                            a[3].max(b[3]),
+                        ],
+                        ta || tb,
+                    )
                 },
             );
         Spread {
+            dz,
+            ng,
+            t,
+            tides,
             sigma_dz,
             sigma_ng,
             lowest_dz,
@@ -484,22 +517,23 @@ impl Spread {
     }
 }
 
-/// The tilt positions among `obs` (whose lowest Dz is `lowest`), counted up to `most`:
-/// bins of width `separation` from the lowest Dz, a new one beginning at the lowest Dz
-/// past the current one's start by more than the separation (the bins a pass over the
-/// sorted Dz would open, found by one pass per bin instead of a sort of every observation).
+/// The tilt positions among the observations' Dz `dz` (whose lowest is `lowest`), counted
+/// up to `most`: bins of width `separation` from the lowest Dz, a new one beginning at the
+/// lowest Dz past the current one's start by more than the separation (the bins a pass
+/// over the sorted Dz would open, found by one pass per bin instead of a sort of every
+/// observation).
 /// Chaining neighbours instead made a continuous spread of Dz (a motorised table read at
 /// many angles) one "position".
-fn tilt_levels(obs: &[Obs], lowest: f64, separation: f64, most: usize) -> usize {
-    if obs.is_empty() || most == 0 {
+fn tilt_levels(dz: &[f64], lowest: f64, separation: f64, most: usize) -> usize {
+    if dz.is_empty() || most == 0 {
         return 0;
     }
     let mut levels = 1usize;
     let mut start = lowest;
     while levels < most {
-        let next = obs
+        let next = dz
             .par_iter()
-            .map(|o| o.dz_rad)
+            .copied()
             .filter(|d| d - start > separation)
             .min_by(f64::total_cmp);
         let Some(d) = next else { break };
@@ -644,11 +678,8 @@ pub fn calibrate_with(
     if obs.len() <= m {
         return Err(CalError::TooFew { n: obs.len(), m });
     }
-    // The reference temperature's sum (in row order, one thread) beside the design
-    // check's passes on the pool.
-    let (checked, t_ref_c) =
-        rayon::join(|| design_check(obs, terms), || reference_temperature(obs));
-    checked?;
+    let spread = check_design(obs, terms)?;
+    let t_ref_c = reference_temperature(&spread.t);
     let max_removals = match snooping {
         Snooping::TenthAtMost => obs.len() / 10,
         Snooping::Off => 0,
@@ -665,11 +696,14 @@ pub fn calibrate_with(
         station_without(obs_now.to_mut(), r.index);
     }
     let names = terms.names();
+    // What the design check read of every observation gives the first round's centres
+    // when that round adjusts them all (no gross error screened out).
+    let mut spread = removed.is_empty().then_some(spread);
     let mut round = 0;
     loop {
         round += 1;
         let used: Vec<&Obs> = active.par_iter().map(|&i| &obs_now[i]).collect();
-        let centres = Centres::of(&used, g_mgal);
+        let centres = Centres::of(Columns::of_round(spread.take(), &used, g_mgal));
         let (tides, rolls) = tides_and_rolls(&used, terms, centres.tides);
         let model = CalibrationConditions {
             terms,
@@ -731,10 +765,10 @@ fn adjust_and_test(
     Ok(s)
 }
 
-/// The reference temperature of b and k: the mean of all the observations given (to 0.01
-/// degC), so that it does not move with what snooping removes.
-fn reference_temperature(obs: &[Obs]) -> f64 {
-    let all_t = obs.iter().map(|o| o.temperature_c).sum::<f64>() / obs.len() as f64;
+/// The reference temperature of b and k: the mean of all the observations' temperatures
+/// `t` (to 0.01 degC), so that it does not move with what snooping removes.
+fn reference_temperature(t: &[f64]) -> f64 {
+    let all_t = t.iter().sum::<f64>() / t.len() as f64;
     (all_t * 100.0).round() / 100.0
 }
 
@@ -828,27 +862,11 @@ struct Line {
 }
 
 impl Centres {
-    fn of(used: &[&Obs], g_mgal: f64) -> Self {
-        let n = used.len() as f64;
-        let (mut ng, mut y, mut t) = (
-            vec![0.0; used.len()],
-            vec![0.0; used.len()],
-            vec![0.0; used.len()],
-        );
-        let tides = ng
-            .par_chunks_mut(gh::TASK_ROWS)
-            .zip(y.par_chunks_mut(gh::TASK_ROWS))
-            .zip(t.par_chunks_mut(gh::TASK_ROWS))
-            .zip(used.par_chunks(gh::TASK_ROWS))
-            .map(|(((ng, y), t), rows)| {
-                let mut tides = false;
-                for (((ng, y), t), o) in ng.iter_mut().zip(y).zip(t).zip(rows) {
-                    (*ng, *y, *t) = (o.ng, -g_mgal * o.dz_rad.cos(), o.temperature_c);
-                    tides |= o.tide_mgal != 0.0;
-                }
-                tides
-            })
-            .reduce(|| false, |a, b| a || b);
+    /// The centres of the readings whose counts, `-g cos Dz` and temperatures are
+    /// `columns`, each sum over its column in row order.
+    fn of(columns: Columns) -> Self {
+        let Columns { ng, y, t, tides } = columns;
+        let n = ng.len() as f64;
         let (lo, hi) = ng
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
@@ -866,6 +884,66 @@ impl Centres {
             tides,
             line: Line { ng, y },
         }
+    }
+}
+
+/// The readings' counts, `-g cos Dz` and temperatures, a column each, and whether any
+/// reading has a tide: what [`Centres`] is summed from.
+struct Columns {
+    ng: Vec<f64>,
+    y: Vec<f64>,
+    t: Vec<f64>,
+    tides: bool,
+}
+
+impl Columns {
+    /// A round's: the design check's reading, where it read the round's very readings
+    /// (`spread`), else read from `used`.
+    fn of_round(spread: Option<Spread>, used: &[&Obs], g_mgal: f64) -> Self {
+        match spread {
+            Some(spread) => Columns::of_spread(spread, g_mgal),
+            None => Columns::of(used, g_mgal),
+        }
+    }
+
+    /// Read from `used` on the pool.
+    fn of(used: &[&Obs], g_mgal: f64) -> Self {
+        let column = || vec![0.0; used.len()];
+        let (mut ng, mut y, mut t) = (column(), column(), column());
+        let tides = ng
+            .par_chunks_mut(gh::TASK_ROWS)
+            .zip(y.par_chunks_mut(gh::TASK_ROWS))
+            .zip(t.par_chunks_mut(gh::TASK_ROWS))
+            .zip(used.par_chunks(gh::TASK_ROWS))
+            .map(|(((ng, y), t), rows)| {
+                let mut tides = false;
+                for (((ng, y), t), o) in ng.iter_mut().zip(y).zip(t).zip(rows) {
+                    (*ng, *y, *t) = (o.ng, -g_mgal * o.dz_rad.cos(), o.temperature_c);
+                    tides |= o.tide_mgal != 0.0;
+                }
+                tides
+            })
+            .reduce(|| false, |a, b| a || b);
+        Columns { ng, y, t, tides }
+    }
+
+    /// Taken over from the design check's reading of every observation (a fit's first
+    /// round, when no gross error was screened out): `-g cos Dz` formed on the pool in the
+    /// buffer of the sds of Dz, which the check is done with.
+    fn of_spread(spread: Spread, g_mgal: f64) -> Self {
+        let Spread {
+            dz,
+            ng,
+            t,
+            tides,
+            sigma_dz: mut y,
+            ..
+        } = spread;
+        y.par_iter_mut()
+            .zip(&dz)
+            .with_min_len(gh::TASK_ROWS)
+            .for_each(|(y, dz)| *y = -g_mgal * dz.cos());
+        Columns { ng, y, t, tides }
     }
 }
 
@@ -1063,20 +1141,40 @@ fn conclude(
 /// What a thermal effect `(b_t + k_t Ng_i) (T_i - mean_t)` the model does not include moves
 /// the parameters (in counts) by, per unit of b_t and of k_t: the effect adds to each
 /// observation's calibration value, so to its condition's misclosure, whose gain on the
-/// parameters is `Q_pp a_i / q_i` at the weights of `s`.
+/// parameters is `Q_pp a_i / q_i` at the weights of `s`. Summed a task of
+/// [`gh::TASK_ROWS`] readings at a time on the pool, the tasks' sums then added in their
+/// order: the same bits on any number of cores.
 fn thermal_gain(s: &gh::Solution<3>, used: &[&Obs], map: &[f64], mean_t: f64) -> Vec<[f64; 2]> {
     let m = s.p.len();
-    let mut scaled = vec![[0.0; 2]; m];
-    for (i, o) in used.iter().enumerate() {
-        let dt = o.temperature_c - mean_t;
-        if dt == 0.0 || s.q_ww[i] <= 0.0 {
-            continue;
-        }
-        let effect = [dt, o.ng * dt];
-        for (g, qa) in scaled.iter_mut().zip(correlated::q_pp_a(s, i)) {
-            for c in 0..2 {
-                g[c] += qa / s.q_ww[i] * effect[c];
+    let tasks: Vec<Vec<[f64; 2]>> = used
+        .par_chunks(gh::TASK_ROWS)
+        .enumerate()
+        .map(|(task, rows)| {
+            let mut sum = vec![[0.0; 2]; m];
+            for (k, o) in rows.iter().enumerate() {
+                let i = task * gh::TASK_ROWS + k;
+                let dt = o.temperature_c - mean_t;
+                if dt == 0.0 || s.q_ww[i] <= 0.0 {
+                    continue;
+                }
+                let effect = [dt, o.ng * dt];
+                let a = &s.a[i * m..(i + 1) * m];
+                for (r, g) in sum.iter_mut().enumerate() {
+                    // (Q_pp a_i)_r, as [`correlated::q_pp_a`] forms it.
+                    let qa: f64 = (0..m).map(|c| s.q_pp[r * m + c] * a[c]).sum();
+                    for c in 0..2 {
+                        g[c] += qa / s.q_ww[i] * effect[c];
+                    }
+                }
             }
+            sum
+        })
+        .collect();
+    let mut scaled = vec![[0.0; 2]; m];
+    for task in tasks {
+        for (g, t) in scaled.iter_mut().zip(task) {
+            g[0] += t[0];
+            g[1] += t[1];
         }
     }
     (0..m)
@@ -1382,7 +1480,10 @@ mod tests {
             assert!(all > 2, "{all}");
             for most in 1..=all + 2 {
                 assert_eq!(
-                    tilt_levels(&obs, Spread::of(&obs).lowest_dz, separation, most),
+                    {
+                        let spread = Spread::of(&obs);
+                        tilt_levels(&spread.dz, spread.lowest_dz, separation, most)
+                    },
                     all.min(most),
                     "{most} of {all}"
                 );

@@ -17,10 +17,7 @@
 //! ([`Linearised::triangle`] says why).
 
 use faer::prelude::*;
-use rayon::prelude::{
-    IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
-    ParallelSlice, ParallelSliceMut,
-};
+use rayon::prelude::{IndexedParallelIterator, ParallelIterator, ParallelSlice, ParallelSliceMut};
 
 /// Rows of the weighted design taken into the QR at a time.
 pub const QR_BLOCK: usize = 1024;
@@ -367,8 +364,8 @@ impl<const K: usize> Linearised<K> {
     }
 
     /// Linearises the conditions at `p` and the observations `l + v`: the rows in parallel,
-    /// [`TASK_ROWS`] a task, the column norms summed in row order (the same bits as one
-    /// pass).
+    /// [`TASK_ROWS`] a task, the column norms' squares summed within each task and the
+    /// tasks' sums added in their order (the same bits on any number of cores).
     fn at(
         &mut self,
         c: &impl Conditions<K>,
@@ -377,15 +374,16 @@ impl<const K: usize> Linearised<K> {
         v: &[[f64; K]],
     ) -> Result<(), GhError> {
         let m = self.m();
-        let zero_variance = self
+        let tasks: Vec<Result<Vec<f64>, usize>> = self
             .a
             .par_chunks_mut(m * TASK_ROWS)
             .zip(self.w.par_chunks_mut(TASK_ROWS))
             .zip(self.b.par_chunks_mut(TASK_ROWS))
             .zip(self.q.par_chunks_mut(TASK_ROWS))
             .enumerate()
-            .filter_map(|(task, (((a, w), b), q))| {
+            .map(|(task, (((a, w), b), q))| {
                 let start = task * TASK_ROWS;
+                let mut squares = vec![0.0; m];
                 for (k, a_row) in a.chunks_exact_mut(m).enumerate() {
                     let i = start + k;
                     let (l, sigma) = obs.get(i);
@@ -393,22 +391,23 @@ impl<const K: usize> Linearised<K> {
                     let (f, bi) = c.eval(i, p, l0, a_row);
                     let qi = (0..K).fold(0.0, |acc, t| acc + (bi[t] * sigma[t]).powi(2));
                     if qi <= 0.0 || !qi.is_finite() {
-                        return Some(i);
+                        return Err(i);
                     }
                     w[k] = (0..K).fold(f, |acc, t| acc - bi[t] * v[i][t]);
                     b[k] = bi;
                     q[k] = qi;
+                    for (s, x) in squares.iter_mut().zip(&*a_row) {
+                        *s += x * x / qi;
+                    }
                 }
-                None
+                Ok(squares)
             })
-            .min();
-        if let Some(index) = zero_variance {
-            return Err(GhError::ZeroVariance { index });
-        }
+            .collect();
         let mut squares = vec![0.0; m];
-        for (a_row, qi) in self.a.chunks_exact(m).zip(&self.q) {
-            for (s, x) in squares.iter_mut().zip(a_row) {
-                *s += x * x / qi;
+        for task in tasks {
+            let task = task.map_err(|index| GhError::ZeroVariance { index })?;
+            for (s, t) in squares.iter_mut().zip(task) {
+                *s += t;
             }
         }
         for (norm, s) in self.norms.iter_mut().zip(squares) {
@@ -493,8 +492,8 @@ impl<const K: usize> Linearised<K> {
     }
 
     /// New residuals from the Lagrange multipliers of `step`, written into `v`; the
-    /// misclosures they take up replace `w`. The rows in parallel, `v^T P v` summed in row
-    /// order.
+    /// misclosures they take up replace `w`. The rows in parallel, `v^T P v` summed within
+    /// each task and the tasks' sums added in their order.
     fn residuals(
         &mut self,
         step: &Step,
@@ -505,7 +504,7 @@ impl<const K: usize> Linearised<K> {
     ) -> Result<AfterStep, GhError> {
         let m = step.dp.len();
         let rounding = 1e-13;
-        let (settled, change) = self
+        let tasks: Vec<(bool, f64, f64)> = self
             .a
             .par_chunks(m * TASK_ROWS)
             .zip(self.w.par_chunks_mut(TASK_ROWS))
@@ -515,6 +514,7 @@ impl<const K: usize> Linearised<K> {
                 let start = task * TASK_ROWS;
                 let mut settled = true;
                 let mut change: f64 = 0.0;
+                let mut vtpv = 0.0;
                 for (k, a_row) in a.chunks_exact(m).enumerate() {
                     let i = start + k;
                     let (l, sigma) = obs.get(i);
@@ -532,16 +532,17 @@ impl<const K: usize> Linearised<K> {
                     }
                     v[k] = nv;
                     w[k] = -e;
+                    vtpv += e * e / self.q[i];
                 }
-                (settled, change)
+                (settled, change, vtpv)
             })
-            .reduce(|| (true, 0.0), |x, y| (x.0 && y.0, x.1.max(y.1)));
-        let vtpv = self
-            .w
-            .iter()
-            .zip(&self.q)
-            .map(|(w, q)| w * w / q)
-            .sum::<f64>();
+            .collect();
+        let (mut settled, mut change, mut vtpv) = (true, 0.0f64, -0.0);
+        for (s, c, t) in tasks {
+            settled &= s;
+            change = change.max(c);
+            vtpv += t;
+        }
         if !vtpv.is_finite() {
             return Err(GhError::NonFinite { iteration });
         }
@@ -553,17 +554,32 @@ impl<const K: usize> Linearised<K> {
     }
 
     /// Each condition's redundancy 1 - h_i, with the leverage h_i = || R^-T a~_i ||^2 of
-    /// the equilibrated, weighted design row, and its w-test (`w` holding the misclosures).
-    fn redundancy(&self, step: &Step) -> (Vec<f64>, Vec<f64>) {
+    /// the equilibrated, weighted design row, and its w-test (`w` holding the misclosures);
+    /// and the parts of its variance q_i, (b_it sigma_it)^2. In one pass on the pool.
+    fn redundancy(
+        &self,
+        step: &Step,
+        obs: &impl Observations<K>,
+    ) -> (Vec<f64>, Vec<f64>, Vec<[f64; K]>) {
         let n = self.q.len();
         let m = step.dp.len();
         let r = &step.r;
-        (0..n)
-            .into_par_iter()
-            .with_min_len(TASK_ROWS)
-            .map_init(
-                || vec![0.0; m],
-                |z, i| {
+        let (mut redundancy, mut w_test) = (vec![0.0; n], vec![0.0; n]);
+        let mut q_parts = vec![[0.0; K]; n];
+        redundancy
+            .par_chunks_mut(TASK_ROWS)
+            .zip(w_test.par_chunks_mut(TASK_ROWS))
+            .zip(q_parts.par_chunks_mut(TASK_ROWS))
+            .enumerate()
+            .for_each(|(task, ((redundancy, w_test), q_parts))| {
+                let mut z = vec![0.0; m];
+                for (k, ((ri, wi), qi)) in redundancy
+                    .iter_mut()
+                    .zip(w_test.iter_mut())
+                    .zip(q_parts.iter_mut())
+                    .enumerate()
+                {
+                    let i = task * TASK_ROWS + k;
                     let (row, root) = (&self.a[i * m..(i + 1) * m], self.q[i].sqrt());
                     for k in 0..m {
                         // The weighted, equilibrated design, a_ik / (sqrt(q_i) scale_k).
@@ -574,16 +590,17 @@ impl<const K: usize> Linearised<K> {
                         z[k] = s / r[k * m + k];
                     }
                     let h: f64 = z.iter().map(|x| x * x).sum();
-                    let ri = (1.0 - h).max(0.0);
-                    let w = if ri > 1e-9 {
-                        self.w[i] / (self.q[i] * ri).sqrt()
+                    *ri = (1.0 - h).max(0.0);
+                    *wi = if *ri > 1e-9 {
+                        self.w[i] / (self.q[i] * *ri).sqrt()
                     } else {
                         0.0
                     };
-                    (ri, w)
-                },
-            )
-            .unzip()
+                    let (bi, sigma) = (self.b[i], obs.get(i).1);
+                    *qi = std::array::from_fn(|t| (bi[t] * sigma[t]).powi(2));
+                }
+            });
+        (redundancy, w_test, q_parts)
     }
 
     /// The solution at the settled step: the linearisation's vectors become its own.
@@ -596,17 +613,7 @@ impl<const K: usize> Linearised<K> {
         vtpv: f64,
         iterations: usize,
     ) -> Solution<K> {
-        let (redundancy, w_test) = self.redundancy(&step);
-        let q_parts = self
-            .b
-            .par_iter()
-            .with_min_len(TASK_ROWS)
-            .enumerate()
-            .map(|(i, bi)| {
-                let sigma = obs.get(i).1;
-                std::array::from_fn(|t| (bi[t] * sigma[t]).powi(2))
-            })
-            .collect();
+        let (redundancy, w_test, q_parts) = self.redundancy(&step, obs);
         let n = self.q.len();
         Solution {
             p,
