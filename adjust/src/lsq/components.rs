@@ -406,6 +406,10 @@ pub fn parameter_dof(
         .enumerate()
         .filter_map(|(g, c)| c.dof().map(|dof| (g, dof)))
         .collect();
+    if estimated.is_empty() {
+        // No estimated component weighs any parameter: no pass over the conditions.
+        return vec![None; m];
+    }
     let mut parts = vec![vec![0.0; m * m]; estimated.len()];
     let mut y = vec![0.0; m];
     for (i, (a, shares)) in s.a.chunks_exact(m).zip(&s.q_parts).enumerate() {

@@ -465,10 +465,14 @@ impl<const K: usize> Linearised<K> {
         let mut qr = Householder::new(QR_BLOCK + cols, cols);
         let (from, n) = (rows.start, rows.end);
         let mut start = from;
+        // The block's sqrt(q_i), formed once for all its columns.
+        let mut roots = Vec::with_capacity(QR_BLOCK);
         while start < n {
             let rows = QR_BLOCK.min(n - start);
             let top = if start == from { 0 } else { cols };
-            let (q, w) = (&self.q[start..start + rows], &self.w[start..start + rows]);
+            let w = &self.w[start..start + rows];
+            roots.clear();
+            roots.extend(self.q[start..start + rows].iter().map(|q| q.sqrt()));
             qr.fill(top + rows, |j, column| {
                 let (above, below) = column.split_at_mut(top);
                 for (i, x) in above.iter_mut().enumerate() {
@@ -476,12 +480,12 @@ impl<const K: usize> Linearised<K> {
                 }
                 if j < m {
                     let a = self.a[start * m..(start + rows) * m].chunks_exact(m);
-                    for ((x, a), q) in below.iter_mut().zip(a).zip(q) {
-                        *x = a[j] / (q.sqrt() * scale[j]);
+                    for ((x, a), root) in below.iter_mut().zip(a).zip(&roots) {
+                        *x = a[j] / (root * scale[j]);
                     }
                 } else {
-                    for ((x, w), q) in below.iter_mut().zip(w).zip(q) {
-                        *x = -w / q.sqrt();
+                    for ((x, w), root) in below.iter_mut().zip(w).zip(&roots) {
+                        *x = -w / root;
                     }
                 }
             });
