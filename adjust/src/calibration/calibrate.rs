@@ -1506,17 +1506,31 @@ mod tests {
     /// The thermal gain is what an effect the model does not include moves its parameters
     /// by: the same readings with and without a temperature effect about their mean
     /// temperature, fitted without temperature terms, differ by the gain times (b_t, k_t) to
-    /// the adjustment's linearisation; with temperature terms there is no gain.
+    /// the adjustment's linearisation; with temperature terms there is no gain. At 40
+    /// readings and at 40 000 (several of the adjustment's tasks, its QR in two halves).
     #[test]
     fn the_thermal_gain_is_what_an_unmodelled_effect_moves() {
-        let plain = design(&tilts(40), None, 25.0);
+        for n in [40, 40_000] {
+            thermal_gain_of(n);
+        }
+    }
+
+    fn thermal_gain_of(n: usize) {
+        // Nine tilt positions, a period that no task's start repeats.
+        let dz: Vec<f64> = (0..n).map(|i| 110.0 + (i % 9) as f64 * 3.5).collect();
+        let plain = design(&dz, None, 25.0);
         let (b, k) = (-29_500.0, 0.243);
         let sensitivity = Sensitivity {
             b_t: 40.0,
             k_t: 2e-4,
         };
-        let temperature = |i: usize| 25.0 + 0.02 * (0.7 * i as f64).sin() + 0.0004 * i as f64;
-        let mean_t = (0..40).map(temperature).sum::<f64>() / 40.0;
+        // Warmer at the higher tilts, with a ripple: a pattern that moves the parameters
+        // at any number of readings.
+        let temperature = |i: usize| {
+            let (position, i) = ((i % 9) as f64, i as f64);
+            25.0 + 0.01 * position + 0.005 * (0.7 * i).sin()
+        };
+        let mean_t = (0..n).map(temperature).sum::<f64>() / n as f64;
         let warm: Vec<Obs> = plain
             .iter()
             .enumerate()

@@ -629,6 +629,69 @@ mod tests {
         assert_eq!(shuffled, [2.0, 3.0, 1.0, 0.0, 1.0]);
     }
 
+    /// The global test's stations summed a task at a time on the pool: the sums of one pass
+    /// over them to rounding, with stations of many observations across the tasks'
+    /// boundaries and of one; and out of station order, the vector's.
+    #[test]
+    fn the_global_test_in_tasks_is_the_one_pass() {
+        let n = 3 * crate::lsq::gh::TASK_ROWS + 1234;
+        let s = crate::lsq::gh::Solution::<3> {
+            p: vec![0.0; 2],
+            q_pp: vec![1.0, 0.0, 0.0, 1.0],
+            v: vec![[0.0; 3]; n],
+            misclosure: (0..n)
+                .map(|i| ((i * 37) % 101) as f64 * 0.02 - 1.0)
+                .collect(),
+            q_ww: (0..n).map(|i| 1.0 + 0.001 * (i % 997) as f64).collect(),
+            q_parts: (0..n)
+                .map(|i| [0.5 + 1e-4 * (i % 13) as f64, 0.5, 0.0])
+                .collect(),
+            redundancy: (0..n).map(|i| 0.6 + 1e-5 * (i % 31) as f64).collect(),
+            w_test: vec![0.0; n],
+            vtpv: 0.0,
+            dof: n - 2,
+            iterations: 1,
+            a: vec![0.0; 2 * n],
+            b: vec![[0.0; 3]; n],
+        };
+        // Stations of 1 to 5000 observations, in order.
+        let mut station = Vec::with_capacity(n);
+        let (mut id, mut left) = (0, 1);
+        for _ in 0..n {
+            if left == 0 {
+                id += 1;
+                left = [1, 7, 5000, 2, 900][id % 5];
+            }
+            station.push(id);
+            left -= 1;
+        }
+        let dof: Vec<Option<f64>> = (0..n).map(|i| (i % 3 == 0).then_some(20.0)).collect();
+        let mut one_pass = BetweenSums::default();
+        each_station(&s, &station, &dof, |x| one_pass.add(x, 1.0));
+        let want = one_pass.test(0.0);
+        let got = lack_of_fit(&s, &station, &dof, 0.0);
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(1.0);
+        assert!(
+            close(got.statistic, want.statistic),
+            "{} {}",
+            got.statistic,
+            want.statistic
+        );
+        assert!(close(got.mean, want.mean), "{} {}", got.mean, want.mean);
+        assert!(close(got.dof, want.dof), "{} {}", got.dof, want.dof);
+        // Out of order: the stations' vector, one pass.
+        station.swap(0, n - 1);
+        let mut vector = BetweenSums::default();
+        stations(&s, &station, &dof)
+            .iter()
+            .for_each(|x| vector.add(x, 1.0));
+        let shuffled = lack_of_fit(&s, &station, &dof, 0.0);
+        assert_eq!(
+            shuffled.statistic.to_bits(),
+            vector.test(0.0).statistic.to_bits()
+        );
+    }
+
     /// A weighted mean of n conditions, each with a theodolite part u0 and an ADC part u1 of
     /// its variance: the parameter's dof is Welch-Satterthwaite's (u0 + u1)^2 / (u0^2 /
     /// nu0 + u1^2 / nu1); a held component counts as known, and with both held there is

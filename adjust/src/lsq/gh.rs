@@ -13,8 +13,10 @@
 //! residuals, `B` and each condition's misclosure and variance; the observations themselves
 //! are the caller's ([`Observations`]). The per-condition passes (linearising, residuals,
 //! redundancy) run on the rayon pool in fixed tasks of [`TASK_ROWS`] rows, their sums taken
-//! in row order; the QR on the calling thread and, for a large problem, one of its own
-//! ([`Linearised::triangle`] says why).
+//! in row order within a task and the tasks' added in their order (the same bits on any
+//! number of cores; a problem of one task has those of a single pass); the QR on the
+//! calling thread and, for a large problem, one of its own ([`Linearised::triangle`] says
+//! why).
 
 use faer::prelude::*;
 use rayon::prelude::{IndexedParallelIterator, ParallelIterator, ParallelSlice, ParallelSliceMut};
