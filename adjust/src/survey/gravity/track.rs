@@ -669,11 +669,15 @@ fn screen(track: &mut Track<'_>, dir: &Path) -> Result<(), GravityError> {
         let at = (k - block.0.start) * WIDTH;
         Ok((track.times[k], std::array::from_fn(|i| block.1[at + i])))
     };
+    // The next three epochs, on the stack.
+    let mut next: [Record; 3] = [(0, [0.0; WIDTH]); 3];
     for k in 0..n {
         let this = record(k, &mut block)?;
-        let ahead: Vec<Record> = (k + 1..(k + 4).min(n))
-            .map(|j| record(j, &mut block))
-            .collect::<Result<_, _>>()?;
+        let count = (k + 4).min(n) - (k + 1);
+        for (slot, j) in next.iter_mut().zip(k + 1..k + 1 + count) {
+            *slot = record(j, &mut block)?;
+        }
+        let ahead = &next[..count];
         let last3 = &history[history.len().saturating_sub(3)..];
         let sigma = |r: &Record| -> [f64; 3] {
             std::array::from_fn(|i| {
@@ -684,7 +688,7 @@ fn screen(track: &mut Track<'_>, dir: &Path) -> Result<(), GravityError> {
             })
         };
         let forward = predict(last3, this.0, interval);
-        let backward = predict(&ahead, this.0, interval);
+        let backward = predict(ahead, this.0, interval);
         let rejects = |p: &Option<([f64; 4], f64)>| {
             p.as_ref()
                 .is_some_and(|(v, gain)| departs(&this.1, v, sigma(&this), *gain))
