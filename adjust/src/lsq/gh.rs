@@ -438,15 +438,16 @@ impl<const K: usize> Linearised<K> {
         // any number of cores.
         let half = (n / 2).div_ceil(QR_BLOCK) * QR_BLOCK;
         let (first, second) = std::thread::scope(|s| {
-            let second = s.spawn(|| self.triangle_of(scale, half..n));
+            let second =
+                std::thread::Builder::new().spawn_scoped(s, || self.triangle_of(scale, half..n));
             let first = self.triangle_of(scale, 0..half);
-            // A panic on the second thread is raised again here, as on this one.
-            (
-                first,
-                second
-                    .join()
-                    .unwrap_or_else(|p| std::panic::resume_unwind(p)),
-            )
+            let second = match second {
+                // A panic on the second thread is raised again here, as on this one.
+                Ok(h) => h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)),
+                // No thread to be had: this one takes the second half too, the same bits.
+                Err(_) => self.triangle_of(scale, half..n),
+            };
+            (first, second)
         });
         let mut qr = Householder::new(2 * cols, cols);
         qr.fill(2 * cols, |j, column| {
