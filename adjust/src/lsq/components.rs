@@ -595,26 +595,38 @@ mod tests {
     use super::*;
     use crate::lsq::correlated::Excess;
 
-    /// Observations that come station by station are summed one station at a time, and give
-    /// the vector's stations, a station index with no observation (3) included as zeros.
-    #[test]
-    fn stations_streamed_are_the_vectors() {
-        let n = 7;
-        let s = crate::lsq::gh::Solution::<3> {
+    /// A two-parameter solution of `n` conditions, condition i's misclosure, q_ww, theodolite
+    /// part of it (the ADC's 0.5) and redundancy `of(i)`; the rest zero.
+    fn with_conditions(
+        n: usize,
+        of: impl Fn(usize) -> (f64, f64, f64, f64),
+    ) -> crate::lsq::gh::Solution<3> {
+        let rows: Vec<_> = (0..n).map(of).collect();
+        crate::lsq::gh::Solution::<3> {
             p: vec![0.0; 2],
             q_pp: vec![1.0, 0.0, 0.0, 1.0],
             v: vec![[0.0; 3]; n],
-            misclosure: (0..n).map(|i| 0.1 * i as f64 - 0.3).collect(),
-            q_ww: (0..n).map(|i| 1.0 + 0.2 * i as f64).collect(),
-            q_parts: (0..n).map(|i| [0.5 + 0.05 * i as f64, 0.5, 0.0]).collect(),
-            redundancy: (0..n).map(|i| 0.6 + 0.03 * i as f64).collect(),
+            misclosure: rows.iter().map(|r| r.0).collect(),
+            q_ww: rows.iter().map(|r| r.1).collect(),
+            q_parts: rows.iter().map(|r| [r.2, 0.5, 0.0]).collect(),
+            redundancy: rows.iter().map(|r| r.3).collect(),
             w_test: vec![0.0; n],
             vtpv: 0.0,
             dof: n - 2,
             iterations: 1,
             a: vec![0.0; 2 * n],
             b: vec![[0.0; 3]; n],
-        };
+        }
+    }
+
+    /// Observations that come station by station are summed one station at a time, and give
+    /// the vector's stations, a station index with no observation (3) included as zeros.
+    #[test]
+    fn stations_streamed_are_the_vectors() {
+        let s = with_conditions(7, |i| {
+            let i = i as f64;
+            (0.1 * i - 0.3, 1.0 + 0.2 * i, 0.5 + 0.05 * i, 0.6 + 0.03 * i)
+        });
         let station = [0, 0, 1, 1, 1, 2, 4];
         let dof = [None, Some(9.0), None, Some(4.0), None, None, Some(30.0)];
         let vector = stations(&s, &station, &dof);
@@ -635,25 +647,14 @@ mod tests {
     #[test]
     fn the_global_test_in_tasks_is_the_one_pass() {
         let n = 3 * crate::lsq::gh::TASK_ROWS + 1234;
-        let s = crate::lsq::gh::Solution::<3> {
-            p: vec![0.0; 2],
-            q_pp: vec![1.0, 0.0, 0.0, 1.0],
-            v: vec![[0.0; 3]; n],
-            misclosure: (0..n)
-                .map(|i| ((i * 37) % 101) as f64 * 0.02 - 1.0)
-                .collect(),
-            q_ww: (0..n).map(|i| 1.0 + 0.001 * (i % 997) as f64).collect(),
-            q_parts: (0..n)
-                .map(|i| [0.5 + 1e-4 * (i % 13) as f64, 0.5, 0.0])
-                .collect(),
-            redundancy: (0..n).map(|i| 0.6 + 1e-5 * (i % 31) as f64).collect(),
-            w_test: vec![0.0; n],
-            vtpv: 0.0,
-            dof: n - 2,
-            iterations: 1,
-            a: vec![0.0; 2 * n],
-            b: vec![[0.0; 3]; n],
-        };
+        let s = with_conditions(n, |i| {
+            (
+                ((i * 37) % 101) as f64 * 0.02 - 1.0,
+                1.0 + 0.001 * (i % 997) as f64,
+                0.5 + 1e-4 * (i % 13) as f64,
+                0.6 + 1e-5 * (i % 31) as f64,
+            )
+        });
         // Stations of 1 to 5000 observations, in order.
         let mut station = Vec::with_capacity(n);
         let (mut id, mut left) = (0, 1);

@@ -568,12 +568,7 @@ fn antennas(
         });
     }
     estimated_positions(&out, &key, err)?;
-    let declared: Vec<Antenna> = out
-        .iter()
-        .filter(|a| a.position_m.is_some())
-        .cloned()
-        .collect();
-    array_geometry(&declared, &key, err)?;
+    array_geometry(&out, &key, err)?;
     Ok(TrajectorySource {
         path: out[0].path.clone(),
         format: out[0].format,
@@ -628,13 +623,17 @@ fn estimated_positions(
     ))
 }
 
-/// An array's geometry checked: two antennas fore and aft, three or more not in a line.
+/// An array's geometry checked on its declared antennas (those to estimate have none yet):
+/// two antennas fore and aft, three or more not in a line.
 fn array_geometry(
     antennas: &[Antenna],
     key: &impl Fn(&str) -> String,
     err: &impl Fn(String, String) -> Error,
 ) -> Result<()> {
-    let p: Vec<[f64; 3]> = antennas.iter().filter_map(|a| a.position_m).collect();
+    let (ids, p): (Vec<&str>, Vec<[f64; 3]>) = antennas
+        .iter()
+        .filter_map(|a| a.position_m.map(|p| (a.id.as_str(), p)))
+        .unzip();
     let d = |a: [f64; 3], b: [f64; 3]| [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     let base = d(p[0], p[1]);
@@ -643,8 +642,8 @@ fn array_geometry(
             key("antenna"),
             format!(
                 "antennas `{}` and `{}` are {:.3} m apart: a baseline needs 0.1 m at least",
-                antennas[0].id,
-                antennas[1].id,
+                ids[0],
+                ids[1],
                 norm(base)
             ),
         ));
@@ -1085,6 +1084,8 @@ fn tie(k: usize, t: &TieDecl, err: &impl Fn(String, String) -> Error) -> Result<
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
     /// `position_m` is three numbers or a word; anything else is refused saying which is
     /// wanted, with its line and column.
     #[test]
@@ -1113,8 +1114,6 @@ mod tests {
             );
         }
     }
-
-    use super::*;
 
     /// A tie at UTC's leap second 23:59:60 lies between 23:59:59 and the next day's
     /// midnight, through the same leap-second-aware path the logs' times take (it was read

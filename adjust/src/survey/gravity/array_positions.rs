@@ -245,18 +245,12 @@ mod tests {
     }
 
     /// The weighted mean of `all` with each sighting's covariance at its own measured lever
-    /// arm: what the estimator would give without weights formed at the mean.
+    /// arm, none screened: what the estimator would give without weights formed at the mean.
     fn plain_mean(all: &[Sighting]) -> [f64; 3] {
-        let mut normal = Mat::<f64>::zeros(3, 3);
-        let mut rhs = Mat::<f64>::zeros(3, 1);
-        for s in all {
-            let (b, cov) = s.seen(None);
-            let w = cov.llt(faer::Side::Lower).expect("positive").inverse();
-            normal += &w;
-            rhs += &w * Mat::<f64>::from_fn(3, 1, |r, _| b[r]);
-        }
-        let x = normal.llt(faer::Side::Lower).expect("positive").inverse() * rhs;
-        [x[(0, 0)], x[(1, 0)], x[(2, 0)]]
+        let every: Vec<usize> = (0..all.len()).collect();
+        Mean::of(all, &every, None, f64::INFINITY)
+            .expect("a mean")
+            .position
     }
 
     /// Long stretches (`GRAVCAL_MONTE_CARLO=1`: four of 100 000 epochs, else one of 25 000),

@@ -24,6 +24,7 @@
 //! | meter_status | uint32, null | a platform meter's status word at the epoch (its lines' within half an epoch interval, or-ed; docs/formats.md 11.1), null where the session's samples carry none |
 
 use super::{DataType, Field, SESSION_INDEX, SchemaRef, TIME_GPS_NS, with_sessions};
+use crate::parquet_io::rowgroup;
 use crate::parquet_io::table::{ColumnTableWriter, ColumnValues, Encodings, Written};
 use std::mem::take;
 use std::path::Path;
@@ -475,13 +476,9 @@ impl Writer {
     }
 }
 
-/// A nullable column of doubles: the values where `valid`, and a definition level per row.
+/// A nullable column of doubles: the values where `valid`, and their definition levels
+/// ([`rowgroup::nullable`]).
 fn nullable(values: Vec<f64>, valid: &[bool]) -> ColumnValues {
-    let levels = valid.iter().map(|v| i16::from(*v)).collect();
-    let kept = values
-        .into_iter()
-        .zip(valid)
-        .filter_map(|(v, ok)| ok.then_some(v))
-        .collect();
-    ColumnValues::Double(kept, Some(levels))
+    let (kept, levels) = rowgroup::nullable(values, valid);
+    ColumnValues::Double(kept, levels)
 }
